@@ -1,0 +1,1 @@
+"""weft: Warp-compatible Python client of the weftd compute daemon."""

@@ -1,0 +1,58 @@
+// The compiler's entry point: ModuleSource -> C++ translation unit + kernel argument layouts.
+// Pipeline (engine/codegen/pipeline.cpp): lang::Parse -> sema::Check -> codegen::Emit.
+// Expects: functions' param_types already resolved by the client (docs/protocol.md).
+// Guarantees: on success the source compiles with only engine/native headers on the include
+// path, under clang (Target::kCpu) and NVRTC (Target::kCuda); every user error is a Diagnostic
+// with the user's file:line, never an abort.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "engine/core/module_source.h"
+#include "engine/core/status.h"
+
+namespace weft {
+
+enum class Target { kCpu, kCuda };
+
+// Where one kernel parameter lives in the packed argument block.
+struct ParamLayout {
+  std::string name;
+  std::string type;       // canonical type string
+  uint32_t offset = 0;    // bytes from the start of the block (or of the enclosing struct)
+  uint32_t size = 0;
+  uint32_t align = 1;
+  bool is_array = false;  // occupies a wp::array_abi_t
+  std::string array_dtype;  // element type string when is_array
+  int array_ndim = 0;
+  std::vector<ParamLayout> fields;  // struct parameters: their fields, offsets relative to it
+};
+
+struct KernelLayout {
+  std::string name;
+  std::vector<ParamLayout> params;
+  uint32_t args_size = 0;
+  uint32_t args_align = 8;
+  std::string forward_symbol;   // e.g. weft_saxpy_cpu_forward
+  std::string backward_symbol;  // empty when backward was not generated
+};
+
+struct GeneratedModule {
+  std::string source;                       // the translation unit
+  std::vector<KernelLayout> kernels;
+  std::vector<std::string> function_names;  // launch_error_t::function_id -> "file.py:kernel"
+};
+
+struct CodegenOptions {
+  Target target = Target::kCpu;
+  bool enable_backward = false;   // emit adjoint entry points
+  bool bounds_checks = true;
+};
+
+// On failure returns InvalidArgument and appends the user-facing diagnostics to *diags.
+Expected<GeneratedModule> GenerateModule(const ModuleSource& module, const CodegenOptions& options,
+                                         std::vector<Diagnostic>* diags);
+
+}  // namespace weft

@@ -1,0 +1,104 @@
+// The binary interface between the runtime (engine/runtime) and generated kernel code.
+// Owns: launch bounds, the launch context (error slot, print buffer), the array layout and the
+// entry-point naming rule. Compiled by clang (CPU JIT), g++ (runtime) and NVRTC: no std headers.
+#pragma once
+
+#if defined(__CUDACC__) || defined(__CUDACC_RTC__)
+#define WP_CALLABLE __host__ __device__
+#else
+#define WP_CALLABLE
+#endif
+
+namespace wp {
+
+typedef signed char int8;
+typedef unsigned char uint8;
+typedef short int16;
+typedef unsigned short uint16;
+typedef int int32;
+typedef unsigned int uint32;
+typedef long long int64;
+typedef unsigned long long uint64;
+typedef float float32;
+typedef double float64;
+
+constexpr int ARRAY_MAX_DIMS = 4;
+
+// Launch grid: wp.tid() of flat index i is unravelled from shape[0..ndim).
+struct launch_bounds_t {
+  int32 ndim;
+  int32 _pad;
+  int64 shape[ARRAY_MAX_DIMS];
+  int64 size;  // product of shape
+};
+
+// Kinds of runtime errors a kernel can report.
+enum launch_error_kind : int32 {
+  LAUNCH_OK = 0,
+  LAUNCH_OUT_OF_BOUNDS = 1,   // array index outside its shape
+  LAUNCH_NULL_ARRAY = 2,      // access to an empty (None) array
+  LAUNCH_EXPECT_FAILED = 3,   // wp.expect_eq and friends
+};
+
+// First error of a launch wins (the writer sets `kind` with an atomic CAS from 0).
+struct launch_error_t {
+  int32 kind;
+  int32 line;            // user source line
+  int32 array_param;     // index of the kernel parameter (array) involved, -1 if none
+  int32 ndim;            // number of indices used
+  int64 index[ARRAY_MAX_DIMS];
+  int64 shape[ARRAY_MAX_DIMS];
+  int32 function_id;     // index into the module's function table (which func/kernel)
+  int32 _pad;
+  char message[128];     // optional text (expect failures)
+};
+
+// Kernel print output; writers reserve space with an atomic add on `used`.
+struct print_buffer_t {
+  char* data;
+  uint64 capacity;
+  uint64 used;
+};
+
+struct launch_context_t {
+  launch_bounds_t bounds;
+  launch_error_t* error;
+  print_buffer_t* print;
+  uint32 flags;          // LAUNCH_FLAG_*
+  uint32 _pad;
+};
+
+constexpr uint32 LAUNCH_FLAG_NO_BOUNDS_CHECK = 1u;
+
+// Arrays as kernels see them (all backends). Strides are in bytes. data == nullptr for None.
+template <typename T>
+struct array_t {
+  T* data;
+  T* grad;
+  int64 shape[ARRAY_MAX_DIMS];
+  int64 strides[ARRAY_MAX_DIMS];
+  int32 ndim;
+  int32 _pad;
+};
+
+// Untyped twin the runtime fills; same layout as every array_t<T>.
+struct array_abi_t {
+  void* data;
+  void* grad;
+  int64 shape[ARRAY_MAX_DIMS];
+  int64 strides[ARRAY_MAX_DIMS];
+  int32 ndim;
+  int32 _pad;
+};
+
+}  // namespace wp
+
+// Entry points of a module (C linkage), per kernel K:
+//   CPU:  void weft_K_cpu_forward(const wp::launch_context_t* ctx, const void* args,
+//                                 wp::int64 begin, wp::int64 end);
+//         runs flat indices [begin, end) of the launch grid.
+//         void weft_K_cpu_backward(const wp::launch_context_t* ctx, const void* args,
+//                                  const void* adj_args, wp::int64 begin, wp::int64 end);
+//   CUDA: extern "C" __global__ void weft_K_cuda_forward(wp::launch_context_t ctx, <args struct> args);
+// `args` points at the packed argument block whose layout the compiler reports per parameter
+// (KernelInfo: offset, size); arrays occupy sizeof(wp::array_abi_t) = 88 bytes, 8-aligned.
