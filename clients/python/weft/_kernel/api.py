@@ -1,0 +1,2 @@
+"""Public names of the kernel API, re-exported by weft/__init__.py."""
+__all__ = []
