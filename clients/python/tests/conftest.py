@@ -1,0 +1,270 @@
+"""Shared pytest fixtures of the weft Python client: real weftd daemons and child clients.
+
+Fixtures (any test under clients/python/tests/, kernels/ included, may use them):
+  weftd      session: a weftd on a Unix socket in a temp dir with a temp --cache-dir; sets
+             WEFT_ADDRESS for this process and its children; stopped with SIGTERM at the end,
+             checking that it exited and left no /dev/shm/weft-<pid>-* files.
+  wp         session: the `weft` module, initialised against `weftd`.
+  tcp_weftd  session: a second weftd listening on TCP 127.0.0.1 with a token file
+             (`.address`, `.token`); this process does not connect to it by default.
+  run_client function: run_client(code, env=None, timeout=60, check=True) runs a Python
+             snippet in a child process (connected to `weftd` unless env overrides
+             WEFT_ADDRESS) and returns the CompletedProcess; check=True asserts exit 0.
+  spawn_client function: like run_client but returns the Popen (stdin/stdout pipes, text);
+             processes still alive at the end of the test are killed.
+The daemon binary is $WEFT_DAEMON, else <repo>/build/bin/weftd; tests are skipped with a
+clear reason when it does not exist.
+"""
+from __future__ import annotations
+
+import glob
+import os
+import secrets
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[3]
+CLIENT_DIR = REPO_ROOT / "clients" / "python"
+DAEMON_START_TIMEOUT_S = 30.0
+DAEMON_STOP_TIMEOUT_S = 15.0
+
+
+def daemon_binary() -> Path:
+    """The weftd the tests run: $WEFT_DAEMON, else <repo>/build/bin/weftd."""
+    return Path(os.environ.get("WEFT_DAEMON", REPO_ROOT / "build" / "bin" / "weftd"))
+
+
+def _free_tcp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _channel_ready(target: str, timeout_s: float) -> bool:
+    import grpc
+
+    channel = grpc.insecure_channel(target)
+    try:
+        grpc.channel_ready_future(channel).result(timeout=timeout_s)
+        return True
+    except grpc.FutureTimeoutError:
+        return False
+    finally:
+        channel.close()
+
+
+class Daemon:
+    """One weftd process started by the tests, with its address, logs and shm checks."""
+
+    def __init__(self, workdir: Path, tcp: bool = False):
+        self.workdir = workdir
+        self.cache_dir = workdir / "cache"
+        self.cache_dir.mkdir(parents=True, exist_ok=True)
+        self.log_path = workdir / "weftd.log"
+        self.token: str | None = None
+        args = [str(daemon_binary())]
+        if tcp:
+            self.port = _free_tcp_port()
+            self.token = secrets.token_hex(16)
+            self.token_file = workdir / "token"
+            self.token_file.write_text(self.token + "\n")
+            os.chmod(self.token_file, 0o600)
+            self.address = f"127.0.0.1:{self.port}"
+            self.grpc_target = self.address
+            args += ["--listen", f"tcp:{self.address}", "--token-file", str(self.token_file)]
+        else:
+            self.socket_path = workdir / "weftd.sock"
+            self.address = f"unix:{self.socket_path}"
+            self.grpc_target = self.address
+            args += ["--listen", self.address]
+        args += ["--cache-dir", str(self.cache_dir), "--log-level", "info"]
+        self.args = args
+        self._log = open(self.log_path, "wb")
+        self.proc = subprocess.Popen(args, stdout=self._log, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL)
+        self.pid = self.proc.pid
+        self._wait_ready()
+
+    def log(self) -> str:
+        try:
+            return self.log_path.read_text(errors="replace")
+        except OSError:
+            return ""
+
+    def _wait_ready(self) -> None:
+        deadline = time.monotonic() + DAEMON_START_TIMEOUT_S
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise RuntimeError(f"weftd exited with {self.proc.returncode} at start "
+                                   f"({' '.join(self.args)}):\n{self.log()}")
+            if _channel_ready(self.grpc_target, 0.5):
+                return
+        self.proc.kill()
+        raise RuntimeError(f"weftd did not answer at {self.address} within "
+                           f"{DAEMON_START_TIMEOUT_S} s:\n{self.log()}")
+
+    def shm_files(self) -> list[str]:
+        """The shared-memory slab files this daemon owns right now (/dev/shm/weft-<pid>-*)."""
+        return sorted(glob.glob(f"/dev/shm/weft-{self.pid}-*"))
+
+    def metadata(self, session_id: str | None = None) -> tuple:
+        md = []
+        if self.token is not None:
+            md.append(("authorization", f"Bearer {self.token}"))
+        if session_id is not None:
+            md.append(("weft-session", session_id))
+        return tuple(md)
+
+    def stats(self):
+        """SessionService.Stats through a short-lived session of its own (StatsResponse)."""
+        import grpc
+        from weft.v1 import session_pb2, session_pb2_grpc
+
+        with grpc.insecure_channel(self.grpc_target) as channel:
+            stub = session_pb2_grpc.SessionServiceStub(channel)
+            opened = stub.Open(session_pb2.OpenSessionRequest(client_name="pytest stats",
+                                                              client_pid=os.getpid()),
+                               metadata=self.metadata(), timeout=10)
+            md = self.metadata(opened.session_id)
+            try:
+                return stub.Stats(session_pb2.StatsRequest(), metadata=md, timeout=10)
+            finally:
+                stub.Close(session_pb2.CloseSessionRequest(session_id=opened.session_id),
+                           metadata=md, timeout=10)
+
+    def stop(self) -> int:
+        """SIGTERM, wait, and return the exit code (kills it if it does not exit in time)."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=DAEMON_STOP_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+                self._log.close()
+                raise AssertionError(f"weftd did not exit within {DAEMON_STOP_TIMEOUT_S} s "
+                                     f"of SIGTERM:\n{self.log()}")
+        self._log.close()
+        return self.proc.returncode
+
+
+def _require_daemon() -> None:
+    if not daemon_binary().exists():
+        pytest.skip(f"weftd not built: {daemon_binary()} (set WEFT_DAEMON or run make build)")
+
+
+def _stop_and_check(daemon: Daemon) -> None:
+    code = daemon.stop()
+    leftovers = daemon.shm_files()
+    assert code == 0, f"weftd exited with {code} after SIGTERM:\n{daemon.log()[-4000:]}"
+    assert not leftovers, f"weftd left shared-memory files after SIGTERM: {leftovers}"
+
+
+@pytest.fixture(scope="session")
+def weftd():
+    """A weftd on a Unix socket; WEFT_ADDRESS points at it for this process and children."""
+    _require_daemon()
+    workdir = Path(tempfile.mkdtemp(prefix="weft-test-"))
+    daemon = Daemon(workdir)
+    old_address = os.environ.get("WEFT_ADDRESS")
+    old_token = os.environ.pop("WEFT_TOKEN", None)
+    os.environ["WEFT_ADDRESS"] = daemon.address
+    try:
+        yield daemon
+    finally:
+        # Close this process's session first so the daemon stops with no client attached.
+        runtime_module = sys.modules.get("weft._runtime")
+        if runtime_module is not None and hasattr(runtime_module, "shutdown"):
+            try:
+                runtime_module.shutdown()
+            except Exception:  # noqa: BLE001 - shutting down; the daemon checks follow
+                pass
+        if old_address is None:
+            os.environ.pop("WEFT_ADDRESS", None)
+        else:
+            os.environ["WEFT_ADDRESS"] = old_address
+        if old_token is not None:
+            os.environ["WEFT_TOKEN"] = old_token
+        _stop_and_check(daemon)
+
+
+@pytest.fixture(scope="session")
+def wp(weftd):
+    """The weft module, initialised against the session's Unix-socket daemon."""
+    import weft
+
+    weft.init()
+    return weft
+
+
+@pytest.fixture(scope="session")
+def tcp_weftd():
+    """A weftd on TCP 127.0.0.1:<free port> requiring a token (`.address`, `.token`)."""
+    _require_daemon()
+    workdir = Path(tempfile.mkdtemp(prefix="weft-test-tcp-"))
+    daemon = Daemon(workdir, tcp=True)
+    try:
+        yield daemon
+    finally:
+        _stop_and_check(daemon)
+
+
+def _child_env(env: dict | None) -> dict:
+    child = dict(os.environ)
+    child["PYTHONPATH"] = os.pathsep.join(
+        [str(CLIENT_DIR)] + ([child["PYTHONPATH"]] if child.get("PYTHONPATH") else []))
+    child["PYTHONUNBUFFERED"] = "1"
+    if env:
+        for key, value in env.items():
+            if value is None:
+                child.pop(key, None)
+            else:
+                child[key] = str(value)
+    return child
+
+
+@pytest.fixture
+def run_client(weftd):
+    """run_client(code, env=None, timeout=60, check=True) -> CompletedProcess of a child."""
+
+    def run(code: str, env: dict | None = None, timeout: float = 60, check: bool = True):
+        proc = subprocess.run([sys.executable, "-c", textwrap.dedent(code)],
+                              env=_child_env(env), capture_output=True, text=True,
+                              timeout=timeout)
+        if check:
+            assert proc.returncode == 0, (f"child client failed ({proc.returncode}):\n"
+                                          f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}")
+        return proc
+
+    return run
+
+
+@pytest.fixture
+def spawn_client(weftd):
+    """spawn_client(code, env=None) -> Popen with text stdin/stdout/stderr pipes."""
+    children: list[subprocess.Popen] = []
+
+    def spawn(code: str, env: dict | None = None) -> subprocess.Popen:
+        proc = subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)],
+                                env=_child_env(env), stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                bufsize=1)
+        children.append(proc)
+        return proc
+
+    yield spawn
+    for proc in children:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
+        for stream in (proc.stdin, proc.stdout, proc.stderr):
+            if stream is not None:
+                stream.close()
