@@ -1,0 +1,2 @@
+// NVRTC wrapper: CUDA C++ source -> PTX/CUBIN (placeholder until the wrapper lands).
+namespace weft::jit {}
