@@ -1,0 +1,731 @@
+"""weft's data types, as Warp names them: scalars, vectors, matrices, quaternions, transforms,
+spatial types, the vector()/matrix() factories, their canonical type strings
+(docs/protocol.md), NumPy conversions, and value -> little-endian bytes for the wire.
+
+Every dtype class carries `_type_str` (canonical string, e.g. "vec(3,float32)"),
+`_wp_scalar_type_` (its scalar dtype class), `_shape_` (element shape, () for scalars),
+`_length_` (number of scalars) and `_np_dtype_` (NumPy dtype of one scalar).
+"""
+from __future__ import annotations
+
+import builtins
+import typing
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "Any", "bool", "float16", "float32", "float64", "int8", "int16", "int32", "int64",
+    "uint8", "uint16", "uint32", "uint64", "half", "float", "int",
+    "scalar_types", "float_types", "int_types", "vector_types",
+    "vector", "matrix", "quaternion", "transformation",
+    "vec2", "vec3", "vec4", "mat22", "mat33", "mat44", "quat", "transform",
+    "spatial_vector", "spatial_matrix",
+    "type_str", "type_size_in_bytes", "type_scalar_type", "type_length", "types_equal",
+    "dtype_to_numpy", "dtype_from_numpy", "value_to_bytes", "is_array", "is_value",
+    "is_vector", "is_matrix", "is_quaternion", "is_transformation", "is_float", "is_int",
+    "scalar_short_name",
+]
+
+# Python's own names, kept before this module shadows `bool`, `float` and `int`.
+_py_bool = builtins.bool
+_py_float = builtins.float
+_py_int = builtins.int
+
+
+# ------------------------------------------------------------------------------------------
+# Scalars
+
+
+class _ScalarMeta(type):
+    def __repr__(cls):
+        return f"<class 'weft.types.{cls.__name__}'>"
+
+
+class _Scalar(metaclass=_ScalarMeta):
+    """Base of the scalar dtype classes; an instance holds one Python value in `.value`."""
+
+    _length_ = 1
+    _shape_ = ()
+    _type_str = ""
+    _np_dtype_ = None
+    _wp_scalar_type_ = None
+    _py_type_ = _py_float
+
+    def __init__(self, x=0):
+        if isinstance(x, _Scalar):
+            x = x.value
+        self.value = self._py_type_(np.asarray(x).astype(self._np_dtype_).item())
+
+    def __float__(self):
+        return _py_float(self.value)
+
+    def __int__(self):
+        return _py_int(self.value)
+
+    def __index__(self):
+        if self._py_type_ is _py_float:
+            raise TypeError(f"{type(self).__name__} cannot be used as an index")
+        return _py_int(self.value)
+
+    def __bool__(self):
+        return _py_bool(self.value)
+
+    def __eq__(self, other):
+        if isinstance(other, _Scalar):
+            other = other.value
+        return self.value == other
+
+    def __hash__(self):
+        return hash(self.value)
+
+    def __repr__(self):
+        return f"{type(self).__name__}({self.value!r})"
+
+    def __str__(self):
+        return str(self.value)
+
+
+def _make_scalar(name: str, np_dtype, py_type):
+    cls = _ScalarMeta(name, (_Scalar,), {
+        "_type_str": name,
+        "_np_dtype_": np.dtype(np_dtype).newbyteorder("<") if np.dtype(np_dtype).itemsize > 1
+        else np.dtype(np_dtype),
+        "_py_type_": py_type,
+        "__module__": __name__,
+        "__qualname__": name,
+        "__doc__": f"weft scalar type {name} (Warp's wp.{name}).",
+    })
+    cls._wp_scalar_type_ = cls
+    return cls
+
+
+bool = _make_scalar("bool", np.bool_, _py_bool)  # noqa: A001 - Warp's name
+int8 = _make_scalar("int8", np.int8, _py_int)
+int16 = _make_scalar("int16", np.int16, _py_int)
+int32 = _make_scalar("int32", np.int32, _py_int)
+int64 = _make_scalar("int64", np.int64, _py_int)
+uint8 = _make_scalar("uint8", np.uint8, _py_int)
+uint16 = _make_scalar("uint16", np.uint16, _py_int)
+uint32 = _make_scalar("uint32", np.uint32, _py_int)
+uint64 = _make_scalar("uint64", np.uint64, _py_int)
+float16 = _make_scalar("float16", np.float16, _py_float)
+float32 = _make_scalar("float32", np.float32, _py_float)
+float64 = _make_scalar("float64", np.float64, _py_float)
+half = float16
+float = float32  # noqa: A001 - Warp's alias for annotations
+int = int32  # noqa: A001
+
+int_types = (int8, uint8, int16, uint16, int32, uint32, int64, uint64)
+float_types = (float16, float32, float64)
+scalar_types = int_types + float_types
+scalar_and_bool_types = scalar_types + (bool,)
+
+_SHORT_NAMES = {float16: "h", float32: "f", float64: "d", int8: "b", uint8: "ub", int16: "s",
+                uint16: "us", int32: "i", uint32: "ui", int64: "l", uint64: "ul"}
+
+
+def scalar_short_name(t) -> str:
+    """Warp's suffix of a scalar type in typed names: float32 -> "f", uint8 -> "ub"."""
+    return _SHORT_NAMES[t]
+
+
+def _canonical_scalar(dtype):
+    """float -> float32, int -> int32, bool -> bool; weft scalar classes pass through."""
+    if dtype is _py_float:
+        return float32
+    if dtype is _py_int:
+        return int32
+    if dtype is _py_bool:
+        return bool
+    if isinstance(dtype, type) and issubclass(dtype, _Scalar):
+        return dtype
+    if isinstance(dtype, (np.dtype, type)) and dtype is not Any:
+        try:
+            return dtype_from_numpy(np.dtype(dtype))
+        except TypeError:
+            pass
+    raise TypeError(f"Invalid scalar type {dtype!r}: expected one of weft's scalar types "
+                    "(float16/32/64, int8..uint64, bool) or Python float/int/bool")
+
+
+# ------------------------------------------------------------------------------------------
+# Vectors and matrices (fixed-size composite values; row-major storage)
+
+
+class _CompositeMeta(type):
+    def __repr__(cls):
+        return f"<class 'weft.types.{cls.__name__}'>"
+
+
+class _Composite(metaclass=_CompositeMeta):
+    """Storage and NumPy behaviour shared by vectors, matrices, quaternions and transforms."""
+
+    _length_ = 0
+    _shape_ = ()
+    _type_str = ""
+    _wp_scalar_type_ = None
+    _np_dtype_ = None
+    __slots__ = ("_data",)
+
+    # -- construction helpers
+    def _set_from_flat(self, values):
+        flat = np.asarray(values, dtype=np.float64 if self._is_float() else None)
+        if flat.size != self._length_:
+            raise ValueError(f"Invalid number of values for {type(self).__name__}: expected "
+                             f"{self._length_}, got {flat.size}")
+        self._data = flat.reshape(self._shape_).astype(self._np_dtype_)
+
+    @classmethod
+    def _is_float(cls):
+        return cls._wp_scalar_type_ in float_types
+
+    @classmethod
+    def _py(cls, x):
+        return _py_float(x) if cls._is_float() else (
+            _py_bool(x) if cls._wp_scalar_type_ is bool else _py_int(x))
+
+    # -- sequence / numpy protocol
+    def __len__(self):
+        return self._shape_[0]
+
+    def __iter__(self):
+        for i in range(self._shape_[0]):
+            yield self[i]
+
+    def __array__(self, dtype=None, copy=None):
+        out = self._data.copy()
+        return out if dtype is None else out.astype(dtype)
+
+    def __eq__(self, other):
+        try:
+            other_arr = np.asarray(other)
+        except Exception:  # noqa: BLE001 - not comparable
+            return NotImplemented
+        if other_arr.shape != self._data.shape:
+            return False
+        return _py_bool(np.all(self._data == other_arr))
+
+    def __ne__(self, other):
+        result = self.__eq__(other)
+        return result if result is NotImplemented else not result
+
+    __hash__ = None
+
+    def __repr__(self):
+        return f"{type(self).__name__}({', '.join(str(self._py(x)) for x in self._data.flat)})"
+
+    def __str__(self):
+        if len(self._shape_) == 1:
+            return "[" + ", ".join(str(self._py(x)) for x in self._data) + "]"
+        rows = ["[" + ", ".join(str(self._py(x)) for x in row) + "]" for row in self._data]
+        return "[" + ",\n ".join(rows) + "]"
+
+    # -- arithmetic (component-wise; `*` with a scalar scales; `@` is the matrix product)
+    def _wrap(self, data):
+        out = type(self).__new__(type(self))
+        out._data = np.asarray(data).astype(self._np_dtype_)
+        return out
+
+    def _coerce(self, other):
+        if isinstance(other, _Composite):
+            if other._shape_ != self._shape_:
+                raise TypeError(f"Incompatible shapes {type(self).__name__} and "
+                                f"{type(other).__name__}")
+            return other._data
+        if isinstance(other, _Scalar):
+            return other.value
+        if isinstance(other, (_py_int, _py_float, _py_bool, np.number)):
+            return other
+        return NotImplemented
+
+    def __add__(self, other):
+        o = self._coerce(other)
+        if o is NotImplemented or not isinstance(other, _Composite):
+            return NotImplemented
+        return self._wrap(self._data + o)
+
+    __radd__ = __add__
+
+    def __sub__(self, other):
+        o = self._coerce(other)
+        if o is NotImplemented or not isinstance(other, _Composite):
+            return NotImplemented
+        return self._wrap(self._data - o)
+
+    def __rsub__(self, other):
+        o = self._coerce(other)
+        if o is NotImplemented or not isinstance(other, _Composite):
+            return NotImplemented
+        return self._wrap(o - self._data)
+
+    def __mul__(self, other):
+        if isinstance(other, _Composite):
+            return self._matmul(other)
+        o = self._coerce(other)
+        if o is NotImplemented:
+            return NotImplemented
+        return self._wrap(self._data * o)
+
+    def __rmul__(self, other):
+        if isinstance(other, _Composite):
+            return other._matmul(self)
+        o = self._coerce(other)
+        if o is NotImplemented:
+            return NotImplemented
+        return self._wrap(o * self._data)
+
+    def __truediv__(self, other):
+        o = self._coerce(other)
+        if o is NotImplemented or isinstance(other, _Composite):
+            return NotImplemented
+        return self._wrap(self._data / o)
+
+    def __rtruediv__(self, other):
+        o = self._coerce(other)
+        if o is NotImplemented or isinstance(other, _Composite):
+            return NotImplemented
+        return self._wrap(o / self._data)
+
+    def __matmul__(self, other):
+        if not isinstance(other, _Composite):
+            return NotImplemented
+        return self._matmul(other)
+
+    def __neg__(self):
+        return self._wrap(-self._data)
+
+    def __pos__(self):
+        return self._wrap(self._data.copy())
+
+    def _matmul(self, other):
+        a, b = self, other
+        if len(a._shape_) == 1 and len(b._shape_) == 1:
+            raise TypeError("use wp.dot / wp.cw_mul for vector-vector products")
+        result = np.matmul(a._data.astype(np.float64) if a._is_float() else a._data,
+                           b._data)
+        if result.ndim == 1:
+            return vector(result.shape[0], a._wp_scalar_type_)(result)
+        return matrix(result.shape, a._wp_scalar_type_)(result)
+
+
+class _Vector(_Composite):
+    """A fixed-length vector value (Warp's vec_t in Python scope)."""
+
+    __slots__ = ()
+
+    def __init__(self, *args):
+        n = len(args)
+        if n == 0:
+            self._data = np.zeros(self._shape_, dtype=self._np_dtype_)
+        elif n == 1:
+            (arg,) = args
+            if hasattr(arg, "__len__") or isinstance(arg, np.ndarray):
+                self._set_from_flat(np.asarray(arg).reshape(-1))
+            else:
+                self._data = np.full(self._shape_, self._py(_scalar_value(arg)),
+                                     dtype=self._np_dtype_)
+        elif n == self._length_:
+            self._set_from_flat([_scalar_value(a) for a in args])
+        else:
+            raise ValueError(f"Invalid number of arguments in vector constructor, expected "
+                             f"{self._length_} elements, got {n}")
+
+    def __getitem__(self, key):
+        if isinstance(key, slice):
+            return [self._py(x) for x in self._data[key]]
+        return self._py(self._data[_index(key, self._length_)])
+
+    def __setitem__(self, key, value):
+        if isinstance(key, slice):
+            self._data[key] = np.asarray(value)
+        else:
+            self._data[_index(key, self._length_)] = _scalar_value(value)
+
+    def __getattr__(self, name):
+        if len(name) == 1 and name in "xyzw" and "xyzw".index(name) < self._length_:
+            return self[("xyzw".index(name))]
+        raise AttributeError(f"'{type(self).__name__}' object has no attribute '{name}'")
+
+    def __setattr__(self, name, value):
+        if len(name) == 1 and name in "xyzw":
+            self[("xyzw".index(name))] = value
+        else:
+            object.__setattr__(self, name, value)
+
+
+class _Matrix(_Composite):
+    """A fixed-shape matrix value, row-major (Warp's mat_t in Python scope)."""
+
+    __slots__ = ()
+
+    def __init__(self, *args):
+        rows, cols = self._shape_
+        n = len(args)
+        if n == 0:
+            self._data = np.zeros(self._shape_, dtype=self._np_dtype_)
+        elif n == 1:
+            (arg,) = args
+            if hasattr(arg, "__len__") or isinstance(arg, np.ndarray):
+                self._set_from_flat(np.asarray(arg).reshape(-1))
+            else:
+                self._data = np.full(self._shape_, self._py(_scalar_value(arg)),
+                                     dtype=self._np_dtype_)
+        elif n == self._length_:
+            self._set_from_flat([_scalar_value(a) for a in args])
+        elif n == rows and all(hasattr(a, "__len__") for a in args):
+            # Python scope builds matrices from row vectors (as Warp does in Python).
+            for row in args:
+                if len(row) != cols:
+                    raise TypeError(f"Invalid argument in matrix constructor, expected row of "
+                                    f"length {cols}, got {row}")
+            self._set_from_flat(np.concatenate([np.asarray(r).reshape(-1) for r in args]))
+        else:
+            raise ValueError(f"Invalid number of arguments in matrix constructor, expected "
+                             f"{self._length_} elements, got {n}")
+
+    def __len__(self):
+        return self._shape_[0]
+
+    def get_row(self, r):
+        return vector(self._shape_[1], self._wp_scalar_type_)(self._data[_index(r, self._shape_[0])])
+
+    def set_row(self, r, v):
+        self._data[_index(r, self._shape_[0])] = np.asarray(v)
+
+    def __getitem__(self, key):
+        if isinstance(key, tuple):
+            if len(key) != 2:
+                raise KeyError(f"Invalid key, expected one or two indices, got {len(key)}")
+            return self._py(self._data[_index(key[0], self._shape_[0]),
+                                       _index(key[1], self._shape_[1])])
+        return self.get_row(key)
+
+    def __setitem__(self, key, value):
+        if isinstance(key, tuple):
+            if len(key) != 2:
+                raise KeyError(f"Invalid key, expected one or two indices, got {len(key)}")
+            self._data[_index(key[0], self._shape_[0]),
+                       _index(key[1], self._shape_[1])] = _scalar_value(value)
+        else:
+            self.set_row(key, value)
+
+
+def _index(key, length):
+    try:
+        i = key.__index__()
+    except AttributeError:
+        raise KeyError(f"Invalid key {key!r}, expected int or slice") from None
+    if i < -length or i >= length:
+        raise IndexError(f"Invalid index {i} for length {length}")
+    return i + length if i < 0 else i
+
+
+def _scalar_value(x):
+    return x.value if isinstance(x, _Scalar) else x
+
+
+_vector_cache: dict = {}
+_matrix_cache: dict = {}
+_quat_cache: dict = {}
+_transform_cache: dict = {}
+
+
+def _composite_class(base, name, shape, dtype, type_string, extra=None):
+    namespace = {
+        "_length_": _py_int(np.prod(shape)),
+        "_shape_": tuple(shape),
+        "_type_str": type_string,
+        "_wp_scalar_type_": dtype,
+        "_np_dtype_": dtype._np_dtype_,
+        "_wp_type_params_": list(shape) + [dtype],
+        "__module__": __name__,
+        "__qualname__": name,
+        "__slots__": (),
+    }
+    namespace.update(extra or {})
+    return _CompositeMeta(name, (base,), namespace)
+
+
+def vector(length, dtype):
+    """The vector type of `length` elements of `dtype` (Warp's wp.types.vector)."""
+    dtype = _canonical_scalar(dtype)
+    length = _py_int(length)
+    if length <= 0:
+        raise ValueError(f"Vector length must be positive, got {length}")
+    key = (length, dtype)
+    cls = _vector_cache.get(key)
+    if cls is None:
+        name = (f"vec{length}{_SHORT_NAMES[dtype]}" if dtype in _SHORT_NAMES
+                else f"vec{length}_{dtype._type_str}")
+        cls = _composite_class(_Vector, name, (length,), dtype,
+                               f"vec({length},{dtype._type_str})")
+        _vector_cache[key] = cls
+    return cls
+
+
+def matrix(shape, dtype):
+    """The matrix type of `shape` (rows, cols) of `dtype` (Warp's wp.types.matrix)."""
+    if len(shape) != 2:
+        raise ValueError(f"Matrix shape must have two dimensions, got {shape}")
+    rows, cols = _py_int(shape[0]), _py_int(shape[1])
+    if rows <= 0 or cols <= 0:
+        raise ValueError(f"Matrix dimensions must be positive, got {shape}")
+    dtype = _canonical_scalar(dtype)
+    key = (rows, cols, dtype)
+    cls = _matrix_cache.get(key)
+    if cls is None:
+        name = (f"mat{rows}{cols}{_SHORT_NAMES[dtype]}" if dtype in _SHORT_NAMES
+                else f"mat{rows}{cols}_{dtype._type_str}")
+        cls = _composite_class(_Matrix, name, (rows, cols), dtype,
+                               f"mat({rows},{cols},{dtype._type_str})")
+        _matrix_cache[key] = cls
+    return cls
+
+
+class _Quaternion(_Vector):
+    """A quaternion (x, y, z, w); defaults to the identity (0, 0, 0, 1)."""
+
+    __slots__ = ()
+
+    def __init__(self, *args):
+        if not args:
+            self._data = np.array([0, 0, 0, 1], dtype=self._np_dtype_)
+        else:
+            super().__init__(*args)
+
+
+def quaternion(dtype=float32):
+    """The quaternion type of `dtype` (Warp's wp.types.quaternion)."""
+    dtype = _canonical_scalar(dtype)
+    cls = _quat_cache.get(dtype)
+    if cls is None:
+        cls = _composite_class(_Quaternion, f"quat{_SHORT_NAMES[dtype]}", (4,), dtype,
+                               f"quat({dtype._type_str})")
+        _quat_cache[dtype] = cls
+    return cls
+
+
+class _Transformation(_Vector):
+    """A rigid transform: translation p (3) then rotation q (4, x y z w)."""
+
+    __slots__ = ()
+
+    def __init__(self, *args, p=None, q=None):
+        if p is not None or q is not None:
+            args = (p if p is not None else (0, 0, 0), q if q is not None else (0, 0, 0, 1))
+        if not args:
+            self._data = np.array([0, 0, 0, 0, 0, 0, 1], dtype=self._np_dtype_)
+        elif len(args) == 2:
+            flat = np.concatenate([np.asarray(args[0], dtype=np.float64).reshape(-1),
+                                   np.asarray(args[1], dtype=np.float64).reshape(-1)])
+            self._set_from_flat(flat)
+        else:
+            super().__init__(*args)
+
+    @property
+    def p(self):
+        return vector(3, self._wp_scalar_type_)(self._data[:3])
+
+    @property
+    def q(self):
+        return quaternion(self._wp_scalar_type_)(self._data[3:])
+
+
+def transformation(dtype=float32):
+    """The transform type of `dtype` (Warp's wp.types.transformation)."""
+    dtype = _canonical_scalar(dtype)
+    cls = _transform_cache.get(dtype)
+    if cls is None:
+        cls = _composite_class(_Transformation, f"transform{_SHORT_NAMES[dtype]}", (7,), dtype,
+                               f"transform({dtype._type_str})")
+        _transform_cache[dtype] = cls
+    return cls
+
+
+# Warp's named types: vec2..vec4 with typed variants, mat22..mat44, quat, transform, spatial.
+_typed = {}
+for _scalar in scalar_types:
+    _s = _SHORT_NAMES[_scalar]
+    for _n in (2, 3, 4):
+        _typed[f"vec{_n}{_s}"] = vector(_n, _scalar)
+        _typed[f"mat{_n}{_n}{_s}"] = matrix((_n, _n), _scalar)
+for _scalar, _s in ((float16, "h"), (float32, "f"), (float64, "d")):
+    _typed[f"quat{_s}"] = quaternion(_scalar)
+    _typed[f"transform{_s}"] = transformation(_scalar)
+    _typed[f"spatial_vector{_s}"] = vector(6, _scalar)
+    _typed[f"spatial_matrix{_s}"] = matrix((6, 6), _scalar)
+globals().update(_typed)
+__all__ += sorted(_typed)
+del _scalar, _s, _n
+
+vec2 = _typed["vec2f"]
+vec3 = _typed["vec3f"]
+vec4 = _typed["vec4f"]
+mat22 = _typed["mat22f"]
+mat33 = _typed["mat33f"]
+mat44 = _typed["mat44f"]
+quat = _typed["quatf"]
+transform = _typed["transformf"]
+spatial_vector = _typed["spatial_vectorf"]
+spatial_matrix = _typed["spatial_matrixf"]
+vector_types = tuple(_typed.values())
+
+
+# ------------------------------------------------------------------------------------------
+# Type queries and type strings
+
+
+def is_vector(t) -> _py_bool:
+    return isinstance(t, type) and issubclass(t, _Vector) and not issubclass(
+        t, (_Quaternion, _Transformation))
+
+
+def is_matrix(t) -> _py_bool:
+    return isinstance(t, type) and issubclass(t, _Matrix)
+
+
+def is_quaternion(t) -> _py_bool:
+    return isinstance(t, type) and issubclass(t, _Quaternion)
+
+
+def is_transformation(t) -> _py_bool:
+    return isinstance(t, type) and issubclass(t, _Transformation)
+
+
+def is_float(t) -> _py_bool:
+    return t in float_types or t is _py_float
+
+
+def is_int(t) -> _py_bool:
+    return t in int_types or t is _py_int
+
+
+def is_value(x) -> _py_bool:
+    """True for Python/NumPy numbers and weft scalar/composite instances."""
+    return isinstance(x, (_py_int, _py_float, _py_bool, np.number, np.bool_, _Scalar, _Composite))
+
+
+def is_array(x) -> _py_bool:
+    from .array import array
+
+    return isinstance(x, array)
+
+
+def is_dtype(t) -> _py_bool:
+    """True for weft scalar and composite dtype classes."""
+    return isinstance(t, type) and issubclass(t, (_Scalar, _Composite))
+
+
+def type_scalar_type(t):
+    """The scalar dtype of a dtype (vec3 -> float32); Python float/int/bool canonicalised."""
+    if is_dtype(t):
+        return t._wp_scalar_type_
+    return _canonical_scalar(t)
+
+
+def type_length(t) -> _py_int:
+    if is_dtype(t):
+        return t._length_
+    return 1
+
+
+def type_size_in_bytes(t) -> _py_int:
+    """Bytes of one element of dtype `t`."""
+    if is_dtype(t):
+        return t._length_ * t._np_dtype_.itemsize
+    if hasattr(t, "_struct_size_"):
+        return t._struct_size_
+    return _canonical_scalar(t)._np_dtype_.itemsize
+
+
+def types_equal(a, b) -> _py_bool:
+    try:
+        return type_str(a) == type_str(b)
+    except TypeError:
+        return a == b
+
+
+def type_str(t) -> str:
+    """The canonical type string of docs/protocol.md: float32, vec(3,float32), array(T,N)..."""
+    if t is Any or t is typing.Any:
+        return "any"
+    if t is _py_float:
+        return "float32"
+    if t is _py_int:
+        return "int32"
+    if t is _py_bool:
+        return "bool"
+    type_string = getattr(t, "_type_str", None)
+    if isinstance(type_string, str) and type_string:
+        return type_string
+    if is_array(t):
+        return f"array({type_str(t.dtype)},{t.ndim})"
+    if isinstance(t, (np.dtype,)) or (isinstance(t, type) and issubclass(t, np.generic)):
+        return dtype_from_numpy(t)._type_str
+    raise TypeError(f"No weft type string for {t!r}")
+
+
+# ------------------------------------------------------------------------------------------
+# NumPy conversions
+
+_NP_TO_WP = {np.dtype(s._np_dtype_).newbyteorder("="): s for s in scalar_and_bool_types}
+
+
+def dtype_to_numpy(warp_dtype):
+    """The NumPy dtype of a weft scalar dtype (Warp's wp.dtype_to_numpy)."""
+    try:
+        scalar = _canonical_scalar(warp_dtype)
+    except TypeError:
+        raise TypeError(f"Cannot convert {warp_dtype} to a NumPy type") from None
+    return np.dtype(scalar._np_dtype_).type
+
+
+def dtype_from_numpy(numpy_dtype):
+    """The weft scalar dtype of a NumPy dtype (Warp's wp.dtype_from_numpy)."""
+    try:
+        key = np.dtype(numpy_dtype).newbyteorder("=")
+    except TypeError:
+        raise TypeError(f"Cannot convert {numpy_dtype} to a Warp type") from None
+    result = _NP_TO_WP.get(key)
+    if result is None:
+        raise TypeError(f"Cannot convert {numpy_dtype} to a Warp type")
+    return result
+
+
+def np_scalar_dtype(t) -> np.dtype:
+    """The little-endian NumPy dtype of one scalar component of weft dtype `t`."""
+    if is_dtype(t):
+        return t._np_dtype_
+    return _canonical_scalar(t)._np_dtype_
+
+
+def value_to_bytes(dtype, value) -> bytes:
+    """One value of weft dtype `dtype` as little-endian bytes (float16 as IEEE half, bool as
+    one byte). Scalars broadcast over vectors/matrices (wp.vec3 fill with 1.0)."""
+    if isinstance(value, _Scalar):
+        value = value.value
+    if not is_dtype(dtype):
+        dtype = _canonical_scalar(dtype)
+    arr = np.asarray(value)
+    if arr.dtype == object:
+        raise TypeError(f"Cannot convert {value!r} to {type_str(dtype)}")
+    shape = dtype._shape_
+    if arr.shape != shape:
+        if arr.size == dtype._length_:
+            arr = arr.reshape(shape)
+        elif arr.size == 1:
+            arr = np.broadcast_to(arr.reshape(()), shape)
+        else:
+            raise ValueError(f"Cannot convert a value of shape {arr.shape} to "
+                             f"{type_str(dtype)} (element shape {shape})")
+    return np.ascontiguousarray(arr, dtype=dtype._np_dtype_).tobytes()
+
+
+def __getattr__(name):
+    # wp.types.array & co. live in weft.array (imported lazily: it imports this module).
+    if name in ("array", "array1d", "array2d", "array3d", "array4d"):
+        from . import array as _array_module
+
+        return getattr(_array_module, name)
+    raise AttributeError(f"module 'weft.types' has no attribute '{name}'")
