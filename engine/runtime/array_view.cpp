@@ -1,0 +1,194 @@
+// ArrayView: range checks and strided elementwise fill/copy.
+#include "engine/runtime/array_view.h"
+
+#include <cstring>
+#include <limits>
+
+namespace weft {
+
+uint64_t ArrayView::element_count() const {
+  uint64_t n = 1;
+  for (int64_t d : shape) n *= static_cast<uint64_t>(d);
+  return n;
+}
+
+bool ArrayView::contiguous() const {
+  return strides == ContiguousStrides(shape, alloc->dtype.ElementSize());
+}
+
+Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& ref,
+                             const std::string& what) {
+  ArrayView v;
+  const uint64_t esize = alloc->dtype.ElementSize();
+  const std::string name = what + " (array " + std::to_string(alloc->handle) + ")";
+  if (ref.shape.empty()) {
+    if (ref.byte_offset != 0 || !ref.strides.empty())
+      return InvalidArgument(name + ": a view with an empty shape means the whole array; give a shape with byte_offset/strides");
+    v.shape = alloc->shape;
+    v.strides = alloc->strides;
+    v.byte_offset = 0;
+    v.alloc = std::move(alloc);
+    return v;
+  }
+  if (ref.shape.size() > kMaxArrayDims)
+    return InvalidArgument(name + ": view has " + std::to_string(ref.shape.size()) +
+                           " dimensions; at most 4");
+  if (!ref.strides.empty() && ref.strides.size() != ref.shape.size())
+    return InvalidArgument(name + ": view has " + std::to_string(ref.shape.size()) +
+                           " dimensions but " + std::to_string(ref.strides.size()) + " strides");
+  for (int64_t d : ref.shape)
+    if (d < 0) return InvalidArgument(name + ": negative extent in view shape " + ShapeString(ref.shape));
+  v.shape = ref.shape;
+  v.strides = ref.strides.empty() ? ContiguousStrides(ref.shape, esize) : ref.strides;
+  v.byte_offset = ref.byte_offset;
+  const uint32_t unit = alloc->dtype.ComponentSize();
+  if (unit > 1) {
+    if (ref.byte_offset % unit)
+      return InvalidArgument(name + ": byte_offset " + std::to_string(ref.byte_offset) +
+                             " is not a multiple of the scalar size " + std::to_string(unit));
+    for (int64_t s : v.strides)
+      if (s % static_cast<int64_t>(unit))
+        return InvalidArgument(name + ": stride " + std::to_string(s) +
+                               " is not a multiple of the scalar size " + std::to_string(unit));
+  }
+  // Lowest and highest byte touched, in 128-bit arithmetic to survive absurd inputs.
+  __int128 lo = static_cast<__int128>(ref.byte_offset), hi = lo;
+  bool empty = false;
+  for (size_t i = 0; i < v.shape.size(); ++i) {
+    if (v.shape[i] == 0) empty = true;
+    __int128 span = static_cast<__int128>(v.shape[i] - 1) * v.strides[i];
+    if (span < 0) lo += span; else hi += span;
+  }
+  const __int128 size = static_cast<__int128>(alloc->byte_size);
+  if (empty) {
+    if (ref.byte_offset > alloc->byte_size)
+      return OutOfRange(name + ": byte_offset " + std::to_string(ref.byte_offset) +
+                        " is past the end of the allocation (" + std::to_string(alloc->byte_size) + " bytes)");
+  } else if (lo < 0 || hi + static_cast<__int128>(esize) > size) {
+    return OutOfRange(name + ": view (offset " + std::to_string(ref.byte_offset) + ", shape " +
+                      ShapeString(v.shape) + ", strides " + ShapeString(v.strides) +
+                      ") reaches outside the allocation of " + std::to_string(alloc->byte_size) +
+                      " bytes (array shape " + ShapeString(alloc->shape) + ")");
+  }
+  v.alloc = std::move(alloc);
+  return v;
+}
+
+namespace {
+
+// Calls fn(byte offset of element) for every element of (shape, strides) in C order.
+template <typename Fn>
+void ForEachElement(const std::vector<int64_t>& shape, const std::vector<int64_t>& strides, Fn&& fn) {
+  const size_t nd = shape.size();
+  for (int64_t d : shape)
+    if (d == 0) return;
+  int64_t idx[kMaxArrayDims] = {0, 0, 0, 0};
+  int64_t off = 0;
+  while (true) {
+    fn(off);
+    size_t k = nd;
+    while (k > 0) {
+      --k;
+      if (++idx[k] < shape[k]) {
+        off += strides[k];
+        break;
+      }
+      off -= strides[k] * (shape[k] - 1);
+      idx[k] = 0;
+      if (k == 0) return;
+    }
+    if (nd == 0) return;
+  }
+}
+
+// Byte offset of the current element of (shape, strides), advanced in C order by Next().
+struct Odometer {
+  const std::vector<int64_t>& shape;
+  const std::vector<int64_t>& strides;
+  int64_t idx[kMaxArrayDims] = {0, 0, 0, 0};
+  int64_t offset = 0;
+  Odometer(const std::vector<int64_t>& sh, const std::vector<int64_t>& st) : shape(sh), strides(st) {}
+  void Next() {
+    for (size_t k = shape.size(); k-- > 0;) {
+      if (++idx[k] < shape[k]) {
+        offset += strides[k];
+        return;
+      }
+      offset -= strides[k] * (shape[k] - 1);
+      idx[k] = 0;
+    }
+  }
+};
+
+}  // namespace
+
+Status FillView(const ArrayView& dst, const std::string& value) {
+  const uint64_t esize = dst.alloc->dtype.ElementSize();
+  if (value.size() != esize)
+    return InvalidArgument("fill: value has " + std::to_string(value.size()) +
+                           " bytes; one element of " + dst.alloc->dtype.Name() + " has " +
+                           std::to_string(esize));
+  char* base = dst.data();
+  const uint64_t n = dst.element_count();
+  if (n == 0) return Status::Ok();
+  if (dst.contiguous()) {
+    bool zero = true;
+    for (char c : value) zero = zero && c == 0;
+    if (zero) {
+      std::memset(base, 0, n * esize);
+      return Status::Ok();
+    }
+    // Doubling memcpy: fill one element, then copy the filled prefix.
+    std::memcpy(base, value.data(), esize);
+    uint64_t done = 1;
+    while (done < n) {
+      uint64_t m = done < n - done ? done : n - done;
+      std::memcpy(base + done * esize, base, m * esize);
+      done += m;
+    }
+    return Status::Ok();
+  }
+  ForEachElement(dst.shape, dst.strides, [&](int64_t off) { std::memcpy(base + off, value.data(), esize); });
+  return Status::Ok();
+}
+
+Status CopyView(const ArrayView& dst, const ArrayView& src) {
+  const uint64_t esize = dst.alloc->dtype.ElementSize();
+  if (src.alloc->dtype.ElementSize() != esize || src.alloc->dtype.Name() != dst.alloc->dtype.Name())
+    return InvalidArgument("copy: element types differ (dst " + dst.alloc->dtype.Name() + ", src " +
+                           src.alloc->dtype.Name() + ")");
+  if (src.element_count() != dst.element_count())
+    return InvalidArgument("copy: dst has " + std::to_string(dst.element_count()) + " elements " +
+                           ShapeString(dst.shape) + ", src has " + std::to_string(src.element_count()) +
+                           " " + ShapeString(src.shape));
+  const uint64_t n = dst.element_count();
+  if (n == 0) return Status::Ok();
+  if (dst.contiguous() && src.contiguous()) {
+    std::memmove(dst.data(), src.data(), n * esize);
+    return Status::Ok();
+  }
+  // Walk both views in C order with one odometer each. When they share an allocation (they may
+  // overlap), gather the source into a contiguous temporary first.
+  std::vector<char> tmp;
+  const char* sbase = src.data();
+  std::vector<int64_t> sshape = src.shape, sstrides = src.strides;
+  if (src.alloc == dst.alloc) {
+    tmp.resize(n * esize);
+    uint64_t j = 0;
+    ForEachElement(src.shape, src.strides, [&](int64_t off) {
+      std::memcpy(tmp.data() + (j++) * esize, sbase + off, esize);
+    });
+    sbase = tmp.data();
+    sshape = {static_cast<int64_t>(n)};
+    sstrides = {static_cast<int64_t>(esize)};
+  }
+  Odometer so(sshape, sstrides);
+  char* dbase = dst.data();
+  ForEachElement(dst.shape, dst.strides, [&](int64_t off) {
+    std::memcpy(dbase + off, sbase + so.offset, esize);
+    so.Next();
+  });
+  return Status::Ok();
+}
+
+}  // namespace weft

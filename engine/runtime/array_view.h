@@ -1,0 +1,50 @@
+// Views of allocations (engine twin of weft.v1.ArrayRef): byte offset, shape and byte strides.
+// Owns the check that every element of a view lies inside its allocation, and elementwise
+// fill/copy over strided views.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/core/status.h"
+#include "engine/runtime/allocation.h"
+
+namespace weft {
+
+constexpr int kMaxArrayDims = 4;
+
+// As a client names an array in a command. Empty shape = the whole allocation (byte_offset must
+// then be 0); empty strides = C-contiguous for the shape.
+struct ArrayRef {
+  uint64_t handle = 0;
+  uint64_t byte_offset = 0;
+  std::vector<int64_t> shape;
+  std::vector<int64_t> strides;
+};
+
+// A checked view: the allocation it points into and the resolved shape/strides.
+struct ArrayView {
+  std::shared_ptr<Allocation> alloc;
+  uint64_t byte_offset = 0;
+  std::vector<int64_t> shape;
+  std::vector<int64_t> strides;
+
+  uint64_t element_count() const;
+  char* data() const { return alloc->data() + byte_offset; }
+  bool contiguous() const;
+};
+
+// Resolves `ref` against `alloc` and checks it: 1..4 dimensions, non-negative extents, offset
+// and strides aligned to the element's scalar size, every element inside the allocation.
+// `what` names the view in messages ("dst", "argument 'a'").
+Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& ref,
+                             const std::string& what);
+
+// Sets every element of `dst` to `value` (one element's bytes).
+Status FillView(const ArrayView& dst, const std::string& value);
+// Copies src to dst elementwise in C order; same element size and element count required.
+Status CopyView(const ArrayView& dst, const ArrayView& src);
+
+}  // namespace weft

@@ -1,0 +1,29 @@
+// The devices a daemon can see: the CPU (model from /proc/cpuinfo, memory from sysinfo, pool
+// threads) and CUDA GPUs through the driver loaded with dlopen("libcuda.so.1") when present.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace weft {
+
+struct DeviceInfo {
+  std::string name;          // "cpu", "cuda:0"
+  std::string kind;          // "cpu" or "cuda"
+  std::string description;   // CPU model / GPU product name
+  uint64_t total_memory = 0;
+  uint64_t free_memory = 0;
+  int32_t compute_capability_major = 0;
+  int32_t compute_capability_minor = 0;
+  int32_t cores = 0;         // CPU pool threads / GPU SMs
+};
+
+// The CPU device; `pool_threads` is reported as cores.
+DeviceInfo QueryCpuDevice(int pool_threads);
+// Every CUDA device the driver reports; empty when there is no driver or no GPU.
+std::vector<DeviceInfo> QueryCudaDevices();
+// Physical memory + swap, bytes (the absurd-size bound for allocations).
+uint64_t PhysicalMemoryAndSwap();
+
+}  // namespace weft

@@ -1,0 +1,55 @@
+// SerialQueue: a worker thread draining an ordered task queue.
+#include "engine/runtime/serial_queue.h"
+
+namespace weft {
+
+SerialQueue::SerialQueue() : thread_([this] { Loop(); }) {}
+
+SerialQueue::~SerialQueue() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+}
+
+void SerialQueue::Post(std::function<void()> task) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    tasks_.push_back(std::move(task));
+  }
+  cv_.notify_one();
+}
+
+void SerialQueue::WaitIdle() {
+  std::unique_lock<std::mutex> lock(mu_);
+  idle_cv_.wait(lock, [&] { return tasks_.empty() && !running_task_; });
+}
+
+uint64_t SerialQueue::pending() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return tasks_.size() + (running_task_ ? 1 : 0);
+}
+
+void SerialQueue::Loop() {
+  std::unique_lock<std::mutex> lock(mu_);
+  while (true) {
+    cv_.wait(lock, [&] { return stop_ || !tasks_.empty(); });
+    if (tasks_.empty()) {
+      if (stop_) return;
+      continue;
+    }
+    auto task = std::move(tasks_.front());
+    tasks_.pop_front();
+    running_task_ = true;
+    lock.unlock();
+    task();
+    task = nullptr;   // release captured references outside the lock
+    lock.lock();
+    running_task_ = false;
+    if (tasks_.empty()) idle_cv_.notify_all();
+  }
+}
+
+}  // namespace weft

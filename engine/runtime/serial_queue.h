@@ -1,0 +1,36 @@
+// A session's executor: one thread that runs posted tasks in order. WaitIdle blocks until every
+// task posted before it has finished.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <thread>
+
+namespace weft {
+
+class SerialQueue {
+ public:
+  SerialQueue();
+  ~SerialQueue();   // runs what is queued, then stops
+  SerialQueue(const SerialQueue&) = delete;
+  SerialQueue& operator=(const SerialQueue&) = delete;
+
+  void Post(std::function<void()> task);
+  void WaitIdle();
+  uint64_t pending() const;
+
+ private:
+  void Loop();
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::condition_variable idle_cv_;
+  std::deque<std::function<void()>> tasks_;
+  bool running_task_ = false;
+  bool stop_ = false;
+  std::thread thread_;
+};
+
+}  // namespace weft

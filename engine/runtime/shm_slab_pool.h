@@ -1,0 +1,77 @@
+// CPU memory: shared-memory slabs (shm_open, mode 0600, names /weft-<pid>-<n>, never reused)
+// sub-allocated first-fit with coalescing. Big requests get a slab of their own; a slab that
+// becomes empty is unmapped and unlinked. Thread-safe.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "engine/core/status.h"
+
+namespace weft {
+
+struct ShmSlabPoolOptions {
+  std::string name_prefix;                 // "/weft-<pid>-" when empty
+  uint64_t slab_size = 64ull << 20;        // regular slab size
+  uint64_t alignment = 256;                // of every block (power of two)
+  uint64_t dedicated_threshold = 16ull << 20;  // requests above this get their own slab
+};
+
+struct ShmSlabPoolStats {
+  uint32_t slabs = 0;
+  uint64_t slab_bytes = 0;
+  uint64_t blocks = 0;
+  uint64_t block_bytes = 0;   // allocated bytes (rounded to the alignment)
+};
+
+class ShmSlabPool {
+ public:
+  // One sub-allocation. `data` stays valid until Free.
+  struct Block {
+    uint64_t slab_id = 0;
+    std::string slab_name;
+    uint64_t slab_size = 0;
+    uint64_t offset = 0;
+    uint64_t size = 0;        // rounded size
+    void* data = nullptr;
+  };
+
+  explicit ShmSlabPool(ShmSlabPoolOptions options = {});
+  ~ShmSlabPool();   // unmaps and unlinks every slab
+  ShmSlabPool(const ShmSlabPool&) = delete;
+  ShmSlabPool& operator=(const ShmSlabPool&) = delete;
+
+  // Allocates `bytes` (0 allowed: gets one alignment unit). Contents are unspecified.
+  Expected<Block> Allocate(uint64_t bytes);
+  void Free(const Block& block);
+  ShmSlabPoolStats stats() const;
+
+  // Unlinks /dev/shm/weft-<pid>-* left by daemons that are no longer running. Returns how many.
+  static int RemoveStaleSlabs(const std::string& dir = "/dev/shm");
+
+ private:
+  struct Slab {
+    uint64_t id = 0;
+    std::string name;
+    uint64_t size = 0;
+    char* base = nullptr;
+    bool dedicated = false;
+    uint64_t used = 0;
+    std::map<uint64_t, uint64_t> free_ranges;  // offset -> size, non-adjacent
+  };
+  Expected<Slab*> NewSlabLocked(uint64_t size, bool dedicated);
+  void DestroySlabLocked(uint64_t id);
+
+  ShmSlabPoolOptions options_;
+  mutable std::mutex mu_;
+  std::map<uint64_t, std::unique_ptr<Slab>> slabs_;  // by id, creation order
+  uint64_t next_slab_id_ = 0;
+  uint64_t blocks_ = 0;
+  uint64_t block_bytes_ = 0;
+};
+
+}  // namespace weft
