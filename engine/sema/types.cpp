@@ -1,0 +1,372 @@
+// Type strings (parse/print), C++ spellings and argument-block layout of kernel types.
+#include "engine/sema/types.h"
+
+#include <cctype>
+
+namespace weft::sema {
+namespace {
+
+struct ScalarRow {
+  ScalarKind kind;
+  const char* name;
+  int size;
+};
+constexpr ScalarRow kScalars[] = {
+    {ScalarKind::kBool, "bool", 1},       {ScalarKind::kInt8, "int8", 1},
+    {ScalarKind::kInt16, "int16", 2},     {ScalarKind::kInt32, "int32", 4},
+    {ScalarKind::kInt64, "int64", 8},     {ScalarKind::kUInt8, "uint8", 1},
+    {ScalarKind::kUInt16, "uint16", 2},   {ScalarKind::kUInt32, "uint32", 4},
+    {ScalarKind::kUInt64, "uint64", 8},   {ScalarKind::kFloat16, "float16", 2},
+    {ScalarKind::kFloat32, "float32", 4}, {ScalarKind::kFloat64, "float64", 8},
+};
+
+// Recursive-descent reader over a type string.
+class TypeReader {
+ public:
+  explicit TypeReader(std::string_view s) : s_(s) {}
+
+  Expected<Type> ReadAll() {
+    auto t = Read();
+    if (!t.ok()) return t;
+    if (pos_ != s_.size()) return Error("unexpected text");
+    return t;
+  }
+
+ private:
+  Status Error(const std::string& what) const {
+    return InvalidArgument("bad type string '" + std::string(s_) + "': " + what + " at offset " +
+                           std::to_string(pos_));
+  }
+  void SkipSpace() {
+    while (pos_ < s_.size() && s_[pos_] == ' ') ++pos_;
+  }
+  std::string Ident() {
+    SkipSpace();
+    size_t b = pos_;
+    while (pos_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[pos_])) || s_[pos_] == '_' ||
+                                s_[pos_] == '.'))
+      ++pos_;
+    return std::string(s_.substr(b, pos_ - b));
+  }
+  bool Eat(char c) {
+    SkipSpace();
+    if (pos_ < s_.size() && s_[pos_] == c) {
+      ++pos_;
+      return true;
+    }
+    return false;
+  }
+  Expected<int> Int() {
+    SkipSpace();
+    size_t b = pos_;
+    while (pos_ < s_.size() && std::isdigit(static_cast<unsigned char>(s_[pos_]))) ++pos_;
+    if (b == pos_ || pos_ - b > 6) return Error("expected a small integer");
+    return std::stoi(std::string(s_.substr(b, pos_ - b)));
+  }
+  Expected<ScalarKind> Scalar() {
+    std::string id = Ident();
+    ScalarKind k;
+    if (!ParseScalarName(id, &k)) return Error("expected a scalar type, got '" + id + "'");
+    return k;
+  }
+
+  Expected<Type> Read() {
+    std::string id = Ident();
+    if (id.empty()) return Error("expected a type");
+    ScalarKind sk;
+    if (ParseScalarName(id, &sk)) return Type::Scalar(sk);
+    if (id == "any") return Type::Any();
+    if (id == "void" || id == "None") return Type::Void();
+    if (id == "vec") {
+      if (!Eat('(')) return Error("expected '('");
+      WEFT_ASSIGN_OR_RETURN(int n, Int());
+      if (!Eat(',')) return Error("expected ','");
+      WEFT_ASSIGN_OR_RETURN(ScalarKind s, Scalar());
+      if (!Eat(')')) return Error("expected ')'");
+      if (n < 1 || n > 1024) return Error("vector length out of range");
+      return Type::Vector(n, s);
+    }
+    if (id == "mat") {
+      if (!Eat('(')) return Error("expected '('");
+      WEFT_ASSIGN_OR_RETURN(int r, Int());
+      if (!Eat(',')) return Error("expected ','");
+      WEFT_ASSIGN_OR_RETURN(int c, Int());
+      if (!Eat(',')) return Error("expected ','");
+      WEFT_ASSIGN_OR_RETURN(ScalarKind s, Scalar());
+      if (!Eat(')')) return Error("expected ')'");
+      if (r < 1 || c < 1 || r > 64 || c > 64) return Error("matrix shape out of range");
+      return Type::Matrix(r, c, s);
+    }
+    if (id == "quat" || id == "transform" || id == "spatial_vector" || id == "spatial_matrix") {
+      ScalarKind s = ScalarKind::kFloat32;
+      if (Eat('(')) {
+        WEFT_ASSIGN_OR_RETURN(s, Scalar());
+        if (!Eat(')')) return Error("expected ')'");
+      }
+      if (id == "quat") return Type::Quat(s);
+      if (id == "transform") return Type::Transform(s);
+      if (id == "spatial_vector") return Type::Vector(6, s);
+      return Type::Matrix(6, 6, s);
+    }
+    if (id == "array") {
+      if (!Eat('(')) return Error("expected '('");
+      WEFT_ASSIGN_OR_RETURN(Type elem, Read());
+      int ndim = 1;
+      if (Eat(',')) {
+        WEFT_ASSIGN_OR_RETURN(ndim, Int());
+      }
+      if (!Eat(')')) return Error("expected ')'");
+      if (ndim < 1 || ndim > 4) return Error("arrays have 1 to 4 dimensions");
+      if (elem.is_array() || elem.is_void() || elem.is_tuple()) return Error("bad array element type");
+      return Type::Array(std::move(elem), ndim);
+    }
+    if (id == "struct") {
+      if (!Eat('(')) return Error("expected '('");
+      std::string name = Ident();
+      if (name.empty()) return Error("expected a struct name");
+      if (!Eat(')')) return Error("expected ')'");
+      return Type::Struct(name);
+    }
+    if (id == "tuple") {
+      if (!Eat('(')) return Error("expected '('");
+      std::vector<Type> elems;
+      if (!Eat(')')) {
+        do {
+          WEFT_ASSIGN_OR_RETURN(Type e, Read());
+          elems.push_back(std::move(e));
+        } while (Eat(','));
+        if (!Eat(')')) return Error("expected ')'");
+      }
+      return Type::Tuple(std::move(elems));
+    }
+    Type alias;
+    if (WarpAlias(id, &alias)) return alias;
+    return Error("unknown type '" + id + "'");
+  }
+
+  // Warp's short names: vec3, vec3d, vec2i, mat33, quatf, transformd, spatial_vectorf, ...
+  static bool WarpAlias(const std::string& id, Type* out) {
+    auto suffix = [](std::string_view s, ScalarKind* k) {
+      if (s.empty() || s == "f") *k = ScalarKind::kFloat32;
+      else if (s == "d") *k = ScalarKind::kFloat64;
+      else if (s == "h") *k = ScalarKind::kFloat16;
+      else if (s == "i") *k = ScalarKind::kInt32;
+      else if (s == "ui") *k = ScalarKind::kUInt32;
+      else if (s == "b") *k = ScalarKind::kInt8;
+      else if (s == "ub") *k = ScalarKind::kUInt8;
+      else if (s == "s") *k = ScalarKind::kInt16;
+      else if (s == "us") *k = ScalarKind::kUInt16;
+      else if (s == "l") *k = ScalarKind::kInt64;
+      else if (s == "ul") *k = ScalarKind::kUInt64;
+      else return false;
+      return true;
+    };
+    std::string_view v(id);
+    ScalarKind k;
+    if (v == "float") { *out = Type::Float32(); return true; }
+    if (v == "int") { *out = Type::Int32(); return true; }
+    if (v == "half") { *out = Type::Scalar(ScalarKind::kFloat16); return true; }
+    if (v.size() >= 4 && v.substr(0, 3) == "vec" && std::isdigit(static_cast<unsigned char>(v[3]))) {
+      if (suffix(v.substr(4), &k)) { *out = Type::Vector(v[3] - '0', k); return true; }
+    }
+    if (v.size() >= 5 && v.substr(0, 3) == "mat" && std::isdigit(static_cast<unsigned char>(v[3])) &&
+        std::isdigit(static_cast<unsigned char>(v[4]))) {
+      if (suffix(v.substr(5), &k)) { *out = Type::Matrix(v[3] - '0', v[4] - '0', k); return true; }
+    }
+    if (v.substr(0, 4) == "quat" && suffix(v.substr(4), &k) && IsFloat(k)) { *out = Type::Quat(k); return true; }
+    if (v.substr(0, 9) == "transform" && suffix(v.substr(9), &k) && IsFloat(k)) {
+      *out = Type::Transform(k);
+      return true;
+    }
+    if (v.substr(0, 14) == "spatial_vector" && suffix(v.substr(14), &k) && IsFloat(k)) {
+      *out = Type::Vector(6, k);
+      return true;
+    }
+    if (v.substr(0, 14) == "spatial_matrix" && suffix(v.substr(14), &k) && IsFloat(k)) {
+      *out = Type::Matrix(6, 6, k);
+      return true;
+    }
+    return false;
+  }
+
+  std::string_view s_;
+  size_t pos_ = 0;
+};
+
+uint32_t RoundUp(uint32_t v, uint32_t a) { return (v + a - 1) / a * a; }
+
+}  // namespace
+
+int Type::component_count() const {
+  switch (kind) {
+    case TypeKind::kScalar: return 1;
+    case TypeKind::kVector: return rows;
+    case TypeKind::kMatrix: return rows * cols;
+    case TypeKind::kQuat: return 4;
+    case TypeKind::kTransform: return 7;
+    default: return 0;
+  }
+}
+
+bool Type::operator==(const Type& o) const {
+  if (kind != o.kind) return false;
+  switch (kind) {
+    case TypeKind::kVoid:
+    case TypeKind::kAny:
+    case TypeKind::kString: return true;
+    case TypeKind::kScalar:
+    case TypeKind::kQuat:
+    case TypeKind::kTransform: return scalar == o.scalar;
+    case TypeKind::kVector: return scalar == o.scalar && rows == o.rows;
+    case TypeKind::kMatrix: return scalar == o.scalar && rows == o.rows && cols == o.cols;
+    case TypeKind::kArray: return ndim == o.ndim && sub == o.sub;
+    case TypeKind::kStruct: return struct_name == o.struct_name;
+    case TypeKind::kTuple: return sub == o.sub;
+  }
+  return false;
+}
+
+bool Type::operator<(const Type& o) const { return TypeString(*this) < TypeString(o); }
+
+bool IsFloat(ScalarKind s) {
+  return s == ScalarKind::kFloat16 || s == ScalarKind::kFloat32 || s == ScalarKind::kFloat64;
+}
+bool IsInt(ScalarKind s) { return !IsFloat(s) && s != ScalarKind::kBool; }
+bool IsSigned(ScalarKind s) {
+  return s == ScalarKind::kInt8 || s == ScalarKind::kInt16 || s == ScalarKind::kInt32 ||
+         s == ScalarKind::kInt64 || IsFloat(s);
+}
+int ScalarSize(ScalarKind s) {
+  for (const auto& r : kScalars)
+    if (r.kind == s) return r.size;
+  return 0;
+}
+const char* ScalarName(ScalarKind s) {
+  for (const auto& r : kScalars)
+    if (r.kind == s) return r.name;
+  return "?";
+}
+bool ParseScalarName(std::string_view name, ScalarKind* out) {
+  for (const auto& r : kScalars) {
+    if (name == r.name) {
+      *out = r.kind;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool ContainsAny(const Type& t) {
+  if (t.is_any()) return true;
+  for (const auto& s : t.sub)
+    if (ContainsAny(s)) return true;
+  return false;
+}
+
+bool IsDifferentiable(const Type& t) {
+  switch (t.kind) {
+    case TypeKind::kScalar:
+    case TypeKind::kVector:
+    case TypeKind::kMatrix:
+    case TypeKind::kQuat:
+    case TypeKind::kTransform: return IsFloat(t.scalar);
+    case TypeKind::kStruct: return true;
+    case TypeKind::kTuple:
+      for (const auto& s : t.sub)
+        if (IsDifferentiable(s)) return true;
+      return false;
+    default: return false;
+  }
+}
+
+std::string TypeString(const Type& t) {
+  switch (t.kind) {
+    case TypeKind::kVoid: return "void";
+    case TypeKind::kAny: return "any";
+    case TypeKind::kString: return "str";
+    case TypeKind::kScalar: return ScalarName(t.scalar);
+    case TypeKind::kVector: return "vec(" + std::to_string(t.rows) + "," + ScalarName(t.scalar) + ")";
+    case TypeKind::kMatrix:
+      return "mat(" + std::to_string(t.rows) + "," + std::to_string(t.cols) + "," + ScalarName(t.scalar) + ")";
+    case TypeKind::kQuat: return std::string("quat(") + ScalarName(t.scalar) + ")";
+    case TypeKind::kTransform: return std::string("transform(") + ScalarName(t.scalar) + ")";
+    case TypeKind::kArray: return "array(" + TypeString(t.elem()) + "," + std::to_string(t.ndim) + ")";
+    case TypeKind::kStruct: return "struct(" + t.struct_name + ")";
+    case TypeKind::kTuple: {
+      std::string s = "tuple(";
+      for (size_t i = 0; i < t.sub.size(); ++i) s += (i ? "," : "") + TypeString(t.sub[i]);
+      return s + ")";
+    }
+  }
+  return "?";
+}
+
+Expected<Type> ParseType(std::string_view text) { return TypeReader(text).ReadAll(); }
+
+const StructField* StructInfo::Find(std::string_view field, int* index) const {
+  for (size_t i = 0; i < fields.size(); ++i) {
+    if (fields[i].name == field) {
+      if (index) *index = static_cast<int>(i);
+      return &fields[i];
+    }
+  }
+  return nullptr;
+}
+
+std::string StructCppName(std::string_view canonical) {
+  std::string out = "weft_struct_";
+  for (char c : canonical) out += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  return out;
+}
+
+std::string CppType(const Type& t) {
+  switch (t.kind) {
+    case TypeKind::kVoid: return "void";
+    case TypeKind::kAny: return "/*any*/void";
+    case TypeKind::kString: return "const char*";
+    case TypeKind::kScalar:
+      return t.scalar == ScalarKind::kBool ? "bool" : std::string("wp::") + ScalarName(t.scalar);
+    case TypeKind::kVector: return "wp::vec_t<" + std::to_string(t.rows) + ",wp::" + ScalarName(t.scalar) + ">";
+    case TypeKind::kMatrix:
+      return "wp::mat_t<" + std::to_string(t.rows) + "," + std::to_string(t.cols) + ",wp::" +
+             ScalarName(t.scalar) + ">";
+    case TypeKind::kQuat: return std::string("wp::quat_t<wp::") + ScalarName(t.scalar) + ">";
+    case TypeKind::kTransform: return std::string("wp::transform_t<wp::") + ScalarName(t.scalar) + ">";
+    case TypeKind::kArray: return "wp::array_t<" + CppType(t.elem()) + ">";
+    case TypeKind::kStruct: return StructCppName(t.struct_name);
+    case TypeKind::kTuple: return "/*tuple*/void";
+  }
+  return "void";
+}
+
+Expected<TypeLayout> LayoutOf(const Type& t, const StructTable& structs) {
+  switch (t.kind) {
+    case TypeKind::kScalar: {
+      uint32_t s = static_cast<uint32_t>(ScalarSize(t.scalar));
+      return TypeLayout{s, s};
+    }
+    case TypeKind::kVector:
+    case TypeKind::kMatrix:
+    case TypeKind::kQuat:
+    case TypeKind::kTransform: {
+      uint32_t s = static_cast<uint32_t>(ScalarSize(t.scalar));
+      return TypeLayout{s * static_cast<uint32_t>(t.component_count()), s};
+    }
+    case TypeKind::kArray: return TypeLayout{88, 8};
+    case TypeKind::kStruct: {
+      auto it = structs.find(t.struct_name);
+      if (it == structs.end()) return InvalidArgument("unknown struct '" + t.struct_name + "'");
+      uint32_t off = 0, align = 1;
+      for (const auto& f : it->second.fields) {
+        WEFT_ASSIGN_OR_RETURN(TypeLayout fl, LayoutOf(f.type, structs));
+        off = RoundUp(off, fl.align) + fl.size;
+        if (fl.align > align) align = fl.align;
+      }
+      if (it->second.fields.empty()) off = 1;  // C++: an empty struct has size 1
+      return TypeLayout{RoundUp(off, align), align};
+    }
+    default: return InvalidArgument("type " + TypeString(t) + " cannot be a kernel argument");
+  }
+}
+
+}  // namespace weft::sema

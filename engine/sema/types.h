@@ -1,0 +1,142 @@
+// The kernel language's value types: scalars, vec, mat, quat, transform, array(T, ndim),
+// struct, any, void, tuple (multiple returns) and string (printf formats).
+// Owns: canonical type strings (docs/protocol.md) both ways, the C++ spelling of each type
+// in generated code, and size/alignment for the kernel argument layout.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "engine/core/status.h"
+
+namespace weft::sema {
+
+enum class ScalarKind : uint8_t {
+  kBool,
+  kInt8,
+  kInt16,
+  kInt32,
+  kInt64,
+  kUInt8,
+  kUInt16,
+  kUInt32,
+  kUInt64,
+  kFloat16,
+  kFloat32,
+  kFloat64,
+};
+
+enum class TypeKind : uint8_t {
+  kVoid,
+  kScalar,
+  kVector,     // rows = length
+  kMatrix,     // rows x cols
+  kQuat,
+  kTransform,
+  kArray,      // sub[0] = element type, ndim
+  kStruct,     // struct_name (canonical)
+  kAny,        // typing.Any in generic funcs; never reaches codegen
+  kTuple,      // sub = element types (multiple return values)
+  kString,     // a string literal (printf format); not a storable value
+};
+
+struct Type {
+  TypeKind kind = TypeKind::kVoid;
+  ScalarKind scalar = ScalarKind::kFloat32;  // scalar, or the element scalar of vec/mat/quat/transform
+  int rows = 0;
+  int cols = 0;
+  int ndim = 0;
+  std::vector<Type> sub;
+  std::string struct_name;
+
+  static Type Void() { return {}; }
+  static Type Any() { Type t; t.kind = TypeKind::kAny; return t; }
+  static Type String() { Type t; t.kind = TypeKind::kString; return t; }
+  static Type Scalar(ScalarKind s) { Type t; t.kind = TypeKind::kScalar; t.scalar = s; return t; }
+  static Type Bool() { return Scalar(ScalarKind::kBool); }
+  static Type Int32() { return Scalar(ScalarKind::kInt32); }
+  static Type Float32() { return Scalar(ScalarKind::kFloat32); }
+  static Type Vector(int n, ScalarKind s) { Type t = Scalar(s); t.kind = TypeKind::kVector; t.rows = n; return t; }
+  static Type Matrix(int r, int c, ScalarKind s) {
+    Type t = Scalar(s); t.kind = TypeKind::kMatrix; t.rows = r; t.cols = c; return t;
+  }
+  static Type Quat(ScalarKind s) { Type t = Scalar(s); t.kind = TypeKind::kQuat; return t; }
+  static Type Transform(ScalarKind s) { Type t = Scalar(s); t.kind = TypeKind::kTransform; return t; }
+  static Type Array(Type elem, int ndim) {
+    Type t; t.kind = TypeKind::kArray; t.ndim = ndim; t.sub.push_back(std::move(elem)); return t;
+  }
+  static Type Struct(std::string name) { Type t; t.kind = TypeKind::kStruct; t.struct_name = std::move(name); return t; }
+  static Type Tuple(std::vector<Type> elems) { Type t; t.kind = TypeKind::kTuple; t.sub = std::move(elems); return t; }
+
+  bool is_void() const { return kind == TypeKind::kVoid; }
+  bool is_scalar() const { return kind == TypeKind::kScalar; }
+  bool is_array() const { return kind == TypeKind::kArray; }
+  bool is_struct() const { return kind == TypeKind::kStruct; }
+  bool is_vector() const { return kind == TypeKind::kVector; }
+  bool is_matrix() const { return kind == TypeKind::kMatrix; }
+  bool is_tuple() const { return kind == TypeKind::kTuple; }
+  bool is_any() const { return kind == TypeKind::kAny; }
+  // vec, mat, quat, transform: fixed-size aggregates of one scalar type
+  bool is_composite() const {
+    return kind == TypeKind::kVector || kind == TypeKind::kMatrix || kind == TypeKind::kQuat ||
+           kind == TypeKind::kTransform;
+  }
+  const Type& elem() const { return sub.at(0); }  // array element type
+  // Number of scalar components of a composite (vec N, mat R*C, quat 4, transform 7).
+  int component_count() const;
+
+  bool operator==(const Type& o) const;
+  bool operator!=(const Type& o) const { return !(*this == o); }
+  bool operator<(const Type& o) const;  // for maps; compares canonical strings
+};
+
+bool IsFloat(ScalarKind s);
+bool IsInt(ScalarKind s);      // signed or unsigned integer, not bool
+bool IsSigned(ScalarKind s);
+int ScalarSize(ScalarKind s);  // bytes
+const char* ScalarName(ScalarKind s);  // canonical: "float32"
+bool ParseScalarName(std::string_view name, ScalarKind* out);
+
+// Does `t` or anything inside it contain `any` (a generic to instantiate)?
+bool ContainsAny(const Type& t);
+// Float scalars and aggregates of floats, and structs (through their float fields): values
+// whose adjoints carry gradient.
+bool IsDifferentiable(const Type& t);
+
+// Canonical string (docs/protocol.md), e.g. "array(vec(3,float32),1)".
+std::string TypeString(const Type& t);
+// Parses a canonical type string. Accepts the aliases spatial_vector(S) / spatial_matrix(S)
+// and Warp's short names (vec3, vec3d, mat33, quatf, transformd, float, int, ...).
+Expected<Type> ParseType(std::string_view text);
+
+// A struct's definition with its types resolved.
+struct StructField {
+  std::string name;
+  Type type;
+};
+struct StructInfo {
+  std::string name;      // canonical, "mymod.Particle"
+  std::string cpp_name;  // identifier in generated code
+  std::vector<StructField> fields;
+  const StructField* Find(std::string_view field, int* index = nullptr) const;
+};
+using StructTable = std::map<std::string, StructInfo>;
+
+// Identifier of a struct in generated code: "weft_struct_mymod_Particle".
+std::string StructCppName(std::string_view canonical);
+
+// C++ spelling in generated code: wp::float32, wp::vec_t<3,wp::float32>, wp::array_t<...>.
+std::string CppType(const Type& t);
+
+struct TypeLayout {
+  uint32_t size = 0;
+  uint32_t align = 1;
+};
+// Size and alignment as the generated C++ lays the value out (arrays = wp::array_abi_t:
+// 88 bytes, 8-aligned; structs: fields in declaration order at their natural alignment).
+Expected<TypeLayout> LayoutOf(const Type& t, const StructTable& structs);
+
+}  // namespace weft::sema
