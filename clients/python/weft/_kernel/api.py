@@ -1,2 +1,173 @@
-"""Public names of the kernel API, re-exported by weft/__init__.py."""
-__all__ = []
+"""Public names of the kernel API, re-exported by weft/__init__.py: the decorators
+(@kernel, @func, @struct, overload), constant, launch, compile/load_module, Tape and the
+module options."""
+from __future__ import annotations
+
+import inspect
+import sys
+import types
+import typing
+
+from . import module as module_mod
+from . import typestr
+from .errors import WeftCompileError, WeftLaunchError
+from .functions import Function, FunctionDefinition, Kernel
+from .launch import launch
+from .structs import StructInstance, StructType, struct
+from .tape import Tape
+
+__all__ = [
+    "Function",
+    "Kernel",
+    "Tape",
+    "WeftCompileError",
+    "WeftLaunchError",
+    "compile",
+    "constant",
+    "func",
+    "get_module",
+    "get_module_options",
+    "kernel",
+    "launch",
+    "load_module",
+    "overload",
+    "set_module_options",
+    "struct",
+]
+
+
+def kernel(f=None, *, enable_backward: typing.Optional[bool] = None, module=None, **options):
+    """@wp.kernel or @wp.kernel(enable_backward=..., module="unique"|name): declares a kernel
+    of its Python module (or of the named module)."""
+
+    def wrap(function):
+        definition = FunctionDefinition(function, is_kernel=True)
+        opts = dict(options)
+        if enable_backward is not None:
+            opts["enable_backward"] = bool(enable_backward)
+        module_name = definition.module
+        if module == "unique":
+            opts["module"] = "unique"
+        elif isinstance(module, str) and module:
+            module_name = module
+        elif isinstance(module, types.ModuleType):
+            module_name = module.__name__
+        k = Kernel(definition, module_name, opts)
+        module_mod.register_kernel(k)
+        return k
+
+    if f is not None:
+        return wrap(f)
+    return wrap
+
+
+def func(f=None, **_options):
+    """@wp.func: a function callable from kernels; defining the same name again with other
+    annotation types adds an overload; typing.Any parameters make it generic."""
+
+    def wrap(function):
+        return module_mod.register_function(FunctionDefinition(function, is_kernel=False))
+
+    if f is not None:
+        return wrap(f)
+    return wrap
+
+
+def overload(target, arg_types=None):
+    """wp.overload: Warp's explicit instantiation of a generic kernel or func. The daemon
+    instantiates generics per argument types, so this records the concrete signature as an
+    overload when given a def with annotations, and otherwise returns the target."""
+    if isinstance(target, (Function, Kernel)):
+        return target
+    if callable(target):
+        # decorator form on a def whose name is an existing generic @wp.func: add it
+        definition = FunctionDefinition(target, is_kernel=False)
+        existing = module_mod.get_module(definition.module).functions.get(definition.qualname)
+        if existing is not None:
+            existing.add_overload(definition)
+            module_mod.bump_version()
+            return existing
+        return module_mod.register_function(definition)
+    raise TypeError(f"wp.overload expects a @wp.func or @wp.kernel, got {target!r}")
+
+
+def constant(x):
+    """wp.constant: marks a value usable in kernels (scalars, vectors, matrices, ...)."""
+    if typestr.constant_type_of(x) is None:
+        raise TypeError(f"wp.constant: {type(x).__name__} values cannot be kernel constants "
+                        f"(use a scalar, vector, matrix, quaternion or transform)")
+    return x
+
+
+def _device_of(device) -> str:
+    from .launch import device_name  # noqa: PLC0415
+
+    return device_name(device)
+
+
+def _caller_module_name(depth: int = 2) -> str:
+    frame = sys._getframe(depth)
+    return frame.f_globals.get("__name__", "__main__")
+
+
+def compile(target=None, device=None, backward: bool = False):  # noqa: A001 - Warp-style name
+    """Compiles a kernel, a Python module (object or name) or, with no target, the caller's
+    module, ahead of time on device. Raises WeftCompileError with the daemon's diagnostics.
+    Returns the CompiledModule of the last kernel compiled (module_id, cache_hit, ...)."""
+    dev = _device_of(device)
+    if isinstance(target, Kernel):
+        return module_mod.compile_kernel(target, dev, backward)[0]
+    if target is None:
+        name = _caller_module_name()
+    elif isinstance(target, types.ModuleType):
+        name = target.__name__
+    elif isinstance(target, str):
+        name = target
+    elif isinstance(target, module_mod.Module):
+        name = target.name
+    else:
+        raise TypeError(f"wp.compile expects a kernel, a module or a module name, got "
+                        f"{target!r}")
+    result = None
+    kernels = module_mod.kernels_of(name)
+    for k in kernels:
+        result = module_mod.compile_kernel(k, dev, backward)[0]
+    return result
+
+
+def load_module(module=None, device=None, recursive: bool = False):
+    """Warp's wp.load_module: compiles the kernels of a module for device now."""
+    if module is None:
+        module = _caller_module_name()
+    names = [module if isinstance(module, str) else getattr(module, "__name__", str(module))]
+    if recursive:
+        prefix = names[0] + "."
+        names += [n for n in module_mod.modules() if n.startswith(prefix)]
+    result = None
+    for name in names:
+        result = compile(name, device=device)
+    return result
+
+
+def get_module(name=None) -> module_mod.Module:
+    if name is None:
+        name = _caller_module_name()
+    if isinstance(name, types.ModuleType):
+        name = name.__name__
+    return module_mod.get_module(name)
+
+
+def set_module_options(options: dict, module=None) -> None:
+    if module is None:
+        module = _caller_module_name()
+    module_mod.set_module_options(options, module)
+
+
+def get_module_options(module=None) -> dict:
+    if module is None:
+        module = _caller_module_name()
+    return module_mod.get_module_options(module)
+
+
+# keep names used only by re-exporters visible to linters
+_ = (StructInstance, StructType, inspect)

@@ -1,0 +1,186 @@
+"""@wp.kernel and @wp.func: capturing a Python function's source, file and line and its
+resolved parameter types; @wp.func overloads (by annotation types) and generic funcs."""
+from __future__ import annotations
+
+import ast
+import inspect
+import re
+import textwrap
+import typing
+
+from . import typestr
+from .errors import WeftCompileError
+from .structs import canonical_name
+
+
+class FunctionDefinition:
+    """One Python def as the daemon sees it: source without decorators, file, def line,
+    parameter names and type strings, and the environment its global names resolve in."""
+
+    def __init__(self, func, is_kernel: bool):
+        self.func = func
+        self.is_kernel = is_kernel
+        self.name = func.__name__
+        self.module = func.__module__
+        self.qualname = func.__qualname__
+        try:
+            lines, start = inspect.getsourcelines(func)
+        except (OSError, TypeError) as err:
+            raise WeftCompileError(f"weft cannot read the source of {self.qualname}: {err} "
+                                   f"(kernels must be defined in a file)") from err
+        self.file = inspect.getsourcefile(func) or inspect.getfile(func)
+        text = textwrap.dedent("".join(lines))
+        tree = ast.parse(text)
+        fdef = next(n for n in tree.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)))
+        def_index = fdef.lineno - 1          # decorators come before the def line
+        self.first_line = start + def_index
+        body_lines = text.splitlines(keepends=True)[def_index:]
+        self.source = textwrap.dedent("".join(body_lines))
+        self.last_line = self.first_line + len(body_lines) - 1
+        self.tree = next(n for n in ast.parse(self.source).body
+                         if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)))
+        self.param_names = [a.arg for a in self.tree.args.args]
+        hints = self._annotations()
+        self.annotations = {}
+        self.param_types = []
+        for name in self.param_names:
+            if name not in hints:
+                raise WeftCompileError(
+                    f"{self.file}:{self.first_line}: error: parameter '{name}' of "
+                    f"'{self.name}' needs a type annotation")
+            ann = hints[name]
+            self.annotations[name] = ann
+            try:
+                self.param_types.append(typestr.type_string(ann))
+            except TypeError as err:
+                raise WeftCompileError(
+                    f"{self.file}:{self.first_line}: error: parameter '{name}' of "
+                    f"'{self.name}': {err}") from err
+        self.return_type = ""
+        if "return" in hints and hints["return"] is not None and not is_kernel:
+            ret = hints["return"]
+            if ret is not type(None):
+                try:
+                    self.return_type = _return_type_string(ret)
+                except TypeError:
+                    self.return_type = ""
+        self.key = canonical_name(self.module, self.qualname)
+
+    def _annotations(self) -> dict:
+        """The evaluated annotations; string annotations (PEP 563) are evaluated in the
+        function's globals and closure, so kernels inside functions may use local types."""
+        raw = dict(getattr(self.func, "__annotations__", {}))
+        if not any(isinstance(v, str) for v in raw.values()):
+            return raw
+        scope = dict(self.func.__globals__)
+        scope.update(self.environment())
+        hints = {}
+        for name, value in raw.items():
+            if isinstance(value, str):
+                try:
+                    value = eval(value, scope)  # noqa: S307 - the user's own annotation text
+                except Exception as err:  # noqa: BLE001
+                    raise WeftCompileError(
+                        f"{self.file}:{self.first_line}: error: cannot evaluate the annotation "
+                        f"{value!r} of '{name}' in '{self.name}': {err}") from err
+            hints[name] = value
+        return hints
+
+    @property
+    def is_generic(self) -> bool:
+        return any("any" in t for t in self.param_types)
+
+    def environment(self) -> dict:
+        """Closure variables over globals: where the body's free names resolve."""
+        env = {}
+        code = getattr(self.func, "__code__", None)
+        closure = getattr(self.func, "__closure__", None)
+        if code is not None and closure:
+            for name, cell in zip(code.co_freevars, closure):
+                try:
+                    env[name] = cell.cell_contents
+                except ValueError:       # cell not filled yet
+                    pass
+        return env
+
+
+def _return_type_string(ret) -> str:
+    origin = getattr(ret, "__origin__", None)
+    if origin is tuple:
+        return "tuple(" + ",".join(typestr.type_string(a) for a in ret.__args__) + ")"
+    return typestr.type_string(ret)
+
+
+def sanitize_key(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.]", "_", text)
+
+
+class Function:
+    """What @wp.func returns: one name with one or more overloads (by annotation types)."""
+
+    def __init__(self, definition: FunctionDefinition):
+        self.__name__ = definition.name
+        self.__qualname__ = definition.qualname
+        self.__module__ = definition.module
+        self.__doc__ = definition.func.__doc__
+        self.key = definition.key
+        self.module = definition.module
+        self.overloads: list = []
+        self.add_overload(definition)
+
+    def add_overload(self, definition: FunctionDefinition) -> None:
+        for i, existing in enumerate(self.overloads):
+            if existing.param_types == definition.param_types:
+                self.overloads[i] = definition     # redefinition replaces, as in Warp
+                break
+        else:
+            self.overloads.append(definition)
+        # overloads of one name differ by key: name plus their parameter types
+        if len(self.overloads) == 1:
+            self.overloads[0].key = self.key
+        else:
+            for d in self.overloads:
+                d.key = sanitize_key(self.key + "__" + "_".join(d.param_types))
+
+    def __call__(self, *args, **kwargs):
+        # Warp lets a few funcs run in Python scope; weft kernels run only in the daemon.
+        raise RuntimeError(f"@wp.func {self.key} can only be called from a kernel or another "
+                           f"@wp.func (weft runs kernels in the daemon)")
+
+    def __repr__(self):
+        return f"<weft func {self.key} ({len(self.overloads)} overload(s))>"
+
+
+class Kernel:
+    """What @wp.kernel returns: a launchable kernel of one Python module."""
+
+    def __init__(self, definition: FunctionDefinition, module_name: str, options: dict):
+        self.definition = definition
+        self.func = definition.func
+        self.key = definition.key
+        self.__name__ = definition.name
+        self.__qualname__ = definition.qualname
+        self.__module__ = definition.module
+        self.__doc__ = definition.func.__doc__
+        self.module_name = module_name
+        self.options = dict(options)
+        self.broken = False        # set when its own compile failed: left out of other builds
+        self._compiled: dict = {}  # (runtime, device, backward) -> (version, CompiledModule, KernelInfo)
+
+    @property
+    def name(self) -> str:
+        return self.definition.name
+
+    @property
+    def param_names(self) -> list:
+        return self.definition.param_names
+
+    @property
+    def param_types(self) -> list:
+        return self.definition.param_types
+
+    def __call__(self, *args, **kwargs):
+        raise RuntimeError(f"kernel {self.key} cannot be called directly: use wp.launch")
+
+    def __repr__(self):
+        return f"<weft kernel {self.key}>"

@@ -1,0 +1,298 @@
+"""wp.launch: checks the arguments against the kernel's parameter types, packs them into
+ArgValues (raw bytes, ArrayRef, StructValue), compiles the module lazily for the device and
+appends a LaunchCommand to the session's batch. NumPy arrays and lists passed for array
+parameters are copied into temporary daemon arrays and copied back after the launch."""
+from __future__ import annotations
+
+import os
+import sys
+import typing
+
+import numpy as np
+
+from . import module as module_mod
+from . import typestr
+from .errors import WeftLaunchError
+from .functions import Kernel
+from .structs import StructInstance, StructType
+
+_PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def is_weft_array(value) -> bool:
+    return hasattr(value, "_ref") and hasattr(value, "_handle")
+
+
+def device_name(device) -> str:
+    """"cpu", "cuda:0", ... of a device given as a string, a weft Device or None (current)."""
+    if device is None:
+        try:
+            import weft  # noqa: PLC0415
+
+            device = weft.get_device()
+        except Exception:  # noqa: BLE001 - no device API: the CPU
+            return "cpu"
+    if isinstance(device, str):
+        return device
+    for attr in ("alias", "name"):
+        value = getattr(device, attr, None)
+        if isinstance(value, str) and value:
+            return value
+    return str(device)
+
+
+def caller_origin():
+    """SourceLocation of the first frame outside the weft package (the user's launch line)."""
+    from weft.v1 import types_pb2  # noqa: PLC0415
+
+    frame = sys._getframe(1)
+    while frame is not None:
+        filename = os.path.abspath(frame.f_code.co_filename)
+        if not filename.startswith(_PACKAGE_DIR + os.sep):
+            return types_pb2.SourceLocation(file=frame.f_code.co_filename, line=frame.f_lineno)
+        frame = frame.f_back
+    return types_pb2.SourceLocation()
+
+
+def normalize_dim(dim) -> list:
+    if isinstance(dim, (int, np.integer)):
+        dims = [int(dim)]
+    else:
+        try:
+            dims = [int(d) for d in dim]
+        except TypeError as err:
+            raise WeftLaunchError(f"launch dim must be an int or a tuple of ints, got {dim!r}") \
+                from err
+    if not 1 <= len(dims) <= 4:
+        raise WeftLaunchError(f"launch dim must have 1 to 4 dimensions, got {len(dims)}")
+    if any(d < 0 for d in dims):
+        raise WeftLaunchError(f"launch dim must not be negative, got {tuple(dims)}")
+    return dims
+
+
+class _PendingCopyBack:
+    """A NumPy array the launch wrote through a temporary daemon array."""
+
+    def __init__(self, target: np.ndarray, temp):
+        self.target = target
+        self.temp = temp
+
+    def apply(self) -> None:
+        data = np.asarray(self.temp.numpy())
+        np.copyto(self.target, data.reshape(self.target.shape).astype(self.target.dtype,
+                                                                      copy=False))
+
+
+class ArgPacker:
+    """Packs launch arguments for one kernel and device; keeps temporaries alive."""
+
+    def __init__(self, kernel: Kernel, device: str):
+        self.kernel = kernel
+        self.device = device
+        self.copy_backs: list = []
+        self.temps: list = []          # temporary daemon arrays (kept until the launch is done)
+        self.resolved: list = []       # the argument objects as launched (temps substituted)
+
+    def _fail(self, name: str, message: str):
+        raise WeftLaunchError(f"Invalid argument '{name}' for kernel '{self.kernel.key}': "
+                              f"{message}")
+
+    def pack(self, name: str, type_text: str, annotation, value):
+        from weft.v1 import exec_pb2  # noqa: PLC0415
+
+        desc = typestr.parse(type_text)
+        if desc.kind == "array":
+            ref, resolved = self._array_ref(name, desc, annotation, value)
+            return exec_pb2.ArgValue(array=ref), resolved
+        if desc.kind == "struct":
+            if not isinstance(value, StructInstance) or value._struct_type.key != desc.struct_name:
+                self._fail(name, f"expected an instance of struct {desc.struct_name}, got "
+                                 f"{type(value).__name__}")
+            return exec_pb2.ArgValue(struct_value=self._struct_value(value)), value
+        if desc.kind == "any":
+            self._fail(name, "kernels cannot take typing.Any parameters; use wp.overload or "
+                             "concrete annotations")
+        if is_weft_array(value) or isinstance(value, (np.ndarray, list)) and desc.kind == "scalar":
+            self._fail(name, f"expected a value of type {type_text}, got {type(value).__name__}")
+        try:
+            return exec_pb2.ArgValue(raw=typestr.pack_value(desc, value)), value
+        except (TypeError, ValueError, OverflowError) as err:
+            self._fail(name, str(err))
+
+    def _struct_value(self, instance: StructInstance):
+        from weft.v1 import exec_pb2  # noqa: PLC0415
+
+        fields = []
+        st: StructType = instance._struct_type
+        for field in st.fields:
+            value = instance._values[field.name]
+            arg, _ = self.pack(f"{st.key}.{field.name}", field.type_str, field.annotation, value)
+            fields.append(arg)
+        return exec_pb2.StructValue(fields=fields)
+
+    def _array_ref(self, name: str, desc, annotation, value):
+        from weft.v1 import types_pb2  # noqa: PLC0415
+
+        if value is None:
+            return types_pb2.ArrayRef(handle=0), None
+        if not is_weft_array(value):
+            if isinstance(value, (np.ndarray, list, tuple)) or hasattr(value, "__array__"):
+                value = self._temporary(name, desc, annotation, value)
+            else:
+                self._fail(name, f"expected an array of {desc.elem.text} with {desc.ndim} "
+                                 f"dimension(s), got {type(value).__name__}")
+        try:
+            got = typestr.type_string(value.dtype)
+        except TypeError:
+            got = str(value.dtype)
+        if desc.elem.kind != "any" and got != desc.elem.text:
+            self._fail(name, f"expected an array of dtype {desc.elem.text}, got an array of "
+                             f"dtype {got}")
+        if int(value.ndim) != desc.ndim:
+            self._fail(name, f"expected an array with {desc.ndim} dimension(s), got "
+                             f"{value.ndim}")
+        array_device = device_name(getattr(value, "device", self.device))
+        if array_device != self.device and not (self.device == "cuda" and
+                                                array_device.startswith("cuda")):
+            self._fail(name, f"array is on device {array_device} but the kernel is launched "
+                             f"on {self.device}")
+        return value._ref(), value
+
+    def _temporary(self, name: str, desc, annotation, value):
+        import weft  # noqa: PLC0415
+
+        if not self.device.startswith("cpu"):
+            self._fail(name, f"NumPy arrays and lists are accepted for CPU launches only "
+                             f"(launch device {self.device}); use wp.array(..., device=...)")
+        dtype = _element_dtype(annotation)
+        if dtype is None or dtype is typing.Any:
+            source = np.asarray(value)
+            dtype = weft.dtype_from_numpy(source.dtype)
+        try:
+            temp = weft.array(value, dtype=dtype, device=self.device)
+        except Exception as err:  # noqa: BLE001 - report as an argument error
+            self._fail(name, f"cannot convert {type(value).__name__} to an array of "
+                             f"{desc.elem.text}: {err}")
+        self.temps.append(temp)
+        if isinstance(value, np.ndarray) and value.flags.writeable:
+            self.copy_backs.append(_PendingCopyBack(value, temp))
+        return temp
+
+
+def _element_dtype(annotation):
+    dtype = getattr(annotation, "dtype", None)
+    if dtype is not None:
+        return dtype
+    args = getattr(annotation, "__args__", None)
+    if args:
+        return args[0]
+    return None
+
+
+def pack_arguments(kernel: Kernel, device: str, args: list):
+    """(ArgValues, ArgPacker) for args against kernel's params; raises WeftLaunchError."""
+    params = kernel.param_names
+    if len(args) != len(params):
+        raise WeftLaunchError(f"Invalid number of arguments for kernel '{kernel.key}': expected "
+                              f"{len(params)} ({', '.join(params)}), got {len(args)}")
+    packer = ArgPacker(kernel, device)
+    packed = []
+    for name, type_text, value in zip(params, kernel.param_types, args):
+        annotation = kernel.definition.annotations[name]
+        arg, resolved = packer.pack(name, type_text, annotation, value)
+        packed.append(arg)
+        packer.resolved.append(resolved)
+    return packed, packer
+
+
+def adjoint_arguments(kernel: Kernel, device: str, args: list, adj_args: list):
+    """ArgValues of the adjoint arguments: arrays -> the given array (or the arg's .grad),
+    values -> the given adjoint value (zero by default), structs -> adjoint structs."""
+    from weft.v1 import exec_pb2, types_pb2  # noqa: PLC0415
+
+    packed = []
+    for i, (name, type_text) in enumerate(zip(kernel.param_names, kernel.param_types)):
+        desc = typestr.parse(type_text)
+        given = adj_args[i] if i < len(adj_args) else None
+        value = args[i]
+        if desc.kind == "array":
+            target = given if is_weft_array(given) else (
+                getattr(value, "grad", None) if is_weft_array(value) else None)
+            packed.append(exec_pb2.ArgValue(array=target._ref() if target is not None
+                                            else types_pb2.ArrayRef(handle=0)))
+        elif desc.kind == "struct":
+            packed.append(exec_pb2.ArgValue(struct_value=_adjoint_struct(
+                value, given if isinstance(given, StructInstance) else None)))
+        else:
+            if given is None or is_weft_array(given):
+                packed.append(exec_pb2.ArgValue(raw=bytes(desc.byte_size)))
+            else:
+                packed.append(exec_pb2.ArgValue(raw=typestr.pack_value(desc, given)))
+    return packed
+
+
+def _adjoint_struct(value: typing.Optional[StructInstance], given: typing.Optional[StructInstance]):
+    from weft.v1 import exec_pb2, types_pb2  # noqa: PLC0415
+
+    fields = []
+    st = value._struct_type if value is not None else given._struct_type
+    for field in st.fields:
+        desc = field.desc
+        v = value._values.get(field.name) if value is not None else None
+        g = given._values.get(field.name) if given is not None else None
+        if desc.kind == "array":
+            target = g if is_weft_array(g) else (getattr(v, "grad", None) if is_weft_array(v)
+                                                 else None)
+            fields.append(exec_pb2.ArgValue(array=target._ref() if target is not None
+                                            else types_pb2.ArrayRef(handle=0)))
+        elif desc.kind == "struct":
+            fields.append(exec_pb2.ArgValue(struct_value=_adjoint_struct(v, g)))
+        else:
+            raw = typestr.pack_value(desc, g) if g is not None else bytes(desc.byte_size)
+            fields.append(exec_pb2.ArgValue(raw=raw))
+    return exec_pb2.StructValue(fields=fields)
+
+
+def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), device=None,
+           stream=None, adjoint=False, record_tape=True, record_cmd=False, max_blocks=0,
+           block_dim=256):
+    """wp.launch: runs kernel over dim (an int or a tuple of up to 4 ints) on device."""
+    from weft import _runtime  # noqa: PLC0415
+    from weft.v1 import exec_pb2  # noqa: PLC0415
+
+    from . import tape as tape_mod  # noqa: PLC0415
+
+    if not isinstance(kernel, Kernel):
+        raise WeftLaunchError(f"wp.launch expects a @wp.kernel, got {type(kernel).__name__}")
+    dims = normalize_dim(dim)
+    args = list(inputs or []) + list(outputs or [])
+    if device is None:
+        first_array = next((a for a in args if is_weft_array(a)), None)
+        device = device_name(first_array.device if first_array is not None else None)
+    else:
+        device = device_name(device)
+    packed, packer = pack_arguments(kernel, device, args)
+    adj_packed = []
+    if adjoint:
+        adj_args = list(adj_inputs or []) + list(adj_outputs or [])
+        adj_packed = adjoint_arguments(kernel, device, packer.resolved, adj_args)
+    compiled, _info = module_mod.compile_kernel(kernel, device, backward=bool(adjoint))
+    if int(np.prod(dims)) == 0:
+        return None
+    rt = _runtime.get_runtime()
+    command = exec_pb2.Command(
+        launch=exec_pb2.LaunchCommand(module_id=compiled.module_id, kernel=_info.name or kernel.name,
+                                      dim=dims, args=packed, adjoint=bool(adjoint),
+                                      adj_args=adj_packed, device=device),
+        origin=caller_origin())
+    rt.submit(command)
+    if record_tape and not adjoint:
+        tape = tape_mod.active_tape()
+        if tape is not None:
+            tape.record_launch(kernel, dims, packer.resolved, device, packer.temps)
+    if packer.copy_backs:
+        rt.synchronize()
+        for pending in packer.copy_backs:
+            pending.apply()
+    return None
+

@@ -1,0 +1,360 @@
+"""Kernel modules: the kernels and funcs of one Python module (as in Warp), turned into a
+ModuleSource, compiled by the daemon lazily per device, and cached in the process by
+(content hash, device) -> module_id and KernelInfo."""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import threading
+import typing
+
+from . import symbols as symbols_mod
+from .errors import WeftCompileError
+from .functions import Function, FunctionDefinition, Kernel
+from .structs import StructType
+
+
+class Module:
+    """The kernels and funcs registered under one module name."""
+
+    def __init__(self, name: str):
+        self.name = name
+        self.kernels: dict = {}        # qualname -> Kernel, registration order
+        self.functions: dict = {}      # qualname -> Function
+        self.options: dict = {}
+
+    def __repr__(self):
+        return f"<weft module {self.name}: {len(self.kernels)} kernel(s)>"
+
+
+_lock = threading.RLock()
+_modules: dict = {}
+_registry_version = 0                  # bumped on every registration: invalidates fast paths
+_global_options: dict = {}
+_compiled: dict = {}                   # (runtime, content hash, device) -> CompiledModule
+
+
+def get_module(name: str) -> Module:
+    with _lock:
+        module = _modules.get(name)
+        if module is None:
+            module = _modules[name] = Module(name)
+        return module
+
+
+def bump_version() -> None:
+    global _registry_version
+    with _lock:
+        _registry_version += 1
+
+
+def registry_version() -> int:
+    return _registry_version
+
+
+def set_module_options(options: dict, module=None) -> None:
+    """wp.set_module_options: options for one module (a module object or name) or all."""
+    if module is None:
+        _global_options.update(options)
+    else:
+        name = module if isinstance(module, str) else getattr(module, "__name__", str(module))
+        get_module(name).options.update(options)
+    bump_version()
+
+
+def get_module_options(module=None) -> dict:
+    if module is None:
+        return dict(_global_options)
+    name = module if isinstance(module, str) else getattr(module, "__name__", str(module))
+    merged = dict(_global_options)
+    merged.update(get_module(name).options)
+    return merged
+
+
+def register_kernel(kernel: Kernel) -> None:
+    with _lock:
+        module = get_module(kernel.module_name)
+        module.kernels.pop(kernel.definition.qualname, None)
+        module.kernels[kernel.definition.qualname] = kernel
+        bump_version()
+
+
+def register_function(definition: FunctionDefinition) -> Function:
+    """Adds a @wp.func def to its module: a new name, or an overload of an existing one."""
+    with _lock:
+        module = get_module(definition.module)
+        existing = module.functions.get(definition.qualname)
+        if existing is None:
+            existing = module.functions[definition.qualname] = Function(definition)
+        else:
+            existing.add_overload(definition)
+        bump_version()
+        return existing
+
+
+# --------------------------------------------------------------------------------------------
+# Building a ModuleSource
+# --------------------------------------------------------------------------------------------
+
+@dataclasses.dataclass
+class _Closure:
+    """Everything one kernel needs: its def, the funcs it reaches, their symbols and structs."""
+
+    definitions: list            # FunctionDefinition, kernel first
+    symbols: list                # ResolvedSymbol
+    structs: list                # StructType, dependencies first
+
+
+def _closure_of(kernel: Kernel) -> _Closure:
+    definitions, seen_defs = [], set()
+    symbols, seen_symbols = [], set()
+    structs = []
+    pending = [kernel.definition]
+    while pending:
+        definition = pending.pop(0)
+        if id(definition) in seen_defs:
+            continue
+        seen_defs.add(id(definition))
+        definitions.append(definition)
+        resolution = symbols_mod.resolve(definition)
+        for sym in resolution.symbols:
+            if sym.signature() not in seen_symbols:
+                seen_symbols.add(sym.signature())
+                symbols.append(sym)
+        for struct_type in resolution.structs:
+            for s in struct_type.referenced_structs() + [struct_type]:
+                if s not in structs:
+                    structs.append(s)
+        for ann in definition.annotations.values():
+            for s in _structs_in_annotation(ann):
+                if s not in structs:
+                    structs.append(s)
+        for function in resolution.functions:
+            pending.extend(function.overloads)
+    return _Closure(definitions, symbols, structs)
+
+
+def _structs_in_annotation(ann) -> list:
+    found = []
+    candidates = [ann, getattr(ann, "dtype", None)] + list(getattr(ann, "__args__", None) or ())
+    for c in candidates:
+        if isinstance(c, StructType):
+            found += c.referenced_structs() + [c]
+    return found
+
+
+def _conflicts(a: _Closure, b: _Closure) -> bool:
+    """True when two closures bind one name differently or one key to different source."""
+    bound_a: dict = {}
+    for s in a.symbols:
+        bound_a.setdefault(s.name, set()).add(s.signature())
+    bound_b: dict = {}
+    for s in b.symbols:
+        bound_b.setdefault(s.name, set()).add(s.signature())
+    for name, sigs in bound_b.items():
+        if name in bound_a and bound_a[name] != sigs:
+            return True
+    keys_a = {d.key: d.source for d in a.definitions}
+    for d in b.definitions:
+        if d.key in keys_a and keys_a[d.key] != d.source:
+            return True
+    return False
+
+
+def _merge(into: _Closure, other: _Closure) -> None:
+    have = {id(d) for d in into.definitions}
+    keys = {d.key for d in into.definitions}
+    for d in other.definitions:
+        if id(d) not in have and d.key not in keys:
+            into.definitions.append(d)
+            keys.add(d.key)
+    sigs = {s.signature() for s in into.symbols}
+    for s in other.symbols:
+        if s.signature() not in sigs:
+            into.symbols.append(s)
+            sigs.add(s.signature())
+    for s in other.structs:
+        if s not in into.structs:
+            into.structs.append(s)
+
+
+def build_module_source(kernel: Kernel, backward: bool = False):
+    """The ModuleSource that compiles `kernel` together with the other kernels of its module
+    (those whose names and symbols do not clash with it), as a protobuf message."""
+    from weft.v1 import module_pb2  # noqa: PLC0415
+
+    with _lock:
+        module = get_module(kernel.module_name)
+        group = _closure_of(kernel)
+        kernel_names = {kernel.name}
+        if kernel.options.get("module") != "unique":
+            for other in list(module.kernels.values()):
+                if other is kernel or other.broken or other.name in kernel_names:
+                    continue
+                if other.options.get("module") == "unique":
+                    continue
+                try:
+                    closure = _closure_of(other)
+                except Exception:  # noqa: BLE001 - an unresolvable sibling is left out
+                    continue
+                if _conflicts(group, closure):
+                    continue
+                _merge(group, closure)
+                kernel_names.add(other.name)
+
+    options = get_module_options(kernel.module_name)
+    options.update({k: v for k, v in kernel.options.items() if k != "module"})
+    if backward:
+        options["enable_backward"] = True
+    msg = module_pb2.ModuleSource(name=kernel.module_name)
+    for key in sorted(options):
+        value = options[key]
+        msg.options[str(key)] = ("true" if value else "false") if isinstance(value, bool) else str(value)
+    for d in group.definitions:
+        msg.functions.append(module_pb2.FunctionSource(
+            name=d.name, source=d.source, file=d.file, first_line=d.first_line,
+            is_kernel=d.is_kernel, param_types=d.param_types, param_names=d.param_names,
+            return_type=d.return_type, key=d.key))
+    for s in group.symbols:
+        sym = module_pb2.Symbol(name=s.name)
+        if s.kind == "builtin_module":
+            sym.builtin_module = s.value
+        elif s.kind == "function":
+            sym.function = s.value
+        elif s.kind == "type":
+            sym.type = s.value
+        else:
+            sym.constant.type = s.constant_type
+            sym.constant.value = s.constant_value
+        msg.symbols.append(sym)
+    for st in group.structs:
+        msg.structs.append(module_pb2.StructDef(
+            name=st.key, fields=[module_pb2.StructField(name=f.name, type=f.type_str)
+                                 for f in st.fields]))
+    return msg, group
+
+
+# --------------------------------------------------------------------------------------------
+# Compiling
+# --------------------------------------------------------------------------------------------
+
+@dataclasses.dataclass
+class CompiledModule:
+    module_id: str
+    kernels: dict            # kernel name -> KernelInfo
+    cache_hit: bool
+    compile_ms: float
+
+
+def content_hash(module_source) -> str:
+    return hashlib.sha256(module_source.SerializeToString(deterministic=True)).hexdigest()
+
+
+def format_diagnostics(diagnostics) -> str:
+    severities = {0: "error", 1: "warning", 2: "note"}
+    lines = []
+    for d in diagnostics:
+        loc = d.location
+        where = f"{loc.file}:{loc.line}:{loc.column}: " if loc.file else ""
+        lines.append(f"{where}{severities.get(d.severity, 'error')}: {d.message}")
+        if d.source_line:
+            lines.append("    " + d.source_line.rstrip())
+            if loc.column:
+                lines.append("    " + " " * max(loc.column - 1, 0) + "^")
+    return "\n".join(lines)
+
+
+def _find_kernel_info(compiled: CompiledModule, kernel: Kernel):
+    for name in (kernel.name, kernel.key):
+        if name in compiled.kernels:
+            return compiled.kernels[name]
+    return None
+
+
+def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
+    """(CompiledModule, KernelInfo) of kernel on device, compiling its module when needed.
+    Raises WeftCompileError with the daemon's diagnostics."""
+    from weft import _runtime  # noqa: PLC0415
+
+    runtime_id = id(_runtime.get_runtime())
+    fast_key = (runtime_id, device, backward)
+    cached = kernel._compiled.get(fast_key)
+    if cached is not None and cached[0] == _registry_version:
+        return cached[1], cached[2]
+    source, group = build_module_source(kernel, backward)
+    digest = content_hash(source)
+    compiled = _compiled.get((runtime_id, digest, device))
+    if compiled is None:
+        try:
+            compiled = _compile_source(source, device)
+        except WeftCompileError as err:
+            # a sibling kernel's error must not block this one: retry it alone
+            broken = _kernels_at_fault(err, group)
+            if broken and kernel not in broken:
+                for k in broken:
+                    k.broken = True
+                bump_version()
+                return compile_kernel(kernel, device, backward)
+            raise
+        _compiled[(runtime_id, digest, device)] = compiled
+    info = _find_kernel_info(compiled, kernel)
+    if info is None:
+        raise WeftCompileError(f"the daemon compiled module {kernel.module_name} but reported "
+                               f"no kernel named {kernel.name!r} (has {sorted(compiled.kernels)})")
+    kernel._compiled[fast_key] = (_registry_version, compiled, info)
+    return compiled, info
+
+
+def _kernels_at_fault(err: WeftCompileError, group: _Closure) -> list:
+    located = [(d.location.file, d.location.line) for d in err.diagnostics if d.location.file]
+    faulty = []
+    with _lock:
+        for module in _modules.values():
+            for k in module.kernels.values():
+                d = k.definition
+                if any(f == d.file and d.first_line <= line <= d.last_line for f, line in located):
+                    if any(x is d for x in group.definitions):
+                        faulty.append(k)
+    return faulty
+
+
+def _compile_source(source, device: str) -> CompiledModule:
+    from weft import _runtime  # noqa: PLC0415
+    from weft.v1 import module_pb2  # noqa: PLC0415
+
+    rt = _runtime.get_runtime()
+    request = module_pb2.CompileRequest(module=source, device=device)
+    try:
+        response = rt.call(rt.module_stub.Compile, request)
+    except Exception as err:  # noqa: BLE001 - a WeftError from the runtime: add context
+        diags = list(getattr(err, "diagnostics", []) or [])
+        text = format_diagnostics(diags) if diags else str(err)
+        raise WeftCompileError(f"module {source.name} failed to compile on {device}:\n{text}",
+                               diags) from None
+    errors = [d for d in response.diagnostics if d.severity == 0]
+    if errors or not response.module_id:
+        text = format_diagnostics(response.diagnostics) or "no diagnostics"
+        raise WeftCompileError(f"module {source.name} failed to compile on {device}:\n{text}",
+                               list(response.diagnostics))
+    return CompiledModule(response.module_id, {k.name: k for k in response.kernels},
+                          response.cache_hit, response.compile_ms)
+
+
+def compiled_modules() -> dict:
+    return dict(_compiled)
+
+
+def modules() -> dict:
+    return dict(_modules)
+
+
+def kernels_of(module_name: str) -> list:
+    with _lock:
+        return list(get_module(module_name).kernels.values())
+
+
+def all_kernels(module_name: typing.Optional[str] = None) -> list:
+    with _lock:
+        if module_name is not None:
+            return kernels_of(module_name)
+        return [k for m in _modules.values() for k in m.kernels.values()]

@@ -1,0 +1,166 @@
+"""@wp.struct: struct types declared by annotated Python classes, their Python-side instances
+(attribute access, usable as launch arguments) and their wire form (StructDef, StructValue)."""
+from __future__ import annotations
+
+import re
+import typing
+
+import numpy as np
+
+from . import typestr
+
+
+def canonical_name(module: str, qualname: str) -> str:
+    """module.Qualname with characters a compiler cannot use in a name replaced by '_'."""
+    qualname = qualname.replace("<locals>", "locals")
+    return re.sub(r"[^A-Za-z0-9_.]", "_", f"{module}.{qualname}")
+
+
+class StructField:
+    """One declared field: name, annotation object and its type string."""
+
+    def __init__(self, name: str, annotation):
+        self.name = name
+        self.annotation = annotation
+        self.type_str = typestr.type_string(annotation)
+        self.desc = typestr.parse(self.type_str)
+
+
+class StructInstance:
+    """A value of a @wp.struct type: fields as attributes, zero/None until assigned."""
+
+    __slots__ = ("_struct_type", "_values")
+
+    def __init__(self, struct_type: "StructType", **kwargs):
+        object.__setattr__(self, "_struct_type", struct_type)
+        object.__setattr__(self, "_values", {})
+        for field in struct_type.fields:
+            self._values[field.name] = struct_type._default(field)
+        for name, value in kwargs.items():
+            setattr(self, name, value)
+
+    def __getattr__(self, name):
+        values = object.__getattribute__(self, "_values")
+        if name in values:
+            return values[name]
+        raise AttributeError(f"struct {self._struct_type.key} has no field {name!r}")
+
+    def __setattr__(self, name, value):
+        field = self._struct_type.field(name)
+        if field is None:
+            raise AttributeError(f"struct {self._struct_type.key} has no field {name!r}")
+        self._values[name] = self._struct_type._convert(field, value)
+
+    def __repr__(self):
+        inner = ", ".join(f"{k}={v!r}" for k, v in self._values.items())
+        return f"{self._struct_type.cls.__name__}({inner})"
+
+
+class StructType:
+    """The type object @wp.struct returns: call it to make an instance."""
+
+    def __init__(self, cls):
+        self.cls = cls
+        self.key = canonical_name(cls.__module__, cls.__qualname__)
+        self._type_str = f"struct({self.key})"
+        self.__name__ = cls.__name__
+        self.__qualname__ = cls.__qualname__
+        self.__module__ = cls.__module__
+        self.__doc__ = cls.__doc__
+        annotations = typing.get_type_hints(cls) if _hints_are_strings(cls) else \
+            dict(getattr(cls, "__annotations__", {}))
+        self.fields = [StructField(name, ann) for name, ann in annotations.items()]
+        self._by_name = {f.name: f for f in self.fields}
+
+    def __call__(self, **kwargs) -> StructInstance:
+        return StructInstance(self, **kwargs)
+
+    def __repr__(self):
+        return f"<weft struct {self.key}>"
+
+    def field(self, name: str) -> typing.Optional[StructField]:
+        return self._by_name.get(name)
+
+    # --- values -------------------------------------------------------------------------
+    def _default(self, field: StructField):
+        desc = field.desc
+        if desc.kind == "array":
+            return None
+        if desc.kind == "struct":
+            return field.annotation()
+        if desc.kind == "scalar":
+            return False if desc.scalar == "bool" else (
+                0 if desc.scalar in typestr.INT_SCALARS else 0.0)
+        try:
+            return field.annotation()
+        except Exception:  # noqa: BLE001 - not constructible without args: zeros
+            return np.zeros(desc.shape, dtype=desc.numpy_scalar)
+
+    def _convert(self, field: StructField, value):
+        desc = field.desc
+        if desc.kind == "struct":
+            if not isinstance(value, StructInstance) or value._struct_type.key != desc.struct_name:
+                raise TypeError(f"field {field.name} of {self.key} expects a {desc.struct_name}, "
+                                f"got {type(value).__name__}")
+            return value
+        if desc.kind == "array":
+            return value
+        # validate eagerly so errors point at the assignment
+        typestr.pack_value(desc, value)
+        return value
+
+    # --- wire forms ---------------------------------------------------------------------
+    def referenced_structs(self) -> list:
+        """Struct types of nested fields (and array members' element structs), depth first."""
+        found = []
+        for field in self.fields:
+            for t in _struct_types_in(field.annotation):
+                found.append(t)
+        return found
+
+    def numpy_dtype(self) -> np.dtype:
+        """A C-layout structured dtype of one element (arrays of structs), natural alignment."""
+        names, formats, offsets, offset, align = [], [], [], 0, 1
+        for field in self.fields:
+            desc = field.desc
+            if desc.kind == "struct":
+                sub = field.annotation.numpy_dtype()
+                fmt, a = sub, max(sub.alignment, 1)
+            elif desc.kind == "array":
+                raise TypeError(f"struct {self.key} has an array member and cannot be an "
+                                f"array element")
+            else:
+                fmt = np.dtype((desc.numpy_scalar, desc.shape)) if desc.shape else desc.numpy_scalar
+                a = desc.numpy_scalar.alignment
+            offset = (offset + a - 1) // a * a
+            names.append(field.name)
+            formats.append(fmt)
+            offsets.append(offset)
+            offset += np.dtype(fmt).itemsize
+            align = max(align, a)
+        size = (offset + align - 1) // align * align
+        return np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                         "itemsize": max(size, 1)}, align=True)
+
+
+def _hints_are_strings(cls) -> bool:
+    return any(isinstance(a, str) for a in getattr(cls, "__annotations__", {}).values())
+
+
+def _struct_types_in(annotation) -> list:
+    if isinstance(annotation, StructType):
+        return annotation.referenced_structs() + [annotation]
+    dtype = getattr(annotation, "dtype", None)
+    if isinstance(dtype, StructType):
+        return dtype.referenced_structs() + [dtype]
+    args = getattr(annotation, "__args__", None) or ()
+    out = []
+    for a in args:
+        if isinstance(a, StructType):
+            out += a.referenced_structs() + [a]
+    return out
+
+
+def struct(cls) -> StructType:
+    """@wp.struct: declares a struct type from a class with annotated fields."""
+    return StructType(cls)

@@ -1,0 +1,182 @@
+"""Symbol resolution (docs/protocol.md): finds every global name and attribute chain a kernel
+or @wp.func uses (body and annotations) and classifies it as the warp module, a constant, a
+@wp.func, or a type, evaluating it in the function's closure and globals."""
+from __future__ import annotations
+
+import ast
+import builtins
+import dataclasses
+import types
+import typing
+
+from . import typestr
+from .functions import Function, FunctionDefinition
+from .structs import StructType
+
+_MISSING = object()
+
+
+@dataclasses.dataclass
+class ResolvedSymbol:
+    """One entry of ModuleSource.symbols before it becomes protobuf."""
+
+    name: str
+    kind: str                      # "builtin_module" | "constant" | "function" | "type"
+    value: str = ""                # module name / function key / type string
+    constant_type: str = ""
+    constant_value: str = ""
+
+    def signature(self) -> tuple:
+        return (self.name, self.kind, self.value, self.constant_type, self.constant_value)
+
+
+@dataclasses.dataclass
+class Resolution:
+    """What one function's names resolve to, and the funcs/structs they pull in."""
+
+    symbols: list
+    functions: list                # Function objects called
+    structs: list                  # StructType objects used
+
+
+def is_warp_module(value) -> bool:
+    if not isinstance(value, types.ModuleType):
+        return False
+    name = value.__name__
+    return name in ("weft", "warp") or name.startswith(("weft.", "warp."))
+
+
+def _local_names(fdef: ast.FunctionDef) -> set:
+    names = {a.arg for a in fdef.args.args + fdef.args.kwonlyargs}
+    if fdef.args.vararg:
+        names.add(fdef.args.vararg.arg)
+    for node in ast.walk(fdef):
+        if isinstance(node, ast.Name) and isinstance(node.ctx, (ast.Store, ast.Del)):
+            names.add(node.id)
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node is not fdef:
+            names.add(node.name)
+    return names
+
+
+def _attribute_chain(node) -> typing.Optional[list]:
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if isinstance(node, ast.Name):
+        parts.append(node.id)
+        return parts[::-1]
+    return None
+
+
+class _Collector(ast.NodeVisitor):
+    """Collects the free names (and attribute chains rooted at them) in source order."""
+
+    def __init__(self, local_names: set):
+        self.local_names = local_names
+        self.chains: list = []     # lists of identifiers, root first
+
+    def visit_Attribute(self, node):
+        chain = _attribute_chain(node)
+        if chain is not None and chain[0] not in self.local_names:
+            self.chains.append(chain)
+            return
+        self.generic_visit(node)
+
+    def visit_Name(self, node):
+        if isinstance(node.ctx, ast.Load) and node.id not in self.local_names:
+            self.chains.append([node.id])
+
+
+def resolve(definition: FunctionDefinition) -> Resolution:
+    """Resolves the free names of one function definition (body, annotations, defaults)."""
+    fdef = definition.tree
+    collector = _Collector(_local_names(fdef))
+    for arg in fdef.args.args + fdef.args.kwonlyargs:
+        if arg.annotation is not None:
+            collector.visit(arg.annotation)
+    if fdef.returns is not None:
+        collector.visit(fdef.returns)
+    for default in fdef.args.defaults:
+        collector.visit(default)
+    for stmt in fdef.body:
+        collector.visit(stmt)
+
+    env = definition.environment()
+    scope = definition.func.__globals__
+    symbols: dict = {}
+    functions: list = []
+    structs: list = []
+
+    def lookup(name):
+        if name in env:
+            return env[name]
+        return scope.get(name, _MISSING)
+
+    def add(symbol: ResolvedSymbol):
+        symbols.setdefault(symbol.signature(), symbol)
+
+    for chain in collector.chains:
+        value = lookup(chain[0])
+        if value is _MISSING:
+            continue            # a Python builtin name (range, len, float, ...) or unknown
+        if is_warp_module(value):
+            add(ResolvedSymbol(chain[0], "builtin_module", "warp"))
+            continue
+        used = 1
+        # descend through plain modules: mymod.N, math.pi, pkg.sub.CONST
+        while isinstance(value, types.ModuleType) and used < len(chain):
+            value = getattr(value, chain[used], _MISSING)
+            used += 1
+            if value is _MISSING:
+                break
+            if is_warp_module(value):
+                break
+        if value is _MISSING:
+            continue
+        name = ".".join(chain[:used])
+        if is_warp_module(value):
+            add(ResolvedSymbol(name, "builtin_module", "warp"))
+            continue
+        classify(name, value, add, functions, structs)
+
+    return Resolution(list(symbols.values()), functions, structs)
+
+
+def classify(name: str, value, add, functions: list, structs: list) -> None:
+    """Adds the symbol(s) that `name` bound to `value` means in kernel code."""
+    if isinstance(value, Function):
+        if value not in functions:
+            functions.append(value)
+        for overload in value.overloads:
+            add(ResolvedSymbol(name, "function", overload.key))
+        return
+    if isinstance(value, StructType):
+        if value not in structs:
+            structs.append(value)
+        add(ResolvedSymbol(name, "type", value._type_str))
+        return
+    if isinstance(value, types.ModuleType) or value is None:
+        return
+    if value is typing.Any:
+        add(ResolvedSymbol(name, "type", "any"))
+        return
+    if isinstance(value, type) or getattr(value, "__origin__", None) is not None:
+        if value in (float, int, bool) and getattr(builtins, name, None) is value:
+            return
+        try:
+            add(ResolvedSymbol(name, "type", typestr.type_string(value)))
+        except TypeError:
+            pass
+        return
+    constant_type = typestr.constant_type_of(value)
+    if constant_type is not None:
+        desc = typestr.parse(constant_type)
+        add(ResolvedSymbol(name, "constant", "", constant_type, typestr.literal_text(desc, value)))
+        return
+    array_text = typestr.array_type_string(value)
+    if array_text is not None:       # an annotation alias: Points = wp.array(dtype=wp.vec3)
+        add(ResolvedSymbol(name, "type", array_text))
+        return
+    # anything else (a NumPy array, a Python function) is left for the daemon to reject at the
+    # user's line as an unknown name
