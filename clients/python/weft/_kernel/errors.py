@@ -6,7 +6,7 @@ from __future__ import annotations
 def _weft_error_base():
     """weft.WeftError (engineer B1's base class) when it exists, else RuntimeError."""
     try:
-        from weft._runtime import WeftError  # noqa: PLC0415
+        from weft.errors import WeftError  # noqa: PLC0415 - engineer B1's base class
         return WeftError
     except Exception:  # noqa: BLE001 - the runtime layer may not define it (yet)
         pass
@@ -24,8 +24,16 @@ class WeftCompileError(_weft_error_base()):
     """A module failed to compile; the message holds the daemon's diagnostics (file:line)."""
 
     def __init__(self, message: str, diagnostics=()):
-        super().__init__(message)
+        self._text = message
+        try:
+            super().__init__(message, "INVALID_ARGUMENT")
+        except TypeError:
+            super().__init__(message)
         self.diagnostics = list(diagnostics)
+
+    def __str__(self):
+        # the diagnostics text alone (B1's WeftError appends the status code)
+        return self._text
 
 
 class WeftLaunchError(TypeError):

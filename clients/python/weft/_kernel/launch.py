@@ -280,16 +280,20 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     if int(np.prod(dims)) == 0:
         return None
     rt = _runtime.get_runtime()
+    tape = tape_mod.active_tape()
+    pause = tape is not None and (adjoint or not record_tape)
+    if pause:
+        tape.pause_recording()
     command = exec_pb2.Command(
         launch=exec_pb2.LaunchCommand(module_id=compiled.module_id, kernel=_info.name or kernel.name,
                                       dim=dims, args=packed, adjoint=bool(adjoint),
                                       adj_args=adj_packed, device=device),
         origin=caller_origin())
     rt.submit(command)
-    if record_tape and not adjoint:
-        tape = tape_mod.active_tape()
-        if tape is not None:
-            tape.record_launch(kernel, dims, packer.resolved, device, packer.temps)
+    if pause:
+        tape.resume_recording()
+    elif tape is not None:
+        tape.record_launch(kernel, dims, packer.resolved, device, packer.temps)
     if packer.copy_backs:
         rt.synchronize()
         for pending in packer.copy_backs:

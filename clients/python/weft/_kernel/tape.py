@@ -1,9 +1,18 @@
 """wp.Tape: records the launches made inside `with wp.Tape() as tape:` and replays their
 adjoint kernels in reverse order on backward(); zero(), reset(), gradients[a] as in Warp.
-The recording is kept per client process (= per daemon session); each backward step is an
-adjoint LaunchCommand in the session's batch, so the daemon runs them in order."""
+
+Two modes, one API:
+  "daemon"  the session's tape in weftd (TapeCommand BEGIN/END/BACKWARD/ZERO/RESET/FREE in the
+            command batch); the default when the daemon supports it.
+  "client"  the recording is kept in this process (= this session) and backward() submits one
+            adjoint LaunchCommand per recorded launch, in reverse order. Used when the daemon
+            answers a tape command with UNIMPLEMENTED (probed once per session), or when
+            WEFT_TAPE=client is set, or for tapes with record_func callbacks.
+"""
 from __future__ import annotations
 
+import itertools
+import os
 import threading
 
 import numpy as np
@@ -24,6 +33,35 @@ def _stack() -> list:
 def active_tape():
     stack = _stack()
     return stack[-1] if stack else None
+
+
+_tape_ids = itertools.count(1)
+_daemon_support: dict = {}      # id(runtime) -> bool
+
+
+def _daemon_tapes_supported(rt) -> bool:
+    """Whether this session's daemon runs TapeCommands (probed once with a sync)."""
+    from weft.v1 import exec_pb2  # noqa: PLC0415
+
+    if os.environ.get("WEFT_TAPE", "").lower() == "client":
+        return False
+    if not hasattr(exec_pb2, "TapeCommand"):
+        return False
+    known = _daemon_support.get(id(rt))
+    if known is not None:
+        return known
+    rt.synchronize()            # errors of earlier commands surface here, not in the probe
+    probe_id = next(_tape_ids)
+    rt.submit(exec_pb2.Command(tape=exec_pb2.TapeCommand(op=exec_pb2.TapeCommand.FREE,
+                                                         tape_id=probe_id)))
+    try:
+        rt.synchronize()
+        supported = True
+    except Exception as err:  # noqa: BLE001 - UNIMPLEMENTED or an unknown command kind
+        code = getattr(err, "code", None)
+        supported = code not in ("UNIMPLEMENTED", "INVALID_ARGUMENT", "INTERNAL", "UNKNOWN", None)
+    _daemon_support[id(rt)] = supported
+    return supported
 
 
 class _RecordedLaunch:
@@ -61,10 +99,39 @@ class Tape:
         self.launches: list = []
         self.gradients = _Gradients()
         self.loss = None
+        self.tape_id = next(_tape_ids)
+        self._mode = None          # "daemon" | "client", chosen at first use
+        self._runtime = None
+
+    def _choose_mode(self):
+        if self._mode is None:
+            from weft import _runtime  # noqa: PLC0415
+
+            self._runtime = _runtime.get_runtime()
+            self._mode = "daemon" if _daemon_tapes_supported(self._runtime) else "client"
+        return self._mode
+
+    @property
+    def mode(self) -> str:
+        return self._choose_mode()
+
+    def _tape_command(self, op, loss=None, seeds=()):
+        from weft.v1 import exec_pb2  # noqa: PLC0415
+
+        cmd = exec_pb2.TapeCommand(op=op, tape_id=self.tape_id)
+        if loss is not None:
+            cmd.loss.CopyFrom(loss._ref())
+        for array, grad in seeds:
+            cmd.seeds.append(exec_pb2.TapeCommand.Seed(array=array._ref(), grad=grad._ref()))
+        self._runtime.submit(exec_pb2.Command(tape=cmd, origin=caller_origin()))
 
     def __enter__(self):
         if self in _stack():
             raise RuntimeError("this wp.Tape is already recording")
+        if self._choose_mode() == "daemon":
+            from weft.v1 import exec_pb2  # noqa: PLC0415
+
+            self._tape_command(exec_pb2.TapeCommand.BEGIN)
         _stack().append(self)
         return self
 
@@ -74,14 +141,47 @@ class Tape:
             stack.pop()
         elif self in stack:
             stack.remove(self)
+        if self._mode == "daemon":
+            from weft.v1 import exec_pb2  # noqa: PLC0415
+
+            self._tape_command(exec_pb2.TapeCommand.END)
+            if stack and stack[-1]._mode == "daemon":   # resume the enclosing tape
+                stack[-1]._tape_command(exec_pb2.TapeCommand.BEGIN)
         return False
+
+    def pause_recording(self):
+        """Stops the daemon from recording (launches with record_tape=False)."""
+        if self._mode == "daemon":
+            from weft.v1 import exec_pb2  # noqa: PLC0415
+
+            self._tape_command(exec_pb2.TapeCommand.END)
+
+    def resume_recording(self):
+        if self._mode == "daemon":
+            from weft.v1 import exec_pb2  # noqa: PLC0415
+
+            self._tape_command(exec_pb2.TapeCommand.BEGIN)
+
+    def __del__(self):
+        try:
+            if self._mode == "daemon" and self._runtime is not None and not self._runtime.closed:
+                from weft.v1 import exec_pb2  # noqa: PLC0415
+
+                self._runtime.submit(exec_pb2.Command(tape=exec_pb2.TapeCommand(
+                    op=exec_pb2.TapeCommand.FREE, tape_id=self.tape_id)))
+        except Exception:  # noqa: BLE001 - finalizer: never raise
+            pass
 
     # --- recording ----------------------------------------------------------------------
     def record_launch(self, kernel, dims, args, device, temps=()):
         self.launches.append(_RecordedLaunch(kernel, dims, args, device, temps))
 
     def record_func(self, backward, arrays):
-        """Records a Python callback to run at its place in the backward pass (Warp's API)."""
+        """Records a Python callback to run at its place in the backward pass (Warp's API).
+        Client-mode tapes only (the daemon cannot call back into Python)."""
+        if self._mode == "daemon":
+            raise NotImplementedError("record_func needs a client-side tape: set "
+                                      "WEFT_TAPE=client")
         self.launches.append(_RecordedFunc(backward, arrays))
 
     # --- backward -----------------------------------------------------------------------
@@ -96,6 +196,7 @@ class Tape:
         if not self.launches:
             raise RuntimeError("wp.Tape.backward: the tape is empty (no launches were recorded "
                                "inside `with tape:`)")
+        self._choose_mode()
         if loss is not None:
             if not is_weft_array(loss):
                 raise TypeError(f"backward(loss=...) expects a weft array, got "
@@ -107,14 +208,24 @@ class Tape:
                 raise RuntimeError(f"backward(loss=...): the loss must have exactly one "
                                    f"element, has shape {tuple(loss.shape)}")
             self.loss = loss
-            loss.grad.fill_(1.0)
+        seeds = []
         for array, grad in (grads or {}).items():
             target = getattr(array, "grad", None)
             if target is None:
                 raise RuntimeError("backward(grads=...): an array in grads has no gradient; "
                                    "create it with requires_grad=True")
-            _assign(target, grad)
+            if not is_weft_array(grad):
+                grad = _as_array_like(target, grad)
+            seeds.append((array, grad))
             self.gradients[array] = target
+        if self._mode == "daemon":
+            self._tape_command(exec_pb2.TapeCommand.BACKWARD, loss=loss, seeds=seeds)
+            self._note_gradients()
+            return
+        if loss is not None:
+            loss.grad.fill_(1.0)
+        for array, grad in seeds:
+            _assign(array.grad, grad)
         rt = _runtime.get_runtime()
         for entry in reversed(self.launches):
             if isinstance(entry, _RecordedFunc):
@@ -131,7 +242,11 @@ class Tape:
                     dim=entry.dims, args=packed, adjoint=True, adj_args=adj,
                     device=entry.device),
                 origin=caller_origin()))
-            for value in entry.args:
+        self._note_gradients()
+
+    def _note_gradients(self):
+        for entry in self.launches:
+            for value in getattr(entry, "args", ()):
                 if is_weft_array(value) and getattr(value, "grad", None) is not None:
                     self.gradients.setdefault(value, value.grad)
 
@@ -161,15 +276,39 @@ class Tape:
 
     def zero(self):
         """Sets every gradient array the tape has touched to zero."""
+        if self._mode == "daemon":
+            from weft.v1 import exec_pb2  # noqa: PLC0415
+
+            self._tape_command(exec_pb2.TapeCommand.ZERO)
+            for array, grad in list(self.gradients.items()):
+                grad.zero_()
+            return
         for grad in self._arrays_with_grad():
             grad.zero_()
+        if self.loss is not None and getattr(self.loss, "grad", None) is not None:
+            self.loss.grad.zero_()
 
     def reset(self):
         """Zeroes the gradients and forgets the recorded launches."""
-        self.zero()
+        if self._mode == "daemon":
+            from weft.v1 import exec_pb2  # noqa: PLC0415
+
+            self._tape_command(exec_pb2.TapeCommand.RESET)
+            for array, grad in list(self.gradients.items()):
+                grad.zero_()
+        else:
+            self.zero()
         self.launches.clear()
         self.gradients.clear()
         self.loss = None
+
+
+def _as_array_like(target, value):
+    import weft  # noqa: PLC0415
+
+    data = np.asarray(value)
+    return weft.array(data.reshape(tuple(target.shape) + data.shape[len(target.shape):])
+                      if data.size else data, dtype=target.dtype, device=target.device)
 
 
 def _assign(target, value):
