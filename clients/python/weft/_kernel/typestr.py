@@ -235,6 +235,8 @@ def value_components(value) -> typing.Optional[np.ndarray]:
         return None
     if isinstance(value, np.ndarray):
         return value.reshape(-1)
+    if hasattr(value, "__array__"):
+        return np.asarray(value).reshape(-1)
     try:
         return np.asarray(list(_flatten(value))).reshape(-1)
     except TypeError:
@@ -259,6 +261,10 @@ def pack_value(desc: TypeDesc, value) -> bytes:
     converting as Warp does (Python float -> float32, ...). Raises TypeError/ValueError."""
     dt = desc.numpy_scalar.newbyteorder("<")
     if desc.kind == "scalar":
+        inner = getattr(value, "value", None)
+        if not isinstance(value, (bool, int, float, np.generic)) and \
+                isinstance(inner, (bool, int, float, np.generic)):
+            value = inner            # a weft scalar instance: wp.float64(2.0)
         if not isinstance(value, (bool, int, float, np.generic)):
             comps = value_components(value)
             if comps is not None and comps.size == 1:
@@ -304,7 +310,7 @@ def literal_text(desc: TypeDesc, value) -> str:
             return "True" if bool(value) else "False"
         if desc.scalar in INT_SCALARS:
             return str(int(value))
-        return _float_text(float(value))
+        return _float_text(float(value), desc.scalar)
     comps = value_components(value)
     if comps is None:
         raise TypeError(f"constant {value!r} is not a {desc.text}")
@@ -313,15 +319,20 @@ def literal_text(desc: TypeDesc, value) -> str:
     elif desc.scalar == "bool":
         items = ["True" if c else "False" for c in comps]
     else:
-        items = [_float_text(float(c)) for c in comps]
+        items = [_float_text(float(c), desc.scalar) for c in comps]
     return "(" + ", ".join(items) + ("," if len(items) == 1 else "") + ")"
 
 
-def _float_text(f: float) -> str:
+def _float_text(f: float, scalar: str = "float64") -> str:
+    """Shortest literal that reads back as the same value of `scalar`."""
     if math.isnan(f):
         return "nan"
     if math.isinf(f):
         return "inf" if f > 0 else "-inf"
+    if scalar in ("float32", "float16"):
+        text = str(SCALAR_NUMPY[scalar].type(f))
+        if not math.isinf(float(text)):
+            return text
     return repr(f)
 
 
