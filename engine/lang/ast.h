@@ -240,12 +240,14 @@ struct Call : Expr {
   std::vector<Keyword> keywords;
 };
 
+// loc is the left operand's start (Python's ast); op_loc is the operator's.
 struct BinOp : Expr {
   static constexpr ExprKind kKind = ExprKind::kBinOp;
   BinOp() : Expr(kKind) {}
   BinaryOperator op = BinaryOperator::kAdd;
   ExprPtr left;
   ExprPtr right;
+  SourceLocation op_loc;
 };
 
 struct UnaryOp : Expr {
@@ -347,6 +349,7 @@ struct AugAssign : Stmt {
   ExprPtr target;
   BinaryOperator op = BinaryOperator::kAdd;
   ExprPtr value;
+  SourceLocation op_loc;  // location of the `op=` token
 };
 
 // `if test: body else: orelse`. `elif` is an If that is the only statement of orelse, with
@@ -445,6 +448,37 @@ class StmtVisitor {
 #define WEFT_AST_VISIT_CASE(N) \
   case StmtKind::k##N:         \
     return static_cast<Derived*>(this)->Visit##N(static_cast<N&>(s));
+      WEFT_FOR_EACH_AST_STMT(WEFT_AST_VISIT_CASE)
+#undef WEFT_AST_VISIT_CASE
+    }
+    __builtin_unreachable();
+  }
+};
+
+// The same over const nodes: implement Visit<Kind>(const Kind&).
+template <typename Derived, typename R = void>
+class ConstExprVisitor {
+ public:
+  R VisitExpr(const Expr& e) {
+    switch (e.kind) {
+#define WEFT_AST_VISIT_CASE(N) \
+  case ExprKind::k##N:         \
+    return static_cast<Derived*>(this)->Visit##N(static_cast<const N&>(e));
+      WEFT_FOR_EACH_AST_EXPR(WEFT_AST_VISIT_CASE)
+#undef WEFT_AST_VISIT_CASE
+    }
+    __builtin_unreachable();
+  }
+};
+
+template <typename Derived, typename R = void>
+class ConstStmtVisitor {
+ public:
+  R VisitStmt(const Stmt& s) {
+    switch (s.kind) {
+#define WEFT_AST_VISIT_CASE(N) \
+  case StmtKind::k##N:         \
+    return static_cast<Derived*>(this)->Visit##N(static_cast<const N&>(s));
       WEFT_FOR_EACH_AST_STMT(WEFT_AST_VISIT_CASE)
 #undef WEFT_AST_VISIT_CASE
     }
