@@ -1,1 +1,31 @@
-"""weft: Warp-compatible Python client of the weftd compute daemon."""
+"""weft: Warp-compatible Python client of the weftd compute daemon.
+
+`import weft as wp` gives Warp's names: dtypes (float32, vec3, mat33, quat, transform...),
+wp.array and the array functions, devices, synchronization, and (from weft._kernel) the
+kernel API (@wp.kernel, @wp.func, @wp.struct, wp.launch, wp.Tape). See docs/python-api.md.
+"""
+from . import config, types, utils  # noqa: F401
+from .array import (ARRAY_MAX_DIMS, array, array1d, array2d, array3d, array4d, clone,  # noqa: F401
+                    copy, empty, empty_like, from_ipc_handle, from_numpy, full, full_like, ones,
+                    ones_like, zeros, zeros_like)
+from .device import (Device, ScopedDevice, get_cuda_device, get_cuda_device_count,  # noqa: F401
+                     get_cuda_devices, get_cuda_driver_version, get_cuda_toolkit_version,
+                     get_device, get_devices, get_preferred_device, init, is_cpu_available,
+                     is_cuda_available, is_device_available, set_device, synchronize,
+                     synchronize_device)
+from .errors import WeftError  # noqa: F401
+from .types import *  # noqa: F401,F403
+from .types import (Any, dtype_from_numpy, dtype_to_numpy, matrix, quaternion,  # noqa: F401
+                    transformation, type_size_in_bytes, type_str, vector)
+from .utils import ScopedTimer  # noqa: F401
+
+__version__ = "0.1.0"
+DeviceLike = object  # typing alias of Warp (a Device or its alias string)
+
+
+def constant(x):
+    """Marks a module-level value as a kernel compile-time constant (Warp's wp.constant)."""
+    return x
+
+
+from ._kernel.api import *  # noqa: F401,F403,E402

@@ -607,9 +607,9 @@ def is_value(x) -> _py_bool:
 
 
 def is_array(x) -> _py_bool:
-    from .array import array
+    import importlib
 
-    return isinstance(x, array)
+    return isinstance(x, importlib.import_module("weft.array").array)
 
 
 def is_dtype(t) -> _py_bool:
@@ -725,7 +725,7 @@ def value_to_bytes(dtype, value) -> bytes:
 def __getattr__(name):
     # wp.types.array & co. live in weft.array (imported lazily: it imports this module).
     if name in ("array", "array1d", "array2d", "array3d", "array4d"):
-        from . import array as _array_module
+        import importlib
 
-        return getattr(_array_module, name)
+        return getattr(importlib.import_module("weft.array"), name)
     raise AttributeError(f"module 'weft.types' has no attribute '{name}'")

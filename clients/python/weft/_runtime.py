@@ -1,0 +1,437 @@
+"""The process's connection to weftd: finding (or starting) the daemon, the session (Open, and
+Attach held open from a daemon thread so the daemon reaps the session when this process dies),
+the command batch (submit/flush/synchronize), unary calls with errors turned into WeftError,
+deferred frees, and the cache of mapped shared-memory slabs.
+
+Internal interface used by weft.array and weft._kernel (keep these names):
+  get_runtime() -> Runtime with .session_stub .array_stub .exec_stub .module_stub .device_stub,
+  .metadata, .submit(cmd), .flush(), .synchronize(), .local, .call(stub_method, request).
+"""
+from __future__ import annotations
+
+import atexit
+import collections
+import ctypes
+import fcntl
+import mmap
+import os
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import grpc
+
+from .errors import WeftError, error_from_rpc
+
+MAX_MESSAGE_BYTES = 64 << 20
+BATCH_MAX_COMMANDS = 1000
+BATCH_MAX_BYTES = 16 << 20
+PENDING_FREE_LIMIT = 4096
+DAEMON_START_TIMEOUT_S = 30.0
+RPC_TIMEOUT_S = None  # unary calls wait as long as the daemon needs (compiles can be slow)
+
+_PACKAGE_DIR = Path(__file__).resolve().parent
+_REPO_DIR = _PACKAGE_DIR.parents[1].parent  # clients/python/weft -> repo root
+
+
+def _import_stubs():
+    """The generated gRPC modules (weft.v1), generated on the fly from proto/ when missing."""
+    try:
+        from .v1 import (array_pb2, array_pb2_grpc, device_pb2, device_pb2_grpc, exec_pb2,
+                         exec_pb2_grpc, module_pb2, module_pb2_grpc, session_pb2,
+                         session_pb2_grpc, types_pb2)
+    except ImportError:
+        proto_dir = _REPO_DIR / "proto"
+        if not proto_dir.is_dir():
+            raise
+        try:
+            from grpc_tools import protoc
+        except ImportError:
+            raise ImportError("weft.v1 stubs are missing: run `make proto-py` in the weft "
+                              "repository (needs grpcio-tools)") from None
+        out_dir = _PACKAGE_DIR.parent
+        (out_dir / "weft" / "v1").mkdir(exist_ok=True)
+        protos = sorted(str(p) for p in (proto_dir / "weft" / "v1").glob("*.proto"))
+        args = ["protoc", f"-I{proto_dir}", f"--python_out={out_dir}",
+                f"--grpc_python_out={out_dir}"] + protos
+        if protoc.main(args) != 0:
+            raise ImportError("generating weft.v1 stubs from proto/ failed") from None
+        (out_dir / "weft" / "v1" / "__init__.py").touch()
+        from .v1 import (array_pb2, array_pb2_grpc, device_pb2, device_pb2_grpc, exec_pb2,
+                         exec_pb2_grpc, module_pb2, module_pb2_grpc, session_pb2,
+                         session_pb2_grpc, types_pb2)
+    return dict(array_pb2=array_pb2, array_pb2_grpc=array_pb2_grpc, device_pb2=device_pb2,
+                device_pb2_grpc=device_pb2_grpc, exec_pb2=exec_pb2, exec_pb2_grpc=exec_pb2_grpc,
+                module_pb2=module_pb2, module_pb2_grpc=module_pb2_grpc,
+                session_pb2=session_pb2, session_pb2_grpc=session_pb2_grpc,
+                types_pb2=types_pb2)
+
+
+_stubs = _import_stubs()
+array_pb2 = _stubs["array_pb2"]
+device_pb2 = _stubs["device_pb2"]
+exec_pb2 = _stubs["exec_pb2"]
+module_pb2 = _stubs["module_pb2"]
+session_pb2 = _stubs["session_pb2"]
+types_pb2 = _stubs["types_pb2"]
+
+_CODE_NAMES = {code.value[0]: code.name for code in grpc.StatusCode}
+
+
+# ------------------------------------------------------------------------------------------
+# Finding the daemon
+
+
+def default_socket_path() -> Path:
+    """$XDG_RUNTIME_DIR/weft/weftd.sock, else /tmp/weft-$UID/weftd.sock (weftd's default)."""
+    runtime_dir = os.environ.get("XDG_RUNTIME_DIR")
+    if runtime_dir:
+        return Path(runtime_dir) / "weft" / "weftd.sock"
+    return Path(f"/tmp/weft-{os.getuid()}") / "weftd.sock"
+
+
+def normalize_address(address: str) -> str:
+    """A gRPC target for WEFT_ADDRESS: unix:/path stays, tcp:host:port -> host:port."""
+    address = address.strip()
+    if address.startswith("tcp:"):
+        return address[len("tcp:"):]
+    if address.startswith("/"):
+        return "unix:" + address
+    return address
+
+
+def _channel_ready(target: str, timeout_s: float) -> bool:
+    channel = grpc.insecure_channel(target)
+    try:
+        grpc.channel_ready_future(channel).result(timeout=timeout_s)
+        return True
+    except grpc.FutureTimeoutError:
+        return False
+    finally:
+        channel.close()
+
+
+def find_daemon_binary() -> str | None:
+    """WEFT_DAEMON, else `weftd` on PATH, else <repo>/build/bin/weftd next to the package."""
+    explicit = os.environ.get("WEFT_DAEMON")
+    if explicit:
+        return explicit
+    on_path = shutil.which("weftd")
+    if on_path:
+        return on_path
+    beside = _REPO_DIR / "build" / "bin" / "weftd"
+    return str(beside) if beside.exists() else None
+
+
+def _start_local_daemon(socket_path: Path) -> None:
+    """Starts weftd in the background on `socket_path` and waits until it answers."""
+    target = f"unix:{socket_path}"
+    socket_path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+    lock_path = socket_path.parent / "weftd.start.lock"
+    with open(lock_path, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # one starter at a time; the others then find it
+        if socket_path.exists() and _channel_ready(target, 1.0):
+            return
+        binary = find_daemon_binary()
+        if binary is None:
+            raise WeftError(f"no weftd answers at {socket_path} and no weftd binary was found: "
+                            "set WEFT_ADDRESS to a running daemon, or WEFT_DAEMON to the weftd "
+                            "binary, or put weftd on PATH", "UNAVAILABLE")
+        log_path = socket_path.parent / "weftd.log"
+        with open(log_path, "ab") as log:
+            proc = subprocess.Popen([binary, "--listen", target], stdin=subprocess.DEVNULL,
+                                    stdout=log, stderr=subprocess.STDOUT,
+                                    start_new_session=True, close_fds=True)
+        deadline = time.monotonic() + DAEMON_START_TIMEOUT_S
+        while time.monotonic() < deadline:
+            if proc.poll() is not None:
+                tail = log_path.read_text(errors="replace")[-2000:]
+                raise WeftError(f"weftd ({binary}) exited with {proc.returncode} at start; "
+                                f"log {log_path}:\n{tail}", "UNAVAILABLE")
+            if socket_path.exists() and _channel_ready(target, 0.5):
+                return
+            time.sleep(0.05)
+        raise WeftError(f"weftd ({binary}) did not answer at {socket_path} within "
+                        f"{DAEMON_START_TIMEOUT_S:.0f} s; log {log_path}", "UNAVAILABLE")
+
+
+def resolve_address() -> str:
+    """The gRPC target to use: WEFT_ADDRESS, else the default socket (starting weftd there)."""
+    address = os.environ.get("WEFT_ADDRESS")
+    if address:
+        return normalize_address(address)
+    socket_path = default_socket_path()
+    target = f"unix:{socket_path}"
+    if socket_path.exists() and _channel_ready(target, 2.0):
+        return target
+    _start_local_daemon(socket_path)
+    return target
+
+
+# ------------------------------------------------------------------------------------------
+# Where user code called us (the origin of commands, for asynchronous error messages)
+
+
+def caller_location():
+    """types_pb2.SourceLocation of the innermost frame outside the weft package."""
+    frame = sys._getframe(1)
+    package = str(_PACKAGE_DIR)
+    while frame is not None:
+        filename = frame.f_code.co_filename
+        if not filename.startswith(package):
+            return types_pb2.SourceLocation(file=filename, line=frame.f_lineno)
+        frame = frame.f_back
+    return types_pb2.SourceLocation()
+
+
+def format_location(location) -> str | None:
+    if location is None or not location.file:
+        return None
+    return f"{location.file}:{location.line}" if location.line else location.file
+
+
+# ------------------------------------------------------------------------------------------
+# The session
+
+
+class _SlabMapping:
+    __slots__ = ("mm", "address", "size", "_anchor")
+
+    def __init__(self, name: str, size: int):
+        path = "/dev/shm/" + name.lstrip("/")
+        fd = os.open(path, os.O_RDWR)
+        try:
+            self.mm = mmap.mmap(fd, size, mmap.MAP_SHARED, mmap.PROT_READ | mmap.PROT_WRITE)
+        finally:
+            os.close(fd)
+        self._anchor = ctypes.c_char.from_buffer(self.mm)
+        self.address = ctypes.addressof(self._anchor)
+        self.size = size
+
+
+class Runtime:
+    """One session with one weftd, for the life of this process."""
+
+    def __init__(self, address: str | None = None, token: str | None = None):
+        self.address = address or resolve_address()
+        self.token = token if token is not None else (os.environ.get("WEFT_TOKEN") or None)
+        self.pid = os.getpid()
+        options = [("grpc.max_send_message_length", MAX_MESSAGE_BYTES),
+                   ("grpc.max_receive_message_length", MAX_MESSAGE_BYTES)]
+        self.channel = grpc.insecure_channel(self.address, options=options)
+        self.session_stub = _stubs["session_pb2_grpc"].SessionServiceStub(self.channel)
+        self.array_stub = _stubs["array_pb2_grpc"].ArrayServiceStub(self.channel)
+        self.exec_stub = _stubs["exec_pb2_grpc"].ExecServiceStub(self.channel)
+        self.module_stub = _stubs["module_pb2_grpc"].ModuleServiceStub(self.channel)
+        self.device_stub = _stubs["device_pb2_grpc"].DeviceServiceStub(self.channel)
+        self._base_metadata = (("authorization", f"Bearer {self.token}"),) if self.token else ()
+        self.metadata = self._base_metadata
+
+        request = session_pb2.OpenSessionRequest(
+            client_name=f"python {sys.version.split()[0]} pid {self.pid}", client_pid=self.pid)
+        try:
+            opened = self.session_stub.Open(request, metadata=self._base_metadata, timeout=30)
+        except grpc.RpcError as err:
+            self.channel.close()
+            raise error_from_rpc(err) from None
+        self.session_id = opened.session_id
+        self.daemon_version = opened.daemon_version
+        self.daemon_pid = opened.daemon_pid
+        self.local = bool(opened.local) and self.address.startswith("unix:")
+        self.metadata = self._base_metadata + (("weft-session", self.session_id),)
+
+        self._lock = threading.RLock()
+        self._batch: list = []
+        self._batch_bytes = 0
+        self._pending_frees: collections.deque = collections.deque()
+        self._deferred_error: WeftError | None = None
+        self._slabs: dict[str, _SlabMapping] = {}
+        self._devices = None
+        self.closed = False
+        self.attach_lost = False
+
+        self._closing = threading.Event()
+        self._attach_call = self.session_stub.Attach(self._attach_requests(),
+                                                     metadata=self.metadata)
+        self._attach_thread = threading.Thread(target=self._attach_loop, name="weft-attach",
+                                               daemon=True)
+        self._attach_thread.start()
+
+    # -- Attach: held open until this process ends
+    def _attach_requests(self):
+        yield session_pb2.AttachRequest(session_id=self.session_id)
+        self._closing.wait()
+
+    def _attach_loop(self):
+        try:
+            for event in self._attach_call:
+                if event.message:
+                    sys.stderr.write(f"weftd: {event.message}\n")
+        except grpc.RpcError:
+            pass
+        if not self._closing.is_set():
+            self.attach_lost = True
+
+    # -- unary calls
+    def call(self, stub_method, request, timeout=RPC_TIMEOUT_S):
+        """A unary call with the session metadata; grpc errors become WeftError."""
+        try:
+            return stub_method(request, metadata=self.metadata, timeout=timeout)
+        except grpc.RpcError as err:
+            raise error_from_rpc(err) from None
+
+    # -- command batch
+    def submit(self, cmd) -> None:
+        """Appends an exec_pb2.Command to the batch (origin = caller's file:line if unset)."""
+        if not cmd.HasField("origin"):
+            cmd.origin.CopyFrom(caller_location())
+        with self._lock:
+            self._batch.append(cmd)
+            self._batch_bytes += cmd.ByteSize()
+            full = len(self._batch) >= BATCH_MAX_COMMANDS or self._batch_bytes >= BATCH_MAX_BYTES
+        if full:
+            self.flush()
+
+    def flush(self) -> None:
+        """Sends the batched commands (ExecService.Submit), then the deferred frees."""
+        with self._lock:
+            batch, self._batch, self._batch_bytes = self._batch, [], 0
+            if batch:
+                self.call(self.exec_stub.Submit, exec_pb2.SubmitRequest(commands=batch))
+            self._drain_frees()
+
+    def synchronize(self) -> None:
+        """Flushes, waits for every command, prints kernel output, raises the first error."""
+        with self._lock:
+            self.flush()
+            response = self.call(self.exec_stub.Synchronize, exec_pb2.SynchronizeRequest())
+            deferred, self._deferred_error = self._deferred_error, None
+        if response.output:
+            sys.stdout.write(response.output)
+            sys.stdout.flush()
+        if deferred is not None:
+            raise deferred
+        if response.error:
+            raise WeftError(response.error, _CODE_NAMES.get(response.error_code),
+                            format_location(response.error_origin))
+
+    # -- frees (deferred: never an RPC from a finalizer, never before queued commands are sent)
+    def free_later(self, handle: int) -> None:
+        if not self.closed:
+            self._pending_frees.append(handle)
+
+    def drain_frees(self) -> None:
+        """Frees what finalizers released, if no command that may use them is unsent."""
+        with self._lock:
+            if self._batch:
+                if len(self._pending_frees) < PENDING_FREE_LIMIT:
+                    return
+                self.flush()
+                return
+            self._drain_frees()
+
+    def _drain_frees(self) -> None:
+        while self._pending_frees:
+            handle = self._pending_frees.popleft()
+            try:
+                self.array_stub.Free(array_pb2.FreeArrayRequest(handle=handle),
+                                     metadata=self.metadata, timeout=30)
+            except grpc.RpcError:
+                pass  # already gone (session closed, daemon restarted): nothing to free
+
+    # -- devices
+    def devices(self):
+        if self._devices is None:
+            self._devices = list(self.call(self.device_stub.List,
+                                           device_pb2.ListDevicesRequest()).devices)
+        return self._devices
+
+    # -- shared memory (local sessions)
+    def map_slab(self, name: str, size: int) -> _SlabMapping:
+        """The mapping of slab `name` (mapped once per process, cached by name)."""
+        mapping = self._slabs.get(name)
+        if mapping is None or mapping.size < size:
+            with self._lock:
+                mapping = self._slabs.get(name)
+                if mapping is None or mapping.size < size:
+                    mapping = _SlabMapping(name, size)
+                    self._slabs[name] = mapping
+        return mapping
+
+    # -- end of session
+    def close(self) -> None:
+        """Flushes, synchronizes (errors reported on stderr), closes the session."""
+        if self.closed:
+            return
+        try:
+            with self._lock:
+                self.flush()
+                response = self.exec_stub.Synchronize(exec_pb2.SynchronizeRequest(),
+                                                      metadata=self.metadata, timeout=30)
+            if response.output:
+                sys.stdout.write(response.output)
+                sys.stdout.flush()
+            if response.error:
+                sys.stderr.write("weft: error in a command not synchronized before exit: "
+                                 f"{response.error}\n")
+        except Exception as err:  # noqa: BLE001 - exiting; report and go on
+            if not self.attach_lost:
+                sys.stderr.write(f"weft: while closing the session: {err}\n")
+        self.closed = True
+        self._pending_frees.clear()
+        try:
+            self.session_stub.Close(session_pb2.CloseSessionRequest(session_id=self.session_id),
+                                    metadata=self.metadata, timeout=10)
+        except grpc.RpcError:
+            pass
+        self._closing.set()
+        try:
+            self._attach_call.cancel()
+        except Exception:  # noqa: BLE001
+            pass
+        self.channel.close()
+
+
+_runtime: Runtime | None = None
+_runtime_lock = threading.Lock()
+
+
+def get_runtime() -> Runtime:
+    """The process's Runtime, connecting (and opening a session) on first use."""
+    global _runtime
+    rt = _runtime
+    if rt is not None and rt.pid == os.getpid() and not rt.closed:
+        return rt
+    with _runtime_lock:
+        rt = _runtime
+        if rt is None or rt.pid != os.getpid() or rt.closed:
+            rt = Runtime()
+            _runtime = rt
+    return rt
+
+
+def is_initialized() -> bool:
+    return _runtime is not None and _runtime.pid == os.getpid() and not _runtime.closed
+
+
+def current_runtime() -> Runtime | None:
+    """The live Runtime of this process, or None (never connects)."""
+    rt = _runtime
+    if rt is not None and rt.pid == os.getpid() and not rt.closed:
+        return rt
+    return None
+
+
+def shutdown() -> None:
+    """Closes this process's session (also run at exit)."""
+    global _runtime
+    rt = _runtime
+    if rt is not None and rt.pid == os.getpid():
+        rt.close()
+    _runtime = None
+
+
+atexit.register(shutdown)

@@ -1,0 +1,954 @@
+"""wp.array and the array functions (empty/zeros/ones/full, *_like, from_numpy, clone, copy,
+IPC sharing) over daemon allocations.
+
+An array object is a view of one daemon allocation: handle, byte offset, shape, byte strides.
+Slices are new views of the same handle (no daemon call). Local (Unix-socket) sessions read
+and write CPU arrays through the shared-memory slab, mapped once per process; remote (TCP)
+sessions stream bytes with ArrayService.Read/Write. Allocations are freed when the last array
+object using them is collected (the Free RPC is deferred to the next safe point).
+
+Internal interface for weft._kernel: `a._handle`, `a._ref()` -> types_pb2.ArrayRef,
+`a._info` (ArrayInfo of the allocation, None for a null array).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from . import _runtime, types
+from .device import Device, get_device
+from .errors import WeftError
+from .types import (_Composite, _Scalar, dtype_from_numpy, float32, int32, matrix, type_str,
+                    vector)
+
+__all__ = [
+    "array", "array1d", "array2d", "array3d", "array4d", "empty", "empty_like", "zeros",
+    "zeros_like", "ones", "ones_like", "full", "full_like", "from_numpy", "clone", "copy",
+    "from_ipc_handle", "ARRAY_MAX_DIMS",
+]
+
+ARRAY_MAX_DIMS = 4
+INLINE_DATA_MAX_BYTES = 48 << 20     # larger initial data goes through Write / the slab
+LOCAL_WRITE_MIN_BYTES = 1 << 20      # local CPU data above this is written through the slab
+CHUNK_BYTES = 4 << 20                # Read/Write chunk size
+
+_SCALAR_ENUM = {
+    "bool": 1, "int8": 2, "int16": 3, "int32": 4, "int64": 5, "uint8": 6, "uint16": 7,
+    "uint32": 8, "uint64": 9, "float16": 10, "float32": 11, "float64": 12,
+}
+_ENUM_SCALAR = {v: getattr(types, k) for k, v in _SCALAR_ENUM.items()}
+
+
+# ------------------------------------------------------------------------------------------
+# dtype helpers
+
+
+def _canonical_dtype(dtype):
+    """float -> float32, int -> int32, bool -> bool, numpy dtypes -> weft scalars."""
+    if dtype is Any:
+        return Any
+    if dtype is float:
+        return float32
+    if dtype is int:
+        return int32
+    if dtype is bool:
+        return types.bool
+    if types.is_dtype(dtype) or hasattr(dtype, "_struct_size_"):
+        return dtype
+    try:
+        return dtype_from_numpy(np.dtype(dtype))
+    except TypeError:
+        raise TypeError(f"Invalid array dtype {dtype!r}") from None
+
+
+def _elem_layout(dtype):
+    """(numpy scalar dtype, inner element shape) of one array element."""
+    if types.is_dtype(dtype):
+        return np.dtype(dtype._np_dtype_), tuple(dtype._shape_)
+    struct_np = getattr(dtype, "_numpy_dtype_", None)
+    if struct_np is not None:
+        return np.dtype(struct_np), ()
+    size = getattr(dtype, "_struct_size_", None)
+    if size is not None:
+        return np.dtype(np.uint8), (int(size),)
+    raise TypeError(f"Invalid array dtype {dtype!r}")
+
+
+def _elem_size(dtype) -> int:
+    np_dtype, inner = _elem_layout(dtype)
+    return np_dtype.itemsize * int(np.prod(inner, dtype=np.int64))
+
+
+def _inner_strides(np_dtype, inner) -> tuple:
+    strides = []
+    step = np_dtype.itemsize
+    for n in reversed(inner):
+        strides.append(step)
+        step *= n
+    return tuple(reversed(strides))
+
+
+def _dtype_proto(dtype):
+    tp = _runtime.types_pb2
+    if types.is_dtype(dtype):
+        return tp.DType(scalar=_SCALAR_ENUM[dtype._wp_scalar_type_._type_str],
+                        elem_shape=list(dtype._shape_), type_name=type_str(dtype))
+    return tp.DType(type_name=type_str(dtype), struct_size=int(dtype._struct_size_))
+
+
+def _dtype_from_proto(proto):
+    """The weft dtype an ArrayInfo describes (scalar, vector, matrix, quat, transform)."""
+    name = proto.type_name
+    scalar = _ENUM_SCALAR.get(proto.scalar)
+    if name.startswith("quat(") and scalar is not None:
+        return types.quaternion(scalar)
+    if name.startswith("transform(") and scalar is not None:
+        return types.transformation(scalar)
+    if scalar is None:
+        raise WeftError(f"cannot represent array element type {name or proto!r} in Python; "
+                        "pass dtype=")
+    shape = list(proto.elem_shape)
+    if not shape:
+        return scalar
+    if len(shape) == 1:
+        return vector(shape[0], scalar)
+    if len(shape) == 2:
+        return matrix(tuple(shape), scalar)
+    raise WeftError(f"unsupported element shape {shape}")
+
+
+def _normalize_shape(shape) -> tuple:
+    if isinstance(shape, (int, np.integer)):
+        shape = (int(shape),)
+    try:
+        shape = tuple(int(s) for s in shape)
+    except TypeError:
+        raise TypeError(f"Invalid array shape {shape!r}: expected an int or a tuple of ints") \
+            from None
+    if len(shape) > ARRAY_MAX_DIMS:
+        raise RuntimeError(f"Arrays may only have up to {ARRAY_MAX_DIMS} dimensions, got "
+                           f"shape {shape}")
+    if not shape:
+        raise RuntimeError("Arrays must have at least one dimension")
+    for s in shape:
+        if s < 0:
+            raise ValueError(f"Invalid array shape {shape}: dimensions must be non-negative")
+    return shape
+
+
+def _contiguous_strides(shape, elem_size) -> tuple:
+    strides = []
+    step = elem_size
+    for n in reversed(shape):
+        strides.append(step)
+        step *= max(n, 1)
+    return tuple(reversed(strides))
+
+
+def _infer_dtype(data):
+    if isinstance(data, np.ndarray):
+        return dtype_from_numpy(data.dtype)
+    if isinstance(data, (_Composite, _Scalar)):
+        return type(data)
+    if isinstance(data, (list, tuple)) and data:
+        first = data[0]
+        if isinstance(first, (_Composite, _Scalar)):
+            return type(first)
+    arr = np.asarray(data)
+    if arr.dtype == object:
+        raise RuntimeError(f"Failed to infer the dtype of {type(data).__name__} data: pass dtype=")
+    return dtype_from_numpy(arr.dtype)
+
+
+# ------------------------------------------------------------------------------------------
+# Allocations and byte transfer
+
+
+class _Allocation:
+    """One daemon allocation held by this process; freed when the last view lets go."""
+
+    __slots__ = ("runtime", "info", "owned", "parent", "__weakref__")
+
+    def __init__(self, runtime, info, owned=True, parent=None):
+        self.runtime = runtime
+        self.info = info
+        self.owned = owned
+        self.parent = parent   # a gradient keeps its array's allocation alive
+
+    def __del__(self):
+        try:
+            if self.owned and self.info.handle:
+                self.runtime.free_later(self.info.handle)
+        except Exception:  # noqa: BLE001 - interpreter shutdown: nothing left to free
+            pass
+
+
+class _NumpyHolder:
+    """Exposes slab memory to NumPy and keeps the allocation (and mapping) alive."""
+
+    __slots__ = ("__array_interface__", "_keep")
+
+    def __init__(self, interface, keep):
+        self.__array_interface__ = interface
+        self._keep = keep
+
+
+def _is_local_cpu(rt, info) -> bool:
+    return rt.local and bool(info.shm_name)
+
+
+def _slab_bytes(rt, info, byte_offset, count) -> np.ndarray:
+    mapping = rt.map_slab(info.shm_name, info.shm_size)
+    start = info.shm_offset + byte_offset
+    return np.frombuffer(mapping.mm, dtype=np.uint8, count=count, offset=start)
+
+
+def _write_bytes(rt, info, byte_offset: int, payload) -> None:
+    """Writes `payload` (bytes-like) at `byte_offset` of the allocation."""
+    data = np.frombuffer(memoryview(payload).cast("B"), dtype=np.uint8)
+    if byte_offset < 0 or byte_offset + data.size > info.byte_size:
+        raise WeftError(f"write of {data.size} bytes at offset {byte_offset} exceeds the "
+                        f"allocation ({info.byte_size} bytes)", "OUT_OF_RANGE")
+    if _is_local_cpu(rt, info):
+        _slab_bytes(rt, info, byte_offset, data.size)[:] = data
+        return
+    ap = _runtime.array_pb2
+
+    def chunks():
+        if data.size == 0:
+            yield ap.WriteArrayRequest(handle=info.handle,
+                                       chunk=ap.ArrayChunk(byte_offset=byte_offset))
+            return
+        for start in range(0, data.size, CHUNK_BYTES):
+            piece = data[start:start + CHUNK_BYTES]
+            yield ap.WriteArrayRequest(handle=info.handle, chunk=ap.ArrayChunk(
+                byte_offset=byte_offset + start, data=piece.tobytes()))
+
+    response = _stream_call(rt, rt.array_stub.Write, chunks())
+    if response.bytes_written != data.size:
+        raise WeftError(f"daemon wrote {response.bytes_written} of {data.size} bytes", "DATA_LOSS")
+
+
+def _read_bytes(rt, info, byte_offset: int, count: int) -> np.ndarray:
+    """Reads `count` bytes at `byte_offset` of the allocation into a new uint8 array."""
+    out = np.empty(count, dtype=np.uint8)
+    if count == 0:
+        return out
+    if _is_local_cpu(rt, info):
+        out[:] = _slab_bytes(rt, info, byte_offset, count)
+        return out
+    request = _runtime.array_pb2.ReadArrayRequest(handle=info.handle, byte_offset=byte_offset,
+                                                  byte_count=count, chunk_size=CHUNK_BYTES)
+    received = 0
+    import grpc
+
+    try:
+        for chunk in rt.array_stub.Read(request, metadata=rt.metadata):
+            pos = chunk.byte_offset - byte_offset
+            n = len(chunk.data)
+            if pos < 0 or pos + n > count:
+                raise WeftError(f"daemon sent a chunk outside the requested range "
+                                f"({chunk.byte_offset}+{n})", "DATA_LOSS")
+            out[pos:pos + n] = np.frombuffer(chunk.data, dtype=np.uint8)
+            received += n
+    except grpc.RpcError as err:
+        raise _runtime.error_from_rpc(err) from None
+    if received != count:
+        raise WeftError(f"short read: {received} of {count} bytes", "DATA_LOSS")
+    return out
+
+
+def _stream_call(rt, method, iterator):
+    import grpc
+
+    try:
+        return method(iterator, metadata=rt.metadata)
+    except grpc.RpcError as err:
+        raise _runtime.error_from_rpc(err) from None
+
+
+def _create(dtype, shape, device, requires_grad, init, value=b""):
+    rt = _runtime.get_runtime()
+    rt.drain_frees()
+    ap = _runtime.array_pb2
+    request = ap.CreateArrayRequest(dtype=_dtype_proto(dtype), shape=list(shape),
+                                    device=device.alias, requires_grad=bool(requires_grad),
+                                    init=init, value=value)
+    info = rt.call(rt.array_stub.Create, request).info
+    return rt, info
+
+
+# ------------------------------------------------------------------------------------------
+# The array
+
+
+class array:
+    """A multi-dimensional array in weftd memory (Warp's wp.array)."""
+
+    # -- construction
+    def __init__(self, data=None, dtype: Any = Any, shape=None, strides=None, length=None,
+                 ptr=None, capacity=None, device=None, pinned=False, copy=True, owner=False,
+                 deleter=None, ndim=None, grad=None, requires_grad=False):
+        self._alloc = None
+        self._info = None
+        self._handle = 0
+        self._byte_offset = 0
+        self._grad = None
+        self._requires_grad = bool(requires_grad)
+        self.pinned = pinned
+        dtype = _canonical_dtype(dtype)
+        if ptr is not None:
+            raise RuntimeError("weft arrays cannot wrap raw pointers (ptr=): the memory lives "
+                               "in weftd; pass data= instead")
+        if length is not None and shape is None:
+            shape = (int(length),)
+
+        if data is None and shape is None:
+            # A null array, as used in annotations: wp.array(dtype=wp.vec3, ndim=2).
+            self.dtype = dtype
+            self.ndim = int(ndim) if ndim is not None else 1
+            self.shape = (0,) * self.ndim
+            self.strides = (0,) * self.ndim
+            self.device = None
+            self.size = 0
+            return
+
+        self.device = get_device(device)
+        if data is None:
+            if dtype is Any:
+                dtype = float32
+            self._init_new(dtype, _normalize_shape(shape), requires_grad)
+        else:
+            self._init_from_data(data, dtype, shape, requires_grad)
+        if grad is not None:
+            self.grad = grad
+
+    def _init_new(self, dtype, shape, requires_grad, init=None, value=b""):
+        ap = _runtime.array_pb2
+        rt, info = _create(dtype, shape, self.device, requires_grad,
+                           ap.CreateArrayRequest.EMPTY if init is None else init, value)
+        self._adopt(rt, info, dtype)
+
+    def _adopt(self, rt, info, dtype, owned=True):
+        self._alloc = _Allocation(rt, info, owned)
+        self._info = info
+        self._handle = info.handle
+        self._byte_offset = 0
+        self.dtype = dtype
+        self.shape = tuple(int(s) for s in info.shape)
+        self.ndim = len(self.shape)
+        self.strides = (tuple(int(s) for s in info.strides) if len(info.strides) == self.ndim
+                        else _contiguous_strides(self.shape, _elem_size(dtype)))
+        self.size = int(np.prod(self.shape, dtype=np.int64))
+        self._requires_grad = bool(info.grad_handle)
+
+    def _init_from_data(self, data, dtype, shape, requires_grad):
+        if isinstance(data, array):
+            data = data.numpy()
+        if dtype is Any:
+            dtype = _infer_dtype(data)
+        np_dtype, inner = _elem_layout(dtype)
+        try:
+            arr = np.asarray(data, dtype=np_dtype)
+        except (TypeError, ValueError) as err:
+            raise RuntimeError(f"Failed to convert input data to an array of dtype "
+                               f"{type_str(dtype)}: {err}") from None
+        k = len(inner)
+        length = int(np.prod(inner, dtype=np.int64))
+        if k and arr.ndim >= k and tuple(arr.shape[arr.ndim - k:]) == inner:
+            arr_shape = tuple(arr.shape[:arr.ndim - k])
+        elif k and arr.ndim <= 1 and arr.size % length == 0:
+            arr_shape = (arr.size // length,)
+        elif k:
+            raise RuntimeError(f"Failed to convert input data of shape {arr.shape} to an array "
+                               f"of dtype {type_str(dtype)}: the innermost dimensions must be "
+                               f"{inner}")
+        else:
+            arr_shape = tuple(arr.shape)
+        if not arr_shape:
+            arr_shape = (1,)
+        if shape is not None:
+            shape = _normalize_shape(shape)
+            if math.prod(shape) != math.prod(arr_shape):
+                raise RuntimeError(f"Cannot reshape data of shape {arr_shape} into an array of "
+                                   f"shape {shape}")
+            arr_shape = shape
+        arr_shape = _normalize_shape(arr_shape)
+        arr = np.ascontiguousarray(arr)
+        if arr.dtype.byteorder == ">":
+            arr = arr.astype(arr.dtype.newbyteorder("<"))
+        nbytes = arr.nbytes
+        ap = _runtime.array_pb2
+        rt = _runtime.get_runtime()
+        local_cpu = rt.local and self.device.is_cpu
+        if nbytes <= INLINE_DATA_MAX_BYTES and not (local_cpu and nbytes >= LOCAL_WRITE_MIN_BYTES):
+            rt, info = _create(dtype, arr_shape, self.device, requires_grad,
+                               ap.CreateArrayRequest.DATA, arr.tobytes())
+            self._adopt(rt, info, dtype)
+        else:
+            rt, info = _create(dtype, arr_shape, self.device, requires_grad,
+                               ap.CreateArrayRequest.EMPTY)
+            self._adopt(rt, info, dtype)
+            _write_bytes(rt, info, 0, arr.reshape(-1).view(np.uint8))
+
+    @classmethod
+    def _from_info(cls, info, dtype=None, owned=True):
+        out = cls.__new__(cls)
+        out._grad = None
+        out.pinned = False
+        out.device = get_device(info.device)
+        out._adopt(_runtime.get_runtime(), info, dtype if dtype is not None
+                   else _dtype_from_proto(info.dtype), owned)
+        return out
+
+    def _make_view(self, byte_offset, shape, strides, dtype=None):
+        out = array.__new__(array)
+        out._alloc = self._alloc
+        out._info = self._info
+        out._handle = self._handle
+        out._byte_offset = int(byte_offset)
+        out.dtype = self.dtype if dtype is None else dtype
+        out.shape = tuple(int(s) for s in shape)
+        out.strides = tuple(int(s) for s in strides)
+        out.ndim = len(out.shape)
+        out.size = int(np.prod(out.shape, dtype=np.int64))
+        out.device = self.device
+        out.pinned = self.pinned
+        out._requires_grad = self._requires_grad
+        out._grad = None
+        out._view_of = self
+        return out
+
+    # -- wire reference (used by commands and by weft._kernel)
+    def _ref(self):
+        return _runtime.types_pb2.ArrayRef(handle=self._handle, byte_offset=self._byte_offset,
+                                           shape=list(self.shape), strides=list(self.strides))
+
+    # -- properties
+    @property
+    def capacity(self) -> int:
+        return int(self._info.byte_size) if self._info is not None else 0
+
+    @property
+    def is_contiguous(self) -> bool:
+        expected = _contiguous_strides(self.shape, _elem_size(self.dtype))
+        return all(s == e or n <= 1 for s, e, n in zip(self.strides, expected, self.shape))
+
+    @property
+    def ptr(self):
+        """The address of the first element in this process (local CPU arrays), else None."""
+        if self._info is None or not self._info.shm_name:
+            return None
+        rt = self._alloc.runtime
+        if not rt.local:
+            return None
+        mapping = rt.map_slab(self._info.shm_name, self._info.shm_size)
+        return mapping.address + self._info.shm_offset + self._byte_offset
+
+    @property
+    def requires_grad(self) -> bool:
+        return self._requires_grad
+
+    @requires_grad.setter
+    def requires_grad(self, value: bool):
+        value = bool(value)
+        if value and self.grad is None and self._handle:
+            self._grad = zeros_like(self, requires_grad=False)
+        self._requires_grad = value
+
+    @property
+    def grad(self):
+        if self._grad is not None:
+            return self._grad
+        grad_handle = self._info.grad_handle if self._info is not None else 0
+        if not grad_handle:
+            return None
+        rt = self._alloc.runtime
+        ginfo = rt.call(rt.array_stub.Describe,
+                        _runtime.array_pb2.DescribeArrayRequest(handle=grad_handle)).info
+        galloc = _Allocation(rt, ginfo, owned=False, parent=self._alloc)
+        g = array.__new__(array)
+        g._alloc = galloc
+        g._info = ginfo
+        g._handle = ginfo.handle
+        g._byte_offset = self._byte_offset
+        g.dtype = self.dtype
+        g.shape = self.shape
+        g.strides = self.strides
+        g.ndim = self.ndim
+        g.size = self.size
+        g.device = self.device
+        g.pinned = self.pinned
+        g._requires_grad = False
+        g._grad = None
+        self._grad = g
+        return g
+
+    @grad.setter
+    def grad(self, value):
+        if value is not None:
+            if not isinstance(value, array):
+                raise TypeError("grad must be a weft array or None")
+            if value.shape != self.shape or type_str(value.dtype) != type_str(self.dtype):
+                raise ValueError(f"grad of shape {value.shape} and dtype {value.dtype} does not "
+                                 f"match the array ({self.shape}, {self.dtype})")
+            self._requires_grad = True
+        self._grad = value
+
+    @property
+    def vars(self):
+        return {}
+
+    def __len__(self):
+        return self.shape[0]
+
+    # -- indexing: views, never element access
+    def __getitem__(self, key):
+        if self._handle == 0 and self.size == 0 and self._info is None:
+            raise RuntimeError("Cannot index a null array")
+        if not isinstance(key, tuple):
+            key = (key,)
+        if any(k is Ellipsis for k in key):
+            i = key.index(Ellipsis)
+            fill = self.ndim - (len(key) - 1)
+            key = key[:i] + (slice(None),) * fill + key[i + 1:]
+        if len(key) > self.ndim:
+            raise IndexError(f"Too many indices ({len(key)}) for an array with {self.ndim} "
+                             f"dimension(s)")
+        offset = self._byte_offset
+        shape, strides = [], []
+        for dim, k in enumerate(key):
+            n, s = self.shape[dim], self.strides[dim]
+            if isinstance(k, slice):
+                start, stop, step = k.indices(n)
+                if step <= 0:
+                    raise IndexError("Array slices must have a positive step")
+                count = max(0, (stop - start + step - 1) // step)
+                if count:
+                    offset += start * s
+                shape.append(count)
+                strides.append(s * step)
+            elif isinstance(k, (int, np.integer)):
+                i = int(k)
+                if i < -n or i >= n:
+                    raise IndexError(f"Index {i} is out of bounds for dimension {dim} with "
+                                     f"size {n}")
+                offset += (i + n if i < 0 else i) * s
+            else:
+                raise TypeError(f"Invalid array index {k!r}: expected an int or a slice")
+        shape += self.shape[len(key):]
+        strides += self.strides[len(key):]
+        if not shape:
+            raise RuntimeError("Item indexing is not supported on wp.array objects in Python "
+                               "scope; use a.numpy()[i] or a slice such as a[i:i+1]")
+        view = self._make_view(offset, shape, strides)
+        if self._grad is not None or (self._info is not None and self._info.grad_handle):
+            parent_grad = self.grad
+            if parent_grad is not None and parent_grad._handle:
+                delta = offset - self._byte_offset
+                view._grad = parent_grad._make_view(parent_grad._byte_offset + delta, shape,
+                                                    strides)
+        return view
+
+    def __setitem__(self, key, value):
+        raise TypeError("Item assignment is not supported on wp.array objects in Python scope; "
+                        "use a.assign(values), a.fill_(value), a[i:j].fill_(value) or, for CPU "
+                        "arrays, write through a.numpy()")
+
+    # -- data access
+    def _synchronize_for_access(self):
+        _runtime.get_runtime().synchronize()
+
+    def _span(self):
+        """(first byte offset, byte count) covering every element of this view."""
+        elem = _elem_size(self.dtype)
+        if self.size == 0:
+            return self._byte_offset, 0
+        low = self._byte_offset + sum(min(0, (n - 1) * s) for n, s in zip(self.shape, self.strides))
+        high = self._byte_offset + sum(max(0, (n - 1) * s) for n, s in zip(self.shape, self.strides))
+        return low, high - low + elem
+
+    def numpy(self) -> np.ndarray:
+        """The array as NumPy: a zero-copy view of shared memory for CPU arrays of local
+        sessions (writes through it are seen by the daemon), else a copy."""
+        np_dtype, inner = _elem_layout(self.dtype)
+        full_shape = tuple(self.shape) + inner
+        if self._info is None:
+            return np.empty(full_shape, dtype=np_dtype)
+        rt = self._alloc.runtime
+        rt.synchronize()
+        full_strides = tuple(self.strides) + _inner_strides(np_dtype, inner)
+        if _is_local_cpu(rt, self._info):
+            if self.size == 0:
+                return np.empty(full_shape, dtype=np_dtype)
+            mapping = rt.map_slab(self._info.shm_name, self._info.shm_size)
+            address = mapping.address + self._info.shm_offset + self._byte_offset
+            interface = {"data": (address, False), "shape": full_shape,
+                         "strides": full_strides, "typestr": np_dtype.str, "version": 3}
+            if np_dtype.fields is not None:
+                interface["descr"] = np_dtype.descr
+            return np.asarray(_NumpyHolder(interface, (self._alloc, mapping)))
+        low, count = self._span()
+        raw = _read_bytes(rt, self._info, low, count)
+        if self.size == 0:
+            return np.empty(full_shape, dtype=np_dtype)
+        typed = np.ndarray(full_shape, dtype=np_dtype, buffer=raw,
+                           offset=self._byte_offset - low, strides=full_strides)
+        return typed if typed.flags.c_contiguous else np.ascontiguousarray(typed)
+
+    def list(self):
+        """The elements as a flat Python list (scalars, or dtype instances for vectors etc.)."""
+        values = self.numpy()
+        if types.is_dtype(self.dtype) and self.dtype._shape_:
+            flat = values.reshape((-1,) + tuple(self.dtype._shape_))
+            return [self.dtype(v) for v in flat]
+        return values.reshape(-1).tolist()
+
+    def __array__(self, dtype=None, copy=None):
+        values = self.numpy()
+        return values if dtype is None else values.astype(dtype)
+
+    @property
+    def __array_interface__(self):
+        if (self._info is None or not self._info.shm_name or not self._alloc.runtime.local):
+            raise AttributeError("__array_interface__ is only available for CPU arrays of "
+                                 "local (Unix-socket) sessions; use .numpy()")
+        return self.numpy().__array_interface__
+
+    def __str__(self):
+        if self._info is None:
+            return f"array(null, dtype={getattr(self.dtype, '__name__', self.dtype)})"
+        return str(self.numpy())
+
+    def __repr__(self):
+        if self._info is None:
+            return f"array(null, dtype={getattr(self.dtype, '__name__', self.dtype)})"
+        return (f"array({self.numpy()!r}, dtype={getattr(self.dtype, '__name__', self.dtype)}, "
+                f"device={self.device})")
+
+    # -- writes
+    def fill_(self, value):
+        """Sets every element to `value` (a scalar broadcasts over vector/matrix elements)."""
+        if self.size == 0 or self._info is None:
+            return self
+        cmd = _runtime.exec_pb2.Command(fill=_runtime.exec_pb2.FillCommand(
+            dst=self._ref(), value=types.value_to_bytes(self.dtype, value)
+            if types.is_dtype(self.dtype) else _struct_bytes(self.dtype, value)))
+        self._alloc.runtime.submit(cmd)
+        return self
+
+    def zero_(self):
+        """Sets every element to zero."""
+        if self.size == 0 or self._info is None:
+            return self
+        cmd = _runtime.exec_pb2.Command(fill=_runtime.exec_pb2.FillCommand(
+            dst=self._ref(), value=bytes(_elem_size(self.dtype))))
+        self._alloc.runtime.submit(cmd)
+        return self
+
+    def assign(self, src):
+        """Copies `src` (a weft array, NumPy array, list, scalar) into this array."""
+        if isinstance(src, array):
+            copy(self, src)
+            return self
+        np_dtype, inner = _elem_layout(self.dtype)
+        values = np.asarray(src, dtype=np_dtype)
+        target_shape = tuple(self.shape) + inner
+        if values.shape != target_shape:
+            if values.size == math.prod(target_shape):
+                values = values.reshape(target_shape)
+            else:
+                try:
+                    values = np.broadcast_to(values, target_shape)
+                except ValueError:
+                    raise RuntimeError(f"Cannot assign data of shape {values.shape} to an array "
+                                       f"of shape {self.shape} and dtype "
+                                       f"{type_str(self.dtype)}") from None
+        if self.size == 0:
+            return self
+        rt = self._alloc.runtime
+        if self.is_contiguous:
+            rt.synchronize()
+            payload = np.ascontiguousarray(values, dtype=np_dtype).reshape(-1).view(np.uint8)
+            _write_bytes(rt, self._info, self._byte_offset, payload)
+        else:
+            tmp = array(values, dtype=self.dtype, shape=self.shape, device=self.device)
+            copy(self, tmp)
+        return self
+
+    # -- shape changes (views)
+    def reshape(self, shape):
+        if isinstance(shape, (int, np.integer)):
+            shape = (int(shape),)
+        shape = list(int(s) for s in shape)
+        if shape.count(-1) > 1:
+            raise RuntimeError("Only one dimension of a reshape may be -1")
+        if -1 in shape:
+            known = math.prod(s for s in shape if s != -1)
+            if known == 0 or self.size % known:
+                raise RuntimeError(f"Cannot reshape array of shape {self.shape} into "
+                                   f"{tuple(shape)}")
+            shape[shape.index(-1)] = self.size // known
+        shape = _normalize_shape(shape)
+        if math.prod(shape) != self.size:
+            raise RuntimeError(f"Cannot reshape array of shape {self.shape} into {shape}")
+        if not self.is_contiguous:
+            raise RuntimeError("Reshaping non-contiguous arrays is unsupported")
+        view = self._make_view(self._byte_offset, shape,
+                               _contiguous_strides(shape, _elem_size(self.dtype)))
+        if self._grad is not None:
+            view._grad = self._grad.reshape(shape)
+        return view
+
+    def flatten(self):
+        return self.reshape(-1)
+
+    def view(self, dtype):
+        """The same memory seen as `dtype` (of the same element size)."""
+        dtype = _canonical_dtype(dtype)
+        if _elem_size(dtype) != _elem_size(self.dtype):
+            raise RuntimeError(f"Cannot view an array of {type_str(self.dtype)} as "
+                               f"{type_str(dtype)}: element sizes differ")
+        return self._make_view(self._byte_offset, self.shape, self.strides, dtype)
+
+    def transpose(self, axes=None):
+        if axes is None:
+            axes = tuple(reversed(range(self.ndim)))
+        if sorted(axes) != list(range(self.ndim)):
+            raise RuntimeError(f"Invalid transpose axes {axes} for {self.ndim} dimensions")
+        return self._make_view(self._byte_offset, [self.shape[a] for a in axes],
+                               [self.strides[a] for a in axes])
+
+    def contiguous(self):
+        return self if self.is_contiguous else clone(self)
+
+    def to(self, device, requires_grad=None):
+        device = get_device(device)
+        if device == self.device:
+            return self
+        return clone(self, device=device, requires_grad=requires_grad)
+
+    # -- sharing between client processes
+    def ipc_handle(self) -> bytes:
+        """An opaque token another local client of the same daemon passes to
+        wp.from_ipc_handle to open this allocation."""
+        if self._info is None:
+            raise RuntimeError("A null array has no IPC handle")
+        rt = self._alloc.runtime
+        rt.flush()
+        token = rt.call(rt.array_stub.Export,
+                        _runtime.array_pb2.ExportArrayRequest(handle=self._handle)).token
+        return token.encode()
+
+
+def _struct_bytes(dtype, value) -> bytes:
+    to_bytes = getattr(dtype, "_to_bytes_", None)
+    if to_bytes is not None:
+        return to_bytes(value)
+    if isinstance(value, (bytes, bytearray)) and len(value) == _elem_size(dtype):
+        return bytes(value)
+    raise TypeError(f"Cannot fill an array of {type_str(dtype)} with {value!r}")
+
+
+def array1d(*args, **kwargs):
+    kwargs["ndim"] = 1
+    return array(*args, **kwargs)
+
+
+def array2d(*args, **kwargs):
+    kwargs["ndim"] = 2
+    return array(*args, **kwargs)
+
+
+def array3d(*args, **kwargs):
+    kwargs["ndim"] = 3
+    return array(*args, **kwargs)
+
+
+def array4d(*args, **kwargs):
+    kwargs["ndim"] = 4
+    return array(*args, **kwargs)
+
+
+# ------------------------------------------------------------------------------------------
+# Creation functions
+
+
+def _new_array(shape, dtype, device, requires_grad, init, value=b""):
+    out = array.__new__(array)
+    out._grad = None
+    out.pinned = False
+    out.device = get_device(device)
+    dtype = _canonical_dtype(dtype)
+    if dtype is Any:
+        dtype = float32
+    out._init_new(dtype, _normalize_shape(shape), requires_grad, init, value)
+    return out
+
+
+def empty(shape=0, dtype=float, device=None, requires_grad=False, pinned=False):
+    """An uninitialised array (Warp's wp.empty)."""
+    return _new_array(shape, dtype, device, requires_grad,
+                      _runtime.array_pb2.CreateArrayRequest.EMPTY)
+
+
+def zeros(shape=0, dtype=float, device=None, requires_grad=False, pinned=False):
+    """An array of zeros (Warp's wp.zeros)."""
+    return _new_array(shape, dtype, device, requires_grad,
+                      _runtime.array_pb2.CreateArrayRequest.ZEROS)
+
+
+def _infer_value_dtype(value):
+    if isinstance(value, (_Composite, _Scalar)):
+        return type(value)
+    if isinstance(value, bool):
+        return types.bool
+    if isinstance(value, int):
+        return int32
+    if isinstance(value, float):
+        return float32
+    if isinstance(value, (np.generic, np.ndarray)) and np.ndim(value) == 0:
+        return dtype_from_numpy(np.asarray(value).dtype)
+    values = np.asarray(value)
+    if values.ndim in (1, 2) and values.dtype != object:
+        scalar = int32 if np.issubdtype(values.dtype, np.integer) else (
+            types.bool if values.dtype == np.bool_ else float32)
+        if values.ndim == 1:
+            return vector(values.shape[0], scalar)
+        return matrix(values.shape, scalar)
+    raise RuntimeError(f"Failed to infer the dtype of fill value {value!r}: pass dtype=")
+
+
+def full(shape=0, value=0, dtype=Any, device=None, requires_grad=False, pinned=False):
+    """An array with every element set to `value` (Warp's wp.full)."""
+    dtype = _canonical_dtype(dtype)
+    if dtype is Any:
+        dtype = _infer_value_dtype(value)
+    payload = (types.value_to_bytes(dtype, value) if types.is_dtype(dtype)
+               else _struct_bytes(dtype, value))
+    return _new_array(shape, dtype, device, requires_grad,
+                      _runtime.array_pb2.CreateArrayRequest.FILL, payload)
+
+
+def ones(shape=0, dtype=float, device=None, requires_grad=False, pinned=False):
+    """An array of ones (Warp's wp.ones)."""
+    return full(shape, 1, dtype, device, requires_grad, pinned)
+
+
+def _like_grad(src, requires_grad):
+    return src.requires_grad if requires_grad is None else requires_grad
+
+
+def empty_like(src, device=None, requires_grad=None, pinned=None):
+    return empty(src.shape, src.dtype, device if device is not None else src.device,
+                 _like_grad(src, requires_grad))
+
+
+def zeros_like(src, device=None, requires_grad=None, pinned=None):
+    return zeros(src.shape, src.dtype, device if device is not None else src.device,
+                 _like_grad(src, requires_grad))
+
+
+def ones_like(src, device=None, requires_grad=None, pinned=None):
+    return ones(src.shape, src.dtype, device if device is not None else src.device,
+                _like_grad(src, requires_grad))
+
+
+def full_like(src, value, device=None, requires_grad=None, pinned=None):
+    return full(src.shape, value, src.dtype, device if device is not None else src.device,
+                _like_grad(src, requires_grad))
+
+
+def from_numpy(arr, dtype=None, shape=None, device=None, requires_grad=False):
+    """An array with a copy of NumPy data; without dtype, trailing dimensions of 2-4 become
+    vectors (and square 2x2..4x4 of a 3+-d array matrices), as Warp does."""
+    arr = np.asarray(arr)
+    if dtype is None:
+        base = dtype_from_numpy(arr.dtype)
+        if arr.ndim >= 3 and arr.shape[-2:] in ((2, 2), (3, 3), (4, 4)):
+            dtype = matrix(arr.shape[-2:], base)
+        elif arr.ndim >= 2 and arr.shape[-1] in (2, 3, 4):
+            dtype = vector(arr.shape[-1], base)
+        else:
+            dtype = base
+    return array(arr, dtype=dtype, shape=shape, device=device, requires_grad=requires_grad)
+
+
+def clone(src, device=None, requires_grad=None, pinned=None):
+    """A new array with a copy of `src` (on `device`, default src's)."""
+    dest = empty(src.shape, src.dtype, device if device is not None else src.device,
+                 _like_grad(src, requires_grad))
+    copy(dest, src)
+    return dest
+
+
+def _flat_view(a, offset, count):
+    elem = _elem_size(a.dtype)
+    return a._make_view(a._byte_offset + offset * elem, (count,), (elem,))
+
+
+def copy(dest, src, dest_offset=0, src_offset=0, count=0):
+    """Copies `src` into `dest` (Warp's wp.copy). Offsets and count are in elements of the
+    flattened arrays, which must then be contiguous; count 0 copies all of src."""
+    if not isinstance(dest, array) or not isinstance(src, array):
+        raise RuntimeError("wp.copy() needs weft arrays as source and destination")
+    if type_str(src.dtype) != type_str(dest.dtype) and \
+            _elem_size(src.dtype) != _elem_size(dest.dtype):
+        raise RuntimeError(f"Incompatible array data types: cannot copy {type_str(src.dtype)} "
+                           f"to {type_str(dest.dtype)}")
+    if dest_offset < 0 or src_offset < 0 or count < 0:
+        raise RuntimeError("wp.copy() offsets and count must be non-negative")
+    whole = count == 0 and dest_offset == 0 and src_offset == 0
+    if whole and src.shape == dest.shape:
+        d, s = dest, src
+    else:
+        if count == 0:
+            count = src.size - src_offset
+        if src_offset + count > src.size:
+            raise RuntimeError(f"Copy out of bounds: source has {src.size} elements, copying "
+                               f"{count} from offset {src_offset}")
+        if dest_offset + count > dest.size:
+            raise RuntimeError(f"Copy out of bounds: destination has {dest.size} elements, "
+                               f"copying {count} to offset {dest_offset}")
+        if not src.is_contiguous or not dest.is_contiguous:
+            raise RuntimeError("Copying arrays of different shapes, or with offsets/counts, "
+                               "requires contiguous arrays")
+        d = _flat_view(dest, dest_offset, count)
+        s = _flat_view(src, src_offset, count)
+    if d.size == 0 or d._info is None or s._info is None:
+        return
+    cmd = _runtime.exec_pb2.Command(copy=_runtime.exec_pb2.CopyCommand(dst=d._ref(),
+                                                                        src=s._ref()))
+    d._alloc.runtime.submit(cmd)
+
+
+def from_ipc_handle(handle, dtype=None, shape=None, strides=None, device=None):
+    """Opens an array another client shared with `a.ipc_handle()` (same daemon, same
+    credentials). dtype/shape/strides (bytes) default to the exporter's."""
+    token = handle.decode() if isinstance(handle, (bytes, bytearray)) else str(handle)
+    rt = _runtime.get_runtime()
+    rt.drain_frees()
+    info = rt.call(rt.array_stub.Import, _runtime.array_pb2.ImportArrayRequest(token=token)).info
+    if device is not None and get_device(device).alias != info.device:
+        raise RuntimeError(f"The shared array lives on {info.device}, not on "
+                           f"{get_device(device).alias}")
+    out = array._from_info(info, _canonical_dtype(dtype) if dtype is not None else None)
+    if shape is None and strides is None and (dtype is None or
+                                              _elem_size(out.dtype) == _elem_size(
+                                                  _dtype_from_proto(info.dtype))):
+        return out
+    shape = _normalize_shape(shape if shape is not None else
+                             (info.byte_size // _elem_size(out.dtype),))
+    elem = _elem_size(out.dtype)
+    strides = tuple(int(s) for s in strides) if strides is not None else \
+        _contiguous_strides(shape, elem)
+    if len(strides) != len(shape):
+        raise RuntimeError(f"strides {strides} do not match shape {shape}")
+    span = sum((n - 1) * s for n, s in zip(shape, strides) if n > 0) + elem
+    if any(s < 0 for s in strides) or (math.prod(shape) and span > info.byte_size):
+        raise RuntimeError(f"shape {shape} with strides {strides} exceeds the shared "
+                           f"allocation ({info.byte_size} bytes)")
+    view = out._make_view(0, shape, strides)
+    return view

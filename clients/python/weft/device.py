@@ -1,0 +1,227 @@
+"""Devices as Warp shows them: wp.init, wp.get_devices/get_device/set_device, ScopedDevice,
+the CUDA queries and wp.synchronize*. A Device describes one device the daemon owns ("cpu",
+"cuda:0", ...); the default device is cuda:0 when the daemon has a GPU, else cpu (Warp's rule).
+"""
+from __future__ import annotations
+
+import threading
+
+from . import _runtime
+
+__all__ = [
+    "Device", "ScopedDevice", "init", "get_devices", "get_device", "set_device",
+    "get_preferred_device", "get_cuda_devices", "get_cuda_device", "get_cuda_device_count",
+    "is_cuda_available", "is_cpu_available", "is_device_available", "synchronize",
+    "synchronize_device", "get_cuda_driver_version", "get_cuda_toolkit_version",
+]
+
+
+class Device:
+    """One device of the daemon (Warp's wp.context.Device, minus streams and contexts)."""
+
+    def __init__(self, info):
+        self._info = info
+        self.alias = info.name
+        self.is_cpu = info.kind == "cpu"
+        self.is_cuda = info.kind == "cuda"
+        self.ordinal = int(info.name.split(":")[1]) if self.is_cuda and ":" in info.name else -1
+        self.name = info.description or info.name
+        self.arch = (info.compute_capability_major * 10 + info.compute_capability_minor
+                     if self.is_cuda else 0)
+        self.sm_count = info.cores if self.is_cuda else 0
+        self.is_uva = self.is_cuda
+        self.is_mempool_supported = False
+        self.is_primary = self.is_cuda
+
+    @property
+    def total_memory(self) -> int:
+        return int(self._info.total_memory)
+
+    @property
+    def free_memory(self) -> int:
+        """Free memory now (asks the daemon)."""
+        for info in _runtime.get_runtime().call(
+                _runtime.get_runtime().device_stub.List,
+                _runtime.device_pb2.ListDevicesRequest()).devices:
+            if info.name == self.alias:
+                return int(info.free_memory)
+        return int(self._info.free_memory)
+
+    @property
+    def context(self):
+        return None
+
+    def __str__(self):
+        return self.alias
+
+    def __repr__(self):
+        return f"'{self.alias}'"
+
+    def __eq__(self, other):
+        if isinstance(other, Device):
+            return self.alias == other.alias
+        if isinstance(other, str):
+            if other == "cuda":
+                return self.is_cuda and self == _current_cuda_device()
+            return other == self.alias
+        return NotImplemented
+
+    def __hash__(self):
+        return hash(self.alias)
+
+    def __enter__(self):
+        # Warp lets a device be used as `with device:`.
+        self._scope = ScopedDevice(self)
+        return self._scope.__enter__()
+
+    def __exit__(self, *exc):
+        self._scope.__exit__(*exc)
+
+
+_devices_by_alias: dict = {}
+_devices: list = []
+_state = threading.local()
+_default_device: Device | None = None
+
+
+def _load_devices() -> None:
+    rt = _runtime.get_runtime()
+    if _devices and _devices_by_alias.get("_session") == rt.session_id:
+        return
+    _devices.clear()
+    _devices_by_alias.clear()
+    for info in rt.devices():
+        device = Device(info)
+        _devices.append(device)
+        _devices_by_alias[device.alias] = device
+    _devices_by_alias["_session"] = rt.session_id
+
+
+def init() -> None:
+    """Connects to weftd (starting a local one if needed) and loads its devices."""
+    _load_devices()
+
+
+def get_devices() -> list:
+    """Every device of the daemon, CPU first."""
+    _load_devices()
+    return [d for d in _devices if d.is_cpu] + [d for d in _devices if not d.is_cpu]
+
+
+def get_cuda_devices() -> list:
+    _load_devices()
+    return [d for d in _devices if d.is_cuda]
+
+
+def get_cuda_device(ordinal=None) -> Device:
+    """The CUDA device `ordinal` (None: the current CUDA device)."""
+    if ordinal is None:
+        device = _current_cuda_device()
+        if device is None:
+            raise RuntimeError("CUDA is not available in weftd")
+        return device
+    return get_device(f"cuda:{int(ordinal)}")
+
+
+def get_cuda_device_count() -> int:
+    return len(get_cuda_devices())
+
+
+def is_cuda_available() -> bool:
+    return get_cuda_device_count() > 0
+
+
+def is_cpu_available() -> bool:
+    _load_devices()
+    return "cpu" in _devices_by_alias
+
+
+def is_device_available(device) -> bool:
+    _load_devices()
+    return getattr(device, "alias", device) in _devices_by_alias
+
+
+def get_cuda_driver_version() -> int:
+    return 0
+
+
+def get_cuda_toolkit_version() -> tuple:
+    return (0, 0)
+
+
+def _current_cuda_device() -> Device | None:
+    current = get_device()
+    if current.is_cuda:
+        return current
+    cuda = get_cuda_devices()
+    return cuda[0] if cuda else None
+
+
+def get_preferred_device() -> Device:
+    _load_devices()
+    cuda = [d for d in _devices if d.is_cuda]
+    return cuda[0] if cuda else _devices_by_alias["cpu"]
+
+
+def get_device(ident=None) -> Device:
+    """The Device for `ident` ("cpu", "cuda", "cuda:N", a Device); None: the current one."""
+    if isinstance(ident, Device):
+        return ident
+    _load_devices()
+    if ident is None:
+        stack = getattr(_state, "stack", None)
+        if stack:
+            return stack[-1]
+        return _default_device if _default_device is not None else get_preferred_device()
+    if not isinstance(ident, str):
+        # torch.device and similar expose .type / .index
+        kind = getattr(ident, "type", None)
+        if kind is not None:
+            index = getattr(ident, "index", None)
+            ident = kind if index is None else f"{kind}:{index}"
+        else:
+            raise ValueError(f"Invalid device identifier: {ident}")
+    if ident == "cuda":
+        device = _current_cuda_device()
+        if device is None:
+            raise ValueError("Invalid device identifier: cuda (the daemon has no CUDA device)")
+        return device
+    device = _devices_by_alias.get(ident)
+    if device is None or ident == "_session":
+        raise ValueError(f"Invalid device identifier: {ident}")
+    return device
+
+
+def set_device(ident) -> None:
+    """Sets the default device of this process."""
+    global _default_device
+    _default_device = get_device(ident)
+
+
+class ScopedDevice:
+    """`with wp.ScopedDevice("cpu"):` makes the device the default inside the block."""
+
+    def __init__(self, device):
+        self.device = get_device(device)
+
+    def __enter__(self):
+        stack = getattr(_state, "stack", None)
+        if stack is None:
+            stack = _state.stack = []
+        stack.append(self.device)
+        return self.device
+
+    def __exit__(self, exc_type, exc_value, traceback):
+        _state.stack.pop()
+
+
+def synchronize() -> None:
+    """Waits for every command this process issued; raises the first asynchronous error."""
+    _runtime.get_runtime().synchronize()
+
+
+def synchronize_device(device=None) -> None:
+    """Waits for the commands issued on `device` (weft: every device of this session)."""
+    if device is not None:
+        get_device(device)
+    _runtime.get_runtime().synchronize()
