@@ -94,13 +94,14 @@ void ConvertInteger(std::string_view digits, int base, Token* tok) {
 
 class Lexer {
  public:
-  explicit Lexer(std::string_view src) : src_(src) {}
+  Lexer(std::string_view src, uint32_t first_line) : src_(src), first_line_(first_line) {}
 
-  Expected<std::vector<Token>> Run(TextPosition* error_at) {
+  Expected<std::vector<Token>> Run(TextPosition* error_at, std::vector<Token>* partial) {
     if (src_.size() >= 3 && std::memcmp(src_.data(), "\xEF\xBB\xBF", 3) == 0) i_ = line_start_ = 3;
     ScanAll();
     if (failed_) {
       if (error_at) *error_at = error_pos_;
+      if (partial) *partial = std::move(tokens_);
       return InvalidArgument(error_message_);
     }
     return std::move(tokens_);
@@ -147,6 +148,9 @@ class Lexer {
   }
 
   bool IsLineBreak(size_t j) const { return At(j) == '\n' || At(j) == '\r'; }
+
+  // A line number as the user sees it, for messages that quote one.
+  std::string UserLine(uint32_t line) const { return std::to_string(first_line_ + line - 1); }
 
   // ---- main scan -----------------------------------------------------------------------
   void ScanAll() {
@@ -413,7 +417,7 @@ class Lexer {
       if (AtEnd(j)) {
         Fail(pos, std::string(triple ? "unterminated triple-quoted string literal"
                                      : "unterminated string literal") +
-                      " (detected at line " + std::to_string(line_) + ")");
+                      " (detected at line " + UserLine(line_) + ")");
         return;
       }
       const char c = src_[j];
@@ -423,7 +427,7 @@ class Lexer {
       }
       if (IsLineBreak(j)) {
         if (!triple) {
-          Fail(pos, "unterminated string literal (detected at line " + std::to_string(line_) + ")");
+          Fail(pos, "unterminated string literal (detected at line " + UserLine(line_) + ")");
           return;
         }
         value.push_back('\n');
@@ -556,7 +560,7 @@ class Lexer {
         std::string msg = std::string("closing parenthesis '") + c +
                           "' does not match opening parenthesis '" + open + "'";
         if (brackets_.back().pos.line != pos.line) {
-          msg += " on line " + std::to_string(brackets_.back().pos.line);
+          msg += " on line " + UserLine(brackets_.back().pos.line);
         }
         Fail(pos, std::move(msg));
         return;
@@ -573,6 +577,7 @@ class Lexer {
   };
 
   std::string_view src_;
+  uint32_t first_line_ = 1;
   size_t i_ = 0;
   uint32_t line_ = 1;
   size_t line_start_ = 0;
@@ -609,8 +614,10 @@ bool IsPythonKeyword(std::string_view word) {
   return false;
 }
 
-Expected<std::vector<Token>> Tokenize(std::string_view source, TextPosition* error_at) {
-  return Lexer(source).Run(error_at);
+Expected<std::vector<Token>> Tokenize(std::string_view source, TextPosition* error_at,
+                                      std::vector<Token>* tokens_before_error,
+                                      uint32_t first_line) {
+  return Lexer(source, first_line).Run(error_at, tokens_before_error);
 }
 
 }  // namespace weft::lang

@@ -52,8 +52,13 @@ struct Token {
   std::string string_value;  // kString: decoded contents
 };
 
-// On failure returns InvalidArgument(message) and sets *error_at (if non-null).
-Expected<std::vector<Token>> Tokenize(std::string_view source, TextPosition* error_at);
+// On failure returns InvalidArgument(message) and sets *error_at (if non-null); the tokens
+// scanned before the error go to *tokens_before_error (if non-null), so a caller can report
+// an earlier syntax error first, as Python's on-demand tokenizer does. `first_line` is the
+// user's line of source line 1, used only for line numbers quoted inside messages.
+Expected<std::vector<Token>> Tokenize(std::string_view source, TextPosition* error_at,
+                                      std::vector<Token>* tokens_before_error = nullptr,
+                                      uint32_t first_line = 1);
 
 // Python's hard keywords.
 bool IsPythonKeyword(std::string_view word);

@@ -1130,8 +1130,24 @@ Status Report(const FunctionSource& fn, TextPosition pos, const std::string& mes
 Expected<std::unique_ptr<ast::FunctionDef>> ParseFunction(const FunctionSource& fn,
                                                           std::vector<Diagnostic>* diags) {
   TextPosition lex_error;
-  auto tokens = Tokenize(fn.source, &lex_error);
-  if (!tokens.ok()) return Report(fn, lex_error, tokens.status().message(), diags);
+  std::vector<Token> partial;
+  auto tokens = Tokenize(fn.source, &lex_error, &partial, fn.first_line);
+  if (!tokens.ok()) {
+    // Report a syntax error that comes before the lexical one first (Python's order): parse
+    // the tokens scanned so far, ended by an end-of-input marker at the lexical error.
+    Token end;
+    end.kind = TokenKind::kEndOfFile;
+    end.pos = lex_error;
+    partial.push_back(end);
+    Parser early(fn, std::move(partial));
+    (void)early.ParseFunctionDef();
+    const TextPosition p = early.error_pos();
+    if (early.failed() &&
+        (p.line < lex_error.line || (p.line == lex_error.line && p.column < lex_error.column))) {
+      return Report(fn, p, early.error_message(), diags);
+    }
+    return Report(fn, lex_error, tokens.status().message(), diags);
+  }
   Parser parser(fn, std::move(tokens).value());
   auto def = parser.ParseFunctionDef();
   if (parser.failed() || !def) {
