@@ -125,20 +125,54 @@ class Daemon:
 
     def stats(self):
         """SessionService.Stats through a short-lived session of its own (StatsResponse)."""
-        import grpc
-        from weft.v1 import session_pb2, session_pb2_grpc
+        from weft.v1 import session_pb2
 
-        with grpc.insecure_channel(self.grpc_target) as channel:
-            stub = session_pb2_grpc.SessionServiceStub(channel)
-            opened = stub.Open(session_pb2.OpenSessionRequest(client_name="pytest stats",
-                                                              client_pid=os.getpid()),
-                               metadata=self.metadata(), timeout=10)
-            md = self.metadata(opened.session_id)
-            try:
-                return stub.Stats(session_pb2.StatsRequest(), metadata=md, timeout=10)
-            finally:
-                stub.Close(session_pb2.CloseSessionRequest(session_id=opened.session_id),
-                           metadata=md, timeout=10)
+        with self.raw_session("pytest stats") as raw:
+            return raw.session.Stats(session_pb2.StatsRequest(), metadata=raw.metadata,
+                                     timeout=10)
+
+    def raw_session(self, name: str = "pytest raw"):
+        """A context manager: a session opened with bare gRPC stubs (RawSession)."""
+        return RawSession(self, name)
+
+
+class RawSession:
+    """Bare gRPC access to a daemon for tests that craft requests by hand: `.session`,
+    `.arrays`, `.exec`, `.devices`, `.modules` stubs; `.metadata` carries session and token;
+    `.session_id`, `.opened` (OpenSessionResponse). Closes the session on exit."""
+
+    def __init__(self, daemon: Daemon, name: str):
+        import grpc
+        from weft.v1 import (array_pb2_grpc, device_pb2_grpc, exec_pb2_grpc, module_pb2_grpc,
+                             session_pb2, session_pb2_grpc)
+
+        options = [("grpc.max_send_message_length", 64 << 20),
+                   ("grpc.max_receive_message_length", 64 << 20)]
+        self.channel = grpc.insecure_channel(daemon.grpc_target, options=options)
+        self.session = session_pb2_grpc.SessionServiceStub(self.channel)
+        self.arrays = array_pb2_grpc.ArrayServiceStub(self.channel)
+        self.exec = exec_pb2_grpc.ExecServiceStub(self.channel)
+        self.devices = device_pb2_grpc.DeviceServiceStub(self.channel)
+        self.modules = module_pb2_grpc.ModuleServiceStub(self.channel)
+        self.opened = self.session.Open(
+            session_pb2.OpenSessionRequest(client_name=name, client_pid=os.getpid()),
+            metadata=daemon.metadata(), timeout=10)
+        self.session_id = self.opened.session_id
+        self.metadata = daemon.metadata(self.session_id)
+        self._session_pb2 = session_pb2
+
+    def close(self):
+        try:
+            self.session.Close(self._session_pb2.CloseSessionRequest(session_id=self.session_id),
+                               metadata=self.metadata, timeout=10)
+        finally:
+            self.channel.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
     def stop(self) -> int:
         """SIGTERM, wait, and return the exit code (kills it if it does not exit in time)."""
