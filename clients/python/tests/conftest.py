@@ -12,6 +12,8 @@ Fixtures (any test under clients/python/tests/, kernels/ included, may use them)
              WEFT_ADDRESS) and returns the CompletedProcess; check=True asserts exit 0.
   spawn_client function: like run_client but returns the Popen (stdin/stdout pipes, text);
              processes still alive at the end of the test are killed.
+Daemon objects also give .stats() (SessionService.Stats), .shm_files() and .raw_session()
+(bare gRPC stubs with a session of their own, for hand-made requests).
 The daemon binary is $WEFT_DAEMON, else <repo>/build/bin/weftd; tests are skipped with a
 clear reason when it does not exist.
 """
@@ -135,6 +137,21 @@ class Daemon:
         """A context manager: a session opened with bare gRPC stubs (RawSession)."""
         return RawSession(self, name)
 
+    def stop(self) -> int:
+        """SIGTERM, wait, and return the exit code (kills it if it does not exit in time)."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=DAEMON_STOP_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+                self._log.close()
+                raise AssertionError(f"weftd did not exit within {DAEMON_STOP_TIMEOUT_S} s "
+                                     f"of SIGTERM:\n{self.log()}")
+        self._log.close()
+        return self.proc.returncode
+
 
 class RawSession:
     """Bare gRPC access to a daemon for tests that craft requests by hand: `.session`,
@@ -173,21 +190,6 @@ class RawSession:
 
     def __exit__(self, *exc):
         self.close()
-
-    def stop(self) -> int:
-        """SIGTERM, wait, and return the exit code (kills it if it does not exit in time)."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(timeout=DAEMON_STOP_TIMEOUT_S)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-                self._log.close()
-                raise AssertionError(f"weftd did not exit within {DAEMON_STOP_TIMEOUT_S} s "
-                                     f"of SIGTERM:\n{self.log()}")
-        self._log.close()
-        return self.proc.returncode
 
 
 def _require_daemon() -> None:
