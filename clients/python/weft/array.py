@@ -123,8 +123,10 @@ def _normalize_shape(shape) -> tuple:
     if isinstance(shape, (int, np.integer)):
         shape = (int(shape),)
     try:
+        if isinstance(shape, (str, bytes)):
+            raise TypeError
         shape = tuple(int(s) for s in shape)
-    except TypeError:
+    except (TypeError, ValueError):
         raise TypeError(f"Invalid array shape {shape!r}: expected an int or a tuple of ints") \
             from None
     if len(shape) > ARRAY_MAX_DIMS:
