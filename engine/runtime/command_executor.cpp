@@ -1,0 +1,300 @@
+// Command execution: copy, fill, launch, tape.
+#include "engine/runtime/command_executor.h"
+
+#include <cstring>
+
+#include "engine/runtime/array_view.h"
+#include "engine/runtime/cpu_launch.h"
+#include "engine/runtime/launch_args.h"
+
+namespace weft {
+
+namespace {
+
+Expected<std::shared_ptr<Allocation>> Lookup(const HandleSnapshot& h, uint64_t handle, const std::string& what) {
+  if (handle == 0) return InvalidArgument(what + ": array handle 0 (None)");
+  auto it = h.find(handle);
+  if (it == h.end() || !it->second)
+    return NotFound(what + ": unknown array handle " + std::to_string(handle) +
+                    " (never created, already freed, or not held by this session)");
+  return it->second;
+}
+
+Expected<ArrayView> ViewOf(const HandleSnapshot& h, const ArrayRef& ref, const std::string& what) {
+  WEFT_ASSIGN_OR_RETURN(auto a, Lookup(h, ref.handle, what));
+  return MakeView(std::move(a), ref, what);
+}
+
+void CollectArg(const ArgValue& a, std::vector<uint64_t>* out) {
+  if (a.kind == ArgValue::Kind::kArray && a.array.handle) out->push_back(a.array.handle);
+  for (const auto& f : a.fields) CollectArg(f, out);
+}
+
+Expected<ResolvedArg> ResolveArg(const ArgValue& a, const HandleSnapshot& h, const std::string& what) {
+  ResolvedArg r;
+  r.kind = a.kind;
+  r.raw = a.raw;
+  r.ref = a.array;
+  if (a.kind == ArgValue::Kind::kArray && a.array.handle != 0) {
+    WEFT_ASSIGN_OR_RETURN(r.alloc, Lookup(h, a.array.handle, what));
+  }
+  for (size_t i = 0; i < a.fields.size(); ++i) {
+    WEFT_ASSIGN_OR_RETURN(ResolvedArg f, ResolveArg(a.fields[i], h, what + " field " + std::to_string(i)));
+    r.fields.push_back(std::move(f));
+  }
+  return r;
+}
+
+Expected<std::vector<ResolvedArg>> ResolveArgs(const std::vector<ArgValue>& args, const HandleSnapshot& h,
+                                               const std::string& kernel) {
+  std::vector<ResolvedArg> out;
+  for (size_t i = 0; i < args.size(); ++i) {
+    WEFT_ASSIGN_OR_RETURN(ResolvedArg r, ResolveArg(args[i], h, "kernel '" + kernel + "' argument " + std::to_string(i)));
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+// One element of value 1 in the allocation's scalar type, repeated over vector/matrix components.
+Expected<std::string> OneElement(const DType& d) {
+  std::string comp;
+  switch (d.scalar) {
+    case ScalarType::kFloat32: { float v = 1.0f; comp.assign(reinterpret_cast<char*>(&v), 4); break; }
+    case ScalarType::kFloat64: { double v = 1.0; comp.assign(reinterpret_cast<char*>(&v), 8); break; }
+    case ScalarType::kFloat16: { uint16_t v = 0x3C00; comp.assign(reinterpret_cast<char*>(&v), 2); break; }
+    default: return InvalidArgument("backward: the loss must be a float array, got " + d.Name());
+  }
+  if (d.is_struct()) return InvalidArgument("backward: the loss must be a float array, got " + d.Name());
+  std::string out;
+  uint64_t n = d.ElementSize() / comp.size();
+  for (uint64_t i = 0; i < n; ++i) out += comp;
+  return out;
+}
+
+Status ZeroGradients(Tape& tape) {
+  for (auto& w : tape.touched) {
+    if (auto a = w.lock(); a && a->grad) std::memset(a->grad->data(), 0, a->grad->byte_size);
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+void CollectHandles(const Command& c, std::vector<uint64_t>* out) {
+  if (auto* cp = std::get_if<CopyCommand>(&c.kind)) {
+    out->push_back(cp->dst.handle);
+    out->push_back(cp->src.handle);
+  } else if (auto* f = std::get_if<FillCommand>(&c.kind)) {
+    out->push_back(f->dst.handle);
+  } else if (auto* l = std::get_if<LaunchCommand>(&c.kind)) {
+    for (const auto& a : l->args) CollectArg(a, out);
+    for (const auto& a : l->adj_args) CollectArg(a, out);
+  } else if (auto* t = std::get_if<TapeCommand>(&c.kind)) {
+    if (t->loss.handle) out->push_back(t->loss.handle);
+    for (const auto& [a, g] : t->seeds) {
+      out->push_back(a.handle);
+      out->push_back(g.handle);
+    }
+  }
+}
+
+Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapshot& h) {
+  if (auto* cp = std::get_if<CopyCommand>(&c.kind)) return Copy(*cp, h);
+  if (auto* f = std::get_if<FillCommand>(&c.kind)) return Fill(*f, h);
+  if (auto* l = std::get_if<LaunchCommand>(&c.kind)) return Launch(s, *l, h, c.origin);
+  if (auto* t = std::get_if<TapeCommand>(&c.kind)) return TapeOp(s, *t, h);
+  return InvalidArgument("empty command");
+}
+
+Status CommandExecutor::Copy(const CopyCommand& c, const HandleSnapshot& h) {
+  WEFT_ASSIGN_OR_RETURN(ArrayView dst, ViewOf(h, c.dst, "copy dst"));
+  WEFT_ASSIGN_OR_RETURN(ArrayView src, ViewOf(h, c.src, "copy src"));
+  return CopyView(dst, src);
+}
+
+Status CommandExecutor::Fill(const FillCommand& c, const HandleSnapshot& h) {
+  WEFT_ASSIGN_OR_RETURN(ArrayView dst, ViewOf(h, c.dst, "fill dst"));
+  return FillView(dst, c.value);
+}
+
+Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleSnapshot& h,
+                               const SourceLocation& origin) {
+  if (!c.device.empty() && c.device != "cpu")
+    return Unimplemented("launch on device '" + c.device + "': only cpu launches are supported by this daemon");
+  if (!store_) return FailedPrecondition("this daemon has no module store");
+  WEFT_RETURN_IF_ERROR(CheckLaunchDim(c.dim));
+  std::shared_ptr<const LoadedModule> module = store_->Find(c.module_id);
+  if (!module) return NotFound("unknown module '" + c.module_id + "' (compile it first with ModuleService.Compile)");
+  const LoadedKernel* kernel = module->Find(c.kernel);
+  if (!kernel) return NotFound("module '" + c.module_id + "' has no kernel '" + c.kernel + "'");
+  WEFT_ASSIGN_OR_RETURN(std::vector<ResolvedArg> args, ResolveArgs(c.args, h, c.kernel));
+  WEFT_ASSIGN_OR_RETURN(PackedArgs packed, PackArgs(kernel->layout, args));
+
+  CpuLaunch launch;
+  launch.dim = c.dim;
+  launch.args = &packed;
+  launch.print_capacity = options_.print_capacity;
+  std::string output;
+  Status st;
+  if (!c.adjoint) {
+    launch.module = module.get();
+    launch.kernel = kernel;
+    st = RunCpuLaunch(pool_, launch, &output);
+  } else {
+    WEFT_ASSIGN_OR_RETURN(std::shared_ptr<const LoadedModule> bmod, store_->WithBackward(c.module_id));
+    const LoadedKernel* bk = bmod->Find(c.kernel);
+    if (!bk || !bk->cpu_backward)
+      return Internal("module '" + c.module_id + "' has no backward for kernel '" + c.kernel + "'");
+    WEFT_ASSIGN_OR_RETURN(std::vector<ResolvedArg> adj, ResolveArgs(c.adj_args, h, c.kernel + " (adjoint)"));
+    WEFT_ASSIGN_OR_RETURN(PackedArgs adj_packed, PackAdjointArgs(bk->layout, adj));
+    launch.module = bmod.get();
+    launch.kernel = bk;
+    launch.adj_args = &adj_packed;
+    st = RunCpuLaunch(pool_, launch, &output);
+  }
+  if (!output.empty()) s.AppendOutput(output);
+  WEFT_RETURN_IF_ERROR(st);
+
+  // Record forward launches on the active tape.
+  if (!c.adjoint && s.active_tape != 0) {
+    Tape& tape = s.tapes[s.active_tape];
+    TapeRecord r;
+    r.module_id = c.module_id;
+    r.kernel = c.kernel;
+    r.dim = c.dim;
+    r.origin = origin;
+    for (auto& a : packed.keep_alive) tape.Touch(a);
+    r.args = std::move(packed);
+    r.args.keep_alive.clear();   // tapes do not keep arrays alive
+    tape.records.push_back(std::move(r));
+  }
+  return Status::Ok();
+}
+
+Status CommandExecutor::TapeOp(Session& s, const TapeCommand& c, const HandleSnapshot& h) {
+  if (c.tape_id == 0) return InvalidArgument("tape id 0 is reserved");
+  switch (c.op) {
+    case TapeCommand::Op::kBegin:
+      if (s.active_tape != 0 && s.active_tape != c.tape_id)
+        return FailedPrecondition("tape " + std::to_string(c.tape_id) + ": another tape (" +
+                                  std::to_string(s.active_tape) + ") is already recording; nested tapes are not supported");
+      s.tapes[c.tape_id];
+      s.active_tape = c.tape_id;
+      return Status::Ok();
+    case TapeCommand::Op::kEnd:
+      if (s.active_tape == c.tape_id) s.active_tape = 0;
+      return Status::Ok();
+    case TapeCommand::Op::kFree:
+      if (s.active_tape == c.tape_id) s.active_tape = 0;
+      s.tapes.erase(c.tape_id);
+      return Status::Ok();
+    default:
+      break;
+  }
+  auto it = s.tapes.find(c.tape_id);
+  if (it == s.tapes.end()) {
+    if (c.op == TapeCommand::Op::kBackward)
+      return FailedPrecondition("backward on tape " + std::to_string(c.tape_id) + " which recorded nothing");
+    return Status::Ok();   // zero/reset of a tape that never recorded: nothing to do
+  }
+  Tape& tape = it->second;
+  switch (c.op) {
+    case TapeCommand::Op::kZero:
+      return ZeroGradients(tape);
+    case TapeCommand::Op::kReset:
+      WEFT_RETURN_IF_ERROR(ZeroGradients(tape));
+      tape.records.clear();
+      tape.touched.clear();
+      return Status::Ok();
+    case TapeCommand::Op::kBackward:
+      return Backward(s, tape, c, h);
+    default:
+      return InvalidArgument("unknown tape op " + std::to_string(static_cast<int>(c.op)));
+  }
+}
+
+Status CommandExecutor::Backward(Session& s, Tape& tape, const TapeCommand& c, const HandleSnapshot& h) {
+  if (tape.records.empty())
+    return FailedPrecondition("backward on tape " + std::to_string(c.tape_id) + " which recorded no launches");
+  if (s.active_tape == c.tape_id)
+    return FailedPrecondition("backward on tape " + std::to_string(c.tape_id) + " while it is still recording (leave the `with` block first)");
+  if (!store_) return FailedPrecondition("this daemon has no module store");
+
+  // Check everything first, so a failure changes nothing.
+  struct Step {
+    const TapeRecord* record;
+    std::shared_ptr<const LoadedModule> module;
+    const LoadedKernel* kernel;
+    std::vector<std::shared_ptr<Allocation>> live;
+  };
+  std::vector<Step> steps;
+  for (size_t i = tape.records.size(); i-- > 0;) {
+    const TapeRecord& r = tape.records[i];
+    Step st{&r, nullptr, nullptr, {}};
+    for (const PackedArray& slot : r.args.arrays) {
+      std::shared_ptr<Allocation> a = slot.alloc.lock();
+      if (slot.handle != 0 && (!a || !s.Holds(slot.handle)))
+        return FailedPrecondition("tape " + std::to_string(c.tape_id) + " recorded kernel '" + r.kernel +
+                                  "' with array '" + slot.param + "' (handle " + std::to_string(slot.handle) +
+                                  ") which has since been freed; record the launches again");
+      st.live.push_back(std::move(a));
+    }
+    WEFT_ASSIGN_OR_RETURN(st.module, store_->WithBackward(r.module_id));
+    st.kernel = st.module->Find(r.kernel);
+    if (!st.kernel || !st.kernel->cpu_backward)
+      return Internal("module '" + r.module_id + "' has no backward for kernel '" + r.kernel + "'");
+    steps.push_back(std::move(st));
+  }
+  ArrayView loss_grad;
+  std::string one;
+  if (c.loss.handle != 0) {
+    WEFT_ASSIGN_OR_RETURN(auto loss, Lookup(h, c.loss.handle, "backward loss"));
+    if (!loss->grad)
+      return FailedPrecondition("backward: the loss array " + std::to_string(loss->handle) +
+                                " was not created with requires_grad=True");
+    WEFT_ASSIGN_OR_RETURN(ArrayView lv, MakeView(loss, c.loss, "backward loss"));
+    WEFT_ASSIGN_OR_RETURN(one, OneElement(loss->dtype));
+    ArrayRef gref = c.loss;
+    gref.handle = loss->grad->handle;
+    WEFT_ASSIGN_OR_RETURN(loss_grad, MakeView(loss->grad, gref, "backward loss gradient"));
+    tape.Touch(loss);
+  }
+  std::vector<std::pair<ArrayView, ArrayView>> seeds;
+  for (const auto& [aref, gref] : c.seeds) {
+    WEFT_ASSIGN_OR_RETURN(auto a, Lookup(h, aref.handle, "backward seed array"));
+    if (!a->grad)
+      return FailedPrecondition("backward: seed array " + std::to_string(a->handle) +
+                                " was not created with requires_grad=True");
+    ArrayRef target = aref;
+    target.handle = a->grad->handle;
+    WEFT_ASSIGN_OR_RETURN(ArrayView dst, MakeView(a->grad, target, "backward seed target"));
+    WEFT_ASSIGN_OR_RETURN(ArrayView src, ViewOf(h, gref, "backward seed gradient"));
+    seeds.emplace_back(std::move(dst), std::move(src));
+    tape.Touch(a);
+  }
+  if (loss_grad.alloc) WEFT_RETURN_IF_ERROR(FillView(loss_grad, one));
+  for (auto& [dst, src] : seeds) WEFT_RETURN_IF_ERROR(CopyView(dst, src));
+
+  for (Step& st : steps) {
+    PackedArgs adj = GradientArgs(st.kernel->layout, st.record->args, st.live);
+    CpuLaunch launch;
+    launch.module = st.module.get();
+    launch.kernel = st.kernel;
+    launch.dim = st.record->dim;
+    launch.args = &st.record->args;
+    launch.adj_args = &adj;
+    launch.print_capacity = options_.print_capacity;
+    std::string output;
+    Status r = RunCpuLaunch(pool_, launch, &output);
+    if (!output.empty()) s.AppendOutput(output);
+    if (!r.ok()) {
+      std::string where = st.record->origin.file.empty()
+                              ? std::string()
+                              : " (launched at " + st.record->origin.file + ":" + std::to_string(st.record->origin.line) + ")";
+      return Status(r.code(), "backward: " + r.message() + where);
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace weft

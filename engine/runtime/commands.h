@@ -1,0 +1,58 @@
+// Commands a session submits in a batch (engine twins of weft.v1.Command and its kinds):
+// copy, fill, kernel launch and autodiff tape operations. Plain data; the server converts them.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "engine/core/module_source.h"
+#include "engine/runtime/array_view.h"
+
+namespace weft {
+
+// One kernel argument: raw little-endian bytes, an array view (handle 0 = None) or a struct.
+struct ArgValue {
+  enum class Kind { kRaw, kArray, kStruct };
+  Kind kind = Kind::kRaw;
+  std::string raw;
+  ArrayRef array;
+  std::vector<ArgValue> fields;   // kStruct, declaration order
+};
+
+struct CopyCommand {
+  ArrayRef dst;
+  ArrayRef src;
+};
+
+struct FillCommand {
+  ArrayRef dst;
+  std::string value;   // one element's bytes
+};
+
+struct LaunchCommand {
+  std::string module_id;
+  std::string kernel;
+  std::vector<int64_t> dim;
+  std::vector<ArgValue> args;
+  bool adjoint = false;             // run the kernel's adjoint with adj_args
+  std::vector<ArgValue> adj_args;   // array slots: the arrays receiving/providing adjoints
+  std::string device;
+};
+
+struct TapeCommand {
+  enum class Op { kBegin = 0, kEnd = 1, kBackward = 2, kZero = 3, kReset = 4, kFree = 5 };
+  Op op = Op::kBegin;
+  uint64_t tape_id = 0;
+  ArrayRef loss;                                     // handle 0 = none
+  std::vector<std::pair<ArrayRef, ArrayRef>> seeds;  // (array, gradient value)
+};
+
+struct Command {
+  std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand> kind;
+  SourceLocation origin;   // where the client issued it
+};
+
+}  // namespace weft

@@ -1,0 +1,122 @@
+// CPU launch execution and launch-error formatting.
+#include "engine/runtime/cpu_launch.h"
+
+#include <cstring>
+#include <memory>
+
+#include "engine/runtime/allocation.h"
+
+namespace weft {
+
+Status CheckLaunchDim(const std::vector<int64_t>& dim) {
+  if (dim.empty() || dim.size() > static_cast<size_t>(wp::ARRAY_MAX_DIMS))
+    return InvalidArgument("launch dim must have 1 to 4 dimensions, got " + std::to_string(dim.size()));
+  __int128 n = 1;
+  for (int64_t d : dim) {
+    if (d < 0) return InvalidArgument("launch dim " + ShapeString(dim) + " has a negative extent");
+    n *= d;
+    if (n > (static_cast<__int128>(1) << 62))
+      return InvalidArgument("launch dim " + ShapeString(dim) + " is too large");
+  }
+  return Status::Ok();
+}
+
+namespace {
+
+std::string IndexString(const wp::int64* v, int n) {
+  std::string s = "[";
+  for (int i = 0; i < n && i < wp::ARRAY_MAX_DIMS; ++i) {
+    if (i) s += ", ";
+    s += std::to_string(v[i]);
+  }
+  return s + "]";
+}
+
+Status LaunchError(const CpuLaunch& l, const wp::launch_error_t& e) {
+  const KernelLayout& k = l.kernel->layout;
+  // function_names[id] = "file.py:function"
+  std::string file, func = k.name;
+  if (e.function_id >= 0 && static_cast<size_t>(e.function_id) < l.module->function_names.size()) {
+    const std::string& fn = l.module->function_names[e.function_id];
+    size_t colon = fn.rfind(':');
+    if (colon == std::string::npos) {
+      func = fn;
+    } else {
+      file = fn.substr(0, colon);
+      func = fn.substr(colon + 1);
+    }
+  }
+  std::string where = file.empty() ? std::string("line ") + std::to_string(e.line)
+                                   : file + ":" + std::to_string(e.line);
+  std::string in = "kernel '" + k.name + "'" + (l.adj_args ? " (adjoint)" : "");
+  if (func != k.name) in += ", in function '" + func + "'";
+  std::string array = "array";
+  if (e.array_param >= 0 && static_cast<size_t>(e.array_param) < k.params.size())
+    array = "array '" + k.params[e.array_param].name + "'";
+  std::string text(e.message, strnlen(e.message, sizeof(e.message)));
+  int nd = e.ndim < 0 ? 0 : (e.ndim > wp::ARRAY_MAX_DIMS ? wp::ARRAY_MAX_DIMS : e.ndim);
+  std::vector<int64_t> shape(e.shape, e.shape + nd);
+  switch (e.kind) {
+    case wp::LAUNCH_OUT_OF_BOUNDS:
+      return OutOfRange(where + ": " + in + ": index " + IndexString(e.index, nd) +
+                        " is out of bounds for " + array + " of shape " + ShapeString(shape));
+    case wp::LAUNCH_NULL_ARRAY:
+      return FailedPrecondition(where + ": " + in + ": access to " + array + " which is None (empty)");
+    case wp::LAUNCH_EXPECT_FAILED:
+      return Status(StatusCode::kAborted, where + ": " + in + ": expect failed" +
+                                              (text.empty() ? std::string() : ": " + text));
+    default:
+      return Internal(where + ": " + in + ": runtime error kind " + std::to_string(e.kind) +
+                      (text.empty() ? std::string() : ": " + text));
+  }
+}
+
+}  // namespace
+
+Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
+  WEFT_RETURN_IF_ERROR(CheckLaunchDim(l.dim));
+  const bool backward = l.adj_args != nullptr;
+  if (!backward && !l.kernel->cpu_forward)
+    return Internal("kernel '" + l.kernel->layout.name + "' has no CPU forward entry point");
+  if (backward && !l.kernel->cpu_backward)
+    return Internal("kernel '" + l.kernel->layout.name + "' has no CPU backward entry point");
+
+  wp::launch_context_t ctx{};
+  ctx.bounds.ndim = static_cast<wp::int32>(l.dim.size());
+  ctx.bounds.size = 1;
+  for (size_t i = 0; i < wp::ARRAY_MAX_DIMS; ++i) ctx.bounds.shape[i] = i < l.dim.size() ? l.dim[i] : 1;
+  for (int64_t d : l.dim) ctx.bounds.size *= d;
+  if (ctx.bounds.size == 0) return Status::Ok();
+  wp::launch_error_t err{};
+  err.array_param = -1;
+  ctx.error = &err;
+  std::unique_ptr<char[]> print_data(new char[l.print_capacity]);
+  wp::print_buffer_t print{print_data.get(), l.print_capacity, 0};
+  ctx.print = &print;
+  ctx.flags = l.bounds_checks ? 0u : wp::LAUNCH_FLAG_NO_BOUNDS_CHECK;
+
+  const void* args = l.args->block.data();
+  if (!backward) {
+    CpuForwardFn fn = l.kernel->cpu_forward;
+    pool.ParallelFor(ctx.bounds.size, [&](int64_t b, int64_t e) {
+      if (__atomic_load_n(&err.kind, __ATOMIC_RELAXED) != 0) return;   // stop early after an error
+      fn(&ctx, args, b, e);
+    });
+  } else {
+    CpuBackwardFn fn = l.kernel->cpu_backward;
+    const void* adj = l.adj_args->block.data();
+    pool.ParallelFor(ctx.bounds.size, [&](int64_t b, int64_t e) {
+      if (__atomic_load_n(&err.kind, __ATOMIC_RELAXED) != 0) return;
+      fn(&ctx, args, adj, b, e);
+    });
+  }
+  uint64_t used = print.used < print.capacity ? print.used : print.capacity;
+  if (used > 0 && output) {
+    output->append(print.data, used);
+    if (print.used > print.capacity) output->append("\n[weft: kernel print output truncated]\n");
+  }
+  if (err.kind != 0) return LaunchError(l, err);
+  return Status::Ok();
+}
+
+}  // namespace weft

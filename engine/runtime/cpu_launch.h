@@ -1,0 +1,33 @@
+// Runs one kernel launch (forward or adjoint) on the CPU thread pool: builds the launch context
+// (bounds, error slot, print buffer), partitions the grid, and turns a kernel-reported error
+// into a Status naming the kernel, the array parameter, the index, the shape and file:line.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "engine/core/status.h"
+#include "engine/runtime/launch_args.h"
+#include "engine/runtime/module_store.h"
+#include "engine/runtime/thread_pool.h"
+
+namespace weft {
+
+struct CpuLaunch {
+  const LoadedModule* module = nullptr;
+  const LoadedKernel* kernel = nullptr;
+  std::vector<int64_t> dim;
+  const PackedArgs* args = nullptr;
+  const PackedArgs* adj_args = nullptr;   // non-null: run cpu_backward
+  bool bounds_checks = true;
+  uint64_t print_capacity = 1 << 20;
+};
+
+// Checks dim (1..4 extents, each >= 0, product < 2^62).
+Status CheckLaunchDim(const std::vector<int64_t>& dim);
+
+// Runs the launch; appends kernel print output to *output.
+Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& launch, std::string* output);
+
+}  // namespace weft

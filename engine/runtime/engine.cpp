@@ -1,0 +1,396 @@
+// Engine: sessions, arrays, command submission, compiles and statistics.
+#include "engine/runtime/engine.h"
+
+#include <sys/random.h>
+
+#include <cstring>
+
+#include <spdlog/spdlog.h>
+
+#include "engine/runtime/array_view.h"
+#include "engine/runtime/ipc_token.h"
+
+namespace weft {
+
+namespace {
+
+std::string NewSessionId() {
+  unsigned char b[12];
+  size_t got = 0;
+  while (got < sizeof(b)) {
+    ssize_t r = getrandom(b + got, sizeof(b) - got, 0);
+    if (r > 0) got += static_cast<size_t>(r);
+  }
+  static const char* hex = "0123456789abcdef";
+  std::string s = "s-";
+  for (unsigned char c : b) {
+    s += hex[c >> 4];
+    s += hex[c & 15];
+  }
+  return s;
+}
+
+}  // namespace
+
+Expected<std::unique_ptr<Engine>> Engine::Create(const EngineOptions& options,
+                                                 std::unique_ptr<ModuleStore> store) {
+  if (!store) {
+    auto created = ModuleStore::Create(options.modules);
+    if (!created.ok()) return created.status();
+    store = std::move(created).value();
+  }
+  if (options.remove_stale_slabs) ShmSlabPool::RemoveStaleSlabs();
+  return std::unique_ptr<Engine>(new Engine(options, std::move(store)));
+}
+
+Engine::Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store)
+    : options_(options),
+      slabs_(std::make_unique<ShmSlabPool>(options.slabs)),
+      store_(std::move(store)),
+      pool_(std::make_unique<ThreadPool>(options.cpu_threads)) {
+  CommandExecutorOptions eo;
+  eo.print_capacity = options.print_capacity;
+  executor_ = std::make_unique<CommandExecutor>(*pool_, store_.get(), eo);
+  memory_limit_ = PhysicalMemoryAndSwap();
+}
+
+Engine::~Engine() {
+  CloseAllSessions();
+  executor_.reset();
+  pool_.reset();
+  store_.reset();
+  slabs_.reset();
+}
+
+// ---- sessions ----
+
+std::shared_ptr<Session> Engine::OpenSession(const SessionOptions& options) {
+  auto s = std::make_shared<Session>(NewSessionId(), options);
+  s->unchecked_allowed = options_.allow_unchecked;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    sessions_[s->id()] = s;
+  }
+  ++sessions_opened_;
+  spdlog::info("session {} opened: {} (pid {}, {})", s->id(), options.client_name, options.client_pid,
+               options.local ? "local" : "remote");
+  return s;
+}
+
+std::shared_ptr<Session> Engine::FindSession(const std::string& id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = sessions_.find(id);
+  return it == sessions_.end() ? nullptr : it->second;
+}
+
+Status Engine::CloseSession(const std::string& id, bool reaped) {
+  std::shared_ptr<Session> s;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = sessions_.find(id);
+    if (it == sessions_.end()) return NotFound("unknown session '" + id + "'");
+    s = std::move(it->second);
+    sessions_.erase(it);
+  }
+  s->queue().WaitIdle();
+  size_t n = s->array_count();
+  s->tapes.clear();
+  s->ReleaseAll();
+  if (reaped) ++sessions_reaped_;
+  spdlog::info("session {} {}: {} array handle(s) released", id,
+               reaped ? "reaped (client went away)" : "closed", n);
+  return Status::Ok();
+}
+
+void Engine::CloseAllSessions() {
+  std::vector<std::string> ids;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (auto& [id, s] : sessions_) ids.push_back(id);
+  }
+  for (auto& id : ids) (void)CloseSession(id);
+}
+
+std::vector<DeviceInfo> Engine::ListDevices() const {
+  std::vector<DeviceInfo> out;
+  out.push_back(QueryCpuDevice(pool_->size()));
+  for (auto& d : QueryCudaDevices()) out.push_back(std::move(d));
+  return out;
+}
+
+// ---- arrays ----
+
+Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(const DType& dtype, const std::vector<int64_t>& shape,
+                                                            bool zero) {
+  WEFT_RETURN_IF_ERROR(dtype.Validate());
+  if (shape.empty() || shape.size() > static_cast<size_t>(kMaxArrayDims))
+    return InvalidArgument("array shape must have 1 to 4 dimensions, got " + std::to_string(shape.size()));
+  __int128 bytes = dtype.ElementSize();
+  for (int64_t d : shape) {
+    if (d < 0) return InvalidArgument("array shape " + ShapeString(shape) + " has a negative dimension");
+    bytes *= d;
+    if (bytes > (static_cast<__int128>(1) << 62))
+      return ResourceExhausted("array of shape " + ShapeString(shape) + " is absurdly large");
+  }
+  if (static_cast<uint64_t>(bytes) > memory_limit_)
+    return ResourceExhausted("array of shape " + ShapeString(shape) + " and dtype " + dtype.Name() + " needs " +
+                             std::to_string(static_cast<uint64_t>(bytes)) +
+                             " bytes, more than this machine's memory + swap (" + std::to_string(memory_limit_) + ")");
+  WEFT_ASSIGN_OR_RETURN(ShmSlabPool::Block block, slabs_->Allocate(static_cast<uint64_t>(bytes)));
+  auto a = std::make_shared<Allocation>();
+  a->handle = next_handle_++;
+  a->dtype = dtype;
+  a->shape = shape;
+  a->strides = ContiguousStrides(shape, dtype.ElementSize());
+  a->byte_size = static_cast<uint64_t>(bytes);
+  a->block = block;
+  if (zero) std::memset(block.data, 0, a->byte_size);
+  const uint64_t handle = a->handle, size = a->byte_size;
+  ShmSlabPool* pool = slabs_.get();
+  a->release = [this, pool, handle, size](const ShmSlabPool::Block& b) {
+    {
+      std::lock_guard<std::mutex> lock(alloc_mu_);
+      allocations_.erase(handle);
+    }
+    live_bytes_ -= size;
+    pool->Free(b);
+  };
+  live_bytes_ += size;
+  std::lock_guard<std::mutex> lock(alloc_mu_);
+  allocations_[a->handle] = a;
+  return a;
+}
+
+ArrayDesc Engine::Describe(const Session& s, const Allocation& a) const {
+  ArrayDesc d;
+  d.handle = a.handle;
+  d.dtype = a.dtype;
+  d.shape = a.shape;
+  d.strides = a.strides;
+  d.device = a.device;
+  d.byte_size = a.byte_size;
+  d.grad_handle = a.grad ? a.grad->handle : 0;
+  if (s.options().local) {
+    d.shm_name = a.block.slab_name;
+    d.shm_offset = a.block.offset;
+    d.shm_size = a.block.slab_size;
+  }
+  return d;
+}
+
+Expected<std::shared_ptr<Allocation>> Engine::Held(const Session& s, uint64_t handle) const {
+  if (handle == 0) return InvalidArgument("array handle 0 (None)");
+  auto a = s.Find(handle);
+  if (!a)
+    return NotFound("unknown array handle " + std::to_string(handle) +
+                    " (never created, already freed, or not held by this session)");
+  return a;
+}
+
+Expected<ArrayDesc> Engine::CreateArray(Session& s, const CreateArrayParams& p) {
+  if (!p.device.empty() && p.device != "cpu") {
+    if (p.device == "cuda" || p.device.rfind("cuda:", 0) == 0)
+      return Unimplemented("device '" + p.device + "': CUDA arrays are not supported by this daemon yet");
+    return InvalidArgument("unknown device '" + p.device + "' (expected \"cpu\" or \"cuda:N\")");
+  }
+  const uint64_t esize = p.dtype.ElementSize();
+  // Check the initial value before allocating anything.
+  if (p.init == CreateArrayParams::Init::kFill && p.value.size() != esize)
+    return InvalidArgument("fill value has " + std::to_string(p.value.size()) + " bytes; one element of " +
+                           p.dtype.Name() + " has " + std::to_string(esize));
+  if (p.init == CreateArrayParams::Init::kData) {
+    __int128 want = esize;
+    for (int64_t d : p.shape) want *= d < 0 ? 0 : d;
+    if (static_cast<__int128>(p.value.size()) != want && p.dtype.Validate().ok())
+      return InvalidArgument("data has " + std::to_string(p.value.size()) + " bytes; shape " + ShapeString(p.shape) +
+                             " of " + p.dtype.Name() + " needs " + std::to_string(static_cast<uint64_t>(want)));
+  }
+  const bool zero = p.init == CreateArrayParams::Init::kZeros;
+  WEFT_ASSIGN_OR_RETURN(auto a, NewAllocation(p.dtype, p.shape, zero));
+  if (p.requires_grad) {
+    WEFT_ASSIGN_OR_RETURN(auto g, NewAllocation(p.dtype, p.shape, true));
+    g->is_grad = true;
+    a->grad = std::move(g);
+  }
+  if (p.init == CreateArrayParams::Init::kFill) {
+    ArrayView v;
+    v.alloc = a;
+    v.shape = a->shape;
+    v.strides = a->strides;
+    WEFT_RETURN_IF_ERROR(FillView(v, p.value));
+  } else if (p.init == CreateArrayParams::Init::kData && !p.value.empty()) {
+    std::memcpy(a->data(), p.value.data(), p.value.size());
+  }
+  s.Hold(a);
+  return Describe(s, *a);
+}
+
+Status Engine::FreeArray(Session& s, uint64_t handle) {
+  std::shared_ptr<Allocation> keep = s.Find(handle);   // dropped after Release, outside locks
+  if (!s.Release(handle))
+    return NotFound("unknown array handle " + std::to_string(handle) +
+                    " (never created, already freed, or not held by this session)");
+  return Status::Ok();
+}
+
+Expected<ArrayDesc> Engine::DescribeArray(Session& s, uint64_t handle) const {
+  WEFT_ASSIGN_OR_RETURN(auto a, Held(s, handle));
+  return Describe(s, *a);
+}
+
+Status Engine::ReadArray(Session& s, uint64_t handle, uint64_t offset, uint64_t count, uint32_t chunk,
+                         const std::function<bool(uint64_t, const char*, size_t)>& sink) {
+  WEFT_ASSIGN_OR_RETURN(auto a, Held(s, handle));
+  if (offset > a->byte_size)
+    return OutOfRange("read offset " + std::to_string(offset) + " is past the end of array " +
+                      std::to_string(handle) + " (" + std::to_string(a->byte_size) + " bytes)");
+  if (count == 0) count = a->byte_size - offset;
+  if (count > a->byte_size - offset)
+    return OutOfRange("read of " + std::to_string(count) + " bytes at offset " + std::to_string(offset) +
+                      " runs past the end of array " + std::to_string(handle) + " (" +
+                      std::to_string(a->byte_size) + " bytes)");
+  if (chunk == 0) chunk = 1u << 20;
+  if (chunk > (32u << 20)) chunk = 32u << 20;
+  s.queue().WaitIdle();
+  const char* base = a->data();
+  for (uint64_t done = 0; done < count;) {
+    size_t n = static_cast<size_t>(std::min<uint64_t>(chunk, count - done));
+    if (!sink(offset + done, base + offset + done, n)) return Status(StatusCode::kCancelled, "read cancelled");
+    done += n;
+  }
+  return Status::Ok();
+}
+
+Status Engine::WriteArray(Session& s, uint64_t handle, uint64_t offset, const void* data, size_t size) {
+  WEFT_ASSIGN_OR_RETURN(auto a, Held(s, handle));
+  if (offset > a->byte_size || size > a->byte_size - offset)
+    return OutOfRange("write of " + std::to_string(size) + " bytes at offset " + std::to_string(offset) +
+                      " runs past the end of array " + std::to_string(handle) + " (" +
+                      std::to_string(a->byte_size) + " bytes)");
+  s.queue().WaitIdle();
+  if (size) std::memcpy(a->data() + offset, data, size);
+  return Status::Ok();
+}
+
+Expected<std::string> Engine::ExportArray(Session& s, uint64_t handle) {
+  WEFT_ASSIGN_OR_RETURN(auto a, Held(s, handle));
+  std::lock_guard<std::mutex> lock(a->export_mu);
+  if (a->export_secret.empty()) {
+    a->export_secret = NewIpcSecret();
+    a->export_principal = s.options().principal;
+  } else if (a->export_principal != s.options().principal) {
+    return PermissionDenied("array " + std::to_string(handle) + " was exported under other credentials");
+  }
+  return FormatIpcToken({a->handle, a->export_secret});
+}
+
+Expected<ArrayDesc> Engine::ImportArray(Session& s, const std::string& token) {
+  WEFT_ASSIGN_OR_RETURN(IpcToken t, ParseIpcToken(token));
+  std::shared_ptr<Allocation> a;
+  {
+    std::lock_guard<std::mutex> lock(alloc_mu_);
+    auto it = allocations_.find(t.handle);
+    if (it != allocations_.end()) a = it->second.lock();
+  }
+  // Same message for "gone" and "wrong secret": a token reveals nothing about other arrays.
+  const Status gone = NotFound("IPC token does not name a live exported array (freed, or a wrong token)");
+  if (!a) return gone;
+  {
+    std::lock_guard<std::mutex> lock(a->export_mu);
+    if (a->export_secret.empty() || !SecretsEqual(a->export_secret, t.secret)) return gone;
+    if (a->export_principal != s.options().principal)
+      return PermissionDenied("IPC token was exported by a session with other credentials");
+  }
+  s.Hold(a);
+  return Describe(s, *a);
+}
+
+// ---- commands ----
+
+Expected<uint64_t> Engine::Submit(Session& s, std::vector<Command> commands) {
+  const uint64_t n = commands.size();
+  if (n == 0) return n;
+  auto snapshot = std::make_shared<HandleSnapshot>();
+  std::vector<uint64_t> handles;
+  for (const Command& c : commands) CollectHandles(c, &handles);
+  for (uint64_t h : handles) {
+    if (h == 0 || snapshot->count(h)) continue;
+    if (auto a = s.Find(h)) (*snapshot)[h] = std::move(a);
+  }
+  auto batch = std::make_shared<std::vector<Command>>(std::move(commands));
+  CommandExecutor* exec = executor_.get();
+  Session* sp = &s;
+  s.queue().Post([exec, sp, batch, snapshot] {
+    for (const Command& c : *batch) {
+      if (sp->failed()) {
+        sp->CountSkipped();
+        continue;
+      }
+      Status st = exec->Execute(*sp, c, *snapshot);
+      if (!st.ok()) {
+        spdlog::warn("session {}: command failed: {}", sp->id(), st.ToString());
+        sp->Fail(st, c.origin);
+      }
+    }
+    snapshot->clear();
+  });
+  return n;
+}
+
+Session::SyncResult Engine::Synchronize(Session& s) {
+  s.queue().WaitIdle();
+  return s.TakeResult();
+}
+
+// ---- modules ----
+
+Expected<std::shared_ptr<const LoadedModule>> Engine::Compile(Session& s, ModuleSource source,
+                                                              const std::string& device, CompileReport* report) {
+  if (!store_) return FailedPrecondition("this daemon has no module store");
+  const std::string dev = device.empty() ? "cpu" : device;
+  if (dev != "cpu" && dev.rfind("cuda", 0) != 0)
+    return InvalidArgument("unknown device '" + dev + "' (expected \"cpu\" or \"cuda:N\")");
+  bool unchecked_note = false;
+  auto it = source.options.find("bounds_checks");
+  if (it != source.options.end() && (it->second == "false" || it->second == "0" || it->second == "False") &&
+      !s.unchecked_allowed) {
+    it->second = "true";
+    unchecked_note = true;
+  }
+  auto r = store_->Compile(source, dev, report);
+  if (unchecked_note && report) {
+    Diagnostic d;
+    d.severity = Diagnostic::Severity::kWarning;
+    d.message = "bounds_checks=false ignored: this daemon does not allow unchecked kernels (start weftd with --allow-unchecked)";
+    report->diagnostics.push_back(d);
+  }
+  if (!r.ok()) spdlog::info("session {}: compile of module '{}' failed: {}", s.id(), source.name, r.status().message());
+  return r;
+}
+
+EngineStats Engine::Stats() const {
+  EngineStats st;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    st.sessions = static_cast<uint32_t>(sessions_.size());
+  }
+  {
+    std::lock_guard<std::mutex> lock(alloc_mu_);
+    st.arrays = allocations_.size();
+  }
+  st.array_bytes = live_bytes_.load();
+  auto ps = slabs_->stats();
+  st.cpu_slabs = ps.slabs;
+  st.cpu_slab_bytes = ps.slab_bytes;
+  if (store_) {
+    auto ms = store_->stats();
+    st.module_cache_hits = ms.memory_hits;
+    st.module_cache_disk_hits = ms.disk_hits;
+    st.module_cache_misses = ms.misses;
+  }
+  st.sessions_opened_total = sessions_opened_.load();
+  st.sessions_reaped_total = sessions_reaped_.load();
+  return st;
+}
+
+}  // namespace weft

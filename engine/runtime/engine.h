@@ -1,0 +1,140 @@
+// The daemon's core, called by the server's services: sessions, devices, arrays in shared
+// memory, ordered command batches (copy, fill, launch, tape) per session, module compiles and
+// statistics. No gRPC here: plain types in, Status/Expected out.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "engine/core/status.h"
+#include "engine/runtime/command_executor.h"
+#include "engine/runtime/commands.h"
+#include "engine/runtime/device_info.h"
+#include "engine/runtime/module_store.h"
+#include "engine/runtime/session.h"
+#include "engine/runtime/shm_slab_pool.h"
+#include "engine/runtime/thread_pool.h"
+
+namespace weft {
+
+struct EngineOptions {
+  ModuleStoreOptions modules;     // used when no store is passed to Create
+  int cpu_threads = 0;            // launch pool size; 0 = all cores
+  bool allow_unchecked = false;   // modules may ask for "bounds_checks": "false"
+  ShmSlabPoolOptions slabs;
+  uint64_t print_capacity = 1 << 20;   // per launch
+  bool remove_stale_slabs = true;
+};
+
+// Everything a client needs to know about an allocation (engine twin of weft.v1.ArrayInfo).
+struct ArrayDesc {
+  uint64_t handle = 0;
+  DType dtype;
+  std::vector<int64_t> shape;
+  std::vector<int64_t> strides;
+  std::string device;
+  uint64_t byte_size = 0;
+  uint64_t grad_handle = 0;
+  std::string shm_name;   // local sessions only
+  uint64_t shm_offset = 0;
+  uint64_t shm_size = 0;
+};
+
+struct CreateArrayParams {
+  enum class Init { kEmpty = 0, kZeros = 1, kFill = 2, kData = 3 };
+  DType dtype;
+  std::vector<int64_t> shape;
+  std::string device = "cpu";
+  bool requires_grad = false;
+  Init init = Init::kEmpty;
+  std::string value;   // kFill: one element; kData: all bytes, C order
+};
+
+struct EngineStats {
+  uint32_t sessions = 0;
+  uint64_t arrays = 0;
+  uint64_t array_bytes = 0;
+  uint32_t cpu_slabs = 0;
+  uint64_t cpu_slab_bytes = 0;
+  uint64_t module_cache_hits = 0;
+  uint64_t module_cache_disk_hits = 0;
+  uint64_t module_cache_misses = 0;
+  uint64_t sessions_opened_total = 0;
+  uint64_t sessions_reaped_total = 0;
+};
+
+class Engine {
+ public:
+  // `store` may be injected (tests); otherwise ModuleStore::Create(options.modules).
+  static Expected<std::unique_ptr<Engine>> Create(const EngineOptions& options,
+                                                  std::unique_ptr<ModuleStore> store = nullptr);
+  ~Engine();   // closes every session; the slab pool unlinks every slab
+  Engine(const Engine&) = delete;
+  Engine& operator=(const Engine&) = delete;
+
+  // Sessions.
+  std::shared_ptr<Session> OpenSession(const SessionOptions& options);
+  std::shared_ptr<Session> FindSession(const std::string& id) const;
+  // Waits for the session's queued work, then frees everything it held. `reaped`: the client
+  // went away without closing.
+  Status CloseSession(const std::string& id, bool reaped = false);
+  void CloseAllSessions();
+
+  std::vector<DeviceInfo> ListDevices() const;
+
+  // Arrays.
+  Expected<ArrayDesc> CreateArray(Session& s, const CreateArrayParams& p);
+  Status FreeArray(Session& s, uint64_t handle);
+  Expected<ArrayDesc> DescribeArray(Session& s, uint64_t handle) const;
+  // Streams [offset, offset+count) (count 0 = to the end) in chunks of at most `chunk` bytes
+  // (0 = 1 MiB) to sink(offset, data, size); a false return from sink stops early.
+  // Waits for the session's queued commands first.
+  Status ReadArray(Session& s, uint64_t handle, uint64_t offset, uint64_t count, uint32_t chunk,
+                   const std::function<bool(uint64_t, const char*, size_t)>& sink);
+  // Writes bytes at offset of the allocation (range-checked; nothing written on error).
+  Status WriteArray(Session& s, uint64_t handle, uint64_t offset, const void* data, size_t size);
+  Expected<std::string> ExportArray(Session& s, uint64_t handle);
+  Expected<ArrayDesc> ImportArray(Session& s, const std::string& token);
+
+  // Commands: queued in order on the session's executor; errors surface at Synchronize.
+  Expected<uint64_t> Submit(Session& s, std::vector<Command> commands);
+  Session::SyncResult Synchronize(Session& s);
+
+  // Modules.
+  Expected<std::shared_ptr<const LoadedModule>> Compile(Session& s, ModuleSource source,
+                                                        const std::string& device, CompileReport* report);
+
+  EngineStats Stats() const;
+  const EngineOptions& options() const { return options_; }
+  ThreadPool& pool() { return *pool_; }
+
+ private:
+  Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store);
+  Expected<std::shared_ptr<Allocation>> NewAllocation(const DType& dtype, const std::vector<int64_t>& shape,
+                                                      bool zero);
+  ArrayDesc Describe(const Session& s, const Allocation& a) const;
+  Expected<std::shared_ptr<Allocation>> Held(const Session& s, uint64_t handle) const;
+
+  EngineOptions options_;
+  std::unique_ptr<ShmSlabPool> slabs_;   // destroyed last (declared first)
+  std::unique_ptr<ModuleStore> store_;
+  std::unique_ptr<ThreadPool> pool_;
+  std::unique_ptr<CommandExecutor> executor_;
+  mutable std::mutex mu_;        // sessions_
+  std::map<std::string, std::shared_ptr<Session>> sessions_;
+  mutable std::mutex alloc_mu_;  // allocations_; never drop an Allocation while holding it
+  std::map<uint64_t, std::weak_ptr<Allocation>> allocations_;   // every live allocation
+  std::atomic<uint64_t> live_bytes_{0};
+  std::atomic<uint64_t> next_handle_{1};
+  std::atomic<uint64_t> sessions_opened_{0};
+  std::atomic<uint64_t> sessions_reaped_{0};
+  uint64_t memory_limit_ = 0;
+};
+
+}  // namespace weft

@@ -1,0 +1,93 @@
+// Session: held arrays, first-error bookkeeping and print output.
+#include "engine/runtime/session.h"
+
+namespace weft {
+
+std::shared_ptr<Allocation> Session::Find(uint64_t handle) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = arrays_.find(handle);
+  return it == arrays_.end() ? nullptr : it->second;
+}
+
+void Session::Hold(const std::shared_ptr<Allocation>& a) {
+  std::lock_guard<std::mutex> lock(mu_);
+  arrays_[a->handle] = a;
+  if (a->grad) {
+    arrays_[a->grad->handle] = a->grad;
+    grad_owner_[a->grad->handle] = a->handle;
+  }
+}
+
+bool Session::Release(uint64_t handle) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = arrays_.find(handle);
+  if (it == arrays_.end()) return false;
+  if (grad_owner_.count(handle)) return true;   // a gradient lives as long as its array
+  if (it->second->grad) {
+    arrays_.erase(it->second->grad->handle);
+    grad_owner_.erase(it->second->grad->handle);
+  }
+  arrays_.erase(it);
+  return true;
+}
+
+bool Session::Holds(uint64_t handle) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return arrays_.count(handle) != 0;
+}
+
+size_t Session::array_count() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return arrays_.size();
+}
+
+void Session::ReleaseAll() {
+  std::unordered_map<uint64_t, std::shared_ptr<Allocation>> drop;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    drop.swap(arrays_);
+    grad_owner_.clear();
+  }
+}
+
+bool Session::failed() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return !error_.ok();
+}
+
+void Session::Fail(const Status& s, const SourceLocation& origin) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!error_.ok()) {
+    ++skipped_;
+    return;
+  }
+  error_ = s;
+  error_origin_ = origin;
+}
+
+void Session::CountSkipped() {
+  std::lock_guard<std::mutex> lock(mu_);
+  ++skipped_;
+}
+
+void Session::AppendOutput(const std::string& text) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (output_.size() < (16u << 20)) output_ += text;
+}
+
+Session::SyncResult Session::TakeResult() {
+  std::lock_guard<std::mutex> lock(mu_);
+  SyncResult r;
+  r.error = error_;
+  if (!error_.ok() && skipped_ > 0)
+    r.error = Status(error_.code(), error_.message() + " (" + std::to_string(skipped_) +
+                                        " later command(s) were skipped)");
+  r.origin = error_origin_;
+  r.output.swap(output_);
+  error_ = Status::Ok();
+  error_origin_ = {};
+  skipped_ = 0;
+  return r;
+}
+
+}  // namespace weft

@@ -1,0 +1,78 @@
+// One client session: who it is, the arrays it holds, its ordered executor, the first error
+// since the last synchronize, kernel print output, and its autodiff tapes.
+// Threading: `mu` guards arrays/error/output; tapes are touched only on the executor thread.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <unordered_map>
+
+#include "engine/core/module_source.h"
+#include "engine/core/status.h"
+#include "engine/runtime/allocation.h"
+#include "engine/runtime/serial_queue.h"
+#include "engine/runtime/tape.h"
+
+namespace weft {
+
+struct SessionOptions {
+  std::string client_name;
+  int64_t client_pid = 0;
+  bool local = false;          // unix-socket peer: gets shared-memory names
+  std::string principal;       // credential class: IPC imports need the same principal
+};
+
+class Session {
+ public:
+  Session(std::string id, SessionOptions options) : id_(std::move(id)), options_(std::move(options)) {}
+
+  const std::string& id() const { return id_; }
+  const SessionOptions& options() const { return options_; }
+
+  // Held arrays (array handles and gradient handles).
+  std::shared_ptr<Allocation> Find(uint64_t handle) const;
+  void Hold(const std::shared_ptr<Allocation>& a);   // also holds a->grad
+  // Drops the hold on `handle` (and its gradient). False when not held.
+  bool Release(uint64_t handle);
+  bool Holds(uint64_t handle) const;
+  size_t array_count() const;
+  // Drops every hold (session close).
+  void ReleaseAll();
+
+  // Errors: the first failure since the last TakeResult wins; later commands are skipped.
+  bool failed() const;
+  void Fail(const Status& s, const SourceLocation& origin);
+  void CountSkipped();
+  void AppendOutput(const std::string& text);
+  struct SyncResult {
+    Status error;
+    SourceLocation origin;
+    std::string output;
+  };
+  SyncResult TakeResult();
+
+  SerialQueue& queue() { return queue_; }
+
+  // Executor-thread state.
+  std::map<uint64_t, Tape> tapes;
+  uint64_t active_tape = 0;   // 0 = none
+  bool unchecked_allowed = false;
+
+ private:
+  std::string id_;
+  SessionOptions options_;
+  mutable std::mutex mu_;
+  std::unordered_map<uint64_t, std::shared_ptr<Allocation>> arrays_;
+  std::unordered_map<uint64_t, uint64_t> grad_owner_;   // grad handle -> array handle
+  Status error_;
+  SourceLocation error_origin_;
+  uint64_t skipped_ = 0;
+  std::string output_;
+  SerialQueue queue_;
+};
+
+}  // namespace weft
