@@ -1,10 +1,13 @@
 """Fixtures of the kernel tests: fresh random data (seed printed so a failure can be
-replayed with WEFT_TEST_SEED), the launch device, and `kernel_module` which writes kernel
-source to a temp file and imports it (for tests that generate one kernel per builtin)."""
+replayed with WEFT_TEST_SEED), the launch device, `kernel_module` which writes kernel
+source to a temp file and imports it (for tests that generate one kernel per builtin), and
+`run_script` which runs a client program from a file in a child process (kernels need their
+source in a file, so `python -c` clients cannot define kernels)."""
 from __future__ import annotations
 
 import importlib.util
 import os
+import subprocess
 import sys
 import textwrap
 import uuid
@@ -41,3 +44,38 @@ def kernel_module(tmp_path):
         return module
 
     return load
+
+
+CLIENT_DIR = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+
+
+@pytest.fixture
+def run_script(weftd, tmp_path):
+    """run_script(code, env=None, timeout=120, check=True, filename=None) -> CompletedProcess
+    of a child client running `code` from a file (connected to the `weftd` fixture's daemon
+    unless env sets WEFT_ADDRESS). Give the same filename to run the same file again (kernel
+    modules include the file path, so the same file means the same module)."""
+    counter = [0]
+
+    def run(code: str, env: dict | None = None, timeout: float = 120, check: bool = True,
+            filename: str | None = None):
+        counter[0] += 1
+        path = tmp_path / (filename or f"client_{counter[0]}.py")
+        path.write_text(textwrap.dedent(code))
+        child_env = dict(os.environ)
+        child_env["PYTHONPATH"] = os.pathsep.join(
+            [CLIENT_DIR] + ([child_env["PYTHONPATH"]] if child_env.get("PYTHONPATH") else []))
+        child_env["PYTHONUNBUFFERED"] = "1"
+        for key, value in (env or {}).items():
+            if value is None:
+                child_env.pop(key, None)
+            else:
+                child_env[key] = str(value)
+        proc = subprocess.run([sys.executable, str(path)], env=child_env, capture_output=True,
+                              text=True, timeout=timeout)
+        if check:
+            assert proc.returncode == 0, (f"child client failed ({proc.returncode}):\n"
+                                          f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}")
+        return proc
+
+    return run

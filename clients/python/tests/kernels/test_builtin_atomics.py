@@ -1,0 +1,114 @@
+"""Builtins, atomics under parallel execution: atomic_add/sub/min/max/exch/cas on int32,
+float32 and vec3 arrays with heavy contention (every thread hits few slots), 1-d and 2-d
+indices; the returned old values form a permutation for exch/add counters."""
+import numpy as np
+
+import weft as wp
+
+
+@wp.kernel
+def histogram(values: wp.array(dtype=int), bins: wp.array(dtype=int), ticket: wp.array(dtype=int),
+              tickets: wp.array(dtype=int)):
+    i = wp.tid()
+    wp.atomic_add(bins, values[i], 1)
+    tickets[i] = wp.atomic_add(ticket, 0, 1)      # old value: each thread gets a unique one
+
+
+@wp.kernel
+def float_reduce(x: wp.array(dtype=float), total: wp.array(dtype=float), lo: wp.array(dtype=float),
+                 hi: wp.array(dtype=float), neg: wp.array(dtype=float)):
+    i = wp.tid()
+    wp.atomic_add(total, 0, x[i])
+    wp.atomic_min(lo, 0, x[i])
+    wp.atomic_max(hi, 0, x[i])
+    wp.atomic_sub(neg, i % 4, x[i])
+
+
+@wp.kernel
+def int_minmax(x: wp.array(dtype=int), lo: wp.array2d(dtype=int), hi: wp.array2d(dtype=int)):
+    i = wp.tid()
+    wp.atomic_min(lo, i % 3, i % 2, x[i])
+    wp.atomic_max(hi, i % 3, i % 2, x[i])
+
+
+@wp.kernel
+def vec_add(v: wp.array(dtype=wp.vec3), total: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    wp.atomic_add(total, i % 2, v[i])
+
+
+@wp.kernel
+def exch_cas(slot: wp.array(dtype=int), old: wp.array(dtype=int), winner: wp.array(dtype=int),
+             wins: wp.array(dtype=int)):
+    i = wp.tid()
+    old[i] = wp.atomic_exch(slot, 0, i)
+    # exactly one thread sees -1 and replaces it
+    if wp.atomic_cas(winner, 0, -1, i) == -1:
+        wp.atomic_add(wins, 0, 1)
+
+
+def test_int_histogram_and_tickets(wp, rng):
+    n = 200_000
+    values = rng.integers(0, 8, n).astype(np.int32)
+    bins = wp.zeros(8, dtype=int)
+    ticket = wp.zeros(1, dtype=int)
+    tickets = wp.zeros(n, dtype=int)
+    wp.launch(histogram, dim=n, inputs=[wp.array(values), bins, ticket, tickets])
+    np.testing.assert_array_equal(bins.numpy(), np.bincount(values, minlength=8))
+    assert ticket.numpy()[0] == n
+    np.testing.assert_array_equal(np.sort(tickets.numpy()), np.arange(n))
+
+
+def test_float_reductions(wp, rng):
+    n = 100_000
+    x = rng.standard_normal(n).astype(np.float32)
+    total = wp.zeros(1, dtype=float)
+    lo = wp.full(1, 1e30, dtype=float)
+    hi = wp.full(1, -1e30, dtype=float)
+    neg = wp.zeros(4, dtype=float)
+    wp.launch(float_reduce, dim=n, inputs=[wp.array(x), total, lo, hi, neg])
+    x64 = x.astype(np.float64)
+    # float32 accumulation in any order: bounded by n * eps * sum|x|
+    bound = n * np.finfo(np.float32).eps * np.abs(x64).sum()
+    assert abs(total.numpy()[0] - x64.sum()) <= bound
+    assert lo.numpy()[0] == x.min() and hi.numpy()[0] == x.max()
+    ref = np.array([-x64[k::4].sum() for k in range(4)])
+    assert np.all(np.abs(neg.numpy() - ref) <= bound)
+
+
+def test_int_min_max_2d(wp, rng):
+    n = 50_000
+    x = rng.integers(-10**9, 10**9, n).astype(np.int32)
+    lo = wp.full((3, 2), 2**31 - 1, dtype=int)
+    hi = wp.full((3, 2), -2**31, dtype=int)
+    wp.launch(int_minmax, dim=n, inputs=[wp.array(x), lo, hi])
+    idx = np.arange(n)
+    for a in range(3):
+        for b in range(2):
+            sel = (idx % 3 == a) & (idx % 2 == b)
+            assert lo.numpy()[a, b] == x[sel].min()
+            assert hi.numpy()[a, b] == x[sel].max()
+
+
+def test_vec3_atomic_add(wp, rng):
+    n = 20_000
+    v = rng.integers(-5, 5, (n, 3)).astype(np.float32)     # integers: exact in float32
+    total = wp.zeros(2, dtype=wp.vec3)
+    wp.launch(vec_add, dim=n, inputs=[wp.array(v, dtype=wp.vec3), total])
+    np.testing.assert_array_equal(total.numpy(), [v[0::2].sum(0), v[1::2].sum(0)])
+
+
+def test_exch_and_cas(wp):
+    n = 100_000
+    slot = wp.full(1, -7, dtype=int)
+    old = wp.zeros(n, dtype=int)
+    winner = wp.full(1, -1, dtype=int)
+    wins = wp.zeros(1, dtype=int)
+    wp.launch(exch_cas, dim=n, inputs=[slot, old, winner, wins])
+    # the exchanged values form a chain: old values = {-7} + all thread ids but the last one
+    olds = np.sort(old.numpy())
+    last = slot.numpy()[0]
+    expected = np.sort(np.concatenate([[-7], np.setdiff1d(np.arange(n), [last])]))
+    np.testing.assert_array_equal(olds, expected)
+    assert wins.numpy()[0] == 1
+    assert 0 <= winner.numpy()[0] < n

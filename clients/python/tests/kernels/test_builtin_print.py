@@ -1,0 +1,59 @@
+"""Builtins: print() of scalars/vectors and wp.printf reach the launching client's stdout at
+the next sync; wp.expect_eq is silent when equal and reports (kernel output) when not; output
+of another session does not leak into this one."""
+import re
+import textwrap
+
+import weft as wp
+
+
+@wp.kernel
+def say(x: wp.array(dtype=float)):
+    i = wp.tid()
+    print(i)
+    wp.printf("weft-printf %d %.3f\n", i, x[i])
+    print(wp.vec3(1.0, 2.0, 3.0))
+
+
+@wp.kernel
+def check(a: wp.array(dtype=int), b: wp.array(dtype=int)):
+    i = wp.tid()
+    wp.expect_eq(a[i], b[i])
+
+
+def test_print_and_printf_reach_stdout(wp, capfd):
+    x = wp.array([0.5, 1.25, -2.0], dtype=float)
+    wp.launch(say, dim=3, inputs=[x])
+    wp.synchronize()
+    out = capfd.readouterr().out
+    for i, v in enumerate(["0.500", "1.250", "-2.000"]):
+        assert f"weft-printf {i} {v}" in out, out
+    assert len(re.findall(r"^\s*[012]\s*$", out, flags=re.M)) == 3, out
+    assert out.count("1") >= 3 and re.search(r"1(\.0+)?,? +2(\.0+)?,? +3", out), out
+
+
+def test_expect_eq(wp, capfd):
+    a = wp.array([1, 2, 3], dtype=int)
+    wp.launch(check, dim=3, inputs=[a, wp.array([1, 2, 3], dtype=int)])
+    wp.synchronize()
+    assert "expect_eq" not in capfd.readouterr().out
+    wp.launch(check, dim=3, inputs=[a, wp.array([1, 5, 3], dtype=int)])
+    wp.synchronize()
+    out = capfd.readouterr().out
+    assert "expect_eq" in out and "2" in out and "5" in out, out
+
+
+def test_output_stays_in_its_session(wp, run_script, capfd):
+    child = run_script(textwrap.dedent('''
+        import weft as wp
+
+        @wp.kernel
+        def shout():
+            wp.printf("from-the-child\\n")
+
+        wp.launch(shout, dim=2)
+        wp.synchronize()
+    '''))
+    assert child.stdout.count("from-the-child") == 2, child.stdout
+    wp.synchronize()
+    assert "from-the-child" not in capfd.readouterr().out

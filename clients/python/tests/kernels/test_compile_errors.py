@@ -1,0 +1,117 @@
+"""Compile errors: the exception's message names the user's file and the line of the
+offending statement (as the daemon's diagnostics give it); wp.compile/load_module report
+errors without launching; the daemon keeps serving; a broken kernel does not block the
+other kernels of its module."""
+import inspect
+
+import numpy as np
+import pytest
+
+import weft as wp
+from weft._kernel.errors import WeftCompileError
+
+
+def _line_of(func, needle):
+    lines, start = inspect.getsourcelines(func)
+    for k, text in enumerate(lines):
+        if needle in text:
+            return start + k
+    raise AssertionError(needle)
+
+
+def test_unknown_name_names_file_and_line(wp):
+    @wp.kernel
+    def broken_unknown(a: wp.array(dtype=float)):
+        i = wp.tid()
+        a[i] = undefined_thing_xyz * 2.0  # noqa: F821 - the error under test
+
+    line = _line_of(broken_unknown.func, "undefined_thing_xyz")
+    with pytest.raises(WeftCompileError) as info:
+        wp.launch(broken_unknown, dim=1, inputs=[wp.zeros(1, dtype=float)])
+    message = str(info.value)
+    assert f"{__file__}:{line}" in message, message
+    assert "undefined_thing_xyz" in message, message
+
+
+def test_type_mismatch_names_line(wp):
+    @wp.kernel
+    def broken_types(a: wp.array(dtype=float)):
+        i = wp.tid()
+        v = wp.vec3(1.0, 2.0, 3.0)
+        a[i] = v + 1.0
+
+    line = _line_of(broken_types.func, "v + 1.0")
+    with pytest.raises(WeftCompileError) as info:
+        wp.compile(broken_types, device="cpu")
+    assert f"{__file__}:{line}" in str(info.value), str(info.value)
+
+
+def test_unsupported_construct_names_line(wp):
+    @wp.kernel
+    def broken_construct(a: wp.array(dtype=float)):
+        i = wp.tid()
+        xs = [x for x in range(3)]
+        a[i] = float(xs[0])
+
+    line = _line_of(broken_construct.func, "for x in range(3)]")
+    with pytest.raises(WeftCompileError) as info:
+        wp.compile(broken_construct, device="cpu")
+    assert f"{__file__}:{line}" in str(info.value), str(info.value)
+
+
+def test_error_in_func_points_into_the_func(wp):
+    @wp.func
+    def bad_helper(x: float):
+        return x + no_such_global_abc  # noqa: F821
+
+    @wp.kernel
+    def calls_bad_helper(a: wp.array(dtype=float)):
+        i = wp.tid()
+        a[i] = bad_helper(a[i])
+
+    line = _line_of(bad_helper.overloads[0].func, "no_such_global_abc")
+    with pytest.raises(WeftCompileError) as info:
+        wp.compile(calls_bad_helper, device="cpu")
+    assert f"{__file__}:{line}" in str(info.value), str(info.value)
+
+
+@wp.kernel
+def fine_sibling(a: wp.array(dtype=float)):
+    i = wp.tid()
+    a[i] = 42.0
+
+
+def test_daemon_keeps_serving_and_siblings_still_compile(wp):
+    @wp.kernel
+    def broken_again(a: wp.array(dtype=float)):
+        a[0] = nope_nope  # noqa: F821
+
+    with pytest.raises(WeftCompileError):
+        wp.compile(broken_again, device="cpu")
+    a = wp.zeros(4, dtype=float)
+    wp.launch(fine_sibling, dim=4, inputs=[a])
+    np.testing.assert_array_equal(a.numpy(), 42.0)
+
+
+def test_load_module_compiles_ahead_of_time(wp, kernel_module):
+    good = kernel_module("""
+        @wp.kernel
+        def k1(a: wp.array(dtype=float)):
+            a[wp.tid()] = 1.0
+
+        @wp.kernel
+        def k2(a: wp.array(dtype=float)):
+            a[wp.tid()] = 2.0
+    """)
+    compiled = wp.load_module(good, device="cpu")
+    assert compiled is not None and compiled.module_id
+    bad = kernel_module("""
+        @wp.kernel
+        def k3(a: wp.array(dtype=float)):
+            a[wp.tid()] = missing_name_q
+    """)
+    with pytest.raises(WeftCompileError) as info:
+        wp.load_module(bad, device="cpu")
+    line = next(k for k, text in enumerate(open(bad.__file__).read().splitlines(), 1)
+                if "missing_name_q" in text)
+    assert f"{bad.__file__}:{line}" in str(info.value), str(info.value)
