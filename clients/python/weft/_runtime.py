@@ -140,6 +140,10 @@ def _start_local_daemon(socket_path: Path) -> None:
             raise WeftError(f"no weftd answers at {socket_path} and no weftd binary was found: "
                             "set WEFT_ADDRESS to a running daemon, or WEFT_DAEMON to the weftd "
                             "binary, or put weftd on PATH", "UNAVAILABLE")
+        if not os.access(binary, os.X_OK):
+            raise WeftError(f"no weftd answers at {socket_path} and the weftd binary {binary} "
+                            "does not exist or is not executable (WEFT_DAEMON / PATH)",
+                            "UNAVAILABLE")
         log_path = socket_path.parent / "weftd.log"
         with open(log_path, "ab") as log:
             proc = subprocess.Popen([binary, "--listen", target], stdin=subprocess.DEVNULL,
