@@ -79,9 +79,13 @@ class BuiltinRegistry {
   const std::vector<BuiltinOverload>& rows() const { return rows_; }
   std::vector<const BuiltinOverload*> Overloads(const std::string& name) const;
 
-  // First overload (in registry order) whose patterns accept `args` exactly. On failure the
-  // status message names the builtin, the argument types and the candidate signatures.
-  Expected<BuiltinMatch> Resolve(const std::string& name, const std::vector<Type>& args) const;
+  // First overload (in registry order) whose patterns accept `args` exactly. Arguments that
+  // are numeric literals (`literals[i]`: 1 = int literal, 2 = float literal, 0 = not a
+  // literal) adapt: an int literal takes any numeric type the overload binds, a float literal
+  // any float type; unbound, they keep int32 / float32. match.param_types has the adapted
+  // types. On failure the message names the builtin, the argument types and the candidates.
+  Expected<BuiltinMatch> Resolve(const std::string& name, const std::vector<Type>& args,
+                                 const std::vector<int>* literals = nullptr) const;
 
   // docs/builtins.md, generated from the rows.
   std::string Markdown() const;

@@ -223,22 +223,52 @@ std::vector<const BuiltinOverload*> BuiltinRegistry::Overloads(const std::string
   return out;
 }
 
-Expected<BuiltinMatch> BuiltinRegistry::Resolve(const std::string& name, const std::vector<Type>& args) const {
+Expected<BuiltinMatch> BuiltinRegistry::Resolve(const std::string& name, const std::vector<Type>& args,
+                                                 const std::vector<int>* literals) const {
   auto it = by_name_.find(name);
   if (it == by_name_.end()) return NotFound("unknown builtin '" + name + "'");
+  auto literal = [&](size_t k) { return literals && k < literals->size() ? (*literals)[k] : 0; };
   for (size_t i : it->second) {
     const BuiltinOverload& o = rows_[i];
     if (o.param_patterns.size() != args.size()) continue;
     Bindings b;
     bool ok = true;
-    for (size_t k = 0; k < args.size() && ok; ++k) ok = Match(o.param_patterns[k], args[k], &b);
+    std::vector<Type> types = args;
+    // Pass 1: non-literal arguments bind the pattern variables.
+    for (size_t k = 0; k < args.size() && ok; ++k)
+      if (!literal(k)) ok = Match(o.param_patterns[k], args[k], &b);
+    // Pass 2: literals take the bound type if they can, else their default type.
+    for (size_t k = 0; k < args.size() && ok; ++k) {
+      if (!literal(k)) continue;
+      const std::string& p = o.param_patterns[k];
+      std::vector<ScalarKind> tries;
+      if ((IsScalarClass(p)) && b.has_scalar) tries.push_back(b.scalar);
+      if (b.type_vars.count(p) && b.type_vars[p].is_scalar()) tries.push_back(b.type_vars[p].scalar);
+      ScalarKind concrete;
+      if (ParseScalarName(p, &concrete)) tries.push_back(concrete);
+      if (p == "Float" && !b.has_scalar) tries.push_back(ScalarKind::kFloat32);
+      tries.push_back(args[k].scalar);
+      bool matched = false;
+      for (ScalarKind s : tries) {
+        if (literal(k) == 2 && !IsFloat(s)) continue;
+        if (s == ScalarKind::kBool) continue;
+        Bindings trial = b;
+        if (Match(p, Type::Scalar(s), &trial)) {
+          b = trial;
+          types[k] = Type::Scalar(s);
+          matched = true;
+          break;
+        }
+      }
+      ok = matched;
+    }
     if (!ok) continue;
     auto result = Substitute(o.result_pattern, b);
     if (!result.ok()) return result.status();
     BuiltinMatch m;
     m.overload = &o;
     m.result = std::move(*result);
-    m.param_types = args;
+    m.param_types = std::move(types);
     return m;
   }
   std::string got;

@@ -1,0 +1,804 @@
+// Semantic analysis, module and statement level: symbol tables, struct resolution, function
+// instantiation (kernels, funcs, generic funcs per argument types), and lowering of
+// statements to the structured SSA IR (assignments, if/elif/else with phi merges, for/while
+// with loop-carried slots, break/continue/return as flags guarding the rest of a block).
+#include <cstdio>
+
+#include "engine/sema/check_impl.h"
+
+namespace weft::sema {
+
+Checker::Checker(const ModuleSource& module, const std::vector<ParsedFunction>& parsed,
+                 std::vector<Diagnostic>* diags)
+    : src_(module), parsed_(parsed), diags_(diags) {
+  for (const auto& s : module.symbols) symbols_.emplace(s.name, &s);
+  for (const auto& p : parsed) by_key_[p.source->key.empty() ? p.source->name : p.source->key] = &p;
+}
+
+Status Checker::Error(const SourceLocation& loc, const std::string& msg) {
+  Diagnostic d;
+  d.message = msg;
+  d.location = loc;
+  if (st_ && loc.line > 0) {
+    int rel = static_cast<int>(loc.line) - st_->fn.def_line;
+    if (rel >= 0 && rel < static_cast<int>(st_->source_lines.size())) d.source_line = st_->source_lines[rel];
+  }
+  if (diags_) diags_->push_back(d);
+  return InvalidArgument(d.ToString());
+}
+
+Expected<Module> Checker::Run() {
+  // Structs: resolve field types (order: dependencies first).
+  for (const auto& sd : src_.structs) {
+    StructInfo info;
+    info.name = sd.name;
+    info.cpp_name = StructCppName(sd.name);
+    for (const auto& f : sd.fields) {
+      auto t = ParseType(f.type);
+      if (!t.ok()) {
+        SourceLocation loc;
+        loc.file = sd.name;
+        return Error(loc, "struct " + sd.name + " field '" + f.name + "': " + t.status().message());
+      }
+      info.fields.push_back({f.name, *t});
+    }
+    module_.structs[sd.name] = std::move(info);
+  }
+  std::set<std::string> placed;
+  std::function<Status(const std::string&, int)> place = [&](const std::string& name, int depth) -> Status {
+    if (placed.count(name)) return Status::Ok();
+    auto it = module_.structs.find(name);
+    if (it == module_.structs.end() || depth > 64) {
+      SourceLocation loc;
+      loc.file = name;
+      return Error(loc, "unknown or recursive struct '" + name + "'");
+    }
+    for (const auto& f : it->second.fields) {
+      const Type* t = &f.type;
+      if (t->is_array()) t = &t->elem();
+      if (t->is_struct()) WEFT_RETURN_IF_ERROR(place(t->struct_name, depth + 1));
+    }
+    placed.insert(name);
+    module_.struct_order.push_back(name);
+    return Status::Ok();
+  };
+  for (const auto& sd : src_.structs) {
+    auto s = place(sd.name, 0);
+    if (!s.ok()) return s;
+  }
+
+  bool failed = false;
+  for (const auto& p : parsed_) {
+    if (!p.source->is_kernel) continue;
+    std::vector<Type> types;
+    bool bad = false;
+    for (size_t i = 0; i < p.source->param_types.size(); ++i) {
+      auto t = ParseType(p.source->param_types[i]);
+      if (!t.ok() || ContainsAny(*t)) {
+        SourceLocation loc{p.source->file, p.source->first_line, 1};
+        (void)Error(loc, "kernel '" + p.source->name + "' parameter " + std::to_string(i) + ": " +
+                             (t.ok() ? "kernel parameters need concrete types, not 'any'" : t.status().message()));
+        bad = true;
+        break;
+      }
+      types.push_back(*t);
+    }
+    if (bad) {
+      failed = true;
+      continue;
+    }
+    auto idx = InstantiateFunction(p, types, SourceLocation{p.source->file, p.source->first_line, 1});
+    if (!idx.ok()) {
+      failed = true;
+      continue;
+    }
+    module_.kernels.push_back(*idx);
+  }
+  if (failed) return InvalidArgument("the module has errors");
+  return std::move(module_);
+}
+
+namespace {
+
+std::string Mangle(const std::string& s) {
+  std::string out;
+  for (char c : s) out += (std::isalnum(static_cast<unsigned char>(c)) ? c : '_');
+  return out;
+}
+
+std::vector<std::string> SplitLines(const std::string& s) {
+  std::vector<std::string> out;
+  size_t b = 0;
+  for (size_t i = 0; i <= s.size(); ++i) {
+    if (i == s.size() || s[i] == '\n') {
+      out.push_back(s.substr(b, i - b));
+      b = i + 1;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::vector<Type>& param_types,
+                                           const SourceLocation& call_loc) {
+  const FunctionSource& fs = *pf.source;
+  std::string key = fs.key.empty() ? fs.name : fs.key;
+  std::string inst = key + "(";
+  for (const auto& t : param_types) inst += TypeString(t) + ";";
+  inst += ")";
+  if (auto it = instances_.find(inst); it != instances_.end()) return it->second;
+  if (in_progress_.count(inst)) return Error(call_loc, "recursive call of '" + fs.name + "' is not supported");
+  in_progress_.insert(inst);
+
+  FnState state;
+  FnState* saved = st_;
+  st_ = &state;
+  Function& fn = state.fn;
+  fn.name = fs.name;
+  fn.key = inst;
+  fn.file = fs.file;
+  fn.def_line = static_cast<int>(fs.first_line);
+  fn.is_kernel = fs.is_kernel;
+  state.parsed = &pf;
+  state.source_lines = SplitLines(fs.source);
+  state.block = &fn.body;
+  state.line = fn.def_line;
+
+  auto finish_error = [&](Status s) -> Status {
+    st_ = saved;
+    in_progress_.erase(inst);
+    return s;
+  };
+
+  const auto& params = pf.def->params;
+  if (params.size() != param_types.size())
+    return finish_error(Error(pf.def->loc, "'" + fs.name + "' takes " + std::to_string(params.size()) +
+                                               " parameters but " + std::to_string(param_types.size()) +
+                                               " types were given"));
+  for (size_t i = 0; i < params.size(); ++i) {
+    const Type& t = param_types[i];
+    if (t.is_struct() && !module_.structs.count(t.struct_name))
+      return finish_error(Error(params[i].loc, "unknown struct type '" + t.struct_name + "'"));
+    int v = NewVar(t, params[i].name);
+    fn.vars[v].is_param = true;
+    fn.params.push_back(v);
+    fn.param_names.push_back(params[i].name);
+    state.scope[params[i].name] = v;
+    if (fs.is_kernel && (t.is_array() || t.is_struct())) state.array_param[v] = static_cast<int>(i);
+  }
+  if (!fs.is_kernel && !fs.return_type.empty() && fs.return_type != "void" && fs.return_type != "None") {
+    auto rt = ParseType(fs.return_type);
+    if (!rt.ok()) return finish_error(Error(pf.def->loc, "return type: " + rt.status().message()));
+    if (rt->is_tuple()) fn.returns = rt->sub;
+    else fn.returns.push_back(*rt);
+    for (const auto& t : fn.returns) fn.return_slots.push_back(NewVar(t, "ret", true));
+  }
+  fn.return_flag = NewVar(Type::Bool(), "returned", true);
+  {
+    Stmt init;
+    init.op.kind = OpKind::kConst;
+    init.op.dst.push_back(fn.return_flag);
+    init.op.text = "false";
+    Push(std::move(init));
+  }
+
+  Status s = LowerBlock(pf.def->body);
+  if (!s.ok()) return finish_error(s);
+  if (fn.is_kernel && !fn.return_slots.empty())
+    return finish_error(Error(pf.def->loc, "kernels cannot return a value"));
+  if (!fn.is_kernel && fn.returns.empty() && !fs.return_type.empty() && fs.return_type != "void" &&
+      fs.return_type != "None")
+    return finish_error(Error(pf.def->loc, "'" + fs.name + "' declares a return type but never returns"));
+
+  st_ = saved;
+  in_progress_.erase(inst);
+  fn.function_id = static_cast<int>(module_.functions.size());
+  fn.cpp_name = (fn.is_kernel ? "weft_kernel_" : "weft_func_") + Mangle(fs.name) + "_" +
+                std::to_string(fn.function_id);
+  int index = static_cast<int>(module_.functions.size());
+  module_.functions.push_back(std::move(fn));
+  instances_[inst] = index;
+  return index;
+}
+
+// ---------------------------------------------------------------------------------------
+// Emission helpers
+// ---------------------------------------------------------------------------------------
+
+int Checker::NewVar(const Type& t, const std::string& hint, bool is_mutable) {
+  Var v;
+  v.id = static_cast<int>(st_->fn.vars.size());
+  v.type = t;
+  v.hint = hint;
+  v.is_mutable = is_mutable;
+  st_->fn.vars.push_back(v);
+  return v.id;
+}
+
+void Checker::Push(Stmt s) {
+  s.line = st_->line;
+  st_->block->push_back(std::move(s));
+}
+
+int Checker::EmitOp(OpKind kind, const Type& dst_type, std::vector<int> args, std::string text) {
+  Stmt s;
+  s.op.kind = kind;
+  s.op.args = std::move(args);
+  s.op.text = std::move(text);
+  int d = -1;
+  if (!dst_type.is_void()) {
+    d = NewVar(dst_type);
+    s.op.dst.push_back(d);
+  }
+  Push(std::move(s));
+  return d;
+}
+
+int Checker::EmitConst(const Type& t, const std::string& cpp_text) { return EmitOp(OpKind::kConst, t, {}, cpp_text); }
+
+int Checker::EmitRaw(const Type& t, const std::string& text, std::vector<int> args) {
+  return EmitOp(OpKind::kRaw, t, std::move(args), text);
+}
+
+void Checker::EmitCopy(int dst, int src) {
+  Stmt s;
+  s.op.kind = OpKind::kCopy;
+  s.op.dst.push_back(dst);
+  s.op.args.push_back(src);
+  Push(std::move(s));
+}
+
+// ---------------------------------------------------------------------------------------
+// Statements
+// ---------------------------------------------------------------------------------------
+
+bool Checker::MayExit(const ast::Stmt& s, bool nested_loop) const {
+  switch (s.kind) {
+    case ast::StmtKind::kBreak:
+    case ast::StmtKind::kContinue: return !nested_loop;
+    case ast::StmtKind::kReturn: return true;
+    case ast::StmtKind::kIf: {
+      const auto& i = static_cast<const ast::If&>(s);
+      for (const auto& c : i.body)
+        if (MayExit(*c, nested_loop)) return true;
+      for (const auto& c : i.orelse)
+        if (MayExit(*c, nested_loop)) return true;
+      return false;
+    }
+    case ast::StmtKind::kFor:
+      for (const auto& c : static_cast<const ast::For&>(s).body)
+        if (MayExit(*c, true)) return true;
+      return false;
+    case ast::StmtKind::kWhile:
+      for (const auto& c : static_cast<const ast::While&>(s).body)
+        if (MayExit(*c, true)) return true;
+      return false;
+    default: return false;
+  }
+}
+
+// A bool var that is true while no break/continue/return has happened (in this loop body).
+int Checker::ExitFlagsGuard() {
+  std::vector<int> flags{st_->fn.return_flag};
+  if (!st_->loops.empty()) {
+    flags.push_back(st_->loops.back().break_flag);
+    flags.push_back(st_->loops.back().continue_flag);
+  }
+  std::string text = "!(";
+  for (size_t i = 0; i < flags.size(); ++i) text += (i ? " || $" : "$") + std::to_string(i);
+  return EmitRaw(Type::Bool(), text + ")", flags);
+}
+
+Status Checker::LowerBlock(const ast::StmtList& stmts, size_t from) {
+  for (size_t i = from; i < stmts.size(); ++i) {
+    WEFT_RETURN_IF_ERROR(LowerStmt(*stmts[i]));
+    if (i + 1 < stmts.size() && MayExit(*stmts[i], false)) {
+      st_->line = static_cast<int>(stmts[i + 1]->loc.line);
+      int go = ExitFlagsGuard();
+      return LowerIf(go, [&]() { return LowerBlock(stmts, i + 1); }, nullptr);
+    }
+  }
+  return Status::Ok();
+}
+
+Status Checker::BindLocal(const std::string& name, int var, const SourceLocation& loc) {
+  auto it = st_->scope.find(name);
+  if (it != st_->scope.end() && TypeOf(it->second) != TypeOf(var))
+    return Error(loc, "'" + name + "' has type " + TypeString(TypeOf(it->second)) + "; cannot assign a value of type " +
+                          TypeString(TypeOf(var)) + " (a variable keeps one type, as in Warp)");
+  if (st_->fn.vars[var].is_mutable) {  // never alias a slot that changes later
+    int copy = NewVar(TypeOf(var), name);
+    EmitCopy(copy, var);
+    var = copy;
+  }
+  if (st_->fn.vars[var].hint.empty()) st_->fn.vars[var].hint = name;
+  auto ap = st_->array_param.find(var);
+  (void)ap;
+  st_->scope[name] = var;
+  return Status::Ok();
+}
+
+Status Checker::LowerStmt(const ast::Stmt& s) {
+  st_->line = static_cast<int>(s.loc.line);
+  switch (s.kind) {
+    case ast::StmtKind::kFunctionDef: return Error(s.loc, "nested function definitions are not supported in kernels");
+    case ast::StmtKind::kAssign: {
+      const auto& a = static_cast<const ast::Assign&>(s);
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*a.value));
+      for (const auto& t : a.targets) WEFT_RETURN_IF_ERROR(LowerAssignTo(*t, v));
+      return Status::Ok();
+    }
+    case ast::StmtKind::kAnnAssign: {
+      const auto& a = static_cast<const ast::AnnAssign&>(s);
+      WEFT_ASSIGN_OR_RETURN(Type t, EvalTypeExpr(*a.annotation));
+      if (!a.value) {
+        int v = NewVar(t);
+        Stmt z;
+        z.op.kind = OpKind::kConstruct;
+        z.op.mode = ConstructMode::kZero;
+        z.op.dst.push_back(v);
+        Push(std::move(z));
+        return LowerAssignTo(*a.target, Value::OfVar(v));
+      }
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*a.value));
+      WEFT_ASSIGN_OR_RETURN(int c, Coerce(v, t, a.value->loc, "the annotated value"));
+      return LowerAssignTo(*a.target, Value::OfVar(c));
+    }
+    case ast::StmtKind::kAugAssign: {
+      const auto& a = static_cast<const ast::AugAssign&>(s);
+      // arr[i] += v / -= v are atomic adds (Warp's rule), so parallel threads may accumulate.
+      if (const auto* sub = ast::As<ast::Subscript>(a.target.get())) {
+        WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
+        if (base.kind == Value::Kind::kVar && TypeOf(base.var).is_array() &&
+            (a.op == ast::BinaryOperator::kAdd || a.op == ast::BinaryOperator::kSub)) {
+          const Type& at = TypeOf(base.var);
+          if (static_cast<int>(sub->indices.size()) != at.ndim)
+            return Error(a.loc, "array '" + ExprText(*sub->value) + "' has " + std::to_string(at.ndim) +
+                                    " dimensions but " + std::to_string(sub->indices.size()) + " indices were given");
+          std::vector<Value> args{base};
+          for (const auto& ix : sub->indices) {
+            WEFT_ASSIGN_OR_RETURN(Value iv, Eval(*ix));
+            args.push_back(iv);
+          }
+          WEFT_ASSIGN_OR_RETURN(Value val, Eval(*a.value));
+          WEFT_ASSIGN_OR_RETURN(int cv, Coerce(val, at.elem(), a.value->loc, "the value added to the array"));
+          args.push_back(Value::OfVar(cv));
+          std::string fn = a.op == ast::BinaryOperator::kAdd ? "atomic_add" : "atomic_sub";
+          WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(fn, std::move(args), a.loc, ArrayParamOf(base.var),
+                                                                 ExprText(*sub->value)));
+          (void)r;
+          return Status::Ok();
+        }
+      }
+      ast::BinOp synthetic;
+      synthetic.loc = a.loc;
+      synthetic.op = a.op;
+      // Evaluate `target op value` without re-parsing: borrow the nodes through a non-owning view.
+      WEFT_ASSIGN_OR_RETURN(Value lhs, Eval(*a.target));
+      WEFT_ASSIGN_OR_RETURN(Value rhs, Eval(*a.value));
+      static const std::map<ast::BinaryOperator, std::string> kNames = {
+          {ast::BinaryOperator::kAdd, "add"},        {ast::BinaryOperator::kSub, "sub"},
+          {ast::BinaryOperator::kMul, "mul"},        {ast::BinaryOperator::kMatMul, "mul"},
+          {ast::BinaryOperator::kDiv, "div"},        {ast::BinaryOperator::kFloorDiv, "floordiv"},
+          {ast::BinaryOperator::kMod, "mod"},        {ast::BinaryOperator::kPow, "pow"},
+          {ast::BinaryOperator::kLShift, "lshift"},  {ast::BinaryOperator::kRShift, "rshift"},
+          {ast::BinaryOperator::kBitOr, "bit_or"},   {ast::BinaryOperator::kBitXor, "bit_xor"},
+          {ast::BinaryOperator::kBitAnd, "bit_and"},
+      };
+      WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(kNames.at(a.op), {lhs, rhs}, a.loc));
+      if (r.kind == Value::Kind::kVar && lhs.kind == Value::Kind::kVar && TypeOf(r.var) != TypeOf(lhs.var))
+        return Error(a.loc, std::string("'") + ast::Spelling(a.op) + "=' would change the type of '" +
+                                ExprText(*a.target) + "' from " + TypeString(TypeOf(lhs.var)) + " to " +
+                                TypeString(TypeOf(r.var)));
+      return LowerAssignTo(*a.target, r);
+    }
+    case ast::StmtKind::kIf: {
+      const auto& i = static_cast<const ast::If&>(s);
+      WEFT_ASSIGN_OR_RETURN(int c, EvalCond(*i.test));
+      return LowerIf(c, [&]() { return LowerBlock(i.body); },
+                     i.orelse.empty() ? std::function<Status()>() : [&]() { return LowerBlock(i.orelse); });
+    }
+    case ast::StmtKind::kFor: return LowerFor(static_cast<const ast::For&>(s));
+    case ast::StmtKind::kWhile: return LowerWhile(static_cast<const ast::While&>(s));
+    case ast::StmtKind::kBreak:
+    case ast::StmtKind::kContinue: {
+      if (st_->loops.empty())
+        return Error(s.loc, std::string("'") + (s.kind == ast::StmtKind::kBreak ? "break" : "continue") +
+                                "' outside a loop");
+      int flag = s.kind == ast::StmtKind::kBreak ? st_->loops.back().break_flag : st_->loops.back().continue_flag;
+      Stmt set;
+      set.op.kind = OpKind::kConst;
+      set.op.dst.push_back(flag);
+      set.op.text = "true";
+      Push(std::move(set));
+      return Status::Ok();
+    }
+    case ast::StmtKind::kReturn: return LowerReturn(static_cast<const ast::Return&>(s));
+    case ast::StmtKind::kExprStmt: {
+      const auto& e = static_cast<const ast::ExprStmt&>(s);
+      if (ast::As<ast::Constant>(e.value.get())) return Status::Ok();  // stray docstring / literal
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e.value));
+      (void)v;
+      return Status::Ok();
+    }
+    case ast::StmtKind::kPass: return Status::Ok();
+    case ast::StmtKind::kAssert: {
+      // Warp checks asserts only in debug builds; weft type-checks the test and emits nothing.
+      const auto& a = static_cast<const ast::Assert&>(s);
+      WEFT_ASSIGN_OR_RETURN(int c, EvalCond(*a.test));
+      (void)c;
+      return Status::Ok();
+    }
+  }
+  return Error(s.loc, "unsupported statement");
+}
+
+Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
+  const SourceLocation& loc = target.loc;
+  if (const auto* n = ast::As<ast::Name>(&target)) {
+    if (value.kind != Value::Kind::kVar) {
+      if (value.kind == Value::Kind::kTuple)
+        return Error(loc, "cannot assign " + std::to_string(value.elems.size()) + " values to one name '" + n->id +
+                              "'; unpack them: a, b = ...");
+      return Error(loc, "'" + n->id + "' cannot hold " +
+                            (value.kind == Value::Kind::kType ? "a type" : std::string("this value")) +
+                            " (only runtime values can be assigned)");
+    }
+    if (TypeOf(value.var).is_void()) return Error(loc, "cannot assign the result of a function that returns nothing");
+    // An assigned literal takes its default type (int32 / float32); keep the var.
+    return BindLocal(n->id, value.var, loc);
+  }
+  if (const auto* t = ast::As<ast::Tuple>(&target)) {
+    if (value.kind == Value::Kind::kVar && value.name == "__tid") {  // i, j = wp.tid()
+      if (t->elts.size() > 4) return Error(loc, "wp.tid() has at most 4 dimensions");
+      for (size_t k = 0; k < t->elts.size(); ++k) {
+        int v = EmitRaw(Type::Int32(), "wp::int32(__tid[" + std::to_string(k) + "])", {});
+        WEFT_RETURN_IF_ERROR(LowerAssignTo(*t->elts[k], Value::OfVar(v)));
+      }
+      return Status::Ok();
+    }
+    if (value.kind != Value::Kind::kTuple)
+      return Error(loc, "cannot unpack a single value into " + std::to_string(t->elts.size()) + " names");
+    if (value.elems.size() != t->elts.size())
+      return Error(loc, "cannot unpack " + std::to_string(value.elems.size()) + " values into " +
+                            std::to_string(t->elts.size()) + " targets");
+    for (size_t i = 0; i < t->elts.size(); ++i) WEFT_RETURN_IF_ERROR(LowerAssignTo(*t->elts[i], value.elems[i]));
+    return Status::Ok();
+  }
+  if (value.kind != Value::Kind::kVar) return Error(loc, "only runtime values can be stored");
+  if (const auto* sub = ast::As<ast::Subscript>(&target)) {
+    WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
+    if (base.kind != Value::Kind::kVar) return Error(loc, "cannot assign to an element of '" + ExprText(*sub->value) + "'");
+    const Type bt = TypeOf(base.var);
+    WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(sub->indices));
+    if (bt.is_array()) {
+      if (static_cast<int>(idx.size()) != bt.ndim)
+        return Error(loc, "array '" + ExprText(*sub->value) + "' has " + std::to_string(bt.ndim) +
+                              " dimensions but " + std::to_string(idx.size()) + " indices were given");
+      WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, bt.elem(), loc, "the value stored into '" + ExprText(*sub->value) + "'"));
+      Stmt s;
+      s.op.kind = OpKind::kStore;
+      s.op.args.push_back(base.var);
+      for (int i : idx) s.op.args.push_back(i);
+      s.op.args.push_back(v);
+      s.op.array_param = ArrayParamOf(base.var);
+      s.op.array_name = ExprText(*sub->value);
+      Push(std::move(s));
+      st_->fn.may_fail = true;
+      return Status::Ok();
+    }
+    Type comp;
+    if (bt.is_vector() || bt.kind == TypeKind::kQuat || bt.kind == TypeKind::kTransform) {
+      if (idx.size() != 1) return Error(loc, TypeString(bt) + " takes one index");
+      comp = Type::Scalar(bt.scalar);
+    } else if (bt.is_matrix()) {
+      if (idx.size() == 2) comp = Type::Scalar(bt.scalar);
+      else if (idx.size() == 1) comp = Type::Vector(bt.cols, bt.scalar);
+      else return Error(loc, "a matrix takes one (row) or two indices");
+    } else {
+      return Error(loc, "cannot assign to an element of a value of type " + TypeString(bt));
+    }
+    for (int i : idx)
+      if (!TypeOf(i).is_scalar() || !IsInt(TypeOf(i).scalar)) return Error(loc, "component indices must be integers");
+    WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, comp, loc, "the component value"));
+    std::vector<int> args{base.var};
+    for (int i : idx) args.push_back(i);
+    args.push_back(v);
+    int updated = EmitOp(OpKind::kInsert, bt, args);
+    return LowerAssignTo(*sub->value, Value::OfVar(updated));
+  }
+  if (const auto* at = ast::As<ast::Attribute>(&target)) {
+    WEFT_ASSIGN_OR_RETURN(Value base, Eval(*at->value));
+    if (base.kind != Value::Kind::kVar) return Error(loc, "cannot assign to '" + ExprText(target) + "'");
+    const Type bt = TypeOf(base.var);
+    if (bt.is_struct()) {
+      const StructInfo& si = module_.structs.at(bt.struct_name);
+      int fi = -1;
+      const StructField* f = si.Find(at->attr, &fi);
+      if (!f) return Error(at->attr_loc, "struct " + bt.struct_name + " has no field '" + at->attr + "'");
+      WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, f->type, loc, "the value of field '" + at->attr + "'"));
+      int updated = EmitOp(OpKind::kSetField, bt, {base.var, v}, at->attr);
+      st_->block->back().op.field_index = fi;
+      if (ArrayParamOf(base.var) >= 0) st_->array_param[updated] = ArrayParamOf(base.var);
+      return LowerAssignTo(*at->value, Value::OfVar(updated));
+    }
+    if (bt.is_vector() || bt.kind == TypeKind::kQuat) {
+      static const std::string kXYZW = "xyzw";
+      size_t k = at->attr.size() == 1 ? kXYZW.find(at->attr[0]) : std::string::npos;
+      if (k == std::string::npos || static_cast<int>(k) >= bt.component_count())
+        return Error(at->attr_loc, TypeString(bt) + " has no component '" + at->attr + "'");
+      WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, Type::Scalar(bt.scalar), loc, "the component value"));
+      int ki = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")");
+      int updated = EmitOp(OpKind::kInsert, bt, {base.var, ki, v});
+      return LowerAssignTo(*at->value, Value::OfVar(updated));
+    }
+    return Error(loc, "cannot assign to attribute '" + at->attr + "' of a value of type " + TypeString(bt));
+  }
+  return Error(loc, "cannot assign to this expression");
+}
+
+Status Checker::LowerIf(int cond, const std::function<Status()>& then_fn, const std::function<Status()>& else_fn) {
+  Stmt s;
+  s.kind = Stmt::Kind::kIf;
+  s.cond = cond;
+  s.line = st_->line;
+  std::map<std::string, int> before = st_->scope;
+  std::vector<Stmt>* outer = st_->block;
+  int line = st_->line;
+
+  st_->block = &s.then_body;
+  Status ts = then_fn();
+  std::map<std::string, int> then_scope = st_->scope;
+  st_->scope = before;
+  Status es = Status::Ok();
+  if (ts.ok() && else_fn) {
+    st_->block = &s.else_body;
+    es = else_fn();
+  }
+  std::map<std::string, int> else_scope = st_->scope;
+  st_->block = outer;
+  st_->line = line;
+  if (!ts.ok()) return ts;
+  if (!es.ok()) return es;
+  outer->push_back(std::move(s));
+
+  std::set<std::string> names;
+  for (const auto& [n, v] : then_scope) names.insert(n);
+  for (const auto& [n, v] : else_scope) names.insert(n);
+  std::map<std::string, int> merged;
+  for (const auto& n : names) {
+    auto t = then_scope.find(n);
+    auto e = else_scope.find(n);
+    if (t != then_scope.end() && e != else_scope.end()) {
+      if (t->second == e->second) {
+        merged[n] = t->second;
+        continue;
+      }
+      if (TypeOf(t->second) != TypeOf(e->second)) {
+        SourceLocation loc{st_->fn.file, static_cast<uint32_t>(line), 0};
+        return Error(loc, "'" + n + "' has type " + TypeString(TypeOf(t->second)) + " in one branch and " +
+                              TypeString(TypeOf(e->second)) + " in the other");
+      }
+      int phi = EmitOp(OpKind::kPhi, TypeOf(t->second), {cond, t->second, e->second});
+      st_->fn.vars[phi].hint = n;
+      int ap = ArrayParamOf(t->second);
+      if (ap >= 0 && ap == ArrayParamOf(e->second)) st_->array_param[phi] = ap;
+      merged[n] = phi;
+    } else {
+      merged[n] = t != then_scope.end() ? t->second : e->second;  // defined on one path only
+    }
+  }
+  st_->scope = std::move(merged);
+  return Status::Ok();
+}
+
+void CollectAssignedNames(const ast::StmtList& stmts, std::set<std::string>* out) {
+  std::function<void(const ast::Expr&)> target = [&](const ast::Expr& t) {
+    if (const auto* n = ast::As<ast::Name>(&t)) out->insert(n->id);
+    else if (const auto* tu = ast::As<ast::Tuple>(&t)) {
+      for (const auto& e : tu->elts) target(*e);
+    } else if (const auto* s = ast::As<ast::Subscript>(&t)) target(*s->value);
+    else if (const auto* a = ast::As<ast::Attribute>(&t)) target(*a->value);
+  };
+  for (const auto& sp : stmts) {
+    const ast::Stmt& s = *sp;
+    switch (s.kind) {
+      case ast::StmtKind::kAssign:
+        for (const auto& t : static_cast<const ast::Assign&>(s).targets) target(*t);
+        break;
+      case ast::StmtKind::kAnnAssign: target(*static_cast<const ast::AnnAssign&>(s).target); break;
+      case ast::StmtKind::kAugAssign: target(*static_cast<const ast::AugAssign&>(s).target); break;
+      case ast::StmtKind::kIf:
+        CollectAssignedNames(static_cast<const ast::If&>(s).body, out);
+        CollectAssignedNames(static_cast<const ast::If&>(s).orelse, out);
+        break;
+      case ast::StmtKind::kFor:
+        target(*static_cast<const ast::For&>(s).target);
+        CollectAssignedNames(static_cast<const ast::For&>(s).body, out);
+        break;
+      case ast::StmtKind::kWhile: CollectAssignedNames(static_cast<const ast::While&>(s).body, out); break;
+      default: break;
+    }
+  }
+}
+
+namespace {
+
+// Shared loop scaffolding: carried slots before the body, flags, loop-back values after.
+struct LoopBuilder {
+  Checker* c;
+  Stmt loop;
+  std::vector<std::pair<std::string, int>> carried;  // name, slot
+
+  Status Begin(const ast::StmtList& body) {
+    std::set<std::string> assigned;
+    CollectAssignedNames(body, &assigned);
+    auto* st = c->st_;
+    for (const auto& n : assigned) {
+      auto it = st->scope.find(n);
+      if (it == st->scope.end()) continue;
+      int init = it->second;
+      if (c->TypeOf(init).is_array()) continue;  // arrays are handles; element writes do not rebind
+      int slot = c->NewVar(c->TypeOf(init), n, true);
+      c->EmitCopy(slot, init);
+      it->second = slot;
+      int ap = c->ArrayParamOf(init);
+      if (ap >= 0) st->array_param[slot] = ap;
+      carried.emplace_back(n, slot);
+      loop.carried.push_back({slot, init, -1});
+    }
+    loop.kind = Stmt::Kind::kLoop;
+    loop.line = st->line;
+    loop.break_flag = c->NewVar(Type::Bool(), "brk", true);
+    loop.continue_flag = c->NewVar(Type::Bool(), "cont", true);
+    loop.return_flag = st->fn.return_flag;
+    loop.counter = c->NewVar(Type::Scalar(ScalarKind::kInt64), "trips", true);
+    return Status::Ok();
+  }
+
+  Status Body(const ast::StmtList& body) {
+    auto* st = c->st_;
+    std::vector<Stmt>* outer = st->block;
+    st->block = &loop.body;
+    st->loops.push_back({loop.break_flag, loop.continue_flag});
+    Status s = c->LowerBlock(body);
+    if (s.ok()) {
+      for (size_t i = 0; i < carried.size(); ++i) {
+        int next = st->scope.at(carried[i].first);
+        if (c->TypeOf(next) != c->TypeOf(carried[i].second)) {
+          s = c->Error({st->fn.file, static_cast<uint32_t>(loop.line), 0},
+                       "'" + carried[i].first + "' changes type inside the loop");
+          break;
+        }
+        if (next != carried[i].second && st->fn.vars[next].is_mutable) {  // keep loop-back copies parallel
+          int tmp = c->NewVar(c->TypeOf(next), carried[i].first);
+          c->EmitCopy(tmp, next);
+          next = tmp;
+        }
+        loop.carried[i].next = next;
+      }
+    }
+    st->loops.pop_back();
+    st->block = outer;
+    if (!s.ok()) return s;
+    for (const auto& [n, slot] : carried) st->scope[n] = slot;
+    st->block->push_back(std::move(loop));
+    return Status::Ok();
+  }
+};
+
+}  // namespace
+
+Status Checker::LowerFor(const ast::For& s) {
+  const auto* tn = ast::As<ast::Name>(s.target.get());
+  if (!tn) return Error(s.target->loc, "a for loop needs a single name as its target: for i in range(...)");
+  const auto* call = ast::As<ast::Call>(s.iter.get());
+  const auto* fname = call ? ast::As<ast::Name>(call->func.get()) : nullptr;
+  if (!fname || fname->id != "range" || st_->scope.count("range"))
+    return Error(s.iter->loc, "for loops iterate over range(...) only");
+  if (call->args.empty() || call->args.size() > 3 || !call->keywords.empty())
+    return Error(s.iter->loc, "range() takes 1 to 3 positional arguments");
+  std::vector<Value> vals;
+  for (const auto& a : call->args) {
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*a));
+    if (v.kind != Value::Kind::kVar || !TypeOf(v.var).is_scalar() || !IsInt(TypeOf(v.var).scalar))
+      return Error(a->loc, "range() arguments must be integers, got " +
+                               (v.kind == Value::Kind::kVar ? TypeString(TypeOf(v.var)) : std::string("a non-value")));
+    vals.push_back(v);
+  }
+  Type it = Type::Int32();
+  for (const auto& v : vals)
+    if (!v.literal) {
+      it = TypeOf(v.var);
+      break;
+    }
+  std::vector<int> vars;
+  for (const auto& v : vals) {
+    WEFT_ASSIGN_OR_RETURN(int c, Coerce(v, it, s.iter->loc, "range() argument"));
+    vars.push_back(c);
+  }
+  int start, end, step;
+  if (vars.size() == 1) {
+    start = EmitConst(it, "(" + CppType(it) + ")0");
+    end = vars[0];
+    step = EmitConst(it, "(" + CppType(it) + ")1");
+  } else {
+    start = vars[0];
+    end = vars[1];
+    step = vars.size() == 3 ? vars[2] : EmitConst(it, "(" + CppType(it) + ")1");
+  }
+  LoopBuilder lb{this, {}, {}};
+  WEFT_RETURN_IF_ERROR(lb.Begin(s.body));
+  lb.loop.start = start;
+  lb.loop.end = end;
+  lb.loop.step = step;
+  lb.loop.iter = NewVar(it, tn->id, true);
+  auto prev = st_->scope.find(tn->id);
+  if (prev != st_->scope.end() && TypeOf(prev->second) != it)
+    return Error(s.target->loc, "loop variable '" + tn->id + "' already has type " + TypeString(TypeOf(prev->second)));
+  st_->scope[tn->id] = lb.loop.iter;
+  return lb.Body(s.body);
+}
+
+Status Checker::LowerWhile(const ast::While& s) {
+  LoopBuilder lb{this, {}, {}};
+  WEFT_RETURN_IF_ERROR(lb.Begin(s.body));
+  lb.loop.is_while = true;
+  std::vector<Stmt>* outer = st_->block;
+  st_->block = &lb.loop.cond_body;
+  auto c = EvalCond(*s.test);
+  st_->block = outer;
+  if (!c.ok()) return c.status();
+  lb.loop.cond = *c;
+  return lb.Body(s.body);
+}
+
+Status Checker::LowerReturn(const ast::Return& s) {
+  Function& fn = st_->fn;
+  std::vector<Value> vals;
+  if (s.value) {
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*s.value));
+    if (v.kind == Value::Kind::kTuple) vals = v.elems;
+    else vals.push_back(v);
+    for (const auto& x : vals)
+      if (x.kind != Value::Kind::kVar || TypeOf(x.var).is_void())
+        return Error(s.value->loc, "return values must be runtime values");
+  }
+  if (fn.is_kernel && !vals.empty()) return Error(s.loc, "kernels cannot return a value");
+  if (!fn.is_kernel) {
+    if (fn.return_slots.empty() && !vals.empty()) {
+      for (const auto& x : vals) {
+        fn.returns.push_back(TypeOf(x.var));
+        fn.return_slots.push_back(NewVar(TypeOf(x.var), "ret", true));
+      }
+      // Earlier bare `return`s in a value-returning function are caught at codegen time as
+      // default values; Warp rejects them, so do we.
+      if (st_->has_bare_return) return Error(s.loc, "'" + fn.name + "' returns a value here but not on every path");
+    }
+    if (vals.empty() && !fn.return_slots.empty())
+      return Error(s.loc, "'" + fn.name + "' must return " + std::to_string(fn.returns.size()) + " value(s)");
+    if (vals.empty()) st_->has_bare_return = true;
+    if (vals.size() != fn.return_slots.size())
+      return Error(s.loc, "'" + fn.name + "' returns " + std::to_string(fn.returns.size()) + " value(s) elsewhere, " +
+                              std::to_string(vals.size()) + " here");
+    for (size_t i = 0; i < vals.size(); ++i) {
+      WEFT_ASSIGN_OR_RETURN(int v, Coerce(vals[i], fn.returns[i], s.value->loc, "the return value"));
+      EmitCopy(fn.return_slots[i], v);
+    }
+  }
+  Stmt set;
+  set.op.kind = OpKind::kConst;
+  set.op.dst.push_back(fn.return_flag);
+  set.op.text = "true";
+  Push(std::move(set));
+  return Status::Ok();
+}
+
+Expected<Module> Check(const ModuleSource& module, const std::vector<ParsedFunction>& parsed,
+                       std::vector<Diagnostic>* diags) {
+  Checker c(module, parsed, diags);
+  return c.Run();
+}
+
+}  // namespace weft::sema

@@ -1,0 +1,944 @@
+// Semantic analysis, expression level: names (locals, client symbols, Python builtins, the
+// wp module), literals with Warp's rules (int -> int32, float -> float32, literals adapt to a
+// typed operand), operators, comparisons, component/array/struct access, and calls:
+// builtins through the registry, type constructors, user funcs (overloads, generics).
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include "engine/sema/check_impl.h"
+
+namespace weft::sema {
+namespace {
+
+const std::map<ast::BinaryOperator, std::string>& BinaryBuiltins() {
+  static const std::map<ast::BinaryOperator, std::string> kNames = {
+      {ast::BinaryOperator::kAdd, "add"},       {ast::BinaryOperator::kSub, "sub"},
+      {ast::BinaryOperator::kMul, "mul"},       {ast::BinaryOperator::kMatMul, "mul"},
+      {ast::BinaryOperator::kDiv, "div"},       {ast::BinaryOperator::kFloorDiv, "floordiv"},
+      {ast::BinaryOperator::kMod, "mod"},       {ast::BinaryOperator::kPow, "pow"},
+      {ast::BinaryOperator::kLShift, "lshift"}, {ast::BinaryOperator::kRShift, "rshift"},
+      {ast::BinaryOperator::kBitOr, "bit_or"},  {ast::BinaryOperator::kBitXor, "bit_xor"},
+      {ast::BinaryOperator::kBitAnd, "bit_and"},
+  };
+  return kNames;
+}
+
+bool IsIntLiteralText(const std::string& t) {
+  if (t.empty()) return false;
+  size_t i = (t[0] == '-' || t[0] == '+') ? 1 : 0;
+  if (i >= t.size()) return false;
+  for (; i < t.size(); ++i)
+    if (!std::isdigit(static_cast<unsigned char>(t[i]))) return false;
+  return true;
+}
+
+std::string FloatText(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  std::string s = buf;
+  if (s.find_first_of(".eE") == std::string::npos) s += ".0";
+  return s;
+}
+
+// Builtins whose call rules live here rather than in the registry.
+bool IsSpecialBuiltin(const std::string& n) {
+  static const std::set<std::string> kNames = {"tid",          "len",           "range",
+                                               "printf",       "print",         "vector",
+                                               "matrix",       "identity",      "quat_identity",
+                                               "transform_identity", "quaternion", "transformation",
+                                               "zeros",        "cast",          "static"};
+  return kNames.count(n) != 0;
+}
+
+}  // namespace
+
+std::string ExprText(const ast::Expr& e) {
+  if (const auto* n = ast::As<ast::Name>(&e)) return n->id;
+  if (const auto* a = ast::As<ast::Attribute>(&e)) return ExprText(*a->value) + "." + a->attr;
+  if (const auto* c = ast::As<ast::Constant>(&e)) return c->text;
+  if (const auto* s = ast::As<ast::Subscript>(&e)) {
+    std::string out = ExprText(*s->value) + "[";
+    for (size_t i = 0; i < s->indices.size(); ++i) out += (i ? ", " : "") + ExprText(*s->indices[i]);
+    return out + "]";
+  }
+  if (const auto* c = ast::As<ast::Call>(&e)) return ExprText(*c->func) + "(...)";
+  return "<expr>";
+}
+
+Expected<std::string> CppLiteral(const Type& t, const std::string& text) {
+  std::string s = text;
+  while (!s.empty() && s.front() == ' ') s.erase(s.begin());
+  while (!s.empty() && s.back() == ' ') s.pop_back();
+  if (t.is_scalar()) {
+    if (t.scalar == ScalarKind::kBool) {
+      if (s == "True" || s == "1") return std::string("true");
+      if (s == "False" || s == "0") return std::string("false");
+      return InvalidArgument("'" + s + "' is not a bool literal");
+    }
+    std::string ct = CppType(t);
+    if (IsInt(t.scalar)) {
+      if (s == "True") s = "1";
+      if (s == "False") s = "0";
+      if (!IsIntLiteralText(s)) return InvalidArgument("'" + s + "' is not an integer literal");
+      return ct + "(" + s + (ScalarSize(t.scalar) == 8 ? (IsSigned(t.scalar) ? "ll" : "ull") : "") + ")";
+    }
+    if (s == "inf" || s == "+inf") return ct + "(__builtin_inf())";
+    if (s == "-inf") return ct + "(-__builtin_inf())";
+    if (s == "nan" || s == "-nan") return ct + "(__builtin_nan(\"\"))";
+    char* end = nullptr;
+    double v = std::strtod(s.c_str(), &end);
+    if (s.empty() || *end != '\0') {
+      if (s == "True") v = 1;
+      else if (s == "False") v = 0;
+      else return InvalidArgument("'" + s + "' is not a number");
+    }
+    std::string f = FloatText(v);
+    if (t.scalar == ScalarKind::kFloat16) return ct + "(" + f + "f)";
+    return ct + "(" + f + ")";
+  }
+  if (t.is_composite()) {
+    // "(1.0, 2.0, 3.0)" or nested "((1, 0), (0, 1))": flatten the numbers.
+    std::vector<std::string> parts;
+    std::string cur;
+    for (char c : s) {
+      if (c == '(' || c == ')' || c == '[' || c == ']' || c == ',') {
+        if (!cur.empty()) parts.push_back(cur);
+        cur.clear();
+      } else if (c != ' ') {
+        cur += c;
+      }
+    }
+    if (!cur.empty()) parts.push_back(cur);
+    if (static_cast<int>(parts.size()) != t.component_count())
+      return InvalidArgument("constant '" + s + "' has " + std::to_string(parts.size()) + " components; " +
+                             TypeString(t) + " needs " + std::to_string(t.component_count()));
+    std::string out = "wp::cg_concat<" + CppType(t) + ">(";
+    for (size_t i = 0; i < parts.size(); ++i) {
+      WEFT_ASSIGN_OR_RETURN(std::string p, CppLiteral(Type::Scalar(t.scalar), parts[i]));
+      out += (i ? ", " : "") + p;
+    }
+    return out + ")";
+  }
+  return InvalidArgument("constants of type " + TypeString(t) + " are not supported");
+}
+
+// ---------------------------------------------------------------------------------------
+// Expressions
+// ---------------------------------------------------------------------------------------
+
+Expected<Value> Checker::Eval(const ast::Expr& e) {
+  switch (e.kind) {
+    case ast::ExprKind::kName: return EvalName(static_cast<const ast::Name&>(e));
+    case ast::ExprKind::kConstant: return EvalConstant(static_cast<const ast::Constant&>(e));
+    case ast::ExprKind::kAttribute: return EvalAttribute(static_cast<const ast::Attribute&>(e));
+    case ast::ExprKind::kSubscript: return EvalSubscript(static_cast<const ast::Subscript&>(e));
+    case ast::ExprKind::kSlice: return Error(e.loc, "slices are not supported in kernels");
+    case ast::ExprKind::kCall: return EvalCall(static_cast<const ast::Call&>(e));
+    case ast::ExprKind::kBinOp: return EvalBinOp(static_cast<const ast::BinOp&>(e));
+    case ast::ExprKind::kUnaryOp: {
+      const auto& u = static_cast<const ast::UnaryOp&>(e);
+      if (u.op == ast::UnaryOperator::kNot) {
+        WEFT_ASSIGN_OR_RETURN(int c, EvalCond(*u.operand));
+        return Value::OfVar(EmitRaw(Type::Bool(), "!$0", {c}));
+      }
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*u.operand));
+      if (u.op == ast::UnaryOperator::kMinus && v.kind == Value::Kind::kVar && v.literal) {
+        std::string text = v.literal_text[0] == '-' ? v.literal_text.substr(1) : "-" + v.literal_text;
+        WEFT_ASSIGN_OR_RETURN(std::string cpp, CppLiteral(TypeOf(v.var), text));
+        Value r = Value::OfVar(EmitConst(TypeOf(v.var), cpp));
+        r.literal = true;
+        r.literal_text = text;
+        return r;
+      }
+      const char* fn = u.op == ast::UnaryOperator::kMinus ? "neg" : u.op == ast::UnaryOperator::kPlus ? "pos" : "invert";
+      return ResolveAndEmitBuiltin(fn, {v}, e.loc);
+    }
+    case ast::ExprKind::kBoolOp: {
+      const auto& b = static_cast<const ast::BoolOp&>(e);
+      std::vector<int> vs;
+      std::string text = "(";
+      for (size_t i = 0; i < b.values.size(); ++i) {
+        WEFT_ASSIGN_OR_RETURN(int c, EvalCond(*b.values[i]));
+        vs.push_back(c);
+        text += (i ? (b.op == ast::BoolOperator::kAnd ? " && $" : " || $") : "$") + std::to_string(i);
+      }
+      return Value::OfVar(EmitRaw(Type::Bool(), text + ")", vs));
+    }
+    case ast::ExprKind::kCompare: return EvalCompare(static_cast<const ast::Compare&>(e));
+    case ast::ExprKind::kIfExp: {
+      const auto& i = static_cast<const ast::IfExp&>(e);
+      WEFT_ASSIGN_OR_RETURN(int c, EvalCond(*i.test));
+      WEFT_ASSIGN_OR_RETURN(Value a, Eval(*i.body));
+      WEFT_ASSIGN_OR_RETURN(Value b, Eval(*i.orelse));
+      if (a.kind != Value::Kind::kVar || b.kind != Value::Kind::kVar)
+        return Error(e.loc, "both branches of a conditional expression must be values");
+      int av = a.var, bv = b.var;
+      if (a.literal && !b.literal) {
+        WEFT_ASSIGN_OR_RETURN(av, Coerce(a, TypeOf(bv), i.body->loc, "the first branch"));
+      } else if (b.literal && !a.literal) {
+        WEFT_ASSIGN_OR_RETURN(bv, Coerce(b, TypeOf(av), i.orelse->loc, "the second branch"));
+      }
+      if (TypeOf(av) != TypeOf(bv))
+        return Error(e.loc, "the branches of a conditional expression have types " + TypeString(TypeOf(av)) +
+                                " and " + TypeString(TypeOf(bv)));
+      return Value::OfVar(EmitOp(OpKind::kPhi, TypeOf(av), {c, av, bv}));
+    }
+    case ast::ExprKind::kTuple: {
+      const auto& t = static_cast<const ast::Tuple&>(e);
+      Value v;
+      v.kind = Value::Kind::kTuple;
+      for (const auto& el : t.elts) {
+        WEFT_ASSIGN_OR_RETURN(Value x, Eval(*el));
+        v.elems.push_back(x);
+      }
+      return v;
+    }
+    case ast::ExprKind::kList: return Error(e.loc, "lists are not supported in kernels; use a vector type");
+  }
+  return Error(e.loc, "unsupported expression");
+}
+
+Expected<int> Checker::EvalVar(const ast::Expr& e) {
+  WEFT_ASSIGN_OR_RETURN(Value v, Eval(e));
+  if (v.kind != Value::Kind::kVar) return Error(e.loc, "'" + ExprText(e) + "' is not a value");
+  return v.var;
+}
+
+Expected<int> Checker::EvalCond(const ast::Expr& e) {
+  WEFT_ASSIGN_OR_RETURN(Value v, Eval(e));
+  if (v.kind != Value::Kind::kVar) return Error(e.loc, "'" + ExprText(e) + "' is not a value");
+  const Type& t = TypeOf(v.var);
+  if (t == Type::Bool()) return v.var;
+  if (t.is_scalar() && IsInt(t.scalar)) return EmitRaw(Type::Bool(), "($0 != 0)", {v.var});
+  return Error(e.loc, "a condition must be bool or an integer, got " + TypeString(t));
+}
+
+Expected<Value> Checker::EvalConstant(const ast::Constant& c) {
+  Value v;
+  switch (c.type) {
+    case ast::Constant::Type::kInt: {
+      if (!c.int_fits_u64 || c.int_value > 9223372036854775807ull)
+        return Error(c.loc, "integer literal " + c.text + " does not fit in int64");
+      Type t = c.int_value <= 2147483647ull ? Type::Int32() : Type::Scalar(ScalarKind::kInt64);
+      std::string text = std::to_string(c.int_value);
+      WEFT_ASSIGN_OR_RETURN(std::string cpp, CppLiteral(t, text));
+      v = Value::OfVar(EmitConst(t, cpp));
+      v.literal = true;
+      v.literal_text = text;
+      return v;
+    }
+    case ast::Constant::Type::kFloat: {
+      std::string text = FloatText(c.float_value);
+      WEFT_ASSIGN_OR_RETURN(std::string cpp, CppLiteral(Type::Float32(), text));
+      v = Value::OfVar(EmitConst(Type::Float32(), cpp));
+      v.literal = true;
+      v.literal_text = text;
+      return v;
+    }
+    case ast::Constant::Type::kBool: return Value::OfVar(EmitConst(Type::Bool(), c.bool_value ? "true" : "false"));
+    case ast::Constant::Type::kString:
+      v.kind = Value::Kind::kString;
+      v.name = c.string_value;
+      return v;
+    case ast::Constant::Type::kNone: v.kind = Value::Kind::kNone; return v;
+  }
+  return Error(c.loc, "unsupported literal");
+}
+
+Expected<Value> Checker::EvalConstantSymbol(const weft::ConstantValue& c, const SourceLocation& loc) {
+  auto t = ParseType(c.type);
+  if (!t.ok()) return Error(loc, "constant of unsupported type '" + c.type + "'");
+  auto cpp = CppLiteral(*t, c.value);
+  if (!cpp.ok()) return Error(loc, cpp.status().message());
+  Value v = Value::OfVar(EmitConst(*t, *cpp));
+  if (t->is_scalar() && t->scalar != ScalarKind::kBool) {
+    v.literal = true;
+    v.literal_text = c.value;
+    if (IsFloat(t->scalar) && IsIntLiteralText(c.value)) v.literal_text += ".0";
+    // Python ints and floats adapt like literals; typed wp.constant(wp.float64(..)) keep theirs.
+    if (t->scalar != ScalarKind::kInt32 && t->scalar != ScalarKind::kFloat32) v.literal = false;
+  }
+  return v;
+}
+
+Expected<Value> Checker::LookupGlobal(const std::string& name, const SourceLocation& loc, bool* found) {
+  *found = true;
+  auto range = symbols_.equal_range(name);
+  if (range.first != range.second) {
+    const Symbol& s = *range.first->second;
+    Value v;
+    switch (s.kind) {
+      case Symbol::Kind::kBuiltinModule: v.kind = Value::Kind::kModule; return v;
+      case Symbol::Kind::kConstant: return EvalConstantSymbol(s.constant, loc);
+      case Symbol::Kind::kFunction: v.kind = Value::Kind::kFunc; v.name = name; return v;
+      case Symbol::Kind::kType: {
+        auto t = ParseType(s.target);
+        if (!t.ok()) return Error(loc, "'" + name + "': " + t.status().message());
+        v.kind = Value::Kind::kType;
+        v.type = *t;
+        return v;
+      }
+    }
+  }
+  // Python builtins Warp accepts without the wp. prefix.
+  static const std::set<std::string> kPyBuiltins = {"range", "len", "print", "min", "max", "abs", "round", "pow"};
+  if (kPyBuiltins.count(name)) {
+    Value v;
+    v.kind = Value::Kind::kBuiltin;
+    v.name = name;
+    return v;
+  }
+  if (name == "int" || name == "float" || name == "bool") {
+    Value v;
+    v.kind = Value::Kind::kType;
+    v.type = name == "int" ? Type::Int32() : name == "float" ? Type::Float32() : Type::Bool();
+    return v;
+  }
+  *found = false;
+  return Value{};
+}
+
+Expected<Value> Checker::EvalName(const ast::Name& n) {
+  auto it = st_->scope.find(n.id);
+  if (it != st_->scope.end()) {
+    Value v = Value::OfVar(it->second);
+    v.source = n.id;
+    return v;
+  }
+  bool found = false;
+  WEFT_ASSIGN_OR_RETURN(Value v, LookupGlobal(n.id, n.loc, &found));
+  if (!found) return Error(n.loc, "unknown name '" + n.id + "'");
+  v.source = n.id;
+  return v;
+}
+
+namespace {
+// "a.b.c" for a chain of names, "" otherwise.
+std::string DottedName(const ast::Expr& e) {
+  if (const auto* n = ast::As<ast::Name>(&e)) return n->id;
+  if (const auto* a = ast::As<ast::Attribute>(&e)) {
+    std::string base = DottedName(*a->value);
+    return base.empty() ? "" : base + "." + a->attr;
+  }
+  return "";
+}
+std::string RootName(const ast::Expr& e) {
+  if (const auto* n = ast::As<ast::Name>(&e)) return n->id;
+  if (const auto* a = ast::As<ast::Attribute>(&e)) return RootName(*a->value);
+  return "";
+}
+}  // namespace
+
+Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
+  std::string dotted = DottedName(a);
+  if (!dotted.empty() && !st_->scope.count(RootName(a)) && symbols_.count(dotted)) {
+    bool found = false;
+    return LookupGlobal(dotted, a.loc, &found);
+  }
+  WEFT_ASSIGN_OR_RETURN(Value base, Eval(*a.value));
+  if (base.kind == Value::Kind::kModule) {
+    const std::string& n = a.attr;
+    Value v;
+    if (BuiltinRegistry::Get().Has(n) || IsSpecialBuiltin(n)) {
+      v.kind = Value::Kind::kBuiltin;
+      v.name = n;
+      return v;
+    }
+    auto t = ParseType(n);
+    if (t.ok() && !t->is_void() && !t->is_any()) {
+      v.kind = Value::Kind::kType;
+      v.type = *t;
+      return v;
+    }
+    static const std::map<std::string, std::string> kConstants = {
+        {"pi", "3.14159265358979323846"}, {"tau", "6.28318530717958647692"},  {"e", "2.71828182845904523536"},
+        {"half_pi", "1.57079632679489661923"}, {"inf", "inf"}, {"nan", "nan"}, {"INF", "inf"}, {"NAN", "nan"},
+        {"phi", "1.61803398874989484820"}, {"sqrt_two", "1.41421356237309504880"}, {"log2e", "1.44269504088896340736"},
+        {"ln_two", "0.69314718055994530942"}, {"ln_ten", "2.30258509299404568402"}, {"log10e", "0.43429448190325182765"}};
+    if (auto c = kConstants.find(n); c != kConstants.end()) {
+      WEFT_ASSIGN_OR_RETURN(std::string cpp, CppLiteral(Type::Float32(), c->second));
+      v = Value::OfVar(EmitConst(Type::Float32(), cpp));
+      v.literal = true;
+      v.literal_text = c->second;
+      return v;
+    }
+    return Error(a.attr_loc, "'wp." + n + "' is not a supported builtin, type or constant");
+  }
+  if (base.kind != Value::Kind::kVar) return Error(a.loc, "'" + ExprText(a) + "' is not supported");
+  const Type bt = TypeOf(base.var);
+  if (bt.is_array()) {
+    if (a.attr == "shape") {
+      Value v;
+      v.kind = Value::Kind::kTuple;
+      for (int k = 0; k < bt.ndim; ++k)
+        v.elems.push_back(Value::OfVar(EmitRaw(Type::Int32(), "wp::int32($0.shape[" + std::to_string(k) + "])", {base.var})));
+      return v;
+    }
+    if (a.attr == "ndim") return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(bt.ndim) + ")"));
+    return Error(a.attr_loc, "arrays have no attribute '" + a.attr + "' in kernels (use .shape)");
+  }
+  if (bt.is_struct()) {
+    const StructInfo& si = module_.structs.at(bt.struct_name);
+    int fi = -1;
+    const StructField* f = si.Find(a.attr, &fi);
+    if (!f) return Error(a.attr_loc, "struct " + bt.struct_name + " has no field '" + a.attr + "'");
+    int v = EmitOp(OpKind::kGetField, f->type, {base.var}, a.attr);
+    st_->block->back().op.field_index = fi;
+    if (ArrayParamOf(base.var) >= 0) st_->array_param[v] = ArrayParamOf(base.var);
+    Value r = Value::OfVar(v);
+    r.source = ExprText(a);
+    return r;
+  }
+  if (bt.is_vector() || bt.kind == TypeKind::kQuat) {
+    static const std::string kXYZW = "xyzw";
+    size_t k = a.attr.size() == 1 ? kXYZW.find(a.attr[0]) : std::string::npos;
+    if (k == std::string::npos || static_cast<int>(k) >= bt.component_count())
+      return Error(a.attr_loc, TypeString(bt) + " has no component '" + a.attr + "'");
+    int ki = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")");
+    return Value::OfVar(EmitOp(OpKind::kExtract, Type::Scalar(bt.scalar), {base.var, ki}));
+  }
+  if (bt.kind == TypeKind::kTransform && (a.attr == "p" || a.attr == "q")) {
+    return ResolveAndEmitBuiltin(a.attr == "p" ? "transform_get_translation" : "transform_get_rotation", {base}, a.loc);
+  }
+  return Error(a.attr_loc, "a value of type " + TypeString(bt) + " has no attribute '" + a.attr + "'");
+}
+
+Expected<std::vector<int>> Checker::EvalIndices(const ast::ExprList& idx) {
+  std::vector<int> out;
+  for (const auto& e : idx) {
+    if (ast::As<ast::Slice>(e.get())) return Error(e->loc, "slices are not supported in kernels");
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
+    if (v.kind != Value::Kind::kVar || !TypeOf(v.var).is_scalar() || !IsInt(TypeOf(v.var).scalar))
+      return Error(e->loc, "index '" + ExprText(*e) + "' must be an integer" +
+                               (v.kind == Value::Kind::kVar ? ", got " + TypeString(TypeOf(v.var)) : std::string()));
+    out.push_back(v.var);
+  }
+  return out;
+}
+
+Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
+  WEFT_ASSIGN_OR_RETURN(Value base, Eval(*s.value));
+  if (base.kind == Value::Kind::kTuple) {
+    const auto* c = s.indices.size() == 1 ? ast::As<ast::Constant>(s.indices[0].get()) : nullptr;
+    if (!c || c->type != ast::Constant::Type::kInt)
+      return Error(s.loc, "a tuple (such as .shape) takes one constant integer index");
+    if (c->int_value >= base.elems.size())
+      return Error(s.indices[0]->loc, "index " + std::to_string(c->int_value) + " out of range for a tuple of " +
+                                          std::to_string(base.elems.size()));
+    return base.elems[c->int_value];
+  }
+  if (base.kind != Value::Kind::kVar) return Error(s.loc, "'" + ExprText(*s.value) + "' cannot be indexed");
+  const Type bt = TypeOf(base.var);
+  WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(s.indices));
+  if (bt.is_array()) {
+    if (static_cast<int>(idx.size()) != bt.ndim)
+      return Error(s.loc, "array '" + ExprText(*s.value) + "' has " + std::to_string(bt.ndim) + " dimensions but " +
+                              std::to_string(idx.size()) + " indices were given (array views are not supported)");
+    std::vector<int> args{base.var};
+    args.insert(args.end(), idx.begin(), idx.end());
+    int v = EmitOp(OpKind::kLoad, bt.elem(), args);
+    st_->block->back().op.array_param = ArrayParamOf(base.var);
+    st_->block->back().op.array_name = ExprText(*s.value);
+    st_->fn.may_fail = true;
+    return Value::OfVar(v);
+  }
+  Type comp;
+  if (bt.is_vector() || bt.kind == TypeKind::kQuat || bt.kind == TypeKind::kTransform) {
+    if (idx.size() != 1) return Error(s.loc, TypeString(bt) + " takes one index");
+    comp = Type::Scalar(bt.scalar);
+  } else if (bt.is_matrix()) {
+    if (idx.size() == 2) comp = Type::Scalar(bt.scalar);
+    else if (idx.size() == 1) comp = Type::Vector(bt.cols, bt.scalar);
+    else return Error(s.loc, "a matrix takes one (row) or two indices");
+  } else {
+    return Error(s.loc, "a value of type " + TypeString(bt) + " cannot be indexed");
+  }
+  std::vector<int> args{base.var};
+  args.insert(args.end(), idx.begin(), idx.end());
+  return Value::OfVar(EmitOp(OpKind::kExtract, comp, args));
+}
+
+Expected<Value> Checker::EvalBinOp(const ast::BinOp& b) {
+  WEFT_ASSIGN_OR_RETURN(Value l, Eval(*b.left));
+  WEFT_ASSIGN_OR_RETURN(Value r, Eval(*b.right));
+  return ResolveAndEmitBuiltin(BinaryBuiltins().at(b.op), {l, r}, b.loc);
+}
+
+Expected<Value> Checker::EvalCompare(const ast::Compare& c) {
+  WEFT_ASSIGN_OR_RETURN(Value left, Eval(*c.left));
+  std::vector<int> parts;
+  for (size_t i = 0; i < c.ops.size(); ++i) {
+    WEFT_ASSIGN_OR_RETURN(Value right, Eval(*c.comparators[i]));
+    auto op = c.ops[i];
+    if (op == ast::CompareOperator::kIs || op == ast::CompareOperator::kIsNot || op == ast::CompareOperator::kIn ||
+        op == ast::CompareOperator::kNotIn)
+      return Error(c.loc, std::string("'") + ast::Spelling(op) + "' is not supported in kernels");
+    if (left.kind != Value::Kind::kVar || right.kind != Value::Kind::kVar)
+      return Error(c.loc, "comparisons need runtime values");
+    int lv = left.var, rv = right.var;
+    if (left.literal && !right.literal) {
+      WEFT_ASSIGN_OR_RETURN(lv, Coerce(left, TypeOf(rv), c.left->loc, "the left operand"));
+    } else if (right.literal && !left.literal) {
+      WEFT_ASSIGN_OR_RETURN(rv, Coerce(right, TypeOf(lv), c.comparators[i]->loc, "the right operand"));
+    }
+    const Type& lt = TypeOf(lv);
+    const Type& rt = TypeOf(rv);
+    bool eq_op = op == ast::CompareOperator::kEq || op == ast::CompareOperator::kNotEq;
+    if (lt != rt || !(lt.is_scalar() || (eq_op && lt.is_composite())))
+      return Error(c.loc, std::string("cannot compare ") + TypeString(lt) + " " + ast::Spelling(op) + " " +
+                              TypeString(rt) + " (both sides need the same scalar type)");
+    parts.push_back(EmitRaw(Type::Bool(), std::string("($0 ") + ast::Spelling(op) + " $1)", {lv, rv}));
+    left = right;
+  }
+  if (parts.size() == 1) return Value::OfVar(parts[0]);
+  std::string text = "(";
+  for (size_t i = 0; i < parts.size(); ++i) text += (i ? " && $" : "$") + std::to_string(i);
+  return Value::OfVar(EmitRaw(Type::Bool(), text + ")", parts));
+}
+
+Expected<int> Checker::Coerce(const Value& v, const Type& want, const SourceLocation& loc, const std::string& what) {
+  if (v.kind != Value::Kind::kVar) return Error(loc, what + " is not a value");
+  const Type& have = TypeOf(v.var);
+  if (have == want) return v.var;
+  if (v.literal && want.is_scalar() && want.scalar != ScalarKind::kBool) {
+    bool is_int_literal = IsIntLiteralText(v.literal_text);
+    if (IsFloat(want.scalar) || is_int_literal) {
+      auto cpp = CppLiteral(want, v.literal_text);
+      if (cpp.ok()) return EmitConst(want, *cpp);
+    }
+  }
+  return Error(loc, what + " has type " + TypeString(have) + ", expected " + TypeString(want));
+}
+
+Expected<Type> Checker::EvalTypeExpr(const ast::Expr& e) {
+  WEFT_ASSIGN_OR_RETURN(Value v, Eval(e));
+  if (v.kind != Value::Kind::kType) return Error(e.loc, "'" + ExprText(e) + "' is not a type");
+  return v.type;
+}
+
+// ---------------------------------------------------------------------------------------
+// Calls
+// ---------------------------------------------------------------------------------------
+
+Expected<Value> Checker::EvalCall(const ast::Call& c) {
+  WEFT_ASSIGN_OR_RETURN(Value callee, Eval(*c.func));
+  std::vector<Value> args;
+  for (const auto& a : c.args) {
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*a));
+    args.push_back(v);
+  }
+  switch (callee.kind) {
+    case Value::Kind::kBuiltin: return CallBuiltin(callee.name, std::move(args), c.loc, &c);
+    case Value::Kind::kType: return CallConstructor(callee.type, std::move(args), c.loc, c);
+    case Value::Kind::kFunc: {
+      if (!c.keywords.empty()) return Error(c.keywords[0].loc, "keyword arguments to @wp.func calls are not supported");
+      return CallUserFunc(callee.name, std::move(args), c.loc);
+    }
+    default: return Error(c.func->loc, "'" + ExprText(*c.func) + "' is not callable");
+  }
+}
+
+Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vector<Value> args,
+                                               const SourceLocation& loc, int array_param,
+                                               const std::string& array_name) {
+  std::vector<Type> types;
+  std::vector<int> literals;
+  for (const auto& a : args) {
+    if (a.kind == Value::Kind::kString) {
+      types.push_back(Type::String());
+      literals.push_back(0);
+      continue;
+    }
+    if (a.kind != Value::Kind::kVar)
+      return Error(loc, "argument of '" + name + "' is not a value" + (a.source.empty() ? "" : ": '" + a.source + "'"));
+    types.push_back(TypeOf(a.var));
+    literals.push_back(a.literal ? (IsIntLiteralText(a.literal_text) ? 1 : 2) : 0);
+  }
+  auto m = BuiltinRegistry::Get().Resolve(name, types, &literals);
+  if (!m.ok()) {
+    std::string msg = m.status().message();
+    return Error(loc, msg);
+  }
+  Stmt s;
+  s.op.kind = OpKind::kCall;
+  s.op.builtin = m->overload;
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (args[i].kind == Value::Kind::kString) return Error(loc, "string arguments are only allowed in printf");
+    int v = args[i].var;
+    if (TypeOf(v) != m->param_types[i]) {
+      WEFT_ASSIGN_OR_RETURN(v, Coerce(args[i], m->param_types[i], loc, "argument " + std::to_string(i + 1)));
+    }
+    s.op.args.push_back(v);
+  }
+  Value out;
+  if (m->result.is_tuple()) {
+    out.kind = Value::Kind::kTuple;
+    for (const auto& t : m->result.sub) {
+      int d = NewVar(t);
+      s.op.dst.push_back(d);
+      out.elems.push_back(Value::OfVar(d));
+    }
+  } else if (!m->result.is_void()) {
+    int d = NewVar(m->result);
+    s.op.dst.push_back(d);
+    out = Value::OfVar(d);
+  }
+  if (m->overload->flags & kBuiltinArrayAccess) {
+    s.op.array_param = array_param >= 0 ? array_param : ArrayParamOf(args[0].var);
+    s.op.array_name = !array_name.empty() ? array_name : args[0].source;
+    st_->fn.may_fail = true;
+  }
+  Push(std::move(s));
+  return out;
+}
+
+Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
+                                     const ast::Call* call) {
+  auto kwarg = [&](const std::string& k) -> const ast::Expr* {
+    if (!call) return nullptr;
+    for (const auto& kw : call->keywords)
+      if (kw.name == k) return kw.value.get();
+    return nullptr;
+  };
+  auto dtype_kw = [&](ScalarKind def) -> Expected<ScalarKind> {
+    const ast::Expr* d = kwarg("dtype");
+    if (!d) return def;
+    WEFT_ASSIGN_OR_RETURN(Type t, EvalTypeExpr(*d));
+    if (!t.is_scalar()) return Error(d->loc, "dtype must be a scalar type");
+    return t.scalar;
+  };
+  auto const_int = [&](const ast::Expr* e, const char* what) -> Expected<int> {
+    const auto* c = ast::As<ast::Constant>(e);
+    if (!c || c->type != ast::Constant::Type::kInt || c->int_value > 64)
+      return Error(e ? e->loc : loc, std::string(what) + " must be a small integer literal");
+    return static_cast<int>(c->int_value);
+  };
+  if (name == "tid") {
+    if (!args.empty()) return Error(loc, "wp.tid() takes no arguments");
+    if (!st_->fn.is_kernel) return Error(loc, "wp.tid() is only available in kernels, not in @wp.func");
+    st_->fn.uses_tid = true;
+    Value v = Value::OfVar(EmitRaw(Type::Int32(), "wp::int32(__tid_flat)", {}));
+    v.name = "__tid";
+    return v;
+  }
+  if (name == "range") return Error(loc, "range() is only allowed as the iterable of a for loop");
+  if (name == "len") {
+    if (args.size() != 1 || args[0].kind != Value::Kind::kVar) return Error(loc, "len() takes one value");
+    const Type& t = TypeOf(args[0].var);
+    if (t.is_array()) return Value::OfVar(EmitRaw(Type::Int32(), "wp::int32($0.shape[0])", {args[0].var}));
+    if (t.is_vector() || t.kind == TypeKind::kQuat || t.kind == TypeKind::kTransform)
+      return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.component_count()) + ")"));
+    if (t.is_matrix()) return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.rows) + ")"));
+    return Error(loc, "len() of a value of type " + TypeString(t));
+  }
+  if (name == "printf") {
+    if (args.empty() || args[0].kind != Value::Kind::kString)
+      return Error(loc, "wp.printf takes a format string literal first");
+    Stmt s;
+    s.op.kind = OpKind::kPrintf;
+    s.op.text = args[0].name;
+    for (size_t i = 1; i < args.size(); ++i) {
+      if (args[i].kind != Value::Kind::kVar || !TypeOf(args[i].var).is_scalar())
+        return Error(loc, "wp.printf arguments must be scalars");
+      s.op.args.push_back(args[i].var);
+    }
+    Push(std::move(s));
+    return Value{};
+  }
+  if (name == "print") {
+    for (const auto& a : args) {
+      if (a.kind == Value::Kind::kString) {
+        Stmt s;
+        s.op.kind = OpKind::kPrintf;
+        s.op.text = a.name + "\n";
+        Push(std::move(s));
+        continue;
+      }
+      WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("print", {a}, loc));
+      (void)r;
+    }
+    return Value{};
+  }
+  if (name == "quat_identity" || name == "transform_identity") {
+    WEFT_ASSIGN_OR_RETURN(ScalarKind s, dtype_kw(ScalarKind::kFloat32));
+    if (!args.empty()) {
+      if (args[0].kind != Value::Kind::kType || !args[0].type.is_scalar()) return Error(loc, name + " takes a dtype");
+      s = args[0].type.scalar;
+    }
+    Type t = name == "quat_identity" ? Type::Quat(s) : Type::Transform(s);
+    Stmt st;
+    st.op.kind = OpKind::kConstruct;
+    st.op.mode = ConstructMode::kZero;
+    int d = NewVar(t);
+    st.op.dst.push_back(d);
+    Push(std::move(st));
+    return Value::OfVar(d);
+  }
+  if (name == "identity") {
+    const ast::Expr* n = kwarg("n");
+    if (!n && call && !call->args.empty()) n = call->args[0].get();
+    WEFT_ASSIGN_OR_RETURN(int dim, const_int(n, "identity(n=...)"));
+    WEFT_ASSIGN_OR_RETURN(ScalarKind s, dtype_kw(ScalarKind::kFloat32));
+    Type t = Type::Matrix(dim, dim, s);
+    std::string text = "wp::cg_identity<" + CppType(t) + ">()";
+    return Value::OfVar(EmitConst(t, text));
+  }
+  if (name == "vector" || name == "matrix" || name == "quaternion" || name == "transformation") {
+    std::vector<Value> vals;
+    for (auto& a : args) vals.push_back(a);
+    ScalarKind def = ScalarKind::kFloat32;
+    for (const auto& v : vals)
+      if (v.kind == Value::Kind::kVar && !v.literal) {
+        def = TypeOf(v.var).scalar;
+        break;
+      }
+    WEFT_ASSIGN_OR_RETURN(ScalarKind s, dtype_kw(def));
+    Type t;
+    if (name == "vector") {
+      int len = static_cast<int>(vals.size());
+      if (const ast::Expr* l = kwarg("length")) {
+        WEFT_ASSIGN_OR_RETURN(len, const_int(l, "length"));
+      }
+      t = Type::Vector(len, s);
+    } else if (name == "matrix") {
+      const ast::Expr* sh = kwarg("shape");
+      const auto* tu = sh ? ast::As<ast::Tuple>(sh) : nullptr;
+      if (!tu || tu->elts.size() != 2) return Error(loc, "wp.matrix needs shape=(rows, cols)");
+      WEFT_ASSIGN_OR_RETURN(int r, const_int(tu->elts[0].get(), "rows"));
+      WEFT_ASSIGN_OR_RETURN(int cc, const_int(tu->elts[1].get(), "cols"));
+      t = Type::Matrix(r, cc, s);
+    } else if (name == "quaternion") {
+      t = Type::Quat(s);
+    } else {
+      t = Type::Transform(s);
+    }
+    ast::Call empty;
+    return CallConstructor(t, std::move(vals), loc, call ? *call : empty);
+  }
+  if (name == "zeros" || name == "cast" || name == "static")
+    return Error(loc, "wp." + name + "() is not supported in weft kernels yet");
+  if (call && !call->keywords.empty()) {
+    // Map keywords onto the parameter names of each overload in turn.
+    std::string last_error;
+    for (const BuiltinOverload* o : BuiltinRegistry::Get().Overloads(name)) {
+      if (o->param_names.size() != args.size() + call->keywords.size()) continue;
+      std::vector<Value> full = args;
+      full.resize(o->param_names.size());
+      bool ok = true;
+      for (const auto& kw : call->keywords) {
+        size_t k = 0;
+        while (k < o->param_names.size() && o->param_names[k] != kw.name) ++k;
+        if (k < args.size() || k >= o->param_names.size()) {
+          ok = false;
+          break;
+        }
+        auto v = Eval(*kw.value);
+        if (!v.ok()) return v.status();
+        full[k] = *v;
+      }
+      if (!ok) continue;
+      bool complete = true;
+      for (const auto& f : full) complete &= f.kind != Value::Kind::kNone;
+      if (!complete) continue;
+      return ResolveAndEmitBuiltin(name, std::move(full), loc);
+    }
+    return Error(call->keywords[0].loc, "no overload of '" + name + "' has a parameter '" + call->keywords[0].name + "'");
+  }
+  return ResolveAndEmitBuiltin(name, std::move(args), loc);
+}
+
+Expected<Value> Checker::CallConstructor(const Type& t, std::vector<Value> args, const SourceLocation& loc,
+                                         const ast::Call& call) {
+  Stmt s;
+  s.op.kind = OpKind::kConstruct;
+  int d = -1;
+  if (t.is_struct()) {
+    auto it = module_.structs.find(t.struct_name);
+    if (it == module_.structs.end()) return Error(loc, "unknown struct '" + t.struct_name + "'");
+    if (!args.empty()) return Error(loc, "struct constructors take keyword arguments only");
+    d = NewVar(t);
+    s.op.mode = ConstructMode::kZero;
+    s.op.dst.push_back(d);
+    Push(std::move(s));
+    for (const auto& kw : call.keywords) {
+      int fi = -1;
+      const StructField* f = it->second.Find(kw.name, &fi);
+      if (!f) return Error(kw.loc, "struct " + t.struct_name + " has no field '" + kw.name + "'");
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*kw.value));
+      WEFT_ASSIGN_OR_RETURN(int cv, Coerce(v, f->type, kw.value->loc, "field '" + kw.name + "'"));
+      int nd = EmitOp(OpKind::kSetField, t, {d, cv}, kw.name);
+      st_->block->back().op.field_index = fi;
+      d = nd;
+    }
+    return Value::OfVar(d);
+  }
+  for (const auto& kw : call.keywords)
+    if (kw.name != "dtype" && kw.name != "length" && kw.name != "shape")
+      return Error(kw.loc, "unexpected keyword '" + kw.name + "' for " + TypeString(t));
+  for (const auto& a : args)
+    if (a.kind != Value::Kind::kVar) return Error(loc, "constructor arguments of " + TypeString(t) + " must be values");
+  if (t.is_scalar()) {
+    if (args.size() != 1) return Error(loc, TypeString(t) + "() takes exactly one argument");
+    const Type& at = TypeOf(args[0].var);
+    if (at == t) return args[0];
+    if (args[0].literal) {
+      auto cpp = CppLiteral(t, args[0].literal_text);
+      if (cpp.ok()) return Value::OfVar(EmitConst(t, *cpp));
+    }
+    if (!at.is_scalar()) return Error(loc, "cannot convert " + TypeString(at) + " to " + TypeString(t));
+    s.op.mode = ConstructMode::kConvert;
+  } else if (t.is_composite()) {
+    int n = t.component_count();
+    if (args.empty()) {
+      s.op.mode = ConstructMode::kZero;
+    } else if (args.size() == 1 && TypeOf(args[0].var).is_scalar()) {
+      s.op.mode = ConstructMode::kFill;
+      WEFT_ASSIGN_OR_RETURN(int v, Coerce(args[0], Type::Scalar(t.scalar), loc, "the fill value"));
+      args[0] = Value::OfVar(v);
+    } else if (args.size() == 1 && TypeOf(args[0].var).kind == t.kind &&
+               TypeOf(args[0].var).component_count() == n) {
+      if (TypeOf(args[0].var) == t) return args[0];
+      s.op.mode = ConstructMode::kConvert;
+    } else if (t.is_matrix() && static_cast<int>(args.size()) == t.cols && TypeOf(args[0].var).is_vector()) {
+      s.op.mode = ConstructMode::kColumns;
+      for (auto& a : args)
+        if (TypeOf(a.var) != Type::Vector(t.rows, t.scalar))
+          return Error(loc, TypeString(t) + " from columns needs " + std::to_string(t.cols) + " vectors of type " +
+                                TypeString(Type::Vector(t.rows, t.scalar)) + ", got " + TypeString(TypeOf(a.var)));
+    } else {
+      s.op.mode = ConstructMode::kConcat;
+      int total = 0;
+      for (auto& a : args) {
+        const Type& at = TypeOf(a.var);
+        if (at.is_scalar()) {
+          WEFT_ASSIGN_OR_RETURN(int v, Coerce(a, Type::Scalar(t.scalar), loc, "component " + std::to_string(total)));
+          a = Value::OfVar(v);
+          total += 1;
+        } else if (at.is_composite() && at.scalar == t.scalar) {
+          total += at.component_count();
+        } else {
+          return Error(loc, "cannot build " + TypeString(t) + " from a value of type " + TypeString(at));
+        }
+      }
+      if (total != n)
+        return Error(loc, TypeString(t) + " needs " + std::to_string(n) + " components, got " + std::to_string(total));
+    }
+  } else {
+    return Error(loc, "values of type " + TypeString(t) + " cannot be constructed in kernels");
+  }
+  d = NewVar(t);
+  s.op.dst.push_back(d);
+  for (const auto& a : args) s.op.args.push_back(a.var);
+  Push(std::move(s));
+  return Value::OfVar(d);
+}
+
+namespace {
+// Does a parameter type (possibly containing `any`) accept an argument type?
+bool GenericAccepts(const Type& p, const Type& a) {
+  if (p.is_any()) return !a.is_void() && !a.is_tuple() && a.kind != TypeKind::kString;
+  if (p.kind != a.kind) return false;
+  if (p.is_array()) return p.ndim == a.ndim && GenericAccepts(p.elem(), a.elem());
+  return p == a;
+}
+}  // namespace
+
+Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value> args, const SourceLocation& loc) {
+  auto range = symbols_.equal_range(name);
+  struct Candidate {
+    const ParsedFunction* pf;
+    std::vector<Type> types;
+    bool generic;
+  };
+  std::vector<Candidate> cands;
+  std::string sigs;
+  for (auto it = range.first; it != range.second; ++it) {
+    if (it->second->kind != Symbol::Kind::kFunction) continue;
+    auto f = by_key_.find(it->second->target);
+    if (f == by_key_.end()) return Error(loc, "function '" + name + "' (key '" + it->second->target + "') was not sent");
+    Candidate c{f->second, {}, false};
+    bool ok = true;
+    for (const auto& ts : f->second->source->param_types) {
+      auto t = ParseType(ts);
+      if (!t.ok()) return Error(loc, "function '" + name + "': " + t.status().message());
+      c.generic |= ContainsAny(*t);
+      c.types.push_back(*t);
+    }
+    sigs += "\n      " + name + "(";
+    for (size_t i = 0; i < c.types.size(); ++i) sigs += (i ? ", " : "") + TypeString(c.types[i]);
+    sigs += ")";
+    if (ok) cands.push_back(std::move(c));
+  }
+  // Default values of trailing parameters.
+  for (int pass = 0; pass < 2; ++pass) {
+    for (auto& c : cands) {
+      if (c.generic != (pass == 1)) continue;
+      const auto& params = c.pf->def->params;
+      if (args.size() > c.types.size()) continue;
+      bool defaults_ok = true;
+      for (size_t i = args.size(); i < c.types.size(); ++i) defaults_ok &= params.size() > i && params[i].default_value;
+      if (!defaults_ok) continue;
+      bool ok = true;
+      std::vector<Type> inst = c.types;
+      for (size_t i = 0; i < args.size() && ok; ++i) {
+        if (args[i].kind != Value::Kind::kVar) {
+          ok = false;
+          break;
+        }
+        const Type& at = TypeOf(args[i].var);
+        if (c.types[i] == at) continue;
+        if (ContainsAny(c.types[i])) {
+          ok = GenericAccepts(c.types[i], at);
+          inst[i] = at;
+        } else {
+          ok = args[i].literal && c.types[i].is_scalar() && c.types[i].scalar != ScalarKind::kBool &&
+               (IsFloat(c.types[i].scalar) || IsIntLiteralText(args[i].literal_text));
+        }
+      }
+      if (!ok) continue;
+      std::vector<int> argv;
+      for (size_t i = 0; i < args.size(); ++i) {
+        WEFT_ASSIGN_OR_RETURN(int v, Coerce(args[i], inst[i], loc, "argument " + std::to_string(i + 1)));
+        argv.push_back(v);
+      }
+      for (size_t i = args.size(); i < c.types.size(); ++i) {
+        WEFT_ASSIGN_OR_RETURN(Value dv, Eval(*params[i].default_value));
+        if (ContainsAny(inst[i])) inst[i] = TypeOf(dv.var);
+        WEFT_ASSIGN_OR_RETURN(int v, Coerce(dv, inst[i], params[i].loc, "default of '" + params[i].name + "'"));
+        argv.push_back(v);
+      }
+      WEFT_ASSIGN_OR_RETURN(int idx, InstantiateFunction(*c.pf, inst, loc));
+      const Function& callee = module_.functions[idx];
+      Stmt s;
+      s.op.kind = OpKind::kFuncCall;
+      s.op.callee = idx;
+      s.op.args = argv;
+      Value out;
+      if (callee.returns.size() == 1) {
+        int d = NewVar(callee.returns[0]);
+        s.op.dst.push_back(d);
+        out = Value::OfVar(d);
+      } else if (callee.returns.size() > 1) {
+        out.kind = Value::Kind::kTuple;
+        for (const auto& t : callee.returns) {
+          int d = NewVar(t);
+          s.op.dst.push_back(d);
+          out.elems.push_back(Value::OfVar(d));
+        }
+      }
+      st_->fn.may_fail |= callee.may_fail;
+      Push(std::move(s));
+      return out;
+    }
+  }
+  std::string got;
+  for (size_t i = 0; i < args.size(); ++i)
+    got += (i ? ", " : "") +
+           (args[i].kind == Value::Kind::kVar ? TypeString(TypeOf(args[i].var)) : std::string("<non-value>"));
+  return Error(loc, "no overload of function '" + name + "' accepts (" + got + "); candidates:" + sigs);
+}
+
+}  // namespace weft::sema

@@ -1,0 +1,124 @@
+// Internal to sema: the checker/lowerer shared by check.cpp (module, functions, statements)
+// and check_expr.cpp (expressions, calls, constructors). Not a public interface.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "engine/sema/check.h"
+
+namespace weft::sema {
+
+// What an expression evaluates to: a typed variable, or a compile-time entity.
+struct Value {
+  enum class Kind { kVar, kModule, kType, kFunc, kBuiltin, kTuple, kString, kNone };
+  Kind kind = Kind::kNone;
+  int var = -1;
+  Type type;                 // kType
+  std::string name;          // kFunc: symbol name; kBuiltin: builtin name; kString: text
+  std::vector<Value> elems;  // kTuple
+  bool literal = false;      // kVar holding a numeric literal that may adapt its type
+  std::string literal_text;  // its Python text
+  std::string source;        // source text of the expression (array names in errors)
+
+  static Value OfVar(int v) { Value x; x.kind = Kind::kVar; x.var = v; return x; }
+};
+
+struct LoopContext {
+  int break_flag = -1;
+  int continue_flag = -1;
+};
+
+class Checker {
+ public:
+  Checker(const ModuleSource& module, const std::vector<ParsedFunction>& parsed, std::vector<Diagnostic>* diags);
+  Expected<Module> Run();
+
+  // --- per-function state ---
+  struct FnState {
+    Function fn;
+    const ParsedFunction* parsed = nullptr;
+    std::map<std::string, int> scope;
+    std::vector<Stmt>* block = nullptr;
+    std::vector<LoopContext> loops;
+    std::map<int, int> array_param;  // var -> kernel param index (arrays and structs)
+    int line = 0;                    // current user line
+    bool has_bare_return = false;
+    std::vector<std::string> source_lines;
+  };
+
+  // check.cpp
+  Status Error(const SourceLocation& loc, const std::string& msg);
+  Expected<int> InstantiateFunction(const ParsedFunction& pf, const std::vector<Type>& param_types,
+                                    const SourceLocation& call_loc);
+  Status LowerBlock(const ast::StmtList& stmts, size_t from = 0);
+  Status LowerStmt(const ast::Stmt& s);
+  Status LowerAssignTo(const ast::Expr& target, Value value);
+  Status LowerIf(int cond, const std::function<Status()>& then_fn, const std::function<Status()>& else_fn);
+  Status LowerFor(const ast::For& s);
+  Status LowerWhile(const ast::While& s);
+  Status LowerReturn(const ast::Return& s);
+  Status BindLocal(const std::string& name, int var, const SourceLocation& loc);
+  int ExitFlagsGuard();
+  bool MayExit(const ast::Stmt& s, bool nested_loop) const;
+
+  // check_expr.cpp
+  Expected<Value> Eval(const ast::Expr& e);
+  Expected<int> EvalVar(const ast::Expr& e);          // must be a runtime value
+  Expected<int> EvalCond(const ast::Expr& e);         // bool var (ints compared with 0)
+  Expected<Value> EvalName(const ast::Name& n);
+  Expected<Value> EvalAttribute(const ast::Attribute& a);
+  Expected<Value> EvalSubscript(const ast::Subscript& s);
+  Expected<Value> EvalCall(const ast::Call& c);
+  Expected<Value> EvalBinOp(const ast::BinOp& b);
+  Expected<Value> EvalCompare(const ast::Compare& c);
+  Expected<Value> EvalConstant(const ast::Constant& c);
+  Expected<Value> LookupGlobal(const std::string& name, const SourceLocation& loc, bool* found);
+  Expected<Value> CallBuiltin(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
+                              const ast::Call* call);
+  Expected<Value> CallConstructor(const Type& t, std::vector<Value> args, const SourceLocation& loc,
+                                  const ast::Call& call);
+  Expected<Value> CallUserFunc(const std::string& name, std::vector<Value> args, const SourceLocation& loc);
+  Expected<Value> ResolveAndEmitBuiltin(const std::string& name, std::vector<Value> args,
+                                        const SourceLocation& loc, int array_param = -1,
+                                        const std::string& array_name = "");
+  Expected<int> Coerce(const Value& v, const Type& want, const SourceLocation& loc, const std::string& what);
+  Expected<Value> EvalConstantSymbol(const weft::ConstantValue& c, const SourceLocation& loc);
+  Expected<Type> EvalTypeExpr(const ast::Expr& e);
+  Expected<std::vector<int>> EvalIndices(const ast::ExprList& idx);
+
+  // emission helpers
+  int NewVar(const Type& t, const std::string& hint = "", bool is_mutable = false);
+  const Type& TypeOf(int var) const { return st_->fn.vars[var].type; }
+  void Push(Stmt s);
+  int EmitOp(OpKind kind, const Type& dst_type, std::vector<int> args, std::string text = "");
+  int EmitConst(const Type& t, const std::string& cpp_text);
+  int EmitRaw(const Type& t, const std::string& text, std::vector<int> args);
+  void EmitCopy(int dst, int src);
+  int ArrayParamOf(int var) const {
+    auto it = st_->array_param.find(var);
+    return it == st_->array_param.end() ? -1 : it->second;
+  }
+
+  const ModuleSource& src_;
+  const std::vector<ParsedFunction>& parsed_;
+  std::vector<Diagnostic>* diags_;
+  Module module_;
+  std::multimap<std::string, const Symbol*> symbols_;
+  std::map<std::string, const ParsedFunction*> by_key_;
+  std::map<std::string, int> instances_;   // instantiation key -> function index
+  std::set<std::string> in_progress_;
+  FnState* st_ = nullptr;
+};
+
+// C++ text of a Python literal in type t ("1.5" as float32 -> "wp::float32(1.5)").
+Expected<std::string> CppLiteral(const Type& t, const std::string& python_text);
+// Names assigned anywhere in `stmts` (targets' base names), for loop-carried analysis.
+void CollectAssignedNames(const ast::StmtList& stmts, std::set<std::string>* out);
+// Source text of an expression (for messages and array names).
+std::string ExprText(const ast::Expr& e);
+
+}  // namespace weft::sema
