@@ -328,3 +328,23 @@ def test_many_arrays_are_freed(wp, weftd):
     wp.synchronize()
     after = weftd.stats().arrays
     assert after <= before + 2
+
+
+def test_array_of_structs(wp):
+    @wp.struct
+    class Particle:
+        pos: wp.vec3
+        mass: wp.float64
+        id: wp.int32
+
+    items = [Particle(pos=wp.vec3(i, 2 * i, -i), mass=0.5 * i, id=i) for i in range(5)]
+    a = wp.array(items, dtype=Particle)
+    assert a.shape == (5,)
+    records = a.numpy()
+    np.testing.assert_array_equal(records["pos"], [[i, 2 * i, -i] for i in range(5)])
+    np.testing.assert_array_equal(records["mass"], [0.5 * i for i in range(5)])
+    np.testing.assert_array_equal(records["id"], list(range(5)))
+    a[1:3].fill_(Particle(pos=wp.vec3(9, 9, 9), mass=-1.0, id=42))
+    records = a.numpy()
+    assert records["id"].tolist() == [0, 42, 42, 3, 4]
+    assert records["mass"].tolist() == [0.0, -1.0, -1.0, 1.5, 2.0]

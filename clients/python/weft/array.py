@@ -55,7 +55,7 @@ def _canonical_dtype(dtype):
         return int32
     if dtype is bool:
         return types.bool
-    if types.is_dtype(dtype) or hasattr(dtype, "_struct_size_"):
+    if types.is_dtype(dtype) or _is_struct(dtype):
         return dtype
     try:
         return dtype_from_numpy(np.dtype(dtype))
@@ -63,10 +63,39 @@ def _canonical_dtype(dtype):
         raise TypeError(f"Invalid array dtype {dtype!r}") from None
 
 
+def _is_struct(dtype) -> bool:
+    """@wp.struct types (weft._kernel.structs.StructType): numpy_dtype() gives their layout."""
+    return callable(getattr(dtype, "numpy_dtype", None)) or hasattr(dtype, "_struct_size_")
+
+
+def _struct_numpy(dtype, values):
+    """Struct instance(s) (or a structured NumPy array) as a structured NumPy array."""
+    np_dtype = np.dtype(dtype.numpy_dtype())
+    if isinstance(values, np.ndarray) and values.dtype.fields is not None:
+        return values.astype(np_dtype)
+    many = isinstance(values, (list, tuple))
+    items = list(values) if many else [values]
+    out = np.zeros(len(items), dtype=np_dtype)
+    for i, item in enumerate(items):
+        _fill_record(out[i:i + 1], item)
+    return out if many else out[0]
+
+
+def _fill_record(record, item):
+    for name in record.dtype.names:
+        value = getattr(item, name)
+        if record.dtype[name].fields is not None:
+            _fill_record(record[name], value)
+        else:
+            record[name] = np.asarray(value)
+
+
 def _elem_layout(dtype):
     """(numpy scalar dtype, inner element shape) of one array element."""
     if types.is_dtype(dtype):
         return np.dtype(dtype._np_dtype_), tuple(dtype._shape_)
+    if callable(getattr(dtype, "numpy_dtype", None)):
+        return np.dtype(dtype.numpy_dtype()), ()
     struct_np = getattr(dtype, "_numpy_dtype_", None)
     if struct_np is not None:
         return np.dtype(struct_np), ()
@@ -95,7 +124,7 @@ def _dtype_proto(dtype):
     if types.is_dtype(dtype):
         return tp.DType(scalar=_SCALAR_ENUM[dtype._wp_scalar_type_._type_str],
                         elem_shape=list(dtype._shape_), type_name=type_str(dtype))
-    return tp.DType(type_name=type_str(dtype), struct_size=int(dtype._struct_size_))
+    return tp.DType(type_name=type_str(dtype), struct_size=_elem_size(dtype))
 
 
 def _dtype_from_proto(proto):
@@ -158,6 +187,9 @@ def _infer_dtype(data):
         first = data[0]
         if isinstance(first, (_Composite, _Scalar)):
             return type(first)
+        struct_type = getattr(first, "_struct_type", None)
+        if struct_type is not None:
+            return struct_type
     arr = np.asarray(data)
     if arr.dtype == object:
         raise RuntimeError(f"Failed to infer the dtype of {type(data).__name__} data: pass dtype=")
@@ -352,6 +384,8 @@ class array:
         if dtype is Any:
             dtype = _infer_dtype(data)
         np_dtype, inner = _elem_layout(dtype)
+        if np_dtype.fields is not None:
+            data = _struct_numpy(dtype, data)
         try:
             arr = np.asarray(data, dtype=np_dtype)
         except (TypeError, ValueError) as err:
@@ -746,9 +780,8 @@ class array:
 
 
 def _struct_bytes(dtype, value) -> bytes:
-    to_bytes = getattr(dtype, "_to_bytes_", None)
-    if to_bytes is not None:
-        return to_bytes(value)
+    if callable(getattr(dtype, "numpy_dtype", None)) and not isinstance(value, (bytes, bytearray)):
+        return np.asarray(_struct_numpy(dtype, value)).tobytes()
     if isinstance(value, (bytes, bytearray)) and len(value) == _elem_size(dtype):
         return bytes(value)
     raise TypeError(f"Cannot fill an array of {type_str(dtype)} with {value!r}")
