@@ -313,27 +313,9 @@ template <typename T> WP_FUNC void adj_store(const array_t<T>& adj_a, int64 i, i
 template <typename T> WP_FUNC void adj_store(const array_t<T>& adj_a, int64 i, int64 j, int64 k, int64 l, T& adj_v) {
   if (adj_a.data) adj_v += *address(adj_a, i, j, k, l);
 }
-// adj_atomic_add(a, i[, j, k, l], v, adj_a, adj_v): same argument order for all index counts.
-template <typename T> WP_FUNC void adj_atomic_add(const array_t<T>&, int64 i, const T&, const array_t<T>& adj_a, T& adj_v) { adj_store(adj_a, i, adj_v); }
-template <typename T> WP_FUNC void adj_atomic_add(const array_t<T>&, int64 i, int64 j, const T&, const array_t<T>& adj_a, T& adj_v) { adj_store(adj_a, i, j, adj_v); }
-template <typename T> WP_FUNC void adj_atomic_add(const array_t<T>&, int64 i, int64 j, int64 k, const T&, const array_t<T>& adj_a, T& adj_v) {
-  adj_store(adj_a, i, j, k, adj_v);
-}
-template <typename T> WP_FUNC void adj_atomic_add(const array_t<T>&, int64 i, int64 j, int64 k, int64 l, const T&, const array_t<T>& adj_a, T& adj_v) {
-  adj_store(adj_a, i, j, k, l, adj_v);
-}
-template <typename T> WP_FUNC void adj_atomic_sub(const array_t<T>&, int64 i, const T&, const array_t<T>& adj_a, T& adj_v) {
-  if (adj_a.data) adj_v -= *address(adj_a, i);
-}
-template <typename T> WP_FUNC void adj_atomic_sub(const array_t<T>&, int64 i, int64 j, const T&, const array_t<T>& adj_a, T& adj_v) {
-  if (adj_a.data) adj_v -= *address(adj_a, i, j);
-}
-template <typename T> WP_FUNC void adj_atomic_sub(const array_t<T>&, int64 i, int64 j, int64 k, const T&, const array_t<T>& adj_a, T& adj_v) {
-  if (adj_a.data) adj_v -= *address(adj_a, i, j, k);
-}
-template <typename T> WP_FUNC void adj_atomic_sub(const array_t<T>&, int64 i, int64 j, int64 k, int64 l, const T&, const array_t<T>& adj_a, T& adj_v) {
-  if (adj_a.data) adj_v -= *address(adj_a, i, j, k, l);
-}
+// Atomic adjoints in the generic convention adj_f(args..., adj_args&..., adj_ret):
+//   adj_atomic_add(a, i[, j, k, l], v, adj_a, adj_i[, adj_j, ...], adj_v, adj_ret)
+// where adj_a is the gradient array of `a`; index adjoints are ignored.
 template <typename T> WP_FUNC void adj_atomic_minmax_ptr(const T* p, const T& v, const T* g, T& adj_v) {
   if (g && *p == v) adj_v += *g;
 }
@@ -342,23 +324,44 @@ template <unsigned N, typename T> WP_FUNC void adj_atomic_minmax_ptr(const vec_t
     for (unsigned c = 0; c < N; ++c)
       if (p->c[c] == v.c[c]) adj_v.c[c] += g->c[c];
 }
-#define WP_ADJ_ATOMIC_MINMAX(op) \
-  template <typename T> WP_FUNC void adj_atomic_##op(const array_t<T>& a, int64 i, const T& v, const array_t<T>& adj_a, T& adj_v) { \
-    adj_atomic_minmax_ptr(address(a, i), v, adj_a.data ? address(adj_a, i) : (T*)nullptr, adj_v); \
+template <unsigned R, unsigned C, typename T>
+WP_FUNC void adj_atomic_minmax_ptr(const mat_t<R, C, T>* p, const mat_t<R, C, T>& v, const mat_t<R, C, T>* g, mat_t<R, C, T>& adj_v) {
+  if (g)
+    for (unsigned i = 0; i < R; ++i)
+      for (unsigned j = 0; j < C; ++j)
+        if (p->data[i][j] == v.data[i][j]) adj_v.data[i][j] += g->data[i][j];
+}
+#define WP_ADJ_ATOMIC(op, BODY) \
+  template <typename T, typename I0, typename J0> \
+  WP_FUNC void adj_atomic_##op(const array_t<T>& a, I0 i, const T& v, const array_t<T>& adj_a, J0&, T& adj_v, const T&) { \
+    T* g = adj_a.data ? address(adj_a, i) : (T*)nullptr; \
+    T* p = address(a, i); \
+    BODY; \
   } \
-  template <typename T> WP_FUNC void adj_atomic_##op(const array_t<T>& a, int64 i, int64 j, const T& v, const array_t<T>& adj_a, T& adj_v) { \
-    adj_atomic_minmax_ptr(address(a, i, j), v, adj_a.data ? address(adj_a, i, j) : (T*)nullptr, adj_v); \
+  template <typename T, typename I0, typename I1, typename J0, typename J1> \
+  WP_FUNC void adj_atomic_##op(const array_t<T>& a, I0 i, I1 j, const T& v, const array_t<T>& adj_a, J0&, J1&, T& adj_v, const T&) { \
+    T* g = adj_a.data ? address(adj_a, i, j) : (T*)nullptr; \
+    T* p = address(a, i, j); \
+    BODY; \
   } \
-  template <typename T> \
-  WP_FUNC void adj_atomic_##op(const array_t<T>& a, int64 i, int64 j, int64 k, const T& v, const array_t<T>& adj_a, T& adj_v) { \
-    adj_atomic_minmax_ptr(address(a, i, j, k), v, adj_a.data ? address(adj_a, i, j, k) : (T*)nullptr, adj_v); \
+  template <typename T, typename I0, typename I1, typename I2, typename J0, typename J1, typename J2> \
+  WP_FUNC void adj_atomic_##op(const array_t<T>& a, I0 i, I1 j, I2 k, const T& v, const array_t<T>& adj_a, J0&, J1&, J2&, T& adj_v, \
+                               const T&) { \
+    T* g = adj_a.data ? address(adj_a, i, j, k) : (T*)nullptr; \
+    T* p = address(a, i, j, k); \
+    BODY; \
   } \
-  template <typename T> \
-  WP_FUNC void adj_atomic_##op(const array_t<T>& a, int64 i, int64 j, int64 k, int64 l, const T& v, const array_t<T>& adj_a, T& adj_v) { \
-    adj_atomic_minmax_ptr(address(a, i, j, k, l), v, adj_a.data ? address(adj_a, i, j, k, l) : (T*)nullptr, adj_v); \
+  template <typename T, typename I0, typename I1, typename I2, typename I3, typename J0, typename J1, typename J2, typename J3> \
+  WP_FUNC void adj_atomic_##op(const array_t<T>& a, I0 i, I1 j, I2 k, I3 l, const T& v, const array_t<T>& adj_a, J0&, J1&, J2&, J3&, \
+                               T& adj_v, const T&) { \
+    T* g = adj_a.data ? address(adj_a, i, j, k, l) : (T*)nullptr; \
+    T* p = address(a, i, j, k, l); \
+    BODY; \
   }
-WP_ADJ_ATOMIC_MINMAX(min)
-WP_ADJ_ATOMIC_MINMAX(max)
-#undef WP_ADJ_ATOMIC_MINMAX
+WP_ADJ_ATOMIC(add, (void)p; if (g) adj_v += *g)
+WP_ADJ_ATOMIC(sub, (void)p; if (g) adj_v -= *g)
+WP_ADJ_ATOMIC(min, adj_atomic_minmax_ptr(p, v, g, adj_v))
+WP_ADJ_ATOMIC(max, adj_atomic_minmax_ptr(p, v, g, adj_v))
+#undef WP_ADJ_ATOMIC
 
 }  // namespace wp

@@ -160,17 +160,17 @@ WP_FUNC void sub_inplace(mat_t<R, C, T>& m, int32 i, int32 j, T value) {
 template <unsigned R, unsigned C, typename T>
 WP_FUNC int32 len(const mat_t<R, C, T>&) { return (int32)R; }
 
-template <unsigned R, unsigned C, typename T>
-WP_FUNC void adj_extract(const mat_t<R, C, T>&, int32 i, mat_t<R, C, T>& adj_m, int32&, const vec_t<C, T>& adj_ret) {
+template <unsigned R, unsigned C, typename T, typename IA>
+WP_FUNC void adj_extract(const mat_t<R, C, T>&, int32 i, mat_t<R, C, T>& adj_m, IA&, const vec_t<C, T>& adj_ret) {
   if ((unsigned)i < R)
     for (unsigned j = 0; j < C; ++j) adj_m.data[i][j] += adj_ret.c[j];
 }
-template <unsigned R, unsigned C, typename T>
-WP_FUNC void adj_extract(const mat_t<R, C, T>&, int32 i, int32 j, mat_t<R, C, T>& adj_m, int32&, int32&, T adj_ret) {
+template <unsigned R, unsigned C, typename T, typename IA>
+WP_FUNC void adj_extract(const mat_t<R, C, T>&, int32 i, int32 j, mat_t<R, C, T>& adj_m, IA&, IA&, T adj_ret) {
   if ((unsigned)i < R && (unsigned)j < C) adj_m.data[i][j] += adj_ret;
 }
-template <unsigned R, unsigned C, typename T>
-WP_FUNC void adj_assign(const mat_t<R, C, T>&, int32 i, int32 j, T, mat_t<R, C, T>& adj_m, int32&, int32&, T& adj_value,
+template <unsigned R, unsigned C, typename T, typename IA>
+WP_FUNC void adj_assign(const mat_t<R, C, T>&, int32 i, int32 j, T, mat_t<R, C, T>& adj_m, IA&, IA&, T& adj_value,
                         const mat_t<R, C, T>& adj_ret) {
   for (unsigned a = 0; a < R; ++a)
     for (unsigned b = 0; b < C; ++b) {
@@ -178,8 +178,8 @@ WP_FUNC void adj_assign(const mat_t<R, C, T>&, int32 i, int32 j, T, mat_t<R, C, 
       else adj_m.data[a][b] += adj_ret.data[a][b];
     }
 }
-template <unsigned R, unsigned C, typename T>
-WP_FUNC void adj_assign(const mat_t<R, C, T>&, int32 i, const vec_t<C, T>&, mat_t<R, C, T>& adj_m, int32&, vec_t<C, T>& adj_row,
+template <unsigned R, unsigned C, typename T, typename IA>
+WP_FUNC void adj_assign(const mat_t<R, C, T>&, int32 i, const vec_t<C, T>&, mat_t<R, C, T>& adj_m, IA&, vec_t<C, T>& adj_row,
                         const mat_t<R, C, T>& adj_ret) {
   for (unsigned a = 0; a < R; ++a)
     for (unsigned b = 0; b < C; ++b) {

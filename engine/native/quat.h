@@ -37,11 +37,11 @@ template <typename T> WP_FUNC quat_t<T> assign(const quat_t<T>& q, int32 i, T va
 }
 template <typename T> WP_FUNC void assign_inplace(quat_t<T>& q, int32 i, T value) { if ((unsigned)i < 4u) q[i] = value; }
 template <typename T> WP_FUNC int32 len(const quat_t<T>&) { return 4; }
-template <typename T> WP_FUNC void adj_extract(const quat_t<T>&, int32 i, quat_t<T>& adj_q, int32&, T adj_ret) {
+template <typename T, typename IA> WP_FUNC void adj_extract(const quat_t<T>&, int32 i, quat_t<T>& adj_q, IA&, T adj_ret) {
   if ((unsigned)i < 4u) adj_q[i] += adj_ret;
 }
-template <typename T>
-WP_FUNC void adj_assign(const quat_t<T>&, int32 i, T, quat_t<T>& adj_q, int32&, T& adj_value, const quat_t<T>& adj_ret) {
+template <typename T, typename IA>
+WP_FUNC void adj_assign(const quat_t<T>&, int32 i, T, quat_t<T>& adj_q, IA&, T& adj_value, const quat_t<T>& adj_ret) {
   for (int k = 0; k < 4; ++k) {
     if (k == i) adj_value += adj_ret[k];
     else adj_q[k] += adj_ret[k];

@@ -182,8 +182,8 @@ WP_INT_CLASSIFY(int32) WP_INT_CLASSIFY(uint32) WP_INT_CLASSIFY(int64) WP_INT_CLA
 WP_MATH1(sin, sinf, sin)
 WP_MATH1(cos, cosf, cos)
 WP_MATH1(tan, tanf, tan)
-WP_MATH1(asin, asinf, asin)
-WP_MATH1(acos, acosf, acos)
+WP_MATH1(asin_raw, asinf, asin)
+WP_MATH1(acos_raw, acosf, acos)
 WP_MATH1(atan, atanf, atan)
 WP_MATH1(sinh, sinhf, sinh)
 WP_MATH1(cosh, coshf, cosh)
@@ -207,6 +207,15 @@ WP_MATH2(copysign, copysignf, copysign)
 WP_MATH2(fmod, fmodf, fmod)
 #undef WP_MATH1
 #undef WP_MATH2
+
+// asin/acos clamp their input to [-1, 1] (Warp); NaN stays NaN.
+#define WP_ARC(T) \
+  WP_FUNC T asin(T x) { return isnan(x) ? x : asin_raw(x < T(-1) ? T(-1) : (x > T(1) ? T(1) : x)); } \
+  WP_FUNC T acos(T x) { return isnan(x) ? x : acos_raw(x < T(-1) ? T(-1) : (x > T(1) ? T(1) : x)); }
+WP_ARC(float32)
+WP_ARC(float64)
+WP_ARC(half)
+#undef WP_ARC
 
 // erfinv / erfcinv: CUDA has them; the host uses Giles' approximation (float) refined by
 // Newton steps on erf (so float64 is accurate to a few ulp).

@@ -42,11 +42,11 @@ template <typename T> WP_FUNC transform_t<T> assign(const transform_t<T>& t, int
 }
 template <typename T> WP_FUNC void assign_inplace(transform_t<T>& t, int32 i, T value) { if ((unsigned)i < 7u) t[i] = value; }
 template <typename T> WP_FUNC int32 len(const transform_t<T>&) { return 7; }
-template <typename T> WP_FUNC void adj_extract(const transform_t<T>&, int32 i, transform_t<T>& adj_t, int32&, T adj_ret) {
+template <typename T, typename IA> WP_FUNC void adj_extract(const transform_t<T>&, int32 i, transform_t<T>& adj_t, IA&, T adj_ret) {
   if ((unsigned)i < 7u) adj_t[i] += adj_ret;
 }
-template <typename T>
-WP_FUNC void adj_assign(const transform_t<T>&, int32 i, T, transform_t<T>& adj_t, int32&, T& adj_value, const transform_t<T>& adj_ret) {
+template <typename T, typename IA>
+WP_FUNC void adj_assign(const transform_t<T>&, int32 i, T, transform_t<T>& adj_t, IA&, T& adj_value, const transform_t<T>& adj_ret) {
   for (int k = 0; k < 7; ++k) {
     if (k == i) adj_value += adj_ret[k];
     else adj_t[k] += adj_ret[k];

@@ -83,12 +83,12 @@ WP_FUNC void sub_inplace(vec_t<N, T>& v, int32 i, T value) { if ((unsigned)i < N
 template <unsigned N, typename T>
 WP_FUNC int32 len(const vec_t<N, T>&) { return (int32)N; }
 
-template <unsigned N, typename T>
-WP_FUNC void adj_extract(const vec_t<N, T>&, int32 i, vec_t<N, T>& adj_v, int32&, T adj_ret) {
+template <unsigned N, typename T, typename IA>
+WP_FUNC void adj_extract(const vec_t<N, T>&, int32 i, vec_t<N, T>& adj_v, IA&, T adj_ret) {
   if ((unsigned)i < N) adj_v.c[i] += adj_ret;
 }
-template <unsigned N, typename T>
-WP_FUNC void adj_assign(const vec_t<N, T>&, int32 i, T, vec_t<N, T>& adj_v, int32&, T& adj_value,
+template <unsigned N, typename T, typename IA>
+WP_FUNC void adj_assign(const vec_t<N, T>&, int32 i, T, vec_t<N, T>& adj_v, IA&, T& adj_value,
                         const vec_t<N, T>& adj_ret) {
   for (unsigned k = 0; k < N; ++k)
     if ((int32)k != i) adj_v.c[k] += adj_ret.c[k];
