@@ -358,8 +358,8 @@ WP_FUNC void adj_atomic_minmax_ptr(const mat_t<R, C, T>* p, const mat_t<R, C, T>
     T* p = address(a, i, j, k, l); \
     BODY; \
   }
-WP_ADJ_ATOMIC(add, (void)p; if (g) adj_v += *g)
-WP_ADJ_ATOMIC(sub, (void)p; if (g) adj_v -= *g)
+WP_ADJ_ATOMIC(add, (void)p; (void)v; if (g) adj_v += *g)
+WP_ADJ_ATOMIC(sub, (void)p; (void)v; if (g) adj_v -= *g)
 WP_ADJ_ATOMIC(min, adj_atomic_minmax_ptr(p, v, g, adj_v))
 WP_ADJ_ATOMIC(max, adj_atomic_minmax_ptr(p, v, g, adj_v))
 #undef WP_ADJ_ATOMIC
