@@ -254,6 +254,7 @@ class Runtime:
         self._deferred_error: WeftError | None = None
         self._slabs: dict[str, _SlabMapping] = {}
         self._devices = None
+        self._unsynchronized = False   # commands were queued since the last Synchronize
         self.closed = False
         self.attach_lost = False
 
@@ -293,6 +294,7 @@ class Runtime:
         if not cmd.HasField("origin"):
             cmd.origin.CopyFrom(caller_location())
         with self._lock:
+            self._unsynchronized = True
             self._batch.append(cmd)
             self._batch_bytes += cmd.ByteSize()
             full = len(self._batch) >= BATCH_MAX_COMMANDS or self._batch_bytes >= BATCH_MAX_BYTES
@@ -312,6 +314,7 @@ class Runtime:
         with self._lock:
             self.flush()
             response = self.call(self.exec_stub.Synchronize, exec_pb2.SynchronizeRequest())
+            self._unsynchronized = False
             deferred, self._deferred_error = self._deferred_error, None
         if response.output:
             sys.stdout.write(response.output)
@@ -321,6 +324,11 @@ class Runtime:
         if response.error:
             raise WeftError(response.error, _CODE_NAMES.get(response.error_code),
                             format_location(response.error_origin))
+
+    def synchronize_if_needed(self) -> None:
+        """synchronize() when commands were queued since the last one (data access)."""
+        if self._unsynchronized or self._batch or self._deferred_error is not None:
+            self.synchronize()
 
     # -- frees (deferred: never an RPC from a finalizer, never before queued commands are sent)
     def free_later(self, handle: int) -> None:

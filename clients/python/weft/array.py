@@ -594,9 +594,6 @@ class array:
                         "arrays, write through a.numpy()")
 
     # -- data access
-    def _synchronize_for_access(self):
-        _runtime.get_runtime().synchronize()
-
     def _span(self):
         """(first byte offset, byte count) covering every element of this view."""
         elem = _elem_size(self.dtype)
@@ -614,7 +611,7 @@ class array:
         if self._info is None:
             return np.empty(full_shape, dtype=np_dtype)
         rt = self._alloc.runtime
-        rt.synchronize()
+        rt.synchronize_if_needed()
         full_strides = tuple(self.strides) + _inner_strides(np_dtype, inner)
         if _is_local_cpu(rt, self._info):
             if self.size == 0:
@@ -706,7 +703,7 @@ class array:
             return self
         rt = self._alloc.runtime
         if self.is_contiguous:
-            rt.synchronize()
+            rt.synchronize_if_needed()
             payload = np.ascontiguousarray(values, dtype=np_dtype).reshape(-1).view(np.uint8)
             _write_bytes(rt, self._info, self._byte_offset, payload)
         else:
