@@ -160,17 +160,17 @@ class RawSession:
 
     def __init__(self, daemon: Daemon, name: str):
         import grpc
-        from weft.v1 import (array_pb2_grpc, device_pb2_grpc, exec_pb2_grpc, module_pb2_grpc,
-                             session_pb2, session_pb2_grpc)
+        from weft import _runtime
+        from weft.v1 import session_pb2
 
         options = [("grpc.max_send_message_length", 64 << 20),
                    ("grpc.max_receive_message_length", 64 << 20)]
         self.channel = grpc.insecure_channel(daemon.grpc_target, options=options)
-        self.session = session_pb2_grpc.SessionServiceStub(self.channel)
-        self.arrays = array_pb2_grpc.ArrayServiceStub(self.channel)
-        self.exec = exec_pb2_grpc.ExecServiceStub(self.channel)
-        self.devices = device_pb2_grpc.DeviceServiceStub(self.channel)
-        self.modules = module_pb2_grpc.ModuleServiceStub(self.channel)
+        self.session = _runtime.SessionServiceStub(self.channel)
+        self.arrays = _runtime.ArrayServiceStub(self.channel)
+        self.exec = _runtime.ExecServiceStub(self.channel)
+        self.devices = _runtime.DeviceServiceStub(self.channel)
+        self.modules = _runtime.ModuleServiceStub(self.channel)
         self.opened = self.session.Open(
             session_pb2.OpenSessionRequest(client_name=name, client_pid=os.getpid()),
             metadata=daemon.metadata(), timeout=10)

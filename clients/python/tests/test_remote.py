@@ -4,7 +4,8 @@ memory; a wrong or missing token is refused with UNAUTHENTICATED."""
 import grpc
 import pytest
 
-from weft.v1 import session_pb2, session_pb2_grpc
+from weft._runtime import SessionServiceStub
+from weft.v1 import session_pb2
 
 
 def tcp_env(daemon, token="from-daemon"):
@@ -89,7 +90,7 @@ def test_wrong_or_missing_token_is_refused(tcp_weftd, run_client, token):
 
 def test_wrong_token_raw(tcp_weftd):
     with grpc.insecure_channel(tcp_weftd.grpc_target) as channel:
-        stub = session_pb2_grpc.SessionServiceStub(channel)
+        stub = SessionServiceStub(channel)
         for metadata in ((("authorization", "Bearer nope"),), (),
                          (("authorization", tcp_weftd.token),)):
             with pytest.raises(grpc.RpcError) as info:

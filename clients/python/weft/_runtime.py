@@ -37,46 +37,92 @@ _PACKAGE_DIR = Path(__file__).resolve().parent
 _REPO_DIR = _PACKAGE_DIR.parents[1].parent  # clients/python/weft -> repo root
 
 
-def _import_stubs():
-    """The generated gRPC modules (weft.v1), generated on the fly from proto/ when missing."""
+_PB2_NAMES = ("types_pb2", "array_pb2", "device_pb2", "exec_pb2", "module_pb2", "session_pb2")
+
+
+def _generate_stubs() -> None:
+    """Generates weft/v1/*_pb2.py from <repo>/proto with grpc_tools (when it is installed)."""
+    proto_dir = _REPO_DIR / "proto"
     try:
-        from .v1 import (array_pb2, array_pb2_grpc, device_pb2, device_pb2_grpc, exec_pb2,
-                         exec_pb2_grpc, module_pb2, module_pb2_grpc, session_pb2,
-                         session_pb2_grpc, types_pb2)
+        from grpc_tools import protoc
     except ImportError:
-        proto_dir = _REPO_DIR / "proto"
-        if not proto_dir.is_dir():
+        raise ImportError("weft.v1 message modules are missing: run `make proto-py` in the "
+                          "weft repository (needs grpcio-tools)") from None
+    out_dir = _PACKAGE_DIR.parent
+    (_PACKAGE_DIR / "v1").mkdir(exist_ok=True)
+    protos = sorted(str(p) for p in (proto_dir / "weft" / "v1").glob("*.proto"))
+    args = ["protoc", f"-I{proto_dir}", f"--python_out={out_dir}",
+            f"--grpc_python_out={out_dir}"] + protos
+    if not protos or protoc.main(args) != 0:
+        raise ImportError(f"generating weft.v1 from {proto_dir} failed")
+    (_PACKAGE_DIR / "v1" / "__init__.py").touch()
+
+
+def _import_pb2_modules() -> dict:
+    """The generated message modules (weft.v1.*_pb2). Generated on the fly when missing; a
+    protobuf runtime older than the generator (same wire format) is accepted with its version
+    check relaxed, so stubs generated on one machine run on another."""
+    import importlib
+
+    def load():
+        return {name: importlib.import_module(f"weft.v1.{name}") for name in _PB2_NAMES}
+
+    try:
+        return load()
+    except ModuleNotFoundError:
+        _generate_stubs()
+        return load()
+    except Exception as err:  # noqa: BLE001 - protobuf VersionError and friends
+        from google.protobuf import runtime_version
+
+        if not isinstance(err, getattr(runtime_version, "VersionError", ())):
             raise
+        for name in _PB2_NAMES:
+            sys.modules.pop(f"weft.v1.{name}", None)
+        original = runtime_version.ValidateProtobufRuntimeVersion
+        runtime_version.ValidateProtobufRuntimeVersion = lambda *args, **kwargs: None
         try:
-            from grpc_tools import protoc
-        except ImportError:
-            raise ImportError("weft.v1 stubs are missing: run `make proto-py` in the weft "
-                              "repository (needs grpcio-tools)") from None
-        out_dir = _PACKAGE_DIR.parent
-        (out_dir / "weft" / "v1").mkdir(exist_ok=True)
-        protos = sorted(str(p) for p in (proto_dir / "weft" / "v1").glob("*.proto"))
-        args = ["protoc", f"-I{proto_dir}", f"--python_out={out_dir}",
-                f"--grpc_python_out={out_dir}"] + protos
-        if protoc.main(args) != 0:
-            raise ImportError("generating weft.v1 stubs from proto/ failed") from None
-        (out_dir / "weft" / "v1" / "__init__.py").touch()
-        from .v1 import (array_pb2, array_pb2_grpc, device_pb2, device_pb2_grpc, exec_pb2,
-                         exec_pb2_grpc, module_pb2, module_pb2_grpc, session_pb2,
-                         session_pb2_grpc, types_pb2)
-    return dict(array_pb2=array_pb2, array_pb2_grpc=array_pb2_grpc, device_pb2=device_pb2,
-                device_pb2_grpc=device_pb2_grpc, exec_pb2=exec_pb2, exec_pb2_grpc=exec_pb2_grpc,
-                module_pb2=module_pb2, module_pb2_grpc=module_pb2_grpc,
-                session_pb2=session_pb2, session_pb2_grpc=session_pb2_grpc,
-                types_pb2=types_pb2)
+            return load()
+        finally:
+            runtime_version.ValidateProtobufRuntimeVersion = original
 
 
-_stubs = _import_stubs()
-array_pb2 = _stubs["array_pb2"]
-device_pb2 = _stubs["device_pb2"]
-exec_pb2 = _stubs["exec_pb2"]
-module_pb2 = _stubs["module_pb2"]
-session_pb2 = _stubs["session_pb2"]
-types_pb2 = _stubs["types_pb2"]
+def _make_stub_class(service):
+    """A gRPC client stub class for a service descriptor (what *_pb2_grpc.py would hold,
+    built here so the client does not depend on the grpcio version that generated them)."""
+    from google.protobuf import message_factory
+
+    def message_class(descriptor):
+        return message_factory.GetMessageClass(descriptor)
+
+    methods = [(m.name, f"/{service.full_name}/{m.name}", m.client_streaming,
+                m.server_streaming, message_class(m.input_type), message_class(m.output_type))
+               for m in service.methods]
+
+    def __init__(self, channel):
+        for name, path, client_streaming, server_streaming, request, response in methods:
+            factory = {(False, False): channel.unary_unary, (False, True): channel.unary_stream,
+                       (True, False): channel.stream_unary,
+                       (True, True): channel.stream_stream}[(client_streaming, server_streaming)]
+            setattr(self, name, factory(path, request_serializer=request.SerializeToString,
+                                        response_deserializer=response.FromString))
+
+    return type(f"{service.name}Stub", (), {"__init__": __init__,
+                                           "__doc__": f"Client stub of {service.full_name}."})
+
+
+_pb2 = _import_pb2_modules()
+types_pb2 = _pb2["types_pb2"]
+array_pb2 = _pb2["array_pb2"]
+device_pb2 = _pb2["device_pb2"]
+exec_pb2 = _pb2["exec_pb2"]
+module_pb2 = _pb2["module_pb2"]
+session_pb2 = _pb2["session_pb2"]
+SessionServiceStub = _make_stub_class(session_pb2.DESCRIPTOR.services_by_name["SessionService"])
+ArrayServiceStub = _make_stub_class(array_pb2.DESCRIPTOR.services_by_name["ArrayService"])
+ExecServiceStub = _make_stub_class(exec_pb2.DESCRIPTOR.services_by_name["ExecService"])
+ModuleServiceStub = _make_stub_class(module_pb2.DESCRIPTOR.services_by_name["ModuleService"])
+DeviceServiceStub = _make_stub_class(device_pb2.DESCRIPTOR.services_by_name["DeviceService"])
 
 _CODE_NAMES = {code.value[0]: code.name for code in grpc.StatusCode}
 
@@ -226,11 +272,11 @@ class Runtime:
         options = [("grpc.max_send_message_length", MAX_MESSAGE_BYTES),
                    ("grpc.max_receive_message_length", MAX_MESSAGE_BYTES)]
         self.channel = grpc.insecure_channel(self.address, options=options)
-        self.session_stub = _stubs["session_pb2_grpc"].SessionServiceStub(self.channel)
-        self.array_stub = _stubs["array_pb2_grpc"].ArrayServiceStub(self.channel)
-        self.exec_stub = _stubs["exec_pb2_grpc"].ExecServiceStub(self.channel)
-        self.module_stub = _stubs["module_pb2_grpc"].ModuleServiceStub(self.channel)
-        self.device_stub = _stubs["device_pb2_grpc"].DeviceServiceStub(self.channel)
+        self.session_stub = SessionServiceStub(self.channel)
+        self.array_stub = ArrayServiceStub(self.channel)
+        self.exec_stub = ExecServiceStub(self.channel)
+        self.module_stub = ModuleServiceStub(self.channel)
+        self.device_stub = DeviceServiceStub(self.channel)
         self._base_metadata = (("authorization", f"Bearer {self.token}"),) if self.token else ()
         self.metadata = self._base_metadata
 
