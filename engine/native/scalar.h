@@ -273,10 +273,27 @@ WP_FUNC float64 erfcinv(float64 x) {
     if (x == 2.0) return -__builtin_inf();
     return __builtin_nan("");
   }
-  float64 y = erfinv_giles(1.0 - x);
-  for (int it = 0; it < 3; ++it) {  // Newton on erfc(y) - x keeps accuracy for tiny x
-    float64 err = __builtin_erfc(y) - x;
-    y += err / (1.1283791670955126 * __builtin_exp(-y * y));
+  if (x > 1.0) return -erfcinv(2.0 - x);
+  float64 y;
+  if (x >= 0.0625) {
+    y = erfinv_giles(1.0 - x);
+    for (int it = 0; it < 3; ++it) {  // Newton on erfc(y) - x
+      float64 err = __builtin_erfc(y) - x;
+      y += err / (1.1283791670955126 * __builtin_exp(-y * y));
+    }
+    return y;
+  }
+  // Tail: Newton on log(erfc(y)) - log(x), which stays well scaled down to x ~ 1e-300.
+  y = __builtin_sqrt(-__builtin_log(x));
+  float64 log_x = __builtin_log(x);
+  for (int it = 0; it < 60; ++it) {
+    float64 e = __builtin_erfc(y);
+    if (e == 0.0) break;
+    float64 g = __builtin_log(e) - log_x;
+    float64 dg = -1.1283791670955126 * __builtin_exp(-y * y) / e;
+    float64 step = g / dg;
+    y -= step;
+    if (__builtin_fabs(step) <= 1e-16 * y) break;
   }
   return y;
 }
