@@ -440,120 +440,122 @@ WP_FUNC To cast(const From& x) { return To(x); }
 
 // ---------------------------------------------------------------------------------------------
 // Adjoints of scalar builtins (Warp's convention: adj_f(args..., adj_args&..., adj_ret), +=).
-// Templates cover float32, float64 and half; integer overloads below are no-ops.
-template <typename T> WP_FUNC void adj_add(T, T, T& adj_a, T& adj_b, T adj_ret) { adj_a += adj_ret; adj_b += adj_ret; }
-template <typename T> WP_FUNC void adj_sub(T, T, T& adj_a, T& adj_b, T adj_ret) { adj_a += adj_ret; adj_b -= adj_ret; }
-template <typename T> WP_FUNC void adj_mul(T a, T b, T& adj_a, T& adj_b, T adj_ret) { adj_a += b * adj_ret; adj_b += a * adj_ret; }
-template <typename T> WP_FUNC void adj_div(T a, T b, T& adj_a, T& adj_b, T adj_ret) {
+// Templates cover float32, float64 and half (and only them, so they never compete with the
+// vector/matrix overloads); integer overloads below are no-ops.
+#define WP_SCALAR_FLOAT_TEMPLATE template <typename T, typename enable_if_t_<is_float_t<T>::value, int>::type = 0>
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_add(T, T, T& adj_a, T& adj_b, T adj_ret) { adj_a += adj_ret; adj_b += adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_sub(T, T, T& adj_a, T& adj_b, T adj_ret) { adj_a += adj_ret; adj_b -= adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_mul(T a, T b, T& adj_a, T& adj_b, T adj_ret) { adj_a += b * adj_ret; adj_b += a * adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_div(T a, T b, T& adj_a, T& adj_b, T adj_ret) {
   adj_a += adj_ret / b;
   adj_b -= adj_ret * (a / b) / b;
 }
-template <typename T> WP_FUNC void adj_div_approx(T a, T b, T& adj_a, T& adj_b, T adj_ret) { adj_div(a, b, adj_a, adj_b, adj_ret); }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_div_approx(T a, T b, T& adj_a, T& adj_b, T adj_ret) { adj_div(a, b, adj_a, adj_b, adj_ret); }
 // d fmod(a, b) = da - trunc(a / b) db
-template <typename T> WP_FUNC void adj_mod(T a, T b, T& adj_a, T& adj_b, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_mod(T a, T b, T& adj_a, T& adj_b, T adj_ret) {
   adj_a += adj_ret;
   adj_b -= trunc(T(a / b)) * adj_ret;
 }
-template <typename T> WP_FUNC void adj_floordiv(T, T, T&, T&, T) {}
-template <typename T> WP_FUNC void adj_neg(T, T& adj_a, T adj_ret) { adj_a -= adj_ret; }
-template <typename T> WP_FUNC void adj_pos(T, T& adj_a, T adj_ret) { adj_a += adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_floordiv(T, T, T&, T&, T) {}
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_neg(T, T& adj_a, T adj_ret) { adj_a -= adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_pos(T, T& adj_a, T adj_ret) { adj_a += adj_ret; }
 // Ties: min -> b, max -> b (Warp).
-template <typename T> WP_FUNC void adj_min(T a, T b, T& adj_a, T& adj_b, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_min(T a, T b, T& adj_a, T& adj_b, T adj_ret) {
   if (a < b) adj_a += adj_ret; else adj_b += adj_ret;
 }
-template <typename T> WP_FUNC void adj_max(T a, T b, T& adj_a, T& adj_b, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_max(T a, T b, T& adj_a, T& adj_b, T adj_ret) {
   if (a > b) adj_a += adj_ret; else adj_b += adj_ret;
 }
 // Below the range -> lo, above -> hi, inside or on a bound -> x (Warp).
-template <typename T> WP_FUNC void adj_clamp(T x, T lo, T hi, T& adj_x, T& adj_lo, T& adj_hi, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_clamp(T x, T lo, T hi, T& adj_x, T& adj_lo, T& adj_hi, T adj_ret) {
   if (x < lo) adj_lo += adj_ret;
   else if (x > hi) adj_hi += adj_ret;
   else adj_x += adj_ret;
 }
 // abs'(0) = 1 (Warp).
-template <typename T> WP_FUNC void adj_abs(T x, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_abs(T x, T& adj_x, T adj_ret) {
   if (x < T(0)) adj_x -= adj_ret; else adj_x += adj_ret;
 }
-template <typename T> WP_FUNC void adj_sign(T, T&, T) {}
-template <typename T> WP_FUNC void adj_step(T, T&, T) {}
-template <typename T> WP_FUNC void adj_nonzero(T, T&, T) {}
-template <typename T> WP_FUNC void adj_floor(T, T&, T) {}
-template <typename T> WP_FUNC void adj_ceil(T, T&, T) {}
-template <typename T> WP_FUNC void adj_round(T, T&, T) {}
-template <typename T> WP_FUNC void adj_rint(T, T&, T) {}
-template <typename T> WP_FUNC void adj_trunc(T, T&, T) {}
-template <typename T> WP_FUNC void adj_frac(T, T& adj_x, T adj_ret) { adj_x += adj_ret; }
-template <typename T> WP_FUNC void adj_copysign(T x, T y, T& adj_x, T&, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_sign(T, T&, T) {}
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_step(T, T&, T) {}
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_nonzero(T, T&, T) {}
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_floor(T, T&, T) {}
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_ceil(T, T&, T) {}
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_round(T, T&, T) {}
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_rint(T, T&, T) {}
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_trunc(T, T&, T) {}
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_frac(T, T& adj_x, T adj_ret) { adj_x += adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_copysign(T x, T y, T& adj_x, T&, T adj_ret) {
   bool same = (x < T(0)) == (copysign(T(1), y) < T(0));
   if (same) adj_x += adj_ret; else adj_x -= adj_ret;
 }
-template <typename T> WP_FUNC void adj_sin(T x, T& adj_x, T adj_ret) { adj_x += cos(x) * adj_ret; }
-template <typename T> WP_FUNC void adj_cos(T x, T& adj_x, T adj_ret) { adj_x -= sin(x) * adj_ret; }
-template <typename T> WP_FUNC void adj_tan(T x, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_sin(T x, T& adj_x, T adj_ret) { adj_x += cos(x) * adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_cos(T x, T& adj_x, T adj_ret) { adj_x -= sin(x) * adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_tan(T x, T& adj_x, T adj_ret) {
   T c = cos(x);
   adj_x += adj_ret / T(c * c);
 }
 // asin/acos: zero gradient at |x| >= 1 where the derivative is unbounded (Warp).
-template <typename T> WP_FUNC void adj_asin(T x, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_asin(T x, T& adj_x, T adj_ret) {
   T d = sqrt(T(T(1) - x * x));
   if (d > T(0)) adj_x += adj_ret / d;
 }
-template <typename T> WP_FUNC void adj_acos(T x, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_acos(T x, T& adj_x, T adj_ret) {
   T d = sqrt(T(T(1) - x * x));
   if (d > T(0)) adj_x -= adj_ret / d;
 }
-template <typename T> WP_FUNC void adj_atan(T x, T& adj_x, T adj_ret) { adj_x += adj_ret / T(T(1) + x * x); }
-template <typename T> WP_FUNC void adj_atan2(T y, T x, T& adj_y, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_atan(T x, T& adj_x, T adj_ret) { adj_x += adj_ret / T(T(1) + x * x); }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_atan2(T y, T x, T& adj_y, T& adj_x, T adj_ret) {
   T d = T(x * x + y * y);
   if (d > T(0)) {
     adj_y += x / d * adj_ret;
     adj_x -= y / d * adj_ret;
   }
 }
-template <typename T> WP_FUNC void adj_sinh(T x, T& adj_x, T adj_ret) { adj_x += cosh(x) * adj_ret; }
-template <typename T> WP_FUNC void adj_cosh(T x, T& adj_x, T adj_ret) { adj_x += sinh(x) * adj_ret; }
-template <typename T> WP_FUNC void adj_tanh(T x, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_sinh(T x, T& adj_x, T adj_ret) { adj_x += cosh(x) * adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_cosh(T x, T& adj_x, T adj_ret) { adj_x += sinh(x) * adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_tanh(T x, T& adj_x, T adj_ret) {
   T t = tanh(x);
   adj_x += T(T(1) - t * t) * adj_ret;
 }
 // sqrt'(0) = +inf (Warp).
-template <typename T> WP_FUNC void adj_sqrt(T x, T& adj_x, T adj_ret) { adj_x += T(0.5f) / sqrt(x) * adj_ret; }
-template <typename T> WP_FUNC void adj_cbrt(T x, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_sqrt(T x, T& adj_x, T adj_ret) { adj_x += T(0.5f) / sqrt(x) * adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_cbrt(T x, T& adj_x, T adj_ret) {
   T c = cbrt(x);
   adj_x += adj_ret / T(T(3) * c * c);
 }
-template <typename T> WP_FUNC void adj_log(T x, T& adj_x, T adj_ret) { adj_x += adj_ret / x; }
-template <typename T> WP_FUNC void adj_log2(T x, T& adj_x, T adj_ret) { adj_x += adj_ret / T(x * T(0.69314718055994530942)); }
-template <typename T> WP_FUNC void adj_log10(T x, T& adj_x, T adj_ret) { adj_x += adj_ret / T(x * T(2.30258509299404568402)); }
-template <typename T> WP_FUNC void adj_exp(T x, T& adj_x, T adj_ret) { adj_x += exp(x) * adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_log(T x, T& adj_x, T adj_ret) { adj_x += adj_ret / x; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_log2(T x, T& adj_x, T adj_ret) { adj_x += adj_ret / T(x * T(0.69314718055994530942)); }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_log10(T x, T& adj_x, T adj_ret) { adj_x += adj_ret / T(x * T(2.30258509299404568402)); }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_exp(T x, T& adj_x, T adj_ret) { adj_x += exp(x) * adj_ret; }
 // d x^y: dx = y x^(y-1); dy = log(x) x^y for x > 0, and 0 for x <= 0 (undefined there).
-template <typename T> WP_FUNC void adj_pow(T x, T y, T& adj_x, T& adj_y, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_pow(T x, T y, T& adj_x, T& adj_y, T adj_ret) {
   adj_x += y * pow(x, T(y - T(1))) * adj_ret;
   if (x > T(0)) adj_y += log(x) * pow(x, y) * adj_ret;
 }
-template <typename T> WP_FUNC void adj_erf(T x, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_erf(T x, T& adj_x, T adj_ret) {
   adj_x += T(1.1283791670955126) * exp(T(-x * x)) * adj_ret;
 }
-template <typename T> WP_FUNC void adj_erfc(T x, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_erfc(T x, T& adj_x, T adj_ret) {
   adj_x -= T(1.1283791670955126) * exp(T(-x * x)) * adj_ret;
 }
-template <typename T> WP_FUNC void adj_erfinv(T x, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_erfinv(T x, T& adj_x, T adj_ret) {
   T r = erfinv(x);
   adj_x += T(0.88622692545275801) * exp(T(r * r)) * adj_ret;
 }
-template <typename T> WP_FUNC void adj_erfcinv(T x, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_erfcinv(T x, T& adj_x, T adj_ret) {
   T r = erfcinv(x);
   adj_x -= T(0.88622692545275801) * exp(T(r * r)) * adj_ret;
 }
-template <typename T> WP_FUNC void adj_degrees(T, T& adj_x, T adj_ret) { adj_x += T(180.0 / kPiD) * adj_ret; }
-template <typename T> WP_FUNC void adj_radians(T, T& adj_x, T adj_ret) { adj_x += T(kPiD / 180.0) * adj_ret; }
-template <typename T> WP_FUNC void adj_lerp(T a, T b, T t, T& adj_a, T& adj_b, T& adj_t, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_degrees(T, T& adj_x, T adj_ret) { adj_x += T(180.0 / kPiD) * adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_radians(T, T& adj_x, T adj_ret) { adj_x += T(kPiD / 180.0) * adj_ret; }
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_lerp(T a, T b, T t, T& adj_a, T& adj_b, T& adj_t, T adj_ret) {
   adj_a += T(T(1) - t) * adj_ret;
   adj_b += t * adj_ret;
   adj_t += T(b - a) * adj_ret;
 }
 // Zero gradient outside [e0, e1] (clamped region).
-template <typename T> WP_FUNC void adj_smoothstep(T e0, T e1, T x, T& adj_e0, T& adj_e1, T& adj_x, T adj_ret) {
+WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_smoothstep(T e0, T e1, T x, T& adj_e0, T& adj_e1, T& adj_x, T adj_ret) {
   T w = T(e1 - e0);
   T t = T((x - e0) / w);
   if (t < T(0) || t > T(1)) return;
@@ -562,12 +564,12 @@ template <typename T> WP_FUNC void adj_smoothstep(T e0, T e1, T x, T& adj_e0, T&
   adj_e0 += ds * T((x - e1) / (w * w));
   adj_e1 -= ds * T(t / w);
 }
-template <typename C, typename T>
-WP_FUNC void adj_where(C cond, const T&, const T&, C&, T& adj_a, T& adj_b, const T& adj_ret) {
+template <typename C, typename CA, typename T>
+WP_FUNC void adj_where(C cond, const T&, const T&, CA&, T& adj_a, T& adj_b, const T& adj_ret) {
   if (cond) adj_a += adj_ret; else adj_b += adj_ret;
 }
-template <typename C, typename T>
-WP_FUNC void adj_select(C cond, const T&, const T&, C&, T& adj_f, T& adj_t, const T& adj_ret) {
+template <typename C, typename CA, typename T>
+WP_FUNC void adj_select(C cond, const T&, const T&, CA&, T& adj_f, T& adj_t, const T& adj_ret) {
   if (cond) adj_t += adj_ret; else adj_f += adj_ret;
 }
 template <typename To, typename From>
