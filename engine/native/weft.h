@@ -9,6 +9,7 @@
 #include "scalar.h"
 #include "vec.h"
 #include "mat.h"
+#include "linalg.h"
 #include "quat.h"
 #include "transform.h"
 #include "spatial.h"
