@@ -16,5 +16,6 @@
 #include "array.h"
 #include "atomic.h"
 #include "random.h"
+#include "noise.h"
 #include "print.h"
 #include "expect.h"
