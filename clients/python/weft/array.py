@@ -926,8 +926,7 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
     flattened arrays, which must then be contiguous; count 0 copies all of src."""
     if not isinstance(dest, array) or not isinstance(src, array):
         raise RuntimeError("wp.copy() needs weft arrays as source and destination")
-    if type_str(src.dtype) != type_str(dest.dtype) and \
-            _elem_size(src.dtype) != _elem_size(dest.dtype):
+    if type_str(src.dtype) != type_str(dest.dtype):
         raise RuntimeError(f"Incompatible array data types: cannot copy {type_str(src.dtype)} "
                            f"to {type_str(dest.dtype)}")
     if dest_offset < 0 or src_offset < 0 or count < 0:
