@@ -1,42 +1,321 @@
 // ModuleStore implementation: ModuleSource -> cache key -> memory / disk / compile -> loaded code.
-// Skeleton: Create works so the daemon links; Compile reports Unimplemented until the JIT lands.
+// A miss runs GenerateModule (engine/codegen), optionally NVRTC on the CUDA flavour (verify_cuda),
+// then CpuJit::Compile; the object goes to the disk cache and CpuJit::Load maps it. Module ids
+// are forward cache keys; the backward variant of a module has its own key but the same id.
 #include "engine/runtime/module_store.h"
 
+#include <sys/stat.h>
+
+#include <cctype>
+#include <chrono>
+#include <cstdlib>
 #include <mutex>
+#include <regex>
+#include <unordered_map>
+
+#include "engine/runtime/module_cache.h"
+#include "spdlog/spdlog.h"
+
+#if WEFT_WITH_CPU_JIT
+#include "engine/jit/cpu/cpu_jit.h"
+#endif
+#if WEFT_WITH_CUDA
+#include "engine/jit/cuda/nvrtc_compiler.h"
+#endif
+
+#ifndef WEFT_VERSION
+#define WEFT_VERSION "dev"
+#endif
 
 namespace weft {
 namespace {
+
+#if WEFT_WITH_CPU_JIT
+// A loaded CPU module keeps its code alive for as long as anyone holds the module.
+struct CpuLoadedModule final : LoadedModule {
+  std::shared_ptr<jit::CpuCode> code;
+};
+#endif
+
+// The generator used when ModuleStoreOptions::generate is empty. Codegen (engine/codegen) is
+// linked in by the same library; until it exists this reports Unimplemented.
+GenerateModuleFn DefaultGenerator() {
+  return [](const ModuleSource&, const CodegenOptions&,
+            std::vector<Diagnostic>*) -> Expected<GeneratedModule> {
+    return Unimplemented("the kernel compiler (engine/codegen) is not linked in yet");
+  };
+}
+
+std::string DefaultBuildId() {
+  std::string id = std::string("weft ") + WEFT_VERSION;
+  struct stat st {};
+  if (::stat("/proc/self/exe", &st) == 0) {
+    id += " exe=" + std::to_string(st.st_size) + ":" + std::to_string(st.st_mtim.tv_sec) + "." +
+          std::to_string(st.st_mtim.tv_nsec);
+  }
+  return id;
+}
+
+// "cpu" -> kCpu; "cuda", "cuda:N" -> kCuda.
+Expected<Target> ParseDevice(const std::string& device) {
+  if (device == "cpu" || device.empty()) return Target::kCpu;
+  if (device == "cuda" || device.rfind("cuda:", 0) == 0) return Target::kCuda;
+  return InvalidArgument("unknown device '" + device + "' (expected cpu, cuda or cuda:N)");
+}
+
+// clang / NVRTC error lines ("file:line:col: error: text", "file(line): error: text") as
+// diagnostics, so a native-library bug still points somewhere.
+void AppendCompilerDiagnostics(const std::string& log, std::vector<Diagnostic>* diags) {
+  static const std::regex kClang(R"(^(.+?):(\d+):(\d+): (?:fatal )?error: (.*)$)");
+  static const std::regex kNvrtc(R"(^(.+?)\((\d+)\): (?:catastrophic )?error: (.*)$)");
+  size_t start = 0;
+  while (start < log.size()) {
+    size_t end = log.find('\n', start);
+    if (end == std::string::npos) end = log.size();
+    std::string line = log.substr(start, end - start);
+    start = end + 1;
+    std::smatch m;
+    Diagnostic d;
+    if (std::regex_match(line, m, kClang)) {
+      d.location = {m[1], uint32_t(std::stoul(m[2])), uint32_t(std::stoul(m[3]))};
+      d.message = "internal compiler error: " + m[4].str();
+    } else if (std::regex_match(line, m, kNvrtc)) {
+      d.location = {m[1], uint32_t(std::stoul(m[2])), 0};
+      d.message = "internal compiler error (CUDA): " + m[3].str();
+    } else {
+      continue;
+    }
+    diags->push_back(std::move(d));
+  }
+}
+
+std::string SafeName(const std::string& name) {
+  std::string out;
+  for (char c : name) out += (std::isalnum(static_cast<unsigned char>(c)) || c == '_') ? c : '_';
+  if (out.empty()) out = "module";
+  return out.substr(0, 64);
+}
 
 class ModuleStoreImpl final : public ModuleStore {
  public:
   explicit ModuleStoreImpl(ModuleStoreOptions options) : options_(std::move(options)) {}
 
+  Status Init() {
+    if (options_.native_dir.empty()) options_.native_dir = WEFT_NATIVE_DIR;
+    if (!options_.generate) options_.generate = DefaultGenerator();
+    auto native_version = NativeLibraryVersion(options_.native_dir);
+    if (!native_version.ok()) {
+      return FailedPrecondition("module store: " + native_version.status().message());
+    }
+    context_.native_version = *native_version;
+    context_.build_id = options_.build_id.empty() ? DefaultBuildId() : options_.build_id;
+    context_.verified_for_cuda = options_.verify_cuda;
+#if !WEFT_WITH_CUDA
+    if (options_.verify_cuda) return FailedPrecondition("verify_cuda needs a build with NVRTC");
+#endif
+    cache_ = std::make_unique<ModuleCache>(options_.cache_dir, options_.memory_capacity);
+    WEFT_RETURN_IF_ERROR(cache_->Init());
+#if WEFT_WITH_CPU_JIT
+    jit::CpuJitOptions jit_options;
+    jit_options.include_dirs = {options_.native_dir};
+    auto cpu_jit = jit::CpuJit::Create(jit_options);
+    if (!cpu_jit.ok()) {
+      // A native header that does not precompile must not keep the daemon down: every module
+      // compile will then report the same clang errors.
+      spdlog::error("module store: {}; compiling without a precompiled header",
+                    cpu_jit.status().ToString());
+      jit_options.pch_header.clear();
+      cpu_jit = jit::CpuJit::Create(jit_options);
+      if (!cpu_jit.ok()) return cpu_jit.status();
+    }
+    cpu_jit_ = std::move(*cpu_jit);
+    context_.target_id = cpu_jit_->target_id();
+#endif
+    return Status::Ok();
+  }
+
   Expected<std::shared_ptr<const LoadedModule>> Compile(const ModuleSource& source,
                                                         const std::string& device,
                                                         CompileReport* report) override {
-    return Unimplemented("module compilation is not implemented yet");
-  }
-  std::shared_ptr<const LoadedModule> Find(const std::string& module_id) const override {
-    return nullptr;
-  }
-  Expected<std::shared_ptr<const LoadedModule>> WithBackward(const std::string& module_id) override {
-    return NotFound("unknown module id: " + module_id);
-  }
-  ModuleStoreStats stats() const override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return stats_;
+    auto start = std::chrono::steady_clock::now();
+    CompileReport local;
+    if (!report) report = &local;
+    WEFT_ASSIGN_OR_RETURN(Target target, ParseDevice(device));
+    if (target == Target::kCuda) {
+      return Unimplemented("CUDA devices are not supported yet; use device=\"cpu\"");
+    }
+    CodegenOptions codegen;
+    codegen.target = Target::kCpu;
+    auto checks = source.options.find("bounds_checks");
+    codegen.bounds_checks = checks == source.options.end() || checks->second != "false";
+
+    const std::string id = ModuleCacheKey(source, codegen, context_);
+    ModuleCache::Source from = ModuleCache::Source::kBuilt;
+    auto module = Get(id, id, source, codegen, &from, &report->diagnostics);
+    report->cache_hit = module.ok() && from == ModuleCache::Source::kMemory;
+    report->disk_hit = module.ok() && from == ModuleCache::Source::kDisk;
+    report->compile_ms = std::chrono::duration<double, std::milli>(
+                             std::chrono::steady_clock::now() - start).count();
+    if (!module.ok()) return module.status();
+    std::lock_guard<std::mutex> lock(registry_mutex_);
+    auto& entry = registry_[id];
+    if (entry.source.functions.empty()) {
+      entry.source = source;
+      entry.codegen = codegen;
+    }
+    entry.forward = *module;
+    return *module;
   }
 
+  std::shared_ptr<const LoadedModule> Find(const std::string& module_id) const override {
+    ModuleSource source;
+    CodegenOptions codegen;
+    {
+      std::lock_guard<std::mutex> lock(registry_mutex_);
+      auto it = registry_.find(module_id);
+      if (it == registry_.end()) return nullptr;
+      if (auto alive = it->second.forward.lock()) return alive;
+      source = it->second.source;
+      codegen = it->second.codegen;
+    }
+    // Evicted and dropped by everyone: bring it back (memory, disk, or a rebuild).
+    auto module = Get(module_id, module_id, source, codegen, nullptr, nullptr);
+    if (!module.ok()) return nullptr;
+    std::lock_guard<std::mutex> lock(registry_mutex_);
+    registry_[module_id].forward = *module;
+    return *module;
+  }
+
+  Expected<std::shared_ptr<const LoadedModule>> WithBackward(const std::string& module_id) override {
+    ModuleSource source;
+    CodegenOptions codegen;
+    {
+      std::lock_guard<std::mutex> lock(registry_mutex_);
+      auto it = registry_.find(module_id);
+      if (it == registry_.end()) return NotFound("unknown module id " + module_id);
+      if (auto alive = it->second.backward.lock()) return alive;
+      source = it->second.source;
+      codegen = it->second.codegen;
+    }
+    codegen.enable_backward = true;
+    const std::string key = ModuleCacheKey(source, codegen, context_);
+    std::vector<Diagnostic> diagnostics;
+    auto module = Get(key, module_id, source, codegen, nullptr, &diagnostics);
+    if (!module.ok()) {
+      std::string text = module.status().message();
+      for (const auto& d : diagnostics) text += "\n" + d.ToString();
+      return Status(module.status().code(), text);
+    }
+    std::lock_guard<std::mutex> lock(registry_mutex_);
+    registry_[module_id].backward = *module;
+    return *module;
+  }
+
+  ModuleStoreStats stats() const override { return cache_->stats(); }
+
  private:
+  struct Registered {
+    ModuleSource source;
+    CodegenOptions codegen;
+    std::weak_ptr<const LoadedModule> forward;
+    std::weak_ptr<const LoadedModule> backward;
+  };
+
+  // The module of cache key `key`, presented to clients as module `id`.
+  Expected<ModuleCache::Module> Get(const std::string& key, const std::string& id,
+                                    const ModuleSource& source, const CodegenOptions& codegen,
+                                    ModuleCache::Source* from,
+                                    std::vector<Diagnostic>* diagnostics) const {
+    ModuleCache::Callbacks callbacks;
+    callbacks.build = [&](std::vector<Diagnostic>* diags) { return Build(source, codegen, diags); };
+    callbacks.load = [&](const ModuleArtifact& artifact) {
+      return Load(artifact, id, source.name, codegen.enable_backward);
+    };
+    return cache_->Get(key, callbacks, from, diagnostics);
+  }
+
+  Expected<ModuleArtifact> Build(const ModuleSource& source, const CodegenOptions& codegen,
+                                 std::vector<Diagnostic>* diags) const {
+    WEFT_ASSIGN_OR_RETURN(GeneratedModule generated, options_.generate(source, codegen, diags));
+    const std::string name = SafeName(source.name);
+#if WEFT_WITH_CUDA
+    if (options_.verify_cuda) {
+      CodegenOptions cuda = codegen;
+      cuda.target = Target::kCuda;
+      WEFT_ASSIGN_OR_RETURN(GeneratedModule cuda_module, options_.generate(source, cuda, diags));
+      jit::NvrtcOptions nvrtc;
+      nvrtc.sm = options_.verify_cuda_sm;
+      nvrtc.include_dirs = {options_.native_dir};
+      auto compiled = jit::NvrtcCompile(cuda_module.source, name + ".cu", nvrtc);
+      if (!compiled.ok()) {
+        AppendCompilerDiagnostics(compiled.status().message(), diags);
+        return Internal("module " + source.name + " does not compile for CUDA (weft bug): " +
+                        compiled.status().message());
+      }
+    }
+#endif
+#if WEFT_WITH_CPU_JIT
+    auto object = cpu_jit_->Compile(generated.source, name);
+    if (!object.ok()) {
+      AppendCompilerDiagnostics(object.status().message(), diags);
+      return Internal("module " + source.name + " does not compile (weft bug): " +
+                      object.status().message());
+    }
+    ModuleArtifact artifact;
+    artifact.object = std::move(*object);
+    artifact.kernels = std::move(generated.kernels);
+    artifact.function_names = std::move(generated.function_names);
+    artifact.generated_source = std::move(generated.source);
+    return artifact;
+#else
+    return Unimplemented("this weft was built without the CPU JIT");
+#endif
+  }
+
+  Expected<ModuleCache::Module> Load(const ModuleArtifact& artifact, const std::string& id,
+                                     const std::string& module_name, bool backward) const {
+#if WEFT_WITH_CPU_JIT
+    WEFT_ASSIGN_OR_RETURN(std::shared_ptr<jit::CpuCode> code,
+                          cpu_jit_->Load(artifact.object, SafeName(module_name)));
+    auto module = std::make_shared<CpuLoadedModule>();
+    module->id = id;
+    module->target = Target::kCpu;
+    module->function_names = artifact.function_names;
+    module->has_backward = backward;
+    module->code = code;
+    for (const KernelLayout& layout : artifact.kernels) {
+      LoadedKernel kernel;
+      kernel.layout = layout;
+      WEFT_ASSIGN_OR_RETURN(void* forward, code->Lookup(layout.forward_symbol));
+      kernel.cpu_forward = reinterpret_cast<CpuForwardFn>(forward);
+      if (backward && !layout.backward_symbol.empty()) {
+        WEFT_ASSIGN_OR_RETURN(void* adjoint, code->Lookup(layout.backward_symbol));
+        kernel.cpu_backward = reinterpret_cast<CpuBackwardFn>(adjoint);
+      }
+      module->kernels.push_back(std::move(kernel));
+    }
+    return ModuleCache::Module(std::move(module));
+#else
+    return Unimplemented("this weft was built without the CPU JIT");
+#endif
+  }
+
   ModuleStoreOptions options_;
-  mutable std::mutex mutex_;
-  ModuleStoreStats stats_;
+  ModuleKeyContext context_;
+  std::unique_ptr<ModuleCache> cache_;
+#if WEFT_WITH_CPU_JIT
+  std::unique_ptr<jit::CpuJit> cpu_jit_;
+#endif
+  mutable std::mutex registry_mutex_;
+  mutable std::unordered_map<std::string, Registered> registry_;
 };
 
 }  // namespace
 
 Expected<std::unique_ptr<ModuleStore>> ModuleStore::Create(const ModuleStoreOptions& options) {
-  return std::unique_ptr<ModuleStore>(std::make_unique<ModuleStoreImpl>(options));
+  auto store = std::make_unique<ModuleStoreImpl>(options);
+  WEFT_RETURN_IF_ERROR(store->Init());
+  return std::unique_ptr<ModuleStore>(std::move(store));
 }
 
 }  // namespace weft
