@@ -333,7 +333,7 @@ std::string CppType(const Type& t) {
     case TypeKind::kQuat: return std::string("wp::quat_t<wp::") + ScalarName(t.scalar) + ">";
     case TypeKind::kTransform: return std::string("wp::transform_t<wp::") + ScalarName(t.scalar) + ">";
     case TypeKind::kArray: return "wp::array_t<" + CppType(t.elem()) + ">";
-    case TypeKind::kStruct: return StructCppName(t.struct_name);
+    case TypeKind::kStruct: return "wp::" + StructCppName(t.struct_name);
     case TypeKind::kTuple: return "/*tuple*/void";
   }
   return "void";

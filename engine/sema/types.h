@@ -125,10 +125,11 @@ struct StructInfo {
 };
 using StructTable = std::map<std::string, StructInfo>;
 
-// Identifier of a struct in generated code: "weft_struct_mymod_Particle".
+// Identifier of a struct in generated code (declared in namespace wp): "weft_struct_mymod_Particle".
 std::string StructCppName(std::string_view canonical);
 
-// C++ spelling in generated code: wp::float32, wp::vec_t<3,wp::float32>, wp::array_t<...>.
+// C++ spelling in generated code: wp::float32, wp::vec_t<3,wp::float32>, wp::array_t<...>,
+// wp::weft_struct_<name>.
 std::string CppType(const Type& t);
 
 struct TypeLayout {

@@ -1,0 +1,664 @@
+// C++ emission of the SSA IR: forward code, side-effect-free replay, adjoint (reverse) code,
+// kernel entry points per target and argument-block layouts.
+//
+// Adjoint scheme (docs/autodiff.md): a backward function first replays the forward code
+// (skipping array writes, atomics and prints), then walks the statements backward calling
+// wp::adj_* (builtins) and adj_<func> (user funcs). Loops are reversed by recomputation:
+// for reverse iteration k the loop-carried slots are reset to their values before the loop
+// and iterations 0..k-1 are replayed, then iteration k is replayed and its adjoint run.
+// Time O(n^2) body executions for n iterations, no extra memory. Loops with no carried
+// slots jump straight to iteration k (O(n)).
+#include "engine/codegen/emit_cpp.h"
+
+#include <functional>
+#include <set>
+
+namespace weft::codegen {
+namespace {
+
+using namespace sema;
+
+uint32_t RoundUp(uint32_t v, uint32_t a) { return (v + a - 1) / a * a; }
+
+std::string Escape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    switch (c) {
+      case '\\': out += "\\\\"; break;
+      case '"': out += "\\\""; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      case '\r': out += "\\r"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 32) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\%03o", static_cast<unsigned char>(c));
+          out += buf;
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out;
+}
+
+std::string BaseName(const std::string& path) {
+  size_t s = path.find_last_of('/');
+  return s == std::string::npos ? path : path.substr(s + 1);
+}
+
+bool HasArrays(const Type& t, const StructTable& structs) {
+  if (t.is_array()) return true;
+  if (!t.is_struct()) return false;
+  auto it = structs.find(t.struct_name);
+  if (it == structs.end()) return false;
+  for (const auto& f : it->second.fields)
+    if (HasArrays(f.type, structs)) return true;
+  return false;
+}
+
+class FnEmitter {
+ public:
+  enum class Mode { kForward, kReplay, kAdjoint };
+
+  FnEmitter(const Module& m, const Function& f, const CodegenOptions& o, std::string* out)
+      : m_(m), f_(f), opt_(o), out_(*out) {}
+
+  // `static inline R name(ctx, params)` (forward or replay twin) or the adjoint function.
+  void EmitFunc(Mode mode) {
+    mode_ = mode;
+    std::string ret = "void";
+    if (f_.returns.size() == 1 && mode != Mode::kAdjoint) ret = CppType(f_.returns[0]);
+    std::string name = mode == Mode::kForward ? f_.cpp_name : mode == Mode::kReplay ? "replay_" + f_.cpp_name
+                                                                                    : "adj_" + f_.cpp_name;
+    std::string sig = "static inline WP_CALLABLE " + ret + " " + name + "(const wp::launch_context_t* __ctx";
+    for (int p : f_.params) sig += ", " + CppType(T(p)) + " " + V(p);
+    if (mode == Mode::kAdjoint) {
+      for (int p : f_.params) sig += ", " + CppType(T(p)) + "& " + A(p);
+      for (size_t i = 0; i < f_.returns.size(); ++i) sig += ", const " + CppType(f_.returns[i]) + "& __adj_ret" + std::to_string(i);
+    } else if (f_.returns.size() > 1) {
+      for (size_t i = 0; i < f_.returns.size(); ++i) sig += ", " + CppType(f_.returns[i]) + "& __ret" + std::to_string(i);
+    }
+    sig += ")";
+    fail_ = (ret == "void") ? "return;" : "return wp::cg_zeros<" + ret + ">();";
+    Line("// " + BaseName(f_.file) + ":" + std::to_string(f_.def_line) + ": @wp.func " + f_.name +
+         (mode == Mode::kReplay ? " (replay: no side effects)" : mode == Mode::kAdjoint ? " (adjoint)" : ""));
+    Line(sig + " {");
+    ++indent_;
+    Line("(void)__ctx;");
+    Decls(mode == Mode::kAdjoint);
+    Fwd(f_.body, mode != Mode::kForward);
+    if (mode == Mode::kAdjoint) {
+      for (size_t i = 0; i < f_.return_slots.size(); ++i)
+        if (Diff(T(f_.return_slots[i]))) Line("wp::cg_accum(" + A(f_.return_slots[i]) + ", __adj_ret" + std::to_string(i) + ");");
+      Rev(f_.body);
+    } else if (f_.returns.size() == 1) {
+      Line("return " + V(f_.return_slots[0]) + ";");
+    } else {
+      for (size_t i = 0; i < f_.return_slots.size(); ++i) Line("__ret" + std::to_string(i) + " = " + V(f_.return_slots[i]) + ";");
+    }
+    --indent_;
+    Line("}");
+    Line("");
+  }
+
+  // The per-thread body of a kernel: forward, or backward (replay + adjoint).
+  void EmitKernelBody(bool backward, const std::string& args_struct, const std::string& name) {
+    mode_ = backward ? Mode::kAdjoint : Mode::kForward;
+    fail_ = "return;";
+    Line("// " + BaseName(f_.file) + ":" + std::to_string(f_.def_line) + ": @wp.kernel " + f_.name +
+         (backward ? " (backward)" : ""));
+    std::string sig = "static inline WP_CALLABLE void " + name + "(const wp::launch_context_t* __ctx, const " +
+                      args_struct + "& __args, ";
+    if (backward) sig += "const " + args_struct + "& __adj_args, ";
+    Line(sig + "wp::int64 __tid_flat) {");
+    ++indent_;
+    Line("wp::int64 __tid[4];");
+    Line("wp::cg_unravel(__ctx->bounds, __tid_flat, __tid);");
+    Line("(void)__tid;");
+    for (size_t i = 0; i < f_.params.size(); ++i) {
+      int p = f_.params[i];
+      Line(CppType(T(p)) + " " + V(p) + " = __args.p" + std::to_string(i) + ";  // " + f_.param_names[i]);
+      if (backward) Line(CppType(T(p)) + " " + A(p) + " = __adj_args.p" + std::to_string(i) + ";");
+    }
+    Decls(backward);
+    Fwd(f_.body, backward);
+    if (backward) Rev(f_.body);
+    --indent_;
+    Line("}");
+    Line("");
+  }
+
+ private:
+  const Type& T(int v) const { return f_.vars[v].type; }
+  bool Mut(int v) const { return f_.vars[v].is_mutable; }
+  static std::string V(int v) { return "var_" + std::to_string(v); }
+  static std::string A(int v) { return "adj_" + std::to_string(v); }
+  bool Diff(const Type& t) const { return IsDifferentiable(t); }
+  bool Links(const Type& t) const { return mode_ == Mode::kAdjoint && HasArrays(t, m_.structs); }
+
+  void Line(const std::string& s) {
+    out_.append(static_cast<size_t>(indent_) * 2, ' ');
+    out_ += s;
+    out_ += '\n';
+  }
+  void Loc(int line) {
+    if (line > 0 && line != last_line_) {
+      Line("// " + BaseName(f_.file) + ":" + std::to_string(line));
+      last_line_ = line;
+    }
+  }
+
+  void Decls(bool adj) {
+    std::set<int> params(f_.params.begin(), f_.params.end());
+    for (const auto& v : f_.vars) {
+      if (params.count(v.id) || v.type.is_void() || v.type.is_tuple() || v.type.kind == TypeKind::kString) continue;
+      std::string ct = CppType(v.type);
+      Line(ct + " " + V(v.id) + "{};" + (v.hint.empty() ? "" : "  // " + v.hint));
+      if (adj) Line(ct + " " + A(v.id) + "{};");
+    }
+  }
+
+  std::string Args(const std::vector<int>& vs, size_t from = 0, size_t to = std::string::npos, bool adj = false) {
+    std::string s;
+    to = std::min(to, vs.size());
+    for (size_t i = from; i < to; ++i) s += (s.empty() ? "" : ", ") + (adj ? A(vs[i]) : V(vs[i]));
+    return s;
+  }
+
+  void Check(const Op& op, int line, int array, const std::vector<int>& idx) {
+    if (!opt_.bounds_checks) return;
+    std::string s = "if (!wp::cg_check(__ctx, " + std::to_string(f_.function_id) + ", " + std::to_string(line) + ", " +
+                    std::to_string(f_.is_kernel ? op.array_param : -1) + ", \"" + Escape(op.array_name) + "\", " + V(array);
+    for (int k = 0; k < 4; ++k) s += ", " + (k < static_cast<int>(idx.size()) ? V(idx[k]) : std::string("0"));
+    s += ", " + std::to_string(idx.size()) + ")) " + fail_;
+    Line(s);
+  }
+
+  void Fwd(const std::vector<Stmt>& stmts, bool replay) {
+    for (const auto& s : stmts) {
+      Loc(s.line);
+      switch (s.kind) {
+        case Stmt::Kind::kOp: FwdOp(s.op, s.line, replay); break;
+        case Stmt::Kind::kIf:
+          Line("if (" + V(s.cond) + ") {");
+          ++indent_;
+          Fwd(s.then_body, replay);
+          --indent_;
+          if (!s.else_body.empty()) {
+            Line("} else {");
+            ++indent_;
+            Fwd(s.else_body, replay);
+            --indent_;
+          }
+          Line("}");
+          break;
+        case Stmt::Kind::kLoop: FwdLoop(s, replay); break;
+      }
+    }
+  }
+
+  void LoopBack(const Stmt& s) {
+    for (const auto& c : s.carried)
+      if (c.next != c.slot) Line(V(c.slot) + " = " + V(c.next) + ";");
+  }
+
+  void FwdLoop(const Stmt& s, bool replay) {
+    Line(V(s.break_flag) + " = false;");
+    if (replay) Line(V(s.counter) + " = 0;");
+    if (!s.is_while) {
+      Line("for (" + V(s.iter) + " = " + V(s.start) + "; wp::cg_range_continue(" + V(s.iter) + ", " + V(s.end) + ", " +
+           V(s.step) + "); " + V(s.iter) + " += " + V(s.step) + ") {");
+      ++indent_;
+    } else {
+      Line("for (;;) {");
+      ++indent_;
+      Fwd(s.cond_body, replay);
+      Line("if (!" + V(s.cond) + ") break;");
+    }
+    Line(V(s.continue_flag) + " = false;");
+    if (replay) Line("++" + V(s.counter) + ";");
+    Fwd(s.body, replay);
+    LoopBack(s);
+    Line("if (" + V(s.break_flag) + " || " + V(s.return_flag) + ") break;");
+    --indent_;
+    Line("}");
+  }
+
+  void FwdOp(const Op& op, int line, bool replay) {
+    auto d = [&](size_t i = 0) { return V(op.dst.at(i)); };
+    switch (op.kind) {
+      case OpKind::kConst: Line(d() + " = " + op.text + ";"); return;
+      case OpKind::kCopy:
+        Line(d() + " = " + V(op.args[0]) + ";");
+        if (Links(T(op.dst[0]))) Line("wp::cg_link(" + A(op.dst[0]) + ", " + A(op.args[0]) + ");");
+        return;
+      case OpKind::kRaw: {
+        std::string text;
+        for (size_t i = 0; i < op.text.size(); ++i) {
+          if (op.text[i] == '$' && i + 1 < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[i + 1]))) {
+            size_t j = i + 1;
+            int k = 0;
+            while (j < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[j]))) k = k * 10 + (op.text[j++] - '0');
+            text += V(op.args.at(k));
+            i = j - 1;
+          } else {
+            text += op.text[i];
+          }
+        }
+        Line(d() + " = " + text + ";");
+        return;
+      }
+      case OpKind::kCall: {
+        const BuiltinOverload* b = op.builtin;
+        if (replay && b->side_effect()) return;
+        std::string name = "wp::" + b->native;
+        std::string args = Args(op.args);
+        if (b->needs_ctx()) {
+          if (b->native.rfind("expect_", 0) == 0) {
+            name += "_at";
+            args = "__ctx, " + std::to_string(f_.function_id) + ", " + std::to_string(line) + (args.empty() ? "" : ", ") + args;
+          } else {
+            args = "__ctx" + std::string(args.empty() ? "" : ", ") + args;
+          }
+        }
+        if (b->flags & kBuiltinArrayAccess) {
+          int ndim = T(op.args[0]).ndim;
+          Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.begin() + 1 + ndim));
+        }
+        if (op.dst.size() > 1) Line(name + "(" + args + ", " + Args(op.dst) + ");");
+        else if (op.dst.empty()) Line(name + "(" + args + ");");
+        else Line(d() + " = " + name + "(" + args + ");");
+        return;
+      }
+      case OpKind::kFuncCall: {
+        const Function& callee = m_.functions.at(op.callee);
+        std::string name = (replay ? "replay_" : "") + callee.cpp_name;
+        std::string args = "__ctx" + std::string(op.args.empty() ? "" : ", ") + Args(op.args);
+        if (op.dst.size() > 1) Line(name + "(" + args + ", " + Args(op.dst) + ");");
+        else if (op.dst.empty()) Line(name + "(" + args + ");");
+        else Line(d() + " = " + name + "(" + args + ");");
+        if (callee.may_fail && opt_.bounds_checks) Line("if (wp::launch_failed(__ctx)) " + fail_);
+        return;
+      }
+      case OpKind::kConstruct: {
+        std::string t = CppType(T(op.dst[0]));
+        switch (op.mode) {
+          case ConstructMode::kZero: Line(d() + " = wp::cg_zeros<" + t + ">();"); return;
+          case ConstructMode::kConcat: Line(d() + " = wp::cg_concat<" + t + ">(" + Args(op.args) + ");"); return;
+          case ConstructMode::kFill: Line(d() + " = wp::cg_fill<" + t + ">(" + Args(op.args) + ");"); return;
+          case ConstructMode::kConvert:
+            if (T(op.dst[0]).is_scalar()) Line(d() + " = " + t + "(" + Args(op.args) + ");");
+            else Line(d() + " = wp::cg_convert<" + t + ">(" + Args(op.args) + ");");
+            return;
+          case ConstructMode::kColumns: Line(d() + " = wp::cg_from_cols<" + t + ">(" + Args(op.args) + ");"); return;
+        }
+        return;
+      }
+      case OpKind::kLoad:
+        Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.end()));
+        Line(d() + " = wp::load(" + Args(op.args) + ");");
+        return;
+      case OpKind::kStore:
+        if (replay) return;
+        Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.end() - 1));
+        Line("wp::store(" + Args(op.args) + ");");
+        return;
+      case OpKind::kExtract: Line(d() + " = wp::cg_extract(" + Args(op.args) + ");"); return;
+      case OpKind::kInsert: Line(d() + " = wp::cg_insert(" + Args(op.args) + ");"); return;
+      case OpKind::kGetField:
+        Line(d() + " = " + V(op.args[0]) + "." + op.text + ";");
+        if (Links(T(op.dst[0]))) Line("wp::cg_link(" + A(op.dst[0]) + ", " + A(op.args[0]) + "." + op.text + ");");
+        return;
+      case OpKind::kSetField:
+        Line(d() + " = " + V(op.args[0]) + ";");
+        Line(d() + "." + op.text + " = " + V(op.args[1]) + ";");
+        if (Links(T(op.dst[0]))) {
+          Line("wp::cg_link(" + A(op.dst[0]) + ", " + A(op.args[0]) + ");");
+          if (Links(T(op.args[1]))) Line("wp::cg_link(" + A(op.dst[0]) + "." + op.text + ", " + A(op.args[1]) + ");");
+        }
+        return;
+      case OpKind::kPhi:
+        Line(d() + " = " + V(op.args[0]) + " ? " + V(op.args[1]) + " : " + V(op.args[2]) + ";");
+        if (Links(T(op.dst[0])))
+          Line("wp::cg_link(" + A(op.dst[0]) + ", " + V(op.args[0]) + " ? " + A(op.args[1]) + " : " + A(op.args[2]) + ");");
+        return;
+      case OpKind::kPrintf:
+        if (replay) return;
+        Line("wp::printf(__ctx, \"" + Escape(op.text) + "\"" + (op.args.empty() ? "" : ", ") + Args(op.args) + ");");
+        return;
+    }
+  }
+
+  // Adjoint of a block: statements in reverse order.
+  void Rev(const std::vector<Stmt>& stmts) {
+    for (auto it = stmts.rbegin(); it != stmts.rend(); ++it) {
+      const Stmt& s = *it;
+      switch (s.kind) {
+        case Stmt::Kind::kOp: {
+          size_t before = out_.size();
+          int saved = last_line_;
+          Loc(s.line);
+          size_t mark = out_.size();
+          RevOp(s.op);
+          if (out_.size() == mark) {  // nothing emitted: drop the location comment
+            out_.resize(before);
+            last_line_ = saved;
+          }
+          break;
+        }
+        case Stmt::Kind::kIf: {
+          Loc(s.line);
+          Line("if (" + V(s.cond) + ") {");
+          ++indent_;
+          Rev(s.then_body);
+          --indent_;
+          if (!s.else_body.empty()) {
+            Line("} else {");
+            ++indent_;
+            Rev(s.else_body);
+            --indent_;
+          }
+          Line("}");
+          break;
+        }
+        case Stmt::Kind::kLoop: Loc(s.line); RevLoop(s); break;
+      }
+    }
+  }
+
+  void CollectDefs(const std::vector<Stmt>& stmts, std::set<int>* out) const {
+    for (const auto& s : stmts) {
+      switch (s.kind) {
+        case Stmt::Kind::kOp:
+          for (int d : s.op.dst) out->insert(d);
+          break;
+        case Stmt::Kind::kIf:
+          CollectDefs(s.then_body, out);
+          CollectDefs(s.else_body, out);
+          break;
+        case Stmt::Kind::kLoop:
+          CollectDefs(s.cond_body, out);
+          CollectDefs(s.body, out);
+          for (const auto& c : s.carried) out->insert(c.slot);
+          break;
+      }
+    }
+  }
+
+  void RevLoop(const Stmt& s) {
+    std::string k = "__k" + std::to_string(s.counter);
+    std::string j = "__j" + std::to_string(s.counter);
+    bool restore = !s.carried.empty() || s.is_while;
+    Line("for (wp::int64 " + k + " = " + V(s.counter) + " - 1; " + k + " >= 0; --" + k + ") {");
+    ++indent_;
+    Line(V(s.break_flag) + " = false;");
+    Line(V(s.return_flag) + " = false;");
+    if (restore) {
+      Line("// recompute the loop state at the start of iteration " + k);
+      for (const auto& c : s.carried) Line(V(c.slot) + " = " + V(c.init) + ";");
+      if (!s.is_while) Line(V(s.iter) + " = " + V(s.start) + ";");
+      Line("for (wp::int64 " + j + " = 0; " + j + " < " + k + "; ++" + j + ") {");
+      ++indent_;
+      if (s.is_while) Fwd(s.cond_body, true);
+      Line(V(s.continue_flag) + " = false;");
+      Fwd(s.body, true);
+      LoopBack(s);
+      if (!s.is_while) Line(V(s.iter) + " += " + V(s.step) + ";");
+      --indent_;
+      Line("}");
+    } else {
+      Line(V(s.iter) + " = " + V(s.start) + " + " + V(s.step) + " * (" + CppType(T(s.iter)) + ")" + k + ";");
+    }
+    Line("// replay iteration " + k + ", then its adjoint");
+    Line(V(s.continue_flag) + " = false;");
+    Fwd(s.body, true);
+    for (auto c = s.carried.rbegin(); c != s.carried.rend(); ++c) {
+      if (c->next == c->slot || !Diff(T(c->slot))) continue;
+      Line("wp::cg_accum(" + A(c->next) + ", " + A(c->slot) + ");");
+      Line(A(c->slot) + " = wp::cg_zeros<" + CppType(T(c->slot)) + ">();");
+    }
+    Rev(s.body);
+    std::set<int> defs;
+    CollectDefs(s.body, &defs);
+    CollectDefs(s.cond_body, &defs);
+    for (const auto& c : s.carried) defs.erase(c.slot);
+    for (int v : defs)
+      if (Diff(T(v)) && !T(v).is_void() && !T(v).is_tuple()) Line(A(v) + " = wp::cg_zeros<" + CppType(T(v)) + ">();");
+    --indent_;
+    Line("}");
+  }
+
+  void RevOp(const Op& op) {
+    auto dt = [&]() -> const Type& { return T(op.dst.at(0)); };
+    switch (op.kind) {
+      case OpKind::kConst:
+      case OpKind::kRaw:
+      case OpKind::kPrintf: return;
+      case OpKind::kCopy:
+        if (!Diff(dt())) return;
+        Line("wp::cg_accum(" + A(op.args[0]) + ", " + A(op.dst[0]) + ");");
+        if (Mut(op.dst[0])) Line(A(op.dst[0]) + " = wp::cg_zeros<" + CppType(dt()) + ">();");
+        return;
+      case OpKind::kCall: {
+        const BuiltinOverload* b = op.builtin;
+        if (!b->differentiable() || op.dst.empty()) return;
+        if (b->flags & kBuiltinArrayAccess) {
+          if (!Diff(T(op.args.back())) || T(op.args.back()).is_struct()) return;
+          Line("wp::" + b->adjoint + "(" + Args(op.args) + ", " + A(op.args[0]) + ", " + A(op.args.back()) + ");");
+          return;
+        }
+        bool any = false;
+        for (int v : op.dst) any |= Diff(T(v));
+        if (!any) return;
+        if (op.dst.size() > 1) {
+          Line("wp::" + b->adjoint + "(" + Args(op.args) + ", " + Args(op.dst) + ", " + Args(op.args, 0, std::string::npos, true) +
+               ", " + Args(op.dst, 0, std::string::npos, true) + ");");
+        } else {
+          Line("wp::" + b->adjoint + "(" + Args(op.args) + (op.args.empty() ? "" : ", ") +
+               Args(op.args, 0, std::string::npos, true) + (op.args.empty() ? "" : ", ") + A(op.dst[0]) + ");");
+        }
+        return;
+      }
+      case OpKind::kFuncCall: {
+        const Function& callee = m_.functions.at(op.callee);
+        std::string args = "__ctx";
+        if (!op.args.empty()) args += ", " + Args(op.args) + ", " + Args(op.args, 0, std::string::npos, true);
+        if (!op.dst.empty()) args += ", " + Args(op.dst, 0, std::string::npos, true);
+        Line("adj_" + callee.cpp_name + "(" + args + ");");
+        return;
+      }
+      case OpKind::kConstruct: {
+        if (!Diff(dt()) || op.args.empty()) return;
+        std::string adj_args = Args(op.args, 0, std::string::npos, true);
+        switch (op.mode) {
+          case ConstructMode::kZero: return;
+          case ConstructMode::kConcat: Line("wp::cg_adj_concat(" + A(op.dst[0]) + ", " + adj_args + ");"); return;
+          case ConstructMode::kFill: Line("wp::cg_adj_fill(" + A(op.dst[0]) + ", " + adj_args + ");"); return;
+          case ConstructMode::kConvert:
+            if (Diff(T(op.args[0]))) Line("wp::cg_adj_convert(" + A(op.dst[0]) + ", " + adj_args + ");");
+            return;
+          case ConstructMode::kColumns: Line("wp::cg_adj_from_cols(" + A(op.dst[0]) + ", " + adj_args + ");"); return;
+        }
+        return;
+      }
+      case OpKind::kLoad:
+        if (!Diff(dt()) || dt().is_struct()) return;
+        Line("wp::adj_load(" + A(op.args[0]) + ", " + Args(op.args, 1) + ", " + A(op.dst[0]) + ");");
+        return;
+      case OpKind::kStore: {
+        const Type& vt = T(op.args.back());
+        if (!Diff(vt) || vt.is_struct()) return;
+        Line("wp::adj_store(" + A(op.args[0]) + ", " + Args(op.args, 1, op.args.size() - 1) + ", " + A(op.args.back()) + ");");
+        return;
+      }
+      case OpKind::kExtract:
+        if (!Diff(dt())) return;
+        Line("wp::cg_adj_extract(" + A(op.args[0]) + ", " + Args(op.args, 1) + ", " + A(op.dst[0]) + ");");
+        return;
+      case OpKind::kInsert:
+        if (!Diff(dt())) return;
+        Line("wp::cg_adj_insert(" + A(op.args[0]) + ", " + Args(op.args, 1, op.args.size() - 1) + ", " + A(op.args.back()) +
+             ", " + A(op.dst[0]) + ");");
+        return;
+      case OpKind::kGetField:
+        if (!Diff(dt()) || dt().is_array()) return;
+        Line("wp::cg_accum(" + A(op.args[0]) + "." + op.text + ", " + A(op.dst[0]) + ");");
+        return;
+      case OpKind::kSetField: {
+        const Type& ft = T(op.args[1]);
+        if (Diff(ft) && !ft.is_array()) Line("wp::cg_accum(" + A(op.args[1]) + ", " + A(op.dst[0]) + "." + op.text + ");");
+        Line("{");
+        ++indent_;
+        Line(CppType(dt()) + " __t = " + A(op.dst[0]) + ";");
+        Line("__t." + op.text + " = wp::cg_zeros<" + CppType(ft) + ">();");
+        Line("wp::cg_accum(" + A(op.args[0]) + ", __t);");
+        --indent_;
+        Line("}");
+        return;
+      }
+      case OpKind::kPhi:
+        if (!Diff(dt())) return;
+        Line("wp::cg_adj_phi(" + V(op.args[0]) + ", " + A(op.args[1]) + ", " + A(op.args[2]) + ", " + A(op.dst[0]) + ");");
+        return;
+    }
+  }
+
+  const Module& m_;
+  const Function& f_;
+  const CodegenOptions& opt_;
+  std::string& out_;
+  Mode mode_ = Mode::kForward;
+  std::string fail_ = "return;";
+  int indent_ = 0;
+  int last_line_ = -1;
+};
+
+void EmitStructs(const Module& m, std::string* out) {
+  if (m.struct_order.empty()) return;
+  std::string& o = *out;
+  o += "namespace wp {\n";
+  for (const auto& name : m.struct_order) {
+    const StructInfo& si = m.structs.at(name);
+    o += "// @wp.struct " + name + "\nstruct " + si.cpp_name + " {\n";
+    for (const auto& f : si.fields) o += "  " + CppType(f.type) + " " + f.name + ";\n";
+    o += "};\n";
+    o += "WP_FUNC void cg_accum(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
+    for (const auto& f : si.fields) o += " cg_accum(a." + f.name + ", b." + f.name + ");";
+    o += " }\n";
+    o += "WP_FUNC void cg_link(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
+    for (const auto& f : si.fields)
+      if (HasArrays(f.type, m.structs)) o += " cg_link(a." + f.name + ", b." + f.name + ");";
+    o += " (void)a; (void)b; }\n";
+  }
+  o += "}  // namespace wp\n\n";
+}
+
+}  // namespace
+
+Expected<ParamLayout> LayoutParam(const std::string& name, const Type& type, const StructTable& structs) {
+  ParamLayout p;
+  p.name = name;
+  p.type = TypeString(type);
+  WEFT_ASSIGN_OR_RETURN(TypeLayout l, LayoutOf(type, structs));
+  p.size = l.size;
+  p.align = l.align;
+  if (type.is_array()) {
+    p.is_array = true;
+    p.array_dtype = TypeString(type.elem());
+    p.array_ndim = type.ndim;
+  }
+  if (type.is_struct()) {
+    const StructInfo& si = structs.at(type.struct_name);
+    uint32_t off = 0;
+    for (const auto& f : si.fields) {
+      WEFT_ASSIGN_OR_RETURN(ParamLayout fl, LayoutParam(f.name, f.type, structs));
+      off = RoundUp(off, fl.align);
+      fl.offset = off;
+      off += fl.size;
+      p.fields.push_back(std::move(fl));
+    }
+  }
+  return p;
+}
+
+Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options) {
+  GeneratedModule gm;
+  std::string& o = gm.source;
+  o += "// Generated by weft codegen (engine/codegen) for the ";
+  o += options.target == Target::kCpu ? "CPU" : "CUDA";
+  o += " target";
+  o += options.enable_backward ? ", forward and backward" : ", forward only";
+  o += options.bounds_checks ? ", bounds-checked.\n" : ", without bounds checks.\n";
+  o += "#include \"weft.h\"\n#include \"codegen_support.h\"\n\n";
+  EmitStructs(m, &o);
+  for (const auto& f : m.functions) gm.function_names.push_back(f.file + ":" + f.name);
+
+  for (const auto& f : m.functions) {
+    if (f.is_kernel) continue;
+    FnEmitter(m, f, options, &o).EmitFunc(FnEmitter::Mode::kForward);
+    if (options.enable_backward) {
+      FnEmitter(m, f, options, &o).EmitFunc(FnEmitter::Mode::kReplay);
+      FnEmitter(m, f, options, &o).EmitFunc(FnEmitter::Mode::kAdjoint);
+    }
+  }
+  for (int ki : m.kernels) {
+    const Function& f = m.functions[ki];
+    KernelLayout kl;
+    kl.name = f.name;
+    std::string args_struct = "weft_args_" + f.cpp_name;
+    o += "// argument block of kernel " + f.name + "\nstruct " + args_struct + " {\n";
+    uint32_t off = 0, align = 8;
+    for (size_t i = 0; i < f.params.size(); ++i) {
+      const Type& t = f.vars[f.params[i]].type;
+      WEFT_ASSIGN_OR_RETURN(ParamLayout pl, LayoutParam(f.param_names[i], t, m.structs));
+      off = RoundUp(off, pl.align);
+      pl.offset = off;
+      off += pl.size;
+      if (pl.align > align) align = pl.align;
+      o += "  " + CppType(t) + " p" + std::to_string(i) + ";  // " + f.param_names[i] + ": " + TypeString(t) + " @" +
+           std::to_string(pl.offset) + "\n";
+      kl.params.push_back(std::move(pl));
+    }
+    if (f.params.empty()) o += "  wp::int64 _unused;\n";
+    kl.args_size = f.params.empty() ? 8 : RoundUp(off, align);
+    kl.args_align = align;
+    o += "};\n";
+    o += "static_assert(sizeof(" + args_struct + ") == " + std::to_string(kl.args_size) +
+         ", \"weft: argument block layout mismatch\");\n\n";
+
+    std::string fwd = f.cpp_name + "_forward_body", bwd = f.cpp_name + "_backward_body";
+    FnEmitter(m, f, options, &o).EmitKernelBody(false, args_struct, fwd);
+    if (options.enable_backward) FnEmitter(m, f, options, &o).EmitKernelBody(true, args_struct, bwd);
+
+    std::string target = options.target == Target::kCpu ? "cpu" : "cuda";
+    kl.forward_symbol = "weft_" + f.name + "_" + target + "_forward";
+    if (options.enable_backward) kl.backward_symbol = "weft_" + f.name + "_" + target + "_backward";
+    if (options.target == Target::kCpu) {
+      o += "extern \"C\" void " + kl.forward_symbol +
+           "(const wp::launch_context_t* __ctx, const void* __args, wp::int64 __begin, wp::int64 __end) {\n"
+           "  const " + args_struct + "& __a = *static_cast<const " + args_struct + "*>(__args);\n"
+           "  for (wp::int64 __i = __begin; __i < __end; ++__i) " + fwd + "(__ctx, __a, __i);\n}\n\n";
+      if (options.enable_backward)
+        o += "extern \"C\" void " + kl.backward_symbol +
+             "(const wp::launch_context_t* __ctx, const void* __args, const void* __adj_args, wp::int64 __begin, "
+             "wp::int64 __end) {\n"
+             "  const " + args_struct + "& __a = *static_cast<const " + args_struct + "*>(__args);\n"
+             "  const " + args_struct + "& __adj = *static_cast<const " + args_struct + "*>(__adj_args);\n"
+             "  for (wp::int64 __i = __begin; __i < __end; ++__i) " + bwd + "(__ctx, __a, __adj, __i);\n}\n\n";
+    } else {
+      std::string loop = "  for (wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x; __i < __ctx.bounds.size;"
+                         " __i += (wp::int64)blockDim.x * gridDim.x)\n";
+      o += "extern \"C\" __global__ void " + kl.forward_symbol + "(wp::launch_context_t __ctx, " + args_struct +
+           " __args) {\n" + loop + "    " + fwd + "(&__ctx, __args, __i);\n}\n\n";
+      if (options.enable_backward)
+        o += "extern \"C\" __global__ void " + kl.backward_symbol + "(wp::launch_context_t __ctx, " + args_struct +
+             " __args, " + args_struct + " __adj_args) {\n" + loop + "    " + bwd +
+             "(&__ctx, __args, __adj_args, __i);\n}\n\n";
+    }
+    gm.kernels.push_back(std::move(kl));
+  }
+  return gm;
+}
+
+}  // namespace weft::codegen

@@ -1,0 +1,240 @@
+// Helpers the code generator (engine/codegen) emits calls to, beside the builtins of weft.h:
+// flat component access for vec/mat/quat/transform, constructors by mode (concat, fill,
+// convert, columns) with their adjoints, component extract/insert and adjoints, adjoint
+// accumulation and zeroing for every value type, phi adjoints, range loop tests, tid
+// unravelling and bounds checks that record the array's name. Owner: codegen (C2).
+// No standard library headers: compiles under clang (CPU JIT) and NVRTC.
+#pragma once
+
+#include "weft.h"
+
+namespace wp {
+
+// ---- flat scalar components --------------------------------------------------------------
+template <typename T> struct cg_traits { typedef T scalar; static constexpr int n = 1; };
+template <unsigned N, typename T> struct cg_traits<vec_t<N, T>> { typedef T scalar; static constexpr int n = N; };
+template <unsigned R, unsigned C, typename T> struct cg_traits<mat_t<R, C, T>> { typedef T scalar; static constexpr int n = R * C; };
+template <typename T> struct cg_traits<quat_t<T>> { typedef T scalar; static constexpr int n = 4; };
+template <typename T> struct cg_traits<transform_t<T>> { typedef T scalar; static constexpr int n = 7; };
+
+template <typename T> WP_FUNC typename cg_traits<T>::scalar* cg_comps(T& v) { return reinterpret_cast<typename cg_traits<T>::scalar*>(&v); }
+template <typename T> WP_FUNC const typename cg_traits<T>::scalar* cg_comps(const T& v) {
+  return reinterpret_cast<const typename cg_traits<T>::scalar*>(&v);
+}
+
+// ---- zero, accumulate ----------------------------------------------------------------------
+// All bytes zero (quat/transform adjoints must be 0, not identity; arrays null).
+template <typename T> WP_FUNC T cg_zeros() {
+  T r;
+  char* p = reinterpret_cast<char*>(&r);
+  for (unsigned i = 0; i < sizeof(T); ++i) p[i] = 0;
+  return r;
+}
+
+template <typename T> struct cg_is_array { static constexpr bool value = false; };
+template <typename T> struct cg_is_array<array_t<T>> { static constexpr bool value = true; };
+
+WP_FUNC void cg_accum(bool&, const bool&) {}
+WP_FUNC void cg_accum(int8& a, const int8& b) { a = (int8)(a + b); }
+WP_FUNC void cg_accum(uint8& a, const uint8& b) { a = (uint8)(a + b); }
+WP_FUNC void cg_accum(int16& a, const int16& b) { a = (int16)(a + b); }
+WP_FUNC void cg_accum(uint16& a, const uint16& b) { a = (uint16)(a + b); }
+WP_FUNC void cg_accum(int32& a, const int32& b) { a += b; }
+WP_FUNC void cg_accum(uint32& a, const uint32& b) { a += b; }
+WP_FUNC void cg_accum(int64& a, const int64& b) { a += b; }
+WP_FUNC void cg_accum(uint64& a, const uint64& b) { a += b; }
+WP_FUNC void cg_accum(float32& a, const float32& b) { a += b; }
+WP_FUNC void cg_accum(float64& a, const float64& b) { a += b; }
+WP_FUNC void cg_accum(half& a, const half& b) { a = add(a, b); }
+template <typename T> WP_FUNC void cg_accum(array_t<T>&, const array_t<T>&) {}
+template <unsigned N, typename T> WP_FUNC void cg_accum(vec_t<N, T>& a, const vec_t<N, T>& b) {
+  for (unsigned i = 0; i < N; ++i) cg_accum(a.c[i], b.c[i]);
+}
+template <unsigned R, unsigned C, typename T> WP_FUNC void cg_accum(mat_t<R, C, T>& a, const mat_t<R, C, T>& b) {
+  for (unsigned i = 0; i < R; ++i)
+    for (unsigned j = 0; j < C; ++j) cg_accum(a.data[i][j], b.data[i][j]);
+}
+template <typename T> WP_FUNC void cg_accum(quat_t<T>& a, const quat_t<T>& b) {
+  for (int i = 0; i < 4; ++i) cg_accum(cg_comps(a)[i], cg_comps(b)[i]);
+}
+template <typename T> WP_FUNC void cg_accum(transform_t<T>& a, const transform_t<T>& b) {
+  for (int i = 0; i < 7; ++i) cg_accum(cg_comps(a)[i], cg_comps(b)[i]);
+}
+
+// Adjoint arrays are the gradient arrays: values holding arrays (arrays, structs with array
+// fields) get their adjoint's arrays linked during the backward pass's replay. Structs get
+// generated overloads of cg_accum / cg_link (fieldwise).
+template <typename T> WP_FUNC void cg_link(T&, const T&) {}
+template <typename T> WP_FUNC void cg_link(array_t<T>& d, const array_t<T>& s) { d = s; }
+
+// ---- constructors by mode ----------------------------------------------------------------
+template <typename S, typename A> WP_FUNC void cg_put(S* out, int& k, const A& a) {
+  if constexpr (cg_traits<A>::n == 1 && sizeof(A) == sizeof(typename cg_traits<A>::scalar)) {
+    out[k++] = S(a);
+  } else {
+    const typename cg_traits<A>::scalar* in = cg_comps(a);
+    for (int i = 0; i < cg_traits<A>::n; ++i) out[k++] = S(in[i]);
+  }
+}
+template <typename S, typename A> WP_FUNC void cg_take(const S* in, int& k, A& adj_a) {
+  typedef typename cg_traits<A>::scalar SA;
+  SA* out = cg_comps(adj_a);
+  for (int i = 0; i < cg_traits<A>::n; ++i) cg_accum(out[i], SA(in[k++]));
+}
+template <typename R, typename... A> WP_FUNC R cg_concat(const A&... a) {
+  R r = cg_zeros<R>();
+  typename cg_traits<R>::scalar* out = cg_comps(r);
+  int k = 0;
+  (cg_put(out, k, a), ...);
+  return r;
+}
+template <typename R, typename... A> WP_FUNC void cg_adj_concat(const R& adj_r, A&... adj_a) {
+  const typename cg_traits<R>::scalar* in = cg_comps(adj_r);
+  int k = 0;
+  (cg_take(in, k, adj_a), ...);
+}
+template <typename R> WP_FUNC R cg_fill(typename cg_traits<R>::scalar s) {
+  R r = cg_zeros<R>();
+  for (int i = 0; i < cg_traits<R>::n; ++i) cg_comps(r)[i] = s;
+  return r;
+}
+template <typename R> WP_FUNC void cg_adj_fill(const R& adj_r, typename cg_traits<R>::scalar& adj_s) {
+  for (int i = 0; i < cg_traits<R>::n; ++i) cg_accum(adj_s, cg_comps(adj_r)[i]);
+}
+template <typename R, typename A> WP_FUNC R cg_convert(const A& a) {
+  R r = cg_zeros<R>();
+  typename cg_traits<R>::scalar* out = cg_comps(r);
+  int k = 0;
+  cg_put(out, k, a);
+  return r;
+}
+template <typename R, typename A> WP_FUNC void cg_adj_convert(const R& adj_r, A& adj_a) {
+  int k = 0;
+  cg_take(cg_comps(adj_r), k, adj_a);
+}
+template <unsigned R, unsigned C, typename T>
+WP_FUNC void cg_put_col(mat_t<R, C, T>& m, unsigned& j, const vec_t<R, T>& col) {
+  for (unsigned i = 0; i < R; ++i) m.data[i][j] = col.c[i];
+  ++j;
+}
+template <unsigned R, unsigned C, typename T>
+WP_FUNC void cg_take_col(const mat_t<R, C, T>& adj_m, unsigned& j, vec_t<R, T>& adj_col) {
+  for (unsigned i = 0; i < R; ++i) cg_accum(adj_col.c[i], adj_m.data[i][j]);
+  ++j;
+}
+template <typename R, typename... V> WP_FUNC R cg_from_cols(const V&... cols) {
+  R r = cg_zeros<R>();
+  unsigned j = 0;
+  (cg_put_col(r, j, cols), ...);
+  return r;
+}
+template <typename R, typename... V> WP_FUNC void cg_adj_from_cols(const R& adj_r, V&... adj_cols) {
+  unsigned j = 0;
+  (cg_take_col(adj_r, j, adj_cols), ...);
+}
+template <typename M> WP_FUNC M cg_identity();
+template <typename T> struct cg_identity_impl;
+template <unsigned N, typename T> struct cg_identity_impl<mat_t<N, N, T>> {
+  WP_CALLABLE static mat_t<N, N, T> get() {
+    mat_t<N, N, T> m = cg_zeros<mat_t<N, N, T>>();
+    for (unsigned i = 0; i < N; ++i) m.data[i][i] = T(1);
+    return m;
+  }
+};
+template <typename T> struct cg_identity_impl<quat_t<T>> {
+  WP_CALLABLE static quat_t<T> get() { return quat_t<T>(T(0), T(0), T(0), T(1)); }
+};
+template <typename T> struct cg_identity_impl<transform_t<T>> {
+  WP_CALLABLE static transform_t<T> get() {
+    transform_t<T> t = cg_zeros<transform_t<T>>();
+    t.q.w = T(1);
+    return t;
+  }
+};
+template <typename M> WP_FUNC M cg_identity() { return cg_identity_impl<M>::get(); }
+
+// ---- component extract / insert ----------------------------------------------------------
+template <typename V> WP_FUNC typename cg_traits<V>::scalar cg_extract(const V& v, int64 i) { return cg_comps(v)[i]; }
+template <unsigned R, unsigned C, typename T> WP_FUNC vec_t<C, T> cg_extract(const mat_t<R, C, T>& m, int64 i) {
+  vec_t<C, T> r;
+  for (unsigned j = 0; j < C; ++j) r.c[j] = m.data[i][j];
+  return r;
+}
+template <unsigned R, unsigned C, typename T> WP_FUNC T cg_extract(const mat_t<R, C, T>& m, int64 i, int64 j) { return m.data[i][j]; }
+template <typename V> WP_FUNC void cg_adj_extract(V& adj_v, int64 i, const typename cg_traits<V>::scalar& adj_r) {
+  cg_accum(cg_comps(adj_v)[i], adj_r);
+}
+template <unsigned R, unsigned C, typename T> WP_FUNC void cg_adj_extract(mat_t<R, C, T>& adj_m, int64 i, const vec_t<C, T>& adj_r) {
+  for (unsigned j = 0; j < C; ++j) cg_accum(adj_m.data[i][j], adj_r.c[j]);
+}
+template <unsigned R, unsigned C, typename T> WP_FUNC void cg_adj_extract(mat_t<R, C, T>& adj_m, int64 i, int64 j, const T& adj_r) {
+  cg_accum(adj_m.data[i][j], adj_r);
+}
+template <typename V> WP_FUNC V cg_insert(V v, int64 i, const typename cg_traits<V>::scalar& x) {
+  cg_comps(v)[i] = x;
+  return v;
+}
+template <unsigned R, unsigned C, typename T> WP_FUNC mat_t<R, C, T> cg_insert(mat_t<R, C, T> m, int64 i, const vec_t<C, T>& row) {
+  for (unsigned j = 0; j < C; ++j) m.data[i][j] = row.c[j];
+  return m;
+}
+template <unsigned R, unsigned C, typename T> WP_FUNC mat_t<R, C, T> cg_insert(mat_t<R, C, T> m, int64 i, int64 j, const T& x) {
+  m.data[i][j] = x;
+  return m;
+}
+template <typename V> WP_FUNC void cg_adj_insert(V& adj_v, int64 i, typename cg_traits<V>::scalar& adj_x, const V& adj_r) {
+  V t = adj_r;
+  cg_accum(adj_x, cg_comps(t)[i]);
+  cg_comps(t)[i] = typename cg_traits<V>::scalar(0);
+  cg_accum(adj_v, t);
+}
+template <unsigned R, unsigned C, typename T>
+WP_FUNC void cg_adj_insert(mat_t<R, C, T>& adj_m, int64 i, vec_t<C, T>& adj_row, const mat_t<R, C, T>& adj_r) {
+  mat_t<R, C, T> t = adj_r;
+  for (unsigned j = 0; j < C; ++j) {
+    cg_accum(adj_row.c[j], t.data[i][j]);
+    t.data[i][j] = T(0);
+  }
+  cg_accum(adj_m, t);
+}
+template <unsigned R, unsigned C, typename T>
+WP_FUNC void cg_adj_insert(mat_t<R, C, T>& adj_m, int64 i, int64 j, T& adj_x, const mat_t<R, C, T>& adj_r) {
+  mat_t<R, C, T> t = adj_r;
+  cg_accum(adj_x, t.data[i][j]);
+  t.data[i][j] = T(0);
+  cg_accum(adj_m, t);
+}
+
+// ---- control flow ------------------------------------------------------------------------
+template <typename T> WP_FUNC void cg_adj_phi(bool c, T& adj_a, T& adj_b, const T& adj_r) {
+  if (c) cg_accum(adj_a, adj_r);
+  else cg_accum(adj_b, adj_r);
+}
+template <typename I> WP_FUNC bool cg_range_continue(I i, I end, I step) { return step > 0 ? i < end : i > end; }
+
+// tid of flat launch index `flat`, unravelled by the launch shape (row-major).
+WP_FUNC void cg_unravel(const launch_bounds_t& b, int64 flat, int64* tid) {
+  tid[0] = tid[1] = tid[2] = tid[3] = 0;
+  for (int d = b.ndim - 1; d >= 0; --d) {
+    int64 n = b.shape[d] > 0 ? b.shape[d] : 1;
+    tid[d] = d == 0 ? flat : flat % n;
+    flat /= n;
+  }
+}
+
+// ---- bounds checks -----------------------------------------------------------------------
+// Returns false (after recording the first error of the launch) when an index is outside
+// the array or the array is None; the caller then stops the thread's work.
+template <typename T>
+WP_FUNC bool cg_check(const launch_context_t* ctx, int32 function_id, int32 line, int32 array_param, const char* name,
+                      const array_t<T>& a, int64 i, int64 j = 0, int64 k = 0, int64 l = 0, int32 ndim = 1) {
+  if (ctx && (ctx->flags & LAUNCH_FLAG_NO_BOUNDS_CHECK)) return true;
+  const int64 idx[ARRAY_MAX_DIMS] = {i, j, k, l};
+  bool ok = a.data != nullptr;
+  for (int d = 0; d < ndim && ok; ++d) ok = in_range(idx[d], a.shape[d]);
+  if (ok) return true;
+  report_error(ctx, a.data ? LAUNCH_OUT_OF_BOUNDS : LAUNCH_NULL_ARRAY, function_id, line, array_param, ndim, idx, a.shape, name);
+  return false;
+}
+
+}  // namespace wp
