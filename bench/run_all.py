@@ -1,0 +1,31 @@
+"""Runs every weft benchmark (compile, launch overhead, kernels) and prints their tables.
+`make bench` installs warp-lang first so each table has a warp-lang ratio column."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+BENCHES = ["bench_compile.py", "bench_launch.py", "bench_kernels.py"]
+
+
+def main() -> int:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(HERE), str(HERE.parent / "clients" / "python")] +
+                                        ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+    failed = []
+    for name in BENCHES:
+        print(f"\n=== {name} ===", flush=True)
+        proc = subprocess.run([sys.executable, str(HERE / name)] + sys.argv[1:], env=env)
+        if proc.returncode != 0:
+            failed.append(name)
+    if failed:
+        print(f"\nfailed: {', '.join(failed)}")
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
