@@ -16,7 +16,7 @@ WP_FUNC void jacobi_eig3(mat_t<3, 3, T> s, mat_t<3, 3, T>& v, vec_t<3, T>& d) {
   for (int sweep = 0; sweep < 20; ++sweep) {
     T off = T(abs(s.data[0][1]) + abs(s.data[0][2]) + abs(s.data[1][2]));
     T scale = T(abs(s.data[0][0]) + abs(s.data[1][1]) + abs(s.data[2][2]));
-    if (off == T(0) || off <= T(1e-300) + scale * T(is_same_t<T, float32>::value ? 1e-9 : 1e-19)) break;
+    if (off == T(0) || off <= scale * T(is_same_t<T, float32>::value ? 1e-9f : 1e-19f)) break;
     for (int p = 0; p < 2; ++p)
       for (int q = p + 1; q < 3; ++q) {
         T apq = s.data[p][q];
