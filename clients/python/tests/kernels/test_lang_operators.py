@@ -101,6 +101,18 @@ def test_int_div_mod_nonnegative(wp, rng):
     np.testing.assert_array_equal(out.numpy(), np.stack([a // b, a % b], axis=1))
 
 
+def test_int_div_mod_negative_like_warp(wp, rng):
+    # Warp 1.19 (checked on its CPU backend): `//` on ints floors like Python, while `%` is
+    # C's truncated remainder (sign of the dividend): -5 // 3 == -2 and -5 % 3 == -2
+    a = np.concatenate([rng.integers(-10**6, 10**6, 1000), [-5, -7, 5, 7, -6]]).astype(np.int32)
+    b = np.concatenate([rng.integers(1, 100, 1000) * rng.choice([-1, 1], 1000),
+                        [3, 3, -3, -3, 3]]).astype(np.int32)
+    out = wp.zeros((len(a), 2), dtype=int)
+    wp.launch(int_div_mod, dim=len(a), inputs=[wp.array(a), wp.array(b)], outputs=[out])
+    np.testing.assert_array_equal(out.numpy()[:, 0], np.floor_divide(a, b))
+    np.testing.assert_array_equal(out.numpy()[:, 1], np.fmod(a, b))
+
+
 def test_uint32_wraps(wp, rng):
     a = np.concatenate([rng.integers(0, 2**32, 1000), [0, 2**32 - 1]]).astype(np.uint32)
     b = np.concatenate([rng.integers(0, 2**32, 1000), [1, 2]]).astype(np.uint32)
