@@ -18,6 +18,7 @@
 
 #if WEFT_WITH_CPU_JIT
 #include "engine/jit/cpu/cpu_jit.h"
+#include "engine/native/host_symbols.h"
 #endif
 #if WEFT_WITH_CUDA
 #include "engine/jit/cuda/nvrtc_compiler.h"
@@ -118,6 +119,7 @@ class ModuleStoreImpl final : public ModuleStore {
 #if WEFT_WITH_CPU_JIT
     jit::CpuJitOptions jit_options;
     jit_options.include_dirs = {options_.native_dir};
+    jit_options.host_symbols = native::HostSymbols();  // print's snprintf, ...
     auto cpu_jit = jit::CpuJit::Create(jit_options);
     if (!cpu_jit.ok()) {
       // A native header that does not precompile must not keep the daemon down: every module
