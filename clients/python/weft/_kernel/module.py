@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import re
 import threading
 import typing
 
@@ -307,6 +308,8 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
 
 def _kernels_at_fault(err: WeftCompileError, group: _Closure) -> list:
     located = [(d.location.file, d.location.line) for d in err.diagnostics if d.location.file]
+    if not located:     # the daemon's message text: "file.py:LINE:COL: error: ..."
+        located = [(f, int(line)) for f, line in re.findall(r"([^\s:]+\.py):(\d+)", str(err))]
     faulty = []
     with _lock:
         for module in _modules.values():
