@@ -1,7 +1,172 @@
-// weftd entry point: parses the command line and runs the daemon (filled in step by step).
-#include <cstdio>
+// weftd entry point: configuration, logging, the engine, the gRPC server (Unix sockets and
+// TCP with a token), keepalive, health service, and clean shutdown on SIGTERM/SIGINT.
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
 
-int main() {
-  std::puts("weftd " WEFT_VERSION);
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <iostream>
+#include <thread>
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <spdlog/spdlog.h>
+
+#include "engine/runtime/engine.h"
+#include "server/call_auth.h"
+#include "server/daemon_config.h"
+#include "server/services.h"
+
+using namespace weft;
+using namespace weft::server;
+
+namespace {
+
+constexpr int kMaxMessageBytes = 64 << 20;
+
+// Makes the socket's directory (0700 when we create it) and removes a stale socket file.
+// Refuses when another daemon answers on it.
+Status PrepareUnixSocket(const std::string& path) {
+  if (path.size() >= sizeof(sockaddr_un::sun_path)) return InvalidArgument("socket path too long: " + path);
+  std::string dir = path.substr(0, path.rfind('/'));
+  if (!dir.empty()) {
+    // mkdir -p with mode 0700 for every directory we create.
+    for (size_t p = 1; p <= dir.size(); ++p) {
+      if (p == dir.size() || dir[p] == '/') {
+        std::string part = dir.substr(0, p);
+        if (mkdir(part.c_str(), 0700) != 0 && errno != EEXIST)
+          return Internal("cannot create " + part + ": " + std::strerror(errno));
+      }
+    }
+  }
+  struct stat st {};
+  if (lstat(path.c_str(), &st) == 0) {
+    if (!S_ISSOCK(st.st_mode)) return FailedPrecondition(path + " exists and is not a socket");
+    int fd = socket(AF_UNIX, SOCK_STREAM, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::strncpy(addr.sun_path, path.c_str(), sizeof(addr.sun_path) - 1);
+    bool alive = connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0;
+    close(fd);
+    if (alive) return FailedPrecondition("another daemon is listening on " + path);
+    unlink(path.c_str());
+    spdlog::info("removed stale socket {}", path);
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int exit_code = 0;
+  auto cfg = ParseDaemonConfig(argc, argv, &exit_code);
+  if (!cfg.ok()) {
+    if (cfg.status().code() == StatusCode::kCancelled) return exit_code;
+    std::cerr << "weftd: " << cfg.status().message() << "\n";
+    return 2;
+  }
+  spdlog::set_level(spdlog::level::from_str(cfg->log_level));
+  spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [weftd] [%l] %v");
+
+  // Every thread created from here on inherits the blocked set; one thread waits for them.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGTERM);
+  sigaddset(&stop_signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+  umask(077);   // sockets 0600, slabs 0600, cache files private
+
+  std::string token;
+  if (!cfg->token_file.empty()) {
+    auto t = ReadTokenFile(cfg->token_file);
+    if (!t.ok()) {
+      std::cerr << "weftd: " << t.status().message() << "\n";
+      return 2;
+    }
+    token = *t;
+  }
+  std::vector<std::string> unix_paths;
+  for (const auto& l : cfg->listen) {
+    if (l.rfind("tcp:", 0) == 0 && token.empty()) {
+      std::cerr << "weftd: --listen " << l << " needs --token-file (TCP clients must send a token)\n";
+      return 2;
+    }
+    if (l.rfind("unix:", 0) == 0) {
+      std::string path = l.substr(5);
+      Status st = PrepareUnixSocket(path);
+      if (!st.ok()) {
+        std::cerr << "weftd: " << st.message() << "\n";
+        return 2;
+      }
+      unix_paths.push_back(path);
+    }
+  }
+
+  EngineOptions eo;
+  eo.cpu_threads = cfg->cpu_threads;
+  eo.allow_unchecked = cfg->allow_unchecked;
+  eo.modules.cache_dir = cfg->cache_dir;
+  eo.modules.native_dir = cfg->native_dir.empty() ? WEFT_NATIVE_DIR : cfg->native_dir;
+  eo.modules.verify_cuda = cfg->verify_cuda;
+  auto engine = Engine::Create(eo);
+  if (!engine.ok()) {
+    std::cerr << "weftd: " << engine.status().message() << "\n";
+    return 1;
+  }
+
+  CallAuth auth(**engine, token);
+  SessionServiceImpl session_service(auth);
+  ArrayServiceImpl array_service(auth);
+  ExecServiceImpl exec_service(auth);
+  ModuleServiceImpl module_service(auth);
+  DeviceServiceImpl device_service(auth);
+
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  for (const auto& l : cfg->listen) {
+    std::string addr = l.rfind("tcp:", 0) == 0 ? l.substr(4) : l;
+    builder.AddListeningPort(addr, grpc::InsecureServerCredentials());
+  }
+  builder.SetMaxReceiveMessageSize(kMaxMessageBytes);
+  builder.SetMaxSendMessageSize(kMaxMessageBytes);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 2000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 3000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 1000);
+  builder.RegisterService(&session_service);
+  builder.RegisterService(&array_service);
+  builder.RegisterService(&exec_service);
+  builder.RegisterService(&module_service);
+  builder.RegisterService(&device_service);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  if (!server) {
+    std::cerr << "weftd: could not listen on every address (in use, or a bad address)\n";
+    return 1;
+  }
+  for (const auto& p : unix_paths) chmod(p.c_str(), 0600);
+  for (const auto& l : cfg->listen) spdlog::info("listening on {}", l);
+  spdlog::info("weftd {} ready (pid {}, {} CPU threads{})", WEFT_VERSION, getpid(), (*engine)->pool().size(),
+               cfg->allow_unchecked ? ", unchecked kernels allowed" : "");
+
+  std::thread waiter([&] {
+    int sig = 0;
+    sigwait(&stop_signals, &sig);
+    spdlog::info("signal {} received: shutting down", sig);
+    server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+  });
+  server->Wait();
+  waiter.join();
+  server.reset();
+  (*engine).reset();   // closes sessions, unlinks every slab
+  for (const auto& p : unix_paths) unlink(p.c_str());
+  spdlog::info("weftd stopped");
   return 0;
 }

@@ -1,0 +1,53 @@
+// CallAuth: peer kind, token check, session lookup.
+#include "server/call_auth.h"
+
+#include <unistd.h>
+
+#include "engine/runtime/ipc_token.h"
+
+namespace weft::server {
+
+std::string Metadata(const grpc::ServerContext& ctx, const std::string& key) {
+  const auto& md = ctx.client_metadata();
+  auto it = md.find(key);
+  if (it == md.end()) return "";
+  return std::string(it->second.data(), it->second.size());
+}
+
+bool CallAuth::IsLocalPeer(const grpc::ServerContext& ctx) {
+  return ctx.peer().rfind("unix:", 0) == 0 || ctx.peer().rfind("unix-abstract:", 0) == 0;
+}
+
+std::string CallAuth::Principal(const grpc::ServerContext& ctx) {
+  if (IsLocalPeer(ctx)) return "unix-uid:" + std::to_string(getuid());
+  return "tcp-token";
+}
+
+Status CallAuth::Authenticate(const grpc::ServerContext& ctx) const {
+  if (IsLocalPeer(ctx)) return Status::Ok();
+  if (tcp_token_.empty())
+    return Status(StatusCode::kUnauthenticated, "this daemon accepts no TCP clients without a token");
+  std::string auth = Metadata(ctx, "authorization");
+  const std::string prefix = "Bearer ";
+  if (auth.empty())
+    return Status(StatusCode::kUnauthenticated, "missing token: send metadata \"authorization: Bearer <token>\"");
+  if (auth.rfind(prefix, 0) != 0 || !SecretsEqual(auth.substr(prefix.size()), tcp_token_))
+    return Status(StatusCode::kUnauthenticated, "wrong token");
+  return Status::Ok();
+}
+
+Expected<std::shared_ptr<Session>> CallAuth::SessionById(const grpc::ServerContext& ctx, const std::string& id) const {
+  WEFT_RETURN_IF_ERROR(Authenticate(ctx));
+  if (id.empty()) return FailedPrecondition("no session: call SessionService.Open first");
+  auto s = engine_.FindSession(id);
+  if (!s) return FailedPrecondition("no session: call SessionService.Open first (unknown session '" + id + "')");
+  if (s->options().principal != Principal(ctx))
+    return PermissionDenied("session '" + id + "' belongs to a client with other credentials");
+  return s;
+}
+
+Expected<std::shared_ptr<Session>> CallAuth::SessionOf(const grpc::ServerContext& ctx) const {
+  return SessionById(ctx, Metadata(ctx, "weft-session"));
+}
+
+}  // namespace weft::server

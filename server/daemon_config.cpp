@@ -1,0 +1,131 @@
+// Command line + TOML configuration of weftd.
+#include "server/daemon_config.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include <CLI/CLI.hpp>
+#include <toml++/toml.h>
+
+namespace weft::server {
+
+std::string DefaultSocketPath() {
+  const char* xdg = std::getenv("XDG_RUNTIME_DIR");
+  if (xdg && *xdg) return std::string(xdg) + "/weft/weftd.sock";
+  return "/tmp/weft-" + std::to_string(getuid()) + "/weftd.sock";
+}
+
+Expected<std::string> ReadTokenFile(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) return InvalidArgument("cannot read token file " + path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  std::string t = ss.str();
+  size_t b = t.find_first_not_of(" \t\r\n"), e = t.find_last_not_of(" \t\r\n");
+  if (b == std::string::npos) return InvalidArgument("token file " + path + " is empty");
+  struct stat st {};
+  if (stat(path.c_str(), &st) == 0 && (st.st_mode & 077))
+    std::cerr << "weftd: warning: token file " << path << " is readable by other users\n";
+  return t.substr(b, e - b + 1);
+}
+
+namespace {
+
+const toml::node* Key(const toml::table& t, const std::string& dashed) {
+  if (auto* n = t.get(dashed)) return n;
+  std::string under = dashed;
+  for (char& c : under)
+    if (c == '-') c = '_';
+  return t.get(under);
+}
+
+Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) {
+  toml::table t;
+  try {
+    t = toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream os;
+    os << "config " << path << ": " << e.description() << " at line " << e.source().begin.line;
+    return InvalidArgument(os.str());
+  }
+  auto given = [&](const char* flag) { return app.count(flag) > 0; };
+  for (auto&& [k, v] : t) {
+    static const char* known[] = {"listen", "cache-dir", "cache_dir", "log-level", "log_level", "token-file",
+                                  "token_file", "cpu-threads", "cpu_threads", "verify-cuda", "verify_cuda",
+                                  "allow-unchecked", "allow_unchecked", "native-dir", "native_dir"};
+    bool ok = false;
+    for (const char* n : known) ok = ok || k.str() == n;
+    if (!ok) return InvalidArgument("config " + path + ": unknown key '" + std::string(k.str()) + "'");
+  }
+  if (!given("--listen")) {
+    if (auto* n = Key(t, "listen")) {
+      if (auto s = n->value<std::string>()) c->listen.push_back(*s);
+      else if (auto* arr = n->as_array())
+        for (auto& e : *arr)
+          if (auto s2 = e.value<std::string>()) c->listen.push_back(*s2);
+    }
+  }
+  auto str = [&](const char* key, const char* flag, std::string* out) {
+    if (given(flag)) return;
+    if (auto* n = Key(t, key))
+      if (auto s = n->value<std::string>()) *out = *s;
+  };
+  str("cache-dir", "--cache-dir", &c->cache_dir);
+  str("log-level", "--log-level", &c->log_level);
+  str("token-file", "--token-file", &c->token_file);
+  str("native-dir", "--native-dir", &c->native_dir);
+  if (!given("--cpu-threads"))
+    if (auto* n = Key(t, "cpu-threads"))
+      if (auto v = n->value<int64_t>()) c->cpu_threads = static_cast<int>(*v);
+  if (!given("--verify-cuda"))
+    if (auto* n = Key(t, "verify-cuda"))
+      if (auto v = n->value<bool>()) c->verify_cuda = *v;
+  if (!given("--allow-unchecked"))
+    if (auto* n = Key(t, "allow-unchecked"))
+      if (auto v = n->value<bool>()) c->allow_unchecked = *v;
+  return Status::Ok();
+}
+
+}  // namespace
+
+Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) {
+  DaemonConfig c;
+  std::string config_file;
+  CLI::App app{"weftd: GPU compute daemon for Warp-style kernels"};
+  app.add_option("--listen", c.listen, "Address to listen on, repeatable: unix:/path or tcp:host:port "
+                                       "(default unix:" + DefaultSocketPath() + ")");
+  app.add_option("--cache-dir", c.cache_dir, "Directory of the compiled-module disk cache");
+  app.add_option("--log-level", c.log_level, "trace, debug, info, warn, error, critical or off");
+  app.add_option("--config", config_file, "TOML file with the same keys (command-line flags win)");
+  app.add_option("--token-file", c.token_file, "File holding the token TCP clients must send");
+  app.add_option("--cpu-threads", c.cpu_threads, "Threads of the CPU launch pool (default: all cores)");
+  app.add_option("--native-dir", c.native_dir, "engine/native headers for the CPU JIT");
+  app.add_flag("--verify-cuda", c.verify_cuda, "Also compile every generated module with NVRTC");
+  app.add_flag("--allow-unchecked", c.allow_unchecked, "Let sessions turn array bounds checks off");
+  app.add_flag("--version", c.show_version, "Print the version and exit");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    *exit_code = app.exit(e);
+    return Status(StatusCode::kCancelled, "exit");
+  }
+  if (c.show_version) {
+    std::cout << "weftd " << WEFT_VERSION << "\n";
+    *exit_code = 0;
+    return Status(StatusCode::kCancelled, "exit");
+  }
+  if (!config_file.empty()) WEFT_RETURN_IF_ERROR(ApplyToml(config_file, &c, app));
+  if (c.cpu_threads < 0) return InvalidArgument("--cpu-threads must be >= 0");
+  if (c.listen.empty()) c.listen.push_back("unix:" + DefaultSocketPath());
+  for (const auto& l : c.listen)
+    if (l.rfind("unix:", 0) != 0 && l.rfind("tcp:", 0) != 0)
+      return InvalidArgument("--listen " + l + ": expected unix:/path or tcp:host:port");
+  return c;
+}
+
+}  // namespace weft::server

@@ -1,0 +1,34 @@
+// weftd settings: command line (CLI11) over an optional TOML file (--config, same keys with
+// dashes or underscores), plus the default listen address.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "engine/core/status.h"
+
+namespace weft::server {
+
+struct DaemonConfig {
+  std::vector<std::string> listen;   // "unix:/path", "tcp:host:port"
+  std::string cache_dir;
+  std::string log_level = "info";
+  std::string token_file;
+  std::string native_dir;
+  int cpu_threads = 0;
+  bool verify_cuda = false;
+  bool allow_unchecked = false;
+  bool show_version = false;
+};
+
+// Parses argv (and the TOML file it names). Returns the exit code in *exit_code when the
+// process should stop now (--help, --version, bad flags).
+Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code);
+
+// $XDG_RUNTIME_DIR/weft/weftd.sock, else /tmp/weft-$UID/weftd.sock.
+std::string DefaultSocketPath();
+
+// Reads the TCP token (surrounding whitespace trimmed); empty files are an error.
+Expected<std::string> ReadTokenFile(const std::string& path);
+
+}  // namespace weft::server

@@ -1,0 +1,195 @@
+// Protobuf conversions.
+#include "server/proto_convert.h"
+
+namespace weft::server {
+
+DType FromProto(const v1::DType& p) {
+  DType d;
+  d.scalar = static_cast<ScalarType>(p.scalar());
+  d.elem_shape.assign(p.elem_shape().begin(), p.elem_shape().end());
+  d.type_name = p.type_name();
+  d.struct_size = p.struct_size();
+  return d;
+}
+
+void ToProto(const DType& d, v1::DType* p) {
+  p->set_scalar(static_cast<v1::ScalarType>(d.scalar));
+  for (uint32_t e : d.elem_shape) p->add_elem_shape(e);
+  p->set_type_name(d.Name());
+  p->set_struct_size(d.struct_size);
+}
+
+ArrayRef FromProto(const v1::ArrayRef& p) {
+  ArrayRef r;
+  r.handle = p.handle();
+  r.byte_offset = p.byte_offset();
+  r.shape.assign(p.shape().begin(), p.shape().end());
+  r.strides.assign(p.strides().begin(), p.strides().end());
+  return r;
+}
+
+void ToProto(const ArrayDesc& d, v1::ArrayInfo* p) {
+  p->set_handle(d.handle);
+  ToProto(d.dtype, p->mutable_dtype());
+  for (int64_t s : d.shape) p->add_shape(s);
+  for (int64_t s : d.strides) p->add_strides(s);
+  p->set_device(d.device);
+  p->set_byte_size(d.byte_size);
+  p->set_grad_handle(d.grad_handle);
+  p->set_shm_name(d.shm_name);
+  p->set_shm_offset(d.shm_offset);
+  p->set_shm_size(d.shm_size);
+}
+
+SourceLocation FromProto(const v1::SourceLocation& p) {
+  SourceLocation l;
+  l.file = p.file();
+  l.line = p.line();
+  l.column = p.column();
+  return l;
+}
+
+void ToProto(const SourceLocation& l, v1::SourceLocation* p) {
+  p->set_file(l.file);
+  p->set_line(l.line);
+  p->set_column(l.column);
+}
+
+void ToProto(const Diagnostic& d, v1::Diagnostic* p) {
+  switch (d.severity) {
+    case Diagnostic::Severity::kError: p->set_severity(v1::Diagnostic::ERROR); break;
+    case Diagnostic::Severity::kWarning: p->set_severity(v1::Diagnostic::WARNING); break;
+    case Diagnostic::Severity::kNote: p->set_severity(v1::Diagnostic::NOTE); break;
+  }
+  p->set_message(d.message);
+  ToProto(d.location, p->mutable_location());
+  p->set_source_line(d.source_line);
+}
+
+void ToProto(const DeviceInfo& d, v1::DeviceInfo* p) {
+  p->set_name(d.name);
+  p->set_kind(d.kind);
+  p->set_description(d.description);
+  p->set_total_memory(d.total_memory);
+  p->set_free_memory(d.free_memory);
+  p->set_compute_capability_major(d.compute_capability_major);
+  p->set_compute_capability_minor(d.compute_capability_minor);
+  p->set_cores(d.cores);
+}
+
+ModuleSource FromProto(const v1::ModuleSource& p) {
+  ModuleSource m;
+  m.name = p.name();
+  for (const auto& f : p.functions()) {
+    FunctionSource fs;
+    fs.name = f.name();
+    fs.source = f.source();
+    fs.file = f.file();
+    fs.first_line = f.first_line() ? f.first_line() : 1;
+    fs.is_kernel = f.is_kernel();
+    fs.param_types.assign(f.param_types().begin(), f.param_types().end());
+    fs.param_names.assign(f.param_names().begin(), f.param_names().end());
+    fs.return_type = f.return_type();
+    fs.key = f.key();
+    m.functions.push_back(std::move(fs));
+  }
+  for (const auto& s : p.symbols()) {
+    Symbol sym;
+    sym.name = s.name();
+    switch (s.kind_case()) {
+      case v1::Symbol::kConstant:
+        sym.kind = Symbol::Kind::kConstant;
+        sym.constant.type = s.constant().type();
+        sym.constant.value = s.constant().value();
+        break;
+      case v1::Symbol::kFunction:
+        sym.kind = Symbol::Kind::kFunction;
+        sym.target = s.function();
+        break;
+      case v1::Symbol::kType:
+        sym.kind = Symbol::Kind::kType;
+        sym.target = s.type();
+        break;
+      case v1::Symbol::kBuiltinModule:
+        sym.kind = Symbol::Kind::kBuiltinModule;
+        sym.target = s.builtin_module();
+        break;
+      default:
+        sym.kind = Symbol::Kind::kConstant;
+        break;
+    }
+    m.symbols.push_back(std::move(sym));
+  }
+  for (const auto& sd : p.structs()) {
+    StructDef d;
+    d.name = sd.name();
+    for (const auto& f : sd.fields()) d.fields.push_back({f.name(), f.type()});
+    m.structs.push_back(std::move(d));
+  }
+  for (const auto& [k, v] : p.options()) m.options[k] = v;
+  return m;
+}
+
+namespace {
+
+ArgValue ArgFromProto(const v1::ArgValue& p) {
+  ArgValue a;
+  switch (p.kind_case()) {
+    case v1::ArgValue::kArray:
+      a.kind = ArgValue::Kind::kArray;
+      a.array = FromProto(p.array());
+      break;
+    case v1::ArgValue::kStructValue:
+      a.kind = ArgValue::Kind::kStruct;
+      for (const auto& f : p.struct_value().fields()) a.fields.push_back(ArgFromProto(f));
+      break;
+    default:
+      a.kind = ArgValue::Kind::kRaw;
+      a.raw = p.raw();
+      break;
+  }
+  return a;
+}
+
+}  // namespace
+
+Expected<Command> FromProto(const v1::Command& p, size_t index) {
+  Command c;
+  c.origin = FromProto(p.origin());
+  switch (p.kind_case()) {
+    case v1::Command::kCopy:
+      c.kind = CopyCommand{FromProto(p.copy().dst()), FromProto(p.copy().src())};
+      break;
+    case v1::Command::kFill:
+      c.kind = FillCommand{FromProto(p.fill().dst()), p.fill().value()};
+      break;
+    case v1::Command::kLaunch: {
+      const auto& l = p.launch();
+      LaunchCommand lc;
+      lc.module_id = l.module_id();
+      lc.kernel = l.kernel();
+      lc.dim.assign(l.dim().begin(), l.dim().end());
+      for (const auto& a : l.args()) lc.args.push_back(ArgFromProto(a));
+      lc.adjoint = l.adjoint();
+      for (const auto& a : l.adj_args()) lc.adj_args.push_back(ArgFromProto(a));
+      lc.device = l.device();
+      c.kind = std::move(lc);
+      break;
+    }
+    case v1::Command::kTape: {
+      const auto& t = p.tape();
+      TapeCommand tc;
+      tc.op = static_cast<TapeCommand::Op>(t.op());
+      tc.tape_id = t.tape_id();
+      tc.loss = FromProto(t.loss());
+      for (const auto& s : t.seeds()) tc.seeds.emplace_back(FromProto(s.array()), FromProto(s.grad()));
+      c.kind = std::move(tc);
+      break;
+    }
+    default:
+      return InvalidArgument("command " + std::to_string(index) + " is empty (no copy/fill/launch/tape)");
+  }
+  return c;
+}
+
+}  // namespace weft::server

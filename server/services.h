@@ -1,0 +1,69 @@
+// The gRPC services of weftd: thin adapters from protobuf to Engine calls, one .cpp each.
+// Each resolves the caller (CallAuth), converts, calls the engine, converts back; engine
+// Status values become grpc::Status only through ToGrpc.
+#pragma once
+
+#include "server/call_auth.h"
+#include "weft/v1/array.grpc.pb.h"
+#include "weft/v1/device.grpc.pb.h"
+#include "weft/v1/exec.grpc.pb.h"
+#include "weft/v1/module.grpc.pb.h"
+#include "weft/v1/session.grpc.pb.h"
+
+namespace weft::server {
+
+class SessionServiceImpl final : public v1::SessionService::Service {
+ public:
+  explicit SessionServiceImpl(const CallAuth& auth) : auth_(auth) {}
+  grpc::Status Open(grpc::ServerContext* ctx, const v1::OpenSessionRequest* req, v1::OpenSessionResponse* resp) override;
+  grpc::Status Attach(grpc::ServerContext* ctx,
+                      grpc::ServerReaderWriter<v1::AttachEvent, v1::AttachRequest>* stream) override;
+  grpc::Status Close(grpc::ServerContext* ctx, const v1::CloseSessionRequest* req, v1::CloseSessionResponse* resp) override;
+  grpc::Status Stats(grpc::ServerContext* ctx, const v1::StatsRequest* req, v1::StatsResponse* resp) override;
+ private:
+  const CallAuth& auth_;
+};
+
+class ArrayServiceImpl final : public v1::ArrayService::Service {
+ public:
+  explicit ArrayServiceImpl(const CallAuth& auth) : auth_(auth) {}
+  grpc::Status Create(grpc::ServerContext* ctx, const v1::CreateArrayRequest* req, v1::CreateArrayResponse* resp) override;
+  grpc::Status Free(grpc::ServerContext* ctx, const v1::FreeArrayRequest* req, v1::FreeArrayResponse* resp) override;
+  grpc::Status Describe(grpc::ServerContext* ctx, const v1::DescribeArrayRequest* req, v1::DescribeArrayResponse* resp) override;
+  grpc::Status Read(grpc::ServerContext* ctx, const v1::ReadArrayRequest* req,
+                    grpc::ServerWriter<v1::ArrayChunk>* writer) override;
+  grpc::Status Write(grpc::ServerContext* ctx, grpc::ServerReader<v1::WriteArrayRequest>* reader,
+                     v1::WriteArrayResponse* resp) override;
+  grpc::Status Export(grpc::ServerContext* ctx, const v1::ExportArrayRequest* req, v1::ExportArrayResponse* resp) override;
+  grpc::Status Import(grpc::ServerContext* ctx, const v1::ImportArrayRequest* req, v1::ImportArrayResponse* resp) override;
+ private:
+  const CallAuth& auth_;
+};
+
+class ExecServiceImpl final : public v1::ExecService::Service {
+ public:
+  explicit ExecServiceImpl(const CallAuth& auth) : auth_(auth) {}
+  grpc::Status Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitResponse* resp) override;
+  grpc::Status Synchronize(grpc::ServerContext* ctx, const v1::SynchronizeRequest* req,
+                           v1::SynchronizeResponse* resp) override;
+ private:
+  const CallAuth& auth_;
+};
+
+class ModuleServiceImpl final : public v1::ModuleService::Service {
+ public:
+  explicit ModuleServiceImpl(const CallAuth& auth) : auth_(auth) {}
+  grpc::Status Compile(grpc::ServerContext* ctx, const v1::CompileRequest* req, v1::CompileResponse* resp) override;
+ private:
+  const CallAuth& auth_;
+};
+
+class DeviceServiceImpl final : public v1::DeviceService::Service {
+ public:
+  explicit DeviceServiceImpl(const CallAuth& auth) : auth_(auth) {}
+  grpc::Status List(grpc::ServerContext* ctx, const v1::ListDevicesRequest* req, v1::ListDevicesResponse* resp) override;
+ private:
+  const CallAuth& auth_;
+};
+
+}  // namespace weft::server
