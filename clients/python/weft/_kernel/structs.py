@@ -16,6 +16,10 @@ def canonical_name(module: str, qualname: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.]", "_", f"{module}.{qualname}")
 
 
+class StructAttributeError(AttributeError, RuntimeError):
+    """Unknown struct field: an AttributeError, and a RuntimeError as Warp raises."""
+
+
 class StructField:
     """One declared field: name, annotation object and its type string."""
 
@@ -43,12 +47,13 @@ class StructInstance:
         values = object.__getattribute__(self, "_values")
         if name in values:
             return values[name]
-        raise AttributeError(f"struct {self._struct_type.key} has no field {name!r}")
+        raise StructAttributeError(f"struct {self._struct_type.key} has no field {name!r}")
 
     def __setattr__(self, name, value):
         field = self._struct_type.field(name)
         if field is None:
-            raise AttributeError(f"struct {self._struct_type.key} has no field {name!r}")
+            raise StructAttributeError(f"Trying to set struct attribute that does not exist: "
+                                       f"{self._struct_type.key} has no field {name!r}")
         self._values[name] = self._struct_type._convert(field, value)
 
     def __repr__(self):
