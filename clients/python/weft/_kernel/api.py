@@ -77,7 +77,14 @@ def overload(target, arg_types=None):
     """wp.overload: Warp's explicit instantiation of a generic kernel or func. The daemon
     instantiates generics per argument types, so this records the concrete signature as an
     overload when given a def with annotations, and otherwise returns the target."""
-    if isinstance(target, (Function, Kernel)):
+    if isinstance(target, Kernel):
+        if arg_types is None:
+            return target
+        if isinstance(arg_types, dict):
+            arg_types = [arg_types.get(n, a) for n, a in
+                         zip(target.param_names, target.definition.annotations.values())]
+        return target.specialize([typestr.type_string(t) for t in arg_types])
+    if isinstance(target, Function):
         return target
     if callable(target):
         # decorator form on a def whose name is an existing generic @wp.func: add it

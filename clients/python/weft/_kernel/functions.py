@@ -3,6 +3,7 @@ resolved parameter types; @wp.func overloads (by annotation types) and generic f
 from __future__ import annotations
 
 import ast
+import copy
 import inspect
 import re
 import textwrap
@@ -166,6 +167,30 @@ class Kernel:
         self.options = dict(options)
         self.broken = False        # set when its own compile failed: left out of other builds
         self._compiled: dict = {}  # (runtime, device, backward) -> (version, CompiledModule, KernelInfo)
+        self._specializations: dict = {}   # generic kernels: concrete param types -> Kernel
+        self.generic_parent = None
+
+    @property
+    def is_generic(self) -> bool:
+        return self.definition.is_generic
+
+    def specialize(self, param_types: list) -> "Kernel":
+        """The instance of a generic kernel (typing.Any parameters) for concrete types."""
+        key = tuple(param_types)
+        existing = self._specializations.get(key)
+        if existing is not None:
+            return existing
+        for declared, concrete in zip(self.definition.param_types, param_types):
+            if "any" not in declared and declared != concrete:
+                raise TypeError(f"kernel {self.key}: parameter type {declared} cannot be "
+                                f"specialized to {concrete}")
+        definition = copy.copy(self.definition)
+        definition.param_types = list(param_types)
+        definition.key = sanitize_key(self.key + "__" + "_".join(param_types))
+        instance = Kernel(definition, self.module_name, self.options)
+        instance.generic_parent = self
+        self._specializations[key] = instance
+        return instance
 
     @property
     def name(self) -> str:

@@ -189,6 +189,41 @@ def _element_dtype(annotation):
     return None
 
 
+def _value_type_string(value) -> str:
+    if isinstance(value, StructInstance):
+        return value._struct_type._type_str
+    if is_weft_array(value):
+        return typestr.array_str(typestr.type_string(value.dtype), int(value.ndim))
+    if isinstance(value, np.ndarray):
+        import weft  # noqa: PLC0415
+
+        return typestr.array_str(typestr.type_string(weft.dtype_from_numpy(value.dtype)),
+                                 value.ndim)
+    text = typestr.constant_type_of(value)
+    if text is None:
+        raise TypeError(f"cannot infer a kernel type for {type(value).__name__} {value!r}")
+    return text
+
+
+def infer_param_types(kernel: Kernel, args: list) -> list:
+    """Concrete parameter types of a generic kernel's launch, from the argument values."""
+    if len(args) != len(kernel.param_names):
+        raise WeftLaunchError(f"Invalid number of arguments for kernel '{kernel.key}': expected "
+                              f"{len(kernel.param_names)} ({', '.join(kernel.param_names)}), "
+                              f"got {len(args)}")
+    types = []
+    for name, declared, value in zip(kernel.param_names, kernel.param_types, args):
+        if "any" not in declared:
+            types.append(declared)
+            continue
+        try:
+            types.append(_value_type_string(value))
+        except TypeError as err:
+            raise WeftLaunchError(f"Invalid argument '{name}' for generic kernel "
+                                  f"'{kernel.key}': {err}") from None
+    return types
+
+
 def pack_arguments(kernel: Kernel, device: str, args: list):
     """(ArgValues, ArgPacker) for args against kernel's params; raises WeftLaunchError."""
     params = kernel.param_names
@@ -271,6 +306,8 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         device = device_name(first_array.device if first_array is not None else None)
     else:
         device = device_name(device)
+    if kernel.is_generic:
+        kernel = kernel.specialize(infer_param_types(kernel, args))
     packed, packer = pack_arguments(kernel, device, args)
     adj_packed = []
     if adjoint:

@@ -192,6 +192,8 @@ def build_module_source(kernel: Kernel, backward: bool = False):
             for other in list(module.kernels.values()):
                 if other is kernel or other.broken or other.name in kernel_names:
                     continue
+                if other.is_generic:      # compiled only as concrete instances (launch types)
+                    continue
                 if other.options.get("module") == "unique":
                     continue
                 try:
