@@ -10,7 +10,7 @@ def pick(c: wp.array(dtype=int), a: wp.array(dtype=float), b: wp.array(dtype=flo
          out: wp.array(dtype=float, ndim=2)):
     i = wp.tid()
     out[i, 0] = wp.where(c[i] > 0, a[i], b[i])
-    out[i, 1] = wp.select(c[i] > 0, a[i], b[i])
+    out[i, 1] = wp.where(c[i] > 0, b[i], a[i])
     out[i, 2] = wp.min(a[i], b[i])
     out[i, 3] = wp.max(a[i], b[i])
     out[i, 4] = wp.clamp(a[i], -0.5, 0.5)
@@ -18,6 +18,14 @@ def pick(c: wp.array(dtype=int), a: wp.array(dtype=float), b: wp.array(dtype=flo
     out[i, 6] = wp.sign(a[i])
     out[i, 7] = wp.step(a[i])
     out[i, 8] = wp.nonzero(a[i])
+
+
+@wp.kernel
+def pick_select(c: wp.array(dtype=int), a: wp.array(dtype=float), b: wp.array(dtype=float),
+                out: wp.array(dtype=float)):
+    # wp.select is in Warp 1.17 (the compatibility target; removed in Warp 1.19)
+    i = wp.tid()
+    out[i] = wp.select(c[i] > 0, a[i], b[i])
 
 
 @wp.kernel
@@ -41,7 +49,7 @@ def test_float_select_family(wp, rng):
     wp.launch(pick, dim=len(a), inputs=[wp.array(c), wp.array(a), wp.array(b)], outputs=[out])
     o = out.numpy()
     np.testing.assert_array_equal(o[:, 0], np.where(c > 0, a, b))
-    np.testing.assert_array_equal(o[:, 1], np.where(c > 0, b, a))     # select(cond, false, true)
+    np.testing.assert_array_equal(o[:, 1], np.where(c > 0, b, a))
     np.testing.assert_array_equal(o[:, 2], np.minimum(a, b))
     np.testing.assert_array_equal(o[:, 3], np.maximum(a, b))
     np.testing.assert_array_equal(o[:, 4], np.clip(a, -0.5, 0.5))
@@ -49,6 +57,15 @@ def test_float_select_family(wp, rng):
     np.testing.assert_array_equal(o[:, 6], np.where(a < 0, -1.0, 1.0))
     np.testing.assert_array_equal(o[:, 7], np.where(a < 0, 1.0, 0.0))   # Warp: step(x) = x < 0
     np.testing.assert_array_equal(o[:, 8], np.where(a != 0, 1.0, 0.0))
+
+
+def test_select_argument_order(wp, rng):
+    a = rng.standard_normal(100).astype(np.float32)
+    b = rng.standard_normal(100).astype(np.float32)
+    c = rng.integers(-1, 2, 100).astype(np.int32)
+    out = wp.zeros(100, dtype=float)
+    wp.launch(pick_select, dim=100, inputs=[wp.array(c), wp.array(a), wp.array(b)], outputs=[out])
+    np.testing.assert_array_equal(out.numpy(), np.where(c > 0, b, a))   # select(cond, false, true)
 
 
 def test_int_select_family(wp, rng):
