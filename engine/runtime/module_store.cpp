@@ -38,14 +38,8 @@ struct CpuLoadedModule final : LoadedModule {
 };
 #endif
 
-// The generator used when ModuleStoreOptions::generate is empty. Codegen (engine/codegen) is
-// linked in by the same library; until it exists this reports Unimplemented.
-GenerateModuleFn DefaultGenerator() {
-  return [](const ModuleSource&, const CodegenOptions&,
-            std::vector<Diagnostic>*) -> Expected<GeneratedModule> {
-    return Unimplemented("the kernel compiler (engine/codegen) is not linked in yet");
-  };
-}
+// The generator used when ModuleStoreOptions::generate is empty: engine/codegen.
+GenerateModuleFn DefaultGenerator() { return &GenerateModule; }
 
 std::string DefaultBuildId() {
   std::string id = std::string("weft ") + WEFT_VERSION;
