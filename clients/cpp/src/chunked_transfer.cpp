@@ -15,8 +15,7 @@ Status ReadChunked(ClientCore& core, std::uint64_t handle, std::uint64_t offset,
   request.set_handle(handle);
   request.set_byte_offset(offset);
   request.set_byte_count(n);
-  request.set_chunk_size(static_cast<std::uint32_t>(
-      std::min<std::size_t>(core.options().chunk_size, 64u << 20)));
+  request.set_chunk_size(static_cast<std::uint32_t>(core.options().chunk_size));
   auto context = core.NewContext();
   auto reader = core.arrays().Read(context.get(), request);
   v1::ArrayChunk chunk;

@@ -15,6 +15,7 @@ namespace weft::inline client_v1::detail {
 namespace {
 
 constexpr auto kCloseDeadline = std::chrono::seconds(5);
+constexpr std::size_t kMaxChunkBytes = 16u << 20;
 
 std::string EnvOr(const std::string& value, const char* name) {
   if (!value.empty()) return value;
@@ -28,7 +29,9 @@ Expected<std::shared_ptr<ClientCore>> ClientCore::Open(const ConnectOptions& opt
   std::shared_ptr<ClientCore> core(new ClientCore(options));
   const ResolvedAddress address = Resolve(options);
   core->token_ = EnvOr(options.token, "WEFT_TOKEN");
+  // weftd caps messages at 64 MiB and Read chunks at 16 MiB.
   if (core->options_.chunk_size == 0) core->options_.chunk_size = 1u << 20;
+  if (core->options_.chunk_size > kMaxChunkBytes) core->options_.chunk_size = kMaxChunkBytes;
   if (core->options_.max_pending_commands == 0) core->options_.max_pending_commands = 1;
 
   grpc::ChannelArguments args;

@@ -33,7 +33,7 @@ struct ConnectOptions {
   std::string client_name;
   // How long to wait for the daemon to answer before Connect fails with UNAVAILABLE.
   std::chrono::milliseconds connect_timeout{5000};
-  // Bytes per message of chunked Read/Write streams.
+  // Bytes per message of chunked Read/Write streams (at most 16 MiB).
   std::size_t chunk_size = 1u << 20;
   // False: never map shared memory (behave as a remote client, bytes through streams).
   bool map_shared_memory = true;
