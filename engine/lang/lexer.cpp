@@ -167,9 +167,11 @@ class Lexer {
       } else if (c == '#') {
         while (!AtEnd(i_) && !IsLineBreak(i_)) ++i_;
       } else if (c == '\n' || c == '\r') {
-        if (brackets_.empty()) Emit(TokenKind::kNewline, i_, i_, PosAt(i_)).text = "";
+        // Inside brackets a line break is whitespace and the next line has no indentation.
+        const bool ends_logical_line = brackets_.empty();
+        if (ends_logical_line) Emit(TokenKind::kNewline, i_, i_, PosAt(i_)).text = "";
         ConsumeLineBreak();
-        at_line_start = true;
+        at_line_start = ends_logical_line;
       } else if (c == '\\') {
         if (IsLineBreak(i_ + 1)) {
           ++i_;

@@ -352,8 +352,12 @@ class Parser {
     const Token& t = Peek();
     if (t.kind == TokenKind::kKeyword) {
       if (t.text == "pass") return Next(), Make<ast::Pass>(t);
-      if (t.text == "break") return Next(), Make<ast::Break>(t);
-      if (t.text == "continue") return Next(), Make<ast::Continue>(t);
+      if (t.text == "break" || t.text == "continue") {
+        if (loop_depth_ == 0) return Fail(t, "'" + t.text + "' outside loop");
+        Next();
+        if (t.text == "break") return Make<ast::Break>(t);
+        return Make<ast::Continue>(t);
+      }
       if (t.text == "return") return ParseReturn();
       if (t.text == "assert") return ParseAssert();
       if (t.text == "del") return Fail(t, "'del' is not supported in kernels");
@@ -588,7 +592,10 @@ class Parser {
     s->iter = ParseStarExpressions();
     if (!s->iter) return nullptr;
     if (!ExpectColon("'for' header")) return nullptr;
-    if (!ParseBlock(&s->body, "'for' statement", s->loc.line)) return nullptr;
+    ++loop_depth_;
+    const bool body_ok = ParseBlock(&s->body, "'for' statement", s->loc.line);
+    --loop_depth_;
+    if (!body_ok) return nullptr;
     if (IsKw("else")) {
       return Fail(Peek(), "'else' clauses on 'for' loops are not supported in kernels");
     }
@@ -601,7 +608,10 @@ class Parser {
     s->test = ParseExpression();
     if (!s->test) return nullptr;
     if (!ExpectColon("'while' condition")) return nullptr;
-    if (!ParseBlock(&s->body, "'while' statement", s->loc.line)) return nullptr;
+    ++loop_depth_;
+    const bool body_ok = ParseBlock(&s->body, "'while' statement", s->loc.line);
+    --loop_depth_;
+    if (!body_ok) return nullptr;
     if (IsKw("else")) {
       return Fail(Peek(), "'else' clauses on 'while' loops are not supported in kernels");
     }
@@ -1077,6 +1087,7 @@ class Parser {
   size_t pos_ = 0;
   int expr_depth_ = 0;
   int block_depth_ = 0;
+  int loop_depth_ = 0;  // enclosing for/while loops, for "'break' outside loop"
   bool failed_ = false;
   TextPosition error_pos_;
   std::string error_message_;

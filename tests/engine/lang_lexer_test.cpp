@@ -64,6 +64,10 @@ TEST(LangLexer, BracketsJoinLinesAndIgnoreIndentation) {
   EXPECT_EQ(Kinds("f(a,\n        b,\n  c)\n"),
             "NAME:f OP:( NAME:a OP:, NAME:b OP:, NAME:c OP:) NEWLINE EOF");
   EXPECT_EQ(Kinds("x = [1,\n# comment\n\n 2]\n"), "NAME:x OP:= OP:[ INT:1 OP:, INT:2 OP:] NEWLINE EOF");
+  // A closing bracket at the start of a line does not start a new logical line.
+  EXPECT_EQ(Kinds("if a:\n    f(1,\n)\n    b\n"),
+            "KEYWORD:if NAME:a OP:: NEWLINE INDENT NAME:f OP:( INT:1 OP:, OP:) NEWLINE NAME:b "
+            "NEWLINE DEDENT EOF");
 }
 
 TEST(LangLexer, CrlfLineEndings) {
