@@ -76,6 +76,14 @@ template <typename T> WP_FUNC bool is_null(const array_t<T>& a) { return a.data 
 template <typename T, typename V> WP_FUNC V where(const array_t<T>& a, const V& x, const V& y) { return a.data ? x : y; }
 template <typename T, typename V> WP_FUNC V select(const array_t<T>& a, const V& f, const V& t) { return a.data ? t : f; }
 template <typename T> WP_FUNC bool unot(const array_t<T>& a) { return a.data == nullptr; }
+template <typename T, typename V>
+WP_FUNC void adj_where(const array_t<T>& a, const V&, const V&, array_t<T>&, V& adj_x, V& adj_y, const V& adj_ret) {
+  if (a.data) adj_x += adj_ret; else adj_y += adj_ret;
+}
+template <typename T, typename V>
+WP_FUNC void adj_select(const array_t<T>& a, const V&, const V&, array_t<T>&, V& adj_f, V& adj_t, const V& adj_ret) {
+  if (a.data) adj_t += adj_ret; else adj_f += adj_ret;
+}
 
 // ---------------------------------------------------------------------------------------------
 // Bounds: true when the array is not None and every index is inside its dimension.
