@@ -6,5 +6,6 @@
 #include "weft/client/client.h"
 #include "weft/client/commands.h"
 #include "weft/client/dtype.h"
+#include "weft/client/module.h"
 #include "weft/client/status.h"
 #include "weft/client/types.h"

@@ -2,7 +2,7 @@
 // opens a session and holds its Attach stream on a background thread (so the daemon frees
 // everything if this process dies), and offers the array operations of the Python client:
 // devices, create/describe/free arrays, read/write, queued copy/fill/launch commands,
-// synchronize, IPC export/import, daemon statistics. Errors are values (Status / Expected).
+// synchronize, IPC export/import, daemon statistics; and kernel module compiles. Errors are values (Status / Expected).
 #pragma once
 
 #include <chrono>
@@ -16,6 +16,7 @@
 #include "weft/client/array.h"
 #include "weft/client/commands.h"
 #include "weft/client/dtype.h"
+#include "weft/client/module.h"
 #include "weft/client/status.h"
 #include "weft/client/types.h"
 
@@ -107,6 +108,9 @@ class Client {
   // Queues a copy / fill (run in order with everything queued; errors at Synchronize).
   Status Copy(const ArrayView& dst, const ArrayView& src, CommandOrigin origin = {});
   Status Fill(const ArrayView& dst, std::vector<std::byte> element, CommandOrigin origin = {});
+  // Compiles a module for `device` ("cpu", "cuda:0"); compile errors come back as
+  // INVALID_ARGUMENT whose message lists the diagnostics (file:line: message).
+  Expected<CompiledModule> Compile(const ModuleDef& module, const std::string& device = "cpu");
   // Queues a launch of a compiled kernel.
   Status Launch(LaunchSpec launch, CommandOrigin origin = {});
   // Queues a whole batch, then sends everything pending.
