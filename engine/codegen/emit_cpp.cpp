@@ -443,11 +443,7 @@ class FnEmitter {
       case OpKind::kCall: {
         const BuiltinOverload* b = op.builtin;
         if (!b->differentiable() || op.dst.empty()) return;
-        if (b->flags & kBuiltinArrayAccess) {
-          if (!Diff(T(op.args.back())) || T(op.args.back()).is_struct()) return;
-          Line("wp::" + b->adjoint + "(" + Args(op.args) + ", " + A(op.args[0]) + ", " + A(op.args.back()) + ");");
-          return;
-        }
+        if ((b->flags & kBuiltinArrayAccess) && (!Diff(T(op.args.back())) || T(op.args.back()).is_struct())) return;
         bool any = false;
         for (int v : op.dst) any |= Diff(T(v));
         if (!any) return;
