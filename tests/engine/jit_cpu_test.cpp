@@ -13,6 +13,8 @@
 #include <random>
 #include <string>
 #include <thread>
+
+#include <unistd.h>
 #include <vector>
 
 #include "engine/native/launch_abi.h"
@@ -266,6 +268,76 @@ TEST_F(JitCpu, TargetIdNamesTheCpu) {
   auto generic = CpuJit::Create(options);
   ASSERT_TRUE(generic.ok());
   EXPECT_NE((*generic)->target_id(), id);
+}
+
+size_t ResidentBytes() {
+  long pages = 0, resident = 0;
+  if (FILE* f = std::fopen("/proc/self/statm", "r")) {
+    if (std::fscanf(f, "%ld %ld", &pages, &resident) != 2) resident = 0;
+    std::fclose(f);
+  }
+  return size_t(resident) * size_t(::sysconf(_SC_PAGESIZE));
+}
+
+// DisableFree=false: compiling and dropping modules does not grow the process (clang's default
+// leaks ~0.5-0.9 MB per compile on purpose, which a daemon cannot afford).
+TEST_F(JitCpu, RepeatedCompilesDoNotLeak) {
+  auto jit = CpuJit::Create(Options());
+  ASSERT_TRUE(jit.ok());
+  auto compile_and_drop = [&](int i) {
+    std::string source = "#include \"weft.h\"\nextern \"C\" int weft_value() { return " +
+                         std::to_string(i) + "; }\n" + kSaxpySource;
+    auto object = (*jit)->Compile(source, "leak");
+    ASSERT_TRUE(object.ok());
+    auto code = (*jit)->Load(*object, "leak");
+    ASSERT_TRUE(code.ok());
+    ASSERT_TRUE((*code)->Lookup("weft_value").ok());
+  };
+  for (int i = 0; i < 10; ++i) compile_and_drop(i);  // warm up allocator arenas
+  const size_t before = ResidentBytes();
+  constexpr int kCompiles = 60;
+  for (int i = 0; i < kCompiles; ++i) compile_and_drop(100 + i);
+  const double growth_mb = (double(ResidentBytes()) - double(before)) / (1 << 20);
+  std::printf("[ jit ] RSS growth over %d compile+load+drop cycles: %.2f MB\n", kCompiles,
+              growth_mb);
+  EXPECT_LT(growth_mb, 0.25 * kCompiles);  // a leak of 0.5 MB per compile would be 30 MB
+}
+
+// The real native library (engine/native/weft.h) under the JIT's flags, with and without its PCH;
+// prints the times docs/backends.md quotes.
+TEST(JitCpuNative, WeftHeaderCompilesWithAndWithoutPch) {
+  if (!fs::exists(fs::path(WEFT_NATIVE_DIR) / "weft.h")) GTEST_SKIP() << "no engine/native/weft.h";
+  const char* source = R"(#include "weft.h"
+extern "C" void weft_scale_cpu_forward(const wp::launch_context_t* ctx, const void* args,
+                                       wp::int64 begin, wp::int64 end) {
+  const wp::array_t<wp::float32>& a = *(const wp::array_t<wp::float32>*)args;
+  for (wp::int64 i = begin; i < end; ++i) wp::store(a, i, wp::load(a, i) * 2.0f);
+}
+)";
+  for (bool pch : {true, false}) {
+    CpuJitOptions options;
+    options.include_dirs = {WEFT_NATIVE_DIR};
+    if (!pch) options.pch_header.clear();
+    auto jit = CpuJit::Create(options);
+    ASSERT_TRUE(jit.ok()) << jit.status().ToString();
+    EXPECT_EQ((*jit)->has_pch(), pch);
+    CpuCompileTimes first, second, third;
+    auto object = (*jit)->Compile(source, "scale", &first);
+    ASSERT_TRUE(object.ok()) << object.status().ToString();
+    ASSERT_TRUE((*jit)->Compile(source, "scale", &second).ok());
+    ASSERT_TRUE((*jit)->Compile(source, "scale", &third).ok());
+    std::printf("[ jit ] weft.h %s PCH: build %.1f ms, compiles %.1f / %.1f / %.1f ms\n",
+                pch ? "with" : "without", (*jit)->pch_build_ms(), first.frontend_and_codegen_ms,
+                second.frontend_and_codegen_ms, third.frontend_and_codegen_ms);
+    auto code = (*jit)->Load(*object, "scale");
+    ASSERT_TRUE(code.ok());
+    auto entry = (*code)->Lookup("weft_scale_cpu_forward");
+    ASSERT_TRUE(entry.ok()) << entry.status().ToString();
+    std::vector<float> data = {1.f, -2.f, 3.5f};
+    wp::array_abi_t a = Array1d(data.data(), 3);
+    reinterpret_cast<ForwardFn>(*entry)(nullptr, &a, 0, 3);
+    EXPECT_EQ(data, (std::vector<float>{2.f, -4.f, 7.f}));
+  }
 }
 
 }  // namespace
