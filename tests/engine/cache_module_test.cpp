@@ -452,6 +452,23 @@ TEST_F(CacheModule, RealCompilerSaxpyThroughTheStore) {
   CompileReport warm;
   ASSERT_TRUE((*store)->Compile(m, "cpu", &warm).ok());
   EXPECT_TRUE(warm.cache_hit);
+
+  // A restarted daemon: the disk cache serves it (no codegen, no clang).
+  store->reset();
+  auto restarted = ModuleStore::Create(options);
+  ASSERT_TRUE(restarted.ok());
+  CompileReport disk;
+  ASSERT_TRUE((*restarted)->Compile(m, "cpu", &disk).ok());
+  EXPECT_TRUE(disk.disk_hit);
+  // And without the NVRTC check, a cold CPU-only compile (different key: verified flag).
+  options.verify_cuda = false;
+  auto cpu_only = ModuleStore::Create(options);
+  ASSERT_TRUE(cpu_only.ok());
+  CompileReport cold_cpu;
+  ASSERT_TRUE((*cpu_only)->Compile(m, "cpu", &cold_cpu).ok());
+  EXPECT_FALSE(cold_cpu.disk_hit);
+  std::printf("[ store ] real saxpy: memory hit %.3f ms, disk hit %.2f ms, cold CPU-only %.1f ms\n",
+              warm.compile_ms, disk.compile_ms, cold_cpu.compile_ms);
 }
 
 }  // namespace
