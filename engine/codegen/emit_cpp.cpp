@@ -603,7 +603,7 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
     KernelLayout kl;
     kl.name = f.name;
     std::string args_struct = "weft_args_" + f.cpp_name;
-    o += "// argument block of kernel " + f.name + "\nstruct " + args_struct + " {\n";
+    o += "// argument block of kernel " + f.name + "\nstruct alignas(8) " + args_struct + " {\n";
     uint32_t off = 0, align = 8;
     for (size_t i = 0; i < f.params.size(); ++i) {
       const Type& t = f.vars[f.params[i]].type;

@@ -132,6 +132,29 @@ template <typename R, typename... V> WP_FUNC void cg_adj_from_cols(const R& adj_
   unsigned j = 0;
   (cg_take_col(adj_r, j, adj_cols), ...);
 }
+// Adjoints of matrix_from_rows / matrix_from_cols (the forward functions are in mat.h).
+template <unsigned R, unsigned C, typename T>
+WP_FUNC void cg_take_row(const mat_t<R, C, T>& adj_m, unsigned& i, vec_t<C, T>& adj_row) {
+  for (unsigned j = 0; j < C; ++j) cg_accum(adj_row.c[j], adj_m.data[i][j]);
+  ++i;
+}
+template <unsigned R, unsigned C, typename T>
+WP_FUNC void adj_matrix_from_rows(const vec_t<C, T>&, const vec_t<C, T>&, const vec_t<C, T>&, vec_t<C, T>& adj_a,
+                                  vec_t<C, T>& adj_b, vec_t<C, T>& adj_c, const mat_t<R, C, T>& adj_ret) {
+  unsigned i = 0;
+  cg_take_row(adj_ret, i, adj_a);
+  cg_take_row(adj_ret, i, adj_b);
+  cg_take_row(adj_ret, i, adj_c);
+}
+template <unsigned R, unsigned C, typename T>
+WP_FUNC void adj_matrix_from_cols(const vec_t<R, T>&, const vec_t<R, T>&, const vec_t<R, T>&, vec_t<R, T>& adj_a,
+                                  vec_t<R, T>& adj_b, vec_t<R, T>& adj_c, const mat_t<R, C, T>& adj_ret) {
+  unsigned j = 0;
+  cg_take_col(adj_ret, j, adj_a);
+  cg_take_col(adj_ret, j, adj_b);
+  cg_take_col(adj_ret, j, adj_c);
+}
+
 template <typename M> WP_FUNC M cg_identity();
 template <typename T> struct cg_identity_impl;
 template <unsigned N, typename T> struct cg_identity_impl<mat_t<N, N, T>> {
