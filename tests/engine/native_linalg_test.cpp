@@ -459,3 +459,35 @@ TEST(NativeLinalg, DecompositionAdjoints) {
 }
 
 }  // namespace
+
+namespace {
+
+// float16 composites compute through float32 and round per operation: results stay within
+// half precision of the float32 results.
+TEST(NativeLinalg, Float16Composites) {
+  using vec3h = wp::vec_t<3, wp::half>;
+  using mat33h = wp::mat_t<3, 3, wp::half>;
+  using quath = wp::quat_t<wp::half>;
+  for (int rep = 0; rep < 50; ++rep) {
+    wp::vec_t<3, float> a((float)U(), (float)U(), (float)U()), b((float)U(), (float)U(), (float)U());
+    vec3h ah(a), bh(b);
+    auto near = [](float got, float want) { EXPECT_NEAR(got, want, 4e-3f * (1 + std::fabs(want))); };
+    near(float(wp::dot(ah, bh)), wp::dot(a, b));
+    for (int i = 0; i < 3; ++i) {
+      near(float(wp::cross(ah, bh).c[i]), wp::cross(a, b).c[i]);
+      near(float(wp::normalize(ah).c[i]), wp::normalize(a).c[i]);
+    }
+    wp::mat_t<3, 3, float> m(a, b, wp::vec_t<3, float>(0.5f, -0.25f, 1.0f));
+    mat33h mh(m);
+    near(float(wp::determinant(mh)), wp::determinant(m));
+    near(float(wp::mul(mh, ah).c[1]), wp::mul(m, a).c[1]);
+    wp::quat_t<float> q = wp::normalize(wp::quat_t<float>((float)U(), (float)U(), (float)U(), (float)U()));
+    quath qh(q);
+    near(float(wp::quat_rotate(qh, ah).c[2]), wp::quat_rotate(q, a).c[2]);
+    vec3h g;
+    wp::adj_normalize(ah, g, bh);
+    EXPECT_TRUE(wp::isfinite(g));
+  }
+}
+
+}  // namespace
