@@ -149,27 +149,27 @@ WP_FUNC void report_out_of_bounds(const launch_context_t* ctx, int32 function_id
 // when the launch carries LAUNCH_FLAG_NO_BOUNDS_CHECK (the session's `fast` policy).
 template <typename T>
 WP_FUNC T* checked_address(const launch_context_t* ctx, int32 function_id, int32 line, int32 array_param, const array_t<T>& a, int64 i) {
-  if ((ctx->flags & LAUNCH_FLAG_NO_BOUNDS_CHECK) || bounds_ok(a, i)) return address(a, i);
+  if ((ctx && (ctx->flags & LAUNCH_FLAG_NO_BOUNDS_CHECK)) || bounds_ok(a, i)) return address(a, i);
   report_out_of_bounds(ctx, function_id, line, array_param, a, 1, i);
   return nullptr;
 }
 template <typename T>
 WP_FUNC T* checked_address(const launch_context_t* ctx, int32 function_id, int32 line, int32 array_param, const array_t<T>& a, int64 i, int64 j) {
-  if ((ctx->flags & LAUNCH_FLAG_NO_BOUNDS_CHECK) || bounds_ok(a, i, j)) return address(a, i, j);
+  if ((ctx && (ctx->flags & LAUNCH_FLAG_NO_BOUNDS_CHECK)) || bounds_ok(a, i, j)) return address(a, i, j);
   report_out_of_bounds(ctx, function_id, line, array_param, a, 2, i, j);
   return nullptr;
 }
 template <typename T>
 WP_FUNC T* checked_address(const launch_context_t* ctx, int32 function_id, int32 line, int32 array_param, const array_t<T>& a, int64 i, int64 j,
                            int64 k) {
-  if ((ctx->flags & LAUNCH_FLAG_NO_BOUNDS_CHECK) || bounds_ok(a, i, j, k)) return address(a, i, j, k);
+  if ((ctx && (ctx->flags & LAUNCH_FLAG_NO_BOUNDS_CHECK)) || bounds_ok(a, i, j, k)) return address(a, i, j, k);
   report_out_of_bounds(ctx, function_id, line, array_param, a, 3, i, j, k);
   return nullptr;
 }
 template <typename T>
 WP_FUNC T* checked_address(const launch_context_t* ctx, int32 function_id, int32 line, int32 array_param, const array_t<T>& a, int64 i, int64 j,
                            int64 k, int64 l) {
-  if ((ctx->flags & LAUNCH_FLAG_NO_BOUNDS_CHECK) || bounds_ok(a, i, j, k, l)) return address(a, i, j, k, l);
+  if ((ctx && (ctx->flags & LAUNCH_FLAG_NO_BOUNDS_CHECK)) || bounds_ok(a, i, j, k, l)) return address(a, i, j, k, l);
   report_out_of_bounds(ctx, function_id, line, array_param, a, 4, i, j, k, l);
   return nullptr;
 }
