@@ -348,3 +348,25 @@ def test_array_of_structs(wp):
     records = a.numpy()
     assert records["id"].tolist() == [0, 42, 42, 3, 4]
     assert records["mass"].tolist() == [0.0, -1.0, -1.0, 1.5, 2.0]
+
+
+def _mapped(name):
+    with open("/proc/self/maps") as maps:
+        return any(("/dev/shm" + name) in line for line in maps)
+
+
+def test_slabs_are_unmapped_when_nothing_uses_them(wp):
+    import gc
+
+    a = wp.zeros(8 << 20, dtype=wp.float32)     # 32 MiB: a slab of its own
+    name = a._info.shm_name
+    view = a.numpy()
+    view[-1] = 5.0
+    assert _mapped(name)
+    del a
+    gc.collect()
+    assert _mapped(name), "the NumPy view must keep the memory mapped"
+    assert view[-1] == 5.0
+    del view
+    gc.collect()
+    assert not _mapped(name), "an unused slab must not stay mapped (it would pin its memory)"

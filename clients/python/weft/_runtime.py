@@ -20,6 +20,7 @@ import subprocess
 import sys
 import threading
 import time
+import weakref
 from pathlib import Path
 
 import grpc
@@ -248,7 +249,11 @@ def format_location(location) -> str | None:
 
 
 class _SlabMapping:
-    __slots__ = ("mm", "address", "size", "_anchor")
+    """One mapped slab. Held by the allocations and NumPy views that use it; unmapped when the
+    last of them goes away (the daemon unlinks empty slabs, so keeping them mapped would pin
+    their memory)."""
+
+    __slots__ = ("mm", "address", "size", "_anchor", "__weakref__")
 
     def __init__(self, name: str, size: int):
         path = "/dev/shm/" + name.lstrip("/")
@@ -298,7 +303,7 @@ class Runtime:
         self._batch_bytes = 0
         self._pending_frees: collections.deque = collections.deque()
         self._deferred_error: WeftError | None = None
-        self._slabs: dict[str, _SlabMapping] = {}
+        self._slabs = weakref.WeakValueDictionary()   # name -> _SlabMapping in use
         self._devices = None
         self._unsynchronized = False   # commands were queued since the last Synchronize
         self.closed = False
@@ -409,7 +414,7 @@ class Runtime:
 
     # -- shared memory (local sessions)
     def map_slab(self, name: str, size: int) -> _SlabMapping:
-        """The mapping of slab `name` (mapped once per process, cached by name)."""
+        """The mapping of slab `name`: mapped once and shared while anything holds it."""
         mapping = self._slabs.get(name)
         if mapping is None or mapping.size < size:
             with self._lock:

@@ -203,13 +203,20 @@ def _infer_dtype(data):
 class _Allocation:
     """One daemon allocation held by this process; freed when the last view lets go."""
 
-    __slots__ = ("runtime", "info", "owned", "parent", "__weakref__")
+    __slots__ = ("runtime", "info", "owned", "parent", "_mapping", "__weakref__")
 
     def __init__(self, runtime, info, owned=True, parent=None):
         self.runtime = runtime
         self.info = info
         self.owned = owned
         self.parent = parent   # a gradient keeps its array's allocation alive
+        self._mapping = None
+
+    def mapping(self):
+        """The slab mapping of this allocation (local CPU arrays), mapped on first use."""
+        if self._mapping is None:
+            self._mapping = self.runtime.map_slab(self.info.shm_name, self.info.shm_size)
+        return self._mapping
 
     def __del__(self):
         try:
@@ -236,6 +243,7 @@ def _is_local_cpu(rt, info) -> bool:
 def _slab_bytes(rt, info, byte_offset, count) -> np.ndarray:
     mapping = rt.map_slab(info.shm_name, info.shm_size)
     start = info.shm_offset + byte_offset
+    # the returned array holds the mmap (buffer export) for as long as it lives
     return np.frombuffer(mapping.mm, dtype=np.uint8, count=count, offset=start)
 
 
@@ -477,10 +485,9 @@ class array:
         """The address of the first element in this process (local CPU arrays), else None."""
         if self._info is None or not self._info.shm_name:
             return None
-        rt = self._alloc.runtime
-        if not rt.local:
+        if not self._alloc.runtime.local:
             return None
-        mapping = rt.map_slab(self._info.shm_name, self._info.shm_size)
+        mapping = self._alloc.mapping()
         return mapping.address + self._info.shm_offset + self._byte_offset
 
     @property
@@ -616,7 +623,7 @@ class array:
         if _is_local_cpu(rt, self._info):
             if self.size == 0:
                 return np.empty(full_shape, dtype=np_dtype)
-            mapping = rt.map_slab(self._info.shm_name, self._info.shm_size)
+            mapping = self._alloc.mapping()
             address = mapping.address + self._info.shm_offset + self._byte_offset
             interface = {"data": (address, False), "shape": full_shape,
                          "strides": full_strides, "typestr": np_dtype.str, "version": 3}
