@@ -313,13 +313,21 @@ def _kernels_at_fault(err: WeftCompileError, group: _Closure) -> list:
     if not located:     # the daemon's message text: "file.py:LINE:COL: error: ..."
         located = [(f, int(line)) for f, line in re.findall(r"([^\s:]+\.py):(\d+)", str(err))]
     faulty = []
+
+    def at_fault(d) -> bool:
+        return any(f == d.file and d.first_line <= line <= d.last_line for f, line in located)
+
     with _lock:
         for module in _modules.values():
             for k in module.kernels.values():
-                d = k.definition
-                if any(f == d.file and d.first_line <= line <= d.last_line for f, line in located):
-                    if any(x is d for x in group.definitions):
-                        faulty.append(k)
+                if not any(x is k.definition for x in group.definitions):
+                    continue
+                try:
+                    reach = _closure_of(k).definitions    # the kernel and every func it calls
+                except Exception:  # noqa: BLE001
+                    reach = [k.definition]
+                if any(at_fault(d) for d in reach):
+                    faulty.append(k)
     return faulty
 
 
