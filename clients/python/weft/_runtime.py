@@ -308,6 +308,7 @@ class Runtime:
         self._unsynchronized = False   # commands were queued since the last Synchronize
         self.closed = False
         self.attach_lost = False
+        self.attach_message = ""
 
         self._closing = threading.Event()
         self._attach_call = self.session_stub.Attach(self._attach_requests(),
@@ -324,8 +325,7 @@ class Runtime:
     def _attach_loop(self):
         try:
             for event in self._attach_call:
-                if event.message:
-                    sys.stderr.write(f"weftd: {event.message}\n")
+                self.attach_message = event.message   # "attached <id>"; informational
         except grpc.RpcError:
             pass
         if not self._closing.is_set():

@@ -264,9 +264,10 @@ def _write_bytes(rt, info, byte_offset: int, payload) -> None:
                                        chunk=ap.ArrayChunk(byte_offset=byte_offset))
             return
         for start in range(0, data.size, CHUNK_BYTES):
-            piece = data[start:start + CHUNK_BYTES]
-            yield ap.WriteArrayRequest(handle=info.handle, chunk=ap.ArrayChunk(
-                byte_offset=byte_offset + start, data=piece.tobytes()))
+            request = ap.WriteArrayRequest(handle=info.handle)
+            request.chunk.byte_offset = byte_offset + start
+            request.chunk.data = data[start:start + CHUNK_BYTES].tobytes()   # one copy
+            yield request
 
     response = _stream_call(rt, rt.array_stub.Write, chunks())
     if response.bytes_written != data.size:
