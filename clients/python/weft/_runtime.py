@@ -302,6 +302,7 @@ class Runtime:
         self._batch: list = []
         self._batch_bytes = 0
         self._pending_frees: collections.deque = collections.deque()
+        self._free_calls: list = []
         self._deferred_error: WeftError | None = None
         self._slabs = weakref.WeakValueDictionary()   # name -> _SlabMapping in use
         self._devices = None
@@ -397,13 +398,13 @@ class Runtime:
             self._drain_frees()
 
     def _drain_frees(self) -> None:
+        # Asynchronous calls: the caller does not wait for the round trips. Errors (already
+        # gone: session closed, daemon restarted) are ignored; there is nothing left to free.
+        self._free_calls = [call for call in self._free_calls if not call.done()]
         while self._pending_frees:
             handle = self._pending_frees.popleft()
-            try:
-                self.array_stub.Free(array_pb2.FreeArrayRequest(handle=handle),
-                                     metadata=self.metadata, timeout=30)
-            except grpc.RpcError:
-                pass  # already gone (session closed, daemon restarted): nothing to free
+            self._free_calls.append(self.array_stub.Free.future(
+                array_pb2.FreeArrayRequest(handle=handle), metadata=self.metadata, timeout=30))
 
     # -- devices
     def devices(self):
