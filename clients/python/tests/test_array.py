@@ -4,6 +4,14 @@ fills, copy/clone/assign, reshape/flatten/view/transpose, list(), the errors War
 import numpy as np
 import pytest
 
+@pytest.fixture(autouse=True)
+def _cpu_by_default(wp):
+    """These tests are about CPU arrays (zero-copy views): make cpu the default device even
+    where the daemon has a GPU (Warp's default is then cuda:0)."""
+    with wp.ScopedDevice("cpu"):
+        yield
+
+
 SCALAR_NAMES = ["bool", "int8", "int16", "int32", "int64", "uint8", "uint16", "uint32",
                 "uint64", "float16", "float32", "float64"]
 

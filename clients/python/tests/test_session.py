@@ -16,12 +16,21 @@ import pytest
 
 from conftest import _child_env, daemon_binary
 
+@pytest.fixture(autouse=True)
+def _cpu_by_default(wp):
+    """These tests are about CPU arrays (zero-copy views): make cpu the default device even
+    where the daemon has a GPU (Warp's default is then cuda:0)."""
+    with wp.ScopedDevice("cpu"):
+        yield
+
+
 HOLDER = """
 import json, sys
 import numpy as np
 import weft as wp
 import weft._runtime as rt
 wp.init()
+wp.set_device("cpu")
 arrays = [wp.full(8 << 20, float(i), dtype=wp.float32) for i in range(3)]   # 32 MiB each
 small = [wp.zeros(100) for _ in range(10)]
 names = sorted({a._info.shm_name for a in arrays})   # big: slabs of their own
@@ -80,6 +89,7 @@ def test_clean_exit_closes_the_session(weftd, run_client):
     before = weftd.stats()
     run_client("""
         import weft as wp
+        wp.set_device("cpu")
         a = wp.zeros(1 << 20)
         a.fill_(1.0)     # left in the batch: flushed at exit
         """)
@@ -113,19 +123,16 @@ def test_devices_like_warp(wp):
     assert wp.is_cuda_available() == (wp.get_cuda_device_count() > 0)
     for d in wp.get_cuda_devices():
         assert d.is_cuda and d.alias.startswith("cuda:") and d.arch >= 50
-    default = wp.get_device()
-    assert default.alias == ("cuda:0" if wp.is_cuda_available() else "cpu")
-    with wp.ScopedDevice("cpu"):
-        assert wp.get_device() == "cpu"
-        assert wp.zeros(3).device == "cpu"
-    assert wp.get_device() == default
+    preferred = wp.get_preferred_device()
+    assert preferred.alias == ("cuda:0" if wp.is_cuda_available() else "cpu")
+    outer = wp.get_device()          # cpu: this file's autouse scope
+    for alias in [d.alias for d in devices]:
+        with wp.ScopedDevice(alias):
+            assert wp.get_device() == alias
+            assert wp.zeros(3).device == alias
+        assert wp.get_device() == outer
     with pytest.raises(ValueError, match="Invalid device"):
         wp.get_device("tpu:3")
-    wp.set_device("cpu")
-    try:
-        assert wp.get_device().is_cpu
-    finally:
-        wp.set_device(default)
     wp.synchronize_device("cpu")
 
 

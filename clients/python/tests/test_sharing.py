@@ -7,11 +7,20 @@ import json
 import numpy as np
 import pytest
 
+@pytest.fixture(autouse=True)
+def _cpu_by_default(wp):
+    """These tests are about CPU arrays (zero-copy views): make cpu the default device even
+    where the daemon has a GPU (Warp's default is then cuda:0)."""
+    with wp.ScopedDevice("cpu"):
+        yield
+
+
 WRITER = """
 import json, sys
 import numpy as np
 import weft as wp
 wp.init()
+wp.set_device("cpu")
 a = wp.zeros(4096, dtype=wp.float32)
 token = a.ipc_handle()
 view = a.numpy()
@@ -64,6 +73,7 @@ def test_token_dies_with_the_last_holder(run_client, wp):
     proc = run_client("""
         import numpy as np
         import weft as wp
+        wp.set_device("cpu")
         a = wp.array(np.arange(64, dtype=np.int64) * 3)
         print(a.ipc_handle().decode())
         wp.synchronize()
@@ -79,6 +89,7 @@ def test_import_keeps_memory_alive_after_exporter_exits(spawn_client, wp):
         import sys
         import numpy as np
         import weft as wp
+        wp.set_device("cpu")
         a = wp.array(np.arange(64, dtype=np.int64) * 3)
         print(a.ipc_handle().decode(), flush=True)
         sys.stdin.readline()
