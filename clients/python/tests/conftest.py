@@ -12,6 +12,8 @@ Fixtures (any test under clients/python/tests/, kernels/ included, may use them)
              WEFT_ADDRESS) and returns the CompletedProcess; check=True asserts exit 0.
   spawn_client function: like run_client but returns the Popen (stdin/stdout pipes, text);
              processes still alive at the end of the test are killed.
+  client_env function: client_env(overrides) -> environment dict for a child client.
+  daemon_path function: the weftd binary.
 Daemon objects also give .stats() (SessionService.Stats), .shm_files() and .raw_session()
 (bare gRPC stubs with a session of their own, for hand-made requests).
 The daemon binary is $WEFT_DAEMON, else <repo>/build/bin/weftd; tests are skipped with a
@@ -265,6 +267,20 @@ def _child_env(env: dict | None) -> dict:
             else:
                 child[key] = str(value)
     return child
+
+
+@pytest.fixture
+def client_env():
+    """client_env(overrides) -> the environment of a child client: this process's (with
+    WEFT_ADDRESS), the client package on PYTHONPATH, and `overrides` (None removes a key).
+    Test modules cannot import conftest by name (tests/kernels has its own conftest)."""
+    return _child_env
+
+
+@pytest.fixture
+def daemon_path():
+    """The weftd binary the tests run."""
+    return daemon_binary()
 
 
 @pytest.fixture

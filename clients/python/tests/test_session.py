@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import _child_env, daemon_binary
 
 @pytest.fixture(autouse=True)
 def _cpu_by_default(wp):
@@ -136,7 +135,7 @@ def test_devices_like_warp(wp):
     wp.synchronize_device("cpu")
 
 
-def test_init_starts_a_local_daemon_when_none_answers(weftd):
+def test_init_starts_a_local_daemon_when_none_answers(weftd, client_env, daemon_path):
     runtime_dir = tempfile.mkdtemp(prefix="weft-xdg-")
     code = """
 import json, os
@@ -149,8 +148,8 @@ r = rt.get_runtime()
 print(json.dumps({"address": r.address, "daemon_pid": r.daemon_pid,
                   "values": a.numpy().tolist()}))
 """
-    env = _child_env({"WEFT_ADDRESS": None, "WEFT_TOKEN": None,
-                      "XDG_RUNTIME_DIR": runtime_dir, "WEFT_DAEMON": str(daemon_binary())})
+    env = client_env({"WEFT_ADDRESS": None, "WEFT_TOKEN": None,
+                      "XDG_RUNTIME_DIR": runtime_dir, "WEFT_DAEMON": str(daemon_path)})
     proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                           text=True, timeout=90)
     assert proc.returncode == 0, proc.stderr
@@ -173,8 +172,8 @@ print(json.dumps({"address": r.address, "daemon_pid": r.daemon_pid,
                      or "zombie" in Path(f"/proc/{pid}/status").read_text().lower(), 10.0)
 
 
-def test_no_daemon_and_no_binary_is_a_clear_error(weftd, tmp_path):
-    env = _child_env({"WEFT_ADDRESS": None, "XDG_RUNTIME_DIR": str(tmp_path),
+def test_no_daemon_and_no_binary_is_a_clear_error(weftd, tmp_path, client_env):
+    env = client_env({"WEFT_ADDRESS": None, "XDG_RUNTIME_DIR": str(tmp_path),
                       "WEFT_DAEMON": str(tmp_path / "missing-weftd"), "PATH": "/usr/bin:/bin"})
     proc = subprocess.run([sys.executable, "-c", "import weft as wp; wp.init()"], env=env,
                           capture_output=True, text=True, timeout=60)
