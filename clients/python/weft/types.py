@@ -16,7 +16,7 @@ import numpy as np
 
 __all__ = [
     "Any", "bool", "float16", "float32", "float64", "int8", "int16", "int32", "int64",
-    "uint8", "uint16", "uint32", "uint64", "half", "float", "int",
+    "uint8", "uint16", "uint32", "uint64",
     "scalar_types", "float_types", "int_types", "vector_types",
     "vector", "matrix", "quaternion", "transformation",
     "vec2", "vec3", "vec4", "mat22", "mat33", "mat44", "quat", "transform",
