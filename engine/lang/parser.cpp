@@ -3,6 +3,7 @@
 // parse: every rule returns null after it, and ParseFunction turns it into one Diagnostic.
 #include "engine/lang/parser.h"
 
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <set>
@@ -16,6 +17,9 @@ namespace {
 
 constexpr int kMaxExpressionDepth = 1000;  // recursion units (parens, unary chains, ternaries)
 constexpr int kMaxBlockDepth = 100;        // CPython's "too many statically nested blocks"
+// Stack the parser may use below ParseFunctionDef's frame, whatever the frame sizes of this
+// build: deeper input is an error, so a thread with a small stack is still safe.
+constexpr uintptr_t kStackBudgetBytes = 256 * 1024;
 
 using ast::ExprPtr;
 using ast::StmtPtr;
@@ -32,6 +36,7 @@ class Parser {
   // function = decorator* "def" NAME "(" [params] ")" ["->" expression] ":" block EOF
   // decorator = "@" expression NEWLINE
   std::unique_ptr<ast::FunctionDef> ParseFunctionDef() {
+    stack_base_ = reinterpret_cast<uintptr_t>(__builtin_frame_address(0));
     std::vector<std::string> decorators;
     while (IsOp("@")) {
       Next();
@@ -184,11 +189,16 @@ class Parser {
   // Recursion guard for expressions and blocks, so hostile input cannot exhaust the stack.
   class DepthGuard {
    public:
-    DepthGuard(int* depth, int limit) : depth_(depth), over_(++*depth > limit) {}
+    DepthGuard(int* depth, int limit, uintptr_t stack_base)
+        : depth_(depth), over_(++*depth > limit || StackUsed(stack_base) > kStackBudgetBytes) {}
     ~DepthGuard() { --*depth_; }
     bool over() const { return over_; }
 
    private:
+    static uintptr_t StackUsed(uintptr_t base) {
+      const auto here = reinterpret_cast<uintptr_t>(__builtin_frame_address(0));
+      return base > here ? base - here : here - base;
+    }
     int* depth_;
     bool over_;
   };
@@ -246,7 +256,7 @@ class Parser {
   // block left empty by that gets a Pass.
   bool ParseBlock(ast::StmtList* out, const char* construct, uint32_t header_line,
                   std::string* docstring = nullptr) {
-    DepthGuard guard(&block_depth_, kMaxBlockDepth);
+    DepthGuard guard(&block_depth_, kMaxBlockDepth, stack_base_);
     if (guard.over()) {
       Fail(Peek(), "too many statically nested blocks");
       return false;
@@ -659,7 +669,7 @@ class Parser {
 
   // expression = disjunction ["if" disjunction "else" expression] | lambda (rejected)
   ExprPtr ParseExpression() {
-    DepthGuard guard(&expr_depth_, kMaxExpressionDepth);
+    DepthGuard guard(&expr_depth_, kMaxExpressionDepth, stack_base_);
     if (guard.over()) return Fail(Peek(), "expression too deeply nested");
     if (IsKw("lambda")) return RejectLambda(Peek());
     if (IsKw("yield")) return RejectYield(Peek());
@@ -705,7 +715,7 @@ class Parser {
   // inversion = "not" inversion | comparison
   ExprPtr ParseInversion() {
     if (!IsKw("not")) return ParseComparison();
-    DepthGuard guard(&expr_depth_, kMaxExpressionDepth);
+    DepthGuard guard(&expr_depth_, kMaxExpressionDepth, stack_base_);
     if (guard.over()) return Fail(Peek(), "expression too deeply nested");
     auto e = Make<ast::UnaryOp>(Next());
     e->op = ast::UnaryOperator::kNot;
@@ -765,73 +775,64 @@ class Parser {
     return e;
   }
 
-  // One left-associative binary level: operand (op operand)*.
-  struct LevelOp {
-    const char* spelling;
-    ast::BinaryOperator op;
-  };
-  template <size_t N, typename Operand>
-  ExprPtr ParseLeftAssoc(const LevelOp (&ops)[N], Operand operand) {
-    ExprPtr left = (this->*operand)();
+  // The binary levels between comparison and factor, all left-associative (loosest first):
+  //   bitwise_or  = bitwise_xor ("|" bitwise_xor)*
+  //   bitwise_xor = bitwise_and ("^" bitwise_and)*
+  //   bitwise_and = shift_expr ("&" shift_expr)*
+  //   shift_expr  = sum (("<<" | ">>") sum)*
+  //   sum         = term (("+" | "-") term)*
+  //   term        = factor (("*" | "/" | "//" | "%" | "@") factor)*
+  // parsed by precedence climbing, one stack frame per operand instead of one per level.
+  static int BinaryLevel(const Token& t, ast::BinaryOperator* op) {
+    if (t.kind != TokenKind::kOperator) return 0;
+    struct Row {
+      const char* spelling;
+      ast::BinaryOperator op;
+      int level;
+    };
+    static const Row kRows[] = {
+        {"|", ast::BinaryOperator::kBitOr, 1},      {"^", ast::BinaryOperator::kBitXor, 2},
+        {"&", ast::BinaryOperator::kBitAnd, 3},     {"<<", ast::BinaryOperator::kLShift, 4},
+        {">>", ast::BinaryOperator::kRShift, 4},    {"+", ast::BinaryOperator::kAdd, 5},
+        {"-", ast::BinaryOperator::kSub, 5},        {"*", ast::BinaryOperator::kMul, 6},
+        {"/", ast::BinaryOperator::kDiv, 6},        {"//", ast::BinaryOperator::kFloorDiv, 6},
+        {"%", ast::BinaryOperator::kMod, 6},        {"@", ast::BinaryOperator::kMatMul, 6},
+    };
+    for (const Row& r : kRows) {
+      if (t.text == r.spelling) {
+        *op = r.op;
+        return r.level;
+      }
+    }
+    return 0;
+  }
+
+  // Operands joined by binary operators of level >= min_level.
+  ExprPtr ParseBinary(int min_level) {
+    ExprPtr left = ParseFactor();
     if (!left) return nullptr;
     while (true) {
-      const LevelOp* match = nullptr;
-      for (const LevelOp& o : ops) {
-        if (IsOp(o.spelling)) match = &o;
-      }
-      if (!match) return left;
+      ast::BinaryOperator op;
+      const int level = BinaryLevel(Peek(), &op);
+      if (level == 0 || level < min_level) return left;
       const Token& op_tok = Next();
       auto e = std::make_unique<ast::BinOp>();
       e->loc = left->loc;
-      e->op = match->op;
+      e->op = op;
       e->op_loc = Loc(op_tok);
       e->left = std::move(left);
-      e->right = (this->*operand)();
+      e->right = ParseBinary(level + 1);  // left-associative: the right operand binds tighter
       if (!e->right) return nullptr;
       left = std::move(e);
     }
   }
 
-  // bitwise_or  = bitwise_xor ("|" bitwise_xor)*
-  ExprPtr ParseBitwiseOr() {
-    static const LevelOp ops[] = {{"|", ast::BinaryOperator::kBitOr}};
-    return ParseLeftAssoc(ops, &Parser::ParseBitwiseXor);
-  }
-  // bitwise_xor = bitwise_and ("^" bitwise_and)*
-  ExprPtr ParseBitwiseXor() {
-    static const LevelOp ops[] = {{"^", ast::BinaryOperator::kBitXor}};
-    return ParseLeftAssoc(ops, &Parser::ParseBitwiseAnd);
-  }
-  // bitwise_and = shift_expr ("&" shift_expr)*
-  ExprPtr ParseBitwiseAnd() {
-    static const LevelOp ops[] = {{"&", ast::BinaryOperator::kBitAnd}};
-    return ParseLeftAssoc(ops, &Parser::ParseShift);
-  }
-  // shift_expr = sum (("<<" | ">>") sum)*
-  ExprPtr ParseShift() {
-    static const LevelOp ops[] = {{"<<", ast::BinaryOperator::kLShift},
-                                  {">>", ast::BinaryOperator::kRShift}};
-    return ParseLeftAssoc(ops, &Parser::ParseSum);
-  }
-  // sum = term (("+" | "-") term)*
-  ExprPtr ParseSum() {
-    static const LevelOp ops[] = {{"+", ast::BinaryOperator::kAdd},
-                                  {"-", ast::BinaryOperator::kSub}};
-    return ParseLeftAssoc(ops, &Parser::ParseTerm);
-  }
-  // term = factor (("*" | "/" | "//" | "%" | "@") factor)*
-  ExprPtr ParseTerm() {
-    static const LevelOp ops[] = {{"*", ast::BinaryOperator::kMul},
-                                  {"/", ast::BinaryOperator::kDiv},
-                                  {"//", ast::BinaryOperator::kFloorDiv},
-                                  {"%", ast::BinaryOperator::kMod},
-                                  {"@", ast::BinaryOperator::kMatMul}};
-    return ParseLeftAssoc(ops, &Parser::ParseFactor);
-  }
+  // bitwise_or (the loosest binary level; also the for-loop target's level)
+  ExprPtr ParseBitwiseOr() { return ParseBinary(1); }
 
   // factor = ("+" | "-" | "~") factor | power
   ExprPtr ParseFactor() {
-    DepthGuard guard(&expr_depth_, kMaxExpressionDepth);
+    DepthGuard guard(&expr_depth_, kMaxExpressionDepth, stack_base_);
     if (guard.over()) return Fail(Peek(), "expression too deeply nested");
     ast::UnaryOperator op;
     if (IsOp("+")) op = ast::UnaryOperator::kPlus;
@@ -1088,6 +1089,7 @@ class Parser {
   int expr_depth_ = 0;
   int block_depth_ = 0;
   int loop_depth_ = 0;  // enclosing for/while loops, for "'break' outside loop"
+  uintptr_t stack_base_ = 0;
   bool failed_ = false;
   TextPosition error_pos_;
   std::string error_message_;

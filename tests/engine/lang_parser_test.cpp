@@ -619,9 +619,19 @@ TEST(LangParser, DeepNestingIsAnErrorNotACrash) {
   auto r4 = ParseFunction(Source(ifs), nullptr);
   ASSERT_FALSE(r4.ok());
   EXPECT_NE(r4.status().message().find("too many statically nested blocks"), std::string::npos);
-  // Reasonable nesting still parses.
-  EXPECT_TRUE(MustParse("def f():\n    return " + std::string(150, '(') + "x" +
-                        std::string(150, ')') + "\n"));
+  // Reasonable nesting still parses (the parser's stack budget is 256 KiB, see parser.cpp).
+  EXPECT_TRUE(MustParse("def f():\n    return " + std::string(50, '(') + "x" +
+                        std::string(50, ')') + "\n"));
+  std::string calls = "def f():\n    return ";
+  for (int i = 0; i < 25; ++i) calls += "g(a[";
+  calls += "x";
+  for (int i = 0; i < 25; ++i) calls += "])";
+  EXPECT_TRUE(MustParse(calls + "\n"));
+  // Far deeper than the budget allows: an error at the point where it ran out, never a crash.
+  std::string deep_calls = "def f():\n    return ";
+  for (int i = 0; i < 99; ++i) deep_calls += "g(a[";
+  auto r5 = ParseFunction(Source(deep_calls + "x" + std::string(99, ']') + "\n"), nullptr);
+  EXPECT_FALSE(r5.ok());
 }
 
 TEST(LangParser, RandomMutationsGiveSuccessOrExactlyOneDiagnostic) {
