@@ -1,4 +1,4 @@
-// CommandBatch: an ordered list of copy / fill / launch commands.
+// CommandBatch: an ordered list of copy / fill / launch / tape commands.
 #include "weft/client/commands.h"
 
 namespace weft {
@@ -17,6 +17,11 @@ CommandBatch& CommandBatch::Fill(ArrayView dst, std::vector<std::byte> value,
 
 CommandBatch& CommandBatch::Launch(LaunchSpec launch, CommandOrigin origin) {
   commands_.push_back(Command{std::move(launch), std::move(origin)});
+  return *this;
+}
+
+CommandBatch& CommandBatch::Tape(TapeOp op, CommandOrigin origin) {
+  commands_.push_back(Command{std::move(op), std::move(origin)});
   return *this;
 }
 

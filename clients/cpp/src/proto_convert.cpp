@@ -99,6 +99,16 @@ void ToProto(const Command& in, v1::Command* out) {
           ToProto(op.dst, out->mutable_fill()->mutable_dst());
           out->mutable_fill()->set_value(reinterpret_cast<const char*>(op.value.data()),
                                          op.value.size());
+        } else if constexpr (std::is_same_v<T, TapeOp>) {
+          auto* t = out->mutable_tape();
+          t->set_op(static_cast<v1::TapeCommand::Op>(op.kind));
+          t->set_tape_id(op.tape_id);
+          if (op.loss.handle != 0) ToProto(op.loss, t->mutable_loss());
+          for (const auto& seed : op.seeds) {
+            auto* ps = t->add_seeds();
+            ToProto(seed.array, ps->mutable_array());
+            ToProto(seed.grad, ps->mutable_grad());
+          }
         } else {
           auto* l = out->mutable_launch();
           l->set_module_id(op.module_id);

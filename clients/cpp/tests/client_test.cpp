@@ -1006,6 +1006,93 @@ TEST_F(ClientTest, DaemonRefusesBadRequests) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Kernels: compile a module from C++ and launch it.
+
+const char* kSaxpySource =
+    "def saxpy(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):\n"
+    "    i = wp.tid()\n"
+    "    y[i] = a * x[i] + y[i] + OFFSET\n";
+
+weft::ModuleDef SaxpyModule() {
+  weft::ModuleDef m;
+  m.name = "client_test_saxpy";
+  m.AddKernel("saxpy", kSaxpySource, {"x", "y", "a"},
+              {"array(float32,1)", "array(float32,1)", "float32"});
+  m.functions.back().file = "client_test_kernels.py";
+  m.functions.back().first_line = 10;
+  m.AddConstant("OFFSET", "float32", "0.5");
+  return m;
+}
+
+TEST_F(ClientTest, CompilesAndLaunchesAKernel) {
+  auto compiled = client_.Compile(SaxpyModule(), "cpu");
+  ASSERT_OK_E(compiled);
+  EXPECT_FALSE(compiled->module_id.empty());
+  const weft::KernelInfo* k = compiled->Find("saxpy");
+  ASSERT_NE(k, nullptr);
+  ASSERT_EQ(k->params.size(), 3u);
+  EXPECT_EQ(k->params[0].name, "x");
+  EXPECT_EQ(k->params[2].type, "float32");
+
+  const int64_t n = 1000;
+  auto xs = RandomValues<float>(rng_, n);
+  auto ys = RandomValues<float>(rng_, n);
+  auto x = client_.FromData<float>(xs);
+  auto y = client_.FromData<float>(ys);
+  ASSERT_OK_E(x);
+  ASSERT_OK_E(y);
+  const float a = 1.75f;
+  weft::LaunchSpec launch;
+  launch.module_id = compiled->module_id;
+  launch.kernel = "saxpy";
+  launch.dim = {n};
+  launch.args = {x->view(), y->view(), weft::ArgBytes(a)};
+  ASSERT_OK(client_.Launch(launch, {"client_test.cpp", 1}));
+  ASSERT_OK(client_.Launch(launch, {"client_test.cpp", 2}));   // twice: y = a*x + (a*x + y + .5) + .5
+  auto got = y->ToVector<float>();
+  ASSERT_OK_E(got);
+  for (int64_t i = 0; i < n; ++i) {
+    const double once = static_cast<double>(a) * xs[i] + ys[i] + 0.5;
+    const double ref = static_cast<double>(a) * xs[i] + once + 0.5;
+    ASSERT_NEAR((*got)[i], ref, 1e-5 * (std::abs(ref) + 1.0)) << i;
+  }
+
+  // The second compile of the same module is a cache hit with the same id.
+  auto again = client_.Compile(SaxpyModule(), "cpu");
+  ASSERT_OK_E(again);
+  EXPECT_EQ(again->module_id, compiled->module_id);
+  EXPECT_TRUE(again->cache_hit);
+
+  // An out-of-bounds launch is reported at the sync, with the origin; y is unchanged after.
+  auto before = y->ToVector<float>();
+  ASSERT_OK_E(before);
+  launch.dim = {n + 5};
+  ASSERT_OK(client_.Launch(launch, {"client_test.cpp", 3}));
+  const weft::Status s = client_.Synchronize();
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("saxpy"), std::string::npos) << s.ToString();
+}
+
+TEST_F(ClientTest, CompileErrorsNameTheUsersLine) {
+  weft::ModuleDef m;
+  m.name = "client_test_broken";
+  m.AddKernel("broken",
+              "def broken(x: wp.array(dtype=float)):\n"
+              "    i = wp.tid()\n"
+              "    x[i] = undefined_name * 2.0\n",
+              {"x"}, {"array(float32,1)"});
+  m.functions.back().file = "broken_kernels.py";
+  m.functions.back().first_line = 40;
+  auto compiled = client_.Compile(m, "cpu");
+  ASSERT_FALSE(compiled.ok());
+  EXPECT_EQ(compiled.status().code(), weft::StatusCode::kInvalidArgument);
+  EXPECT_NE(compiled.status().message().find("broken_kernels.py:42"), std::string::npos)
+      << compiled.status().ToString();
+  EXPECT_NE(compiled.status().message().find("undefined_name"), std::string::npos)
+      << compiled.status().ToString();
+}
+
+// ---------------------------------------------------------------------------------------------
 // TCP with a token: a remote-style client.
 
 class TcpClientTest : public ::testing::Test {

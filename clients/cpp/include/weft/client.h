@@ -8,4 +8,5 @@
 #include "weft/client/dtype.h"
 #include "weft/client/module.h"
 #include "weft/client/status.h"
+#include "weft/client/tape.h"
 #include "weft/client/types.h"

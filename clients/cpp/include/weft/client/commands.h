@@ -1,4 +1,4 @@
-// Ordered device commands (copy, fill, kernel launch) and the array views they name. The client
+// Ordered device commands (copy, fill, kernel launch, tape) and the array views they name. The client
 // queues commands and sends them in one ExecService.Submit per batch; they run in order on the
 // session's stream, and a failing command is reported by the next Client::Synchronize.
 #pragma once
@@ -54,8 +54,18 @@ struct CommandOrigin {
 struct CopyOp { ArrayView dst; ArrayView src; };
 struct FillOp { ArrayView dst; std::vector<std::byte> value; };   // one element's bytes
 
+// Autodiff tape operations (weft.v1.TapeCommand); weft::Tape issues them for you.
+struct TapeOp {
+  enum class Kind { kBegin = 0, kEnd = 1, kBackward = 2, kZero = 3, kReset = 4, kFree = 5 };
+  Kind kind = Kind::kBegin;
+  std::uint64_t tape_id = 0;
+  ArrayView loss;                            // kBackward: every element of loss's gradient = 1
+  struct Seed { ArrayView array; ArrayView grad; };
+  std::vector<Seed> seeds;                   // kBackward: grad copied into array's gradient
+};
+
 struct Command {
-  std::variant<CopyOp, FillOp, LaunchSpec> op;
+  std::variant<CopyOp, FillOp, LaunchSpec, TapeOp> op;
   CommandOrigin origin;
 };
 
@@ -65,6 +75,7 @@ class CommandBatch {
   CommandBatch& Copy(ArrayView dst, ArrayView src, CommandOrigin origin = {});
   CommandBatch& Fill(ArrayView dst, std::vector<std::byte> value, CommandOrigin origin = {});
   CommandBatch& Launch(LaunchSpec launch, CommandOrigin origin = {});
+  CommandBatch& Tape(TapeOp op, CommandOrigin origin = {});
 
   const std::vector<Command>& commands() const { return commands_; }
   std::vector<Command>& commands() { return commands_; }
