@@ -1073,6 +1073,63 @@ TEST_F(ClientTest, CompilesAndLaunchesAKernel) {
   EXPECT_NE(s.message().find("saxpy"), std::string::npos) << s.ToString();
 }
 
+TEST_F(ClientTest, TapeBackwardGivesTheGradient) {
+  weft::ModuleDef m;
+  m.name = "client_test_tape";
+  m.AddKernel("sum_of_squares",
+              "def sum_of_squares(x: wp.array(dtype=float), loss: wp.array(dtype=float)):\n"
+              "    i = wp.tid()\n"
+              "    wp.atomic_add(loss, 0, x[i] * x[i] * SCALE)\n",
+              {"x", "loss"}, {"array(float32,1)", "array(float32,1)"});
+  m.AddConstant("SCALE", "float32", "3.0");
+  auto compiled = client_.Compile(m, "cpu");
+  ASSERT_OK_E(compiled);
+
+  const int64_t n = 257;
+  std::vector<float> xs(n);
+  std::uniform_real_distribution<float> dist(-2.0f, 2.0f);
+  for (auto& v : xs) v = dist(rng_);
+  weft::ArrayOptions grad;
+  grad.requires_grad = true;
+  auto x = client_.FromData<float>(xs, {}, grad);
+  auto loss = client_.Zeros(weft::dtypes::float32(), {1}, grad);
+  ASSERT_OK_E(x);
+  ASSERT_OK_E(loss);
+
+  weft::LaunchSpec launch;
+  launch.module_id = compiled->module_id;
+  launch.kernel = "sum_of_squares";
+  launch.dim = {n};
+  launch.args = {x->view(), loss->view()};
+  weft::Tape tape(client_);
+  ASSERT_OK(tape.Begin());
+  ASSERT_OK(client_.Launch(launch, {"client_test.cpp", 100}));
+  ASSERT_OK(tape.End());
+  ASSERT_OK(tape.Backward(*loss));
+  ASSERT_OK(client_.Synchronize());
+
+  double ref_loss = 0;
+  for (float v : xs) ref_loss += 3.0 * double(v) * v;
+  auto l = loss->ToVector<float>();
+  ASSERT_OK_E(l);
+  EXPECT_NEAR((*l)[0], ref_loss, 1e-4 * ref_loss);
+  auto gx = x->Grad();
+  ASSERT_OK_E(gx);
+  auto g = gx->ToVector<float>();
+  ASSERT_OK_E(g);
+  for (int64_t i = 0; i < n; ++i) ASSERT_NEAR((*g)[i], 6.0 * xs[i], 1e-5) << i;
+
+  // Zero clears the gradients; a second backward gives the same gradient again.
+  ASSERT_OK(tape.Zero());
+  g = gx->ToVector<float>();
+  ASSERT_OK_E(g);
+  EXPECT_EQ(*g, std::vector<float>(n, 0.0f));
+  ASSERT_OK(tape.Backward(*loss));
+  g = gx->ToVector<float>();
+  ASSERT_OK_E(g);
+  for (int64_t i = 0; i < n; ++i) ASSERT_NEAR((*g)[i], 6.0 * xs[i], 1e-5) << i;
+}
+
 TEST_F(ClientTest, CompileErrorsNameTheUsersLine) {
   weft::ModuleDef m;
   m.name = "client_test_broken";
