@@ -183,3 +183,11 @@ def test_array_annotations_need_no_daemon():
     assert types.type_str(wp.array2d(dtype=wp.int8)) == "array(int8,2)"
     assert types.type_str(wp.array(dtype=wp.Any)) == "array(any,1)"
     assert wp.array(dtype=float)._ref().handle == 0
+
+
+def test_bracket_array_annotations():
+    alias = wp.array[wp.vec3]
+    assert alias.__origin__ is wp.array and alias.__args__ == (wp.vec3,)
+    alias2 = wp.array2d[float]
+    assert alias2.__origin__._default_ndim_ == 2 and alias2.__args__ == (float,)
+    assert types.type_str(wp.array4d(dtype=wp.mat22)) == "array(mat(2,2,float32),4)"

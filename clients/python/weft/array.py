@@ -13,6 +13,7 @@ Internal interface for weft._kernel: `a._handle`, `a._ref()` -> types_pb2.ArrayR
 from __future__ import annotations
 
 import math
+import types as _types_module
 from typing import Any
 
 import numpy as np
@@ -329,6 +330,12 @@ def _create(dtype, shape, device, requires_grad, init, value=b""):
 
 class array:
     """A multi-dimensional array in weftd memory (Warp's wp.array)."""
+
+    _default_ndim_ = 1
+
+    def __class_getitem__(cls, dtype):
+        # wp.array[float] as an annotation: a typing alias (origin array, args (dtype,)).
+        return _types_module.GenericAlias(cls, (dtype,))
 
     # -- construction
     def __init__(self, data=None, dtype: Any = Any, shape=None, strides=None, length=None,
@@ -792,24 +799,31 @@ def _struct_bytes(dtype, value) -> bytes:
     raise TypeError(f"Cannot fill an array of {type_str(dtype)} with {value!r}")
 
 
-def array1d(*args, **kwargs):
-    kwargs["ndim"] = 1
-    return array(*args, **kwargs)
+class _ArrayOfDim:
+    """wp.array1d..array4d: call like wp.array with that ndim, or subscript for annotations
+    (wp.array2d[float] is a typing alias with origin array2d and args (float,))."""
+
+    def __init__(self, ndim: int):
+        self._default_ndim_ = ndim
+        self.ndim = ndim
+        self.__name__ = self.__qualname__ = f"array{ndim}d"
+        self.__doc__ = f"An array with {ndim} dimension(s): wp.array(..., ndim={ndim})."
+
+    def __call__(self, *args, **kwargs):
+        kwargs["ndim"] = self._default_ndim_
+        return array(*args, **kwargs)
+
+    def __getitem__(self, dtype):
+        return _types_module.GenericAlias(self, (dtype,))
+
+    def __repr__(self):
+        return f"<weft {self.__name__}>"
 
 
-def array2d(*args, **kwargs):
-    kwargs["ndim"] = 2
-    return array(*args, **kwargs)
-
-
-def array3d(*args, **kwargs):
-    kwargs["ndim"] = 3
-    return array(*args, **kwargs)
-
-
-def array4d(*args, **kwargs):
-    kwargs["ndim"] = 4
-    return array(*args, **kwargs)
+array1d = _ArrayOfDim(1)
+array2d = _ArrayOfDim(2)
+array3d = _ArrayOfDim(3)
+array4d = _ArrayOfDim(4)
 
 
 # ------------------------------------------------------------------------------------------
