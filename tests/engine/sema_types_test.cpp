@@ -1,0 +1,95 @@
+// Type representation: canonical strings both ways (and Warp's short names), C++ spellings,
+// sizes and alignments of kernel argument types, literal spelling.
+#include <gtest/gtest.h>
+
+#include "engine/sema/types.h"
+
+namespace weft::sema {
+namespace {
+
+TEST(SemaTypes, CanonicalStringsRoundTrip) {
+  for (const char* s : {"bool", "int8", "uint64", "float16", "float32", "float64", "vec(3,float32)", "vec(17,int32)",
+                        "mat(3,4,float64)", "quat(float16)", "transform(float32)", "array(float32,1)",
+                        "array(vec(3,float32),4)", "array(mat(2,2,float64),2)", "struct(mymod.Particle)",
+                        "array(struct(m.S),1)", "any", "array(any,1)"}) {
+    auto t = ParseType(s);
+    ASSERT_TRUE(t.ok()) << s << ": " << t.status().message();
+    EXPECT_EQ(TypeString(*t), s);
+  }
+}
+
+TEST(SemaTypes, WarpAliases) {
+  struct Case {
+    const char* in;
+    const char* canonical;
+  } cases[] = {{"float", "float32"},          {"int", "int32"},
+               {"vec3", "vec(3,float32)"},    {"vec3d", "vec(3,float64)"},
+               {"vec2i", "vec(2,int32)"},     {"vec4ub", "vec(4,uint8)"},
+               {"mat33", "mat(3,3,float32)"}, {"mat44d", "mat(4,4,float64)"},
+               {"quatf", "quat(float32)"},    {"quat", "quat(float32)"},
+               {"transformd", "transform(float64)"}, {"spatial_vector", "vec(6,float32)"},
+               {"spatial_matrixd", "mat(6,6,float64)"}, {"spatial_vector(float64)", "vec(6,float64)"}};
+  for (const auto& c : cases) {
+    auto t = ParseType(c.in);
+    ASSERT_TRUE(t.ok()) << c.in;
+    EXPECT_EQ(TypeString(*t), c.canonical) << c.in;
+  }
+}
+
+TEST(SemaTypes, BadStringsAreErrorsNotCrashes) {
+  for (const char* s : {"", "vec(", "vec(3)", "vec(3,float)", "vec(0,float32)", "mat(3,float32)", "array(float32,5)",
+                        "array(array(float32,1),1)", "struct()", "float33", "vec(3,float32)x", "quat(int32",
+                        "array(float32,99999999999)", "vec(-1,float32)"}) {
+    auto t = ParseType(s);
+    EXPECT_FALSE(t.ok()) << s;
+  }
+}
+
+TEST(SemaTypes, CppSpellings) {
+  EXPECT_EQ(CppType(*ParseType("vec(3,float32)")), "wp::vec_t<3,wp::float32>");
+  EXPECT_EQ(CppType(*ParseType("mat(2,3,float64)")), "wp::mat_t<2,3,wp::float64>");
+  EXPECT_EQ(CppType(*ParseType("array(quat(float32),2)")), "wp::array_t<wp::quat_t<wp::float32>>");
+  EXPECT_EQ(CppType(*ParseType("bool")), "bool");
+  EXPECT_EQ(CppType(*ParseType("float16")), "wp::float16");
+  EXPECT_EQ(CppType(*ParseType("struct(a.B)")), "wp::weft_struct_a_B");
+}
+
+TEST(SemaTypes, Layouts) {
+  StructTable structs;
+  StructInfo inner{"m.Inner", StructCppName("m.Inner"), {{"k", Type::Scalar(ScalarKind::kInt8)}, {"d", Type::Scalar(ScalarKind::kFloat64)}}};
+  StructInfo outer{"m.Outer", StructCppName("m.Outer"),
+                   {{"flag", Type::Bool()}, {"in", Type::Struct("m.Inner")}, {"a", Type::Array(Type::Float32(), 1)},
+                    {"h", Type::Scalar(ScalarKind::kFloat16)}}};
+  structs["m.Inner"] = inner;
+  structs["m.Outer"] = outer;
+  auto l = [&](const Type& t) { return *LayoutOf(t, structs); };
+  EXPECT_EQ(l(Type::Bool()).size, 1u);
+  EXPECT_EQ(l(Type::Scalar(ScalarKind::kFloat16)).size, 2u);
+  EXPECT_EQ(l(Type::Vector(3, ScalarKind::kFloat32)).size, 12u);
+  EXPECT_EQ(l(Type::Vector(3, ScalarKind::kFloat32)).align, 4u);
+  EXPECT_EQ(l(Type::Matrix(3, 3, ScalarKind::kFloat64)).size, 72u);
+  EXPECT_EQ(l(Type::Quat(ScalarKind::kFloat32)).size, 16u);
+  EXPECT_EQ(l(Type::Transform(ScalarKind::kFloat64)).size, 56u);
+  EXPECT_EQ(l(Type::Array(Type::Vector(3, ScalarKind::kFloat32), 2)).size, 88u);
+  EXPECT_EQ(l(Type::Array(Type::Vector(3, ScalarKind::kFloat32), 2)).align, 8u);
+  EXPECT_EQ(l(Type::Struct("m.Inner")).size, 16u);  // int8 @0, float64 @8
+  EXPECT_EQ(l(Type::Struct("m.Inner")).align, 8u);
+  EXPECT_EQ(l(Type::Struct("m.Outer")).size, 8u + 16u + 88u + 8u);  // bool, pad, Inner @8, array @24, half @112 -> 120
+  EXPECT_FALSE(LayoutOf(Type::Struct("nope"), structs).ok());
+  EXPECT_FALSE(LayoutOf(Type::Any(), structs).ok());
+}
+
+TEST(SemaTypes, Predicates) {
+  EXPECT_TRUE(IsFloat(ScalarKind::kFloat16));
+  EXPECT_FALSE(IsFloat(ScalarKind::kInt64));
+  EXPECT_TRUE(IsInt(ScalarKind::kUInt8));
+  EXPECT_FALSE(IsInt(ScalarKind::kBool));
+  EXPECT_TRUE(IsDifferentiable(Type::Vector(3, ScalarKind::kFloat64)));
+  EXPECT_FALSE(IsDifferentiable(Type::Vector(3, ScalarKind::kInt32)));
+  EXPECT_FALSE(IsDifferentiable(Type::Array(Type::Float32(), 1)));
+  EXPECT_TRUE(ContainsAny(*ParseType("array(any,2)")));
+  EXPECT_FALSE(ContainsAny(*ParseType("array(float32,2)")));
+}
+
+}  // namespace
+}  // namespace weft::sema
