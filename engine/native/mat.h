@@ -253,7 +253,7 @@ WP_FUNC vec_t<R, T> mul(const mat_t<R, C, T>& m, const vec_t<C, T>& v) {
   vec_t<R, T> r;
   for (unsigned i = 0; i < R; ++i) {
     T s = T(0);
-    for (unsigned j = 0; j < C; ++j) s = T(s + m.data[i][j] * v.c[j]);
+    for (unsigned j = 0; j < C; ++j) s = add(s, mul(m.data[i][j], v.c[j]));
     r.c[i] = s;
   }
   return r;
@@ -263,7 +263,7 @@ WP_FUNC vec_t<C, T> mul(const vec_t<R, T>& v, const mat_t<R, C, T>& m) {
   vec_t<C, T> r;
   for (unsigned j = 0; j < C; ++j) {
     T s = T(0);
-    for (unsigned i = 0; i < R; ++i) s = T(s + v.c[i] * m.data[i][j]);
+    for (unsigned i = 0; i < R; ++i) s = add(s, mul(v.c[i], m.data[i][j]));
     r.c[j] = s;
   }
   return r;
@@ -274,7 +274,7 @@ WP_FUNC mat_t<R, C, T> mul(const mat_t<R, K, T>& a, const mat_t<K, C, T>& b) {
   for (unsigned i = 0; i < R; ++i)
     for (unsigned j = 0; j < C; ++j) {
       T s = T(0);
-      for (unsigned k = 0; k < K; ++k) s = T(s + a.data[i][k] * b.data[k][j]);
+      for (unsigned k = 0; k < K; ++k) s = add(s, mul(a.data[i][k], b.data[k][j]));
       r.data[i][j] = s;
     }
   return r;
@@ -314,26 +314,26 @@ WP_FUNC mat_t<C, R, T> transpose(const mat_t<R, C, T>& a) {
 template <unsigned N, typename T>
 WP_FUNC T trace(const mat_t<N, N, T>& a) {
   T s = T(0);
-  for (unsigned i = 0; i < N; ++i) s = T(s + a.data[i][i]);
+  for (unsigned i = 0; i < N; ++i) s = add(s, a.data[i][i]);
   return s;
 }
 template <unsigned R, unsigned C, typename T>
 WP_FUNC T ddot(const mat_t<R, C, T>& a, const mat_t<R, C, T>& b) {
   T s = T(0);
   for (unsigned i = 0; i < R; ++i)
-    for (unsigned j = 0; j < C; ++j) s = T(s + a.data[i][j] * b.data[i][j]);
+    for (unsigned j = 0; j < C; ++j) s = add(s, mul(a.data[i][j], b.data[i][j]));
   return s;
 }
 template <unsigned R, unsigned C, typename T>
 WP_FUNC mat_t<R, C, T> outer(const vec_t<R, T>& a, const vec_t<C, T>& b) {
   mat_t<R, C, T> r;
   for (unsigned i = 0; i < R; ++i)
-    for (unsigned j = 0; j < C; ++j) r.data[i][j] = T(a.c[i] * b.c[j]);
+    for (unsigned j = 0; j < C; ++j) r.data[i][j] = mul(a.c[i], b.c[j]);
   return r;
 }
 template <typename T>
 WP_FUNC mat_t<3, 3, T> skew(const vec_t<3, T>& v) {
-  return mat_t<3, 3, T>(T(0), T(-v.c[2]), v.c[1], v.c[2], T(0), T(-v.c[0]), T(-v.c[1]), v.c[0], T(0));
+  return mat_t<3, 3, T>(T(0), neg(v.c[2]), v.c[1], v.c[2], T(0), neg(v.c[0]), neg(v.c[1]), v.c[0], T(0));
 }
 template <unsigned R, unsigned C, typename T>
 WP_FUNC mat_t<R, C, T> lerp(const mat_t<R, C, T>& a, const mat_t<R, C, T>& b, T t) {

@@ -195,7 +195,7 @@ template <unsigned N, typename T> WP_FUNC bool operator!=(const vec_t<N, T>& a, 
 template <unsigned N, typename T>
 WP_FUNC T dot(const vec_t<N, T>& a, const vec_t<N, T>& b) {
   T r = T(0);
-  for (unsigned i = 0; i < N; ++i) r = T(r + a.c[i] * b.c[i]);
+  for (unsigned i = 0; i < N; ++i) r = add(r, mul(a.c[i], b.c[i]));  // wraps for integers
   return r;
 }
 template <unsigned N, typename T>
@@ -211,8 +211,8 @@ WP_FUNC vec_t<N, T> normalize(const vec_t<N, T>& a) {
 }
 template <typename T>
 WP_FUNC vec_t<3, T> cross(const vec_t<3, T>& a, const vec_t<3, T>& b) {
-  return vec_t<3, T>(T(a.c[1] * b.c[2] - a.c[2] * b.c[1]), T(a.c[2] * b.c[0] - a.c[0] * b.c[2]),
-                     T(a.c[0] * b.c[1] - a.c[1] * b.c[0]));
+  return vec_t<3, T>(sub(mul(a.c[1], b.c[2]), mul(a.c[2], b.c[1])), sub(mul(a.c[2], b.c[0]), mul(a.c[0], b.c[2])),
+                     sub(mul(a.c[0], b.c[1]), mul(a.c[1], b.c[0])));
 }
 template <unsigned N, typename T>
 WP_FUNC T min(const vec_t<N, T>& a) {

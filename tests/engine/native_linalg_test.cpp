@@ -121,6 +121,10 @@ TEST(NativeLinalg, VectorOps) {
   wp::vec_t<2, wp::int32> iv(2147483647, 5), jv(1, 3);
   EXPECT_EQ(wp::add(iv, jv), (wp::vec_t<2, wp::int32>(-2147483647 - 1, 8)));
   EXPECT_EQ(wp::bit_and(iv, jv), (wp::vec_t<2, wp::int32>(1, 1)));
+  EXPECT_EQ(wp::dot(iv, wp::vec_t<2, wp::int32>(2, 1)), 3);  // 2 * INT_MAX wraps to -2, + 5
+  wp::mat_t<2, 2, wp::int32> im(2147483647, 1, 0, 1);
+  EXPECT_EQ(wp::mul(im, wp::vec_t<2, wp::int32>(2, 0)), (wp::vec_t<2, wp::int32>(-2, 0)));
+  EXPECT_EQ(wp::div(iv, wp::int32(0)), (wp::vec_t<2, wp::int32>(0, 0)));  // no trap
 }
 
 TEST(NativeLinalg, MatrixOps) {
