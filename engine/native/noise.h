@@ -43,8 +43,15 @@ WP_FUNC float32 perlin(uint32 seed, const float32* p, const int32* period, float
   int32 x0[D];
   float32 f[D], s[D], ds[D];
   for (int k = 0; k < D; ++k) {
+    if (!isfinite(p[k])) {  // NaN / inf input: NaN out (no out-of-range float->int conversion)
+      if (grad)
+        for (int j = 0; j < D; ++j) grad[j] = bits_to_float(0x7fc00000u);
+      return bits_to_float(0x7fc00000u);
+    }
     float32 fl = floor(p[k]);
-    x0[k] = (int32)fl;
+    // The lattice index wraps modulo 2^32 (float -> int64 is defined for |fl| < 2^63).
+    float32 clamped = fl > 9.0e18f ? 9.0e18f : (fl < -9.0e18f ? -9.0e18f : fl);
+    x0[k] = (int32)(uint32)(uint64)(int64)clamped;
     f[k] = p[k] - fl;
     s[k] = noise_smootherstep(f[k]);
     ds[k] = noise_smootherstep_grad(f[k]);

@@ -400,6 +400,10 @@ TEST(NativeNoise, ValuesGradientsAndPeriods) {
   }
   EXPECT_LT(mn, -0.2);
   EXPECT_GT(mx, 0.2);
+  // Non-finite and huge inputs: NaN out for NaN/inf, finite for huge (the lattice wraps).
+  EXPECT_TRUE(std::isnan(wp::noise(seed, NAN)));
+  EXPECT_TRUE(std::isnan(wp::noise(seed, wp::vec_t<3, float>(INFINITY, 0.0f, 0.0f))));
+  EXPECT_TRUE(std::isfinite(wp::noise(seed, wp::vec_t<2, float>(3e30f, -1e20f))));
   // Zero at lattice points, continuous, deterministic per seed, different across seeds.
   EXPECT_EQ(wp::noise(seed, 3.0f), 0.0f);
   EXPECT_NEAR(wp::noise(seed, 2.5f), wp::noise(seed, 2.5f + 1e-5f), 1e-4f);
