@@ -134,7 +134,8 @@ WP_FUNC float64 lgamma_pos(float64 x) {
   float64 series = ix * (1.0 / 12.0 - ix2 * (1.0 / 360.0 - ix2 * (1.0 / 1260.0 - ix2 / 1680.0)));
   return shift + (x - 0.5) * log(x) - x + 0.91893853320467274178 + series;
 }
-// Poisson(lam): multiplication method for lam < 10, Hormann's PTRS rejection above.
+// Poisson(lam): multiplication method for lam < 10, Hormann's PTRS rejection up to 1e9, the
+// normal approximation above (saturating at 2^32 - 1; inf gives 2^32 - 1, NaN or lam <= 0 give 0).
 WP_FUNC uint32 poisson(uint32& state, float32 lam) {
   if (!(lam > 0.0f)) return 0;
   if (lam < 10.0f) {
@@ -145,6 +146,10 @@ WP_FUNC uint32 poisson(uint32& state, float32 lam) {
       if (p <= limit) return k;
       ++k;
     }
+  }
+  if (!(lam < 1.0e9f)) {  // huge (or inf): the normal approximation, saturated to uint32
+    float64 k = floor((float64)lam + sqrt((float64)lam) * (float64)randn(state) + 0.5);
+    return k >= 4294967295.0 || !(k == k) ? 4294967295u : (k <= 0.0 ? 0u : (uint32)k);
   }
   float64 l = lam, slam = sqrt(l), loglam = log(l);
   float64 b = 0.931 + 2.53 * slam;

@@ -367,6 +367,9 @@ TEST(NativeRandom, MatchesWarpStreamAndDistributions) {
     EXPECT_NEAR(var / lam, 1.0, 0.05) << lam;
   }
   EXPECT_EQ(wp::poisson(s, 0.0f), 0u);
+  EXPECT_EQ(wp::poisson(s, NAN), 0u);
+  EXPECT_EQ(wp::poisson(s, INFINITY), 4294967295u);  // terminates
+  EXPECT_NEAR(wp::poisson(s, 2e9f), 2e9, 5 * std::sqrt(2e9));
 
   // sample_cdf / lower_bound.
   std::vector<float> cdf = {0.1f, 0.4f, 1.0f};
