@@ -294,12 +294,28 @@ std::string BuiltinRegistry::Markdown() const {
       group = r.group;
       out += "\n## " + group + "\n\n| signature | adjoint | description |\n|---|---|---|\n";
     }
-    std::string sig = r.signature;
-    std::string esc;
-    for (char c : sig) esc += c == '|' ? std::string("\\|") : std::string(1, c);
-    out += "| `" + esc + "` | " + (r.differentiable() ? "`wp::" + r.adjoint + "`" : std::string("-")) +
-           " | " + r.doc + " |\n";
+    auto esc = [](const std::string& s) {
+      std::string e;
+      for (char c : s) e += c == '|' ? std::string("\\|") : std::string(1, c);
+      return e;
+    };
+    out += "| `" + esc(r.signature) + "` | " + (r.differentiable() ? "`wp::" + r.adjoint + "`" : std::string("-")) +
+           " | " + esc(r.doc) + " |\n";
   }
+  out +=
+      "\n## Language-level builtins (rules in engine/sema/check_expr.cpp)\n\n"
+      "| form | result | notes |\n|---|---|---|\n"
+      "| `wp.tid()` | int32 | flat launch index; `i, j = wp.tid()` (up to 4 names) unravels it by the launch shape. Kernels only. |\n"
+      "| `len(a)` | int32 | `a.shape[0]` of an array; the length of a vector, quaternion (4), transform (7), matrix rows. |\n"
+      "| `a.shape`, `a.shape[k]`, `a.ndim` | int32 | array extents. |\n"
+      "| `range(stop)`, `range(start, stop[, step])` | - | only as the iterable of `for`; integer arguments. |\n"
+      "| `wp.printf(fmt, *scalars)`, `print(values...)` | - | output reaches the launching client; skipped in the backward pass. |\n"
+      "| `wp.float64(x)`, `int(x)`, `float(x)`, ... | scalar | conversions; literals are retyped at compile time. |\n"
+      "| `wp.vec3(...)`, `wp.mat33(...)`, `wp.quat(...)`, `wp.transform(p, q)`, `wp.spatial_vector(w, v)`, user vector/matrix types | composite | no arguments: zeros; one scalar: fill; components (scalars and/or composites, concatenated row-major); one value of another scalar type: conversion; a matrix from R-vectors: columns (Warp's legacy rule). Differentiable. |\n"
+      "| `wp.vector(*args, length=, dtype=)`, `wp.matrix(*args, shape=(r, c), dtype=)`, `wp.quaternion(...)`, `wp.transformation(p, q)` | composite | as above with explicit shape/dtype. |\n"
+      "| `wp.identity(n=N, dtype=T)`, `wp.quat_identity(dtype)`, `wp.transform_identity(dtype)` | composite | identities. |\n"
+      "| `MyStruct()`, `MyStruct(field=value, ...)` | struct | zero-initialised; fields by keyword. |\n"
+      "| `wp.pi`, `wp.tau`, `wp.e`, `wp.inf`, `wp.nan`, `wp.half_pi`, ... | float32 literal | adapt to float64 where needed. |\n";
   return out;
 }
 
