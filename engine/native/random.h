@@ -50,10 +50,14 @@ WP_FUNC float32 randn(uint32& state) {
   return sqrt(-2.0f * log(u1 + 1.0e-9f)) * cos(2.0f * kPi * u2);
 }
 
-// First index in [begin, end) whose value is >= v (arr sorted ascending).
+// First index in [begin, end) whose value is >= v (arr sorted ascending). The range is clamped
+// to the array (user-supplied bounds never read outside it); a None array gives `begin`.
 template <typename T>
 WP_FUNC int32 lower_bound(const array_t<T>& arr, int32 begin, int32 end, T v) {
-  int32 lo = begin, hi = end;
+  if (!arr.data) return begin;
+  int64 n = arr.shape[0];
+  int32 lo = begin < 0 ? 0 : begin;
+  int32 hi = (int64)end > n ? (int32)n : end;
   while (lo < hi) {
     int32 mid = lo + (hi - lo) / 2;
     if (load(arr, mid) < v) lo = mid + 1;
@@ -66,8 +70,9 @@ WP_FUNC int32 lower_bound(const array_t<T>& arr, T v) { return lower_bound(arr, 
 // Index drawn from a cumulative distribution (ascending, last entry 1).
 WP_FUNC int32 sample_cdf(uint32& state, const array_t<float32>& cdf) {
   float32 u = randf(state);
+  int32 n = cdf.data ? (int32)cdf.shape[0] : 0;
+  if (n <= 0) return 0;
   int32 i = lower_bound(cdf, u);
-  int32 n = (int32)cdf.shape[0];
   return i < n ? i : n - 1;
 }
 

@@ -381,6 +381,10 @@ TEST(NativeRandom, MatchesWarpStreamAndDistributions) {
   EXPECT_EQ(wp::lower_bound(ca, 0.4f), 1);
   EXPECT_EQ(wp::lower_bound(ca, 2.0f), 3);
   EXPECT_EQ(wp::lower_bound(ca, 1, 3, 0.0f), 1);
+  EXPECT_EQ(wp::lower_bound(ca, -5, 100, 2.0f), 3);  // range clamped to the array
+  wp::array_t<float> none{};
+  EXPECT_EQ(wp::lower_bound(none, 0.5f), 0);
+  EXPECT_EQ(wp::sample_cdf(s, none), 0);
 }
 
 TEST(NativeNoise, ValuesGradientsAndPeriods) {
