@@ -1,0 +1,204 @@
+// Per-session tapes with hand-written forward/backward kernels: backward(loss) seeds 1 and
+// replays adjoints in reverse (chain of two launches checked against the analytic gradient),
+// backward(grads=...) seeds, zero/reset, explicit adjoint launches, lazy backward loading,
+// freed arrays and empty tapes as clear errors, and isolation between sessions.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "runtime_test_support.h"
+
+namespace weft {
+namespace {
+
+using namespace weft::testing;
+
+struct TwoArrays {
+  wp::array_abi_t in;
+  wp::array_abi_t out;
+};
+
+float& El(const wp::array_abi_t& a, int64_t i) {
+  return *reinterpret_cast<float*>(static_cast<char*>(a.data) + i * a.strides[0]);
+}
+
+// out[i] = in[i] * in[i]
+void SquareFwd(const wp::launch_context_t*, const void* args, wp::int64 b, wp::int64 e) {
+  auto* p = static_cast<const TwoArrays*>(args);
+  for (auto i = b; i < e; ++i) El(p->out, i) = El(p->in, i) * El(p->in, i);
+}
+void SquareBwd(const wp::launch_context_t*, const void* args, const void* adj, wp::int64 b, wp::int64 e) {
+  auto* p = static_cast<const TwoArrays*>(args);
+  auto* g = static_cast<const TwoArrays*>(adj);
+  for (auto i = b; i < e; ++i)
+    if (g->in.data && g->out.data) El(g->in, i) += 2.0f * El(p->in, i) * El(g->out, i);
+}
+// out[0] += sum(in)   (atomic)
+void SumFwd(const wp::launch_context_t*, const void* args, wp::int64 b, wp::int64 e) {
+  auto* p = static_cast<const TwoArrays*>(args);
+  float s = 0;
+  for (auto i = b; i < e; ++i) s += El(p->in, i);
+  float* o = &El(p->out, 0);
+  float cur;
+  __atomic_load(o, &cur, __ATOMIC_RELAXED);
+  float next = cur + s;
+  while (!__atomic_compare_exchange(o, &cur, &next, false, __ATOMIC_RELAXED, __ATOMIC_RELAXED)) next = cur + s;
+}
+void SumBwd(const wp::launch_context_t*, const void*, const void* adj, wp::int64 b, wp::int64 e) {
+  auto* g = static_cast<const TwoArrays*>(adj);
+  for (auto i = b; i < e; ++i)
+    if (g->in.data && g->out.data) El(g->in, i) += El(g->out, 0);
+}
+
+KernelLayout Layout(const std::string& name) {
+  KernelLayout k;
+  k.name = name;
+  k.params = {ArrayParam("in", "float32", 1, 0), ArrayParam("out", "float32", 1, 88)};
+  k.args_size = sizeof(TwoArrays);
+  return k;
+}
+
+void Install(FakeModuleStore* store) {
+  auto fwd = std::make_shared<LoadedModule>();
+  fwd->id = "m";
+  fwd->kernels = {LoadedKernel{Layout("square"), &SquareFwd, nullptr}, LoadedKernel{Layout("sum"), &SumFwd, nullptr}};
+  auto bwd = std::make_shared<LoadedModule>(*fwd);
+  bwd->kernels[0].cpu_backward = &SquareBwd;
+  bwd->kernels[1].cpu_backward = &SumBwd;
+  bwd->has_backward = true;
+  store->forward["m"] = fwd;
+  store->backward["m"] = bwd;
+}
+
+LaunchCommand L(const std::string& kernel, uint64_t in, uint64_t out, int64_t n) {
+  LaunchCommand l;
+  l.module_id = "m";
+  l.kernel = kernel;
+  l.dim = {n};
+  l.args = {ArrayArg(in), ArrayArg(out)};
+  return l;
+}
+
+TapeCommand T(TapeCommand::Op op, uint64_t id, uint64_t loss = 0) {
+  TapeCommand t;
+  t.op = op;
+  t.tape_id = id;
+  t.loss.handle = loss;
+  return t;
+}
+
+struct TapeRig {
+  FakeModuleStore* store = nullptr;
+  std::unique_ptr<Engine> e = MakeEngine(&store);
+  std::shared_ptr<Session> s = e->OpenSession(Local());
+  TapeRig() { Install(store); }
+  Status Run(std::vector<Command> cmds) {
+    EXPECT_TRUE(e->Submit(*s, std::move(cmds)).ok());
+    return e->Synchronize(*s).error;
+  }
+};
+
+TEST(Tape, BackwardOfLossMatchesAnalyticGradient) {
+  TapeRig t;
+  std::mt19937 rng(std::random_device{}());
+  const int64_t n = 5000;
+  std::vector<float> x(n);
+  for (auto& v : x) v = std::uniform_real_distribution<float>(-2, 2)(rng);
+  auto xa = t.e->CreateArray(*t.s, FromFloats(x, true));
+  auto sq = t.e->CreateArray(*t.s, FromFloats(std::vector<float>(n, 0), true));
+  auto loss = t.e->CreateArray(*t.s, FromFloats({0}, true));
+  EXPECT_EQ(t.store->backward_requests, 0);   // forward-only so far: no backward compiled
+  Status st = t.Run({Cmd(T(TapeCommand::Op::kBegin, 1)), Cmd(L("square", xa->handle, sq->handle, n)),
+                     Cmd(L("sum", sq->handle, loss->handle, n)), Cmd(T(TapeCommand::Op::kEnd, 1)),
+                     Cmd(T(TapeCommand::Op::kBackward, 1, loss->handle))});
+  ASSERT_TRUE(st.ok()) << st.ToString();
+  EXPECT_GT(t.store->backward_requests, 0);
+  auto g = ReadFloats(*t.e, *t.s, xa->grad_handle);
+  for (int64_t i = 0; i < n; ++i) ASSERT_NEAR(g[i], 2.0 * x[i], 1e-5) << i;
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, loss->grad_handle), (std::vector<float>{1}));
+  // A second backward without zero accumulates into every gradient, intermediates included
+  // (Warp semantics): sq.grad becomes 2, so x.grad = 2x + 2*2x = 6x. Zero clears them all.
+  ASSERT_TRUE(t.Run({Cmd(T(TapeCommand::Op::kBackward, 1, loss->handle))}).ok());
+  g = ReadFloats(*t.e, *t.s, xa->grad_handle);
+  EXPECT_NEAR(g[0], 6.0 * x[0], 1e-4);
+  ASSERT_TRUE(t.Run({Cmd(T(TapeCommand::Op::kZero, 1))}).ok());
+  for (uint64_t h : {xa->grad_handle, sq->grad_handle, loss->grad_handle})
+    for (float v : ReadFloats(*t.e, *t.s, h)) ASSERT_EQ(v, 0.0f);
+  // Reset forgets the records: backward is now an error.
+  ASSERT_TRUE(t.Run({Cmd(T(TapeCommand::Op::kReset, 1))}).ok());
+  Status empty = t.Run({Cmd(T(TapeCommand::Op::kBackward, 1, loss->handle))});
+  EXPECT_EQ(empty.code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(empty.message().find("recorded no launches"), std::string::npos) << empty.message();
+}
+
+TEST(Tape, BackwardWithSeedGradients) {
+  TapeRig t;
+  auto xa = t.e->CreateArray(*t.s, FromFloats({1, 2, 3}, true));
+  auto ya = t.e->CreateArray(*t.s, FromFloats({0, 0, 0}, true));
+  auto seed = t.e->CreateArray(*t.s, FromFloats({1, 10, 100}));
+  TapeCommand bw = T(TapeCommand::Op::kBackward, 7);
+  bw.seeds.emplace_back(ArrayRef{ya->handle, 0, {}, {}}, ArrayRef{seed->handle, 0, {}, {}});
+  ASSERT_TRUE(t.Run({Cmd(T(TapeCommand::Op::kBegin, 7)), Cmd(L("square", xa->handle, ya->handle, 3)),
+                     Cmd(T(TapeCommand::Op::kEnd, 7)), Cmd(bw)}).ok());
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, xa->grad_handle), (std::vector<float>{2, 40, 600}));
+}
+
+TEST(Tape, ExplicitAdjointLaunchWithoutTape) {
+  TapeRig t;
+  auto xa = t.e->CreateArray(*t.s, FromFloats({1, -2}));
+  auto ya = t.e->CreateArray(*t.s, FromFloats({0, 0}));
+  auto gx = t.e->CreateArray(*t.s, FromFloats({0.5f, 0.5f}));
+  auto gy = t.e->CreateArray(*t.s, FromFloats({1, 3}));
+  LaunchCommand l = L("square", xa->handle, ya->handle, 2);
+  l.adjoint = true;
+  l.adj_args = {ArrayArg(gx->handle), ArrayArg(gy->handle)};
+  ASSERT_TRUE(t.Run({Cmd(l)}).ok());
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, gx->handle), (std::vector<float>{2.5f, -11.5f}));   // accumulates
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, ya->handle), (std::vector<float>{0, 0}));          // no forward write
+}
+
+TEST(Tape, FreedArraysAndMissingGradientsAreClearErrors) {
+  TapeRig t;
+  auto xa = t.e->CreateArray(*t.s, FromFloats({1, 2}, true));
+  auto ya = t.e->CreateArray(*t.s, FromFloats({0, 0}, true));
+  auto nograd = t.e->CreateArray(*t.s, FromFloats({0}));
+  ASSERT_TRUE(t.Run({Cmd(T(TapeCommand::Op::kBegin, 1)), Cmd(L("square", xa->handle, ya->handle, 2)),
+                     Cmd(T(TapeCommand::Op::kEnd, 1))}).ok());
+  Status no = t.Run({Cmd(T(TapeCommand::Op::kBackward, 1, nograd->handle))});
+  EXPECT_EQ(no.code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(no.message().find("requires_grad"), std::string::npos) << no.message();
+  ASSERT_TRUE(t.e->FreeArray(*t.s, xa->handle).ok());
+  TapeCommand bw = T(TapeCommand::Op::kBackward, 1);
+  Status freed = t.Run({Cmd(bw)});
+  EXPECT_EQ(freed.code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(freed.message().find("'in'"), std::string::npos) << freed.message();
+  EXPECT_NE(freed.message().find("freed"), std::string::npos) << freed.message();
+  // Nothing was run: y's gradient is untouched.
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, ya->grad_handle), (std::vector<float>{0, 0}));
+  // Backward while still recording is refused.
+  Status rec = t.Run({Cmd(T(TapeCommand::Op::kBegin, 2)), Cmd(L("square", ya->handle, ya->handle, 2)),
+                      Cmd(T(TapeCommand::Op::kBackward, 2))});
+  EXPECT_EQ(rec.code(), StatusCode::kFailedPrecondition);
+}
+
+TEST(Tape, SessionsNeverSeeEachOthersTapes) {
+  TapeRig t;
+  auto other = t.e->OpenSession(Local("other"));
+  auto xa = t.e->CreateArray(*t.s, FromFloats({1, 2}, true));
+  auto ya = t.e->CreateArray(*t.s, FromFloats({0, 0}, true));
+  ASSERT_TRUE(t.Run({Cmd(T(TapeCommand::Op::kBegin, 1)), Cmd(L("square", xa->handle, ya->handle, 2)),
+                     Cmd(T(TapeCommand::Op::kEnd, 1))}).ok());
+  ASSERT_TRUE(t.e->Submit(*other, {Cmd(T(TapeCommand::Op::kBackward, 1))}).ok());
+  Status st = t.e->Synchronize(*other).error;
+  EXPECT_EQ(st.code(), StatusCode::kFailedPrecondition);
+  // The recording session's tape is intact.
+  TapeCommand bw = T(TapeCommand::Op::kBackward, 1);
+  auto seed = t.e->CreateArray(*t.s, FromFloats({1, 1}));
+  bw.seeds.emplace_back(ArrayRef{ya->handle, 0, {}, {}}, ArrayRef{seed->handle, 0, {}, {}});
+  ASSERT_TRUE(t.Run({Cmd(bw)}).ok());
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, xa->grad_handle), (std::vector<float>{2, 4}));
+}
+
+}  // namespace
+}  // namespace weft
