@@ -94,16 +94,17 @@ class Daemon {
     args.insert(args.end(), {"--cache-dir", (d->dir_ / "cache").string(), "--log-level", "info"});
     d->log_ = d->dir_ / "weftd.log";
 
+    // Everything the child needs is prepared before fork: gRPC threads may hold locks.
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const std::string log_path = d->log_.string();
     const pid_t pid = ::fork();
     if (pid == 0) {
-      const int fd = ::open(d->log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+      const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
       ::dup2(fd, 1);
       ::dup2(fd, 2);
-      std::vector<char*> argv;
-      for (auto& a : args) argv.push_back(a.data());
-      argv.push_back(nullptr);
       ::execv(argv[0], argv.data());
-      std::perror("execv weftd");
       ::_exit(127);
     }
     d->pid_ = pid;
@@ -1222,12 +1223,13 @@ TEST_F(ClientTest, KilledClientIsReapedWithinTenSeconds) {
   const auto before = Stats();
   int out[2];
   ASSERT_EQ(::pipe(out), 0);
+  const std::string self = fs::read_symlink("/proc/self/exe");
+  const std::string address = daemon_->address();
   const pid_t child = ::fork();
   if (child == 0) {
     ::dup2(out[1], 1);
     ::close(out[0]);
-    const std::string self = fs::read_symlink("/proc/self/exe");
-    ::execl(self.c_str(), self.c_str(), "--hold-arrays", daemon_->address().c_str(), nullptr);
+    ::execl(self.c_str(), self.c_str(), "--hold-arrays", address.c_str(), nullptr);
     ::_exit(127);
   }
   ::close(out[1]);
