@@ -1,6 +1,7 @@
 // weft::Client: session lifetime, devices, stats, array creation, import, queued commands.
 #include "weft/client/client.h"
 
+#include <cstring>
 #include <limits>
 
 #include "chunked_transfer.h"
@@ -22,8 +23,10 @@ const SessionInfo& NoSession() {
 
 Status NotConnected() { return FailedPrecondition("weft::Client is not connected"); }
 
-// Element count of `shape`, checking 0..4 non-negative dimensions and no overflow.
-Expected<std::uint64_t> ElementCount(const std::vector<std::int64_t>& shape) {
+// Element count of `shape`, checking 0..4 non-negative dimensions and that neither the count
+// nor its byte size overflows 64 bits.
+Expected<std::uint64_t> ElementCount(const std::vector<std::int64_t>& shape,
+                                     std::size_t element_size) {
   if (shape.size() > 4)
     return InvalidArgument("arrays have at most 4 dimensions, got " +
                            std::to_string(shape.size()));
@@ -34,6 +37,8 @@ Expected<std::uint64_t> ElementCount(const std::vector<std::int64_t>& shape) {
       return InvalidArgument("array shape overflows 64-bit size");
     n *= static_cast<std::uint64_t>(d);
   }
+  if (element_size != 0 && n > std::numeric_limits<std::uint64_t>::max() / element_size)
+    return InvalidArgument("array byte size overflows 64 bits");
   return n;
 }
 
@@ -96,7 +101,7 @@ Expected<Array> Client::Create(const DType& dtype, std::vector<std::int64_t> sha
   if (!core_) return NotConnected();
   WEFT_CLIENT_RETURN_IF_ERROR(core_->CheckOpen());
   WEFT_CLIENT_RETURN_IF_ERROR(dtype.Validate());
-  WEFT_CLIENT_ASSIGN_OR_RETURN(const std::uint64_t count, ElementCount(shape));
+  WEFT_CLIENT_ASSIGN_OR_RETURN(const std::uint64_t count, ElementCount(shape, dtype.element_size()));
   if (init == kFill && value_size != dtype.element_size())
     return InvalidArgument("fill value has " + std::to_string(value_size) +
                            " bytes; one " + dtype.ToString() + " element has " +
@@ -146,14 +151,15 @@ Expected<Array> Client::FromBytes(const DType& dtype, std::vector<std::int64_t> 
                                   const void* data, std::size_t n, const ArrayOptions& options) {
   if (!core_) return NotConnected();
   WEFT_CLIENT_RETURN_IF_ERROR(dtype.Validate());
-  WEFT_CLIENT_ASSIGN_OR_RETURN(const std::uint64_t count, ElementCount(shape));
+  WEFT_CLIENT_ASSIGN_OR_RETURN(const std::uint64_t count, ElementCount(shape, dtype.element_size()));
   if (n != count * dtype.element_size())
     return InvalidArgument("data has " + std::to_string(n) + " bytes; an array of " +
                            std::to_string(count) + " " + dtype.ToString() + " elements has " +
                            std::to_string(count * dtype.element_size()));
   // Small arrays travel inside the Create call; large ones are created empty and then
   // written in place (local) or in chunks (remote), so no message grows with the array.
-  if (n <= core_->options().chunk_size && !(core_->local() && options.device == "cpu"))
+  const bool cpu = options.device.empty() || options.device == "cpu";
+  if (n <= core_->options().chunk_size && !(core_->local() && cpu))
     return Create(dtype, std::move(shape), options, kData, data, n);
   WEFT_CLIENT_ASSIGN_OR_RETURN(Array array, Empty(dtype, std::move(shape), options));
   if (array.mappable()) {
