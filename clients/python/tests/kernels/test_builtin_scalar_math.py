@@ -1,6 +1,7 @@
 """Builtins, scalar math: every unary and binary float function against float64 NumPy (rounded
 to float32) on fresh random data in its domain, plus hard inputs: huge/tiny magnitudes,
-0, -0, +-inf, NaN (propagation), values outside the domain (sqrt(-1), log(-1), acos(2))."""
+0, -0, +-inf, NaN (propagation), values outside the domain (sqrt(-1) and log(-1) are NaN;
+acos(2) and asin(2) clamp as in Warp)."""
 import math
 
 import numpy as np
@@ -39,8 +40,10 @@ UNARY = {
     "sin": (np.sin, (-10, 10), 2e-6, 2e-6),
     "cos": (np.cos, (-10, 10), 2e-6, 2e-6),
     "tan": (np.tan, (-1.5, 1.5), 5e-6, 2e-6),
-    "asin": (np.arcsin, (-1, 1), 2e-6, 1e-6),
-    "acos": (np.arccos, (-1, 1), 2e-6, 1e-6),
+    # Warp clamps the argument of asin/acos to [-1, 1] (so asin(2) = pi/2); NaN stays NaN here
+    # (Warp 1.19 turns NaN into -pi/2 / pi through the clamp; weft propagates it)
+    "asin": (lambda x: np.arcsin(np.clip(x, -1, 1)), (-1, 1), 2e-6, 1e-6),
+    "acos": (lambda x: np.arccos(np.clip(x, -1, 1)), (-1, 1), 2e-6, 1e-6),
     "atan": (np.arctan, (-100, 100), 2e-6, 1e-6),
     "sinh": (np.sinh, (-10, 10), 2e-6, 1e-6),
     "cosh": (np.cosh, (-10, 10), 2e-6, 1e-6),

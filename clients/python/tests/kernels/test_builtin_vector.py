@@ -70,7 +70,7 @@ def test_vec3_ops(wp, rng):
     b = rng.standard_normal((n, 3)).astype(np.float32) + 0.1
     a[0] = 0.0                    # normalize of the zero vector
     a[1] = [1e-30, -2e-30, 0.0]   # tiny magnitude: normalize must not return NaN/inf
-    a[2] = [1e19, -1e19, 1e19]    # huge: length squared overflows float32
+    a[2] = [2e19, -2e19, 2e19]    # huge: length squared (1.2e39) overflows float32
     s = 1.75
     fout = wp.zeros((n, 7), dtype=float)
     vout = wp.zeros((n, 15), dtype=wp.vec3)
@@ -104,7 +104,7 @@ def test_vec3_ops(wp, rng):
     np.testing.assert_array_equal(v[:, 12], np.where(a < 0, -1.0, 1.0))   # Warp: sign(0) = 1
     np.testing.assert_array_equal(v[:, 13], -a)
     np.testing.assert_array_equal(v[:, 14], np.repeat(a[:, 1:2], 3, axis=1))
-    assert np.isinf(f[2, 2])      # 3e38 overflows float32 length_sq
+    assert np.isinf(f[2, 2])      # 1.2e39 overflows float32 length_sq
 
 
 def test_vec_variants(wp, rng):
