@@ -1,7 +1,9 @@
 // ModuleStore implementation: ModuleSource -> cache key -> memory / disk / compile -> loaded code.
-// A miss runs GenerateModule (engine/codegen), optionally NVRTC on the CUDA flavour (verify_cuda),
-// then CpuJit::Compile; the object goes to the disk cache and CpuJit::Load maps it. Module ids
-// are forward cache keys; the backward variant of a module has its own key but the same id.
+// CPU: a miss runs GenerateModule (engine/codegen), optionally NVRTC on the CUDA flavour
+// (verify_cuda), then CpuJit::Compile; the object goes to the disk cache and CpuJit::Load maps it.
+// CUDA (cuda:N): GenerateModule for kCuda + NVRTC for the device's sm; the CUBIN is cached the
+// same way and handed out in LoadedModule::cuda_image (the CUDA runtime loads it).
+// Module ids are forward cache keys; the backward variant has its own key but the same id.
 #include "engine/runtime/module_store.h"
 
 #include <sys/stat.h>
@@ -21,6 +23,7 @@
 #include "engine/native/host_symbols.h"
 #endif
 #if WEFT_WITH_CUDA
+#include "engine/jit/cuda/cuda_driver.h"
 #include "engine/jit/cuda/nvrtc_compiler.h"
 #endif
 
@@ -51,10 +54,19 @@ std::string DefaultBuildId() {
   return id;
 }
 
-// "cpu" -> kCpu; "cuda", "cuda:N" -> kCuda.
-Expected<Target> ParseDevice(const std::string& device) {
-  if (device == "cpu" || device.empty()) return Target::kCpu;
-  if (device == "cuda" || device.rfind("cuda:", 0) == 0) return Target::kCuda;
+struct DeviceRef {
+  Target target = Target::kCpu;
+  int ordinal = 0;
+};
+
+// "cpu" -> kCpu; "cuda" (= cuda:0 here; the engine places sessions) and "cuda:N" -> kCuda.
+Expected<DeviceRef> ParseDevice(const std::string& device) {
+  if (device == "cpu" || device.empty()) return DeviceRef{Target::kCpu, 0};
+  if (device == "cuda") return DeviceRef{Target::kCuda, 0};
+  if (device.rfind("cuda:", 0) == 0 && device.size() > 5 && device.size() < 10 &&
+      device.find_first_not_of("0123456789", 5) == std::string::npos) {
+    return DeviceRef{Target::kCuda, std::stoi(device.substr(5))};
+  }
   return InvalidArgument("unknown device '" + device + "' (expected cpu, cuda or cuda:N)");
 }
 
@@ -108,6 +120,9 @@ class ModuleStoreImpl final : public ModuleStore {
 #if !WEFT_WITH_CUDA
     if (options_.verify_cuda) return FailedPrecondition("verify_cuda needs a build with NVRTC");
 #endif
+#if WEFT_WITH_CUDA
+    if (auto version = jit::NvrtcVersion(); version.ok()) nvrtc_version_ = *version;
+#endif
     cache_ = std::make_unique<ModuleCache>(options_.cache_dir, options_.memory_capacity);
     WEFT_RETURN_IF_ERROR(cache_->Init());
 #if WEFT_WITH_CPU_JIT
@@ -136,18 +151,21 @@ class ModuleStoreImpl final : public ModuleStore {
     auto start = std::chrono::steady_clock::now();
     CompileReport local;
     if (!report) report = &local;
-    WEFT_ASSIGN_OR_RETURN(Target target, ParseDevice(device));
-    if (target == Target::kCuda) {
-      return Unimplemented("CUDA devices are not supported yet; use device=\"cpu\"");
-    }
-    CodegenOptions codegen;
-    codegen.target = Target::kCpu;
+    WEFT_ASSIGN_OR_RETURN(DeviceRef where, ParseDevice(device));
+    Variant variant;
+    variant.source = source;
+    variant.codegen.target = where.target;
     auto checks = source.options.find("bounds_checks");
-    codegen.bounds_checks = checks == source.options.end() || checks->second != "false";
+    variant.codegen.bounds_checks =
+        checks == source.options.end() ||
+        (checks->second != "false" && checks->second != "False" && checks->second != "0");
+    if (where.target == Target::kCuda) {
+      WEFT_ASSIGN_OR_RETURN(variant.sm, CudaArchitecture(where.ordinal));
+    }
 
-    const std::string id = ModuleCacheKey(source, codegen, context_);
+    const std::string id = Key(variant);
     ModuleCache::Source from = ModuleCache::Source::kBuilt;
-    auto module = Get(id, id, source, codegen, &from, &report->diagnostics);
+    auto module = Get(id, id, variant, &from, &report->diagnostics);
     report->cache_hit = module.ok() && from == ModuleCache::Source::kMemory;
     report->disk_hit = module.ok() && from == ModuleCache::Source::kDisk;
     report->compile_ms = std::chrono::duration<double, std::milli>(
@@ -155,27 +173,25 @@ class ModuleStoreImpl final : public ModuleStore {
     if (!module.ok()) return module.status();
     std::lock_guard<std::mutex> lock(registry_mutex_);
     auto& entry = registry_[id];
-    if (entry.source.functions.empty()) {
-      entry.source = source;
-      entry.codegen = codegen;
+    if (!entry.known) {
+      entry.known = true;
+      entry.variant = std::move(variant);
     }
     entry.forward = *module;
     return *module;
   }
 
   std::shared_ptr<const LoadedModule> Find(const std::string& module_id) const override {
-    ModuleSource source;
-    CodegenOptions codegen;
+    Variant variant;
     {
       std::lock_guard<std::mutex> lock(registry_mutex_);
       auto it = registry_.find(module_id);
       if (it == registry_.end()) return nullptr;
       if (auto alive = it->second.forward.lock()) return alive;
-      source = it->second.source;
-      codegen = it->second.codegen;
+      variant = it->second.variant;
     }
     // Evicted and dropped by everyone: bring it back (memory, disk, or a rebuild).
-    auto module = Get(module_id, module_id, source, codegen, nullptr, nullptr);
+    auto module = Get(module_id, module_id, variant, nullptr, nullptr);
     if (!module.ok()) return nullptr;
     std::lock_guard<std::mutex> lock(registry_mutex_);
     registry_[module_id].forward = *module;
@@ -183,20 +199,17 @@ class ModuleStoreImpl final : public ModuleStore {
   }
 
   Expected<std::shared_ptr<const LoadedModule>> WithBackward(const std::string& module_id) override {
-    ModuleSource source;
-    CodegenOptions codegen;
+    Variant variant;
     {
       std::lock_guard<std::mutex> lock(registry_mutex_);
       auto it = registry_.find(module_id);
       if (it == registry_.end()) return NotFound("unknown module id " + module_id);
       if (auto alive = it->second.backward.lock()) return alive;
-      source = it->second.source;
-      codegen = it->second.codegen;
+      variant = it->second.variant;
     }
-    codegen.enable_backward = true;
-    const std::string key = ModuleCacheKey(source, codegen, context_);
+    variant.codegen.enable_backward = true;
     std::vector<Diagnostic> diagnostics;
-    auto module = Get(key, module_id, source, codegen, nullptr, &diagnostics);
+    auto module = Get(Key(variant), module_id, variant, nullptr, &diagnostics);
     if (!module.ok()) {
       std::string text = module.status().message();
       for (const auto& d : diagnostics) text += "\n" + d.ToString();
@@ -210,69 +223,133 @@ class ModuleStoreImpl final : public ModuleStore {
   ModuleStoreStats stats() const override { return cache_->stats(); }
 
  private:
-  struct Registered {
+  // What one module id stands for: the source, how it is generated, and (CUDA) for which sm.
+  struct Variant {
     ModuleSource source;
     CodegenOptions codegen;
+    int sm = 0;  // CUDA compute capability * 10
+  };
+  struct Registered {
+    bool known = false;
+    Variant variant;
     std::weak_ptr<const LoadedModule> forward;
     std::weak_ptr<const LoadedModule> backward;
   };
 
+  std::string Key(const Variant& variant) const {
+    if (variant.codegen.target == Target::kCpu) {
+      return ModuleCacheKey(variant.source, variant.codegen, context_);
+    }
+    ModuleKeyContext cuda = context_;
+    cuda.target_id = "cuda;sm=" + std::to_string(variant.sm) + ";nvrtc=" + nvrtc_version_;
+    return ModuleCacheKey(variant.source, variant.codegen, cuda);
+  }
+
+  // The architecture to compile cuda:N for: the device's own when a driver is present,
+  // else verify_cuda_sm (compile-only machines).
+  Expected<int> CudaArchitecture(int ordinal) const {
+#if WEFT_WITH_CUDA
+    auto driver = jit::CudaDriver::Get();
+    if (!driver.ok()) return options_.verify_cuda_sm;
+    int count = 0;
+    WEFT_RETURN_IF_ERROR((*driver)->Check((*driver)->DeviceGetCount(&count), "cuDeviceGetCount"));
+    if (ordinal < 0 || ordinal >= count) {
+      return InvalidArgument("no device cuda:" + std::to_string(ordinal) + " (" +
+                             std::to_string(count) + " CUDA devices)");
+    }
+    return (*driver)->ComputeCapability(ordinal);
+#else
+    return Unimplemented("this weft was built without CUDA");
+#endif
+  }
+
   // The module of cache key `key`, presented to clients as module `id`.
   Expected<ModuleCache::Module> Get(const std::string& key, const std::string& id,
-                                    const ModuleSource& source, const CodegenOptions& codegen,
-                                    ModuleCache::Source* from,
+                                    const Variant& variant, ModuleCache::Source* from,
                                     std::vector<Diagnostic>* diagnostics) const {
     ModuleCache::Callbacks callbacks;
-    callbacks.build = [&](std::vector<Diagnostic>* diags) { return Build(source, codegen, diags); };
-    callbacks.load = [&](const ModuleArtifact& artifact) {
-      return Load(artifact, id, source.name, codegen.enable_backward);
-    };
+    callbacks.build = [&](std::vector<Diagnostic>* diags) { return Build(variant, diags); };
+    callbacks.load = [&](const ModuleArtifact& artifact) { return Load(artifact, id, variant); };
     return cache_->Get(key, callbacks, from, diagnostics);
   }
 
-  Expected<ModuleArtifact> Build(const ModuleSource& source, const CodegenOptions& codegen,
-                                 std::vector<Diagnostic>* diags) const {
-    WEFT_ASSIGN_OR_RETURN(GeneratedModule generated, options_.generate(source, codegen, diags));
-    const std::string name = SafeName(source.name);
 #if WEFT_WITH_CUDA
-    if (options_.verify_cuda) {
-      CodegenOptions cuda = codegen;
-      cuda.target = Target::kCuda;
-      WEFT_ASSIGN_OR_RETURN(GeneratedModule cuda_module, options_.generate(source, cuda, diags));
-      jit::NvrtcOptions nvrtc;
-      nvrtc.sm = options_.verify_cuda_sm;
-      nvrtc.include_dirs = {options_.native_dir};
-      auto compiled = jit::NvrtcCompile(cuda_module.source, name + ".cu", nvrtc);
-      if (!compiled.ok()) {
-        AppendCompilerDiagnostics(compiled.status().message(), diags);
-        return Internal("module " + source.name + " does not compile for CUDA (weft bug): " +
-                        compiled.status().message());
-      }
+  // NVRTC for `sm`; a rejection is a weft bug (Internal) with the log as diagnostics too.
+  Expected<std::string> CompileCuda(const ModuleSource& source, const std::string& cuda_source,
+                                    int sm, std::vector<Diagnostic>* diags) const {
+    jit::NvrtcOptions nvrtc;
+    nvrtc.sm = sm;
+    nvrtc.include_dirs = {options_.native_dir};
+    auto compiled = jit::NvrtcCompile(cuda_source, SafeName(source.name) + ".cu", nvrtc);
+    if (!compiled.ok()) {
+      AppendCompilerDiagnostics(compiled.status().message(), diags);
+      return Internal("module " + source.name + " does not compile for CUDA (weft bug): " +
+                      compiled.status().message());
     }
+    return std::move(compiled->image);
+  }
+#endif
+
+  Expected<ModuleArtifact> Build(const Variant& variant, std::vector<Diagnostic>* diags) const {
+    const ModuleSource& source = variant.source;
+    WEFT_ASSIGN_OR_RETURN(GeneratedModule generated,
+                          options_.generate(source, variant.codegen, diags));
+    ModuleArtifact artifact;
+    if (variant.codegen.target == Target::kCuda) {
+#if WEFT_WITH_CUDA
+      WEFT_ASSIGN_OR_RETURN(artifact.object, CompileCuda(source, generated.source, variant.sm, diags));
+#else
+      return Unimplemented("this weft was built without CUDA");
+#endif
+    } else {
+#if WEFT_WITH_CUDA
+      if (options_.verify_cuda) {
+        CodegenOptions cuda = variant.codegen;
+        cuda.target = Target::kCuda;
+        WEFT_ASSIGN_OR_RETURN(GeneratedModule cuda_module, options_.generate(source, cuda, diags));
+        WEFT_RETURN_IF_ERROR(
+            CompileCuda(source, cuda_module.source, options_.verify_cuda_sm, diags).status());
+      }
 #endif
 #if WEFT_WITH_CPU_JIT
-    auto object = cpu_jit_->Compile(generated.source, name);
-    if (!object.ok()) {
-      AppendCompilerDiagnostics(object.status().message(), diags);
-      return Internal("module " + source.name + " does not compile (weft bug): " +
-                      object.status().message());
+      auto object = cpu_jit_->Compile(generated.source, SafeName(source.name));
+      if (!object.ok()) {
+        AppendCompilerDiagnostics(object.status().message(), diags);
+        return Internal("module " + source.name + " does not compile (weft bug): " +
+                        object.status().message());
+      }
+      artifact.object = std::move(*object);
+#else
+      return Unimplemented("this weft was built without the CPU JIT");
+#endif
     }
-    ModuleArtifact artifact;
-    artifact.object = std::move(*object);
     artifact.kernels = std::move(generated.kernels);
     artifact.function_names = std::move(generated.function_names);
     artifact.generated_source = std::move(generated.source);
     return artifact;
-#else
-    return Unimplemented("this weft was built without the CPU JIT");
-#endif
   }
 
   Expected<ModuleCache::Module> Load(const ModuleArtifact& artifact, const std::string& id,
-                                     const std::string& module_name, bool backward) const {
+                                     const Variant& variant) const {
+    const bool backward = variant.codegen.enable_backward;
+    if (variant.codegen.target == Target::kCuda) {
+      auto module = std::make_shared<LoadedModule>();
+      module->id = id;
+      module->target = Target::kCuda;
+      module->function_names = artifact.function_names;
+      module->has_backward = backward;
+      module->cuda_image = artifact.object;
+      module->cuda_sm = variant.sm;
+      for (const KernelLayout& layout : artifact.kernels) {
+        LoadedKernel kernel;
+        kernel.layout = layout;
+        module->kernels.push_back(std::move(kernel));
+      }
+      return ModuleCache::Module(std::move(module));
+    }
 #if WEFT_WITH_CPU_JIT
     WEFT_ASSIGN_OR_RETURN(std::shared_ptr<jit::CpuCode> code,
-                          cpu_jit_->Load(artifact.object, SafeName(module_name)));
+                          cpu_jit_->Load(artifact.object, SafeName(variant.source.name)));
     auto module = std::make_shared<CpuLoadedModule>();
     module->id = id;
     module->target = Target::kCpu;
@@ -298,6 +375,7 @@ class ModuleStoreImpl final : public ModuleStore {
 
   ModuleStoreOptions options_;
   ModuleKeyContext context_;
+  std::string nvrtc_version_ = "none";
   std::unique_ptr<ModuleCache> cache_;
 #if WEFT_WITH_CPU_JIT
   std::unique_ptr<jit::CpuJit> cpu_jit_;

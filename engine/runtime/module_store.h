@@ -33,6 +33,10 @@ struct LoadedModule {
   std::vector<LoadedKernel> kernels;
   std::vector<std::string> function_names; // launch_error_t::function_id -> name
   bool has_backward = false;
+  // target == kCuda: the CUBIN for cuda_sm (for cuModuleLoadData; kernels' entry points are
+  // layout.forward_symbol / backward_symbol). Empty for CPU modules.
+  std::string cuda_image;
+  int cuda_sm = 0;
   const LoadedKernel* Find(const std::string& kernel) const {
     for (const auto& k : kernels)
       if (k.layout.name == kernel) return &k;

@@ -473,3 +473,43 @@ TEST_F(CacheModule, RealCompilerSaxpyThroughTheStore) {
 
 }  // namespace
 }  // namespace weft
+
+namespace weft {
+namespace {
+
+#if WEFT_WITH_CUDA
+// cuda:N modules: generated for Target::kCuda, compiled by NVRTC (for the device's sm, or
+// verify_cuda_sm without a driver), cached on disk like CPU objects.
+TEST_F(CacheModule, CudaModulesAreCubinsCachedOnDisk) {
+  std::string id;
+  {
+    auto store = NewStore();
+    CompileReport report;
+    auto m = store->Compile(Module("a * x + y"), "cuda:0", &report);
+    ASSERT_TRUE(m.ok()) << m.status().ToString();
+    EXPECT_EQ((*m)->target, Target::kCuda);
+    EXPECT_GE((*m)->cuda_sm, 50);
+    ASSERT_GT((*m)->cuda_image.size(), 4u);
+    EXPECT_EQ((*m)->cuda_image.substr(0, 4), std::string("\x7f" "ELF"));
+    ASSERT_NE((*m)->Find("saxpy"), nullptr);
+    EXPECT_EQ((*m)->Find("saxpy")->cpu_forward, nullptr);
+    EXPECT_EQ(codegen_.seen.back().target, Target::kCuda);
+    id = (*m)->id;
+    auto cpu = store->Compile(Module("a * x + y"), "cpu", nullptr);
+    ASSERT_TRUE(cpu.ok());
+    EXPECT_NE((*cpu)->id, id);  // same source, different target: different module
+    EXPECT_EQ(store->Find(id).get(), m->get());
+  }
+  auto store = NewStore();
+  CompileReport report;
+  auto m = store->Compile(Module("a * x + y"), "cuda:0", &report);
+  ASSERT_TRUE(m.ok());
+  EXPECT_TRUE(report.disk_hit);
+  EXPECT_EQ((*m)->id, id);
+  EXPECT_EQ(store->Compile(Module("a * x + y"), "cuda:x", nullptr).status().code(),
+            StatusCode::kInvalidArgument);
+}
+#endif
+
+}  // namespace
+}  // namespace weft
