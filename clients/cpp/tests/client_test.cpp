@@ -953,6 +953,17 @@ TEST_F(ClientTest, DaemonRefusesBadRequests) {
                }).ok());
   EXPECT_EQ(Stats().arrays, before.arrays);
 
+  // The typed API refuses sizes that overflow before asking the daemon.
+  EXPECT_EQ(client_.Zeros(weft::dtypes::float64(), {1LL << 31, 1LL << 31, 8}).status().code(),
+            weft::StatusCode::kInvalidArgument);
+  EXPECT_EQ(client_.Zeros(weft::dtypes::float64(), {1LL << 62}).status().code(),
+            weft::StatusCode::kInvalidArgument);
+  EXPECT_EQ(client_.Zeros(weft::dtypes::float64(), {2, -1}).status().code(),
+            weft::StatusCode::kInvalidArgument);
+  // Absurd but representable: the daemon refuses it (more than memory + swap).
+  EXPECT_FALSE(client_.Zeros(weft::dtypes::float64(), {1LL << 50}).ok());
+  EXPECT_EQ(Stats().arrays, before.arrays);
+
   // Unknown handles.
   EXPECT_EQ(client_.Describe(987654321).status().code(), weft::StatusCode::kNotFound);
   EXPECT_EQ(client_.Free(987654321).code(), weft::StatusCode::kNotFound);
