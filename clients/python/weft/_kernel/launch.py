@@ -4,6 +4,7 @@ appends a LaunchCommand to the session's batch. NumPy arrays and lists passed fo
 parameters are copied into temporary daemon arrays and copied back after the launch."""
 from __future__ import annotations
 
+import math
 import os
 import sys
 import typing
@@ -47,11 +48,35 @@ def caller_origin():
 
     frame = sys._getframe(1)
     while frame is not None:
-        filename = os.path.abspath(frame.f_code.co_filename)
-        if not filename.startswith(_PACKAGE_DIR + os.sep):
-            return types_pb2.SourceLocation(file=frame.f_code.co_filename, line=frame.f_lineno)
+        code = frame.f_code
+        inside = _INSIDE_PACKAGE.get(code)
+        if inside is None:
+            inside = _INSIDE_PACKAGE[code] = os.path.abspath(code.co_filename).startswith(
+                _PACKAGE_DIR + os.sep)
+        if not inside:
+            return types_pb2.SourceLocation(file=code.co_filename, line=frame.f_lineno)
         frame = frame.f_back
     return types_pb2.SourceLocation()
+
+
+_INSIDE_PACKAGE: dict = {}     # code object -> whether it belongs to the weft package
+_DTYPE_TEXT: dict = {}         # dtype object -> type string (array argument checks)
+
+
+def _dtype_text(dtype) -> str:
+    try:
+        return _DTYPE_TEXT[dtype]
+    except (KeyError, TypeError):
+        pass
+    try:
+        text = typestr.type_string(dtype)
+    except TypeError:
+        text = str(dtype)
+    try:
+        _DTYPE_TEXT[dtype] = text
+    except TypeError:
+        pass
+    return text
 
 
 def normalize_dim(dim) -> list:
@@ -141,10 +166,7 @@ class ArgPacker:
             else:
                 self._fail(name, f"expected an array of {desc.elem.text} with {desc.ndim} "
                                  f"dimension(s), got {type(value).__name__}")
-        try:
-            got = typestr.type_string(value.dtype)
-        except TypeError:
-            got = str(value.dtype)
+        got = _dtype_text(value.dtype)
         if desc.elem.kind != "any" and got != desc.elem.text:
             self._fail(name, f"expected an array of dtype {desc.elem.text}, got an array of "
                              f"dtype {got}")
@@ -314,7 +336,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         adj_args = list(adj_inputs or []) + list(adj_outputs or [])
         adj_packed = adjoint_arguments(kernel, device, packer.resolved, adj_args)
     compiled, _info = module_mod.compile_kernel(kernel, device, backward=bool(adjoint))
-    if int(np.prod(dims)) == 0:
+    if math.prod(dims) == 0:
         return None
     rt = _runtime.get_runtime()
     tape = tape_mod.active_tape()
