@@ -18,6 +18,7 @@ import argparse
 import glob
 import os
 import secrets
+import shutil
 import signal
 import socket
 import statistics
@@ -588,6 +589,8 @@ def main() -> int:
         if code != 0 or leftovers:
             daemon_ok = False
             print(f"weftd stop: exit {code}, leftover shm {leftovers}\n{daemon.log()}")
+        else:
+            shutil.rmtree(daemon.workdir, ignore_errors=True)   # kept (with the log) on failure
 
     cells = table_rows(rows)
     print()
