@@ -20,6 +20,11 @@ constexpr int kMaxBlockDepth = 100;        // CPython's "too many statically nes
 // Stack the parser may use below ParseFunctionDef's frame, whatever the frame sizes of this
 // build: deeper input is an error, so a thread with a small stack is still safe.
 constexpr uintptr_t kStackBudgetBytes = 256 * 1024;
+// Operators and trailers (`.x`, `(...)`, `[...]`) that wrap an already built operand, per
+// statement. Chains like `a0 + a1 + ... + aN` are parsed by a loop, not by recursion, but the
+// tree they build is N deep, and every later pass (the AST's own destructor included) walks
+// it recursively: tree height <= this + the recursion depth, so it bounds them all.
+constexpr int kMaxOperatorsPerStatement = 1000;
 
 using ast::ExprPtr;
 using ast::StmtPtr;
@@ -186,6 +191,14 @@ class Parser {
     return Fail(t, "'yield' is not supported in kernels (kernels and funcs cannot be generators)");
   }
 
+  // Counts one operator that wraps an existing operand (see kMaxOperatorsPerStatement).
+  bool CountOperator(const Token& at) {
+    if (++operators_in_statement_ <= kMaxOperatorsPerStatement) return true;
+    Fail(at, "expression too long: more than " + std::to_string(kMaxOperatorsPerStatement) +
+                 " operators in one statement; split it into several statements");
+    return false;
+  }
+
   // Recursion guard for expressions and blocks, so hostile input cannot exhaust the stack.
   class DepthGuard {
    public:
@@ -295,6 +308,7 @@ class Parser {
 
   // statement = if_stmt | for_stmt | while_stmt | simple_stmts
   bool ParseStatement(ast::StmtList* out) {
+    operators_in_statement_ = 0;
     const Token& t = Peek();
     if (t.kind == TokenKind::kIndent) {
       Fail(t, "unexpected indent");
@@ -815,6 +829,7 @@ class Parser {
       ast::BinaryOperator op;
       const int level = BinaryLevel(Peek(), &op);
       if (level == 0 || level < min_level) return left;
+      if (!CountOperator(Peek())) return nullptr;
       const Token& op_tok = Next();
       auto e = std::make_unique<ast::BinOp>();
       e->loc = left->loc;
@@ -868,6 +883,7 @@ class Parser {
   ExprPtr ParsePrimary() {
     ExprPtr e = ParseAtom();
     while (e) {
+      if ((IsOp(".") || IsOp("(") || IsOp("[")) && !CountOperator(Peek())) return nullptr;
       if (IsOp(".")) {
         Next();
         if (!IsKind(TokenKind::kName)) return Unexpected(Peek(), "an attribute name after '.'");
@@ -1090,6 +1106,7 @@ class Parser {
   int block_depth_ = 0;
   int loop_depth_ = 0;  // enclosing for/while loops, for "'break' outside loop"
   uintptr_t stack_base_ = 0;
+  int operators_in_statement_ = 0;
   bool failed_ = false;
   TextPosition error_pos_;
   std::string error_message_;

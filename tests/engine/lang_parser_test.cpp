@@ -634,6 +634,30 @@ TEST(LangParser, DeepNestingIsAnErrorNotACrash) {
   EXPECT_FALSE(r5.ok());
 }
 
+TEST(LangParser, LongOperatorChainsAreBoundedPerStatement) {
+  // Chains are parsed by loops but build trees as deep as they are long; the per-statement cap
+  // keeps every recursive walk of the tree (destructor, printer, sema) shallow.
+  auto chain = [](int terms, const char* op) {
+    std::string s = "x = a0";
+    for (int i = 1; i < terms; ++i) s += std::string(" ") + op + " a" + std::to_string(i);
+    return s;
+  };
+  EXPECT_TRUE(MustParse("def f():\n    " + chain(1001, "+") + "\n    " + chain(1001, "*") + "\n"));
+  std::vector<Diagnostic> diags;
+  auto r = ParseFunction(Source("def f():\n    " + chain(1002, "+") + "\n", 5), &diags);
+  ASSERT_FALSE(r.ok());
+  ASSERT_EQ(diags.size(), 1u);
+  EXPECT_NE(diags[0].message.find("expression too long: more than 1000 operators in one statement"),
+            std::string::npos)
+      << diags[0].message;
+  EXPECT_EQ(diags[0].location.line, 6u);
+  // Far longer chains, of operators and of trailers, fail the same way instead of crashing.
+  EXPECT_FALSE(ParseFunction(Source("def f():\n    " + chain(300000, "-") + "\n"), nullptr).ok());
+  std::string trailers = "def f():\n    y = x";
+  for (int i = 0; i < 100000; ++i) trailers += i % 3 == 0 ? ".a" : i % 3 == 1 ? "(b)" : "[c]";
+  EXPECT_FALSE(ParseFunction(Source(trailers + "\n"), nullptr).ok());
+}
+
 TEST(LangParser, RandomMutationsGiveSuccessOrExactlyOneDiagnostic) {
   const std::string base =
       "@wp.kernel\n"
