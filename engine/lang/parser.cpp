@@ -25,6 +25,8 @@ constexpr uintptr_t kStackBudgetBytes = 256 * 1024;
 // tree they build is N deep, and every later pass (the AST's own destructor included) walks
 // it recursively: tree height <= this + the recursion depth, so it bounds them all.
 constexpr int kMaxOperatorsPerStatement = 1000;
+// elif branches of one if statement (each nests one level deeper in the tree).
+constexpr int kMaxElifBranches = 500;
 
 using ast::ExprPtr;
 using ast::StmtPtr;
@@ -545,6 +547,8 @@ class Parser {
   }
 
   // if_stmt = "if" expression ":" block ("elif" expression ":" block)* ["else" ":" block]
+  // Each elif is an If (is_elif) alone in the previous branch's orelse; the chain is parsed by
+  // a loop and capped, since the tree it builds is as deep as the chain is long.
   StmtPtr ParseIf() {
     const Token& if_tok = Next();
     auto s = Make<ast::If>(if_tok);
@@ -552,37 +556,28 @@ class Parser {
     if (!s->test) return nullptr;
     if (!ExpectColon("'if' condition")) return nullptr;
     if (!ParseBlock(&s->body, "'if' statement", s->loc.line)) return nullptr;
-    if (IsKw("elif")) {
-      auto elif = ParseElif();
-      if (!elif) return nullptr;
-      s->orelse.push_back(std::move(elif));
-    } else if (IsKw("else")) {
-      const Token& else_tok = Next();
-      if (!ExpectColon("'else'")) return nullptr;
-      if (!ParseBlock(&s->orelse, "'else' statement", else_tok.pos.line + fn_.first_line - 1)) {
-        return nullptr;
+    ast::If* last = s.get();
+    int elif_count = 0;
+    while (IsKw("elif")) {
+      const Token& elif_tok = Next();
+      if (++elif_count > kMaxElifBranches) {
+        return Fail(elif_tok, "too many 'elif' branches in one 'if' statement (more than " +
+                                  std::to_string(kMaxElifBranches) + ")");
       }
+      auto elif = Make<ast::If>(elif_tok);
+      elif->is_elif = true;
+      elif->test = ParseExpression();
+      if (!elif->test) return nullptr;
+      if (!ExpectColon("'elif' condition")) return nullptr;
+      if (!ParseBlock(&elif->body, "'elif' statement", elif->loc.line)) return nullptr;
+      ast::If* next = elif.get();
+      last->orelse.push_back(std::move(elif));
+      last = next;
     }
-    return s;
-  }
-
-  // elif = "elif" expression ":" block ("elif" ... | "else" ":" block)?   (an If with is_elif)
-  StmtPtr ParseElif() {
-    const Token& elif_tok = Next();
-    auto s = Make<ast::If>(elif_tok);
-    s->is_elif = true;
-    s->test = ParseExpression();
-    if (!s->test) return nullptr;
-    if (!ExpectColon("'elif' condition")) return nullptr;
-    if (!ParseBlock(&s->body, "'elif' statement", s->loc.line)) return nullptr;
-    if (IsKw("elif")) {
-      auto elif = ParseElif();
-      if (!elif) return nullptr;
-      s->orelse.push_back(std::move(elif));
-    } else if (IsKw("else")) {
+    if (IsKw("else")) {
       const Token& else_tok = Next();
       if (!ExpectColon("'else'")) return nullptr;
-      if (!ParseBlock(&s->orelse, "'else' statement", else_tok.pos.line + fn_.first_line - 1)) {
+      if (!ParseBlock(&last->orelse, "'else' statement", else_tok.pos.line + fn_.first_line - 1)) {
         return nullptr;
       }
     }

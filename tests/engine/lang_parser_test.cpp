@@ -177,6 +177,37 @@ TEST(LangParser, IfElifElse) {
             "if a\n  pass\nelse\n  if b\n    pass\n");
 }
 
+TEST(LangParser, LongElifChainsParseUpToTheCap) {
+  auto chain = [](int elifs) {
+    std::string s = "def f():\n    if a == 0:\n        x = 0\n";
+    for (int i = 1; i <= elifs; ++i) {
+      s += "    elif a == " + std::to_string(i) + ":\n        x = " + std::to_string(i) + "\n";
+    }
+    return s + "    else:\n        x = -1\n";
+  };
+  auto fn = MustParse(chain(500));
+  ASSERT_TRUE(fn);
+  int depth = 0;
+  const ast::If* node = ast::As<ast::If>(fn->body[0].get());
+  while (node && node->orelse.size() == 1 && ast::As<ast::If>(node->orelse[0].get())) {
+    node = ast::As<ast::If>(node->orelse[0].get());
+    EXPECT_TRUE(node->is_elif);
+    ++depth;
+  }
+  EXPECT_EQ(depth, 500);
+  ASSERT_TRUE(node);
+  ASSERT_EQ(node->orelse.size(), 1u);
+  EXPECT_EQ(PrintStmt(*node->orelse[0]), "assign x = (u- 1)\n");
+  std::vector<Diagnostic> diags;
+  auto r = ParseFunction(Source(chain(501)), &diags);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(diags[0].message.find("too many 'elif' branches in one 'if' statement (more than 500)"),
+            std::string::npos)
+      << diags[0].message;
+  EXPECT_EQ(diags[0].location.line, 2u + 2u * 501u);
+  EXPECT_FALSE(ParseFunction(Source(chain(50000)), nullptr).ok());
+}
+
 TEST(LangParser, LineContinuations) {
   EXPECT_EQ(Body("    x = a + \\\n        b\n"), "assign x = (+ a b)\n");
   EXPECT_EQ(Body("    x = f(a,\n  b,\n\n            c)\n"), "assign x = (call f a b c)\n");
