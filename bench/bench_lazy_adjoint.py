@@ -341,6 +341,10 @@ def write_markdown(path: Path, header, rows, failures, trials) -> None:
         "- per fwd build = compile_ms / builds; per adjoint build = (first - warm backward) / "
         "builds of that step (in client mode that step also holds the forward-only rebuilds its "
         "enable_backward CompileRequests cause).",
+        "- 5 builds where one would do: the Python client sends one CompileRequest per kernel, "
+        "and each ModuleSource lists the module's functions with that kernel first, so the same "
+        "5-kernel module gets 5 cache keys and is built 5 times (and its adjoint variant 5 times, "
+        "once per module id). The per-build columns give the cost of one module.",
         "",
         "| " + " | ".join(header) + " |",
         "|" + "|".join("---" for _ in header) + "|",
