@@ -669,13 +669,7 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
       s = args[0].type.scalar;
     }
     Type t = name == "quat_identity" ? Type::Quat(s) : Type::Transform(s);
-    Stmt st;
-    st.op.kind = OpKind::kConstruct;
-    st.op.mode = ConstructMode::kZero;
-    int d = NewVar(t);
-    st.op.dst.push_back(d);
-    Push(std::move(st));
-    return Value::OfVar(d);
+    return Value::OfVar(EmitConst(t, "wp::cg_identity<" + CppType(t) + ">()"));
   }
   if (name == "identity") {
     const ast::Expr* n = kwarg("n");
