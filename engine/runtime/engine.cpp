@@ -144,7 +144,7 @@ Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(const DType& dtype, 
   a->strides = ContiguousStrides(shape, dtype.ElementSize());
   a->byte_size = static_cast<uint64_t>(bytes);
   a->block = block;
-  if (zero) std::memset(block.data, 0, a->byte_size);
+  if (zero && !block.zeroed) std::memset(block.data, 0, a->byte_size);   // new slabs are zero already
   const uint64_t handle = a->handle, size = a->byte_size;
   ShmSlabPool* pool = slabs_.get();
   a->release = [this, pool, handle, size](const ShmSlabPool::Block& b) {

@@ -90,9 +90,11 @@ Expected<ShmSlabPool::Block> ShmSlabPool::Allocate(uint64_t bytes) {
   std::lock_guard<std::mutex> lock(mu_);
   Slab* slab = nullptr;
   uint64_t offset = 0;
+  bool fresh = false;
   if (size > options_.dedicated_threshold || size > options_.slab_size) {
     uint64_t slab_size = RoundUp(size, static_cast<uint64_t>(getpagesize()));
     WEFT_ASSIGN_OR_RETURN(slab, NewSlabLocked(slab_size, true));
+    fresh = true;
   } else {
     for (auto& [id, s] : slabs_) {
       if (s->dedicated) continue;
@@ -108,6 +110,7 @@ Expected<ShmSlabPool::Block> ShmSlabPool::Allocate(uint64_t bytes) {
     if (!slab) {
       WEFT_ASSIGN_OR_RETURN(slab, NewSlabLocked(options_.slab_size, false));
       offset = 0;
+      fresh = true;
     }
   }
   // Carve [offset, offset+size) out of the free range that starts at offset.
@@ -125,6 +128,7 @@ Expected<ShmSlabPool::Block> ShmSlabPool::Allocate(uint64_t bytes) {
   b.offset = offset;
   b.size = size;
   b.data = slab->base + offset;
+  b.zeroed = fresh;
   return b;
 }
 

@@ -38,6 +38,7 @@ class ShmSlabPool {
     uint64_t offset = 0;
     uint64_t size = 0;        // rounded size
     void* data = nullptr;
+    bool zeroed = false;      // from a slab created for this request: already all zero
   };
 
   explicit ShmSlabPool(ShmSlabPoolOptions options = {});

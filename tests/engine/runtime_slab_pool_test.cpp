@@ -72,6 +72,11 @@ TEST(SlabPool, BigRequestsGetTheirOwnSlabAndEmptySlabsAreUnlinked) {
   EXPECT_NE(small->slab_name, big->slab_name);
   EXPECT_EQ(big->offset, 0u);
   EXPECT_GE(big->slab_size, 3u << 20);
+  EXPECT_TRUE(big->zeroed);
+  for (uint64_t i = 0; i < big->size; i += 4096) ASSERT_EQ(static_cast<char*>(big->data)[i], 0);
+  auto carved = pool.Allocate(10);   // from the existing regular slab: may hold old data
+  EXPECT_FALSE(carved->zeroed);
+  pool.Free(*carved);
   EXPECT_TRUE(ShmExists(big->slab_name));
   struct stat st {};
   ASSERT_EQ(stat(("/dev/shm" + big->slab_name).c_str(), &st), 0);
