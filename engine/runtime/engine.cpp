@@ -94,8 +94,7 @@ Status Engine::CloseSession(const std::string& id, bool reaped) {
   }
   s->queue().WaitIdle();
   size_t n = s->array_count();
-  s->tapes.clear();
-  s->ReleaseAll();
+  s->ReleaseAll();   // tapes hold weak references only; they go with the Session object
   if (reaped) ++sessions_reaped_;
   spdlog::info("session {} {}: {} array handle(s) released", id,
                reaped ? "reaped (client went away)" : "closed", n);
