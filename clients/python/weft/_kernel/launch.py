@@ -42,11 +42,11 @@ def device_name(device) -> str:
     return str(device)
 
 
-def caller_origin():
-    """SourceLocation of the first frame outside the weft package (the user's launch line)."""
-    from weft.v1 import types_pb2  # noqa: PLC0415
-
-    frame = sys._getframe(1)
+def caller_origin(depth: int = 1):
+    """SourceLocation of the first frame outside the weft package (the user's launch line),
+    starting `depth` frames above the caller. One cached proto per (code, line): no inspect,
+    no stack walk beyond the weft frames."""
+    frame = sys._getframe(depth + 1)
     while frame is not None:
         code = frame.f_code
         inside = _INSIDE_PACKAGE.get(code)
@@ -54,11 +54,43 @@ def caller_origin():
             inside = _INSIDE_PACKAGE[code] = os.path.abspath(code.co_filename).startswith(
                 _PACKAGE_DIR + os.sep)
         if not inside:
-            return types_pb2.SourceLocation(file=code.co_filename, line=frame.f_lineno)
+            key = (code, frame.f_lineno)
+            location = _ORIGINS.get(key)
+            if location is None:
+                if len(_ORIGINS) > 100_000:
+                    _ORIGINS.clear()
+                location = _ORIGINS[key] = _pb().types_pb2.SourceLocation(
+                    file=code.co_filename, line=frame.f_lineno)
+            return location
         frame = frame.f_back
-    return types_pb2.SourceLocation()
+    return _pb().types_pb2.SourceLocation()
 
 
+class _Protos:
+    """The generated proto modules, imported once (not per launch: `from weft.v1 import`
+    inside a function costs an import-machinery call every time)."""
+
+    def __init__(self):
+        from weft.v1 import exec_pb2, types_pb2  # noqa: PLC0415
+
+        self.exec_pb2 = exec_pb2
+        self.types_pb2 = types_pb2
+        self.ArgValue = exec_pb2.ArgValue
+        self.Command = exec_pb2.Command
+        self.LaunchCommand = exec_pb2.LaunchCommand
+
+
+_PROTOS = None
+
+
+def _pb() -> _Protos:
+    global _PROTOS
+    if _PROTOS is None:
+        _PROTOS = _Protos()
+    return _PROTOS
+
+
+_ORIGINS: dict = {}            # (code object, line) -> SourceLocation proto (copied by users)
 _INSIDE_PACKAGE: dict = {}     # code object -> whether it belongs to the weft package
 _DTYPE_TEXT: dict = {}         # dtype object -> type string (array argument checks)
 
@@ -310,52 +342,276 @@ def _adjoint_struct(value: typing.Optional[StructInstance], given: typing.Option
     return exec_pb2.StructValue(fields=fields)
 
 
+# --------------------------------------------------------------------------------------------
+# The launch hot path: a plan per (kernel, runtime, device) with one packer per parameter,
+# ArgValue protos of arrays cached on the array objects, scalars packed with struct.
+# --------------------------------------------------------------------------------------------
+
+_STRUCT_FORMATS = {"float32": "<f", "float64": "<d", "int8": "<b", "int16": "<h", "int32": "<i",
+                   "int64": "<q", "uint8": "<B", "uint16": "<H", "uint32": "<I",
+                   "uint64": "<Q"}
+_INT_RANGES = {"int8": (-2**7, 2**7 - 1), "int16": (-2**15, 2**15 - 1),
+               "int32": (-2**31, 2**31 - 1), "int64": (-2**63, 2**63 - 1),
+               "uint8": (0, 2**8 - 1), "uint16": (0, 2**16 - 1), "uint32": (0, 2**32 - 1),
+               "uint64": (0, 2**64 - 1)}
+
+
+class _ParamPlan:
+    """How one kernel parameter is packed on the fast path."""
+
+    __slots__ = ("name", "type_text", "desc", "annotation", "is_array", "elem_text", "elem_any",
+                 "ndim", "pack_float", "pack_int", "int_range", "last_raw", "last_arg")
+
+    def __init__(self, name, type_text, annotation):
+        desc = typestr.parse(type_text)
+        self.name = name
+        self.type_text = type_text
+        self.desc = desc
+        self.annotation = annotation
+        self.is_array = desc.kind == "array"
+        self.elem_text = desc.elem.text if self.is_array else ""
+        self.elem_any = self.is_array and desc.elem.kind == "any"
+        self.ndim = desc.ndim
+        fmt = _STRUCT_FORMATS.get(desc.scalar) if desc.kind == "scalar" else None
+        self.pack_float = __import__("struct").Struct(fmt).pack \
+            if fmt and desc.scalar.startswith("float") else None
+        self.pack_int = __import__("struct").Struct(fmt).pack \
+            if fmt and not desc.scalar.startswith("float") else None
+        self.int_range = _INT_RANGES.get(desc.scalar)
+        self.last_raw = None
+        self.last_arg = None
+
+
+class _LaunchPlan:
+    """What every launch of one kernel on one device of one session repeats: the compiled
+    module and kernel name (valid while the module registry version is unchanged) and the
+    parameter packers."""
+
+    __slots__ = ("version", "compiled", "kernel_name", "params", "n_params", "template")
+
+    def __init__(self, kernel: Kernel, compiled, info, device: str):
+        self.version = module_mod.registry_version()
+        self.compiled = compiled
+        self.kernel_name = info.name or kernel.name
+        annotations = kernel.definition.annotations
+        self.params = [_ParamPlan(n, t, annotations[n])
+                       for n, t in zip(kernel.param_names, kernel.param_types)]
+        self.n_params = len(self.params)
+        pb = _pb()        # the forward LaunchCommand less dim, args and origin (copied per launch)
+        self.template = pb.Command(launch=pb.LaunchCommand(
+            module_id=compiled.module_id, kernel=self.kernel_name, device=device))
+
+
+def _launch_plan(kernel: Kernel, device: str, runtime) -> _LaunchPlan:
+    plans = kernel.__dict__.get("_launch_plans")
+    if plans is None:
+        plans = kernel._launch_plans = {}
+    key = (id(runtime), device)
+    plan = plans.get(key)
+    if plan is not None and plan.version == module_mod.registry_version() and \
+            plan.compiled is kernel._compiled.get((key[0], device, False), (0, None))[1]:
+        return plan
+    compiled, info = module_mod.compile_kernel(kernel, device, backward=False)
+    plan = plans[key] = _LaunchPlan(kernel, compiled, info, device)
+    return plan
+
+
+# Per array object: (handle, byte_offset, shape, strides, dtype, device, dtype text, ndim,
+# device name, ArgValue). Views are immutable; the identity checks of shape/strides/dtype/device
+# catch any attribute that was replaced anyway.
+_REF_ATTR = "_weft_launch_ref"
+
+
+def _array_arg(value):
+    cached = value.__dict__.get(_REF_ATTR)
+    if cached is not None and cached[0] == value._handle and \
+            cached[1] == value._byte_offset and cached[2] is value.shape and \
+            cached[3] is value.strides and cached[4] is value.dtype and \
+            cached[5] is value.device:
+        return cached
+    pb = _pb()
+    arg = pb.ArgValue(array=value._ref())
+    cached = (value._handle, value._byte_offset, value.shape, value.strides, value.dtype,
+              value.device, _dtype_text(value.dtype), int(value.ndim),
+              device_name(value.device), arg)
+    try:
+        value.__dict__[_REF_ATTR] = cached
+    except (AttributeError, TypeError):
+        pass
+    return cached
+
+
+def _device_matches(array_device: str, launch_device: str) -> bool:
+    return array_device == launch_device or (launch_device == "cuda" and
+                                             array_device.startswith("cuda"))
+
+
+def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
+    """(ArgValues, ArgPacker or None, resolved args): weft arrays and Python scalars on the fast
+    path, anything else (NumPy arrays, structs, vectors, errors) through ArgPacker, parameter by
+    parameter; resolved = the arguments as launched (temporaries substituted)."""
+    if len(args) != plan.n_params:
+        raise WeftLaunchError(f"Invalid number of arguments for kernel '{kernel.key}': expected "
+                              f"{plan.n_params} ({', '.join(kernel.param_names)}), "
+                              f"got {len(args)}")
+    packed = []
+    packer = None
+    resolved = args
+    array_type = _array_type()
+    arg_value = _pb().ArgValue
+    for i, (p, value) in enumerate(zip(plan.params, args)):
+        if p.is_array:
+            if isinstance(value, array_type):
+                c = _array_arg(value)
+                if (p.elem_any or c[6] == p.elem_text) and c[7] == p.ndim and \
+                        _device_matches(c[8], device):
+                    packed.append(c[9])
+                    continue
+        elif p.pack_float is not None:
+            if type(value) is float or type(value) is int:
+                try:
+                    raw = p.pack_float(value)
+                except OverflowError:        # float32 overflow: NumPy's inf, slow path
+                    raw = None
+                if raw is not None:
+                    if raw != p.last_raw:
+                        p.last_raw, p.last_arg = raw, arg_value(raw=raw)
+                    packed.append(p.last_arg)
+                    continue
+        elif p.pack_int is not None:
+            if type(value) is int and p.int_range[0] <= value <= p.int_range[1]:
+                raw = p.pack_int(value)
+                if raw != p.last_raw:
+                    p.last_raw, p.last_arg = raw, arg_value(raw=raw)
+                packed.append(p.last_arg)
+                continue
+        if packer is None:
+            packer = ArgPacker(kernel, device)
+        arg, launched = packer.pack(p.name, p.type_text, p.annotation, value)
+        packed.append(arg)
+        if launched is not value:
+            if resolved is args:
+                resolved = list(args)
+            resolved[i] = launched
+    return packed, packer, resolved
+
+
+_ARRAY_TYPE = None
+
+
+def _array_type():
+    global _ARRAY_TYPE
+    if _ARRAY_TYPE is None:
+        from weft.array import array  # noqa: PLC0415
+
+        _ARRAY_TYPE = array
+    return _ARRAY_TYPE
+
+
+_TAPE_MOD = None
+_RUNTIME_MOD = None
+
+
+def _modules():
+    global _TAPE_MOD, _RUNTIME_MOD
+    if _TAPE_MOD is None:
+        from weft import _runtime  # noqa: PLC0415
+
+        from . import tape as tape_mod  # noqa: PLC0415
+
+        _TAPE_MOD, _RUNTIME_MOD = tape_mod, _runtime
+    return _TAPE_MOD, _RUNTIME_MOD
+
+
+_DEVICE_NAMES: dict = {}        # device object -> its name (devices are long-lived singletons)
+
+
+def _launch_device(device, args) -> str:
+    if device is None:
+        array_type = _array_type()
+        for a in args:
+            if isinstance(a, array_type):
+                device = a.device
+                break
+        else:
+            return device_name(None)
+    if type(device) is str:
+        return device
+    try:
+        return _DEVICE_NAMES[device]
+    except (KeyError, TypeError):
+        pass
+    name = device_name(device)
+    try:
+        _DEVICE_NAMES[device] = name
+    except TypeError:
+        pass
+    return name
+
+
 def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), device=None,
            stream=None, adjoint=False, record_tape=True, record_cmd=False, max_blocks=0,
            block_dim=256):
     """wp.launch: runs kernel over dim (an int or a tuple of up to 4 ints) on device."""
-    from weft import _runtime  # noqa: PLC0415
-    from weft.v1 import exec_pb2  # noqa: PLC0415
-
-    from . import tape as tape_mod  # noqa: PLC0415
-
     if not isinstance(kernel, Kernel):
         raise WeftLaunchError(f"wp.launch expects a @wp.kernel, got {type(kernel).__name__}")
-    dims = normalize_dim(dim)
-    args = list(inputs or []) + list(outputs or [])
-    if device is None:
-        first_array = next((a for a in args if is_weft_array(a)), None)
-        device = device_name(first_array.device if first_array is not None else None)
+    if type(dim) is int and dim >= 0:
+        dims = [dim]
     else:
-        device = device_name(device)
-    if kernel.is_generic:
-        kernel = kernel.specialize(infer_param_types(kernel, args))
-    packed, packer = pack_arguments(kernel, device, args)
-    adj_packed = []
-    if adjoint:
-        adj_args = list(adj_inputs or []) + list(adj_outputs or [])
-        adj_packed = adjoint_arguments(kernel, device, packer.resolved, adj_args)
-    compiled, _info = module_mod.compile_kernel(kernel, device, backward=bool(adjoint))
-    if math.prod(dims) == 0:
-        return None
+        dims = normalize_dim(dim)
+    args = [*inputs, *outputs] if outputs else list(inputs or [])
+    device = _launch_device(device, args)
+    tape_mod, _runtime = _modules()
     rt = _runtime.get_runtime()
+    pb = _pb()
+    generic = kernel.__dict__.get("_weft_is_generic")
+    if generic is None:
+        generic = kernel.__dict__["_weft_is_generic"] = bool(kernel.is_generic)
+    if not adjoint and not generic:
+        if len(args) != len(kernel.param_names):     # before compiling, as the slow path does
+            pack_arguments(kernel, device, args)
+        plan = _launch_plan(kernel, device, rt)
+        packed, packer, resolved = _pack_fast(kernel, plan, device, args)
+    else:
+        plan = None
+        if generic:
+            kernel = kernel.specialize(infer_param_types(kernel, args))
+        packed, packer = pack_arguments(kernel, device, args)
+        resolved = packer.resolved
+        adj_packed = []
+        if adjoint:
+            adj_args = list(adj_inputs or []) + list(adj_outputs or [])
+            adj_packed = adjoint_arguments(kernel, device, packer.resolved, adj_args)
+        compiled, info = module_mod.compile_kernel(kernel, device, backward=bool(adjoint))
+        module_id, kernel_name = compiled.module_id, info.name or kernel.name
+    for d in dims:
+        if d == 0:
+            return None
     tape = tape_mod.active_tape()
     pause = tape is not None and (adjoint or not record_tape)
     if pause:
         tape.pause_recording()
-    command = exec_pb2.Command(
-        launch=exec_pb2.LaunchCommand(module_id=compiled.module_id, kernel=_info.name or kernel.name,
-                                      dim=dims, args=packed, adjoint=bool(adjoint),
-                                      adj_args=adj_packed, device=device),
-        origin=caller_origin())
+    if plan is not None:
+        command = pb.Command()
+        command.CopyFrom(plan.template)
+        launch_cmd = command.launch
+        launch_cmd.dim.extend(dims)
+        launch_cmd.args.extend(packed)
+        command.origin.CopyFrom(caller_origin())
+    else:
+        command = pb.Command(
+            launch=pb.LaunchCommand(module_id=module_id, kernel=kernel_name, dim=dims,
+                                    args=packed, adjoint=bool(adjoint), adj_args=adj_packed,
+                                    device=device),
+            origin=caller_origin())
     rt.submit(command)
     if pause:
         tape.resume_recording()
     elif tape is not None:
-        tape.record_launch(kernel, dims, packer.resolved, device, packer.temps)
-    if packer.copy_backs:
+        temps = packer.temps if packer is not None else ()
+        tape.record_launch(kernel, dims, list(resolved), device, temps)
+    if packer is not None and packer.copy_backs:
         rt.synchronize()
         for pending in packer.copy_backs:
             pending.apply()
     return None
-
