@@ -247,8 +247,14 @@ class Tape:
     def _note_gradients(self):
         for entry in self.launches:
             for value in getattr(entry, "args", ()):
-                if is_weft_array(value) and getattr(value, "grad", None) is not None:
-                    self.gradients.setdefault(value, value.grad)
+                if not is_weft_array(value):
+                    continue
+                try:
+                    grad = value.grad
+                except Exception:  # noqa: BLE001 - an array freed in the daemon (Describe
+                    continue       # fails): the BACKWARD itself reports it at the next sync
+                if grad is not None:
+                    self.gradients.setdefault(value, grad)
 
     # --- clearing -----------------------------------------------------------------------
     def _arrays_with_grad(self) -> list:
