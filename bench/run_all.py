@@ -1,4 +1,5 @@
-"""Runs every weft benchmark (compile, launch overhead, kernels) and prints their tables.
+"""Runs every weft benchmark (compile, launch overhead, kernels, foundation, bounds checks,
+lazy adjoint) and prints their tables. Arguments are passed to every benchmark.
 `make bench` installs warp-lang first so each table has a warp-lang ratio column."""
 from __future__ import annotations
 
@@ -8,7 +9,8 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-BENCHES = ["bench_compile.py", "bench_launch.py", "bench_kernels.py"]
+BENCHES = ["bench_compile.py", "bench_launch.py", "bench_kernels.py", "bench_foundation.py",
+           "bench_bounds_checks.py", "bench_lazy_adjoint.py"]
 
 
 def main() -> int:
