@@ -2,6 +2,7 @@
 // indentation stack and a bracket stack, as in CPython's tokenizer.
 #include "engine/lang/lexer.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cstdlib>
 #include <cstring>
@@ -112,12 +113,19 @@ class Lexer {
   bool AtEnd(size_t j) const { return j >= src_.size(); }
   char At(size_t j) const { return j < src_.size() ? src_[j] : '\0'; }
 
+  // Column counting resumes from the previous query on the same line, so a very long line
+  // costs linear time, not quadratic.
   TextPosition PosAt(size_t offset) const {
-    uint32_t col = 1;
-    for (size_t j = line_start_; j < offset && j < src_.size(); ++j) {
-      if ((static_cast<unsigned char>(src_[j]) & 0xC0) != 0x80) ++col;
+    if (col_cache_line_start_ != line_start_ || offset < col_cache_offset_) {
+      col_cache_line_start_ = line_start_;
+      col_cache_offset_ = line_start_;
+      col_cache_column_ = 1;
     }
-    return {line_, col};
+    for (size_t j = col_cache_offset_; j < offset && j < src_.size(); ++j) {
+      if ((static_cast<unsigned char>(src_[j]) & 0xC0) != 0x80) ++col_cache_column_;
+    }
+    col_cache_offset_ = std::max(col_cache_offset_, std::min(offset, src_.size()));
+    return {line_, col_cache_column_};
   }
 
   bool Fail(TextPosition pos, std::string message) {
@@ -580,6 +588,9 @@ class Lexer {
 
   std::string_view src_;
   uint32_t first_line_ = 1;
+  mutable size_t col_cache_line_start_ = static_cast<size_t>(-1);
+  mutable size_t col_cache_offset_ = 0;
+  mutable uint32_t col_cache_column_ = 1;
   size_t i_ = 0;
   uint32_t line_ = 1;
   size_t line_start_ = 0;
