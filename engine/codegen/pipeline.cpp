@@ -43,10 +43,8 @@ Status VerifyModule(const sema::Module& m) {
   return Status::Ok();
 }
 
-}  // namespace
-
-Expected<GeneratedModule> GenerateModule(const ModuleSource& module, const CodegenOptions& options,
-                                         std::vector<Diagnostic>* diags) {
+Expected<GeneratedModule> RunPipeline(const ModuleSource& module, const CodegenOptions& options,
+                                      std::vector<Diagnostic>* diags) {
   const char* env = std::getenv("WEFT_DUMP_IR");
   StageTimer timer(env && *env && *env != '0');
   std::vector<Diagnostic> local;
@@ -79,6 +77,19 @@ Expected<GeneratedModule> GenerateModule(const ModuleSource& module, const Codeg
   if (!out.ok()) return out.status();
   timer.Done("emit C++", out->source);
   return out;
+}
+
+}  // namespace
+
+Expected<GeneratedModule> GenerateModule(const ModuleSource& module, const CodegenOptions& options,
+                                         std::vector<Diagnostic>* diags) {
+  // Errors are values; a bug that throws (std::out_of_range, bad_alloc) must not take the
+  // daemon down: it becomes an internal error with a bug hint.
+  try {
+    return RunPipeline(module, options, diags);
+  } catch (const std::exception& e) {
+    return Internal(std::string("weft compiler bug (please report): ") + e.what());
+  }
 }
 
 }  // namespace weft

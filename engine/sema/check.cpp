@@ -158,8 +158,9 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
                                                " types were given"));
   for (size_t i = 0; i < params.size(); ++i) {
     const Type& t = param_types[i];
-    if (t.is_struct() && !module_.structs.count(t.struct_name))
-      return finish_error(Error(params[i].loc, "unknown struct type '" + t.struct_name + "'"));
+    const Type& base = t.is_array() ? t.elem() : t;
+    if (base.is_struct() && !module_.structs.count(base.struct_name))
+      return finish_error(Error(params[i].loc, "unknown struct type '" + base.struct_name + "'"));
     int v = NewVar(t, params[i].name);
     fn.vars[v].is_param = true;
     fn.params.push_back(v);
