@@ -4,8 +4,8 @@ appends a LaunchCommand to the session's batch. NumPy arrays and lists passed fo
 parameters are copied into temporary daemon arrays and copied back after the launch."""
 from __future__ import annotations
 
-import math
 import os
+import struct
 import sys
 import typing
 
@@ -373,10 +373,9 @@ class _ParamPlan:
         self.elem_any = self.is_array and desc.elem.kind == "any"
         self.ndim = desc.ndim
         fmt = _STRUCT_FORMATS.get(desc.scalar) if desc.kind == "scalar" else None
-        self.pack_float = __import__("struct").Struct(fmt).pack \
-            if fmt and desc.scalar.startswith("float") else None
-        self.pack_int = __import__("struct").Struct(fmt).pack \
-            if fmt and not desc.scalar.startswith("float") else None
+        is_float = desc.scalar.startswith("float")
+        self.pack_float = struct.Struct(fmt).pack if fmt and is_float else None
+        self.pack_int = struct.Struct(fmt).pack if fmt and not is_float else None
         self.int_range = _INT_RANGES.get(desc.scalar)
         self.last_raw = None
         self.last_arg = None
