@@ -75,6 +75,7 @@ void ToProto(const DeviceInfo& d, v1::DeviceInfo* p) {
   p->set_compute_capability_major(d.compute_capability_major);
   p->set_compute_capability_minor(d.compute_capability_minor);
   p->set_cores(d.cores);
+  p->set_compute_supported(d.compute_supported);
 }
 
 ModuleSource FromProto(const v1::ModuleSource& p) {

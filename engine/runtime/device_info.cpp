@@ -35,6 +35,7 @@ DeviceInfo QueryCpuDevice(int pool_threads) {
     d.free_memory = (static_cast<uint64_t>(si.freeram) + si.bufferram) * si.mem_unit;
   }
   d.cores = pool_threads;
+  d.compute_supported = true;
   return d;
 }
 

@@ -17,6 +17,7 @@ struct DeviceInfo {
   int32_t compute_capability_major = 0;
   int32_t compute_capability_minor = 0;
   int32_t cores = 0;         // CPU pool threads / GPU SMs
+  bool compute_supported = false;  // arrays and launches work on it (CPU: yes; CUDA: not yet)
 };
 
 // The CPU device; `pool_threads` is reported as cores.

@@ -118,14 +118,8 @@ def tone_map(counts: np.ndarray, speed_sum: np.ndarray, scale: float) -> np.ndar
 
 
 def pick_device() -> str:
-    try:
-        for device in wp.get_devices():
-            name = device if isinstance(device, str) else getattr(device, "alias", str(device))
-            if str(name).startswith("cuda"):
-                return str(name)
-    except Exception:  # noqa: BLE001 - no device list: the CPU
-        pass
-    return "cpu"
+    # The daemon's preferred device: its first GPU that can run kernels, else the CPU.
+    return str(wp.get_preferred_device().alias)
 
 
 def total_energy(x, v) -> tuple:

@@ -24,6 +24,8 @@ class Device:
         self.alias = info.name
         self.is_cpu = info.kind == "cpu"
         self.is_cuda = info.kind == "cuda"
+        # False while the daemon lists a device it cannot yet hold arrays on or launch on.
+        self.is_compute_supported = bool(getattr(info, "compute_supported", self.is_cpu))
         self.ordinal = int(info.name.split(":")[1]) if self.is_cuda and ":" in info.name else -1
         self.name = info.description or info.name
         self.arch = (info.compute_capability_major * 10 + info.compute_capability_minor
@@ -128,7 +130,8 @@ def get_cuda_device_count() -> int:
 
 
 def is_cuda_available() -> bool:
-    return get_cuda_device_count() > 0
+    """True when a GPU can hold arrays and run kernels (listed-only GPUs do not count)."""
+    return any(d.is_compute_supported for d in get_cuda_devices())
 
 
 def is_cpu_available() -> bool:
@@ -159,7 +162,7 @@ def _current_cuda_device() -> Device | None:
 
 def get_preferred_device() -> Device:
     _load_devices()
-    cuda = [d for d in _devices if d.is_cuda]
+    cuda = [d for d in _devices if d.is_cuda and d.is_compute_supported]
     return cuda[0] if cuda else _devices_by_alias["cpu"]
 
 
