@@ -207,13 +207,15 @@ def build_module_source(kernel: Kernel, backward: bool = False):
 
     options = get_module_options(kernel.module_name)
     options.update({k: v for k, v in kernel.options.items() if k != "module"})
-    if backward:
-        options["enable_backward"] = True
+    # No "enable_backward" option: the daemon generates adjoints lazily (ModuleStore::WithBackward)
+    # for the same module id, so forward and adjoint launches share one cache key.
     msg = module_pb2.ModuleSource(name=kernel.module_name)
     for key in sorted(options):
         value = options[key]
         msg.options[str(key)] = ("true" if value else "false") if isinstance(value, bool) else str(value)
-    for d in group.definitions:
+    # Canonical order, whatever kernel asked: every kernel of a module sends the same message,
+    # so the module gets one cache key and is built once (not once per kernel).
+    for d in sorted(group.definitions, key=lambda d: (d.key, d.name)):
         msg.functions.append(module_pb2.FunctionSource(
             name=d.name, source=d.source, file=d.file, first_line=d.first_line,
             is_kernel=d.is_kernel, param_types=d.param_types, param_names=d.param_names,
@@ -230,7 +232,7 @@ def build_module_source(kernel: Kernel, backward: bool = False):
             sym.constant.type = s.constant_type
             sym.constant.value = s.constant_value
         msg.symbols.append(sym)
-    for st in group.structs:
+    for st in sorted(group.structs, key=lambda st: st.key):
         msg.structs.append(module_pb2.StructDef(
             name=st.key, fields=[module_pb2.StructField(name=f.name, type=f.type_str)
                                  for f in st.fields]))
