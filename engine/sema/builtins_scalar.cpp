@@ -8,10 +8,10 @@ void AddScalarBuiltins(std::vector<BuiltinOverload>* rows) {
   auto add = [rows](const char* sig, const char* doc, unsigned flags = kBuiltinNone, const char* native = "") {
     rows->push_back(Builtin("Scalar math", sig, doc, flags, native));
   };
-  add("min(a: Scalar, b: Scalar) -> Scalar", "Smaller of two scalars; the gradient goes to `a` on ties.");
+  add("min(a: Scalar, b: Scalar) -> Scalar", "Smaller of two scalars; the gradient goes to `b` on ties (as Warp).");
   add("min(a: vec(N,Scalar), b: vec(N,Scalar)) -> vec(N,Scalar)", "Componentwise minimum.");
   add("min(a: vec(N,Scalar)) -> Scalar", "Smallest component.");
-  add("max(a: Scalar, b: Scalar) -> Scalar", "Larger of two scalars; the gradient goes to `a` on ties.");
+  add("max(a: Scalar, b: Scalar) -> Scalar", "Larger of two scalars; the gradient goes to `b` on ties (as Warp).");
   add("max(a: vec(N,Scalar), b: vec(N,Scalar)) -> vec(N,Scalar)", "Componentwise maximum.");
   add("max(a: vec(N,Scalar)) -> Scalar", "Largest component.");
   add("clamp(x: Scalar, low: Scalar, high: Scalar) -> Scalar",
