@@ -130,8 +130,7 @@ def get_cuda_device_count() -> int:
 
 
 def is_cuda_available() -> bool:
-    """True when a GPU can hold arrays and run kernels (listed-only GPUs do not count)."""
-    return any(d.is_compute_supported for d in get_cuda_devices())
+    return get_cuda_device_count() > 0
 
 
 def is_cpu_available() -> bool:
