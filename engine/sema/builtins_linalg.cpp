@@ -34,6 +34,12 @@ void AddLinalgBuiltins(std::vector<BuiltinOverload>* rows) {
   op("div(a: mat(N,M,Scalar), b: Scalar) -> mat(N,M,Scalar)", "Matrix divided by scalar.");
   op("div(a: Scalar, b: mat(N,M,Scalar)) -> mat(N,M,Scalar)", "Scalar divided by each component.");
   op("div(a: quat(Float), b: Float) -> quat(Float)", "Quaternion divided by scalar.");
+  op("div_approx(a: vec(N,Float), b: Float) -> vec(N,Float)", "Vector divided by scalar (approximate on CUDA).");
+  op("div_approx(a: Float, b: vec(N,Float)) -> vec(N,Float)", "Scalar divided by each component (approximate on CUDA).");
+  op("div_approx(a: mat(N,M,Float), b: Float) -> mat(N,M,Float)", "Matrix divided by scalar (approximate on CUDA).");
+  op("div_approx(a: Float, b: mat(N,M,Float)) -> mat(N,M,Float)", "Scalar divided by each component (approximate on CUDA).");
+  op("div_approx(a: quat(Float), b: Float) -> quat(Float)", "Quaternion divided by scalar (approximate on CUDA).");
+  op("div_approx(a: Float, b: quat(Float)) -> quat(Float)", "Scalar divided by each component (approximate on CUDA).");
   op("mod(a: vec(N,Scalar), b: vec(N,Scalar)) -> vec(N,Scalar)", "Componentwise `%`.");
   op("neg(x: vec(N,Scalar)) -> vec(N,Scalar)", "`-x`.");
   op("neg(x: mat(N,M,Scalar)) -> mat(N,M,Scalar)", "`-x`.");
@@ -59,12 +65,14 @@ void AddLinalgBuiltins(std::vector<BuiltinOverload>* rows) {
   vec("normalize(a: quat(Float)) -> quat(Float)", "Unit quaternion; zero maps to zero.");
   vec("transpose(a: mat(N,M,Scalar)) -> mat(M,N,Scalar)", "Transpose.");
   for (const char* n : {"2", "3", "4"}) {
-    static std::string sigs[3][2];
+    static std::string sigs[3][3];
     int k = n[0] - '2';
     sigs[k][0] = std::string("inverse(a: mat(") + n + "," + n + ",Float)) -> mat(" + n + "," + n + ",Float)";
     sigs[k][1] = std::string("determinant(a: mat(") + n + "," + n + ",Float)) -> Float";
     vec(sigs[k][0].c_str(), "Matrix inverse; a singular matrix gives zeros (as Warp).");
     vec(sigs[k][1].c_str(), "Determinant.");
+    sigs[k][2] = std::string("inverse_approx(a: mat(") + n + "," + n + ",Float)) -> mat(" + n + "," + n + ",Float)";
+    vec(sigs[k][2].c_str(), "Matrix inverse, approximate division on CUDA; singular gives zeros.");
   }
   vec("trace(a: mat(N,N,Scalar)) -> Scalar", "Sum of the diagonal.");
   vec("diag(vec: vec(N,Scalar)) -> mat(N,N,Scalar)", "Diagonal matrix from a vector.");

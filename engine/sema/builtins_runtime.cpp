@@ -49,6 +49,8 @@ void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows) {
        "First index i with arr[i] >= value in a sorted array.", kBuiltinNotDiff);
   misc("lower_bound(arr: array(Scalar,1), arr_begin: int32, arr_end: int32, value: Scalar) -> int32",
        "lower_bound in arr[arr_begin:arr_end].", kBuiltinNotDiff);
+  misc("block_dim() -> int32", "Threads per block of the launch: blockDim.x on CUDA, 1 on CPU.",
+       kBuiltinNeedsCtx | kBuiltinNotDiff);
   misc("print(value: X) -> void", "Print a value; the text reaches the launching client's stdout.",
        kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
   misc("expect_eq(a: X, b: X) -> void", "Report a launch error when a != b.",

@@ -81,6 +81,7 @@ void AddScalarBuiltins(std::vector<BuiltinOverload>* rows) {
   op("sub(a: Scalar, b: Scalar) -> Scalar", "`a - b`.");
   op("mul(a: Scalar, b: Scalar) -> Scalar", "`a * b`.");
   op("div(a: Scalar, b: Scalar) -> Scalar", "`a / b` (integers: truncating, as C).");
+  op("div_approx(a: Float, b: Float) -> Float", "`a / b`, approximate (fast) division on CUDA; exact on CPU.");
   op("floordiv(a: Scalar, b: Scalar) -> Scalar", "`a // b`.");
   op("mod(a: Scalar, b: Scalar) -> Scalar", "`a % b`.");
   op("neg(x: Scalar) -> Scalar", "`-x`.");
@@ -91,6 +92,11 @@ void AddScalarBuiltins(std::vector<BuiltinOverload>* rows) {
   op("lshift(a: Int, b: Int) -> Int", "`a << b`.", kBuiltinNotDiff);
   op("rshift(a: Int, b: Int) -> Int", "`a >> b`.", kBuiltinNotDiff);
   op("invert(a: Int) -> Int", "`~a`.", kBuiltinNotDiff);
+  op("unot(a: Cond) -> bool", "`not a`: true when a is false / zero.", kBuiltinNotDiff);
+  for (const char* sig : {"unot(a: array(X,1)) -> bool", "unot(a: array(X,2)) -> bool", "unot(a: array(X,3)) -> bool",
+                          "unot(a: array(X,4)) -> bool"}) {
+    op(sig, "`not a` on an array: true when it is None.", kBuiltinNotDiff);
+  }
   op("bit_and(a: vec(N,Int), b: vec(N,Int)) -> vec(N,Int)", "Componentwise `&`.", kBuiltinNotDiff);
   op("bit_or(a: vec(N,Int), b: vec(N,Int)) -> vec(N,Int)", "Componentwise `|`.", kBuiltinNotDiff);
   op("bit_xor(a: vec(N,Int), b: vec(N,Int)) -> vec(N,Int)", "Componentwise `^`.", kBuiltinNotDiff);

@@ -374,5 +374,71 @@ TEST(CodegenAutodiff, OutOfBoundsReadStopsTheThreadAndReports) {
   EXPECT_EQ(out.data[2], 7);
 }
 
+TEST(CodegenAutodiff, DivApproxInverseApproxForwardAndGradient) {
+  auto m = Module1("k",
+                   "def k(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):\n"
+                   "    i = wp.tid()\n"
+                   "    b = 8 * i\n"
+                   "    v = wp.vec3d(x[b], x[b + 1], x[b + 2])\n"
+                   "    d = x[b + 7] + wp.float64(3.0)\n"
+                   "    m = wp.mat22d(x[b + 3] + wp.float64(2.0), x[b + 4], x[b + 5], x[b + 6] + wp.float64(2.0))\n"
+                   "    s = wp.div_approx(x[b], d) + wp.length_sq(wp.div_approx(v, d))\n"
+                   "    s += wp.dot(wp.div_approx(d, v + wp.vec3d(wp.float64(3.0), wp.float64(3.0), wp.float64(3.0))), v)\n"
+                   "    mi = wp.inverse_approx(m)\n"
+                   "    s += mi[0, 0] + mi[0, 1] * x[b] + mi[1, 0] + mi[1, 1] * wp.float64(2.0)\n"
+                   "    s += wp.div_approx(m, d)[1, 0] + wp.div_approx(d, m)[0, 0]\n"
+                   "    out[i] = s\n",
+                   kInOut, {"x", "out"});
+  Built b = Build(m, "k");
+  ASSERT_EQ(b.error, "");
+  Arr x{Random(16, -0.8, 0.8, 11), std::vector<double>(16), 16};
+  Arr out{std::vector<double>(2), std::vector<double>(2), 2};
+  auto setup = [&](Launch& l) { l.SetArray(0, x); l.SetArray(1, out); };
+  {
+    Launch l(&b);
+    setup(l);
+    ASSERT_EQ(l.Run(2, false).kind, 0);
+  }
+  for (int i = 0; i < 2; ++i) {  // float64 reference
+    const double* a = x.data.data() + 8 * i;
+    double d = a[7] + 3.0, m00 = a[3] + 2.0, m01 = a[4], m10 = a[5], m11 = a[6] + 2.0;
+    double s = a[0] / d;
+    for (int c = 0; c < 3; ++c) s += (a[c] / d) * (a[c] / d) + d / (a[c] + 3.0) * a[c];
+    double det = m00 * m11 - m01 * m10;
+    s += m11 / det + (-m01 / det) * a[0] + (-m10 / det) + (m00 / det) * 2.0;
+    s += m10 / d + d / m00;
+    EXPECT_NEAR(out.data[i], s, 1e-12 * std::max(1.0, std::fabs(s))) << i;
+  }
+  CheckGradient(b, x, out, 2, setup, 1e-6, "div_approx/inverse_approx");
+}
+
+TEST(CodegenAutodiff, UnotAndBlockDimOnCpu) {
+  auto m = Module1("k",
+                   "def k(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):\n"
+                   "    i = wp.tid()\n"
+                   "    r = wp.float64(0.0)\n"
+                   "    if wp.unot(i % 2):\n"
+                   "        r += wp.float64(1.0)\n"
+                   "    if wp.unot(i > 2):\n"
+                   "        r += wp.float64(2.0)\n"
+                   "    if wp.unot(x):\n"
+                   "        r += wp.float64(4.0)\n"
+                   "    r += wp.float64(wp.block_dim()) * wp.float64(10.0)\n"
+                   "    out[i] = r * x[i]\n",
+                   kInOut, {"x", "out"});
+  Built b = Build(m, "k");
+  ASSERT_EQ(b.error, "");
+  Arr x{Random(5, 0.5, 1.5, 12), std::vector<double>(5), 5};
+  Arr out{std::vector<double>(5), std::vector<double>(5), 5};
+  Launch l(&b);
+  l.SetArray(0, x);
+  l.SetArray(1, out);
+  ASSERT_EQ(l.Run(5, false).kind, 0);
+  for (int i = 0; i < 5; ++i) {
+    double r = (i % 2 == 0 ? 1.0 : 0.0) + (i > 2 ? 0.0 : 2.0) + 10.0;  // x is not None; one thread per block
+    EXPECT_NEAR(out.data[i], r * x.data[i], 1e-15) << i;
+  }
+}
+
 }  // namespace
 }  // namespace weft
