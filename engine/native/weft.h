@@ -13,6 +13,7 @@
 #include "quat.h"
 #include "transform.h"
 #include "spatial.h"
+#include "intersect.h"
 #include "array.h"
 #include "atomic.h"
 #include "random.h"

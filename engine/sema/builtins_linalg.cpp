@@ -125,6 +125,16 @@ void AddLinalgBuiltins(std::vector<BuiltinOverload>* rows) {
   xf("transform_vector(mat: mat(4,4,Float), vec: vec(3,Float)) -> vec(3,Float)", "Upper 3x3 times vec.");
   xf("transform_inverse(xform: transform(Float)) -> transform(Float)", "Inverse transform.");
 
+  auto geo = [rows](const char* sig, const char* doc, unsigned flags = kBuiltinNone) {
+    rows->push_back(Builtin("Geometry", sig, doc, flags));
+  };
+  geo("closest_point_edge_edge(p1: vec(3,Float), q1: vec(3,Float), p2: vec(3,Float), q2: vec(3,Float), epsilon: Float) "
+      "-> vec(3,Float)",
+      "(s, t, d): closest points p1 + (q1 - p1) s and p2 + (q2 - p2) t of two segments and their distance d.");
+  geo("intersect_tri_tri(v0: vec(3,Float), v1: vec(3,Float), v2: vec(3,Float), u0: vec(3,Float), u1: vec(3,Float), "
+      "u2: vec(3,Float)) -> int32",
+      "1 when the two triangles overlap (touching counts), else 0.", kBuiltinNotDiff);
+
   auto sp = [rows](const char* sig, const char* doc, unsigned flags = kBuiltinNone) {
     rows->push_back(Builtin("Spatial", sig, doc, flags));
   };

@@ -440,5 +440,151 @@ TEST(CodegenAutodiff, UnotAndBlockDimOnCpu) {
   }
 }
 
+struct V3 {
+  double x, y, z;
+};
+V3 Sub(V3 a, V3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+V3 Add(V3 a, V3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+V3 Mul(V3 a, double s) { return {a.x * s, a.y * s, a.z * s}; }
+double Dot(V3 a, V3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+V3 Cross(V3 a, V3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+
+// Reference for closest_point_edge_edge: the minimum of |p1 + d1 s - p2 - d2 t| over the unit
+// square is the interior stationary point or lies on one of the four sides.
+void SegmentSegmentReference(V3 p1, V3 q1, V3 p2, V3 q2, double* s_out, double* t_out, double* d_out) {
+  V3 d1 = Sub(q1, p1), d2 = Sub(q2, p2), r = Sub(p1, p2);
+  auto dist = [&](double s, double t) {
+    V3 w = Sub(Add(p1, Mul(d1, s)), Add(p2, Mul(d2, t)));
+    return std::sqrt(Dot(w, w));
+  };
+  auto c01 = [](double x) { return std::min(1.0, std::max(0.0, x)); };
+  double best = 1e300, bs = 0, bt = 0;
+  auto consider = [&](double s, double t) {
+    double d = dist(s, t);
+    if (d < best) best = d, bs = s, bt = t;
+  };
+  double a = Dot(d1, d1), b = Dot(d1, d2), e = Dot(d2, d2), c = Dot(d1, r), f = Dot(d2, r);
+  double det = a * e - b * b;
+  double si = (b * f - c * e) / det, ti = (a * f - b * c) / det;
+  if (si >= 0 && si <= 1 && ti >= 0 && ti <= 1) consider(si, ti);
+  for (double s : {0.0, 1.0}) consider(s, c01((f + b * s) / e));
+  for (double t : {0.0, 1.0}) consider(c01((b * t - c) / a), t);
+  *s_out = bs, *t_out = bt, *d_out = best;
+}
+
+TEST(CodegenAutodiff, ClosestPointEdgeEdgeForwardAndGradient) {
+  auto m = Module1("k",
+                   "def k(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):\n"
+                   "    i = wp.tid()\n"
+                   "    b = 12 * i\n"
+                   "    p1 = wp.vec3d(x[b], x[b + 1], x[b + 2])\n"
+                   "    q1 = wp.vec3d(x[b + 3], x[b + 4], x[b + 5])\n"
+                   "    p2 = wp.vec3d(x[b + 6], x[b + 7], x[b + 8])\n"
+                   "    q2 = wp.vec3d(x[b + 9], x[b + 10], x[b + 11])\n"
+                   "    r = wp.closest_point_edge_edge(p1, q1, p2, q2, wp.float64(1.0e-12))\n"
+                   "    out[3 * i] = r[0]\n"
+                   "    out[3 * i + 1] = r[1]\n"
+                   "    out[3 * i + 2] = r[2]\n",
+                   kInOut, {"x", "out"});
+  Built b = Build(m, "k");
+  ASSERT_EQ(b.error, "");
+  const int n = 24;
+  Arr x{Random(12 * n, -1.0, 1.0, 21), std::vector<double>(12 * n), 12 * n};
+  Arr out{std::vector<double>(3 * n), std::vector<double>(3 * n), 3 * n};
+  auto setup = [&](Launch& l) { l.SetArray(0, x); l.SetArray(1, out); };
+  {
+    Launch l(&b);
+    setup(l);
+    ASSERT_EQ(l.Run(n, false).kind, 0);
+  }
+  int clamped = 0;
+  for (int i = 0; i < n; ++i) {
+    const double* a = x.data.data() + 12 * i;
+    double s, t, d;
+    SegmentSegmentReference({a[0], a[1], a[2]}, {a[3], a[4], a[5]}, {a[6], a[7], a[8]}, {a[9], a[10], a[11]}, &s, &t, &d);
+    EXPECT_NEAR(out.data[3 * i], s, 1e-9) << i;
+    EXPECT_NEAR(out.data[3 * i + 1], t, 1e-9) << i;
+    EXPECT_NEAR(out.data[3 * i + 2], d, 1e-12) << i;
+    clamped += (s == 0 || s == 1 || t == 0 || t == 1);
+  }
+  EXPECT_GT(clamped, 3);       // the clamped branches are exercised
+  EXPECT_LT(clamped, n - 3);   // and the interior one
+  CheckGradient(b, x, out, n, setup, 1e-5, "closest_point_edge_edge");
+}
+
+// Reference for intersect_tri_tri (triangles in general position): they overlap iff an edge
+// of one crosses the other.
+bool SegmentHitsTriangle(V3 p, V3 q, V3 a, V3 b, V3 c) {
+  V3 n = Cross(Sub(b, a), Sub(c, a));
+  double dp = Dot(n, Sub(p, a)), dq = Dot(n, Sub(q, a));
+  if ((dp > 0 && dq > 0) || (dp < 0 && dq < 0) || dp == dq) return false;
+  V3 h = Add(p, Mul(Sub(q, p), dp / (dp - dq)));
+  double s1 = Dot(n, Cross(Sub(b, a), Sub(h, a))), s2 = Dot(n, Cross(Sub(c, b), Sub(h, b))),
+         s3 = Dot(n, Cross(Sub(a, c), Sub(h, c)));
+  return (s1 >= 0 && s2 >= 0 && s3 >= 0) || (s1 <= 0 && s2 <= 0 && s3 <= 0);
+}
+
+TEST(CodegenAutodiff, IntersectTriTriAgainstEdgeCrossingReference) {
+  auto m = Module1("k",
+                   "def k(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):\n"
+                   "    i = wp.tid()\n"
+                   "    b = 18 * i\n"
+                   "    v0 = wp.vec3d(x[b], x[b + 1], x[b + 2])\n"
+                   "    v1 = wp.vec3d(x[b + 3], x[b + 4], x[b + 5])\n"
+                   "    v2 = wp.vec3d(x[b + 6], x[b + 7], x[b + 8])\n"
+                   "    u0 = wp.vec3d(x[b + 9], x[b + 10], x[b + 11])\n"
+                   "    u1 = wp.vec3d(x[b + 12], x[b + 13], x[b + 14])\n"
+                   "    u2 = wp.vec3d(x[b + 15], x[b + 16], x[b + 17])\n"
+                   "    hit = wp.intersect_tri_tri(v0, v1, v2, u0, u1, u2)\n"
+                   "    hf = wp.intersect_tri_tri(wp.vec3f(v0), wp.vec3f(v1), wp.vec3f(v2), wp.vec3f(u0), wp.vec3f(u1), wp.vec3f(u2))\n"
+                   "    out[2 * i] = wp.float64(hit)\n"
+                   "    out[2 * i + 1] = wp.float64(hf)\n",
+                   kInOut, {"x", "out"});
+  Built b = Build(m, "k");
+  ASSERT_EQ(b.error, "");
+  const int random_pairs = 400;
+  std::vector<double> data = Random(18 * random_pairs, -1.0, 1.0, 31);
+  // Coplanar hard cases (z = 0): identical, one inside the other, disjoint, sharing a vertex.
+  std::vector<std::vector<double>> coplanar = {
+      {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0},
+      {0, 0, 0, 4, 0, 0, 0, 4, 0, 0.5, 0.5, 0, 1, 0.5, 0, 0.5, 1, 0},
+      {0, 0, 0, 1, 0, 0, 0, 1, 0, 2, 2, 0, 3, 2, 0, 2, 3, 0},
+      {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 0, 0, 2, 0, 0, 2, 1, 0},
+      {0, 0, 0, 1, 0, 0, 0, 1, 0, 0.6, 0.6, 0, 2, 0.6, 0, 0.6, 2, 0},
+  };
+  const double coplanar_expect[] = {1, 1, 0, 1, 0};
+  for (auto& c : coplanar) data.insert(data.end(), c.begin(), c.end());
+  const int n = random_pairs + static_cast<int>(coplanar.size());
+  Arr x{data, std::vector<double>(data.size()), static_cast<int64_t>(data.size())};
+  Arr out{std::vector<double>(2 * n), std::vector<double>(2 * n), 2 * n};
+  Launch l(&b);
+  l.SetArray(0, x);
+  l.SetArray(1, out);
+  ASSERT_EQ(l.Run(n, false).kind, 0);
+  int hits = 0;
+  for (int i = 0; i < random_pairs; ++i) {
+    const double* a = x.data.data() + 18 * i;
+    V3 v[3], u[3];
+    for (int k = 0; k < 3; ++k) {
+      v[k] = {a[3 * k], a[3 * k + 1], a[3 * k + 2]};
+      u[k] = {a[9 + 3 * k], a[10 + 3 * k], a[11 + 3 * k]};
+    }
+    bool expect = false;
+    for (int k = 0; k < 3; ++k) {
+      expect = expect || SegmentHitsTriangle(v[k], v[(k + 1) % 3], u[0], u[1], u[2]);
+      expect = expect || SegmentHitsTriangle(u[k], u[(k + 1) % 3], v[0], v[1], v[2]);
+    }
+    hits += expect;
+    EXPECT_EQ(out.data[2 * i], expect ? 1.0 : 0.0) << "pair " << i;
+    EXPECT_EQ(out.data[2 * i + 1], expect ? 1.0 : 0.0) << "pair " << i << " (float32)";
+  }
+  EXPECT_GT(hits, 20);
+  EXPECT_LT(hits, random_pairs - 20);
+  for (size_t c = 0; c < coplanar.size(); ++c) {
+    EXPECT_EQ(out.data[2 * (random_pairs + c)], coplanar_expect[c]) << "coplanar case " << c;
+    EXPECT_EQ(out.data[2 * (random_pairs + c) + 1], coplanar_expect[c]) << "coplanar case " << c << " (float32)";
+  }
+}
+
 }  // namespace
 }  // namespace weft
