@@ -7,6 +7,20 @@
 
 namespace weft::server {
 
+namespace {
+
+// A session's sync result (first error, origin, kernel output) as a SynchronizeResponse.
+void FillSync(Session::SyncResult& r, v1::SynchronizeResponse* resp) {
+  if (!r.error.ok()) {
+    resp->set_error(r.error.message());
+    resp->set_error_code(static_cast<int32_t>(r.error.code()));
+    ToProto(r.origin, resp->mutable_error_origin());
+  }
+  resp->set_output(std::move(r.output));
+}
+
+}  // namespace
+
 grpc::Status ExecServiceImpl::Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitResponse* resp) {
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
@@ -16,6 +30,14 @@ grpc::Status ExecServiceImpl::Submit(grpc::ServerContext* ctx, const v1::SubmitR
     auto c = FromProto(req->commands(i), static_cast<size_t>(i));
     if (!c.ok()) return ToGrpc(c.status());   // nothing queued
     commands.push_back(std::move(c).value());
+  }
+  const uint64_t n = commands.size();
+  if (req->synchronize()) {
+    auto r = auth_.engine().SubmitAndSynchronize(**s, std::move(commands));
+    if (!r.ok()) return ToGrpc(r.status());
+    resp->set_queued(n);
+    FillSync(*r, resp->mutable_sync());
+    return grpc::Status::OK;
   }
   auto r = auth_.engine().Submit(**s, std::move(commands));
   if (!r.ok()) return ToGrpc(r.status());
@@ -28,12 +50,7 @@ grpc::Status ExecServiceImpl::Synchronize(grpc::ServerContext* ctx, const v1::Sy
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
   Session::SyncResult r = auth_.engine().Synchronize(**s);
-  if (!r.error.ok()) {
-    resp->set_error(r.error.message());
-    resp->set_error_code(static_cast<int32_t>(r.error.code()));
-    ToProto(r.origin, resp->mutable_error_origin());
-  }
-  resp->set_output(r.output);
+  FillSync(r, resp);
   return grpc::Status::OK;
 }
 

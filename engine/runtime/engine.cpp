@@ -306,9 +306,7 @@ Expected<ArrayDesc> Engine::ImportArray(Session& s, const std::string& token) {
 
 // ---- commands ----
 
-Expected<uint64_t> Engine::Submit(Session& s, std::vector<Command> commands) {
-  const uint64_t n = commands.size();
-  if (n == 0) return n;
+std::function<void()> Engine::BatchTask(Session& s, std::vector<Command> commands) {
   auto snapshot = std::make_shared<HandleSnapshot>();
   std::vector<uint64_t> handles;
   for (const Command& c : commands) CollectHandles(c, &handles);
@@ -319,7 +317,7 @@ Expected<uint64_t> Engine::Submit(Session& s, std::vector<Command> commands) {
   auto batch = std::make_shared<std::vector<Command>>(std::move(commands));
   CommandExecutor* exec = executor_.get();
   Session* sp = &s;
-  s.queue().Post([exec, sp, batch, snapshot] {
+  return [exec, sp, batch, snapshot] {
     for (const Command& c : *batch) {
       if (sp->failed()) {
         sp->CountSkipped();
@@ -332,8 +330,23 @@ Expected<uint64_t> Engine::Submit(Session& s, std::vector<Command> commands) {
       }
     }
     snapshot->clear();
-  });
+  };
+}
+
+Expected<uint64_t> Engine::Submit(Session& s, std::vector<Command> commands) {
+  const uint64_t n = commands.size();
+  if (n == 0) return n;
+  s.queue().Post(BatchTask(s, std::move(commands)));
   return n;
+}
+
+Expected<Session::SyncResult> Engine::SubmitAndSynchronize(Session& s, std::vector<Command> commands) {
+  if (commands.empty()) {
+    s.queue().WaitIdle();
+  } else {
+    s.queue().RunAndWait(BatchTask(s, std::move(commands)));
+  }
+  return s.TakeResult();
 }
 
 Session::SyncResult Engine::Synchronize(Session& s) {

@@ -105,6 +105,9 @@ class Engine {
   // Commands: queued in order on the session's executor; errors surface at Synchronize.
   Expected<uint64_t> Submit(Session& s, std::vector<Command> commands);
   Session::SyncResult Synchronize(Session& s);
+  // Submit + Synchronize in one step (the fused sync point): when the session's executor is
+  // idle the batch runs on the calling thread, saving two thread hand-offs.
+  Expected<Session::SyncResult> SubmitAndSynchronize(Session& s, std::vector<Command> commands);
 
   // Modules.
   Expected<std::shared_ptr<const LoadedModule>> Compile(Session& s, ModuleSource source,
@@ -116,6 +119,8 @@ class Engine {
 
  private:
   Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store);
+  // The executor task of one batch (holds the batch's arrays until it has run).
+  std::function<void()> BatchTask(Session& s, std::vector<Command> commands);
   Expected<std::shared_ptr<Allocation>> NewAllocation(const DType& dtype, const std::vector<int64_t>& shape,
                                                       bool zero);
   ArrayDesc Describe(const Session& s, const Allocation& a) const;

@@ -27,6 +27,27 @@ void SerialQueue::WaitIdle() {
   idle_cv_.wait(lock, [&] { return tasks_.empty() && !running_task_; });
 }
 
+void SerialQueue::RunAndWait(std::function<void()> task) {
+  {
+    std::unique_lock<std::mutex> lock(mu_);
+    if (!tasks_.empty() || running_task_) {
+      tasks_.push_back(std::move(task));
+      cv_.notify_one();
+      idle_cv_.wait(lock, [&] { return tasks_.empty() && !running_task_; });
+      return;
+    }
+    running_task_ = true;   // the worker starts nothing while this runs here
+  }
+  task();
+  task = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    running_task_ = false;
+    if (tasks_.empty()) idle_cv_.notify_all();
+  }
+  cv_.notify_one();   // tasks posted meanwhile
+}
+
 uint64_t SerialQueue::pending() const {
   std::lock_guard<std::mutex> lock(mu_);
   return tasks_.size() + (running_task_ ? 1 : 0);
@@ -35,8 +56,8 @@ uint64_t SerialQueue::pending() const {
 void SerialQueue::Loop() {
   std::unique_lock<std::mutex> lock(mu_);
   while (true) {
-    cv_.wait(lock, [&] { return stop_ || !tasks_.empty(); });
-    if (tasks_.empty()) {
+    cv_.wait(lock, [&] { return stop_ || (!tasks_.empty() && !running_task_); });
+    if (tasks_.empty() || running_task_) {
       if (stop_) return;
       continue;
     }

@@ -1,5 +1,7 @@
 // A session's executor: one thread that runs posted tasks in order. WaitIdle blocks until every
-// task posted before it has finished.
+// task posted before it has finished. RunAndWait runs a task after everything posted before it
+// and returns when it is done: on the calling thread when the queue is idle (no thread hand-off,
+// the sync-point fast path), else posted and waited for. Tasks never overlap either way.
 #pragma once
 
 #include <condition_variable>
@@ -20,6 +22,7 @@ class SerialQueue {
 
   void Post(std::function<void()> task);
   void WaitIdle();
+  void RunAndWait(std::function<void()> task);
   uint64_t pending() const;
 
  private:

@@ -126,6 +126,9 @@ ModuleServiceStub = _make_stub_class(module_pb2.DESCRIPTOR.services_by_name["Mod
 DeviceServiceStub = _make_stub_class(device_pb2.DESCRIPTOR.services_by_name["DeviceService"])
 
 _CODE_NAMES = {code.value[0]: code.name for code in grpc.StatusCode}
+# Submit(synchronize=true) (flush + Synchronize in one round trip), when the generated message
+# modules are recent enough to have the field (`make proto-py` regenerates them).
+_FUSED_SYNC = "synchronize" in exec_pb2.SubmitRequest.DESCRIPTOR.fields_by_name
 
 
 # ------------------------------------------------------------------------------------------
@@ -362,10 +365,25 @@ class Runtime:
             self._drain_frees()
 
     def synchronize(self) -> None:
-        """Flushes, waits for every command, prints kernel output, raises the first error."""
+        """Flushes, waits for every command, prints kernel output, raises the first error.
+        With commands pending this is ONE round trip: Submit(synchronize=true) queues them and
+        returns what Synchronize would; with none pending, a plain Synchronize."""
         with self._lock:
-            self.flush()
-            response = self.call(self.exec_stub.Synchronize, exec_pb2.SynchronizeRequest())
+            batch, self._batch, self._batch_bytes = self._batch, [], 0
+            if batch and _FUSED_SYNC:
+                response = self.call(self.exec_stub.Submit,
+                                     exec_pb2.SubmitRequest(commands=batch, synchronize=True))
+                if not response.HasField("sync"):
+                    # A daemon from before the fused path ignores `synchronize`.
+                    response = self.call(self.exec_stub.Synchronize,
+                                         exec_pb2.SynchronizeRequest())
+                else:
+                    response = response.sync
+            else:
+                if batch:   # message modules generated before SubmitRequest.synchronize
+                    self.call(self.exec_stub.Submit, exec_pb2.SubmitRequest(commands=batch))
+                response = self.call(self.exec_stub.Synchronize, exec_pb2.SynchronizeRequest())
+            self._drain_frees()
             self._unsynchronized = False
             deferred, self._deferred_error = self._deferred_error, None
         if response.output:
