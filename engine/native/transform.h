@@ -34,6 +34,18 @@ template <typename T> WP_FUNC quat_t<T> transform_get_rotation(const transform_t
 template <typename T> WP_FUNC void transform_set_translation(transform_t<T>& t, const vec_t<3, T>& p) { t.p = p; }
 template <typename T> WP_FUNC void transform_set_rotation(transform_t<T>& t, const quat_t<T>& q) { t.q = q; }
 
+// Value forms of the set_* builtins (weft rebinds the variable instead of writing in place).
+template <typename T> WP_FUNC transform_t<T> transform_with_translation(const transform_t<T>& t, const vec_t<3, T>& p) { return transform_t<T>(p, t.q); }
+template <typename T> WP_FUNC transform_t<T> transform_with_rotation(const transform_t<T>& t, const quat_t<T>& q) { return transform_t<T>(t.p, q); }
+template <typename T> WP_FUNC void adj_transform_with_translation(const transform_t<T>&, const vec_t<3, T>&, transform_t<T>& adj_t, vec_t<3, T>& adj_p, const transform_t<T>& adj_ret) {
+  adj_t.q += adj_ret.q;
+  adj_p += adj_ret.p;
+}
+template <typename T> WP_FUNC void adj_transform_with_rotation(const transform_t<T>&, const quat_t<T>&, transform_t<T>& adj_t, quat_t<T>& adj_q, const transform_t<T>& adj_ret) {
+  adj_t.p += adj_ret.p;
+  adj_q += adj_ret.q;
+}
+
 template <typename T> WP_FUNC T extract(const transform_t<T>& t, int32 i) { return (unsigned)i < 7u ? t[i] : T(0); }
 template <typename T> WP_FUNC transform_t<T> assign(const transform_t<T>& t, int32 i, T value) {
   transform_t<T> r = t;

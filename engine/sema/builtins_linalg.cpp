@@ -118,6 +118,12 @@ void AddLinalgBuiltins(std::vector<BuiltinOverload>* rows) {
   };
   xf("transform_get_translation(xform: transform(Float)) -> vec(3,Float)", "Translation p.");
   xf("transform_get_rotation(xform: transform(Float)) -> quat(Float)", "Rotation q.");
+  rows->push_back(Builtin("Transform", "transform_set_translation(xform: transform(Float), p: vec(3,Float)) -> transform(Float)",
+                          "Sets xform.p (as Warp; weft rebinds `xform` to the updated value; the call returns None).",
+                          kBuiltinNone, "transform_with_translation"));
+  rows->push_back(Builtin("Transform", "transform_set_rotation(xform: transform(Float), q: quat(Float)) -> transform(Float)",
+                          "Sets xform.q (as Warp; weft rebinds `xform` to the updated value; the call returns None).",
+                          kBuiltinNone, "transform_with_rotation"));
   xf("transform_multiply(a: transform(Float), b: transform(Float)) -> transform(Float)", "Composition a * b.");
   xf("transform_point(xform: transform(Float), point: vec(3,Float)) -> vec(3,Float)", "q * point + p.");
   xf("transform_point(mat: mat(4,4,Float), point: vec(3,Float)) -> vec(3,Float)", "Homogeneous point transform.");

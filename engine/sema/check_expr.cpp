@@ -624,6 +624,14 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     v.name = "__tid";
     return v;
   }
+  if ((name == "transform_set_translation" || name == "transform_set_rotation") && call && call->args.size() == 2 &&
+      call->keywords.empty()) {
+    // Warp writes xform in place; here the registry row computes the updated transform and the
+    // first argument (a name, field or element) is assigned it. The call itself gives None.
+    WEFT_ASSIGN_OR_RETURN(Value updated, ResolveAndEmitBuiltin(name, std::move(args), loc));
+    WEFT_RETURN_IF_ERROR(LowerAssignTo(*call->args[0], updated));
+    return Value();
+  }
   if (name == "range") return Error(loc, "range() is only allowed as the iterable of a for loop");
   if (name == "len") {
     if (args.size() != 1 || args[0].kind != Value::Kind::kVar) return Error(loc, "len() takes one value");

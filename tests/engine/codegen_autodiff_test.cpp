@@ -586,5 +586,43 @@ TEST(CodegenAutodiff, IntersectTriTriAgainstEdgeCrossingReference) {
   }
 }
 
+TEST(CodegenAutodiff, TransformSetTranslationAndRotationRebindTheVariable) {
+  auto m = Module1("k",
+                   "def k(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):\n"
+                   "    i = wp.tid()\n"
+                   "    b = 12 * i\n"
+                   "    t = wp.transformd(wp.vec3d(x[b], x[b + 1], x[b + 2]), wp.quatd(x[b + 3], x[b + 4], x[b + 5], x[b + 6]))\n"
+                   "    t0 = t\n"
+                   "    wp.transform_set_translation(t, wp.vec3d(x[b + 7], x[b + 8], x[b + 9]) * x[b])\n"
+                   "    s = wp.dot(wp.transform_get_translation(t), wp.vec3d(x[b + 1], x[b + 2], x[b + 3]))\n"
+                   "    s += wp.dot(wp.transform_get_rotation(t), wp.quatd(x[b + 4], x[b + 5], x[b + 6], x[b + 7]))\n"
+                   "    wp.transform_set_rotation(t, wp.quatd(x[b + 10], x[b + 11], x[b + 1], x[b + 2]) * x[b + 3])\n"
+                   "    s += wp.dot(wp.transform_get_rotation(t), wp.quatd(x[b + 8], x[b + 9], x[b + 10], x[b + 11])) * t.p[1]\n"
+                   "    s += t0.p[0] * wp.float64(3.0)\n"
+                   "    out[i] = s\n",
+                   kInOut, {"x", "out"});
+  Built b = Build(m, "k");
+  ASSERT_EQ(b.error, "");
+  Arr x{Random(36, -1.0, 1.0, 41), std::vector<double>(36), 36};
+  Arr out{std::vector<double>(3), std::vector<double>(3), 3};
+  auto setup = [&](Launch& l) { l.SetArray(0, x); l.SetArray(1, out); };
+  {
+    Launch l(&b);
+    setup(l);
+    ASSERT_EQ(l.Run(3, false).kind, 0);
+  }
+  for (int i = 0; i < 3; ++i) {
+    const double* a = x.data.data() + 12 * i;
+    double p[3] = {a[7] * a[0], a[8] * a[0], a[9] * a[0]};
+    double s = p[0] * a[1] + p[1] * a[2] + p[2] * a[3];
+    s += a[3] * a[4] + a[4] * a[5] + a[5] * a[6] + a[6] * a[7];
+    double q2[4] = {a[10] * a[3], a[11] * a[3], a[1] * a[3], a[2] * a[3]};
+    s += (q2[0] * a[8] + q2[1] * a[9] + q2[2] * a[10] + q2[3] * a[11]) * p[1];
+    s += a[0] * 3.0;  // the copy taken before the set keeps the old translation
+    EXPECT_NEAR(out.data[i], s, 1e-12) << i;
+  }
+  CheckGradient(b, x, out, 3, setup, 1e-6, "transform_set_*");
+}
+
 }  // namespace
 }  // namespace weft
