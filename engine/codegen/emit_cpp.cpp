@@ -71,7 +71,9 @@ class FnEmitter {
     if (f_.returns.size() == 1 && mode != Mode::kAdjoint) ret = CppType(f_.returns[0]);
     std::string name = mode == Mode::kForward ? f_.cpp_name : mode == Mode::kReplay ? "replay_" + f_.cpp_name
                                                                                     : "adj_" + f_.cpp_name;
-    std::string sig = "static inline WP_CALLABLE " + ret + " " + name + "(const wp::launch_context_t* __ctx";
+    // __tid_flat: the calling thread's flat index, passed down from the kernel so that
+    // wp.tid() works inside @wp.func (as in Warp).
+    std::string sig = "static inline WP_CALLABLE " + ret + " " + name + "(const wp::launch_context_t* __ctx, wp::int64 __tid_flat";
     for (int p : f_.params) sig += ", " + CppType(T(p)) + " " + V(p);
     if (mode == Mode::kAdjoint) {
       for (int p : f_.params) sig += ", " + CppType(T(p)) + "& " + A(p);
@@ -86,6 +88,12 @@ class FnEmitter {
     Line(sig + " {");
     ++indent_;
     Line("(void)__ctx;");
+    Line("(void)__tid_flat;");
+    if (f_.uses_tid) {
+      Line("wp::int64 __tid[4];");
+      Line("wp::cg_unravel(__ctx->bounds, __tid_flat, __tid);");
+      Line("(void)__tid;");
+    }
     Decls(mode == Mode::kAdjoint);
     Fwd(f_.body, mode != Mode::kForward);
     if (mode == Mode::kAdjoint) {
@@ -274,7 +282,7 @@ class FnEmitter {
       case OpKind::kFuncCall: {
         const Function& callee = m_.functions.at(op.callee);
         std::string name = (replay ? "replay_" : "") + callee.cpp_name;
-        std::string args = "__ctx" + std::string(op.args.empty() ? "" : ", ") + Args(op.args);
+        std::string args = "__ctx, __tid_flat" + std::string(op.args.empty() ? "" : ", ") + Args(op.args);
         if (op.dst.size() > 1) Line(name + "(" + args + ", " + Args(op.dst) + ");");
         else if (op.dst.empty()) Line(name + "(" + args + ");");
         else Line(d() + " = " + name + "(" + args + ");");
@@ -458,7 +466,7 @@ class FnEmitter {
       }
       case OpKind::kFuncCall: {
         const Function& callee = m_.functions.at(op.callee);
-        std::string args = "__ctx";
+        std::string args = "__ctx, __tid_flat";
         if (!op.args.empty()) args += ", " + Args(op.args) + ", " + Args(op.args, 0, std::string::npos, true);
         if (!op.dst.empty()) args += ", " + Args(op.dst, 0, std::string::npos, true);
         Line("adj_" + callee.cpp_name + "(" + args + ");");

@@ -618,7 +618,7 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
   };
   if (name == "tid") {
     if (!args.empty()) return Error(loc, "wp.tid() takes no arguments");
-    if (!st_->fn.is_kernel) return Error(loc, "wp.tid() is only available in kernels, not in @wp.func");
+    // In a @wp.func: the calling thread's index (codegen passes __tid_flat to every func).
     st_->fn.uses_tid = true;
     Value v = Value::OfVar(EmitRaw(Type::Int32(), "wp::int32(__tid_flat)", {}));
     v.name = "__tid";

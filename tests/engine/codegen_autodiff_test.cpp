@@ -624,5 +624,83 @@ TEST(CodegenAutodiff, TransformSetTranslationAndRotationRebindTheVariable) {
   CheckGradient(b, x, out, 3, setup, 1e-6, "transform_set_*");
 }
 
+TEST(CodegenAutodiff, TidInsideFuncsIsTheCallingThread) {
+  ModuleSource m;
+  m.symbols.push_back(Wp());
+  for (const char* n : {"scaled", "outer_f"}) {
+    Symbol s;
+    s.name = n;
+    s.kind = Symbol::Kind::kFunction;
+    s.target = std::string("grad.") + n;
+    m.symbols.push_back(s);
+  }
+  m.functions.push_back(Fn("scaled",
+                           "def scaled(x: wp.array(dtype=wp.float64)) -> wp.float64:\n"
+                           "    i = wp.tid()\n"
+                           "    return x[i] * x[i] * wp.float64(i + 1)\n",
+                           {"array(float64,1)"}, {"x"}, false));
+  m.functions.push_back(Fn("outer_f",
+                           "def outer_f(x: wp.array(dtype=wp.float64), k: int) -> wp.float64:\n"
+                           "    return scaled(x) + wp.float64(k) * x[wp.tid()]\n",
+                           {"array(float64,1)", "int32"}, {"x", "k"}, false));
+  m.functions.push_back(Fn("k",
+                           "def k(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):\n"
+                           "    i = wp.tid()\n"
+                           "    out[i] = outer_f(x, 3)\n",
+                           kInOut, {"x", "out"}));
+  Built b = Build(m, "k");
+  ASSERT_EQ(b.error, "");
+  const int n = 6;
+  Arr x{Random(n, -1.0, 1.0, 51), std::vector<double>(n), n};
+  Arr out{std::vector<double>(n), std::vector<double>(n), n};
+  auto setup = [&](Launch& l) { l.SetArray(0, x); l.SetArray(1, out); };
+  {
+    Launch l(&b);
+    setup(l);
+    ASSERT_EQ(l.Run(n, false).kind, 0);
+  }
+  for (int i = 0; i < n; ++i) EXPECT_NEAR(out.data[i], x.data[i] * x.data[i] * (i + 1) + 3 * x.data[i], 1e-14) << i;
+  CheckGradient(b, x, out, n, setup, 1e-6, "tid in funcs");
+  for (int i = 0; i < n; ++i) EXPECT_NEAR(x.grad[i] / out.grad[i], 2 * x.data[i] * (i + 1) + 3, 1e-9) << i;
+}
+
+TEST(CodegenAutodiff, TidUnpackedInsideFuncOf2dLaunch) {
+  ModuleSource m;
+  m.symbols.push_back(Wp());
+  Symbol s;
+  s.name = "cell";
+  s.kind = Symbol::Kind::kFunction;
+  s.target = "grad.cell";
+  m.symbols.push_back(s);
+  m.functions.push_back(Fn("cell",
+                           "def cell() -> wp.float64:\n"
+                           "    i, j = wp.tid()\n"
+                           "    return wp.float64(10 * i + j)\n",
+                           {}, {}, false));
+  m.functions.push_back(Fn("k",
+                           "def k(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):\n"
+                           "    i, j = wp.tid()\n"
+                           "    out[3 * i + j] = cell()\n",
+                           kInOut, {"x", "out"}));
+  Built b = Build(m, "k");
+  ASSERT_EQ(b.error, "");
+  Arr x{std::vector<double>(1), std::vector<double>(1), 1};
+  Arr out{std::vector<double>(6, -1.0), std::vector<double>(6), 6};
+  Launch l(&b);
+  l.SetArray(0, x);
+  l.SetArray(1, out);
+  wp::launch_error_t err{};
+  wp::launch_context_t ctx{};
+  ctx.bounds.ndim = 2;
+  ctx.bounds.shape[0] = 2;
+  ctx.bounds.shape[1] = 3;
+  ctx.bounds.size = 6;
+  ctx.error = &err;
+  b.fwd(&ctx, l.args.data(), 0, 6);
+  ASSERT_EQ(err.kind, 0);
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 3; ++j) EXPECT_EQ(out.data[3 * i + j], 10.0 * i + j) << i << "," << j;
+}
+
 }  // namespace
 }  // namespace weft
