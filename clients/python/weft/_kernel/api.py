@@ -120,7 +120,8 @@ def _caller_module_name(depth: int = 2) -> str:
 def compile(target=None, device=None, backward: bool = False):  # noqa: A001 - Warp-style name
     """Compiles a kernel, a Python module (object or name) or, with no target, the caller's
     module, ahead of time on device. Raises WeftCompileError with the daemon's diagnostics.
-    Returns the CompiledModule of the last kernel compiled (module_id, cache_hit, ...)."""
+    Returns the CompiledModule that did the work: the first one the daemon really compiled
+    (kernels of one module share one build, so later kernels are cache hits), else the first."""
     dev = _device_of(device)
     if isinstance(target, Kernel):
         return module_mod.compile_kernel(target, dev, backward)[0]
@@ -136,9 +137,10 @@ def compile(target=None, device=None, backward: bool = False):  # noqa: A001 - W
         raise TypeError(f"wp.compile expects a kernel, a module or a module name, got "
                         f"{target!r}")
     result = None
-    kernels = module_mod.kernels_of(name)
-    for k in kernels:
-        result = module_mod.compile_kernel(k, dev, backward)[0]
+    for k in module_mod.kernels_of(name):
+        compiled = module_mod.compile_kernel(k, dev, backward)[0]
+        if result is None or (result.cache_hit and not compiled.cache_hit):
+            result = compiled
     return result
 
 
