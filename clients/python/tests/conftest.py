@@ -46,6 +46,20 @@ def daemon_binary() -> Path:
     return Path(os.environ.get("WEFT_DAEMON", REPO_ROOT / "build" / "bin" / "weftd"))
 
 
+def verify_cuda_flags() -> list:
+    """["--verify-cuda"] when this weftd was built with NVRTC (it links libnvrtc): every kernel
+    the tests compile is then also compiled for the GPU (sm_90), on machines without one too.
+    WEFT_TEST_VERIFY_CUDA=0 turns it off."""
+    if os.environ.get("WEFT_TEST_VERIFY_CUDA", "1") == "0":
+        return []
+    try:
+        out = subprocess.run(["ldd", str(daemon_binary())], capture_output=True, text=True,
+                             timeout=30).stdout
+    except (OSError, subprocess.SubprocessError):
+        return []
+    return ["--verify-cuda"] if "libnvrtc" in out else []
+
+
 def _free_tcp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind(("127.0.0.1", 0))
@@ -89,7 +103,7 @@ class Daemon:
             self.address = f"unix:{self.socket_path}"
             self.grpc_target = self.address
             args += ["--listen", self.address]
-        args += ["--cache-dir", str(self.cache_dir), "--log-level", "info"]
+        args += ["--cache-dir", str(self.cache_dir), "--log-level", "info"] + verify_cuda_flags()
         self.args = args
         self._log = open(self.log_path, "wb")
         self.proc = subprocess.Popen(args, stdout=self._log, stderr=subprocess.STDOUT,
