@@ -119,10 +119,14 @@ TEST(SlabPool, RandomWorkloadNeverOverlapsAndReturnsEverything) {
       // No overlap with a live block of the same slab.
       auto key = std::make_pair(b->slab_name, b->offset);
       auto it = live.lower_bound(key);
-      if (it != live.end() && it->first.first == b->slab_name) ASSERT_GE(it->first.second, b->offset + b->size);
+      if (it != live.end() && it->first.first == b->slab_name) {
+        ASSERT_GE(it->first.second, b->offset + b->size);
+      }
       if (it != live.begin()) {
         auto p = std::prev(it);
-        if (p->first.first == b->slab_name) ASSERT_LE(p->first.second + p->second.size, b->offset);
+        if (p->first.first == b->slab_name) {
+          ASSERT_LE(p->first.second + p->second.size, b->offset);
+        }
       }
       std::memset(b->data, static_cast<int>(step & 0xff), b->size);   // memory is really mapped
       live[key] = *b;

@@ -82,7 +82,9 @@ TEST(SemaBuiltins, RegistryInvariants) {
     EXPECT_FALSE(r.doc.empty()) << r.signature;
     EXPECT_EQ(r.param_names.size(), r.param_patterns.size()) << r.signature;
     EXPECT_EQ(r.differentiable(), !r.adjoint.empty()) << r.signature;
-    if (r.side_effect()) EXPECT_TRUE(r.name.rfind("atomic_", 0) == 0 || !r.differentiable()) << r.signature;
+    if (r.side_effect()) {
+      EXPECT_TRUE(r.name.rfind("atomic_", 0) == 0 || !r.differentiable()) << r.signature;
+    }
   }
   for (const char* must : {"sin", "cos", "sqrt", "exp", "log", "pow", "atan2", "abs", "sign", "min", "max", "clamp",
                            "dot", "cross", "length", "normalize", "outer", "transpose", "inverse", "determinant",
