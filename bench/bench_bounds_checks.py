@@ -12,12 +12,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
-import signal
 import statistics
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -30,76 +26,12 @@ sys.path.insert(0, str(REPO_ROOT / "clients" / "python"))
 
 import bench_common as bc  # noqa: E402
 
-DAEMON_START_TIMEOUT_S = 30.0
 
 
 # ------------------------------------------------------------------------------------------
 # The daemon
 
-def daemon_binary() -> Path:
-    """$WEFT_DAEMON, else <repo>/build/bin/weftd, else the newest <repo>/build-*/bin/weftd."""
-    explicit = os.environ.get("WEFT_DAEMON")
-    if explicit:
-        return Path(explicit)
-    default = REPO_ROOT / "build" / "bin" / "weftd"
-    if default.exists():
-        return default
-    others = sorted(REPO_ROOT.glob("build-*/bin/weftd"), key=lambda p: p.stat().st_mtime)
-    if others:
-        return others[-1]
-    raise SystemExit("no weftd found: set WEFT_DAEMON or build build/bin/weftd")
-
-
-class Daemon:
-    """One weftd on a temp Unix socket with its own --cache-dir (empty at start)."""
-
-    def __init__(self, extra_args=(), binary: Path | None = None):
-        self.binary = binary or daemon_binary()
-        self.workdir = Path(tempfile.mkdtemp(prefix="weft-bench-d1-"))
-        self.socket_path = self.workdir / "weftd.sock"
-        self.address = f"unix:{self.socket_path}"
-        self.log_path = self.workdir / "weftd.log"
-        args = [str(self.binary), "--listen", self.address, "--cache-dir",
-                str(self.workdir / "cache"), "--log-level", "warn", *extra_args]
-        self._log = open(self.log_path, "wb")
-        self.proc = subprocess.Popen(args, stdout=self._log, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL)
-        import grpc  # noqa: PLC0415
-
-        deadline = time.monotonic() + DAEMON_START_TIMEOUT_S
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"weftd exited with {self.proc.returncode} at start:\n"
-                                   f"{self.log()}")
-            channel = grpc.insecure_channel(self.address)
-            try:
-                grpc.channel_ready_future(channel).result(timeout=0.5)
-                return
-            except grpc.FutureTimeoutError:
-                pass
-            finally:
-                channel.close()
-        self.proc.kill()
-        raise RuntimeError(f"weftd did not answer within {DAEMON_START_TIMEOUT_S} s:\n{self.log()}")
-
-    def log(self) -> str:
-        try:
-            return self.log_path.read_text(errors="replace")[-4000:]
-        except OSError:
-            return ""
-
-    def stop(self, keep: bool = False) -> int:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        self._log.close()
-        if not keep:
-            shutil.rmtree(self.workdir, ignore_errors=True)
-        return self.proc.returncode
+Daemon = bc.BenchDaemon   # bench_lazy_adjoint imports it from here
 
 
 # ------------------------------------------------------------------------------------------
@@ -242,7 +174,7 @@ def main() -> int:
                 print(f"  {name:9s} n={count:>9d}  checked {times['checked'] * 1e3:8.3f} ms  "
                       f"unchecked {times['unchecked'] * 1e3:8.3f} ms  {overhead:+6.1f}%", flush=True)
     finally:
-        code = daemon.stop(keep=bool(failures))
+        code, _ = daemon.stop(keep=bool(failures))
     if code != 0:
         failures.append(f"weftd exited with {code} at stop (log: {daemon.log_path})")
 

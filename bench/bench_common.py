@@ -77,3 +77,103 @@ def print_table(title: str, header: list, rows: list) -> None:
     print("  " + "  ".join("-" * w for w in widths))
     for r in rows:
         print("  " + "  ".join(str(c).rjust(w) for c, w in zip(r, widths)))
+
+
+# ------------------------------------------------------------------------------------------
+# A weftd of the benchmark's own
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+DAEMON_START_TIMEOUT_S = 30.0
+
+
+def daemon_binary() -> Path:
+    """$WEFT_DAEMON, else <repo>/build/bin/weftd, else the newest <repo>/build-*/bin/weftd."""
+    explicit = os.environ.get("WEFT_DAEMON")
+    if explicit:
+        return Path(explicit)
+    default = REPO_ROOT / "build" / "bin" / "weftd"
+    if default.exists():
+        return default
+    others = sorted(REPO_ROOT.glob("build-*/bin/weftd"), key=lambda p: p.stat().st_mtime)
+    if others:
+        return others[-1]
+    raise SystemExit("no weftd found: set WEFT_DAEMON or run `make build`")
+
+
+def _channel_ready(target: str, timeout_s: float) -> bool:
+    import grpc  # noqa: PLC0415
+
+    channel = grpc.insecure_channel(target)
+    try:
+        grpc.channel_ready_future(channel).result(timeout=timeout_s)
+        return True
+    except grpc.FutureTimeoutError:
+        return False
+    finally:
+        channel.close()
+
+
+class BenchDaemon:
+    """One weftd on a temp Unix socket (`address`) with an empty --cache-dir; with tcp=True
+    also on TCP 127.0.0.1:<free port> (`tcp_target`) behind a token (`token`)."""
+
+    def __init__(self, extra_args=(), tcp: bool = False, binary: Path | None = None):
+        import secrets  # noqa: PLC0415
+        import socket  # noqa: PLC0415
+        import subprocess  # noqa: PLC0415
+
+        self.binary = binary or daemon_binary()
+        self.workdir = Path(tempfile.mkdtemp(prefix="weft-bench-daemon-"))
+        self.address = f"unix:{self.workdir / 'weftd.sock'}"
+        self.tcp_target = self.token = None
+        self.log_path = self.workdir / "weftd.log"
+        args = [str(self.binary), "--listen", self.address, "--cache-dir",
+                str(self.workdir / "cache"), "--log-level", "warn", *extra_args]
+        if tcp:
+            with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+                s.bind(("127.0.0.1", 0))
+                self.tcp_target = f"127.0.0.1:{s.getsockname()[1]}"
+            self.token = secrets.token_hex(16)
+            token_file = self.workdir / "token"
+            token_file.write_text(self.token + "\n")
+            os.chmod(token_file, 0o600)
+            args += ["--listen", f"tcp:{self.tcp_target}", "--token-file", str(token_file)]
+        self._log = open(self.log_path, "wb")
+        self.proc = subprocess.Popen(args, stdout=self._log, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL)
+        targets = [self.address] + ([self.tcp_target] if tcp else [])
+        deadline = time.monotonic() + DAEMON_START_TIMEOUT_S
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise RuntimeError(f"weftd exited with {self.proc.returncode} at start:\n"
+                                   f"{self.log()}")
+            if all(_channel_ready(t, 0.5) for t in targets):
+                return
+        self.proc.kill()
+        raise RuntimeError(f"weftd did not answer within {DAEMON_START_TIMEOUT_S} s:\n{self.log()}")
+
+    def log(self) -> str:
+        try:
+            return self.log_path.read_text(errors="replace")[-4000:]
+        except OSError:
+            return ""
+
+    def stop(self, keep: bool = False) -> tuple[int, list[str]]:
+        """SIGTERM and wait; returns (exit code, leftover /dev/shm/weft-<pid>-* files). The
+        workdir (with the log) is removed unless `keep`."""
+        import glob  # noqa: PLC0415
+        import shutil  # noqa: PLC0415
+        import signal  # noqa: PLC0415
+        import subprocess  # noqa: PLC0415
+
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self._log.close()
+        if not keep:
+            shutil.rmtree(self.workdir, ignore_errors=True)
+        return self.proc.returncode, sorted(glob.glob(f"/dev/shm/weft-{self.proc.pid}-*"))

@@ -15,14 +15,9 @@ Exit status 1 when any check failed or the daemon did not stop cleanly.
 from __future__ import annotations
 
 import argparse
-import glob
 import os
-import secrets
 import shutil
-import signal
-import socket
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -33,98 +28,18 @@ import numpy as np
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT / "clients" / "python"))
+sys.path.insert(0, str(REPO_ROOT / "bench"))
+import bench_common as bc  # noqa: E402
 
 KIB = 1 << 10
 MIB = 1 << 20
 GIB = 1 << 30
 TRANSFER_BYTES = 256 * MIB
 NUMPY_BYTES = 1 * GIB
-DAEMON_START_TIMEOUT_S = 30.0
 
 
 # ------------------------------------------------------------------------------------------
 # The daemon
-
-
-def daemon_binary() -> Path:
-    """$WEFT_DAEMON, else <repo>/build/bin/weftd, else <repo>/build-B1/bin/weftd."""
-    explicit = os.environ.get("WEFT_DAEMON")
-    if explicit:
-        return Path(explicit)
-    for candidate in (REPO_ROOT / "build" / "bin" / "weftd",
-                      REPO_ROOT / "build-B1" / "bin" / "weftd"):
-        if candidate.exists():
-            return candidate
-    return REPO_ROOT / "build" / "bin" / "weftd"
-
-
-def _free_tcp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _channel_ready(target: str, timeout_s: float) -> bool:
-    import grpc
-
-    channel = grpc.insecure_channel(target)
-    try:
-        grpc.channel_ready_future(channel).result(timeout=timeout_s)
-        return True
-    except grpc.FutureTimeoutError:
-        return False
-    finally:
-        channel.close()
-
-
-class BenchDaemon:
-    """One weftd on a temp Unix socket and on TCP 127.0.0.1:<free port> with a token file."""
-
-    def __init__(self, binary: Path):
-        self.workdir = Path(tempfile.mkdtemp(prefix="weft-bench-foundation-"))
-        self.socket_path = self.workdir / "weftd.sock"
-        self.unix_address = f"unix:{self.socket_path}"
-        self.tcp_port = _free_tcp_port()
-        self.tcp_target = f"127.0.0.1:{self.tcp_port}"
-        self.token = secrets.token_hex(16)
-        token_file = self.workdir / "token"
-        token_file.write_text(self.token + "\n")
-        os.chmod(token_file, 0o600)
-        self.log_path = self.workdir / "weftd.log"
-        self.args = [str(binary), "--listen", self.unix_address,
-                     "--listen", f"tcp:{self.tcp_target}", "--token-file", str(token_file),
-                     "--cache-dir", str(self.workdir / "cache"), "--log-level", "warn"]
-        self._log = open(self.log_path, "wb")
-        self.proc = subprocess.Popen(self.args, stdout=self._log, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL)
-        deadline = time.monotonic() + DAEMON_START_TIMEOUT_S
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"weftd exited with {self.proc.returncode} at start:\n"
-                                   f"{self.log()}")
-            if _channel_ready(self.unix_address, 0.5) and _channel_ready(self.tcp_target, 0.5):
-                return
-        self.proc.kill()
-        raise RuntimeError(f"weftd did not answer within {DAEMON_START_TIMEOUT_S} s:\n"
-                           f"{self.log()}")
-
-    def log(self) -> str:
-        try:
-            return self.log_path.read_text(errors="replace")[-4000:]
-        except OSError:
-            return ""
-
-    def stop(self) -> tuple[int, list[str]]:
-        """SIGTERM and wait; returns (exit code, leftover /dev/shm/weft-<pid>-* files)."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        self._log.close()
-        return self.proc.returncode, sorted(glob.glob(f"/dev/shm/weft-{self.proc.pid}-*"))
 
 
 # ------------------------------------------------------------------------------------------
@@ -547,16 +462,16 @@ def main() -> int:
     parser.add_argument("--out", default=str(REPO_ROOT / "out" / "bench" / "foundation.md"))
     args, _unknown = parser.parse_known_args()   # run_all.py may pass other benches' flags
 
-    binary = daemon_binary()
+    binary = bc.daemon_binary()
     if not binary.exists():
         print(f"weftd not built: {binary} (set WEFT_DAEMON or build weftd)")
         return 1
     warp = import_warp()
-    daemon = BenchDaemon(binary)
-    print(f"weftd {binary} pid {daemon.proc.pid} on {daemon.unix_address} and "
+    daemon = bc.BenchDaemon(tcp=True, binary=binary)
+    print(f"weftd {binary} pid {daemon.proc.pid} on {daemon.address} and "
           f"tcp:{daemon.tcp_target}; repeat {args.repeat}, warmup {args.warmup}")
     os.environ.pop("WEFT_TOKEN", None)
-    os.environ["WEFT_ADDRESS"] = daemon.unix_address
+    os.environ["WEFT_ADDRESS"] = daemon.address
 
     rows: list[Row] = []
     daemon_ok = True
@@ -567,7 +482,7 @@ def main() -> int:
         wp.init()
         data = RandomWords(TRANSFER_BYTES // 4)
         steps = [
-            lambda: session_rows(wp, daemon.unix_address, daemon.tcp_target, daemon.token,
+            lambda: session_rows(wp, daemon.address, daemon.tcp_target, daemon.token,
                                  args.repeat, args.warmup),
             lambda: create_free_rows(wp, warp, args.repeat, args.warmup),
             lambda: numpy_rows(wp, warp, args.repeat, args.warmup),
@@ -585,7 +500,7 @@ def main() -> int:
         rows += tcp_transfer_rows(wp, data, args.repeat, args.warmup)
         _runtime.shutdown()
     finally:
-        code, leftovers = daemon.stop()
+        code, leftovers = daemon.stop(keep=True)
         if code != 0 or leftovers:
             daemon_ok = False
             print(f"weftd stop: exit {code}, leftover shm {leftovers}\n{daemon.log()}")

@@ -136,9 +136,7 @@ def reference_loss(x: np.ndarray, p: dict) -> float:
 # One trial (a fresh process + a fresh daemon)
 
 def trial(mode: str) -> dict:
-    from bench_bounds_checks import Daemon  # noqa: PLC0415
-
-    daemon = Daemon()
+    daemon = bc.BenchDaemon()
     os.environ["WEFT_ADDRESS"] = daemon.address
     if mode == "client":
         os.environ["WEFT_TAPE"] = "client"
@@ -241,7 +239,7 @@ def trial(mode: str) -> dict:
     except Exception as err:  # noqa: BLE001 - reported as the trial's failure
         result["failures"].append(f"{type(err).__name__}: {err}")
     finally:
-        code = daemon.stop(keep=bool(result["failures"]))
+        code, _ = daemon.stop(keep=bool(result["failures"]))
         if code != 0:
             result["failures"].append(f"weftd exited with {code} (log {daemon.log_path})")
         if result["failures"]:
