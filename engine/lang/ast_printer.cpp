@@ -1,6 +1,7 @@
 // AST printer (see ast_printer.h): two visitors over the X-macro node lists, so a new node
 // kind does not compile until it has a printed form.
 #include "engine/lang/ast_printer.h"
+#include "engine/lang/unparse.h"
 
 #include <charconv>
 #include <cmath>
@@ -20,28 +21,6 @@ std::string FloatRepr(double v) {
   return s;
 }
 
-std::string StringRepr(const std::string& s) {
-  std::string out = "\"";
-  for (unsigned char c : s) {
-    switch (c) {
-      case '\\': out += "\\\\"; break;
-      case '"': out += "\\\""; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '\r': out += "\\r"; break;
-      default:
-        if (c < 0x20 || c == 0x7F) {
-          char buf[8];
-          std::snprintf(buf, sizeof(buf), "\\x%02x", c);
-          out += buf;
-        } else {
-          out.push_back(static_cast<char>(c));
-        }
-    }
-  }
-  return out + "\"";
-}
-
 class ExprPrinter : public ast::ConstExprVisitor<ExprPrinter, std::string> {
  public:
   std::string Print(const ast::Expr* e) { return e ? VisitExpr(*e) : "_"; }
@@ -54,7 +33,7 @@ class ExprPrinter : public ast::ConstExprVisitor<ExprPrinter, std::string> {
       case ast::Constant::Type::kFloat: return FloatRepr(c.float_value);
       case ast::Constant::Type::kBool: return c.bool_value ? "True" : "False";
       case ast::Constant::Type::kNone: return "None";
-      case ast::Constant::Type::kString: return StringRepr(c.string_value);
+      case ast::Constant::Type::kString: return QuotePythonString(c.string_value, '"');
     }
     return "?";
   }
@@ -146,7 +125,7 @@ class StmtPrinter : public ast::ConstStmtVisitor<StmtPrinter> {
     if (f.returns) head += " -> " + P(f.returns.get());
     Line(head, &f);
     ++indent_;
-    if (!f.docstring.empty()) Line("doc " + StringRepr(f.docstring), nullptr);
+    if (!f.docstring.empty()) Line("doc " + QuotePythonString(f.docstring, '"'), nullptr);
     Body(f.body);
     --indent_;
   }

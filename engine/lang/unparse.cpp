@@ -46,28 +46,6 @@ int BinaryPrec(ast::BinaryOperator op) {
   return kAtom;
 }
 
-std::string QuoteString(const std::string& s) {
-  std::string out = "'";
-  for (unsigned char c : s) {
-    switch (c) {
-      case '\\': out += "\\\\"; break;
-      case '\'': out += "\\'"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '\r': out += "\\r"; break;
-      default:
-        if (c < 0x20 || c == 0x7F) {
-          char buf[8];
-          std::snprintf(buf, sizeof(buf), "\\x%02x", c);
-          out += buf;
-        } else {
-          out.push_back(static_cast<char>(c));
-        }
-    }
-  }
-  return out + "'";
-}
-
 class Unparser : public ast::ConstExprVisitor<Unparser, std::string> {
  public:
   // `e` printed so that it parses back as one operand at precedence `need`.
@@ -97,7 +75,7 @@ class Unparser : public ast::ConstExprVisitor<Unparser, std::string> {
       }
       case ast::Constant::Type::kBool: return c.bool_value ? "True" : "False";
       case ast::Constant::Type::kNone: return "None";
-      case ast::Constant::Type::kString: return QuoteString(c.string_value);
+      case ast::Constant::Type::kString: return QuotePythonString(c.string_value, '\'');
     }
     return "";
   }
@@ -210,5 +188,29 @@ class Unparser : public ast::ConstExprVisitor<Unparser, std::string> {
 }  // namespace
 
 std::string UnparseExpr(const ast::Expr& expr) { return Unparser().At(&expr, kTuple); }
+
+std::string QuotePythonString(const std::string& s, char quote) {
+  std::string out(1, quote);
+  for (unsigned char c : s) {
+    switch (c) {
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      case '\r': out += "\\r"; break;
+      default:
+        if (c == static_cast<unsigned char>(quote)) {
+          out += '\\';
+          out.push_back(quote);
+        } else if (c < 0x20 || c == 0x7F) {
+          char buf[8];
+          std::snprintf(buf, sizeof(buf), "\\x%02x", c);
+          out += buf;
+        } else {
+          out.push_back(static_cast<char>(c));
+        }
+    }
+  }
+  return out + quote;
+}
 
 }  // namespace weft::lang

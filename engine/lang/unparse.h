@@ -12,4 +12,8 @@ namespace weft::lang {
 
 std::string UnparseExpr(const ast::Expr& expr);
 
+// `s` as a Python string literal between `quote` characters (' or "), with \\, the quote,
+// \n \t \r and \xNN escapes for other control bytes.
+std::string QuotePythonString(const std::string& s, char quote);
+
 }  // namespace weft::lang
