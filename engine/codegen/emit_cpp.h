@@ -14,7 +14,10 @@
 
 namespace weft::codegen {
 
-Expected<GeneratedModule> EmitCpp(const sema::Module& module, const CodegenOptions& options);
+// A failure of the emitter itself (a bug) becomes InvalidArgument with one Diagnostic at the
+// function being emitted (appended to *diags when given), never an unlocated error.
+Expected<GeneratedModule> EmitCpp(const sema::Module& module, const CodegenOptions& options,
+                                  std::vector<Diagnostic>* diags = nullptr);
 
 // Layout of one kernel parameter (exposed for tests).
 Expected<ParamLayout> LayoutParam(const std::string& name, const sema::Type& type, const sema::StructTable& structs);

@@ -31,15 +31,23 @@ class StageTimer {
   std::chrono::steady_clock::time_point t0_;
 };
 
-// Internal consistency of the IR (an internal error, never a user one).
-Status VerifyModule(const sema::Module& m) {
+// Internal consistency of the IR. A violation is a weft bug; it is still reported at the
+// function it concerns (a Diagnostic with the user's file:line), never without a location.
+Status VerifyModule(const sema::Module& m, std::vector<Diagnostic>* diags) {
+  auto fail = [&](const sema::Function& f, const std::string& what) {
+    Diagnostic d;
+    d.location = {f.file, static_cast<uint32_t>(f.def_line), 1};
+    d.message = "weft cannot compile '" + f.name + "' (internal compiler error: " + what + "; please report it)";
+    diags->push_back(d);
+    return InvalidArgument(d.ToString());
+  };
   for (const auto& f : m.functions) {
     for (const auto& v : f.vars)
-      if (sema::ContainsAny(v.type)) return Internal("IR verify: " + f.name + " has a generic variable %" + std::to_string(v.id));
+      if (sema::ContainsAny(v.type)) return fail(f, "IR verify: generic variable %" + std::to_string(v.id));
   }
   for (int k : m.kernels)
     if (k < 0 || k >= static_cast<int>(m.functions.size()) || !m.functions[k].is_kernel)
-      return Internal("IR verify: bad kernel index");
+      return Internal("IR verify: bad kernel index");  // not reachable from user input
   return Status::Ok();
 }
 
@@ -72,8 +80,8 @@ Expected<GeneratedModule> RunPipeline(const ModuleSource& module, const CodegenO
   if (!checked.ok()) return checked.status();
   timer.Done("check + lower to SSA IR", sema::DumpModule(*checked));
 
-  WEFT_RETURN_IF_ERROR(VerifyModule(*checked));
-  auto out = codegen::EmitCpp(*checked, options);
+  WEFT_RETURN_IF_ERROR(VerifyModule(*checked, diags));
+  auto out = codegen::EmitCpp(*checked, options, diags);
   if (!out.ok()) return out.status();
   timer.Done("emit C++", out->source);
   return out;
@@ -85,10 +93,18 @@ Expected<GeneratedModule> GenerateModule(const ModuleSource& module, const Codeg
                                          std::vector<Diagnostic>* diags) {
   // Errors are values; a bug that throws (std::out_of_range, bad_alloc) must not take the
   // daemon down: it becomes an internal error with a bug hint.
+  // The checker and the emitter already turn their own bugs into located errors; this is
+  // the last resort, located at the module's first function.
   try {
     return RunPipeline(module, options, diags);
   } catch (const std::exception& e) {
-    return Internal(std::string("weft compiler bug (please report): ") + e.what());
+    Diagnostic d;
+    if (!module.functions.empty())
+      d.location = {module.functions[0].file, module.functions[0].first_line, 1};
+    d.message = std::string("weft cannot compile module '") + module.name + "' (internal compiler error: " + e.what() +
+                "; please report it)";
+    if (diags) diags->push_back(d);
+    return InvalidArgument(d.ToString());
   }
 }
 

@@ -3,6 +3,7 @@
 // statements to the structured SSA IR (assignments, if/elif/else with phi merges, for/while
 // with loop-carried slots, break/continue/return as flags guarding the rest of a block).
 #include <cstdio>
+#include <exception>
 
 #include "engine/sema/check_impl.h"
 
@@ -87,7 +88,16 @@ Expected<Module> Checker::Run() {
       failed = true;
       continue;
     }
-    auto idx = InstantiateFunction(p, types, SourceLocation{p.source->file, p.source->first_line, 1});
+    SourceLocation def_loc{p.source->file, p.source->first_line, 1};
+    Expected<int> idx = Internal("not compiled");
+    try {
+      idx = InstantiateFunction(p, types, def_loc);
+    } catch (const std::exception& e) {
+      st_ = nullptr;
+      in_progress_.clear();
+      idx = Error(def_loc, "weft cannot compile kernel '" + p.source->name + "' (internal compiler error: " + e.what() +
+                               "; please report it)");
+    }
     if (!idx.ok()) {
       failed = true;
       continue;
@@ -134,6 +144,18 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
   FnState state;
   FnState* saved = st_;
   st_ = &state;
+  // Restores the caller's state when an exception unwinds through here (see LowerStmt).
+  struct UnwindGuard {
+    Checker* c;
+    FnState* saved;
+    std::string inst;
+    ~UnwindGuard() {
+      if (std::uncaught_exceptions() > 0) {
+        c->st_ = saved;
+        c->in_progress_.erase(inst);
+      }
+    }
+  } unwind_guard{this, saved, inst};
   Function& fn = state.fn;
   fn.name = fs.name;
   fn.key = inst;
@@ -320,8 +342,19 @@ Status Checker::BindLocal(const std::string& name, int var, const SourceLocation
   return Status::Ok();
 }
 
+// A bug of the checker (an exception: std::out_of_range, bad_alloc, ...) must never reach
+// the user without a location: it becomes an error at the statement being lowered.
 Status Checker::LowerStmt(const ast::Stmt& s) {
   st_->line = static_cast<int>(s.loc.line);
+  try {
+    return LowerStmtUnguarded(s);
+  } catch (const std::exception& e) {
+    return Error(s.loc, std::string("weft cannot compile this statement (internal compiler error: ") + e.what() +
+                            "; please report it)");
+  }
+}
+
+Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
   switch (s.kind) {
     case ast::StmtKind::kFunctionDef: return Error(s.loc, "nested function definitions are not supported in kernels");
     case ast::StmtKind::kAssign: {
@@ -353,7 +386,7 @@ Status Checker::LowerStmt(const ast::Stmt& s) {
         WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
         if (base.kind == Value::Kind::kVar && TypeOf(base.var).is_array() &&
             (a.op == ast::BinaryOperator::kAdd || a.op == ast::BinaryOperator::kSub)) {
-          const Type& at = TypeOf(base.var);
+          const Type at = TypeOf(base.var);
           if (static_cast<int>(sub->indices.size()) != at.ndim)
             return Error(a.loc, "array '" + ExprText(*sub->value) + "' has " + std::to_string(at.ndim) +
                                     " dimensions but " + std::to_string(sub->indices.size()) + " indices were given");

@@ -56,6 +56,7 @@ class Checker {
                                     const SourceLocation& call_loc);
   Status LowerBlock(const ast::StmtList& stmts, size_t from = 0);
   Status LowerStmt(const ast::Stmt& s);
+  Status LowerStmtUnguarded(const ast::Stmt& s);
   Status LowerAssignTo(const ast::Expr& target, Value value);
   Status LowerIf(int cond, const std::function<Status()>& then_fn, const std::function<Status()>& else_fn);
   Status LowerFor(const ast::For& s);
@@ -92,7 +93,8 @@ class Checker {
 
   // emission helpers
   int NewVar(const Type& t, const std::string& hint = "", bool is_mutable = false);
-  const Type& TypeOf(int var) const { return st_->fn.vars[var].type; }
+  // A copy: references into fn.vars dangle as soon as a new variable is emitted.
+  Type TypeOf(int var) const { return st_->fn.vars.at(var).type; }
   void Push(Stmt s);
   int EmitOp(OpKind kind, const Type& dst_type, std::vector<int> args, std::string text = "");
   int EmitConst(const Type& t, const std::string& cpp_text);

@@ -297,5 +297,22 @@ TEST(CodegenKernels, AtomicsRandomPrintAndBuiltinsByKeyword) {
                              {"a", "c", "g", "seed"});
   ExpectCompiles(m, true);
 }
+
+// `y[i] += x[i]`: evaluating the indices and the value emits new variables; the array's type
+// must not be read through a reference into the (reallocated) variable table.
+TEST(CodegenKernels, AugmentedAssignToArrayElements) {
+  ModuleSource m = OneKernel("aug",
+                             "def aug(x: wp.array(dtype=float), y: wp.array(dtype=float), a: wp.array2d(dtype=wp.vec3),\n"
+                             "        b: wp.array4d(dtype=wp.float64)):\n"
+                             "    i = wp.tid()\n"
+                             "    y[i] += x[i]\n"
+                             "    y[i + 1] -= x[i] * x[i + 2] + wp.sin(x[i])\n"
+                             "    a[i, i + 1] += wp.vec3(x[i], x[i + 1], 1.0)\n"
+                             "    b[i, 0, i + 1, 2] += wp.float64(x[i])\n"
+                             "    y[i] *= 2.0\n",
+                             {"array(float32,1)", "array(float32,1)", "array(vec(3,float32),2)", "array(float64,4)"},
+                             {"x", "y", "a", "b"});
+  ExpectCompiles(m, true);
+}
 }  // namespace
 }  // namespace weft
