@@ -10,7 +10,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 BENCHES = ["bench_compile.py", "bench_launch.py", "bench_kernels.py", "bench_foundation.py",
-           "bench_bounds_checks.py", "bench_lazy_adjoint.py"]
+           "bench_bounds_checks.py", "bench_lazy_adjoint.py", "bench_interop.py"]
 
 
 def main() -> int:

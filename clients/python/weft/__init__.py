@@ -29,3 +29,12 @@ def constant(x):
 
 
 from ._kernel.api import *  # noqa: F401,F403,E402
+
+from .interop.dlpack import from_dlpack, to_dlpack  # noqa: F401,E402
+from .interop.jax import (device_from_jax, device_to_jax, dtype_from_jax,  # noqa: F401,E402
+                          dtype_to_jax, from_jax, to_jax)
+from .interop.paddle import (device_from_paddle, device_to_paddle,  # noqa: F401,E402
+                             dtype_from_paddle, dtype_to_paddle, from_paddle, to_paddle)
+from .interop.torch import (device_from_torch, device_to_torch, dtype_from_torch,  # noqa: F401,E402
+                            dtype_to_torch, from_torch, stream_from_torch, stream_to_torch,
+                            to_torch)

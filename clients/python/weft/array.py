@@ -21,6 +21,7 @@ import numpy as np
 from . import _runtime, types
 from .device import Device, get_device
 from .errors import WeftError
+from .interop import memory as _interop_memory
 from .types import (_Composite, _Scalar, dtype_from_numpy, float32, int32, matrix, type_str,
                     vector)
 
@@ -217,6 +218,7 @@ class _Allocation:
         """The slab mapping of this allocation (local CPU arrays), mapped on first use."""
         if self._mapping is None:
             self._mapping = self.runtime.map_slab(self.info.shm_name, self.info.shm_size)
+            _interop_memory.note_mapped(self, self._mapping)   # its address may leave us now
         return self._mapping
 
     def __del__(self):
@@ -664,6 +666,19 @@ class array:
             raise AttributeError("__array_interface__ is only available for CPU arrays of "
                                  "local (Unix-socket) sessions; use .numpy()")
         return self.numpy().__array_interface__
+
+    def __dlpack__(self, stream=None, max_version=None, dl_device=None, copy=None):
+        """A DLPack capsule over this array's memory (weft.interop.dlpack.export)."""
+        from .interop import dlpack  # noqa: PLC0415
+
+        return dlpack.export(self, stream=stream, max_version=max_version,
+                             dl_device=dl_device, copy=copy)
+
+    def __dlpack_device__(self):
+        """(DLPack device type, ordinal): (1, 0) for the CPU, (2, N) for cuda:N."""
+        from .interop import dlpack  # noqa: PLC0415
+
+        return dlpack.dlpack_device(self)
 
     def __str__(self):
         if self._info is None:

@@ -16,6 +16,7 @@ from . import typestr
 from .errors import WeftLaunchError
 from .functions import Kernel
 from .structs import StructInstance, StructType
+from ..interop import memory as _interop_memory
 
 _PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -193,7 +194,9 @@ class ArgPacker:
         if value is None:
             return types_pb2.ArrayRef(handle=0), None
         if not is_weft_array(value):
-            if isinstance(value, (np.ndarray, list, tuple)) or hasattr(value, "__array__"):
+            if isinstance(value, (np.ndarray, list, tuple)) or any(
+                    hasattr(value, attr) for attr in ("__array__", "__array_interface__",
+                                                      "__dlpack__", "__cuda_array_interface__")):
                 value = self._temporary(name, desc, annotation, value)
             else:
                 self._fail(name, f"expected an array of {desc.elem.text} with {desc.ndim} "
@@ -213,23 +216,25 @@ class ArgPacker:
         return value._ref(), value
 
     def _temporary(self, name: str, desc, annotation, value):
-        import weft  # noqa: PLC0415
+        """A weft array for a foreign array argument (weft.interop.external.launch_array):
+        its own memory when it lives in a weft slab, else a temporary copy (copied back into
+        writable sources after the launch)."""
+        from weft.interop import external  # noqa: PLC0415
 
-        if not self.device.startswith("cpu"):
-            self._fail(name, f"NumPy arrays and lists are accepted for CPU launches only "
-                             f"(launch device {self.device}); use wp.array(..., device=...)")
         dtype = _element_dtype(annotation)
-        if dtype is None or dtype is typing.Any:
-            source = np.asarray(value)
-            dtype = weft.dtype_from_numpy(source.dtype)
+        if dtype is typing.Any:
+            dtype = None
         try:
-            temp = weft.array(value, dtype=dtype, device=self.device)
+            temp, copy_back = external.launch_array(value, dtype, self.device,
+                                                    f"argument '{name}'")
+        except external.InteropError as err:
+            self._fail(name, str(err).replace(f"argument '{name}': ", ""))
         except Exception as err:  # noqa: BLE001 - report as an argument error
             self._fail(name, f"cannot convert {type(value).__name__} to an array of "
                              f"{desc.elem.text}: {err}")
         self.temps.append(temp)
-        if isinstance(value, np.ndarray) and value.flags.writeable:
-            self.copy_backs.append(_PendingCopyBack(value, temp))
+        if copy_back is not None:
+            self.copy_backs.append(_PendingCopyBack(copy_back, temp))
         return temp
 
 
@@ -613,4 +618,6 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         rt.synchronize()
         for pending in packer.copy_backs:
             pending.apply()
+    elif _interop_memory.any_shared() and _interop_memory.touches_shared(resolved):
+        rt.synchronize()       # memory a framework holds: done before the framework reads it
     return None

@@ -30,6 +30,16 @@ def _stack() -> list:
     return stack
 
 
+def _finish_for_frameworks():
+    """Gradients may live in memory Torch/JAX hold (weft.interop): finish the backward pass
+    before returning, as a framework reading them has no way to wait for the daemon."""
+    from weft import _runtime  # noqa: PLC0415
+    from weft.interop import memory  # noqa: PLC0415
+
+    if memory.any_shared():
+        _runtime.get_runtime().synchronize()
+
+
 def active_tape():
     stack = _stack()
     return stack[-1] if stack else None
@@ -221,6 +231,7 @@ class Tape:
         if self._mode == "daemon":
             self._tape_command(exec_pb2.TapeCommand.BACKWARD, loss=loss, seeds=seeds)
             self._note_gradients()
+            _finish_for_frameworks()
             return
         if loss is not None:
             loss.grad.fill_(1.0)
@@ -243,6 +254,7 @@ class Tape:
                     device=entry.device),
                 origin=caller_origin()))
         self._note_gradients()
+        _finish_for_frameworks()
 
     def _note_gradients(self):
         for entry in self.launches:

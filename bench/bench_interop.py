@@ -1,0 +1,99 @@
+"""Torch interop overhead (Warp's benchmark_interop_torch pattern): each iteration converts
+five Torch tensors and launches one kernel on them, in three modes: wp.from_torch (default),
+wp.from_torch(..., return_ctype=True), and the tensors passed to wp.launch directly. weft and
+warp-lang run the same kernel on the CPU in the same process. Time is per iteration (median
+of repeats). Error: after the timed iterations the accumulated output is compared with a
+float64 NumPy reference (max relative error). Ratio = warp time / weft time.
+
+weft notes: from_torch of a CPU tensor moves its storage into a weft slab on the first call,
+so later conversions are zero-copy look-ups, and a launch that touches memory Torch holds
+finishes before it returns (one round trip to weftd). Tensors passed directly are copied into
+the daemon and back on every launch (docs/interop.md)."""
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+import bench_common as bc
+
+SOURCE = '''
+@wp.kernel
+def inc5(a: wp.array(dtype=float), b: wp.array(dtype=float), c: wp.array(dtype=float),
+         d: wp.array(dtype=float), e: wp.array(dtype=float)):
+    i = wp.tid()
+    e[i] = e[i] + a[i] + b[i] + c[i] + d[i]
+'''
+MODES = ["from_torch", "from_torch(return_ctype=True)", "direct tensors"]
+
+
+def run(wp, mod, torch, mode, n, iters, repeat, seed):
+    rng = np.random.default_rng(seed)
+    inputs = [rng.standard_normal(n).astype(np.float32) for _ in range(4)]
+    ts = [torch.tensor(x) for x in inputs] + [torch.zeros(n, dtype=torch.float32)]
+    done = [0]
+
+    def body():
+        for _ in range(iters):
+            if mode == "direct tensors":
+                args = ts
+            else:
+                ctype = mode != "from_torch"
+                args = [wp.from_torch(t, return_ctype=ctype) for t in ts]
+            wp.launch(mod.inc5, dim=n, inputs=args, device="cpu")
+        wp.synchronize()
+        done[0] += iters
+
+    body()                                   # warm-up: compile, first conversions
+    seconds = bc.median_time(body, repeat=repeat) / iters
+    reference = done[0] * sum(x.astype(np.float64) for x in inputs)
+    got = ts[4].numpy().astype(np.float64)
+    error = float(np.max(np.abs(got - reference) / np.maximum(np.abs(reference), 1.0)))
+    return seconds, error
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--n", type=int, default=1024)
+    parser.add_argument("--iters", type=int, default=200)
+    parser.add_argument("--repeat", type=int, default=5)
+    args, _ = parser.parse_known_args()
+    try:
+        import torch
+    except ImportError as err:
+        print(f"torch is not installed ({err}): nothing to measure")
+        return 0
+    daemon = bc.BenchDaemon()
+    import os
+
+    os.environ["WEFT_ADDRESS"] = daemon.address
+    try:
+        import weft
+
+        weft.init()
+        weft_mod = bc.load_kernels(SOURCE, "weft", "interop")
+        warp = bc.import_warp()
+        warp_mod = bc.load_kernels(SOURCE, "warp", "interop") if warp is not None else None
+        rows = []
+        for i, mode in enumerate(MODES):
+            ws, we = run(weft, weft_mod, torch, mode, args.n, args.iters, args.repeat, 100 + i)
+            if warp is not None:
+                ps, pe = run(warp, warp_mod, torch, mode, args.n, args.iters, args.repeat,
+                             100 + i)
+            else:
+                ps = pe = None
+            rows.append([mode, bc.fmt_time(ws), f"{we:.1e}", bc.fmt_time(ps),
+                         "n/a" if pe is None else f"{pe:.1e}", bc.fmt_ratio(ws, ps)])
+        bc.print_table(f"Torch interop, CPU: 5 conversions + 1 launch per iteration "
+                       f"(n={args.n}, {args.iters} iterations x {args.repeat})",
+                       ["mode", "weft", "weft err", "warp-lang", "warp err", "ratio"], rows)
+    finally:
+        weft_shutdown = getattr(__import__("weft")._runtime, "shutdown", None)
+        if weft_shutdown is not None:
+            weft_shutdown()
+        daemon.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,72 @@
+"""Fixtures of the interop tests: fresh random data (seed printed; WEFT_TEST_SEED replays),
+frameworks imported or the test skipped with the reason, and `run_example` which runs one of
+the example programs in examples/ (Warp's interoperability documentation, unchanged but for the
+import) in a child client on a given default device and returns its stdout."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parent / "examples"
+
+
+@pytest.fixture
+def rng(request):
+    seed = int(os.environ.get("WEFT_TEST_SEED", "0")) or int.from_bytes(os.urandom(4), "little")
+    print(f"{request.node.nodeid}: WEFT_TEST_SEED={seed}")
+    return np.random.default_rng(seed)
+
+
+@pytest.fixture(autouse=True)
+def _cpu_by_default(wp):
+    with wp.ScopedDevice("cpu"):
+        yield
+
+
+@pytest.fixture
+def torch():
+    return pytest.importorskip("torch", reason="PyTorch is not installed")
+
+
+@pytest.fixture
+def jax():
+    jax = pytest.importorskip("jax", reason="JAX is not installed")
+    jax.config.update("jax_enable_x64", True)
+    return jax
+
+
+@pytest.fixture
+def paddle():
+    return pytest.importorskip("paddle", reason="Paddle is not installed")
+
+
+@pytest.fixture
+def cuda(wp):
+    if not any(d.is_cuda and d.is_compute_supported for d in wp.get_cuda_devices()):
+        pytest.skip("weftd has no CUDA device it can run kernels on")
+    return wp.get_cuda_device(0)
+
+
+@pytest.fixture
+def run_example(weftd, client_env):
+    """run_example(name, device="cpu", timeout=600) -> stdout of examples/<name>.py, run as
+    __main__ in a child client whose default weft device is `device`."""
+
+    def run(name: str, device: str = "cpu", timeout: float = 600) -> str:
+        path = EXAMPLES / f"{name}.py"
+        code = ("import runpy, weft\n"
+                f"weft.set_device({device!r})\n"
+                f"runpy.run_path({str(path)!r}, run_name='__main__')\n")
+        proc = subprocess.run([sys.executable, "-c", code], env=client_env(None),
+                              capture_output=True, text=True, timeout=timeout)
+        assert proc.returncode == 0, (f"example {name} failed ({proc.returncode}):\n"
+                                      f"stdout:\n{proc.stdout[-4000:]}\n"
+                                      f"stderr:\n{proc.stderr[-4000:]}")
+        return proc.stdout
+
+    return run

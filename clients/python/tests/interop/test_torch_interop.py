@@ -1,0 +1,127 @@
+"""PyTorch interop on the CPU: to_torch zero-copy (same data pointer, writes seen both ways),
+from_torch of weft-made tensors zero-copy and of other tensors by moving their storage into a
+slab once, gradients shared both ways (.grad is one allocation), dtype/device helpers, tensors
+as launch arguments, streams on the CPU, and the errors (unsupported dtypes, element layout,
+GPU tensors on a CPU launch)."""
+import numpy as np
+import pytest
+
+import weft as wp
+
+
+@wp.kernel
+def square_sum(x: wp.array(dtype=float), out: wp.array(dtype=float)):
+    i = wp.tid()
+    wp.atomic_add(out, 0, x[i] * x[i])
+
+
+@wp.kernel
+def double_vec(v: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    out[i] = 2.0 * v[i]
+
+
+def test_dtype_and_device_helpers(wp, torch):
+    pairs = [(torch.float16, wp.float16), (torch.float32, wp.float32), (torch.float64, wp.float64),
+             (torch.int8, wp.int8), (torch.int16, wp.int16), (torch.int32, wp.int32),
+             (torch.int64, wp.int64), (torch.uint8, wp.uint8), (torch.bool, wp.bool)]
+    for t, w in pairs:
+        assert wp.dtype_from_torch(t) is w
+        assert wp.dtype_to_torch(w) is t
+    assert wp.dtype_to_torch(wp.vec3) is torch.float32
+    with pytest.raises(TypeError, match="unsupported"):
+        wp.dtype_from_torch(torch.bfloat16)
+    assert wp.device_from_torch("cpu") == wp.get_device("cpu")
+    assert wp.device_from_torch(torch.device("cpu")).is_cpu
+    assert wp.device_to_torch("cpu") == "cpu"
+
+
+def test_to_torch_is_zero_copy(wp, torch, rng):
+    values = rng.standard_normal((10, 3)).astype(np.float32)
+    a = wp.array(values, dtype=wp.vec3, device="cpu")
+    t = wp.to_torch(a)
+    assert t.shape == (10, 3) and t.dtype == torch.float32 and t.data_ptr() == a.ptr
+    t[4] = torch.tensor([1.0, 2.0, 3.0])                 # Torch -> weft
+    np.testing.assert_array_equal(a.numpy()[4], [1.0, 2.0, 3.0])
+    out = wp.zeros(10, dtype=wp.vec3, device="cpu")
+    to = wp.to_torch(out)
+    wp.launch(double_vec, dim=10, inputs=[a, out], device="cpu")   # weft -> Torch
+    expected = 2.0 * a.numpy().astype(np.float64)
+    np.testing.assert_allclose(to.numpy(), expected, rtol=1e-6)
+
+
+def test_from_torch_of_weft_tensor_is_the_same_memory(wp, torch, rng):
+    a = wp.array(rng.standard_normal(12).astype(np.float32), device="cpu")
+    t = wp.to_torch(a)
+    b = wp.from_torch(t)
+    assert b.ptr == a.ptr and b._handle == a._handle
+    c = wp.from_torch(t[3:9])                            # a view of it: still in place
+    assert c.ptr == a.ptr + 12 and c.shape == (6,)
+
+
+def test_from_torch_moves_foreign_tensor_into_a_slab(wp, torch, rng):
+    values = rng.standard_normal(50).astype(np.float32)
+    t = torch.tensor(values)
+    before = t.data_ptr()
+    a = wp.from_torch(t)
+    assert t.data_ptr() == a.ptr != before               # the tensor now lives in the slab
+    np.testing.assert_array_equal(t.numpy(), values)
+    t.mul_(2.0)                                          # Torch writes reach the kernel
+    out = wp.zeros(1, dtype=float, device="cpu")
+    wp.launch(square_sum, dim=50, inputs=[a, out], device="cpu")
+    np.testing.assert_allclose(out.numpy()[0], np.sum((2.0 * values.astype(np.float64)) ** 2),
+                               rtol=1e-5)
+    assert wp.from_torch(t).ptr == a.ptr                 # later conversions are zero-copy
+
+
+def test_gradients_are_shared_both_ways(wp, torch, rng):
+    values = rng.standard_normal(40).astype(np.float32)
+    x = torch.tensor(values, requires_grad=True)
+    wx = wp.from_torch(x)
+    assert wx.requires_grad and x.grad is not None
+    assert x.grad.data_ptr() == wx.grad.ptr
+    loss = wp.zeros(1, dtype=float, device="cpu", requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(square_sum, dim=40, inputs=[wx, loss], device="cpu")
+    tape.backward(loss=loss)
+    np.testing.assert_allclose(x.grad.numpy(), 2.0 * values.astype(np.float64), rtol=1e-6)
+    # and from weft to Torch: to_torch(requires_grad) gives .grad over the array's gradient
+    a = wp.array(values, device="cpu", requires_grad=True)
+    ta = wp.to_torch(a)
+    assert ta.requires_grad and ta.grad.data_ptr() == a.grad.ptr
+    (ta * 3.0).sum().backward()                          # Torch accumulates into weft memory
+    np.testing.assert_allclose(a.grad.numpy(), np.full(40, 3.0))
+
+
+def test_existing_torch_grad_is_moved_and_kept(wp, torch, rng):
+    x = torch.zeros(8, requires_grad=True)
+    x.grad = torch.full((8,), 0.5)
+    wx = wp.from_torch(x)
+    assert x.grad.data_ptr() == wx.grad.ptr
+    np.testing.assert_array_equal(wx.grad.numpy(), np.full(8, 0.5))
+
+
+def test_torch_tensors_as_launch_arguments(wp, torch, rng):
+    v = torch.tensor(rng.standard_normal((7, 3)).astype(np.float32))
+    out = torch.zeros((7, 3))
+    wp.launch(double_vec, dim=7, inputs=[v, out], device="cpu")
+    np.testing.assert_allclose(out.numpy(), 2.0 * v.numpy().astype(np.float64), rtol=1e-6)
+
+
+def test_streams_are_cuda_objects(wp, torch):
+    with pytest.raises(RuntimeError, match="CUDA objects"):
+        wp.stream_to_torch("cpu")
+
+
+def test_errors(wp, torch):
+    with pytest.raises(Exception, match="unsupported"):
+        wp.from_torch(torch.zeros(3, dtype=torch.bfloat16))
+    with pytest.raises(Exception, match=r"trailing dimensions must be \(3,\)"):
+        wp.from_torch(torch.zeros(4, 2), dtype=wp.vec3)
+    with pytest.raises(Exception, match="not contiguous"):
+        wp.from_torch(torch.zeros(4, 6)[:, ::2], dtype=wp.vec3)
+    with pytest.raises(Exception, match="incompatible dtypes"):
+        wp.from_torch(torch.zeros(4, 3, dtype=torch.float64), dtype=wp.vec3)
+    with pytest.raises(TypeError, match="torch.Tensor"):
+        wp.from_torch(np.zeros(3))

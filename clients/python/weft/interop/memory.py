@@ -1,0 +1,132 @@
+"""Weft memory behind foreign host pointers, and memory shared with frameworks.
+
+A local client sees each CPU array's bytes at an address in a mapped shared-memory slab. Every
+allocation whose slab address leaves the array layer (numpy() views, `.ptr`, DLPack, to_torch)
+is noted here with its address range, so that an address a framework hands back (a Torch tensor
+made by to_torch, a NumPy view of a weft array, a DLPack capsule of one) resolves to the
+allocation that owns it and is used in place instead of being copied. Entries hold the
+allocation weakly: memory only resolves while its allocation is alive, and any foreign object
+still pointing at it keeps it alive (through the NumPy view it was made from).
+
+`mark_shared` records allocations a framework (Torch, JAX, a DLPack consumer) can read and
+write at any time: launches and tape backward passes that touch them complete before they
+return (see docs/interop.md, "Ordering").
+"""
+from __future__ import annotations
+
+import bisect
+import threading
+import weakref
+
+_lock = threading.Lock()
+_spaces: dict = {}           # "cpu" / "cuda:N" -> (sorted start addresses, {start: (end, weakref)})
+_shared = weakref.WeakSet()  # allocations a framework holds (launches touching them synchronize)
+
+
+def note_range(alloc, space: str, start: int, nbytes: int) -> None:
+    """Records that `alloc` is seen at [start, start+nbytes) in address space `space`."""
+    end = start + int(nbytes)
+    with _lock:
+        starts, entries = _spaces.setdefault(space, ([], {}))
+
+    def forget(ref, start=start):
+        with _lock:
+            entry = entries.get(start)
+            if entry is not None and entry[1] is ref:
+                del entries[start]
+                i = bisect.bisect_left(starts, start)
+                if i < len(starts) and starts[i] == start:
+                    del starts[i]
+
+    ref = weakref.ref(alloc, forget)
+    with _lock:
+        if start not in entries:
+            bisect.insort(starts, start)
+        entries[start] = (end, ref)
+
+
+def note_mapped(alloc, mapping) -> None:
+    """Called by the array layer when `alloc`'s slab mapping is first handed out."""
+    info = alloc.info
+    note_range(alloc, "cpu", mapping.address + int(info.shm_offset), int(info.byte_size))
+
+
+def find(address: int, nbytes: int, space: str = "cpu"):
+    """(allocation, byte offset in it) of live weft memory holding [address, address+nbytes)
+    in address space `space`, else None."""
+    registry = _spaces.get(space)
+    if registry is None:
+        return None
+    starts, entries = registry
+    with _lock:
+        i = bisect.bisect_right(starts, address) - 1
+        if i < 0:
+            return None
+        start = starts[i]
+        end, ref = entries[start]
+    if address + max(nbytes, 0) > end:
+        return None
+    alloc = ref()
+    if alloc is None:
+        return None
+    return alloc, address - start
+
+
+def mark_shared(alloc) -> None:
+    if alloc is not None:
+        _shared.add(alloc)
+
+
+def any_shared() -> bool:
+    return len(_shared) > 0
+
+
+def touches_shared(values) -> bool:
+    """Whether any weft array among `values` lives in memory a framework holds."""
+    if not _shared:
+        return False
+    for value in values:
+        alloc = getattr(value, "_alloc", None)
+        if alloc is not None and alloc in _shared:
+            return True
+        grad = getattr(value, "_grad", None)
+        galloc = getattr(grad, "_alloc", None)
+        if galloc is not None and galloc in _shared:
+            return True
+    return False
+
+
+def array_over(alloc, byte_offset: int, shape, strides, dtype):
+    """A weft array viewing `alloc` at `byte_offset` (bytes) with byte `strides`; checked
+    against the allocation's size."""
+    from ..array import _elem_size, array  # noqa: PLC0415
+    from ..device import get_device  # noqa: PLC0415
+
+    info = alloc.info
+    shape = tuple(int(s) for s in shape)
+    strides = tuple(int(s) for s in strides)
+    elem = _elem_size(dtype)
+    size = 1
+    for n in shape:
+        size *= n
+    if any(s < 0 for s in strides):
+        raise ValueError("negative strides cannot view weft memory in place")
+    span = (sum((n - 1) * s for n, s in zip(shape, strides)) + elem) if size else 0
+    if byte_offset < 0 or byte_offset + span > int(info.byte_size):
+        raise ValueError(f"a view of {span} bytes at offset {byte_offset} exceeds the "
+                         f"allocation ({info.byte_size} bytes)")
+    out = array.__new__(array)
+    out._alloc = alloc
+    out._info = info
+    out._handle = info.handle
+    out._byte_offset = int(byte_offset)
+    out.dtype = dtype
+    out.shape = shape
+    out.strides = strides
+    out.ndim = len(shape)
+    out.size = size
+    out.device = get_device(info.device)
+    out.pinned = False
+    out._requires_grad = False
+    out._grad = None
+    return out

@@ -1,0 +1,275 @@
+"""PyTorch interop: wp.from_torch / wp.to_torch, gradients, device, dtype and stream helpers.
+
+Memory (CPU; see docs/interop.md for the full rules):
+- `to_torch(a)` of a local CPU array is zero-copy: the tensor is `torch.from_numpy` of the
+  array's shared-memory view, so Torch and weftd read and write the same bytes.
+- `from_torch(t)` of a tensor whose memory is already a weft slab (made by to_torch, or a view
+  of one) returns a weft array over that memory. Any other CPU tensor lives in this process,
+  where the daemon cannot see it: its storage is moved into a new weft slab once (one copy)
+  and the tensor is re-pointed at the slab (`t.data = ...`, so the tensor object, its autograd
+  identity and the optimizers holding it are unchanged). From then on both sides share the
+  memory and later from_torch calls are zero-copy. Tensors that are views of another tensor
+  are copied instead (re-pointing a view would cut it off from its base): a snapshot that
+  later Torch writes do not reach.
+- Gradients are mapped both ways through the same mechanism: the weft array's `.grad` and the
+  tensor's `.grad` are one weft allocation (a tensor `.grad` that lives elsewhere is moved into
+  a slab the same way).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import external, memory
+
+_FROM_TORCH: dict = {}
+
+
+def _torch():
+    import torch  # noqa: PLC0415
+
+    return torch
+
+
+def _dtype_map() -> dict:
+    if not _FROM_TORCH:
+        torch = _torch()
+        from .. import types  # noqa: PLC0415
+
+        pairs = [("float16", types.float16), ("float32", types.float32),
+                 ("float64", types.float64), ("int8", types.int8), ("int16", types.int16),
+                 ("int32", types.int32), ("int64", types.int64), ("uint8", types.uint8),
+                 ("uint16", types.uint16), ("uint32", types.uint32), ("uint64", types.uint64),
+                 ("bool", types.bool)]
+        for name, weft_type in pairs:
+            torch_type = getattr(torch, name, None)
+            if torch_type is not None:
+                _FROM_TORCH[torch_type] = weft_type
+    return _FROM_TORCH
+
+
+def dtype_from_torch(torch_dtype):
+    """The weft scalar dtype of a Torch dtype (TypeError for bfloat16, complex, ...)."""
+    weft_type = _dtype_map().get(torch_dtype)
+    if weft_type is None:
+        raise TypeError(f"Invalid or unsupported data type: {torch_dtype} (weft arrays hold "
+                        f"bool, int8..int64, uint8..uint64, float16, float32, float64)")
+    return weft_type
+
+
+def dtype_to_torch(weft_dtype):
+    """The Torch dtype of a weft dtype (of its scalar components for vectors and matrices)."""
+    from .. import types  # noqa: PLC0415
+    from ..array import _canonical_dtype  # noqa: PLC0415
+
+    dtype = _canonical_dtype(weft_dtype)
+    scalar = dtype._wp_scalar_type_ if types.is_dtype(dtype) else None
+    for torch_type, weft_type in _dtype_map().items():
+        if weft_type is scalar:
+            return torch_type
+    raise TypeError(f"Cannot convert {weft_dtype} to a Torch type")
+
+
+def device_from_torch(torch_device):
+    """The weft Device of a Torch device ("cpu", "cuda", "cuda:N" or a torch.device)."""
+    from ..device import get_device  # noqa: PLC0415
+
+    torch = _torch()
+    dev = torch.device(torch_device) if not isinstance(torch_device, torch.device) \
+        else torch_device
+    if dev.type == "cuda":
+        index = dev.index if dev.index is not None else torch.cuda.current_device()
+        return get_device(f"cuda:{index}")
+    if dev.type == "cpu":
+        return get_device("cpu")
+    raise RuntimeError(f"Torch device {dev} has no weft counterpart (weft has cpu and cuda:N)")
+
+
+def device_to_torch(device):
+    """The Torch device string ("cpu", "cuda:N") of a weft device."""
+    from ..device import get_device  # noqa: PLC0415
+
+    device = get_device(device)
+    if device.is_cpu:
+        return "cpu"
+    if device.is_cuda:
+        return f"cuda:{device.ordinal}"
+    raise RuntimeError(f"weft device {device} is not compatible with Torch")
+
+
+def _check_tensor(t, what):
+    torch = _torch()
+    if not isinstance(t, torch.Tensor):
+        raise TypeError(f"{what} expects a torch.Tensor, got {type(t).__name__}")
+
+
+def _cuda_unavailable(what, t):
+    return external.InteropError(
+        f"{what}: the tensor lives on {t.device}; GPU tensors need weft GPU arrays and CUDA IPC "
+        f"import, which this client does not have yet")
+
+
+def _adopt_tensor(t, dtype, what, requires_grad=False):
+    """A weft array over `t`'s memory: in place when it is a weft slab, else after moving the
+    tensor's storage into a new slab (created with a daemon-side gradient when
+    `requires_grad`); views and tensors Torch will not re-point get a copy."""
+    view = external.host_view(t, what)
+    wdtype, shape, strides = external.resolve_layout(view, dtype, what)
+    found = external.find_in_place(view, wdtype, shape, strides)
+    if found is not None:
+        memory.mark_shared(found._alloc)
+        return found
+    out, _ = external.weft_array(view, dtype=wdtype, device="cpu", what=what,
+                                 requires_grad=requires_grad)
+    if t._base is None and not t.is_inference():
+        moved = _tensor_over(out, t.dtype, tuple(t.shape))
+        if moved is not None:
+            torch = _torch()
+            try:
+                with torch.no_grad():
+                    t.data = moved
+            except RuntimeError:
+                pass                    # Torch refused: the array stays a copy
+    return out
+
+
+def _tensor_over(a, torch_dtype, shape):
+    """A zero-copy CPU tensor over weft array `a` (None where its memory is not mapped here)."""
+    torch = _torch()
+    rt = a._alloc.runtime
+    if not (rt.local and a._info.shm_name) or a.size == 0:
+        return None
+    view = a.numpy()
+    memory.mark_shared(a._alloc)
+    t = torch.from_numpy(view)
+    if t.dtype != torch_dtype:
+        t = t.view(torch_dtype)         # same-size alias (int8 <-> uint8, bool <-> uint8)
+    return t.reshape(shape) if tuple(t.shape) != tuple(shape) else t
+
+
+def _set_now(a, values=None):
+    """Writes zeros (or `values`) into weft array `a` before returning (Torch may read it
+    at once)."""
+    if a._alloc.runtime.local and a._info.shm_name:
+        view = a.numpy()
+        if values is None:
+            view[...] = 0
+        else:
+            view[...] = np.asarray(values).reshape(view.shape)
+        return
+    if values is None:
+        a.zero_()
+    else:
+        a.assign(values)
+    a._alloc.runtime.synchronize()
+
+
+def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False):
+    """A weft array sharing memory with Torch tensor `t` (Warp's wp.from_torch; the memory
+    rules are in this module's docstring). `dtype` may be a vector/matrix type whose shape
+    matches `t`'s trailing dimensions; `requires_grad` (default: t.requires_grad) maps the
+    tensor's .grad to the array's .grad (zeros when the tensor has none); `grad` gives that
+    gradient tensor explicitly. `return_ctype` is accepted for Warp compatibility: weft has no
+    ctypes descriptors, and the array returned is already a thin view."""
+    what = "wp.from_torch"
+    _check_tensor(t, what)
+    if t.device.type != "cpu":
+        raise _cuda_unavailable(what, t)
+    if requires_grad is None:
+        requires_grad = bool(t.requires_grad)
+    a = _adopt_tensor(t, dtype, what, requires_grad)
+    if not requires_grad:
+        return a
+    torch = _torch()
+    if grad is not None:
+        # an explicit gradient tensor: the array's gradient is that memory (client side)
+        _check_tensor(grad, what + " (grad)")
+        a._grad = _adopt_tensor(grad, a.dtype, what + " (grad)")
+        a._requires_grad = True
+        return a
+    g = t.grad
+    ga = a.grad                         # the daemon-side gradient, when the allocation has one
+    if ga is None:
+        from ..array import zeros  # noqa: PLC0415
+
+        if g is not None:
+            ga = _adopt_tensor(g, a.dtype, what + " (grad)")
+        else:
+            ga = zeros(a.shape, dtype=a.dtype, device="cpu")
+        a._grad = ga
+    elif g is None:
+        _set_now(ga)                    # a tensor without .grad: the gradient starts at zero
+    elif not (g.device.type == "cpu" and ga.ptr is not None and g.data_ptr() == ga.ptr):
+        _set_now(ga, external.host_view(g, what + " (grad)"))
+    if g is None or g.data_ptr() != ga.ptr:
+        gt = _tensor_over(ga, t.dtype, tuple(t.shape))
+        if gt is not None:
+            with torch.no_grad():
+                t.grad = gt
+    else:
+        memory.mark_shared(ga._alloc)
+    a._requires_grad = True
+    return a
+
+
+def to_torch(a, requires_grad=None):
+    """A Torch tensor over weft array `a` (Warp's wp.to_torch): zero-copy for CPU arrays of
+    local sessions (pending weft commands are finished first); remote sessions get a copy.
+    With requires_grad (default: a.requires_grad) the tensor requires grad and its .grad is
+    the array's .grad, zero-copy."""
+    from ..array import array  # noqa: PLC0415
+
+    if not isinstance(a, array):
+        raise TypeError(f"wp.to_torch expects a weft array, got {type(a).__name__}")
+    torch = _torch()
+    if a.device is not None and a.device.is_cuda:
+        t = torch.utils.dlpack.from_dlpack(a)
+    else:
+        t = _tensor_over(a, dtype_to_torch(a.dtype), tuple(a.numpy().shape)) \
+            if a._info is not None else None
+        if t is None:
+            t = torch.from_numpy(np.array(a.numpy(), copy=True))
+    if requires_grad is None:
+        requires_grad = a.requires_grad
+    if requires_grad:
+        if a.grad is None:
+            a.requires_grad = True
+        t.requires_grad_(True)
+        gt = to_torch(a.grad, requires_grad=False)
+        t.grad = gt
+    return t
+
+
+def stream_from_torch(stream_or_device=None):
+    """The weft stream that orders work with a Torch CUDA stream (see docs/interop.md,
+    "Streams"): weft's work runs on the daemon's session stream of that device."""
+    torch = _torch()
+    if isinstance(stream_or_device, getattr(torch.cuda, "Stream", ())):
+        device = device_from_torch(stream_or_device.device)
+        torch_stream = stream_or_device
+    else:
+        device = device_from_torch(stream_or_device if stream_or_device is not None
+                                   else "cuda")
+        torch_stream = None
+    if not device.is_cuda:
+        raise RuntimeError("streams are CUDA objects; CPU work is ordered by synchronization "
+                           "(docs/interop.md)")
+    from .. import streams  # noqa: PLC0415
+
+    stream = streams.Stream(device)
+    stream._torch_stream = torch_stream
+    return stream
+
+
+def stream_to_torch(stream_or_device=None):
+    """The Torch stream to use with a weft stream or device: Torch's current stream of that
+    device. Weft's work runs in the daemon, so ordering is by synchronization: weft finishes
+    its pending work before Torch gets its memory (to_torch, __dlpack__)."""
+    torch = _torch()
+    from ..device import get_device  # noqa: PLC0415
+
+    device = getattr(stream_or_device, "device", None) or get_device(stream_or_device)
+    device = get_device(device)
+    if not device.is_cuda:
+        raise RuntimeError("streams are CUDA objects; CPU work is ordered by synchronization "
+                           "(docs/interop.md)")
+    return torch.cuda.current_stream(device_to_torch(device))
