@@ -130,3 +130,28 @@ def array_over(alloc, byte_offset: int, shape, strides, dtype):
     out._requires_grad = False
     out._grad = None
     return out
+
+
+_grad_infos = weakref.WeakKeyDictionary()   # _Allocation -> ArrayInfo of its daemon gradient
+
+
+def grad_view(a):
+    """`a.grad`, without a Describe round trip when the gradient of `a`'s allocation was
+    described before (conversions make new array objects over the same allocation)."""
+    if a._grad is not None:
+        return a._grad
+    info = a._info
+    if info is None or not info.grad_handle:
+        return None
+    ginfo = _grad_infos.get(a._alloc)
+    if ginfo is None:
+        g = a.grad
+        if g is not None:
+            _grad_infos[a._alloc] = g._info
+        return g
+    from ..array import _Allocation  # noqa: PLC0415
+
+    galloc = _Allocation(a._alloc.runtime, ginfo, owned=False, parent=a._alloc)
+    g = array_over(galloc, a._byte_offset, a.shape, a.strides, a.dtype)
+    a._grad = g
+    return g

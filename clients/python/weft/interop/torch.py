@@ -187,7 +187,7 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
         a._requires_grad = True
         return a
     g = t.grad
-    ga = a.grad                         # the daemon-side gradient, when the allocation has one
+    ga = memory.grad_view(a)            # the daemon-side gradient, when the allocation has one
     if ga is None:
         from ..array import zeros  # noqa: PLC0415
 
@@ -231,10 +231,12 @@ def to_torch(a, requires_grad=None):
     if requires_grad is None:
         requires_grad = a.requires_grad
     if requires_grad:
-        if a.grad is None:
-            a.requires_grad = True
+        ga = memory.grad_view(a)
+        if ga is None:
+            a.requires_grad = True      # a gradient array of its own (client side)
+            ga = a.grad
         t.requires_grad_(True)
-        gt = to_torch(a.grad, requires_grad=False)
+        gt = to_torch(ga, requires_grad=False)
         t.grad = gt
     return t
 
