@@ -80,11 +80,22 @@ def _numpy_capsule(view: np.ndarray, max_version, a):
 
 
 def _export_cuda(a, stream, max_version):
-    """GPU arrays: the array layer's own producer over the CUDA IPC mapping, when present."""
-    producer = getattr(type(a), "_dlpack_cuda_capsule", None)
-    if producer is None:
-        raise BufferError(f"DLPack export of {a.device} arrays needs CUDA IPC in this client")
-    return producer(a, stream, max_version)
+    """GPU arrays: a capsule over the CUDA IPC mapping of the array (the array layer's
+    producer, weft._dlpack). Weft's pending work is finished first, so the consumer's stream
+    may read at once whatever `stream` it names."""
+    try:
+        from .. import _dlpack as producer  # noqa: PLC0415
+    except ImportError:
+        raise BufferError(f"DLPack export of {a.device} arrays needs CUDA IPC in this "
+                          f"client") from None
+    a._alloc.runtime.synchronize_if_needed()
+    capsule = producer.to_capsule(a)
+    ptr = a.ptr
+    if ptr is not None:
+        memory.note_range(a._alloc, f"cuda:{a.device.ordinal}", ptr - a._byte_offset,
+                          int(a._info.byte_size))
+        memory.mark_shared(a._alloc)
+    return capsule
 
 
 def to_dlpack(a):

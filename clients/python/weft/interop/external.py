@@ -184,6 +184,49 @@ def find_in_place(view: np.ndarray, dtype, shape, strides):
         return None
 
 
+def cuda_interface(obj) -> dict:
+    """The CUDA Array Interface of a foreign GPU array (Torch tensors included)."""
+    if is_torch_tensor(obj):
+        obj = obj.detach()
+    try:
+        return obj.__cuda_array_interface__
+    except (AttributeError, RuntimeError, TypeError) as err:
+        raise InteropError(f"cannot read the CUDA Array Interface of {type(obj).__name__}: "
+                           f"{err}") from None
+
+
+def find_cuda_in_place(obj, dtype, device: str, what: str):
+    """A weft array over a foreign GPU array whose memory is a weft GPU allocation (exported
+    to the framework by to_torch / DLPack), else None."""
+    iface = cuda_interface(obj)
+    np_dtype = np.dtype(iface["typestr"])
+    shape = tuple(int(s) for s in iface["shape"])
+    strides = iface.get("strides")
+    if strides is None:
+        strides, step = [], np_dtype.itemsize
+        for n in reversed(shape):
+            strides.append(step)
+            step *= max(n, 1)
+        strides = tuple(reversed(strides))
+    fake = np.lib.stride_tricks.as_strided(np.zeros(1, dtype=np_dtype), shape=shape,
+                                           strides=strides, writeable=False)
+    wdtype, wshape, wstrides = resolve_layout(fake, dtype, what)
+    from ..array import _elem_size  # noqa: PLC0415
+
+    low, nbytes = _span(wshape, wstrides, _elem_size(wdtype))
+    if low < 0:
+        return None
+    ordinal = device.split(":")[1] if ":" in device else "0"
+    hit = memory.find(int(iface["data"][0]), nbytes, space=f"cuda:{ordinal}")
+    if hit is None:
+        return None
+    alloc, offset = hit
+    try:
+        return memory.array_over(alloc, offset, wshape, wstrides, wdtype)
+    except ValueError:
+        return None
+
+
 def weft_array(obj, dtype=None, device=None, requires_grad=False, what: str = "array"):
     """(weft array, in_place): `obj`'s memory itself when it lives in a weft slab and `device`
     is the CPU (or None), else a new array with a copy on `device`."""
@@ -219,9 +262,13 @@ def launch_array(value, dtype, device: str, what: str):
         if not device.startswith("cuda"):
             raise InteropError(f"{what}: the array lives on {source_device} but the kernel is "
                                f"launched on {device}")
+        found = find_cuda_in_place(value, dtype, device, what)
+        if found is not None:
+            return found, None
         raise InteropError(f"{what}: GPU framework arrays as launch arguments need CUDA IPC "
-                           f"import, which this client does not have yet; pass a weft array "
-                           f"(wp.from_torch / wp.from_dlpack of a weft-made tensor)")
+                           f"import into weftd, which is not built yet; only GPU memory that "
+                           f"is already weft's (wp.to_torch / DLPack of a weft array) is "
+                           f"accepted")
     if not device.startswith("cpu"):
         raise InteropError(f"{what}: the array lives on the CPU but the kernel is launched on "
                            f"{device}; copy it with wp.array(..., device={device!r})")

@@ -104,8 +104,9 @@ def _check_tensor(t, what):
 
 def _cuda_unavailable(what, t):
     return external.InteropError(
-        f"{what}: the tensor lives on {t.device}; GPU tensors need weft GPU arrays and CUDA IPC "
-        f"import, which this client does not have yet")
+        f"{what}: the tensor lives on {t.device} in this process's memory; importing it needs "
+        f"CUDA IPC import into weftd, which is not built yet (tensors made by wp.to_torch of a "
+        f"weft GPU array are accepted)")
 
 
 def _adopt_tensor(t, dtype, what, requires_grad=False):
@@ -172,6 +173,15 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
     ctypes descriptors, and the array returned is already a thin view."""
     what = "wp.from_torch"
     _check_tensor(t, what)
+    if t.device.type == "cuda":
+        a = external.find_cuda_in_place(t, dtype, f"cuda:{t.device.index or 0}", what)
+        if a is None:
+            raise _cuda_unavailable(what, t)
+        if requires_grad if requires_grad is not None else t.requires_grad:
+            ga = memory.grad_view(a)
+            if ga is not None:
+                a._requires_grad = True
+        return a
     if t.device.type != "cpu":
         raise _cuda_unavailable(what, t)
     if requires_grad is None:
