@@ -111,10 +111,36 @@ def resolve_layout(view: np.ndarray, dtype=None, what: str = "array", cast_ok=Fa
     scalar type of the data). Raises InteropError for unsupported dtypes, mismatched element
     shapes, non-contiguous elements and more than 4 dimensions; a different (supported)
     scalar type is an error too unless `cast_ok` (the caller converts by copying)."""
+    return resolve_parts(view.dtype, tuple(view.shape), tuple(view.strides), dtype, what,
+                         cast_ok)
+
+
+_LAYOUTS: dict = {}     # (np dtype, shape, strides, dtype) -> resolved layout (hot path)
+
+
+def resolve_parts(np_dtype, shape: tuple, strides: tuple, dtype=None, what: str = "array",
+                  cast_ok=False):
+    """resolve_layout of data described by (NumPy dtype, shape, byte strides)."""
+    key = (np_dtype, shape, strides, dtype)
+    try:
+        return _LAYOUTS[key]
+    except (KeyError, TypeError):
+        pass
+    result = _resolve_parts(np.dtype(np_dtype), shape, strides, dtype, what, cast_ok)
+    if _scalar_compatible(np.dtype(np_dtype), result[0]._wp_scalar_type_):
+        if len(_LAYOUTS) > 4096:
+            _LAYOUTS.clear()
+        try:
+            _LAYOUTS[key] = result
+        except TypeError:
+            pass
+    return result
+
+
+def _resolve_parts(np_dtype, shape, strides, dtype, what, cast_ok):
     from .. import types  # noqa: PLC0415
     from ..array import _canonical_dtype  # noqa: PLC0415
 
-    np_dtype = view.dtype
     try:
         source = types.dtype_from_numpy(np_dtype)
     except TypeError:
@@ -128,7 +154,6 @@ def resolve_layout(view: np.ndarray, dtype=None, what: str = "array", cast_ok=Fa
         raise InteropError(f"{what}: incompatible dtypes: the data is {np_dtype}, the requested "
                            f"dtype {types.type_str(dtype)} has {scalar.__name__} components")
     inner = tuple(dtype._shape_)
-    shape, strides = tuple(view.shape), tuple(view.strides)
     k = len(inner)
     if k:
         if len(shape) < k or shape[len(shape) - k:] != inner:
@@ -164,17 +189,33 @@ def _span(shape, strides, elem: int):
     return low, high - low + elem
 
 
+def elem_bytes(dtype) -> int:
+    """Bytes of one element of weft (scalar/vector/matrix) dtype `dtype`."""
+    try:
+        return _ELEM_BYTES[dtype]
+    except KeyError:
+        n = dtype._length_ * np.dtype(dtype._wp_scalar_type_._np_dtype_).itemsize
+        _ELEM_BYTES[dtype] = n
+        return n
+
+
+_ELEM_BYTES: dict = {}
+
+
 def find_in_place(view: np.ndarray, dtype, shape, strides):
     """A weft array over the same memory as `view` when it lies in a live weft allocation."""
-    from ..array import _elem_size  # noqa: PLC0415
-
     if view.size == 0:
         return None
-    elem = _elem_size(dtype)
-    low, nbytes = _span(shape, strides, elem)
-    if low < 0:
+    return find_at(_address(view), dtype, shape, strides)
+
+
+def find_at(address: int, dtype, shape, strides, space: str = "cpu"):
+    """A weft array over [address, ...) laid out as (dtype, shape, byte strides) when that
+    memory lies in a live weft allocation, else None."""
+    low, nbytes = _span(shape, strides, elem_bytes(dtype))
+    if low < 0 or nbytes == 0:
         return None                     # negative strides: weft views need non-negative ones
-    hit = memory.find(_address(view), nbytes)
+    hit = memory.find(address, nbytes, space)
     if hit is None:
         return None
     alloc, offset = hit
@@ -278,6 +319,12 @@ def launch_array(value, dtype, device: str, what: str):
         found = find_in_place(view, wdtype, shape, strides)
         if found is not None:
             return found, None
+        if is_torch_tensor(value) and value._base is None:
+            # a Torch tensor moves into a slab once, as with wp.from_torch (see torch.py):
+            # later launches use it in place
+            from . import torch as torch_interop  # noqa: PLC0415
+
+            return torch_interop._adopt_tensor(value, wdtype, what), None
     # a copy (converted to the parameter's scalar type where the data has another one)
     data = view
     if view.dtype != np.dtype(wdtype._wp_scalar_type_._np_dtype_) and \

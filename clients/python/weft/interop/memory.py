@@ -96,16 +96,33 @@ def touches_shared(values) -> bool:
     return False
 
 
+_array_class = None
+_devices: dict = {}
+
+
+def _device(name: str):
+    device = _devices.get(name)
+    if device is None:
+        from ..device import get_device  # noqa: PLC0415
+
+        device = _devices[name] = get_device(name)
+    return device
+
+
 def array_over(alloc, byte_offset: int, shape, strides, dtype):
     """A weft array viewing `alloc` at `byte_offset` (bytes) with byte `strides`; checked
     against the allocation's size."""
-    from ..array import _elem_size, array  # noqa: PLC0415
-    from ..device import get_device  # noqa: PLC0415
+    global _array_class
+    if _array_class is None:
+        from ..array import array  # noqa: PLC0415
+
+        _array_class = array
+    from .external import elem_bytes  # noqa: PLC0415
 
     info = alloc.info
     shape = tuple(int(s) for s in shape)
     strides = tuple(int(s) for s in strides)
-    elem = _elem_size(dtype)
+    elem = elem_bytes(dtype)
     size = 1
     for n in shape:
         size *= n
@@ -115,7 +132,7 @@ def array_over(alloc, byte_offset: int, shape, strides, dtype):
     if byte_offset < 0 or byte_offset + span > int(info.byte_size):
         raise ValueError(f"a view of {span} bytes at offset {byte_offset} exceeds the "
                          f"allocation ({info.byte_size} bytes)")
-    out = array.__new__(array)
+    out = _array_class.__new__(_array_class)
     out._alloc = alloc
     out._info = info
     out._handle = info.handle
@@ -125,7 +142,7 @@ def array_over(alloc, byte_offset: int, shape, strides, dtype):
     out.strides = strides
     out.ndim = len(shape)
     out.size = size
-    out.device = get_device(info.device)
+    out.device = _device(info.device)
     out.pinned = False
     out._requires_grad = False
     out._grad = None

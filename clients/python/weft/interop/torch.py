@@ -113,6 +113,17 @@ def _adopt_tensor(t, dtype, what, requires_grad=False):
     """A weft array over `t`'s memory: in place when it is a weft slab, else after moving the
     tensor's storage into a new slab (created with a daemon-side gradient when
     `requires_grad`); views and tensors Torch will not re-point get a copy."""
+    weft_scalar = _dtype_map().get(t.dtype) if t.device.type == "cpu" else None
+    if weft_scalar is not None and t.numel():
+        # hot path: the tensor's own layout, no NumPy view
+        np_dtype = np.dtype(weft_scalar._np_dtype_)
+        wdtype, shape, strides = external.resolve_parts(
+            np_dtype, tuple(t.shape), tuple(s * np_dtype.itemsize for s in t.stride()), dtype,
+            what)
+        found = external.find_at(t.data_ptr(), wdtype, shape, strides)
+        if found is not None:
+            memory.mark_shared(found._alloc)
+            return found
     view = external.host_view(t, what)
     wdtype, shape, strides = external.resolve_layout(view, dtype, what)
     found = external.find_in_place(view, wdtype, shape, strides)
