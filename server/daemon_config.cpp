@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <type_traits>
 
 #include <CLI/CLI.hpp>
 #include <toml++/toml.h>
@@ -57,7 +58,10 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   for (auto&& [k, v] : t) {
     static const char* known[] = {"listen", "cache-dir", "cache_dir", "log-level", "log_level", "token-file",
                                   "token_file", "cpu-threads", "cpu_threads", "verify-cuda", "verify_cuda",
-                                  "allow-unchecked", "allow_unchecked", "native-dir", "native_dir"};
+                                  "allow-unchecked", "allow_unchecked", "native-dir", "native_dir",
+                                  "max-module-bytes", "max_module_bytes", "max-functions", "max_functions",
+                                  "max-block-depth", "max_block_depth", "max-expression-depth",
+                                  "max_expression_depth"};
     bool ok = false;
     for (const char* n : known) ok = ok || k.str() == n;
     if (!ok) return InvalidArgument("config " + path + ": unknown key '" + std::string(k.str()) + "'");
@@ -85,6 +89,15 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   if (!given("--verify-cuda"))
     if (auto* n = Key(t, "verify-cuda"))
       if (auto v = n->value<bool>()) c->verify_cuda = *v;
+  auto integer = [&](const char* key, const char* flag, auto* out) {
+    if (given(flag)) return;
+    if (auto* n = Key(t, key))
+      if (auto v = n->value<int64_t>()) *out = static_cast<std::remove_pointer_t<decltype(out)>>(*v < 0 ? 0 : *v);
+  };
+  integer("max-module-bytes", "--max-module-bytes", &c->max_module_bytes);
+  integer("max-functions", "--max-functions", &c->max_functions);
+  integer("max-block-depth", "--max-block-depth", &c->max_block_depth);
+  integer("max-expression-depth", "--max-expression-depth", &c->max_expression_depth);
   if (!given("--allow-unchecked"))
     if (auto* n = Key(t, "allow-unchecked"))
       if (auto v = n->value<bool>()) c->allow_unchecked = *v;
@@ -107,6 +120,11 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   app.add_option("--native-dir", c.native_dir, "engine/native headers for the CPU JIT");
   app.add_flag("--verify-cuda", c.verify_cuda, "Also compile every generated module with NVRTC");
   app.add_flag("--allow-unchecked", c.allow_unchecked, "Let sessions turn array bounds checks off");
+  app.add_option("--max-module-bytes", c.max_module_bytes, "Largest module source a client may compile, in bytes (default 2 MiB)");
+  app.add_option("--max-functions", c.max_functions, "Most kernels and funcs in one module (default 2000)");
+  app.add_option("--max-block-depth", c.max_block_depth, "Deepest nesting of blocks in kernel code, 1..100 (default 100)");
+  app.add_option("--max-expression-depth", c.max_expression_depth,
+                 "Deepest nesting of expressions in kernel code, 1..1000 (default 1000)");
   app.add_flag("--version", c.show_version, "Print the version and exit");
   try {
     app.parse(argc, argv);
@@ -121,6 +139,12 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   }
   if (!config_file.empty()) WEFT_RETURN_IF_ERROR(ApplyToml(config_file, &c, app));
   if (c.cpu_threads < 0) return InvalidArgument("--cpu-threads must be >= 0");
+  if (c.max_module_bytes == 0 || c.max_functions == 0)
+    return InvalidArgument("--max-module-bytes and --max-functions must be > 0");
+  if (c.max_block_depth < 1 || c.max_block_depth > 100)
+    return InvalidArgument("--max-block-depth must be between 1 and 100");
+  if (c.max_expression_depth < 1 || c.max_expression_depth > 1000)
+    return InvalidArgument("--max-expression-depth must be between 1 and 1000");
   if (c.listen.empty()) c.listen.push_back("unix:" + DefaultSocketPath());
   for (const auto& l : c.listen)
     if (l.rfind("unix:", 0) != 0 && l.rfind("tcp:", 0) != 0)

@@ -2,6 +2,7 @@
 // dashes or underscores), plus the default listen address.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,11 @@ struct DaemonConfig {
   bool verify_cuda = false;
   bool allow_unchecked = false;
   bool show_version = false;
+  // Compile limits (engine/codegen/check_source.h CompileLimits; the defaults are its defaults).
+  uint64_t max_module_bytes = 2u << 20;
+  uint32_t max_functions = 2000;
+  int max_block_depth = 100;
+  int max_expression_depth = 1000;
 };
 
 // Parses argv (and the TOML file it names). Returns the exit code in *exit_code when the

@@ -114,6 +114,10 @@ int main(int argc, char** argv) {
   eo.modules.cache_dir = cfg->cache_dir;
   eo.modules.native_dir = cfg->native_dir.empty() ? WEFT_NATIVE_DIR : cfg->native_dir;
   eo.modules.verify_cuda = cfg->verify_cuda;
+  eo.modules.limits.max_module_bytes = cfg->max_module_bytes;
+  eo.modules.limits.max_functions = cfg->max_functions;
+  eo.modules.limits.max_block_depth = cfg->max_block_depth;
+  eo.modules.limits.max_expression_depth = cfg->max_expression_depth;
   auto engine = Engine::Create(eo);
   if (!engine.ok()) {
     std::cerr << "weftd: " << engine.status().message() << "\n";

@@ -13,6 +13,8 @@
 #include <functional>
 #include <set>
 
+#include "engine/codegen/emit_text.h"
+
 namespace weft::codegen {
 namespace {
 
@@ -20,32 +22,13 @@ using namespace sema;
 
 uint32_t RoundUp(uint32_t v, uint32_t a) { return (v + a - 1) / a * a; }
 
-std::string Escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-      case '\\': out += "\\\\"; break;
-      case '"': out += "\\\""; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '\r': out += "\\r"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 32) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\%03o", static_cast<unsigned char>(c));
-          out += buf;
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out;
-}
-
 std::string BaseName(const std::string& path) {
   size_t s = path.find_last_of('/');
   return s == std::string::npos ? path : path.substr(s + 1);
 }
+
+// A struct field's member name in generated code.
+std::string FieldName(const std::string& name) { return "f_" + MangleIdentifier(name); }
 
 bool HasArrays(const Type& t, const StructTable& structs) {
   if (t.is_array()) return true;
@@ -83,7 +66,7 @@ class FnEmitter {
     }
     sig += ")";
     fail_ = (ret == "void") ? "return;" : "return wp::cg_zeros<" + ret + ">();";
-    Line("// " + BaseName(f_.file) + ":" + std::to_string(f_.def_line) + ": @wp.func " + f_.name +
+    Line("// " + CommentText(BaseName(f_.file)) + ":" + std::to_string(f_.def_line) + ": @wp.func " + CommentText(f_.name) +
          (mode == Mode::kReplay ? " (replay: no side effects)" : mode == Mode::kAdjoint ? " (adjoint)" : ""));
     Line(sig + " {");
     ++indent_;
@@ -114,7 +97,7 @@ class FnEmitter {
   void EmitKernelBody(bool backward, const std::string& args_struct, const std::string& name) {
     mode_ = backward ? Mode::kAdjoint : Mode::kForward;
     fail_ = "return;";
-    Line("// " + BaseName(f_.file) + ":" + std::to_string(f_.def_line) + ": @wp.kernel " + f_.name +
+    Line("// " + CommentText(BaseName(f_.file)) + ":" + std::to_string(f_.def_line) + ": @wp.kernel " + CommentText(f_.name) +
          (backward ? " (backward)" : ""));
     std::string sig = "static inline WP_CALLABLE void " + name + "(const wp::launch_context_t* __ctx, const " +
                       args_struct + "& __args, ";
@@ -126,7 +109,7 @@ class FnEmitter {
     Line("(void)__tid;");
     for (size_t i = 0; i < f_.params.size(); ++i) {
       int p = f_.params[i];
-      Line(CppType(T(p)) + " " + V(p) + " = __args.p" + std::to_string(i) + ";  // " + f_.param_names[i]);
+      Line(CppType(T(p)) + " " + V(p) + " = __args.p" + std::to_string(i) + ";  // " + CommentText(f_.param_names[i]));
       if (backward) Line(CppType(T(p)) + " " + A(p) + " = __adj_args.p" + std::to_string(i) + ";");
     }
     Decls(backward);
@@ -152,7 +135,7 @@ class FnEmitter {
   }
   void Loc(int line) {
     if (line > 0 && line != last_line_) {
-      Line("// " + BaseName(f_.file) + ":" + std::to_string(line));
+      Line("// " + CommentText(BaseName(f_.file)) + ":" + std::to_string(line));
       last_line_ = line;
     }
   }
@@ -162,7 +145,7 @@ class FnEmitter {
     for (const auto& v : f_.vars) {
       if (params.count(v.id) || v.type.is_void() || v.type.is_tuple() || v.type.kind == TypeKind::kString) continue;
       std::string ct = CppType(v.type);
-      Line(ct + " " + V(v.id) + "{};" + (v.hint.empty() ? "" : "  // " + v.hint));
+      Line(ct + " " + V(v.id) + "{};" + (v.hint.empty() ? "" : "  // " + CommentText(v.hint)));
       if (adj) Line(ct + " " + A(v.id) + "{};");
     }
   }
@@ -177,7 +160,7 @@ class FnEmitter {
   void Check(const Op& op, int line, int array, const std::vector<int>& idx) {
     if (!opt_.bounds_checks) return;
     std::string s = "if (!wp::cg_check(__ctx, " + std::to_string(f_.function_id) + ", " + std::to_string(line) + ", " +
-                    std::to_string(f_.is_kernel ? op.array_param : -1) + ", \"" + Escape(op.array_name) + "\", " + V(array);
+                    std::to_string(f_.is_kernel ? op.array_param : -1) + ", " + CppStringLiteral(op.array_name) + ", " + V(array);
     for (int k = 0; k < 4; ++k) s += ", " + (k < static_cast<int>(idx.size()) ? V(idx[k]) : std::string("0"));
     s += ", " + std::to_string(idx.size()) + ")) " + fail_;
     Line(s);
@@ -315,15 +298,15 @@ class FnEmitter {
       case OpKind::kExtract: Line(d() + " = wp::cg_extract(" + Args(op.args) + ");"); return;
       case OpKind::kInsert: Line(d() + " = wp::cg_insert(" + Args(op.args) + ");"); return;
       case OpKind::kGetField:
-        Line(d() + " = " + V(op.args[0]) + "." + op.text + ";");
-        if (Links(T(op.dst[0]))) Line("wp::cg_link(" + A(op.dst[0]) + ", " + A(op.args[0]) + "." + op.text + ");");
+        Line(d() + " = " + V(op.args[0]) + "." + FieldName(op.text) + ";");
+        if (Links(T(op.dst[0]))) Line("wp::cg_link(" + A(op.dst[0]) + ", " + A(op.args[0]) + "." + FieldName(op.text) + ");");
         return;
       case OpKind::kSetField:
         Line(d() + " = " + V(op.args[0]) + ";");
-        Line(d() + "." + op.text + " = " + V(op.args[1]) + ";");
+        Line(d() + "." + FieldName(op.text) + " = " + V(op.args[1]) + ";");
         if (Links(T(op.dst[0]))) {
           Line("wp::cg_link(" + A(op.dst[0]) + ", " + A(op.args[0]) + ");");
-          if (Links(T(op.args[1]))) Line("wp::cg_link(" + A(op.dst[0]) + "." + op.text + ", " + A(op.args[1]) + ");");
+          if (Links(T(op.args[1]))) Line("wp::cg_link(" + A(op.dst[0]) + "." + FieldName(op.text) + ", " + A(op.args[1]) + ");");
         }
         return;
       case OpKind::kPhi:
@@ -333,7 +316,7 @@ class FnEmitter {
         return;
       case OpKind::kPrintf:
         if (replay) return;
-        Line("wp::printf(__ctx, \"" + Escape(op.text) + "\"" + (op.args.empty() ? "" : ", ") + Args(op.args) + ");");
+        Line("wp::printf(__ctx, " + CppStringLiteral(op.text) + (op.args.empty() ? "" : ", ") + Args(op.args) + ");");
         return;
     }
   }
@@ -507,15 +490,15 @@ class FnEmitter {
         return;
       case OpKind::kGetField:
         if (!Diff(dt()) || dt().is_array()) return;
-        Line("wp::cg_accum(" + A(op.args[0]) + "." + op.text + ", " + A(op.dst[0]) + ");");
+        Line("wp::cg_accum(" + A(op.args[0]) + "." + FieldName(op.text) + ", " + A(op.dst[0]) + ");");
         return;
       case OpKind::kSetField: {
         const Type& ft = T(op.args[1]);
-        if (Diff(ft) && !ft.is_array()) Line("wp::cg_accum(" + A(op.args[1]) + ", " + A(op.dst[0]) + "." + op.text + ");");
+        if (Diff(ft) && !ft.is_array()) Line("wp::cg_accum(" + A(op.args[1]) + ", " + A(op.dst[0]) + "." + FieldName(op.text) + ");");
         Line("{");
         ++indent_;
         Line(CppType(dt()) + " __t = " + A(op.dst[0]) + ";");
-        Line("__t." + op.text + " = wp::cg_zeros<" + CppType(ft) + ">();");
+        Line("__t." + FieldName(op.text) + " = wp::cg_zeros<" + CppType(ft) + ">();");
         Line("wp::cg_accum(" + A(op.args[0]) + ", __t);");
         --indent_;
         Line("}");
@@ -544,15 +527,15 @@ void EmitStructs(const Module& m, std::string* out) {
   o += "namespace wp {\n";
   for (const auto& name : m.struct_order) {
     const StructInfo& si = m.structs.at(name);
-    o += "// @wp.struct " + name + "\nstruct " + si.cpp_name + " {\n";
-    for (const auto& f : si.fields) o += "  " + CppType(f.type) + " " + f.name + ";\n";
+    o += "// @wp.struct " + CommentText(name) + "\nstruct " + si.cpp_name + " {\n";
+    for (const auto& f : si.fields) o += "  " + CppType(f.type) + " " + FieldName(f.name) + ";\n";
     o += "};\n";
     o += "WP_FUNC void cg_accum(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
-    for (const auto& f : si.fields) o += " cg_accum(a." + f.name + ", b." + f.name + ");";
+    for (const auto& f : si.fields) o += " cg_accum(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";
     o += " }\n";
     o += "WP_FUNC void cg_link(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
     for (const auto& f : si.fields)
-      if (HasArrays(f.type, m.structs)) o += " cg_link(a." + f.name + ", b." + f.name + ");";
+      if (HasArrays(f.type, m.structs)) o += " cg_link(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";
     o += " (void)a; (void)b; }\n";
   }
   o += "}  // namespace wp\n\n";
@@ -633,7 +616,7 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
     KernelLayout kl;
     kl.name = f.name;
     std::string args_struct = "weft_args_" + f.cpp_name;
-    o += "// argument block of kernel " + f.name + "\nstruct alignas(8) " + args_struct + " {\n";
+    o += "// argument block of kernel " + CommentText(f.name) + "\nstruct alignas(8) " + args_struct + " {\n";
     uint32_t off = 0, align = 8;
     for (size_t i = 0; i < f.params.size(); ++i) {
       const Type& t = f.vars[f.params[i]].type;
@@ -642,7 +625,7 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
       pl.offset = off;
       off += pl.size;
       if (pl.align > align) align = pl.align;
-      o += "  " + CppType(t) + " p" + std::to_string(i) + ";  // " + f.param_names[i] + ": " + TypeString(t) + " @" +
+      o += "  " + CppType(t) + " p" + std::to_string(i) + ";  // " + CommentText(f.param_names[i]) + ": " + CommentText(TypeString(t)) + " @" +
            std::to_string(pl.offset) + "\n";
       kl.params.push_back(std::move(pl));
     }
@@ -658,8 +641,8 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
     if (options.enable_backward) FnEmitter(m, f, options, &o).EmitKernelBody(true, args_struct, bwd);
 
     std::string target = options.target == Target::kCpu ? "cpu" : "cuda";
-    kl.forward_symbol = "weft_" + f.name + "_" + target + "_forward";
-    if (options.enable_backward) kl.backward_symbol = "weft_" + f.name + "_" + target + "_backward";
+    kl.forward_symbol = "weft_" + MangleIdentifier(f.name) + "_" + target + "_forward";
+    if (options.enable_backward) kl.backward_symbol = "weft_" + MangleIdentifier(f.name) + "_" + target + "_backward";
     if (options.target == Target::kCpu) {
       o += "extern \"C\" void " + kl.forward_symbol +
            "(const wp::launch_context_t* __ctx, const void* __args, wp::int64 __begin, wp::int64 __end) {\n"

@@ -49,6 +49,9 @@ struct CodegenOptions {
   Target target = Target::kCpu;
   bool enable_backward = false;   // emit adjoint entry points
   bool bounds_checks = true;
+  // Parse nesting limits (lang::ParseLimits; values above the parser's maxima are lowered).
+  int max_block_depth = 100;
+  int max_expression_depth = 1000;
 };
 
 // On failure returns InvalidArgument and appends the user-facing diagnostics to *diags.

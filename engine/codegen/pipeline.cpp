@@ -62,8 +62,11 @@ Expected<GeneratedModule> RunPipeline(const ModuleSource& module, const CodegenO
   std::vector<sema::ParsedFunction> parsed;
   bool parse_failed = false;
   std::string ast_text;
+  lang::ParseLimits limits;
+  limits.max_block_depth = options.max_block_depth;
+  limits.max_expression_depth = options.max_expression_depth;
   for (const auto& fn : module.functions) {
-    auto def = lang::ParseFunction(fn, diags);
+    auto def = lang::ParseFunction(fn, diags, limits);
     if (!def.ok()) {
       if (def.status().code() != StatusCode::kInvalidArgument) return def.status();
       parse_failed = true;

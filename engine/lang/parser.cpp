@@ -15,8 +15,6 @@
 namespace weft::lang {
 namespace {
 
-constexpr int kMaxExpressionDepth = 1000;  // recursion units (parens, unary chains, ternaries)
-constexpr int kMaxBlockDepth = 100;        // CPython's "too many statically nested blocks"
 // Stack the parser may use below ParseFunctionDef's frame, whatever the frame sizes of this
 // build: deeper input is an error, so a thread with a small stack is still safe.
 constexpr uintptr_t kStackBudgetBytes = 256 * 1024;
@@ -33,8 +31,12 @@ using ast::StmtPtr;
 
 class Parser {
  public:
-  Parser(const FunctionSource& fn, std::vector<Token> tokens)
-      : fn_(fn), tokens_(std::move(tokens)) {}
+  Parser(const FunctionSource& fn, std::vector<Token> tokens, const ParseLimits& limits)
+      : fn_(fn),
+        tokens_(std::move(tokens)),
+        max_block_depth_(limits.max_block_depth < kMaxBlockDepth ? limits.max_block_depth : kMaxBlockDepth),
+        max_expression_depth_(limits.max_expression_depth < kMaxExpressionDepth ? limits.max_expression_depth
+                                                                                 : kMaxExpressionDepth) {}
 
   bool failed() const { return failed_; }
   TextPosition error_pos() const { return error_pos_; }
@@ -201,6 +203,11 @@ class Parser {
     return false;
   }
 
+  std::nullptr_t ExpressionTooDeep() {
+    return Fail(Peek(), "expression too deeply nested (this daemon allows " + std::to_string(max_expression_depth_) +
+                            " levels, its max_expression_depth)");
+  }
+
   // Recursion guard for expressions and blocks, so hostile input cannot exhaust the stack.
   class DepthGuard {
    public:
@@ -271,9 +278,10 @@ class Parser {
   // block left empty by that gets a Pass.
   bool ParseBlock(ast::StmtList* out, const char* construct, uint32_t header_line,
                   std::string* docstring = nullptr) {
-    DepthGuard guard(&block_depth_, kMaxBlockDepth, stack_base_);
+    DepthGuard guard(&block_depth_, max_block_depth_, stack_base_);
     if (guard.over()) {
-      Fail(Peek(), "too many statically nested blocks");
+      Fail(Peek(), "too many statically nested blocks (this daemon allows " + std::to_string(max_block_depth_) +
+                       ", its max_block_depth)");
       return false;
     }
     const Token& first = Peek();
@@ -678,8 +686,8 @@ class Parser {
 
   // expression = disjunction ["if" disjunction "else" expression] | lambda (rejected)
   ExprPtr ParseExpression() {
-    DepthGuard guard(&expr_depth_, kMaxExpressionDepth, stack_base_);
-    if (guard.over()) return Fail(Peek(), "expression too deeply nested");
+    DepthGuard guard(&expr_depth_, max_expression_depth_, stack_base_);
+    if (guard.over()) return ExpressionTooDeep();
     if (IsKw("lambda")) return RejectLambda(Peek());
     if (IsKw("yield")) return RejectYield(Peek());
     if (IsOp("*") || IsOp("**")) {
@@ -724,8 +732,8 @@ class Parser {
   // inversion = "not" inversion | comparison
   ExprPtr ParseInversion() {
     if (!IsKw("not")) return ParseComparison();
-    DepthGuard guard(&expr_depth_, kMaxExpressionDepth, stack_base_);
-    if (guard.over()) return Fail(Peek(), "expression too deeply nested");
+    DepthGuard guard(&expr_depth_, max_expression_depth_, stack_base_);
+    if (guard.over()) return ExpressionTooDeep();
     auto e = Make<ast::UnaryOp>(Next());
     e->op = ast::UnaryOperator::kNot;
     e->operand = ParseInversion();
@@ -842,8 +850,8 @@ class Parser {
 
   // factor = ("+" | "-" | "~") factor | power
   ExprPtr ParseFactor() {
-    DepthGuard guard(&expr_depth_, kMaxExpressionDepth, stack_base_);
-    if (guard.over()) return Fail(Peek(), "expression too deeply nested");
+    DepthGuard guard(&expr_depth_, max_expression_depth_, stack_base_);
+    if (guard.over()) return ExpressionTooDeep();
     ast::UnaryOperator op;
     if (IsOp("+")) op = ast::UnaryOperator::kPlus;
     else if (IsOp("-")) op = ast::UnaryOperator::kMinus;
@@ -1097,6 +1105,8 @@ class Parser {
   const FunctionSource& fn_;
   std::vector<Token> tokens_;
   size_t pos_ = 0;
+  const int max_block_depth_;
+  const int max_expression_depth_;
   int expr_depth_ = 0;
   int block_depth_ = 0;
   int loop_depth_ = 0;  // enclosing for/while loops, for "'break' outside loop"
@@ -1153,7 +1163,8 @@ Status Report(const FunctionSource& fn, TextPosition pos, const std::string& mes
 }  // namespace
 
 Expected<std::unique_ptr<ast::FunctionDef>> ParseFunction(const FunctionSource& fn,
-                                                          std::vector<Diagnostic>* diags) {
+                                                          std::vector<Diagnostic>* diags,
+                                                          const ParseLimits& limits) {
   TextPosition lex_error;
   std::vector<Token> partial;
   auto tokens = Tokenize(fn.source, &lex_error, &partial, fn.first_line);
@@ -1164,7 +1175,7 @@ Expected<std::unique_ptr<ast::FunctionDef>> ParseFunction(const FunctionSource& 
     end.kind = TokenKind::kEndOfFile;
     end.pos = lex_error;
     partial.push_back(end);
-    Parser early(fn, std::move(partial));
+    Parser early(fn, std::move(partial), limits);
     (void)early.ParseFunctionDef();
     const TextPosition p = early.error_pos();
     if (early.failed() &&
@@ -1173,7 +1184,7 @@ Expected<std::unique_ptr<ast::FunctionDef>> ParseFunction(const FunctionSource& 
     }
     return Report(fn, lex_error, tokens.status().message(), diags);
   }
-  Parser parser(fn, std::move(tokens).value());
+  Parser parser(fn, std::move(tokens).value(), limits);
   auto def = parser.ParseFunctionDef();
   if (parser.failed() || !def) {
     return Report(fn, parser.error_pos(), parser.error_message(), diags);

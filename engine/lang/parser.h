@@ -15,8 +15,19 @@
 
 namespace weft::lang {
 
+// Deepest nesting a parse accepts; deeper input is a syntax error at the line that goes too
+// deep. Values above the defaults are lowered to them: the defaults are what the parser and
+// every later pass (which recurse over the tree) can take on a daemon thread's stack.
+inline constexpr int kMaxBlockDepth = 100;        // CPython's "too many statically nested blocks"
+inline constexpr int kMaxExpressionDepth = 1000;  // recursion units (parens, unary chains, ternaries)
+struct ParseLimits {
+  int max_block_depth = kMaxBlockDepth;            // nested if/for/while blocks
+  int max_expression_depth = kMaxExpressionDepth;  // ~2 units per level of parentheses
+};
+
 // `diags` may be null (the message is still in the returned Status).
 Expected<std::unique_ptr<ast::FunctionDef>> ParseFunction(const FunctionSource& fn,
-                                                          std::vector<Diagnostic>* diags);
+                                                          std::vector<Diagnostic>* diags,
+                                                          const ParseLimits& limits = {});
 
 }  // namespace weft::lang

@@ -1,6 +1,7 @@
 // Native library: kernel output. wp::print(ctx, value) for every value type (Warp's formats) and
-// wp::printf(ctx, fmt, args...). CPU: text is formatted by the host callback
-// weft_host_snprintf (exported by the daemon process, resolved by the JIT) and appended to
+// wp::printf(ctx, fmt, args...), which re-checks its format against its arguments' types and
+// prints "[weft: wp.printf format rejected]" instead of formatting a mismatch.
+// CPU: text is formatted by the host callback weft_host_snprintf (exported by the daemon process, resolved by the JIT) and appended to
 // ctx->print, one reservation per call (atomic add on `used`) so lines of different threads never
 // interleave; text past `capacity` is dropped (used > capacity tells the reader it overflowed).
 // CUDA: device printf.
@@ -78,10 +79,49 @@ struct print_line {
   }
 };
 
+// What a promoted printf argument is, for printf_format_ok: 'i' a 32-bit integer, 'I' a
+// 64-bit one, 'f' a double. No other type has a kind, so passing one does not compile.
+WP_FUNC char printf_kind(int32) { return 'i'; }
+WP_FUNC char printf_kind(uint32) { return 'i'; }
+WP_FUNC char printf_kind(int64) { return 'I'; }
+WP_FUNC char printf_kind(uint64) { return 'I'; }
+WP_FUNC char printf_kind(float64) { return 'f'; }
+
+// Defence in depth behind the compiler's check (engine/sema/printf_format.h): true when `fmt`
+// has exactly one conversion per entry of `kinds` (NUL-terminated), each of the form the
+// compiler emits: %[-+ #0]*[0-9]{0,3}(.[0-9]{0,3})? then `ll` + d i u x X o for 'I', d i u x X o
+// for 'i', f F e E g G a A for 'f'; and `%%`. Nothing else (%s %p %n %c, `*`) passes.
+WP_FUNC bool printf_format_ok(const char* fmt, const char* kinds) {
+  int k = 0;
+  for (int i = 0; fmt[i]; ++i) {
+    if (fmt[i] != '%') continue;
+    ++i;
+    if (fmt[i] == '%') continue;
+    while (fmt[i] == '-' || fmt[i] == '+' || fmt[i] == ' ' || fmt[i] == '#' || fmt[i] == '0') ++i;
+    for (int d = 0; d < 3 && fmt[i] >= '0' && fmt[i] <= '9'; ++d) ++i;
+    if (fmt[i] == '.') {
+      ++i;
+      for (int d = 0; d < 3 && fmt[i] >= '0' && fmt[i] <= '9'; ++d) ++i;
+    }
+    bool ll = fmt[i] == 'l' && fmt[i + 1] == 'l';
+    if (ll) i += 2;
+    char c = fmt[i];
+    bool is_int = c == 'd' || c == 'i' || c == 'u' || c == 'x' || c == 'X' || c == 'o';
+    bool is_float = c == 'f' || c == 'F' || c == 'e' || c == 'E' || c == 'g' || c == 'G' || c == 'a' || c == 'A';
+    char kind = kinds[k];
+    if (kind == '\0') return false;  // more conversions than arguments
+    if (!((is_int && kind == (ll ? 'I' : 'i')) || (is_float && !ll && kind == 'f'))) return false;
+    ++k;
+  }
+  return kinds[k] == '\0';
+}
+
 template <typename... A>
 WP_FUNC void printf(const launch_context_t* ctx, const char* fmt, A... args) {
+  const char kinds[] = {printf_kind(print_arg(args))..., '\0'};
   print_line line;
-  line.add(fmt, args...);
+  if (printf_format_ok(fmt, kinds)) line.add(fmt, args...);
+  else line.add("[weft: wp.printf format rejected]\n");
   line.flush(ctx);
 }
 

@@ -7,6 +7,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "engine/codegen/emit_text.h"
 #include "engine/runtime/array_view.h"
 #include "engine/runtime/ipc_token.h"
 
@@ -376,7 +377,10 @@ Expected<std::shared_ptr<const LoadedModule>> Engine::Compile(Session& s, Module
     d.message = "bounds_checks=false ignored: this daemon does not allow unchecked kernels (start weftd with --allow-unchecked)";
     report->diagnostics.push_back(d);
   }
-  if (!r.ok()) spdlog::info("session {}: compile of module '{}' failed: {}", s.id(), source.name, r.status().message());
+  // The name is the client's (checked only by the store): escaped, so it cannot forge log lines.
+  if (!r.ok())
+    spdlog::info("session {}: compile of module '{}' failed: {}", s.id(), codegen::CommentText(source.name),
+                 r.status().message());
   return r;
 }
 

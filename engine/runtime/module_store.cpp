@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <mutex>
 #include <regex>
+#include <set>
 #include <unordered_map>
 
 #include "engine/runtime/module_cache.h"
@@ -70,11 +71,19 @@ Expected<DeviceRef> ParseDevice(const std::string& device) {
   return InvalidArgument("unknown device '" + device + "' (expected cpu, cuda or cuda:N)");
 }
 
-// clang / NVRTC error lines ("file:line:col: error: text", "file(line): error: text") as
-// diagnostics, so a native-library bug still points somewhere.
-void AppendCompilerDiagnostics(const std::string& log, std::vector<Diagnostic>* diags) {
+// A compiler rejected generated code: a weft bug, never the client's. The client gets the
+// error lines located in the user's code — the generated translation unit (`main_file`) or a
+// file the module's functions name (#line) — message only, never source text; lines located
+// anywhere else (the native headers, any other daemon-side file) are only counted: their text
+// stays in the daemon log, so no daemon file content reaches a client.
+void AppendCompilerDiagnostics(const std::string& log, const std::string& main_file, const ModuleSource& source,
+                               std::vector<Diagnostic>* diags) {
+  std::set<std::string> user_files{main_file};
+  for (const auto& f : source.functions) user_files.insert(f.file);
   static const std::regex kClang(R"(^(.+?):(\d+):(\d+): (?:fatal )?error: (.*)$)");
   static const std::regex kNvrtc(R"(^(.+?)\((\d+)\): (?:catastrophic )?error: (.*)$)");
+  constexpr size_t kMaxMessageBytes = 300;
+  int elsewhere = 0;
   size_t start = 0;
   while (start < log.size()) {
     size_t end = log.find('\n', start);
@@ -82,18 +91,42 @@ void AppendCompilerDiagnostics(const std::string& log, std::vector<Diagnostic>* 
     std::string line = log.substr(start, end - start);
     start = end + 1;
     std::smatch m;
-    Diagnostic d;
-    if (std::regex_match(line, m, kClang)) {
-      d.location = {m[1], uint32_t(std::stoul(m[2])), uint32_t(std::stoul(m[3]))};
-      d.message = "internal compiler error: " + m[4].str();
-    } else if (std::regex_match(line, m, kNvrtc)) {
-      d.location = {m[1], uint32_t(std::stoul(m[2])), 0};
-      d.message = "internal compiler error (CUDA): " + m[3].str();
+    std::string file, message;
+    uint32_t line_no = 0;
+    if (std::regex_match(line, m, kClang) || std::regex_match(line, m, kNvrtc)) {
+      file = m[1];
+      line_no = static_cast<uint32_t>(std::stoul(m[2].str().substr(0, 9)));
+      message = m[m.size() - 1].str();
     } else {
       continue;
     }
+    if (!user_files.count(file)) {
+      ++elsewhere;
+      continue;
+    }
+    if (message.size() > kMaxMessageBytes) message = message.substr(0, kMaxMessageBytes) + "...";
+    Diagnostic d;
+    d.location = {file == main_file ? "<generated code of module " + source.name + ">" : file, line_no, 0};
+    d.message = "internal compiler error: " + message;
     diags->push_back(std::move(d));
   }
+  if (elsewhere > 0) {
+    Diagnostic d;
+    d.location = {"<weft native library>", 0, 0};
+    d.message = "internal compiler error: " + std::to_string(elsewhere) +
+                " error(s) in daemon-side files (their text is only in the daemon log)";
+    diags->push_back(std::move(d));
+  }
+}
+
+// What the client is told when a compiler rejected generated code; the whole compiler output
+// goes to the daemon log only.
+Status GeneratedCodeRejected(const std::string& module_name, const std::string& target,
+                             const Status& compiler_status) {
+  spdlog::error("module {}: the generated code does not compile for {} (weft bug):\n{}", module_name, target,
+                compiler_status.message());
+  return Internal("module " + module_name + " does not compile for " + target +
+                  " (weft bug, please report it; the daemon log has the compiler's output)");
 }
 
 std::string SafeName(const std::string& name) {
@@ -152,9 +185,13 @@ class ModuleStoreImpl final : public ModuleStore {
     CompileReport local;
     if (!report) report = &local;
     WEFT_ASSIGN_OR_RETURN(DeviceRef where, ParseDevice(device));
+    // The request's names and size are checked before it is hashed, cached or compiled.
+    WEFT_RETURN_IF_ERROR(codegen::CheckModuleSource(source, options_.limits));
     Variant variant;
     variant.source = source;
     variant.codegen.target = where.target;
+    variant.codegen.max_block_depth = options_.limits.max_block_depth;
+    variant.codegen.max_expression_depth = options_.limits.max_expression_depth;
     auto checks = source.options.find("bounds_checks");
     variant.codegen.bounds_checks =
         checks == source.options.end() ||
@@ -280,11 +317,11 @@ class ModuleStoreImpl final : public ModuleStore {
     jit::NvrtcOptions nvrtc;
     nvrtc.sm = sm;
     nvrtc.include_dirs = {options_.native_dir};
-    auto compiled = jit::NvrtcCompile(cuda_source, SafeName(source.name) + ".cu", nvrtc);
+    const std::string main_file = SafeName(source.name) + ".cu";
+    auto compiled = jit::NvrtcCompile(cuda_source, main_file, nvrtc);
     if (!compiled.ok()) {
-      AppendCompilerDiagnostics(compiled.status().message(), diags);
-      return Internal("module " + source.name + " does not compile for CUDA (weft bug): " +
-                      compiled.status().message());
+      AppendCompilerDiagnostics(compiled.status().message(), main_file, source, diags);
+      return GeneratedCodeRejected(source.name, "CUDA (NVRTC)", compiled.status());
     }
     return std::move(compiled->image);
   }
@@ -312,11 +349,11 @@ class ModuleStoreImpl final : public ModuleStore {
       }
 #endif
 #if WEFT_WITH_CPU_JIT
-      auto object = cpu_jit_->Compile(generated.source, SafeName(source.name));
+      const std::string main_file = SafeName(source.name);
+      auto object = cpu_jit_->Compile(generated.source, main_file);
       if (!object.ok()) {
-        AppendCompilerDiagnostics(object.status().message(), diags);
-        return Internal("module " + source.name + " does not compile (weft bug): " +
-                        object.status().message());
+        AppendCompilerDiagnostics(object.status().message(), main_file, source, diags);
+        return GeneratedCodeRejected(source.name, "the CPU (clang)", object.status());
       }
       artifact.object = std::move(*object);
 #else

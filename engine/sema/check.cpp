@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <exception>
 
+#include "engine/codegen/emit_text.h"
 #include "engine/sema/check_impl.h"
 
 namespace weft::sema {
@@ -110,12 +111,6 @@ Expected<Module> Checker::Run() {
 
 namespace {
 
-std::string Mangle(const std::string& s) {
-  std::string out;
-  for (char c : s) out += (std::isalnum(static_cast<unsigned char>(c)) ? c : '_');
-  return out;
-}
-
 std::vector<std::string> SplitLines(const std::string& s) {
   std::vector<std::string> out;
   size_t b = 0;
@@ -217,7 +212,7 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
   st_ = saved;
   in_progress_.erase(inst);
   fn.function_id = static_cast<int>(module_.functions.size());
-  fn.cpp_name = (fn.is_kernel ? "weft_kernel_" : "weft_func_") + Mangle(fs.name) + "_" +
+  fn.cpp_name = (fn.is_kernel ? "weft_kernel_" : "weft_func_") + codegen::MangleIdentifier(fs.name) + "_" +
                 std::to_string(fn.function_id);
   int index = static_cast<int>(module_.functions.size());
   module_.functions.push_back(std::move(fn));

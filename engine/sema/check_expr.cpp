@@ -7,6 +7,7 @@
 #include <cstdlib>
 
 #include "engine/sema/check_impl.h"
+#include "engine/sema/printf_format.h"
 
 namespace weft::sema {
 namespace {
@@ -647,12 +648,16 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
       return Error(loc, "wp.printf takes a format string literal first");
     Stmt s;
     s.op.kind = OpKind::kPrintf;
-    s.op.text = args[0].name;
+    std::vector<Type> types;
     for (size_t i = 1; i < args.size(); ++i) {
       if (args[i].kind != Value::Kind::kVar || !TypeOf(args[i].var).is_scalar())
         return Error(loc, "wp.printf arguments must be scalars");
       s.op.args.push_back(args[i].var);
+      types.push_back(TypeOf(args[i].var));
     }
+    auto format = CheckPrintfFormat(args[0].name, types);
+    if (!format.ok()) return Error(loc, format.status().message());
+    s.op.text = std::move(*format);
     Push(std::move(s));
     return Value{};
   }
@@ -661,7 +666,7 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
       if (a.kind == Value::Kind::kString) {
         Stmt s;
         s.op.kind = OpKind::kPrintf;
-        s.op.text = a.name + "\n";
+        s.op.text = LiteralFormat(a.name) + "\n";  // a format: '%' doubled
         Push(std::move(s));
         continue;
       }

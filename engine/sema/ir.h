@@ -33,7 +33,7 @@ enum class ConstructMode {
 };
 
 #define WEFT_FOR_EACH_IR_OP(X) \
-  X(Const)      /* dst = literal `text` (C++ expression of dst's type) */                  \
+  X(Const)      /* dst = `text`: C++ built by sema, never client text (CppLiteral checks) */ \
   X(Copy)       /* dst = args[0] */                                                       \
   X(Raw)        /* dst = `text` with $0..$n = args (not differentiable) */                \
   X(Call)       /* dst (or dsts for tuple results) = wp::builtin(args) */                \
@@ -46,7 +46,7 @@ enum class ConstructMode {
   X(GetField)   /* dst = args[0].text */                                                 \
   X(SetField)   /* dst = args[0] with .text = args[1] */                                 \
   X(Phi)        /* dst = args[0] ? args[1] : args[2] */                                  \
-  X(Printf)     /* wp::printf(ctx, text, args...) */
+  X(Printf)     /* wp::printf(ctx, text, args...); text checked by CheckPrintfFormat */
 
 enum class OpKind {
 #define WEFT_IR_ENUM(N) k##N,

@@ -3,6 +3,8 @@
 
 #include <cctype>
 
+#include "engine/codegen/emit_text.h"
+
 namespace weft::sema {
 namespace {
 
@@ -314,9 +316,7 @@ const StructField* StructInfo::Find(std::string_view field, int* index) const {
 }
 
 std::string StructCppName(std::string_view canonical) {
-  std::string out = "weft_struct_";
-  for (char c : canonical) out += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
-  return out;
+  return "weft_struct_" + codegen::MangleIdentifier(canonical);
 }
 
 std::string CppType(const Type& t) {

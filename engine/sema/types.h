@@ -125,7 +125,8 @@ struct StructInfo {
 };
 using StructTable = std::map<std::string, StructInfo>;
 
-// Identifier of a struct in generated code (declared in namespace wp): "weft_struct_mymod_Particle".
+// Identifier of a struct in generated code (declared in namespace wp), mangled by
+// codegen::MangleIdentifier: "mymod.Particle" -> "weft_struct_mymodZ2EParticle".
 std::string StructCppName(std::string_view canonical);
 
 // C++ spelling in generated code: wp::float32, wp::vec_t<3,wp::float32>, wp::array_t<...>,

@@ -470,9 +470,37 @@ TEST(NativePrint, ValuesAndBuffer) {
   wp::print(&ctx, wp::transform_identity<float>());
   wp::print(&ctx, wp::half(0.25f));
   wp::print(&ctx, wp::uint64(18446744073709551615ull));
-  wp::printf(&ctx, "x=%d y=%.2f %s\n", 3, 0.5f, "ok");
+  wp::printf(&ctx, "x=%d y=%.2f ok\n", 3, 0.5f);
   EXPECT_EQ(PrintBufferText(pb),
             "1.5\n-7\nTrue\n1 2.5 -3\n1 2\n3 4\n0 0 0 1\n(0 0 0) (0 0 0 1)\n0.25\n18446744073709551615\nx=3 y=0.50 ok\n");
+}
+
+// wp::printf formats only what the compiler emits for its argument types; anything else
+// (a conversion that reads memory or writes, a type mismatch, a count mismatch) is replaced by
+// a fixed message instead of reaching snprintf.
+TEST(NativePrint, PrintfRefusesFormatsThatDoNotMatchTheArguments) {
+  std::vector<char> storage(4096);
+  wp::print_buffer_t pb{storage.data(), storage.size(), 0};
+  wp::launch_context_t ctx{};
+  ctx.print = &pb;
+  wp::printf(&ctx, "%p %p\n", wp::int64(1), wp::int64(2));
+  wp::printf(&ctx, "%s\n", wp::int64(0x41414141));
+  wp::printf(&ctx, "%n\n", wp::int32(0));
+  wp::printf(&ctx, "%*d\n", wp::int32(5), wp::int32(1));
+  wp::printf(&ctx, "%d\n", 1.5f);             // int conversion, float argument
+  wp::printf(&ctx, "%f\n", wp::int32(1));     // float conversion, int argument
+  wp::printf(&ctx, "%d\n", wp::int64(7));     // 64-bit argument needs %lld
+  wp::printf(&ctx, "%d %d\n", wp::int32(1));  // too few arguments
+  wp::printf(&ctx, "%d\n", wp::int32(1), wp::int32(2));  // too many
+  wp::printf(&ctx, "100%\n");
+  const std::string rejected = "[weft: wp.printf format rejected]\n";
+  std::string expected;
+  for (int i = 0; i < 10; ++i) expected += rejected;
+  EXPECT_EQ(PrintBufferText(pb), expected);
+  pb.used = 0;
+  wp::printf(&ctx, "%+05d|%-4x|%lld|%.3e|%G|%o|100%%|%llu\n", wp::int32(7), wp::uint32(255), wp::int64(-5), 1500.0,
+             wp::half(0.5f), wp::uint8(8), wp::uint64(18446744073709551615ull));
+  EXPECT_EQ(PrintBufferText(pb), "+0007|ff  |-5|1.500e+03|0.5|10|100%|18446744073709551615\n");
 }
 
 TEST(NativePrint, ThreadsDoNotInterleaveAndOverflowIsBounded) {

@@ -51,7 +51,7 @@ TEST(SemaTypes, CppSpellings) {
   EXPECT_EQ(CppType(*ParseType("array(quat(float32),2)")), "wp::array_t<wp::quat_t<wp::float32>>");
   EXPECT_EQ(CppType(*ParseType("bool")), "bool");
   EXPECT_EQ(CppType(*ParseType("float16")), "wp::float16");
-  EXPECT_EQ(CppType(*ParseType("struct(a.B)")), "wp::weft_struct_a_B");
+  EXPECT_EQ(CppType(*ParseType("struct(a.B)")), "wp::weft_struct_aZ2EB");
 }
 
 TEST(SemaTypes, Layouts) {

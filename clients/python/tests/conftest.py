@@ -80,9 +80,10 @@ def _channel_ready(target: str, timeout_s: float) -> bool:
 
 
 class Daemon:
-    """One weftd process started by the tests, with its address, logs and shm checks."""
+    """One weftd process started by the tests, with its address, logs and shm checks.
+    `extra_args` are more weftd flags (a test's own daemon with its own settings)."""
 
-    def __init__(self, workdir: Path, tcp: bool = False):
+    def __init__(self, workdir: Path, tcp: bool = False, extra_args=()):
         self.workdir = workdir
         self.cache_dir = workdir / "cache"
         self.cache_dir.mkdir(parents=True, exist_ok=True)
@@ -104,6 +105,7 @@ class Daemon:
             self.grpc_target = self.address
             args += ["--listen", self.address]
         args += ["--cache-dir", str(self.cache_dir), "--log-level", "info"] + verify_cuda_flags()
+        args += list(extra_args)   # e.g. limits a test sets on its own daemon
         self.args = args
         self._log = open(self.log_path, "wb")
         self.proc = subprocess.Popen(args, stdout=self._log, stderr=subprocess.STDOUT,

@@ -25,6 +25,7 @@ __all__ = [
     "compile",
     "constant",
     "func",
+    "func_native",
     "get_module",
     "get_module_options",
     "kernel",
@@ -71,6 +72,16 @@ def func(f=None, **_options):
     if f is not None:
         return wrap(f)
     return wrap
+
+
+def func_native(snippet=None, adj_snippet=None, replay_snippet=None):
+    """Warp's @wp.func_native (a function body written in C++/CUDA). weft does not compile
+    native snippets: the daemon compiles only the kernel language, so client C++ never reaches
+    its compiler (docs/security.md). Raises WeftCompileError."""
+    raise WeftCompileError(
+        "weft does not compile native snippets (@wp.func_native): the daemon compiles only the "
+        "kernel language, never client C++ (see docs/security.md); write the function as a "
+        "@wp.func instead")
 
 
 def overload(target, arg_types=None):
