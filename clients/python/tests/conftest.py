@@ -7,6 +7,8 @@ Fixtures (any test under clients/python/tests/, kernels/ included, may use them)
   wp         session: the `weft` module, initialised against `weftd`.
   tcp_weftd  session: a second weftd listening on TCP 127.0.0.1 with a token file
              (`.address`, `.token`); this process does not connect to it by default.
+  start_weftd function: start_weftd(extra_args) starts a weftd of the test's own with more
+             flags (limits, --config); stopped and checked at the end of the test.
   run_client function: run_client(code, env=None, timeout=60, check=True) runs a Python
              snippet in a child process (connected to `weftd` unless env overrides
              WEFT_ADDRESS) and returns the CompletedProcess; check=True asserts exit 0.
@@ -269,6 +271,25 @@ def tcp_weftd():
         yield daemon
     finally:
         _stop_and_check(daemon)
+
+
+@pytest.fixture
+def start_weftd():
+    """start_weftd(extra_args) -> a Daemon of the test's own, started with more weftd flags
+    (limits, a --config file); stopped and checked like `weftd` when the test ends."""
+    _require_daemon()
+    started = []
+
+    def start(extra_args=()):
+        workdir = Path(tempfile.mkdtemp(prefix="weft-test-own-"))
+        started.append(Daemon(workdir, extra_args=extra_args))
+        return started[-1]
+
+    try:
+        yield start
+    finally:
+        for daemon in started:
+            _stop_and_check(daemon)
 
 
 def _child_env(env: dict | None) -> dict:

@@ -17,8 +17,6 @@ import pytest
 
 from weft._kernel.errors import WeftCompileError
 
-from conftest import Daemon, _stop_and_check
-
 
 # --------------------------------------------------------------------------------------------
 # Helpers
@@ -298,22 +296,15 @@ def test_deep_nesting_is_a_clear_error(raw):
     assert _compile_raw(raw, _module_pb()).module_id
 
 
-@pytest.fixture(scope="module")
-def limited_weftd(tmp_path_factory):
+def test_configured_limits(start_weftd, tmp_path):
     """A weftd with small compile limits, set in a TOML file and on the command line."""
-    workdir = tmp_path_factory.mktemp("weft-limits")
-    config = workdir / "weftd.toml"
-    config.write_text("max-module-bytes = 4096\nmax_functions = 3\n")
-    daemon = Daemon(workdir, extra_args=["--config", str(config), "--max-block-depth", "4",
-                                          "--max-expression-depth", "40"])
-    yield daemon
-    _stop_and_check(daemon)
-
-
-def test_configured_limits(limited_weftd):
     from weft.v1 import module_pb2
 
-    with limited_weftd.raw_session("pytest limits") as raw:
+    config = tmp_path / "weftd.toml"
+    config.write_text("max-module-bytes = 4096\nmax_functions = 3\n")
+    limited = start_weftd(["--config", str(config), "--max-block-depth", "4",
+                           "--max-expression-depth", "40"])
+    with limited.raw_session("pytest limits") as raw:
         assert _compile_raw(raw, _module_pb()).module_id
         with pytest.raises(grpc.RpcError) as info:
             _compile_raw(raw, _module_pb(body="    a[0] = s.mass\n" * 300))
