@@ -6,7 +6,8 @@
 // engine/native/launch_abi.h. With options.enable_backward every function also gets a
 // side-effect-free replay twin and an adjoint (adj_<name>), and kernels a backward entry
 // point; without it no adjoint code is emitted at all. `// file.py:42` comments point
-// every statement back at the user's source.
+// every statement back at the user's source. Client text (names, file names, formats)
+// enters the source only through engine/codegen/emit_text.h.
 #pragma once
 
 #include "engine/codegen/generate_module.h"
