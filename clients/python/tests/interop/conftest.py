@@ -35,9 +35,12 @@ def torch():
 
 @pytest.fixture
 def jax():
+    """JAX with float64 enabled, its arrays placed on the CPU (these are the CPU paths, also
+    on machines where JAX has a GPU)."""
     jax = pytest.importorskip("jax", reason="JAX is not installed")
     jax.config.update("jax_enable_x64", True)
-    return jax
+    with jax.default_device(jax.devices("cpu")[0]):
+        yield jax
 
 
 @pytest.fixture
@@ -62,7 +65,8 @@ def run_example(weftd, client_env):
         code = ("import runpy, weft\n"
                 f"weft.set_device({device!r})\n"
                 f"runpy.run_path({str(path)!r}, run_name='__main__')\n")
-        proc = subprocess.run([sys.executable, "-c", code], env=client_env(None),
+        env = {"JAX_PLATFORMS": "cpu"} if device == "cpu" else None
+        proc = subprocess.run([sys.executable, "-c", code], env=client_env(env),
                               capture_output=True, text=True, timeout=timeout)
         assert proc.returncode == 0, (f"example {name} failed ({proc.returncode}):\n"
                                       f"stdout:\n{proc.stdout[-4000:]}\n"
