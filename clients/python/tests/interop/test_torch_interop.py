@@ -125,3 +125,10 @@ def test_errors(wp, torch):
         wp.from_torch(torch.zeros(4, 3, dtype=torch.float64), dtype=wp.vec3)
     with pytest.raises(TypeError, match="torch.Tensor"):
         wp.from_torch(np.zeros(3))
+    # a device weft does not have (Torch's meta device): clear errors, never a read
+    meta = torch.zeros(3, device="meta")
+    with pytest.raises(Exception, match="meta, which has no weft counterpart"):
+        wp.from_torch(meta)
+    out = wp.zeros(1, dtype=float, device="cpu")
+    with pytest.raises(Exception, match="lives on meta but the kernel is launched on cpu"):
+        wp.launch(square_sum, dim=3, inputs=[meta, out], device="cpu")

@@ -194,7 +194,8 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
                 a._requires_grad = True
         return a
     if t.device.type != "cpu":
-        raise _cuda_unavailable(what, t)
+        raise external.InteropError(f"{what}: the tensor lives on {t.device}, which has no "
+                                    f"weft counterpart (weft has cpu and cuda:N)")
     if requires_grad is None:
         requires_grad = bool(t.requires_grad)
     a = _adopt_tensor(t, dtype, what, requires_grad)
