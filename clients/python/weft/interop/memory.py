@@ -18,7 +18,9 @@ import bisect
 import threading
 import weakref
 
-_lock = threading.Lock()
+# Re-entrant: a weakref callback (forget) may run inside a locked region when the garbage
+# collector frees an allocation there.
+_lock = threading.RLock()
 _spaces: dict = {}           # "cpu" / "cuda:N" -> (sorted start addresses, {start: (end, weakref)})
 _shared = weakref.WeakSet()  # allocations a framework holds (launches touching them synchronize)
 
@@ -62,8 +64,11 @@ def find(address: int, nbytes: int, space: str = "cpu"):
         i = bisect.bisect_right(starts, address) - 1
         if i < 0:
             return None
+        entry = entries.get(starts[i])
+        if entry is None:
+            return None
         start = starts[i]
-        end, ref = entries[start]
+        end, ref = entry
     if address + max(nbytes, 0) > end:
         return None
     alloc = ref()
