@@ -187,8 +187,11 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
       c.kind = std::move(tc);
       break;
     }
+    case v1::Command::kSetGrad:
+      c.kind = SetGradCommand{FromProto(p.set_grad().array()), FromProto(p.set_grad().grad())};
+      break;
     default:
-      return InvalidArgument("command " + std::to_string(index) + " is empty (no copy/fill/launch/tape)");
+      return InvalidArgument("command " + std::to_string(index) + " is empty (no copy/fill/launch/tape/set_grad)");
   }
   return c;
 }

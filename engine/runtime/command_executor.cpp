@@ -1,4 +1,4 @@
-// Command execution: copy, fill, launch, tape.
+// Command execution: copy, fill, launch, tape, gradient replacement.
 #include "engine/runtime/command_executor.h"
 
 #include <cstring>
@@ -95,6 +95,9 @@ void CollectHandles(const Command& c, std::vector<uint64_t>* out) {
       out->push_back(a.handle);
       out->push_back(g.handle);
     }
+  } else if (auto* sg = std::get_if<SetGradCommand>(&c.kind)) {
+    out->push_back(sg->array.handle);
+    if (sg->grad.handle) out->push_back(sg->grad.handle);
   }
 }
 
@@ -103,7 +106,43 @@ Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapsh
   if (auto* f = std::get_if<FillCommand>(&c.kind)) return Fill(*f, h);
   if (auto* l = std::get_if<LaunchCommand>(&c.kind)) return Launch(s, *l, h, c.origin);
   if (auto* t = std::get_if<TapeCommand>(&c.kind)) return TapeOp(s, *t, h);
+  if (auto* sg = std::get_if<SetGradCommand>(&c.kind)) return SetGrad(s, *sg, h);
   return InvalidArgument("empty command");
+}
+
+namespace {
+
+// A ref that names its whole allocation: offset 0, the allocation's shape, contiguous strides.
+Status CheckWhole(const Allocation& a, const ArrayRef& ref, const std::string& what) {
+  if (ref.byte_offset != 0 || ref.shape != a.shape || (!ref.strides.empty() && ref.strides != a.strides))
+    return InvalidArgument(what + ": must name the whole array " + std::to_string(a.handle) + " " +
+                           ShapeString(a.shape) + " (offset 0, contiguous), not a view of it");
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status CommandExecutor::SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h) {
+  WEFT_ASSIGN_OR_RETURN(auto a, Lookup(h, c.array.handle, "set_grad array"));
+  WEFT_RETURN_IF_ERROR(CheckWhole(*a, c.array, "set_grad array"));
+  std::shared_ptr<Allocation> g;
+  if (c.grad.handle != 0) {
+    WEFT_ASSIGN_OR_RETURN(g, Lookup(h, c.grad.handle, "set_grad gradient"));
+    WEFT_RETURN_IF_ERROR(CheckWhole(*g, c.grad, "set_grad gradient"));
+    if (g == a) return InvalidArgument("set_grad: an array cannot be its own gradient");
+    if (g == a->grad) return Status::Ok();
+    if (g->grad)
+      return InvalidArgument("set_grad: the gradient array " + std::to_string(g->handle) +
+                             " has a gradient of its own");
+    if (g->device != a->device)
+      return InvalidArgument("set_grad: the gradient lives on " + g->device + ", the array on " + a->device);
+    if (g->dtype.ElementSize() != a->dtype.ElementSize() || g->dtype.Name() != a->dtype.Name() ||
+        g->shape != a->shape)
+      return InvalidArgument("set_grad: gradient " + g->dtype.Name() + " " + ShapeString(g->shape) +
+                             " does not match the array's " + a->dtype.Name() + " " + ShapeString(a->shape));
+  }
+  s.ReplaceGrad(a, std::move(g));
+  return Status::Ok();
 }
 
 Status CommandExecutor::Copy(const CopyCommand& c, const HandleSnapshot& h) {

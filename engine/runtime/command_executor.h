@@ -1,6 +1,7 @@
 // Runs one queued command of a session on its executor thread: copy and fill over checked
 // views, CPU kernel launches (forward and explicit adjoint, recorded on the active tape), and
-// tape operations (begin/end, backward replay in reverse, zero, reset).
+// tape operations (begin/end, backward replay in reverse, zero, reset) and gradient
+// replacement (set_grad).
 #pragma once
 
 #include <cstdint>
@@ -37,6 +38,7 @@ class CommandExecutor {
   Status Launch(Session& s, const LaunchCommand& c, const HandleSnapshot& h, const SourceLocation& origin);
   Status TapeOp(Session& s, const TapeCommand& c, const HandleSnapshot& h);
   Status Backward(Session& s, Tape& tape, const TapeCommand& c, const HandleSnapshot& h);
+  Status SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h);
 
   ThreadPool& pool_;
   ModuleStore* store_;

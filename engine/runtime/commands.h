@@ -1,5 +1,5 @@
 // Commands a session submits in a batch (engine twins of weft.v1.Command and its kinds):
-// copy, fill, kernel launch and autodiff tape operations. Plain data; the server converts them.
+// copy, fill, kernel launch, autodiff tape operations and gradient replacement. Plain data; the server converts them.
 #pragma once
 
 #include <cstdint>
@@ -50,8 +50,14 @@ struct TapeCommand {
   std::vector<std::pair<ArrayRef, ArrayRef>> seeds;  // (array, gradient value)
 };
 
+// Replaces array's gradient allocation by grad's (handle 0: array has no gradient after it).
+struct SetGradCommand {
+  ArrayRef array;
+  ArrayRef grad;
+};
+
 struct Command {
-  std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand> kind;
+  std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand, SetGradCommand> kind;
   SourceLocation origin;   // where the client issued it
 };
 

@@ -1,6 +1,8 @@
 // Session: held arrays, first-error bookkeeping and print output.
 #include "engine/runtime/session.h"
 
+#include <vector>
+
 namespace weft {
 
 std::shared_ptr<Allocation> Session::Find(uint64_t handle) const {
@@ -12,23 +14,39 @@ std::shared_ptr<Allocation> Session::Find(uint64_t handle) const {
 void Session::Hold(const std::shared_ptr<Allocation>& a) {
   std::lock_guard<std::mutex> lock(mu_);
   arrays_[a->handle] = a;
-  if (a->grad) {
+  if (a->grad && !arrays_.count(a->grad->handle)) {
     arrays_[a->grad->handle] = a->grad;
     grad_owner_[a->grad->handle] = a->handle;
+    owned_grads_.emplace(a->handle, a->grad->handle);
   }
 }
 
 bool Session::Release(uint64_t handle) {
+  std::vector<std::shared_ptr<Allocation>> drop;   // freed after the lock is let go
   std::lock_guard<std::mutex> lock(mu_);
   auto it = arrays_.find(handle);
   if (it == arrays_.end()) return false;
   if (grad_owner_.count(handle)) return true;   // a gradient lives as long as its array
-  if (it->second->grad) {
-    arrays_.erase(it->second->grad->handle);
-    grad_owner_.erase(it->second->grad->handle);
+  auto [first, last] = owned_grads_.equal_range(handle);
+  for (auto g = first; g != last; ++g) {
+    auto held = arrays_.find(g->second);
+    if (held != arrays_.end()) {
+      drop.push_back(std::move(held->second));
+      arrays_.erase(held);
+    }
+    grad_owner_.erase(g->second);
   }
+  owned_grads_.erase(first, last);
+  drop.push_back(std::move(it->second));
   arrays_.erase(it);
   return true;
+}
+
+void Session::ReplaceGrad(const std::shared_ptr<Allocation>& a, std::shared_ptr<Allocation> g) {
+  std::shared_ptr<Allocation> old;   // dropped after the lock is let go
+  std::lock_guard<std::mutex> lock(mu_);
+  old = std::move(a->grad);
+  a->grad = std::move(g);
 }
 
 bool Session::Holds(uint64_t handle) const {
@@ -47,6 +65,7 @@ void Session::ReleaseAll() {
     std::lock_guard<std::mutex> lock(mu_);
     drop.swap(arrays_);
     grad_owner_.clear();
+    owned_grads_.clear();
   }
 }
 

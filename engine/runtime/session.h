@@ -36,8 +36,11 @@ class Session {
   // Held arrays (array handles and gradient handles).
   std::shared_ptr<Allocation> Find(uint64_t handle) const;
   void Hold(const std::shared_ptr<Allocation>& a);   // also holds a->grad
-  // Drops the hold on `handle` (and its gradient). False when not held.
+  // Drops the hold on `handle` (and the gradients created for it). False when not held.
   bool Release(uint64_t handle);
+  // a->grad = g (null: none). A gradient the daemon created for `a` stays held until `a` is
+  // released (clients may still hold views of it); `g` is an array of this session.
+  void ReplaceGrad(const std::shared_ptr<Allocation>& a, std::shared_ptr<Allocation> g);
   bool Holds(uint64_t handle) const;
   size_t array_count() const;
   // Drops every hold (session close).
@@ -68,6 +71,7 @@ class Session {
   mutable std::mutex mu_;
   std::unordered_map<uint64_t, std::shared_ptr<Allocation>> arrays_;
   std::unordered_map<uint64_t, uint64_t> grad_owner_;   // grad handle -> array handle
+  std::unordered_multimap<uint64_t, uint64_t> owned_grads_;   // array handle -> its grad handles
   Status error_;
   SourceLocation error_origin_;
   uint64_t skipped_ = 0;

@@ -506,9 +506,13 @@ class array:
 
     @requires_grad.setter
     def requires_grad(self, value: bool):
+        """True gives the array a zeroed gradient when it has none; False removes it. Both
+        reach the daemon (its tape and adjoint launches use the array's gradient)."""
         value = bool(value)
         if value and self.grad is None and self._handle:
-            self._grad = zeros_like(self, requires_grad=False)
+            self.grad = zeros(self.shape, dtype=self.dtype, device=self.device)
+        elif not value and self._handle and self.grad is not None:
+            self.grad = None
         self._requires_grad = value
 
     @property
@@ -541,14 +545,45 @@ class array:
 
     @grad.setter
     def grad(self, value):
+        """`a.grad = g` (or None) as in Warp: g must match a's dtype, shape, device and strides.
+        The daemon is told (a SetGradCommand queued in order with the launches), so tapes and
+        adjoint launches write g from then on."""
         if value is not None:
             if not isinstance(value, array):
                 raise TypeError("grad must be a weft array or None")
-            if value.shape != self.shape or type_str(value.dtype) != type_str(self.dtype):
-                raise ValueError(f"grad of shape {value.shape} and dtype {value.dtype} does not "
-                                 f"match the array ({self.shape}, {self.dtype})")
-            self._requires_grad = True
+            if type_str(value.dtype) != type_str(self.dtype):
+                raise ValueError(f"The given gradient array is incompatible: expected dtype "
+                                 f"{type_str(self.dtype)}, got {type_str(value.dtype)}")
+            if value.shape != self.shape:
+                raise ValueError(f"The given gradient array is incompatible: expected shape "
+                                 f"{self.shape}, got {value.shape}")
+            if value.device != self.device:
+                raise ValueError(f"The given gradient array is incompatible: expected device "
+                                 f"{self.device}, got {value.device}")
+            if value.strides != self.strides:
+                raise ValueError(f"The given gradient array is incompatible: expected strides "
+                                 f"{self.strides}, got {value.strides}")
+        if self._handle:
+            self._set_daemon_grad(value)
         self._grad = value
+        self._requires_grad = value is not None
+
+    def _is_whole(self) -> bool:
+        return (self._info is not None and self._byte_offset == 0 and
+                self.shape == tuple(int(s) for s in self._info.shape) and self.is_contiguous)
+
+    def _set_daemon_grad(self, value) -> None:
+        if value is not None and value._handle == self._handle:
+            raise ValueError("an array cannot be its own gradient")
+        for which, arr in (("array", self), ("gradient", value)):
+            if arr is not None and not arr._is_whole():
+                raise ValueError(f"weft keeps gradients per allocation: the {which} of "
+                                 f"`a.grad = g` must be a whole array, not a view or slice")
+        rt = self._alloc.runtime
+        ep = _runtime.exec_pb2
+        grad_ref = value._ref() if value is not None else _runtime.types_pb2.ArrayRef(handle=0)
+        rt.submit(ep.Command(set_grad=ep.SetGradCommand(array=self._ref(), grad=grad_ref)))
+        self._info.grad_handle = value._handle if value is not None else 0
 
     @property
     def vars(self):

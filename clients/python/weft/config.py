@@ -1,16 +1,95 @@
-"""wp.config: process-wide settings, as Warp names them. The kernel API reads these when it
-builds modules (mode, verify_fp, enable_backward...); the rest are accepted for compatibility."""
+"""wp.config: process-wide settings under Warp 1.19's names and defaults.
 
-version = "0.1.0"
-mode = "release"            # "release" | "debug": compile options sent with each module
-verify_fp = False           # check kernels' floating-point results for NaN/inf
+What weft does with them:
+  mode                 "release" | "debug"; sent with every module as its "mode" option (part of
+                       the module's cache key); any other value is refused at compile time.
+  verify_fp            sent as the "verify_fp" module option; after each launch the client
+                       checks the launch's float arrays and raises FloatingPointError naming the
+                       kernel, the argument and the launch line when one holds a NaN or an inf.
+  print_launches       each wp.launch prints "kernel: KEY dim: DIM inputs: [...] device: DEV".
+  verbose              each module the daemon really compiles (not a cache hit) prints
+                       "Module NAME load on device DEV took T ms (compiled)".
+  enable_vector_component_overwrites, optimization_level: sent with the module's options when
+                       set away from their defaults (so they are part of its cache key).
+The daemon owns the module cache (weftd --cache-dir), so cache_kernels and kernel_cache_dir
+are kept but change nothing; CUDA, tile, mathdx and memory-pool settings are accepted and have
+no effect on the CPU daemon.
+"""
+from enum import IntEnum as _IntEnum
+
+LOG_DEBUG = 10
+LOG_INFO = 20
+LOG_WARNING = 30
+LOG_ERROR = 40
+
+
+class LaunchArrayAccessMode(_IntEnum):
+    """How launches check that array arguments live on the launch device."""
+
+    RELAXED = 0
+    CHECKED = 1
+    STRICT = 2
+
+
+class DeterministicMode(_IntEnum):
+    """Ordering guarantees for atomic operations (the CPU daemon runs them in a fixed order)."""
+
+    NOT_GUARANTEED = 0
+    RUN_TO_RUN = 1
+    GPU_TO_GPU = 2
+
+
+version = "1.19.0"                  # the Warp API version this client follows
+launch_array_access_mode = LaunchArrayAccessMode.RELAXED
+verify_fp = False
 verify_cuda = False
 print_launches = False
+mode = "release"
+optimization_level = None
 verbose = False
 verbose_warnings = False
-quiet = False               # weft prints no banner either way
-enable_backward = True      # generate adjoint code when a backward pass needs it
-max_unroll = 16
-cache_kernels = True
-kernel_cache_dir = None     # the daemon owns the cache; kept for compatibility
+quiet = False
+log_level = LOG_INFO
+verify_autograd_array_access = False
 enable_vector_component_overwrites = False
+legacy_scalar_return_types = False
+cache_kernels = True
+kernel_cache_dir = None
+cuda_output = None
+ptx_target_arch = None
+cuda_arch_suffix = None
+lineinfo = False
+line_directives = True
+compile_time_trace = False
+enable_backward = True
+enable_cpu_blocks = False
+default_grid_stride = True
+enable_mathdx_gemm = True
+enable_mathdx_solver = True
+enable_mathdx_fft = True
+cpu_compiler_flags = None
+llvm_cuda = False
+enable_graph_capture_module_load_by_default = True
+enable_mempools_at_init = True
+track_memory = False
+max_unroll = 16
+enable_tiles_in_stack_memory = True
+use_precompiled_headers = True
+legacy_cpu_linker = False
+load_module_max_workers = 0
+deterministic = DeterministicMode.NOT_GUARANTEED
+deterministic_max_records = 0
+deterministic_debug = False
+
+
+def module_options() -> dict:
+    """The settings that belong to a module's compile options (and so to its cache key):
+    mode and verify_fp always, the others when set away from their defaults."""
+    if mode not in ("release", "debug"):
+        raise ValueError(f"wp.config.mode must be 'release' or 'debug', got {mode!r}")
+    out = {"mode": mode, "verify_fp": bool(verify_fp)}
+    if enable_vector_component_overwrites:
+        out["enable_vector_component_overwrites"] = True
+    if optimization_level is not None:
+        out["optimization_level"] = int(optimization_level)
+    return out

@@ -42,20 +42,15 @@ def kernel(f=None, *, enable_backward: typing.Optional[bool] = None, module=None
     of its Python module (or of the named module)."""
 
     def wrap(function):
-        definition = FunctionDefinition(function, is_kernel=True)
         opts = dict(options)
         if enable_backward is not None:
             opts["enable_backward"] = bool(enable_backward)
-        module_name = definition.module
+        target = None
         if module == "unique":
             opts["module"] = "unique"
-        elif isinstance(module, str) and module:
-            module_name = module
-        elif isinstance(module, types.ModuleType):
-            module_name = module.__name__
-        k = Kernel(definition, module_name, opts)
-        module_mod.register_kernel(k)
-        return k
+        elif module:
+            target = module
+        return Kernel(func=function, module=target, options=opts)
 
     if f is not None:
         return wrap(f)

@@ -112,6 +112,16 @@ def _return_type_string(ret) -> str:
     return typestr.type_string(ret)
 
 
+def _module_name(module, default: str) -> str:
+    """The module name of a Kernel's `module` argument: None, a name, a Python module or a
+    weft Module."""
+    if module is None:
+        return default
+    if isinstance(module, str):
+        return module
+    return getattr(module, "name", None) or getattr(module, "__name__", None) or str(module)
+
+
 def sanitize_key(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.]", "_", text)
 
@@ -153,22 +163,51 @@ class Function:
 
 
 class Kernel:
-    """What @wp.kernel returns: a launchable kernel of one Python module."""
+    """What @wp.kernel returns: a launchable kernel of one module. Constructed directly as in
+    Warp, wp.Kernel(func, key=None, module=None, options=None) registers func as a kernel of
+    `module` (a Module, a module object or name; default: func's Python module) under `key`
+    (default: the function's name). `key` is Warp's kernel name; the daemon sees the
+    definition's module-qualified key."""
 
-    def __init__(self, definition: FunctionDefinition, module_name: str, options: dict):
+    def __init__(self, func=None, key=None, module=None, options=None, code_transformers=None,
+                 *, definition: FunctionDefinition = None, register: bool = True):
+        if definition is None:
+            if func is None:
+                raise TypeError("wp.Kernel needs a Python function (func=...)")
+            definition = FunctionDefinition(func, is_kernel=True)
+        if code_transformers:
+            raise NotImplementedError("wp.Kernel(code_transformers=...): weft compiles the "
+                                      "function's source text in the daemon; AST transformers "
+                                      "are not supported")
+        if key:
+            definition.key = canonical_name(definition.module, str(key))
         self.definition = definition
         self.func = definition.func
-        self.key = definition.key
+        self.key = str(key) if key else definition.name
         self.__name__ = definition.name
         self.__qualname__ = definition.qualname
         self.__module__ = definition.module
         self.__doc__ = definition.func.__doc__
-        self.module_name = module_name
-        self.options = dict(options)
+        self.module_name = _module_name(module, definition.module)
+        self.options = dict(options or {})
         self.broken = False        # set when its own compile failed: left out of other builds
         self._compiled: dict = {}  # (runtime, device, backward) -> (version, CompiledModule, KernelInfo)
         self._specializations: dict = {}   # generic kernels: concrete param types -> Kernel
         self.generic_parent = None
+        # registered under its key when one is given (several kernels of one def), else its
+        # qualified name (a redefinition replaces the earlier kernel)
+        self.registry_key = str(key) if key else definition.qualname
+        if register:
+            from . import module as module_mod  # noqa: PLC0415 - module.py imports this file
+
+            module_mod.register_kernel(self)
+
+    @property
+    def module(self):
+        """The Module this kernel belongs to (Warp's kernel.module)."""
+        from . import module as module_mod  # noqa: PLC0415
+
+        return module_mod.get_module(self.module_name)
 
     @property
     def is_generic(self) -> bool:
@@ -187,7 +226,9 @@ class Kernel:
         definition = copy.copy(self.definition)
         definition.param_types = list(param_types)
         definition.key = sanitize_key(self.key + "__" + "_".join(param_types))
-        instance = Kernel(definition, self.module_name, self.options)
+        instance = Kernel(definition=definition, module=self.module_name, options=self.options,
+                          register=False)
+        instance.key = self.key
         instance.generic_parent = self
         self._specializations[key] = instance
         return instance

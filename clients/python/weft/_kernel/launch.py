@@ -11,6 +11,7 @@ import typing
 
 import numpy as np
 
+from .. import config as _config
 from . import module as module_mod
 from . import typestr
 from .errors import WeftLaunchError
@@ -559,6 +560,9 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     """wp.launch: runs kernel over dim (an int or a tuple of up to 4 ints) on device."""
     if not isinstance(kernel, Kernel):
         raise WeftLaunchError(f"wp.launch expects a @wp.kernel, got {type(kernel).__name__}")
+    if _config.print_launches:
+        print(f"kernel: {kernel.key} dim: {dim} inputs: {list(inputs or [])} outputs: "
+              f"{list(outputs or [])} device: {_launch_device(device, [*inputs, *outputs])}")
     if type(dim) is int and dim >= 0:
         dims = [dim]
     else:
@@ -620,4 +624,31 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
             pending.apply()
     elif _interop_memory.any_shared() and _interop_memory.touches_shared(resolved):
         rt.synchronize()       # memory a framework holds: done before the framework reads it
+    if _config.verify_fp:
+        verify_finite(kernel, resolved, command.origin)
     return None
+
+
+def verify_finite(kernel: Kernel, args, origin) -> None:
+    """wp.config.verify_fp: raises FloatingPointError when a float array argument of the
+    launch holds a NaN or an inf after it ran (waits for the launch)."""
+    import weft  # noqa: PLC0415
+
+    weft.synchronize()
+    for name, value in zip(kernel.param_names, args):
+        if not is_weft_array(value) or value.size == 0:
+            continue
+        data = np.asarray(value.numpy())
+        if data.dtype.kind not in "fc" and not (data.dtype.fields and any(
+                f[0].base.kind == "f" for f in data.dtype.fields.values())):
+            continue
+        if data.dtype.fields:
+            bad = any(not np.isfinite(data[f]).all() for f, v in data.dtype.fields.items()
+                      if v[0].base.kind == "f")
+        else:
+            bad = not np.isfinite(data).all()
+        if bad:
+            where = f"{origin.file}:{origin.line}: " if origin.file else ""
+            raise FloatingPointError(f"{where}kernel '{kernel.key}': array argument '{name}' "
+                                     f"holds a non-finite value (NaN or inf) after the launch "
+                                     f"(wp.config.verify_fp)")

@@ -9,20 +9,77 @@ import re
 import threading
 import typing
 
+from .. import config as _config
 from . import symbols as symbols_mod
 from .errors import WeftCompileError
 from .functions import Function, FunctionDefinition, Kernel
 from .structs import StructType
 
 
+def default_module_options() -> dict:
+    """A new module's options, as Warp fills them: None means "use wp.config's value"."""
+    from weft import config  # noqa: PLC0415
+
+    return {"max_unroll": config.max_unroll, "enable_backward": config.enable_backward,
+            "fast_math": False, "fuse_fp": True, "lineinfo": None, "mode": None,
+            "block_dim": 256, "optimization_level": None}
+
+
 class Module:
-    """The kernels and funcs registered under one module name."""
+    """The kernels and funcs registered under one module name (Warp's wp.Module): options,
+    load(device) to compile its kernels now, unload() to drop this process's compiled state,
+    hash_module() for the content hash of what it would compile now."""
 
     def __init__(self, name: str):
         self.name = name
-        self.kernels: dict = {}        # qualname -> Kernel, registration order
+        self.kernels: dict = {}        # registry key -> Kernel, registration order
         self.functions: dict = {}      # qualname -> Function
-        self.options: dict = {}
+        self.options: dict = default_module_options()
+
+    def load(self, device=None, block_dim=None, binary_path=None):
+        """Compiles every (non-generic) kernel of the module for device now; returns the
+        CompiledModule of the last kernel (None when the module has no kernels). block_dim is
+        accepted for Warp's signature: CPU launches run one thread per block."""
+        from .launch import device_name  # noqa: PLC0415
+
+        if binary_path is not None:
+            raise NotImplementedError("Module.load(binary_path=...): weft compiles modules in "
+                                      "the daemon and loads no binaries from the client")
+        dev = device_name(device)
+        result = None
+        for k in kernels_of(self.name):
+            if k.is_generic:
+                for instance in list(k._specializations.values()):
+                    result = compile_kernel(instance, dev)[0]
+                continue
+            result = compile_kernel(k, dev)[0]
+        return result
+
+    def unload(self):
+        """Forgets this process's compiled state of the module (the daemon keeps its cache:
+        the next launch or load asks it again)."""
+        with _lock:
+            for k in self.kernels.values():
+                for instance in [k, *k._specializations.values()]:
+                    instance._compiled.clear()
+                    instance.__dict__.pop("_launch_plans", None)
+            bump_version()
+
+    def mark_modified(self):
+        bump_version()
+
+    def hash_module(self) -> str:
+        """SHA-256 over the sources the module's kernels would be compiled from now (their
+        functions, resolved globals, structs and options)."""
+        digest = hashlib.sha256(self.name.encode())
+        for k in kernels_of(self.name):
+            if k.is_generic:
+                continue
+            digest.update(content_hash(build_module_source(k)[0]).encode())
+        return digest.hexdigest()
+
+    def get_module_hash(self, block_dim=None) -> str:
+        return self.hash_module()
 
     def __repr__(self):
         return f"<weft module {self.name}: {len(self.kernels)} kernel(s)>"
@@ -75,8 +132,8 @@ def get_module_options(module=None) -> dict:
 def register_kernel(kernel: Kernel) -> None:
     with _lock:
         module = get_module(kernel.module_name)
-        module.kernels.pop(kernel.definition.qualname, None)
-        module.kernels[kernel.definition.qualname] = kernel
+        module.kernels.pop(kernel.registry_key, None)
+        module.kernels[kernel.registry_key] = kernel
         bump_version()
 
 
@@ -91,6 +148,22 @@ def register_function(definition: FunctionDefinition) -> Function:
             existing.add_overload(definition)
         bump_version()
         return existing
+
+
+def build_options(kernel: Kernel) -> dict:
+    """The options a kernel's module is compiled with: wp.config's compile settings, then the
+    global and module options, then the kernel's own; unset (None) values are left out."""
+    from weft import config  # noqa: PLC0415
+
+    options = config.module_options()
+    for key, value in get_module_options(kernel.module_name).items():
+        if value is not None:
+            options[key] = value
+    options.update({k: v for k, v in kernel.options.items() if k != "module" and v is not None})
+    if options.get("mode") not in ("release", "debug"):
+        raise ValueError(f"module option 'mode' must be 'release' or 'debug', got "
+                         f"{options.get('mode')!r}")
+    return options
 
 
 # --------------------------------------------------------------------------------------------
@@ -205,10 +278,7 @@ def build_module_source(kernel: Kernel, backward: bool = False):
                 _merge(group, closure)
                 kernel_names.add(other.name)
 
-    options = get_module_options(kernel.module_name)
-    options.update({k: v for k, v in kernel.options.items() if k != "module"})
-    # No "enable_backward" option: the daemon generates adjoints lazily (ModuleStore::WithBackward)
-    # for the same module id, so forward and adjoint launches share one cache key.
+    options = build_options(kernel)
     msg = module_pb2.ModuleSource(name=kernel.module_name)
     for key in sorted(options):
         value = options[key]
@@ -302,6 +372,9 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
                 return compile_kernel(kernel, device, backward)
             raise
         _compiled[(runtime_id, digest, device)] = compiled
+        if _config.verbose and not compiled.cache_hit:
+            print(f"Module {kernel.module_name} {digest[:7]} load on device '{device}' took "
+                  f"{compiled.compile_ms:.2f} ms  (compiled)")
     info = _find_kernel_info(compiled, kernel)
     if info is None:
         raise WeftCompileError(f"the daemon compiled module {kernel.module_name} but reported "
