@@ -989,8 +989,24 @@ def clone(src, device=None, requires_grad=None, pinned=None):
 
 
 def _flat_view(a, offset, count):
+    """Elements [offset, offset+count) of a contiguous array, or of a strided 1-d array."""
+    if a.ndim == 1:
+        step = a.strides[0]
+        return a._make_view(a._byte_offset + offset * step, (count,), (step,))
     elem = _elem_size(a.dtype)
     return a._make_view(a._byte_offset + offset * elem, (count,), (elem,))
+
+
+def _on_tape(dest, src) -> bool:
+    """Whether a copy must be recorded on the active wp.Tape (a differentiable float copy)."""
+    if not (dest.requires_grad or src.requires_grad):
+        return False
+    from ._kernel.tape import active_tape  # noqa: PLC0415 - weft._kernel imports this module
+
+    if active_tape() is None:
+        return False
+    scalar = getattr(dest.dtype, "_wp_scalar_type_", dest.dtype)
+    return scalar in types.float_types
 
 
 def copy(dest, src, dest_offset=0, src_offset=0, count=0):
@@ -1015,12 +1031,18 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
         if dest_offset + count > dest.size:
             raise RuntimeError(f"Copy out of bounds: destination has {dest.size} elements, "
                                f"copying {count} to offset {dest_offset}")
-        if not src.is_contiguous or not dest.is_contiguous:
-            raise RuntimeError("Copying arrays of different shapes, or with offsets/counts, "
-                               "requires contiguous arrays")
+        for a in (src, dest):
+            if a.ndim > 1 and not a.is_contiguous:
+                raise RuntimeError("Copying arrays of different shapes, or with offsets/counts, "
+                                   "requires contiguous (or 1-d) arrays")
         d = _flat_view(dest, dest_offset, count)
         s = _flat_view(src, src_offset, count)
     if d.size == 0 or d._info is None or s._info is None:
+        return
+    if d.device == s.device and _on_tape(d, s):
+        from ._kernel.copy_kernels import launch_copy  # noqa: PLC0415
+
+        launch_copy(d, s)
         return
     cmd = _runtime.exec_pb2.Command(copy=_runtime.exec_pb2.CopyCommand(dst=d._ref(),
                                                                         src=s._ref()))

@@ -666,6 +666,56 @@ def type_str(t) -> str:
     raise TypeError(f"No weft type string for {t!r}")
 
 
+def type_repr(t) -> str:
+    """A readable name of a type, as Warp prints it in messages: float32, vec3f, mat22d,
+    quatf, transformd, vector(length=5, dtype=float32), array(ndim=2, dtype=vec3f) for an
+    annotation, array(shape=(4,), dtype=float32) for an array, float/int/bool for Python's."""
+    if t is Any or t is typing.Any:
+        return "Any"
+    if is_array(t):
+        cls = type(t).__name__
+        if getattr(t, "device", None) is None:
+            return f"{cls}(ndim={t.ndim}, dtype={type_repr(t.dtype)})"
+        return f"{cls}(shape={tuple(t.shape)}, dtype={type_repr(t.dtype)})"
+    origin = typing.get_origin(t)
+    if origin is tuple:
+        args = typing.get_args(t)
+        return f"tuple({', '.join(type_repr(a) for a in args)})" if args else "tuple"
+    if origin is not None and getattr(origin, "__name__", "") == "array":
+        args = typing.get_args(t)
+        return f"array(ndim=1, dtype={type_repr(args[0]) if args else 'Any'})"
+    struct_cls = getattr(t, "cls", None)
+    if struct_cls is not None and hasattr(t, "fields") and isinstance(struct_cls, type):
+        return type_repr(struct_cls)
+    if is_dtype(t) and issubclass(t, _Composite):
+        scalar = t._wp_scalar_type_
+        short = _SHORT_NAMES.get(scalar)
+        if is_transformation(t):
+            return f"transform{short}" if short else f"transform(dtype={type_repr(scalar)})"
+        if is_quaternion(t):
+            return f"quat{short}" if short else f"quat(dtype={type_repr(scalar)})"
+        shape = t._shape_
+        if is_matrix(t):
+            if short and shape[0] <= 4 and shape[1] <= 4:
+                return f"mat{shape[0]}{shape[1]}{short}"
+            return f"matrix(shape=({shape[0]}, {shape[1]}), dtype={type_repr(scalar)})"
+        if short and shape[0] <= 4:
+            return f"vec{shape[0]}{short}"
+        return f"vector(length={shape[0]}, dtype={type_repr(scalar)})"
+    if t in scalar_and_bool_types:
+        return t.__name__
+    if t is _py_bool:
+        return "bool"
+    if t is _py_float:
+        return "float"
+    if t is _py_int:
+        return "int"
+    name = getattr(t, "__name__", None)
+    if name is None:
+        return repr(t)
+    return f"{t.__module__}.{getattr(t, '__qualname__', name)}"
+
+
 # ------------------------------------------------------------------------------------------
 # NumPy conversions
 

@@ -12,13 +12,14 @@ from . import module as module_mod
 from . import typestr
 from .errors import WeftCompileError, WeftLaunchError
 from .functions import Function, FunctionDefinition, Kernel
-from .launch import launch
+from .launch import Launch, launch
 from .structs import StructInstance, StructType, struct
 from .tape import Tape
 
 __all__ = [
     "Function",
     "Kernel",
+    "Launch",
     "Tape",
     "WeftCompileError",
     "WeftLaunchError",

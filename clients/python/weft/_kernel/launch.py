@@ -569,6 +569,10 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         dims = normalize_dim(dim)
     args = [*inputs, *outputs] if outputs else list(inputs or [])
     device = _launch_device(device, args)
+    if record_cmd:
+        return Launch(kernel, device, dims, args,
+                      list(adj_inputs or []) + list(adj_outputs or []), adjoint,
+                      max_blocks, block_dim)
     tape_mod, _runtime = _modules()
     rt = _runtime.get_runtime()
     pb = _pb()
@@ -652,3 +656,59 @@ def verify_finite(kernel: Kernel, args, origin) -> None:
             raise FloatingPointError(f"{where}kernel '{kernel.key}': array argument '{name}' "
                                      f"holds a non-finite value (NaN or inf) after the launch "
                                      f"(wp.config.verify_fp)")
+
+
+class Launch:
+    """What wp.launch(..., record_cmd=True) returns instead of launching (Warp's wp.Launch): the
+    kernel, device, dim and arguments, checked and compiled once; launch() runs it with the
+    arguments as they are then (not recorded on a tape, as in Warp); set_dim and set_param_*
+    change them."""
+
+    def __init__(self, kernel: Kernel, device, dim, params, adj_params=(), adjoint=False,
+                 max_blocks=0, block_dim=256):
+        device = device_name(device) if not isinstance(device, str) else device
+        if kernel.is_generic:
+            kernel = kernel.specialize(infer_param_types(kernel, list(params)))
+        self.kernel = kernel
+        self.device = device
+        self.adjoint = bool(adjoint)
+        self.max_blocks = max_blocks
+        self.block_dim = block_dim
+        self.dim = normalize_dim(dim)
+        self.params = list(params)
+        self.adj_params = list(adj_params) + [None] * (len(self.params) - len(adj_params))
+        pack_arguments(kernel, device, self.params)       # argument errors raise here
+        module_mod.compile_kernel(kernel, device, backward=self.adjoint)
+
+    def set_dim(self, dim) -> None:
+        self.dim = normalize_dim(dim)
+
+    def _index(self, name: str) -> int:
+        try:
+            return self.kernel.param_names.index(name)
+        except ValueError:
+            raise KeyError(f"kernel '{self.kernel.key}' has no parameter '{name}'") from None
+
+    def set_param_at_index(self, index: int, value, adjoint: bool = False) -> None:
+        if not 0 <= index < len(self.params):
+            raise IndexError(f"kernel '{self.kernel.key}' has {len(self.params)} parameters, "
+                             f"index {index} is out of range")
+        if adjoint:
+            self.adj_params[index] = value
+            return
+        name = self.kernel.param_names[index]
+        ArgPacker(self.kernel, self.device).pack(name, self.kernel.param_types[index],
+                                                 self.kernel.definition.annotations[name], value)
+        self.params[index] = value
+
+    def set_param_by_name(self, name: str, value, adjoint: bool = False) -> None:
+        self.set_param_at_index(self._index(name), value, adjoint)
+
+    def set_params(self, values) -> None:
+        for i, value in enumerate(values):
+            self.set_param_at_index(i, value)
+
+    def launch(self, stream=None) -> None:
+        launch(self.kernel, self.dim, inputs=self.params,
+               adj_inputs=self.adj_params if self.adjoint else (), adjoint=self.adjoint,
+               device=self.device, record_tape=False)

@@ -136,8 +136,9 @@ class Tape:
         self._runtime.submit(exec_pb2.Command(tape=cmd, origin=caller_origin()))
 
     def __enter__(self):
-        if self in _stack():
-            raise RuntimeError("this wp.Tape is already recording")
+        if _stack():
+            raise RuntimeError("Warp: Error, entering a tape while one is already active "
+                               "(weft tapes do not nest)")
         if self._choose_mode() == "daemon":
             from weft.v1 import exec_pb2  # noqa: PLC0415
 
@@ -203,9 +204,6 @@ class Tape:
 
         from . import module as module_mod  # noqa: PLC0415
 
-        if not self.launches:
-            raise RuntimeError("wp.Tape.backward: the tape is empty (no launches were recorded "
-                               "inside `with tape:`)")
         self._choose_mode()
         if loss is not None:
             if not is_weft_array(loss):
@@ -228,8 +226,19 @@ class Tape:
                 grad = _as_array_like(target, grad)
             seeds.append((array, grad))
             self.gradients[array] = target
+        recording = self in _stack()      # backward() inside `with tape:` pauses recording
+        if not self.launches:             # nothing to replay: only the seeds are written
+            if loss is not None:
+                loss.grad.fill_(1.0)
+            for array, grad in seeds:
+                _assign(array.grad, grad)
+            return
         if self._mode == "daemon":
+            if recording:
+                self._tape_command(exec_pb2.TapeCommand.END)
             self._tape_command(exec_pb2.TapeCommand.BACKWARD, loss=loss, seeds=seeds)
+            if recording:
+                self._tape_command(exec_pb2.TapeCommand.BEGIN)
             self._note_gradients()
             _finish_for_frameworks()
             return
