@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import types as _types_module
+import weakref
 from typing import Any
 
 import numpy as np
@@ -229,6 +230,9 @@ class _Allocation:
             pass
 
 
+_ADDRESSED = weakref.WeakSet()     # allocations whose address this process has handed out
+
+
 class _NumpyHolder:
     """Exposes slab memory to NumPy and keeps the allocation (and mapping) alive."""
 
@@ -352,8 +356,8 @@ class array:
         self.pinned = pinned
         dtype = _canonical_dtype(dtype)
         if ptr is not None:
-            raise RuntimeError("weft arrays cannot wrap raw pointers (ptr=): the memory lives "
-                               "in weftd; pass data= instead")
+            self._init_from_ptr(int(ptr), dtype, shape, strides, device)
+            return
         if length is not None and shape is None:
             shape = (int(length),)
 
@@ -376,6 +380,47 @@ class array:
             self._init_from_data(data, dtype, shape, requires_grad)
         if grad is not None:
             self.grad = grad
+
+    def _init_from_ptr(self, ptr, dtype, shape, strides, device):
+        """wp.array(ptr=a.ptr + k, ...): a view of the weft allocation the address lies in (an
+        address this process got from some array's .ptr); other memory cannot be wrapped."""
+        if dtype is Any:
+            dtype = float32
+        shape = _normalize_shape(shape if shape is not None else (0,))
+        elem = _elem_size(dtype)
+        strides = (tuple(int(x) for x in strides) if strides is not None
+                   else _contiguous_strides(shape, elem))
+        if len(strides) != len(shape):
+            raise RuntimeError(f"strides {strides} do not match shape {shape}")
+        for alloc in list(_ADDRESSED):
+            info = alloc.info
+            base = alloc.mapping().address + info.shm_offset
+            if not base <= ptr < base + max(int(info.byte_size), 1):
+                continue
+            offset = ptr - base
+            lo = offset + sum((n - 1) * st for n, st in zip(shape, strides) if n > 0 and st < 0)
+            hi = offset + sum((n - 1) * st for n, st in zip(shape, strides) if n > 0 and st > 0)
+            if math.prod(shape) and (lo < 0 or hi + elem > info.byte_size):
+                raise RuntimeError(f"wp.array(ptr=...): shape {shape} with strides {strides} "
+                                   f"at byte {offset} exceeds the allocation it points into "
+                                   f"({info.byte_size} bytes)")
+            if device is not None and get_device(device).alias != info.device:
+                raise RuntimeError(f"wp.array(ptr=...): the memory lives on {info.device}, not "
+                                   f"on {get_device(device).alias}")
+            self._alloc = alloc
+            self._info = info
+            self._handle = info.handle
+            self._byte_offset = offset
+            self.dtype = dtype
+            self.shape = shape
+            self.strides = strides
+            self.ndim = len(shape)
+            self.size = math.prod(shape)
+            self.device = get_device(info.device)
+            return
+        raise RuntimeError("wp.array(ptr=...) can only wrap memory of weft arrays of this "
+                           "process (an address from some array's .ptr): other memory does not "
+                           "live in weftd; pass data= instead")
 
     def _init_new(self, dtype, shape, requires_grad, init=None, value=b""):
         ap = _runtime.array_pb2
@@ -498,6 +543,7 @@ class array:
         if not self._alloc.runtime.local:
             return None
         mapping = self._alloc.mapping()
+        _ADDRESSED.add(self._alloc)          # wp.array(ptr=...) can find it again
         return mapping.address + self._info.shm_offset + self._byte_offset
 
     @property
@@ -905,6 +951,9 @@ def zeros(shape=0, dtype=float, device=None, requires_grad=False, pinned=False):
 
 
 def _infer_value_dtype(value):
+    """wp.full's dtype for a value, as Warp infers it: int -> int32, float -> float32, bool,
+    weft scalars/vectors/matrices/structs -> their type, a sequence -> a vector (1-d) or matrix
+    (2-d) of the scalar type NumPy gives it (Python floats: float64, ints: int64)."""
     if isinstance(value, (_Composite, _Scalar)):
         return type(value)
     if isinstance(value, bool):
@@ -913,21 +962,31 @@ def _infer_value_dtype(value):
         return int32
     if isinstance(value, float):
         return float32
-    if isinstance(value, (np.generic, np.ndarray)) and np.ndim(value) == 0:
-        return dtype_from_numpy(np.asarray(value).dtype)
-    values = np.asarray(value)
-    if values.ndim in (1, 2) and values.dtype != object:
-        scalar = int32 if np.issubdtype(values.dtype, np.integer) else (
-            types.bool if values.dtype == np.bool_ else float32)
-        if values.ndim == 1:
-            return vector(values.shape[0], scalar)
+    struct_type = getattr(value, "_struct_type", None)
+    if struct_type is not None:
+        return struct_type
+    if isinstance(value, np.generic):
+        return dtype_from_numpy(value.dtype)
+    if not hasattr(value, "__len__"):
+        raise ValueError(f"Invalid value type for Warp array: {type(value)}")
+    try:
+        values = np.asarray(value)
+    except Exception as err:  # noqa: BLE001 - NumPy's own conversion errors
+        raise ValueError(f"Failed to interpret the value as a vector or matrix: {err}") from err
+    try:
+        scalar = dtype_from_numpy(values.dtype)
+    except TypeError:
+        raise ValueError(f"Failed to convert {values.dtype} to a Warp data type") from None
+    if values.ndim == 1:
+        return vector(values.shape[0], scalar)
+    if values.ndim == 2:
         return matrix(values.shape, scalar)
-    raise RuntimeError(f"Failed to infer the dtype of fill value {value!r}: pass dtype=")
+    raise ValueError("Values with more than two dimensions are not supported")
 
 
-def full(shape=0, value=0, dtype=Any, device=None, requires_grad=False, pinned=False):
-    """An array with every element set to `value` (Warp's wp.full)."""
-    dtype = _canonical_dtype(dtype)
+def full(shape=0, value=0, dtype=None, device=None, requires_grad=False, pinned=False):
+    """An array with every element set to `value` (Warp's wp.full); dtype None infers it."""
+    dtype = _canonical_dtype(Any if dtype is None else dtype)
     if dtype is Any:
         dtype = _infer_value_dtype(value)
     payload = (types.value_to_bytes(dtype, value) if types.is_dtype(dtype)

@@ -15,6 +15,8 @@ The daemon owns the module cache (weftd --cache-dir), so cache_kernels and kerne
 are kept but change nothing; CUDA, tile, mathdx and memory-pool settings are accepted and have
 no effect on the CPU daemon.
 """
+import sys as _sys
+import types as _types
 from enum import IntEnum as _IntEnum
 
 LOG_DEBUG = 10
@@ -80,6 +82,31 @@ load_module_max_workers = 0
 deterministic = DeterministicMode.NOT_GUARANTEED
 deterministic_max_records = 0
 deterministic_debug = False
+
+
+_COMPILE_SETTINGS = ("mode", "verify_fp", "enable_vector_component_overwrites",
+                     "optimization_level", "max_unroll", "enable_backward")
+
+
+class _ConfigModule(_types.ModuleType):
+    """wp.config's module type: checks the enum settings, and a changed compile setting makes
+    the next launch rebuild its module options (compiled kernels are looked up again)."""
+
+    def __setattr__(self, name, value):
+        if name == "launch_array_access_mode" and not isinstance(value, LaunchArrayAccessMode):
+            raise ValueError(f"wp.config.launch_array_access_mode must be a "
+                             f"wp.config.LaunchArrayAccessMode value, got {value!r}")
+        if name == "deterministic" and not isinstance(value, DeterministicMode):
+            raise ValueError(f"wp.config.deterministic must be a wp.DeterministicMode value, "
+                             f"got {value!r}")
+        super().__setattr__(name, value)
+        if name in _COMPILE_SETTINGS:
+            from weft._kernel import module as _module  # noqa: PLC0415 - imports this module
+
+            _module.bump_version()
+
+
+_sys.modules[__name__].__class__ = _ConfigModule
 
 
 def module_options() -> dict:

@@ -10,7 +10,7 @@ import typing
 
 from . import module as module_mod
 from . import typestr
-from .errors import WeftCompileError, WeftLaunchError
+from .errors import WarpCodegenError, WeftCompileError, WeftLaunchError
 from .functions import Function, FunctionDefinition, Kernel
 from .launch import Launch, launch
 from .structs import StructInstance, StructType, struct
@@ -21,6 +21,7 @@ __all__ = [
     "Kernel",
     "Launch",
     "Tape",
+    "WarpCodegenError",
     "WeftCompileError",
     "WeftLaunchError",
     "compile",

@@ -204,6 +204,9 @@ class Tape:
 
         from . import module as module_mod  # noqa: PLC0415
 
+        if not self.launches:
+            raise RuntimeError("wp.Tape.backward: the tape is empty (no launches were recorded "
+                               "inside `with tape:`)")
         self._choose_mode()
         if loss is not None:
             if not is_weft_array(loss):
@@ -227,12 +230,6 @@ class Tape:
             seeds.append((array, grad))
             self.gradients[array] = target
         recording = self in _stack()      # backward() inside `with tape:` pauses recording
-        if not self.launches:             # nothing to replay: only the seeds are written
-            if loss is not None:
-                loss.grad.fill_(1.0)
-            for array, grad in seeds:
-                _assign(array.grad, grad)
-            return
         if self._mode == "daemon":
             if recording:
                 self._tape_command(exec_pb2.TapeCommand.END)

@@ -1,0 +1,391 @@
+"""Warp's Python API names and behaviours beyond the basics, end to end against weftd:
+wp.Kernel(func, key, module, options) and kernel.key/kernel.module, Module.load/hash_module,
+wp.config (mode, verify_fp, print_launches, verbose), `a.grad = g` and `requires_grad` set after
+creation reaching the daemon's backward, tapes (backward inside `with tape:`, no nesting, copies
+and clones recorded), wp.launch(record_cmd=True) -> wp.Launch, wp.types.type_repr, wp.full's
+dtype inference and wp.array(ptr=..., strides=...). Gradients are checked against float64
+references computed with NumPy on fresh random data."""
+import re
+
+import numpy as np
+import pytest
+
+import weft as wp
+from weft.v1 import exec_pb2, types_pb2
+
+# kernels and the global the module-hash test rebinds
+SCALE = 2.0
+
+
+def scale_def(x: wp.array(dtype=float), s: float, y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = x[i] * s
+
+
+@wp.kernel
+def square(x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = x[i] * x[i]
+
+
+@wp.kernel
+def weighted_sum(x: wp.array(dtype=float), w: wp.array(dtype=float),
+                 loss: wp.array(dtype=float)):
+    i = wp.tid()
+    wp.atomic_add(loss, 0, w[i] * x[i])
+
+
+@wp.kernel
+def times_global(x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = x[i] * SCALE
+
+
+@wp.kernel
+def log_of(x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = wp.log(x[i])
+
+
+TOL = dict(rtol=1e-5, atol=1e-6)     # float32 kernels against float64 references
+
+
+# --- wp.Kernel, key, module -------------------------------------------------------------------
+
+def test_kernel_constructor_keys_and_options(wp, rng):
+    a = wp.Kernel(func=scale_def, key="scale_a")
+    b = wp.Kernel(scale_def, key="scale_b", options={"enable_backward": False})
+    assert (a.key, b.key, square.key) == ("scale_a", "scale_b", "square")
+    assert a.module is wp.get_module(__name__) and square.module.name == __name__
+    assert b.options == {"enable_backward": False}
+    assert a.module.options["enable_backward"] is True      # Warp's module defaults
+    x_np = rng.standard_normal(16)
+    x = wp.array(x_np, dtype=float)
+    y = wp.zeros(16, dtype=float)
+    wp.launch(a, dim=16, inputs=[x, 3.0, y])
+    np.testing.assert_allclose(y.numpy(), 3.0 * x_np.astype(np.float32), **TOL)
+    wp.launch(b, dim=16, inputs=[x, -0.5, y])
+    np.testing.assert_allclose(y.numpy(), -0.5 * x_np.astype(np.float32), **TOL)
+
+
+def test_kernel_in_named_module_and_load(wp):
+    k = wp.Kernel(func=scale_def, module=wp.get_module("weft_compat_isolated"))
+    assert k.key == "scale_def" and k.module.name == "weft_compat_isolated"
+    compiled = k.module.load("cpu", block_dim=1)
+    assert compiled is not None and compiled.module_id
+    assert k.module.load(wp.get_device("cpu")).module_id == compiled.module_id   # cached
+
+
+def test_module_hash_follows_globals(wp):
+    global SCALE
+    module = times_global.module
+    before = module.hash_module()
+    assert module.hash_module() == before
+    old = SCALE
+    try:
+        SCALE = 3.0
+        assert module.hash_module() != before
+    finally:
+        SCALE = old
+    assert module.hash_module() == before
+
+
+# --- wp.config ------------------------------------------------------------------------------
+
+def test_config_has_warp_settings(wp):
+    with pytest.raises(ValueError, match="LaunchArrayAccessMode"):
+        wp.config.launch_array_access_mode = 1
+    for name in ("enable_cpu_blocks", "verify_autograd_array_access", "cache_kernels",
+                 "kernel_cache_dir", "legacy_scalar_return_types", "optimization_level",
+                 "launch_array_access_mode", "deterministic", "log_level"):
+        assert hasattr(wp.config, name), name
+    assert wp.config.version == "1.19.0"
+    assert wp.config.LaunchArrayAccessMode.STRICT == 2
+
+
+def test_config_mode_is_checked_and_part_of_the_module(wp, rng):
+    before = square.module.hash_module()
+    old = wp.config.mode
+    try:
+        wp.config.mode = "debug"
+        assert square.module.hash_module() != before
+        x_np = rng.random(8) + 0.5
+        x = wp.array(x_np, dtype=float)
+        y = wp.zeros(8, dtype=float)
+        wp.launch(square, dim=8, inputs=[x, y])          # debug mode compiles and runs
+        np.testing.assert_allclose(y.numpy(), x_np.astype(np.float32) ** 2, **TOL)
+        wp.config.mode = "fastest"
+        with pytest.raises(ValueError, match="release' or 'debug"):
+            wp.launch(square, dim=8, inputs=[x, y])
+    finally:
+        wp.config.mode = old
+
+
+def test_config_print_launches(wp, capsys):
+    x = wp.ones(4, dtype=float)
+    y = wp.zeros(4, dtype=float)
+    wp.launch(square, dim=4, inputs=[x, y])
+    assert capsys.readouterr().out == ""
+    wp.config.print_launches = True
+    try:
+        wp.launch(square, dim=4, inputs=[x, y])
+    finally:
+        wp.config.print_launches = False
+    out = capsys.readouterr().out
+    assert out.startswith("kernel: square dim: 4 inputs: [") and "device: cpu" in out
+
+
+def test_config_verify_fp(wp, rng):
+    x_np = rng.random(8) + 0.1
+    x = wp.array(x_np, dtype=float)
+    y = wp.zeros(8, dtype=float)
+    wp.config.verify_fp = True
+    try:
+        wp.launch(log_of, dim=8, inputs=[x, y])          # finite: no error
+        np.testing.assert_allclose(y.numpy(), np.log(x_np.astype(np.float32)), **TOL)
+        x_np[3] = -1.0                                   # log(-1) = NaN
+        bad = wp.array(x_np, dtype=float)
+        with pytest.raises(FloatingPointError, match=r"kernel 'log_of'.*'y'.*NaN"):
+            wp.launch(log_of, dim=8, inputs=[bad, y])
+    finally:
+        wp.config.verify_fp = False
+    wp.launch(log_of, dim=8, inputs=[bad, y])            # off again: no check
+
+
+def test_config_verbose_reports_real_compiles(wp, kernel_module, capsys):
+    mod = kernel_module("""
+        @wp.kernel
+        def fresh(x: wp.array(dtype=float)):
+            i = wp.tid()
+            x[i] = x[i] + 41.0
+    """)
+    wp.config.verbose = True
+    try:
+        x = wp.zeros(2, dtype=float)
+        wp.launch(mod.fresh, dim=2, inputs=[x])
+        first = capsys.readouterr().out
+        wp.launch(mod.fresh, dim=2, inputs=[x])
+        second = capsys.readouterr().out
+    finally:
+        wp.config.verbose = False
+    assert re.match(rf"Module {mod.__name__} \w+ load on device 'cpu' took [0-9.]+ ms", first)
+    assert second == ""
+    np.testing.assert_array_equal(x.numpy(), 82.0)
+
+
+# --- gradients assigned after creation ---------------------------------------------------------
+
+def _square_loss(wp, x, w):
+    y = wp.zeros(x.shape[0], dtype=float, requires_grad=True)
+    loss = wp.zeros(1, dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(square, dim=x.shape[0], inputs=[x, y])
+        wp.launch(weighted_sum, dim=x.shape[0], inputs=[y, w, loss])
+    tape.backward(loss)
+    return tape
+
+
+def test_grad_assigned_after_creation_receives_gradients(wp, rng):
+    n = 64
+    x_np, w_np = rng.standard_normal(n), rng.standard_normal(n)
+    x = wp.array(x_np, dtype=float, requires_grad=True)
+    w = wp.array(w_np, dtype=float)
+    g = wp.zeros(n, dtype=float)
+    x.grad = g
+    assert x.grad is g and x.requires_grad
+    _square_loss(wp, x, w)
+    expected = 2.0 * x_np.astype(np.float32).astype(np.float64) * w_np.astype(np.float32)
+    np.testing.assert_allclose(g.numpy(), expected, **TOL)
+
+
+def test_requires_grad_set_after_creation(wp, rng):
+    n = 32
+    x_np, w_np = rng.standard_normal(n), rng.standard_normal(n)
+    x = wp.array(x_np, dtype=float)
+    w = wp.array(w_np, dtype=float)
+    assert x.grad is None and not x.requires_grad
+    x.requires_grad = True
+    assert x.grad is not None and x.grad.shape == (n,)
+    _square_loss(wp, x, w)
+    expected = 2.0 * x_np.astype(np.float32).astype(np.float64) * w_np.astype(np.float32)
+    np.testing.assert_allclose(x.grad.numpy(), expected, **TOL)
+    x.requires_grad = False
+    assert x.grad is None and not x.requires_grad
+    tape = _square_loss(wp, x, w)                        # x gets no gradient now
+    assert x.grad is None and tape is not None
+
+
+def test_grad_assignment_checks(wp):
+    x = wp.zeros(8, dtype=float, requires_grad=True)
+    with pytest.raises(ValueError, match="expected shape"):
+        x.grad = wp.zeros(4, dtype=float)
+    with pytest.raises(ValueError, match="expected dtype"):
+        x.grad = wp.zeros(8, dtype=wp.float64)
+    with pytest.raises(ValueError, match="whole array"):
+        x[2:6].grad = wp.zeros(4, dtype=float)
+    with pytest.raises(ValueError, match="whole array"):
+        x.grad = wp.zeros(16, dtype=float)[4:12]
+
+
+def test_set_grad_command_is_validated_by_the_daemon(wp):
+    """A client sending a bad SetGradCommand gets an error at the next sync, not a changed
+    gradient: a view, the array itself, a mismatched shape, a gradient with a gradient."""
+    from weft import _runtime
+
+    rt = _runtime.get_runtime()
+    a = wp.zeros(8, dtype=float, requires_grad=True)
+    old_grad = a.grad
+    short = wp.zeros(4, dtype=float)
+    with_grad = wp.zeros(8, dtype=float, requires_grad=True)
+    cases = [
+        (a._ref(), a[2:6]._ref(), "whole array"),
+        (a._ref(), a._ref(), "own gradient"),
+        (a._ref(), short._ref(), "does not match"),
+        (a._ref(), with_grad._ref(), "gradient of its own"),
+        (a._ref(), types_pb2.ArrayRef(handle=987654321), "unknown array handle"),
+    ]
+    for array_ref, grad_ref, message in cases:
+        rt.submit(exec_pb2.Command(set_grad=exec_pb2.SetGradCommand(array=array_ref,
+                                                                    grad=grad_ref)))
+        with pytest.raises(wp.WeftError, match=message):
+            wp.synchronize()
+    assert a.grad is old_grad
+    old_grad.fill_(5.0)
+    np.testing.assert_array_equal(a.grad.numpy(), 5.0)
+
+
+# --- tapes -------------------------------------------------------------------------------------
+
+def test_backward_inside_with_tape_and_no_nesting(wp, rng):
+    n = 16
+    x_np, w_np = rng.standard_normal(n), rng.standard_normal(n)
+    x = wp.array(x_np, dtype=float, requires_grad=True)
+    w = wp.array(w_np, dtype=float)
+    y = wp.zeros(n, dtype=float, requires_grad=True)
+    loss = wp.zeros(1, dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(square, dim=n, inputs=[x, y])
+        wp.launch(weighted_sum, dim=n, inputs=[y, w, loss])
+        tape.backward(loss)
+        with pytest.raises(RuntimeError, match="already active"):
+            with wp.Tape():
+                pass
+    expected = 2.0 * x_np.astype(np.float32).astype(np.float64) * w_np.astype(np.float32)
+    np.testing.assert_allclose(x.grad.numpy(), expected, **TOL)
+    assert len(tape.launches) == 2                       # the backward was not recorded
+
+
+def test_copy_clone_and_assign_are_recorded(wp, rng):
+    n = 12
+    x_np, w_np = rng.standard_normal(n), rng.standard_normal(n)
+    w = wp.array(w_np, dtype=float)
+    w32 = w_np.astype(np.float32).astype(np.float64)
+    for how in ("clone", "copy", "assign"):
+        x = wp.array(x_np, dtype=float, requires_grad=True)
+        loss = wp.zeros(1, dtype=float, requires_grad=True)
+        tape = wp.Tape()
+        with tape:
+            if how == "clone":
+                c = wp.clone(x)
+            else:
+                c = wp.zeros(n, dtype=float, requires_grad=True)
+                wp.copy(c, x) if how == "copy" else c.assign(x)
+            wp.launch(weighted_sum, dim=n, inputs=[x, w, loss])   # x read directly too
+            wp.launch(weighted_sum, dim=n, inputs=[c, w, loss])
+        tape.backward(loss)
+        np.testing.assert_allclose(x.grad.numpy(), 2.0 * w32, **TOL, err_msg=how)
+
+
+def test_windowed_copy_of_a_strided_column_is_recorded(wp, rng):
+    base_np = rng.standard_normal((5, 4))
+    w_np = rng.standard_normal(3)
+    base = wp.array(base_np, dtype=float, requires_grad=True)
+    dst = wp.zeros(3, dtype=float, requires_grad=True)
+    loss = wp.zeros(1, dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.copy(dst, base[:, 1], src_offset=2, count=3)
+        wp.launch(weighted_sum, dim=3, inputs=[dst, wp.array(w_np, dtype=float), loss])
+    tape.backward(loss)
+    np.testing.assert_allclose(dst.numpy(), base_np[2:, 1].astype(np.float32))
+    expected = np.zeros((5, 4))
+    expected[2:, 1] = w_np.astype(np.float32)
+    np.testing.assert_allclose(base.grad.numpy(), expected, **TOL)
+
+
+# --- record_cmd ---------------------------------------------------------------------------------
+
+def test_record_cmd_returns_a_launch(wp, rng):
+    n = 10
+    x_np = rng.standard_normal(n)
+    x = wp.array(x_np, dtype=float)
+    y = wp.zeros(n, dtype=float)
+    cmd = wp.launch(wp.Kernel(scale_def, key="scale_cmd"), dim=n, inputs=[x, 2.0, y],
+                    record_cmd=True)
+    assert isinstance(cmd, wp.Launch)
+    np.testing.assert_array_equal(y.numpy(), 0.0)        # recorded, not run
+    cmd.launch()
+    np.testing.assert_allclose(y.numpy(), 2.0 * x_np.astype(np.float32), **TOL)
+    cmd.set_param_at_index(1, -3.0)
+    cmd.set_dim(4)
+    cmd.launch()
+    expected = 2.0 * x_np.astype(np.float32)
+    expected[:4] = -3.0 * x_np[:4].astype(np.float32)
+    np.testing.assert_allclose(y.numpy(), expected, **TOL)
+    cmd.set_param_by_name("s", 0.25)
+    cmd.set_params([x, 0.5, y])
+    cmd.launch()
+    expected[:4] = 0.5 * x_np[:4].astype(np.float32)
+    np.testing.assert_allclose(y.numpy(), expected, **TOL)
+    with pytest.raises(TypeError, match="Invalid argument 's'"):
+        cmd.set_param_at_index(1, x)
+    with pytest.raises(KeyError):
+        cmd.set_param_by_name("nope", 1.0)
+
+
+# --- types and arrays ---------------------------------------------------------------------------
+
+def test_type_repr(wp):
+    tr = wp.types.type_repr
+    assert [tr(t) for t in (wp.float32, wp.vec3, wp.vec2d, wp.mat33, wp.mat22h, wp.quat,
+                            wp.transformd, wp.uint8, float, int, bool)] == [
+        "float32", "vec3f", "vec2d", "mat33f", "mat22h", "quatf", "transformd", "uint8",
+        "float", "int", "bool"]
+    assert tr(wp.types.vector(5, wp.float64)) == "vector(length=5, dtype=float64)"
+    assert tr(wp.types.matrix((2, 5), wp.int32)) == "matrix(shape=(2, 5), dtype=int32)"
+    assert tr(wp.array(dtype=wp.vec3, ndim=2)) == "array(ndim=2, dtype=vec3f)"
+    assert tr(wp.zeros((2, 3), dtype=float)) == "array(shape=(2, 3), dtype=float32)"
+    assert tr(wp.types.Any) == "Any"
+
+
+def test_full_infers_dtype_like_warp(wp):
+    assert wp.full(3, 7).dtype is wp.int32
+    assert wp.full(3, 7.5).dtype is wp.float32
+    v = wp.full(3, [1.0, 2.0, 3.0])                      # Python floats: float64 components
+    assert v.dtype is wp.vec3d
+    np.testing.assert_array_equal(v.numpy(), [[1.0, 2.0, 3.0]] * 3)
+    m = wp.full(2, np.array([[1, 2], [3, 4]], dtype=np.int16))
+    assert m.dtype is wp.types.matrix((2, 2), wp.int16)
+    assert wp.full(2, np.float16(1.5)).dtype is wp.float16
+    with pytest.raises(ValueError, match="more than two dimensions"):
+        wp.full(2, np.zeros((2, 2, 2)))
+
+
+def test_array_from_ptr_is_a_view(wp, rng):
+    data = rng.standard_normal(24).astype(np.float32)
+    a = wp.array(data, dtype=float)
+    b = wp.array(ptr=a.ptr + 4 * 4, shape=(2, 5), dtype=wp.float32)
+    np.testing.assert_array_equal(b.numpy(), data[4:14].reshape(2, 5))
+    c = wp.array(ptr=a.ptr + 4, shape=(4,), strides=(20,), dtype=wp.float32)
+    np.testing.assert_array_equal(c.numpy(), data[1::5][:4])
+    v = wp.array(ptr=a.ptr, shape=(8,), dtype=wp.vec3)
+    np.testing.assert_array_equal(v.numpy(), data.reshape(8, 3))
+    b.fill_(0.0)                                         # the same memory
+    assert not a.numpy()[4:14].any()
+    with pytest.raises(RuntimeError, match="exceeds the allocation"):
+        wp.array(ptr=a.ptr + 4, shape=(24,), dtype=wp.float32)
+    other = np.zeros(4, dtype=np.float32)
+    with pytest.raises(RuntimeError, match="only wrap memory of weft arrays"):
+        wp.array(ptr=other.ctypes.data, shape=(4,), dtype=wp.float32)
