@@ -112,9 +112,11 @@ Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapsh
 
 namespace {
 
-// A ref that names its whole allocation: offset 0, the allocation's shape, contiguous strides.
+// A ref that names its whole allocation: offset 0, the allocation's shape (or none),
+// contiguous strides (or none).
 Status CheckWhole(const Allocation& a, const ArrayRef& ref, const std::string& what) {
-  if (ref.byte_offset != 0 || ref.shape != a.shape || (!ref.strides.empty() && ref.strides != a.strides))
+  if (ref.byte_offset != 0 || (!ref.shape.empty() && ref.shape != a.shape) ||
+      (!ref.strides.empty() && ref.strides != a.strides))
     return InvalidArgument(what + ": must name the whole array " + std::to_string(a.handle) + " " +
                            ShapeString(a.shape) + " (offset 0, contiguous), not a view of it");
   return Status::Ok();

@@ -1,7 +1,8 @@
 // Per-session tapes with hand-written forward/backward kernels: backward(loss) seeds 1 and
 // replays adjoints in reverse (chain of two launches checked against the analytic gradient),
 // backward(grads=...) seeds, zero/reset, explicit adjoint launches, lazy backward loading,
-// freed arrays and empty tapes as clear errors, and isolation between sessions.
+// freed arrays and empty tapes as clear errors, isolation between sessions, and gradients
+// replaced by SetGradCommand.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -142,6 +143,65 @@ TEST(Tape, BackwardWithSeedGradients) {
   ASSERT_TRUE(t.Run({Cmd(T(TapeCommand::Op::kBegin, 7)), Cmd(L("square", xa->handle, ya->handle, 3)),
                      Cmd(T(TapeCommand::Op::kEnd, 7)), Cmd(bw)}).ok());
   EXPECT_EQ(ReadFloats(*t.e, *t.s, xa->grad_handle), (std::vector<float>{2, 40, 600}));
+}
+
+Command SetGradCmd(SetGradCommand g) {
+  Command c;
+  c.kind = std::move(g);
+  return c;
+}
+
+Command SetGrad(uint64_t array, uint64_t grad) {
+  SetGradCommand c;
+  c.array.handle = array;
+  c.grad.handle = grad;
+  return SetGradCmd(c);
+}
+
+TEST(Tape, SetGradRedirectsBackwardAndKeepsReplacedGradientsHeld) {
+  TapeRig t;
+  auto xa = t.e->CreateArray(*t.s, FromFloats({1, 2, 3}, true));
+  auto ya = t.e->CreateArray(*t.s, FromFloats({0, 0, 0}, true));
+  auto g = t.e->CreateArray(*t.s, FromFloats({0, 0, 0}));
+  auto seed = t.e->CreateArray(*t.s, FromFloats({1, 10, 100}));
+  const uint64_t created = xa->grad_handle;
+  TapeCommand bw = T(TapeCommand::Op::kBackward, 3);
+  bw.seeds.emplace_back(ArrayRef{ya->handle, 0, {}, {}}, ArrayRef{seed->handle, 0, {}, {}});
+  ASSERT_TRUE(t.Run({SetGrad(xa->handle, g->handle), Cmd(T(TapeCommand::Op::kBegin, 3)),
+                     Cmd(L("square", xa->handle, ya->handle, 3)), Cmd(T(TapeCommand::Op::kEnd, 3)), Cmd(bw)})
+                  .ok());
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, g->handle), (std::vector<float>{2, 40, 600}));
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, created), (std::vector<float>{0, 0, 0}));   // still held, untouched
+  EXPECT_EQ(t.e->DescribeArray(*t.s, xa->handle)->grad_handle, g->handle);
+  // No gradient: a later backward leaves x alone.
+  ASSERT_TRUE(t.Run({SetGrad(xa->handle, 0), Cmd(bw)}).ok());
+  EXPECT_EQ(t.e->DescribeArray(*t.s, xa->handle)->grad_handle, 0u);
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, g->handle), (std::vector<float>{2, 40, 600}));
+  // Freeing the array releases the gradient the daemon made for it, not the assigned one.
+  ASSERT_TRUE(t.e->FreeArray(*t.s, xa->handle).ok());
+  EXPECT_FALSE(t.s->Holds(created));
+  EXPECT_TRUE(t.s->Holds(g->handle));
+}
+
+TEST(Tape, SetGradRejectsViewsSelfCyclesAndMismatches) {
+  TapeRig t;
+  auto xa = t.e->CreateArray(*t.s, FromFloats({1, 2, 3, 4}, true));
+  auto short_a = t.e->CreateArray(*t.s, FromFloats({0, 0}));
+  auto with_grad = t.e->CreateArray(*t.s, FromFloats({0, 0, 0, 0}, true));
+  SetGradCommand view;
+  view.array.handle = xa->handle;
+  view.array.byte_offset = 4;
+  view.array.shape = {3};
+  view.grad.handle = short_a->handle;
+  const std::vector<Command> bad = {SetGradCmd(view), SetGrad(xa->handle, xa->handle),
+                                    SetGrad(xa->handle, short_a->handle), SetGrad(xa->handle, with_grad->handle)};
+  for (const Command& c : bad) {
+    Status st = t.Run({c});
+    EXPECT_EQ(st.code(), StatusCode::kInvalidArgument) << st.ToString();
+    EXPECT_EQ(t.e->DescribeArray(*t.s, xa->handle)->grad_handle, xa->grad_handle);
+  }
+  Status unknown = t.Run({SetGrad(xa->handle, 999999)});
+  EXPECT_EQ(unknown.code(), StatusCode::kNotFound) << unknown.ToString();
 }
 
 TEST(Tape, ExplicitAdjointLaunchWithoutTape) {

@@ -1,9 +1,17 @@
-"""wp.utils: the Python-scope helpers of Warp that weft supports (ScopedTimer)."""
+"""wp.utils: Warp's Python-scope helpers: ScopedTimer, and the array algorithms array_scan,
+array_sum, array_inner, array_cast, radix_sort_pairs, segmented_sort_pairs and
+runlength_encode. The algorithms wait for the arrays' pending commands, compute on the arrays'
+contents (zero-copy NumPy views for local CPU arrays) and write the results back into the
+output arrays; they check their arguments with Warp's messages."""
 from __future__ import annotations
 
+import operator
 import time
 
-__all__ = ["ScopedTimer"]
+import numpy as np
+
+__all__ = ["ScopedTimer", "array_cast", "array_inner", "array_scan", "array_sum",
+           "radix_sort_pairs", "runlength_encode", "segmented_sort_pairs"]
 
 
 class ScopedTimer:
@@ -52,3 +60,351 @@ class ScopedTimer:
         if self.print:
             print(f"{'  ' * ScopedTimer.indent}{self.name} took {self.elapsed:.2f} ms")
         ScopedTimer.indent -= 1
+
+
+# ------------------------------------------------------------------------------------------
+# Array algorithms
+
+
+def _types():
+    from . import types  # noqa: PLC0415 - weft.types imports nothing from here
+
+    return types
+
+
+def _name(dtype) -> str:
+    return _types().type_repr(dtype)
+
+
+def _scalar(dtype):
+    return getattr(dtype, "_wp_scalar_type_", dtype)
+
+
+def _length(dtype) -> int:
+    return int(getattr(dtype, "_length_", 1))
+
+
+def _values(a) -> np.ndarray:
+    """The array's elements as NumPy, components last (vec3 -> (..., 3))."""
+    return np.asarray(a.numpy())
+
+
+def _write(out, values) -> None:
+    out.assign(np.asarray(values))
+
+
+def _same_dtype(a, b) -> bool:
+    t = _types()
+    return t.type_str(a) == t.type_str(b)
+
+
+def array_scan(in_array, out_array, inclusive: bool = True) -> None:
+    """Prefix sum of in_array into out_array (inclusive or exclusive), per vector component.
+    int32, int64, float32, float64 and vectors of them."""
+    if in_array.device != out_array.device:
+        raise RuntimeError(f"In and out array storage devices do not match "
+                           f"({in_array.device} vs {out_array.device})")
+    if in_array.size != out_array.size:
+        raise RuntimeError(f"In and out array storage sizes do not match "
+                           f"({in_array.size} vs {out_array.size})")
+    if not _same_dtype(in_array.dtype, out_array.dtype):
+        raise RuntimeError(f"In and out array data types do not match "
+                           f"({_name(in_array.dtype)} vs {_name(out_array.dtype)})")
+    t = _types()
+    if _scalar(in_array.dtype) not in (t.int32, t.int64, t.float32, t.float64):
+        raise RuntimeError(f"Unsupported data type: {_name(in_array.dtype)}")
+    if in_array.size == 0:
+        return
+    n = _length(in_array.dtype)
+    flat = _values(in_array).reshape(in_array.size, n)
+    result = np.cumsum(flat, axis=0, dtype=flat.dtype)
+    if not inclusive:
+        result = np.concatenate([np.zeros_like(result[:1]), result[:-1]])
+    _write(out_array, result.reshape(_values(out_array).shape))
+
+
+def _reduce_checks(name, dtype, out, expected_shape):
+    t = _types()
+    if _scalar(dtype) not in t.float_types:
+        raise RuntimeError(f"Unsupported data type: {_name(dtype)}")
+    if out is not None:
+        if not _same_dtype(out.dtype, dtype):
+            raise RuntimeError(f"out array should have type {_name(dtype)}")
+        if tuple(out.shape) != tuple(expected_shape):
+            raise RuntimeError(f"out array should have shape {tuple(expected_shape)}")
+
+
+def _reduced_shape(shape, axis):
+    if axis is None:
+        return (1,)
+    axis = operator.index(axis)
+    if not -len(shape) <= axis < len(shape):
+        raise ValueError(f"axis {axis} is out of range for an array of {len(shape)} dimensions")
+    axis %= len(shape)
+    return tuple(n for i, n in enumerate(shape) if i != axis) or (1,)
+
+
+def array_sum(values, out=None, value_count=None, axis=None):
+    """Sum of a float array (of scalars or vectors): over all elements (the first value_count
+    of a 1-d array) or along `axis`. Returns the sum when out is None, else writes it to out."""
+    if out is not None and out.device != values.device:
+        raise RuntimeError(f"out array storage device ({out.device}) does not match the values "
+                           f"array ({values.device})")
+    shape = _reduced_shape(values.shape, axis)
+    _reduce_checks("array_sum", values.dtype, out, shape)
+    data = _values(values)
+    n = _length(values.dtype)
+    comp = data.reshape(tuple(values.shape) + ((n,) if n > 1 else ()))
+    if axis is None:
+        if value_count is not None:
+            comp = comp.reshape((values.size,) + comp.shape[values.ndim:])[:int(value_count)]
+        result = comp.reshape((-1,) + comp.shape[values.ndim:] if value_count is None
+                              else comp.shape).sum(axis=0, dtype=comp.dtype)
+        result = result.reshape((1,) + result.shape)
+    else:
+        result = comp.sum(axis=axis % values.ndim, dtype=comp.dtype)
+    if out is not None:
+        _write(out, result.reshape(_values(out).shape))
+        return None
+    if axis is None:
+        value = result[0]
+        return _types().vector(n, _scalar(values.dtype))(*value) if n > 1 else value
+    from .array import array  # noqa: PLC0415
+
+    return array(result, dtype=values.dtype, device=values.device)
+
+
+def array_inner(a, b, out=None, count=None, axis=None):
+    """Inner product of two float arrays of one shape and dtype (vectors: the sum of the
+    componentwise products). Returns it when out is None, else writes it to out."""
+    if tuple(a.shape) != tuple(b.shape):
+        raise ValueError(f"array_inner() arguments must have the same shape, got "
+                         f"{tuple(a.shape)} and {tuple(b.shape)}")
+    if a.device != b.device:
+        raise RuntimeError(f"A and b array storage devices do not match ({a.device} vs "
+                           f"{b.device})")
+    if out is not None and out.device != a.device:
+        raise RuntimeError(f"out array storage device ({out.device}) does not match the "
+                           f"input arrays ({a.device})")
+    if not _same_dtype(a.dtype, b.dtype):
+        raise RuntimeError(f"A and b array data types do not match ({_name(a.dtype)} vs "
+                           f"{_name(b.dtype)})")
+    scalar = _scalar(a.dtype)
+    shape = _reduced_shape(a.shape, axis)
+    _reduce_checks("array_inner", a.dtype, None, shape)
+    if out is not None:
+        _reduce_checks("array_inner", scalar, out, shape)
+    n = _length(a.dtype)
+    x = _values(a).reshape(tuple(a.shape) + (n,))
+    y = _values(b).reshape(tuple(b.shape) + (n,))
+    products = (x * y).sum(axis=-1, dtype=x.dtype)
+    if axis is None:
+        products = products.reshape(-1)
+        if count is not None:
+            products = products[:int(count)]
+        result = products.sum(dtype=x.dtype).reshape(1)
+    else:
+        result = products.sum(axis=axis % a.ndim, dtype=x.dtype)
+    if out is not None:
+        _write(out, result.reshape(_values(out).shape))
+        return None
+    if axis is None:
+        return result[0]
+    from .array import array  # noqa: PLC0415
+
+    return array(result, dtype=scalar, device=a.device)
+
+
+def array_cast(in_array, out_array, count=None) -> None:
+    """Converts in_array's scalars to out_array's scalar type (C casts: floats truncate to
+    ints). Arrays of several dimensions need one shape; 1-d arrays convert the first `count`
+    elements (default: all of in_array), component by component."""
+    if in_array.device != out_array.device:
+        raise RuntimeError(f"Array storage devices do not match ({in_array.device} vs "
+                           f"{out_array.device})")
+    multi = in_array.ndim > 1 and out_array.ndim > 1
+    if multi and tuple(in_array.shape) != tuple(out_array.shape):
+        raise RuntimeError(f"Array shapes do not match ({tuple(in_array.shape)} vs "
+                           f"{tuple(out_array.shape)})")
+    if count is not None and (in_array.ndim > 1 or out_array.ndim > 1):
+        raise RuntimeError("Partial cast is not supported for arrays with more than one "
+                           "dimension")
+    n_in = _length(in_array.dtype)
+    n_out = _length(out_array.dtype)
+    if count is None:
+        count = in_array.size
+    count = int(count)
+    if count > in_array.size or count * n_in > out_array.size * n_out:
+        raise RuntimeError(f"Cast count ({count}) exceeds the input size ({in_array.size}) or "
+                           f"output size ({out_array.size})")
+    if count == 0:
+        return
+    t = _types()
+    src = _values(in_array).reshape(-1)[:count * n_in]
+    target = np.dtype(t.np_scalar_dtype(_scalar(out_array.dtype)))
+    converted = src.astype(target)
+    if count * n_in == out_array.size * n_out:
+        _write(out_array, converted.reshape(_values(out_array).shape))
+        return
+    current = np.array(_values(out_array)).reshape(-1)
+    current[:count * n_in] = converted
+    _write(out_array, current.reshape(_values(out_array).shape))
+
+
+_SORT_KEYS = ("int32", "uint32", "float32", "int64", "uint64", "float64")
+
+
+def _orderable(keys: np.ndarray) -> np.ndarray:
+    """Keys as unsigned integers whose order is the keys' numeric order (radix-sort keys)."""
+    bits = keys.dtype.itemsize * 8
+    unsigned = np.dtype(f"uint{bits}")
+    raw = keys.view(unsigned)
+    sign = unsigned.type(1 << (bits - 1))
+    if keys.dtype.kind == "i":
+        return raw ^ sign
+    if keys.dtype.kind == "f":
+        negative = (raw & sign) != 0
+        return np.where(negative, ~raw, raw | sign)
+    return raw
+
+
+def _check_contiguous(what, name, array, keys, values):
+    if not array.is_contiguous:
+        raise RuntimeError(f"{what}() requires a contiguous {name} array, got non-contiguous "
+                           f"{name} with data types: {_name(keys.dtype)}, {_name(values.dtype)}")
+
+
+def radix_sort_pairs(keys, values, count: int, begin_bit: int = 0, end_bit=None) -> None:
+    """Sorts the first `count` keys (stable, by bits [begin_bit, end_bit) of their numeric
+    order) and moves the values with them. Like Warp's, both arrays must hold 2*count elements
+    (the second half is scratch space)."""
+    if keys.device != values.device:
+        raise RuntimeError(f"Keys and values array storage devices do not match "
+                           f"({keys.device} vs {values.device})")
+    _check_contiguous("radix_sort_pairs", "keys", keys, keys, values)
+    _check_contiguous("radix_sort_pairs", "values", values, keys, values)
+    if keys.size < 2 * count or values.size < 2 * count:
+        raise RuntimeError("Keys and values array storage must be large enough to contain "
+                           "2*count elements")
+    key_name, value_name = _name(keys.dtype), _name(values.dtype)
+    if key_name not in _SORT_KEYS or value_name not in _SORT_KEYS:
+        raise RuntimeError(f"Unsupported keys and values data types: {key_name}, {value_name}")
+    bits = _types().type_size_in_bytes(keys.dtype) * 8
+    end = bits if end_bit is None else int(end_bit)
+    if not 0 <= int(begin_bit) <= end <= bits:
+        raise RuntimeError(f"Invalid radix sort bit range [{begin_bit}, {end}) for {bits}-bit "
+                           f"keys")
+    if count == 0:
+        return
+    k = _values(keys).reshape(-1)
+    v = _values(values).reshape(-1)
+    ordered = _orderable(np.ascontiguousarray(k[:count]))
+    width = end - int(begin_bit)
+    digits = (ordered >> ordered.dtype.type(int(begin_bit)))
+    if width < bits:
+        digits = digits & ordered.dtype.type((1 << width) - 1)
+    order = np.argsort(digits, kind="stable")
+    new_keys, new_values = k.copy(), v.copy()
+    new_keys[:count] = k[:count][order]
+    new_values[:count] = v[:count][order]
+    _write(keys, new_keys)
+    _write(values, new_values)
+
+
+def _check_count(count) -> int:
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)):
+        raise TypeError(f"count must be an integer, got {type(count).__name__}")
+    count = int(count)
+    if count < 0:
+        raise ValueError(f"count must be non-negative, got {count}")
+    if count > 2**31 - 1:
+        raise ValueError(f"count must not exceed {2**31 - 1}, got {count}")
+    return count
+
+
+def segmented_sort_pairs(keys, values, count: int, segment_start_indices,
+                         segment_end_indices=None) -> None:
+    """Sorts each segment [start[i], end[i]) of the first `count` keys (stable; int32 or
+    float32 keys with int32 values) and moves the values with them. Without end indices,
+    segment i ends where segment i+1 starts (the last start only closes the one before).
+    Both arrays must hold 2*count elements."""
+    starts, ends = segment_start_indices, segment_end_indices
+    devices = {keys.device, values.device, starts.device} | (
+        {ends.device} if ends is not None else set())
+    if len(devices) > 1:
+        raise RuntimeError("Keys, values, and segment index array storage devices must match")
+    count = _check_count(count)
+    for name, arr in (("keys", keys), ("values", values), ("segment_start_indices", starts),
+                      ("segment_end_indices", ends)):
+        if arr is not None and not arr.is_contiguous:
+            raise RuntimeError(f"segmented_sort_pairs() requires a contiguous {name} array")
+    if starts.ndim != 1:
+        raise RuntimeError("segment_start_indices must be one-dimensional")
+    if ends is not None and ends.ndim != 1:
+        raise RuntimeError("segment_end_indices must be one-dimensional")
+    if ends is not None and starts.size != ends.size:
+        raise RuntimeError(f"segment_start_indices and segment_end_indices must have the same "
+                           f"size ({starts.size} vs {ends.size})")
+    if keys.size < 2 * count or values.size < 2 * count:
+        raise RuntimeError("Array storage must be large enough to contain 2*count elements")
+    if (_name(keys.dtype) not in ("int32", "float32")) or _name(values.dtype) != "int32":
+        raise RuntimeError(f"Unsupported data type: {_name(keys.dtype)}")
+    if count == 0:
+        return
+    s = _values(starts).astype(np.int64).reshape(-1)
+    if ends is None:
+        e = s[1:]
+        s = s[:-1]
+    else:
+        e = _values(ends).astype(np.int64).reshape(-1)
+    for i, (lo, hi) in enumerate(zip(s, e)):
+        if lo < 0 or hi < lo or hi > count:
+            raise ValueError(f"Invalid segment range at index {i}: [{lo}, {hi}) with count "
+                             f"{count}")
+    if s.size == 0:
+        return
+    k = _values(keys).reshape(-1).copy()
+    v = _values(values).reshape(-1).copy()
+    for lo, hi in zip(s, e):
+        order = np.argsort(k[lo:hi], kind="stable")
+        k[lo:hi] = k[lo:hi][order]
+        v[lo:hi] = v[lo:hi][order]
+    _write(keys, k)
+    _write(values, v)
+
+
+def runlength_encode(values, run_values, run_lengths, run_count=None, value_count=None):
+    """Run-length encodes the first value_count values (default: all): run_values gets each
+    run's value, run_lengths its length. Returns the number of runs when run_count is None,
+    else writes it to run_count[0]."""
+    if run_values.device != values.device or run_lengths.device != values.device:
+        raise RuntimeError("Values, run values and run lengths must live on one device")
+    if not _same_dtype(run_values.dtype, values.dtype):
+        raise RuntimeError(f"values and run_values data types do not match "
+                           f"({_name(values.dtype)} vs {_name(run_values.dtype)})")
+    if _name(run_lengths.dtype) != "int32":
+        raise RuntimeError(f"run_lengths array must be of type int32, got "
+                           f"{_name(run_lengths.dtype)}")
+    n = values.size if value_count is None else int(value_count)
+    if n > values.size:
+        raise RuntimeError(f"value_count ({n}) exceeds the values array size ({values.size})")
+    data = _values(values).reshape(values.size, -1)[:n]
+    if n == 0:
+        runs = 0
+    else:
+        change = np.any(data[1:] != data[:-1], axis=1)
+        starts = np.concatenate([[0], np.nonzero(change)[0] + 1])
+        lengths = np.diff(np.concatenate([starts, [n]]))
+        runs = int(starts.size)
+        if runs > run_values.size or runs > run_lengths.size:
+            raise RuntimeError(f"run_values and run_lengths must hold {runs} runs")
+        rv = np.array(_values(run_values)).reshape(run_values.size, -1)
+        rl = np.array(_values(run_lengths)).reshape(-1)
+        rv[:runs] = data[starts]
+        rl[:runs] = lengths
+        _write(run_values, rv.reshape(_values(run_values).shape))
+        _write(run_lengths, rl)
+    if run_count is None:
+        return runs
+    _write(run_count, np.array([runs], dtype=np.int32).reshape(_values(run_count).shape))
+    return None

@@ -389,3 +389,84 @@ def test_array_from_ptr_is_a_view(wp, rng):
     other = np.zeros(4, dtype=np.float32)
     with pytest.raises(RuntimeError, match="only wrap memory of weft arrays"):
         wp.array(ptr=other.ctypes.data, shape=(4,), dtype=wp.float32)
+
+
+# --- wp.utils array algorithms -------------------------------------------------------------------
+
+def test_utils_scan_sum_inner_against_numpy(wp, rng):
+    for dtype, np_dtype, tol in ((wp.int32, np.int32, 0), (wp.float64, np.float64, 1e-12),
+                                 (wp.float32, np.float32, 1e-5)):
+        if np_dtype is np.int32:
+            values_np = rng.integers(-1000, 1000, size=500).astype(np_dtype)
+        else:
+            values_np = rng.uniform(-10, 10, size=500).astype(np_dtype)
+        reference = np.cumsum(values_np.astype(np.float64))
+        values = wp.array(values_np, dtype=dtype)
+        inclusive, exclusive = wp.zeros_like(values), wp.zeros_like(values)
+        wp.utils.array_scan(values, inclusive, True)
+        wp.utils.array_scan(values, exclusive, False)
+        scale = np.abs(reference).max()
+        assert np.abs(inclusive.numpy() - reference).max() <= tol * scale
+        assert exclusive.numpy()[0] == 0
+        assert np.abs(exclusive.numpy()[1:] - reference[:-1]).max() <= tol * scale
+    x_np, y_np = rng.standard_normal((40, 3)), rng.standard_normal((40, 3))
+    x, y = wp.array(x_np, dtype=wp.vec3d), wp.array(y_np, dtype=wp.vec3d)
+    np.testing.assert_allclose(wp.utils.array_inner(x, y), (x_np * y_np).sum(), rtol=1e-12)
+    s = wp.array(x_np[:, 0], dtype=wp.float64)
+    np.testing.assert_allclose(wp.utils.array_sum(s), x_np[:, 0].sum(), rtol=1e-12)
+    out = wp.empty(1, dtype=wp.float64)
+    wp.utils.array_sum(s, out=out)
+    np.testing.assert_allclose(out.numpy()[0], x_np[:, 0].sum(), rtol=1e-12)
+    with pytest.raises(RuntimeError, match=r"^Unsupported data type: int32$"):
+        wp.utils.array_sum(wp.zeros(3, dtype=int))
+    with pytest.raises(RuntimeError, match=r"In and out array data types do not match"):
+        wp.utils.array_scan(wp.zeros(3, dtype=int), wp.zeros(3, dtype=float))
+    with pytest.raises(ValueError, match=r"must have the same shape, got \(2,\) and \(3,\)"):
+        wp.utils.array_inner(wp.zeros(2, dtype=float), wp.zeros(3, dtype=float))
+
+
+def test_utils_sorts_and_run_length(wp, rng):
+    n = 300
+    keys_np = rng.integers(-2**40, 2**40, size=n)
+    values_np = np.arange(n, dtype=np.int32)
+    keys = wp.array(np.concatenate([keys_np, np.zeros(n, np.int64)]), dtype=wp.int64)
+    values = wp.array(np.concatenate([values_np, np.zeros(n, np.int32)]), dtype=wp.int32)
+    wp.utils.radix_sort_pairs(keys, values, n)
+    order = np.argsort(keys_np, kind="stable")
+    np.testing.assert_array_equal(keys.numpy()[:n], keys_np[order])
+    np.testing.assert_array_equal(values.numpy()[:n], values_np[order])
+    fkeys_np = rng.standard_normal(n).astype(np.float32)
+    fkeys = wp.array(np.concatenate([fkeys_np, np.zeros(n, np.float32)]), dtype=wp.float32)
+    values = wp.array(np.concatenate([values_np, np.zeros(n, np.int32)]), dtype=wp.int32)
+    bounds = np.array([0, 100, 250, n], dtype=np.int32)
+    wp.utils.segmented_sort_pairs(fkeys, values, n, wp.array(bounds[:-1], dtype=int),
+                                  wp.array(bounds[1:], dtype=int))
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        seg = np.argsort(fkeys_np[lo:hi], kind="stable")
+        np.testing.assert_array_equal(fkeys.numpy()[lo:hi], fkeys_np[lo:hi][seg])
+        np.testing.assert_array_equal(values.numpy()[lo:hi], values_np[lo:hi][seg])
+    with pytest.raises(RuntimeError, match=r"2\*count elements$"):
+        wp.utils.radix_sort_pairs(wp.zeros(3, dtype=int), wp.zeros(3, dtype=int), 3)
+    runs_np = np.repeat(rng.integers(0, 5, size=30), rng.integers(1, 4, size=30))
+    run_values = wp.zeros(runs_np.size, dtype=int)
+    run_lengths = wp.zeros(runs_np.size, dtype=int)
+    count = wp.utils.runlength_encode(wp.array(runs_np, dtype=int), run_values, run_lengths)
+    starts = np.concatenate([[0], np.nonzero(np.diff(runs_np))[0] + 1])
+    assert count == starts.size
+    np.testing.assert_array_equal(run_values.numpy()[:count], runs_np[starts])
+    np.testing.assert_array_equal(run_lengths.numpy()[:count],
+                                  np.diff(np.concatenate([starts, [runs_np.size]])))
+
+
+def test_utils_array_cast(wp, rng):
+    x_np = rng.uniform(-100, 100, size=(3, 4))
+    x = wp.array(x_np, dtype=wp.float64)
+    out = wp.zeros((3, 4), dtype=wp.int32)
+    wp.utils.array_cast(x, out)
+    np.testing.assert_array_equal(out.numpy(), x_np.astype(np.int32))   # C truncation
+    v = wp.array(((1, 2), (3, 4)), dtype=wp.vec2)
+    flat = wp.zeros(4, dtype=wp.float64)
+    wp.utils.array_cast(v, flat, count=1)
+    np.testing.assert_array_equal(flat.numpy(), [1.0, 2.0, 0.0, 0.0])
+    with pytest.raises(RuntimeError, match=r"Array shapes do not match"):
+        wp.utils.array_cast(x, wp.zeros((4, 3), dtype=wp.int32))
