@@ -619,12 +619,13 @@ class array:
                 self.shape == tuple(int(s) for s in self._info.shape) and self.is_contiguous)
 
     def _set_daemon_grad(self, value) -> None:
+        """Tells the daemon when both are whole arrays (it keeps gradients per allocation); a
+        view's gradient stays with this view object (explicit adjoint launches use it, the
+        daemon's tape uses the allocation's)."""
         if value is not None and value._handle == self._handle:
             raise ValueError("an array cannot be its own gradient")
-        for which, arr in (("array", self), ("gradient", value)):
-            if arr is not None and not arr._is_whole():
-                raise ValueError(f"weft keeps gradients per allocation: the {which} of "
-                                 f"`a.grad = g` must be a whole array, not a view or slice")
+        if not self._is_whole() or (value is not None and not value._is_whole()):
+            return
         rt = self._alloc.runtime
         ep = _runtime.exec_pb2
         grad_ref = value._ref() if value is not None else _runtime.types_pb2.ArrayRef(handle=0)
