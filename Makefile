@@ -8,7 +8,17 @@ GEN     := $(shell command -v ninja >/dev/null 2>&1 && echo -G Ninja)
 # ccache when present (rebuilds of other checkouts of the tree reuse objects).
 LAUNCHER := $(shell command -v ccache >/dev/null 2>&1 && echo -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 
-.PHONY: all deps build proto-py demo test test-engine test-python bench clean
+# Sanitizer + fuzzing build (clang-19, ASan + UBSan, libFuzzer targets): docs/testing.md.
+ASAN_BUILD   ?= build-asan
+FUZZ_SECONDS ?= 30
+SAN_SUPP     := $(CURDIR)/tests/sanitizers
+ASAN_OPTS    := detect_leaks=1:detect_stack_use_after_return=1
+SAN_OTHER    := LSAN_OPTIONS=suppressions=$(SAN_SUPP)/lsan.supp:print_suppressions=0 \
+                UBSAN_OPTIONS=print_stacktrace=1:suppressions=$(SAN_SUPP)/ubsan.supp
+SAN_ENV      := ASAN_OPTIONS=$(ASAN_OPTS) $(SAN_OTHER)
+
+.PHONY: all deps build proto-py demo test test-engine test-python bench clean \
+        asan-configure build-asan fuzz-build test-fuzz fuzz-long test-asan
 
 all: build
 
@@ -30,13 +40,42 @@ demo: build
 	WEFT_DAEMON=$(CURDIR)/$(BUILD)/bin/weftd $(PY) clients/python/examples/demo.py
 
 test: build
-	$(MAKE) --no-print-directory test-engine test-python
+	$(MAKE) --no-print-directory test-engine test-python test-fuzz
 
 test-engine:
 	ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
 
 test-python:
 	WEFT_DAEMON=$(CURDIR)/$(BUILD)/bin/weftd $(PY) -m pytest -q clients/python/tests
+
+asan-configure: deps
+	@[ -f $(ASAN_BUILD)/CMakeCache.txt ] || CC=clang-19 CXX=clang++-19 cmake -S . -B $(ASAN_BUILD) $(GEN) \
+	  $(LAUNCHER) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWEFT_SANITIZE=ON -DWEFT_FUZZ=ON
+
+# Only the fuzz targets (what `make test` needs); build-asan builds everything.
+fuzz-build: asan-configure
+	cmake --build $(ASAN_BUILD) -j $(JOBS) --target weft_fuzz_compile weft_fuzz_api
+
+build-asan: asan-configure
+	cmake --build $(ASAN_BUILD) -j $(JOBS)
+
+# A short run of every fuzz target from its committed corpus; fails on any crash or report.
+test-fuzz: fuzz-build
+	$(SAN_ENV) scripts/fuzz $(ASAN_BUILD) compile $(FUZZ_SECONDS)
+	$(SAN_ENV) scripts/fuzz $(ASAN_BUILD) api $(FUZZ_SECONDS)
+
+# The long run (FUZZ_TARGET=compile|api, FUZZ_SECONDS, FUZZ_JOBS): corpus grows in out/fuzz/.
+fuzz-long: fuzz-build
+	$(SAN_ENV) scripts/fuzz $(ASAN_BUILD) $(or $(FUZZ_TARGET),compile) $(or $(FUZZ_LONG_SECONDS),3600)
+
+# The whole suite against the ASan/UBSan build: engine GoogleTest, then pytest end-to-end
+# against an instrumented weftd (its reports go to $(ASAN_BUILD)/sanitizer-logs, checked last).
+test-asan: build-asan proto-py
+	rm -rf $(ASAN_BUILD)/sanitizer-logs && mkdir -p $(ASAN_BUILD)/sanitizer-logs
+	$(SAN_ENV) ctest --test-dir $(ASAN_BUILD) --output-on-failure -j $(JOBS)
+	ASAN_OPTIONS=$(ASAN_OPTS):log_path=$(CURDIR)/$(ASAN_BUILD)/sanitizer-logs/weftd $(SAN_OTHER) \
+	  WEFT_DAEMON=$(CURDIR)/$(ASAN_BUILD)/bin/weftd $(PY) -m pytest -q clients/python/tests
+	scripts/check-sanitizer-logs $(ASAN_BUILD)/sanitizer-logs
 
 bench: build
 	$(PY) -m pip install -q warp-lang
