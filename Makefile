@@ -10,7 +10,7 @@ LAUNCHER := $(shell command -v ccache >/dev/null 2>&1 && echo -DCMAKE_CXX_COMPIL
 
 # Sanitizer + fuzzing build (clang-19, ASan + UBSan, libFuzzer targets): docs/testing.md.
 ASAN_BUILD   ?= build-asan
-FUZZ_SECONDS ?= 30
+FUZZ_SECONDS ?= 25
 SAN_SUPP     := $(CURDIR)/tests/sanitizers
 ASAN_OPTS    := detect_leaks=1:detect_stack_use_after_return=1
 SAN_OTHER    := LSAN_OPTIONS=suppressions=$(SAN_SUPP)/lsan.supp:print_suppressions=0 \
@@ -54,7 +54,7 @@ asan-configure: deps
 
 # Only the fuzz targets (what `make test` needs); build-asan builds everything.
 fuzz-build: asan-configure
-	cmake --build $(ASAN_BUILD) -j $(JOBS) --target weft_fuzz_compile weft_fuzz_api
+	cmake --build $(ASAN_BUILD) -j $(JOBS) --target weft_fuzz_compile weft_fuzz_api weft_fuzz_artifact
 
 build-asan: asan-configure
 	cmake --build $(ASAN_BUILD) -j $(JOBS)
@@ -63,8 +63,9 @@ build-asan: asan-configure
 test-fuzz: fuzz-build
 	$(SAN_ENV) scripts/fuzz $(ASAN_BUILD) compile $(FUZZ_SECONDS)
 	$(SAN_ENV) scripts/fuzz $(ASAN_BUILD) api $(FUZZ_SECONDS)
+	$(SAN_ENV) scripts/fuzz $(ASAN_BUILD) artifact $(FUZZ_SECONDS)
 
-# The long run (FUZZ_TARGET=compile|api, FUZZ_SECONDS, FUZZ_JOBS): corpus grows in out/fuzz/.
+# The long run (FUZZ_TARGET=compile|api|artifact, FUZZ_LONG_SECONDS): corpus grows in out/fuzz/.
 fuzz-long: fuzz-build
 	$(SAN_ENV) scripts/fuzz $(ASAN_BUILD) $(or $(FUZZ_TARGET),compile) $(or $(FUZZ_LONG_SECONDS),3600)
 

@@ -141,7 +141,7 @@ World* MakeWorld() {
   auto w = new World;
   EngineOptions o;
   o.cpu_threads = 2;
-  o.remove_stale_slabs = false;
+  o.remove_stale_slabs = true;   // slabs of earlier runs that crashed (only dead pids' slabs)
   auto e = Engine::Create(o);
   if (!e.ok()) Die("engine: " + e.status().ToString());
   w->engine = std::move(e).value();
@@ -172,6 +172,10 @@ World* MakeWorld() {
     if (a->grad_handle) w->victim_arrays.push_back({a->grad_handle, ReadAll(*w->engine, *w->victim, a->grad_handle)});
   }
   w->baseline_arrays = w->engine->Stats().arrays;
+  // libFuzzer ends a timed run with exit(): destroy the engine then, so that its shared-memory
+  // slabs are unlinked.
+  static World* const world = w;
+  std::atexit([] { delete world; });
   return w;
 }
 
