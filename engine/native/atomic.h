@@ -9,6 +9,7 @@
 #include "array.h"
 #include "mat.h"
 #include "quat.h"
+#include "transform.h"
 
 namespace wp {
 
@@ -236,6 +237,13 @@ template <typename T> WP_FUNC T atomic_xor_ptr(T* p, T v) {
     quat_t<T> old; \
     for (int i = 0; i < 4; ++i) old[i] = atomic_##op##_ptr(&(*p)[i], v[i]); \
     return old; \
+  } \
+  template <typename T> \
+  WP_FUNC transform_t<T> atomic_##op##_ptr(transform_t<T>* p, transform_t<T> v) { \
+    transform_t<T> old; \
+    old.p = atomic_##op##_ptr(&p->p, v.p); \
+    old.q = atomic_##op##_ptr(&p->q, v.q); \
+    return old; \
   }
 WP_ATOMIC_COMPOSITE(add)
 WP_ATOMIC_COMPOSITE(sub)
@@ -330,6 +338,17 @@ WP_FUNC void adj_atomic_minmax_ptr(const mat_t<R, C, T>* p, const mat_t<R, C, T>
     for (unsigned i = 0; i < R; ++i)
       for (unsigned j = 0; j < C; ++j)
         if (p->data[i][j] == v.data[i][j]) adj_v.data[i][j] += g->data[i][j];
+}
+template <typename T> WP_FUNC void adj_atomic_minmax_ptr(const quat_t<T>* p, const quat_t<T>& v, const quat_t<T>* g, quat_t<T>& adj_v) {
+  if (g)
+    for (int c = 0; c < 4; ++c)
+      if ((*p)[c] == v[c]) adj_v[c] += (*g)[c];
+}
+template <typename T>
+WP_FUNC void adj_atomic_minmax_ptr(const transform_t<T>* p, const transform_t<T>& v, const transform_t<T>* g, transform_t<T>& adj_v) {
+  if (!g) return;
+  adj_atomic_minmax_ptr(&p->p, v.p, &g->p, adj_v.p);
+  adj_atomic_minmax_ptr(&p->q, v.q, &g->q, adj_v.q);
 }
 #define WP_ADJ_ATOMIC(op, BODY) \
   template <typename T, typename I0, typename J0> \

@@ -177,54 +177,74 @@ template <typename T> struct cg_identity_impl<transform_t<T>> {
 template <typename M> WP_FUNC M cg_identity() { return cg_identity_impl<M>::get(); }
 
 // ---- component extract / insert ----------------------------------------------------------
-template <typename V> WP_FUNC typename cg_traits<V>::scalar cg_extract(const V& v, int64 i) { return cg_comps(v)[i]; }
+// Python's negative indices count from the end (v[-1] is the last component); an index still
+// outside [0, n) reads 0 and writes nothing, so no memory outside the value is touched.
+WP_FUNC bool cg_component(int64& i, int64 n) {
+  if (i < 0) i += n;
+  return i >= 0 && i < n;
+}
+template <typename V> WP_FUNC typename cg_traits<V>::scalar cg_extract(const V& v, int64 i) {
+  typedef typename cg_traits<V>::scalar S;
+  return cg_component(i, cg_traits<V>::n) ? cg_comps(v)[i] : S(0);
+}
 template <unsigned R, unsigned C, typename T> WP_FUNC vec_t<C, T> cg_extract(const mat_t<R, C, T>& m, int64 i) {
-  vec_t<C, T> r;
+  vec_t<C, T> r = cg_zeros<vec_t<C, T>>();
+  if (!cg_component(i, R)) return r;
   for (unsigned j = 0; j < C; ++j) r.c[j] = m.data[i][j];
   return r;
 }
-template <unsigned R, unsigned C, typename T> WP_FUNC T cg_extract(const mat_t<R, C, T>& m, int64 i, int64 j) { return m.data[i][j]; }
+template <unsigned R, unsigned C, typename T> WP_FUNC T cg_extract(const mat_t<R, C, T>& m, int64 i, int64 j) {
+  return cg_component(i, R) && cg_component(j, C) ? m.data[i][j] : T(0);
+}
 template <typename V> WP_FUNC void cg_adj_extract(V& adj_v, int64 i, const typename cg_traits<V>::scalar& adj_r) {
-  cg_accum(cg_comps(adj_v)[i], adj_r);
+  if (cg_component(i, cg_traits<V>::n)) cg_accum(cg_comps(adj_v)[i], adj_r);
 }
 template <unsigned R, unsigned C, typename T> WP_FUNC void cg_adj_extract(mat_t<R, C, T>& adj_m, int64 i, const vec_t<C, T>& adj_r) {
+  if (!cg_component(i, R)) return;
   for (unsigned j = 0; j < C; ++j) cg_accum(adj_m.data[i][j], adj_r.c[j]);
 }
 template <unsigned R, unsigned C, typename T> WP_FUNC void cg_adj_extract(mat_t<R, C, T>& adj_m, int64 i, int64 j, const T& adj_r) {
-  cg_accum(adj_m.data[i][j], adj_r);
+  if (cg_component(i, R) && cg_component(j, C)) cg_accum(adj_m.data[i][j], adj_r);
 }
 template <typename V> WP_FUNC V cg_insert(V v, int64 i, const typename cg_traits<V>::scalar& x) {
-  cg_comps(v)[i] = x;
+  if (cg_component(i, cg_traits<V>::n)) cg_comps(v)[i] = x;
   return v;
 }
 template <unsigned R, unsigned C, typename T> WP_FUNC mat_t<R, C, T> cg_insert(mat_t<R, C, T> m, int64 i, const vec_t<C, T>& row) {
+  if (!cg_component(i, R)) return m;
   for (unsigned j = 0; j < C; ++j) m.data[i][j] = row.c[j];
   return m;
 }
 template <unsigned R, unsigned C, typename T> WP_FUNC mat_t<R, C, T> cg_insert(mat_t<R, C, T> m, int64 i, int64 j, const T& x) {
-  m.data[i][j] = x;
+  if (cg_component(i, R) && cg_component(j, C)) m.data[i][j] = x;
   return m;
 }
 template <typename V> WP_FUNC void cg_adj_insert(V& adj_v, int64 i, typename cg_traits<V>::scalar& adj_x, const V& adj_r) {
   V t = adj_r;
-  cg_accum(adj_x, cg_comps(t)[i]);
-  cg_comps(t)[i] = typename cg_traits<V>::scalar(0);
+  if (cg_component(i, cg_traits<V>::n)) {
+    cg_accum(adj_x, cg_comps(t)[i]);
+    cg_comps(t)[i] = typename cg_traits<V>::scalar(0);
+  }
   cg_accum(adj_v, t);
 }
 template <unsigned R, unsigned C, typename T>
 WP_FUNC void cg_adj_insert(mat_t<R, C, T>& adj_m, int64 i, vec_t<C, T>& adj_row, const mat_t<R, C, T>& adj_r) {
   mat_t<R, C, T> t = adj_r;
-  for (unsigned j = 0; j < C; ++j) {
-    cg_accum(adj_row.c[j], t.data[i][j]);
-    t.data[i][j] = T(0);
+  if (cg_component(i, R)) {
+    for (unsigned j = 0; j < C; ++j) {
+      cg_accum(adj_row.c[j], t.data[i][j]);
+      t.data[i][j] = T(0);
+    }
   }
   cg_accum(adj_m, t);
 }
 template <unsigned R, unsigned C, typename T>
 WP_FUNC void cg_adj_insert(mat_t<R, C, T>& adj_m, int64 i, int64 j, T& adj_x, const mat_t<R, C, T>& adj_r) {
   mat_t<R, C, T> t = adj_r;
-  cg_accum(adj_x, t.data[i][j]);
-  t.data[i][j] = T(0);
+  if (cg_component(i, R) && cg_component(j, C)) {
+    cg_accum(adj_x, t.data[i][j]);
+    t.data[i][j] = T(0);
+  }
   cg_accum(adj_m, t);
 }
 

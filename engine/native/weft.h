@@ -3,7 +3,7 @@
 // standard library headers. docs/native.md describes the contract with the code generator.
 #pragma once
 
-#define WEFT_NATIVE_VERSION 1
+#define WEFT_NATIVE_VERSION 2
 
 #include "launch_abi.h"
 #include "scalar.h"

@@ -535,8 +535,12 @@ Expected<Value> Checker::EvalCall(const ast::Call& c) {
     case Value::Kind::kBuiltin: return CallBuiltin(callee.name, std::move(args), c.loc, &c);
     case Value::Kind::kType: return CallConstructor(callee.type, std::move(args), c.loc, c);
     case Value::Kind::kFunc: {
-      if (!c.keywords.empty()) return Error(c.keywords[0].loc, "keyword arguments to @wp.func calls are not supported");
-      return CallUserFunc(callee.name, std::move(args), c.loc);
+      std::vector<std::pair<std::string, Value>> kwargs;
+      for (const auto& kw : c.keywords) {
+        WEFT_ASSIGN_OR_RETURN(Value v, Eval(*kw.value));
+        kwargs.emplace_back(kw.name, v);
+      }
+      return CallUserFunc(callee.name, std::move(args), c.loc, kwargs);
     }
     default: return Error(c.func->loc, "'" + ExprText(*c.func) + "' is not callable");
   }
@@ -853,7 +857,8 @@ bool GenericAccepts(const Type& p, const Type& a) {
 }
 }  // namespace
 
-Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value> args, const SourceLocation& loc) {
+Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
+                                      const std::vector<std::pair<std::string, Value>>& kwargs) {
   auto range = symbols_.equal_range(name);
   struct Candidate {
     const ParsedFunction* pf;
@@ -879,40 +884,60 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
     sigs += ")";
     if (ok) cands.push_back(std::move(c));
   }
-  // Default values of trailing parameters.
-  for (int pass = 0; pass < 2; ++pass) {
+  // Passes, as Warp resolves overloads: (0) a concrete overload taking the arguments' own
+  // types (an int literal is int32, so f(1) calls f(x: int) rather than f(x: float)),
+  // (1) a generic overload, (2) a concrete overload after literal adaptation (f(1) calls
+  // f(x: float) when that is the only one). Keyword arguments bind by parameter name;
+  // parameters left out take their defaults.
+  for (int pass = 0; pass < 3; ++pass) {
     for (auto& c : cands) {
       if (c.generic != (pass == 1)) continue;
       const auto& params = c.pf->def->params;
-      if (args.size() > c.types.size()) continue;
-      bool defaults_ok = true;
-      for (size_t i = args.size(); i < c.types.size(); ++i) defaults_ok &= params.size() > i && params[i].default_value;
-      if (!defaults_ok) continue;
+      if (args.size() > c.types.size() || params.size() != c.types.size()) continue;
+      std::vector<const Value*> slots(c.types.size(), nullptr);
+      for (size_t i = 0; i < args.size(); ++i) slots[i] = &args[i];
       bool ok = true;
-      std::vector<Type> inst = c.types;
-      for (size_t i = 0; i < args.size() && ok; ++i) {
-        if (args[i].kind != Value::Kind::kVar) {
+      for (const auto& [kname, kval] : kwargs) {
+        size_t k = 0;
+        while (k < params.size() && params[k].name != kname) ++k;
+        if (k == params.size() || slots[k]) {
           ok = false;
           break;
         }
-        const Type& at = TypeOf(args[i].var);
+        slots[k] = &kval;
+      }
+      for (size_t i = 0; i < slots.size() && ok; ++i)
+        if (!slots[i] && !params[i].default_value) ok = false;
+      if (!ok) continue;
+      std::vector<Type> inst = c.types;
+      for (size_t i = 0; i < slots.size() && ok; ++i) {
+        if (!slots[i]) continue;
+        const Value& a = *slots[i];
+        if (a.kind != Value::Kind::kVar) {
+          ok = false;
+          break;
+        }
+        const Type at = TypeOf(a.var);
         if (c.types[i] == at) continue;
         if (ContainsAny(c.types[i])) {
           ok = GenericAccepts(c.types[i], at);
           inst[i] = at;
         } else {
-          ok = args[i].literal && c.types[i].is_scalar() && c.types[i].scalar != ScalarKind::kBool &&
-               (IsFloat(c.types[i].scalar) || IsIntLiteralText(args[i].literal_text));
+          ok = pass == 2 && a.literal && c.types[i].is_scalar() && c.types[i].scalar != ScalarKind::kBool &&
+               (IsFloat(c.types[i].scalar) || IsIntLiteralText(a.literal_text));
         }
       }
       if (!ok) continue;
       std::vector<int> argv;
-      for (size_t i = 0; i < args.size(); ++i) {
-        WEFT_ASSIGN_OR_RETURN(int v, Coerce(args[i], inst[i], loc, "argument " + std::to_string(i + 1)));
-        argv.push_back(v);
-      }
-      for (size_t i = args.size(); i < c.types.size(); ++i) {
+      for (size_t i = 0; i < slots.size(); ++i) {
+        if (slots[i]) {
+          WEFT_ASSIGN_OR_RETURN(int v, Coerce(*slots[i], inst[i], loc, "argument '" + params[i].name + "'"));
+          argv.push_back(v);
+          continue;
+        }
         WEFT_ASSIGN_OR_RETURN(Value dv, Eval(*params[i].default_value));
+        if (dv.kind != Value::Kind::kVar)
+          return Error(params[i].loc, "the default of '" + params[i].name + "' is not a value");
         if (ContainsAny(inst[i])) inst[i] = TypeOf(dv.var);
         WEFT_ASSIGN_OR_RETURN(int v, Coerce(dv, inst[i], params[i].loc, "default of '" + params[i].name + "'"));
         argv.push_back(v);
@@ -945,6 +970,9 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
   for (size_t i = 0; i < args.size(); ++i)
     got += (i ? ", " : "") +
            (args[i].kind == Value::Kind::kVar ? TypeString(TypeOf(args[i].var)) : std::string("<non-value>"));
+  for (const auto& [kname, kval] : kwargs)
+    got += (got.empty() ? "" : ", ") + kname + "=" +
+           (kval.kind == Value::Kind::kVar ? TypeString(TypeOf(kval.var)) : std::string("<non-value>"));
   return Error(loc, "no overload of function '" + name + "' accepts (" + got + "); candidates:" + sigs);
 }
 

@@ -82,7 +82,8 @@ class Checker {
                               const ast::Call* call);
   Expected<Value> CallConstructor(const Type& t, std::vector<Value> args, const SourceLocation& loc,
                                   const ast::Call& call);
-  Expected<Value> CallUserFunc(const std::string& name, std::vector<Value> args, const SourceLocation& loc);
+  Expected<Value> CallUserFunc(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
+                               const std::vector<std::pair<std::string, Value>>& kwargs = {});
   Expected<Value> ResolveAndEmitBuiltin(const std::string& name, std::vector<Value> args,
                                         const SourceLocation& loc, int array_param = -1,
                                         const std::string& array_name = "");

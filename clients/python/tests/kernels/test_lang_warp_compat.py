@@ -1,7 +1,8 @@
 """Warp-compatibility features of the kernel language: augmented assignment to array elements
-(`y[i] += x[i]`, atomic as in Warp) in 1-D to 4-D arrays of scalars and vectors, with values
-that create temporaries; against NumPy float64 references on fresh random data, gradients
-against float64 central finite differences."""
+(`y[i] += x[i]`, atomic as in Warp) in 1-D to 4-D arrays of scalars, vectors and transforms;
+@wp.func overloads chosen by the arguments' own types (f(1) calls f(x: int)); keyword
+arguments and defaults of @wp.func; negative component indices (v[-1]); against NumPy float64
+references on fresh random data, gradients against float64 central finite differences."""
 import numpy as np
 
 import weft as wp
@@ -95,4 +96,125 @@ def test_augmented_array_assign_gradient(wp, rng):
         return z * z * np.exp(z)
 
     fd = (f(x + h) - f(x - h)) / (2 * h)
+    np.testing.assert_allclose(xa.grad.numpy(), fd, rtol=1e-6, atol=1e-8)
+
+
+@wp.func
+def which(x: float):
+    return 1
+
+
+@wp.func
+def which(x: int):
+    return 2
+
+
+@wp.func
+def weighted(a: wp.float64, b: wp.float64 = wp.float64(2.0), c: int = 3):
+    return a * b + wp.float64(c)
+
+
+@wp.kernel
+def overloads_and_keywords(n: int, x: wp.array(dtype=wp.float64), iout: wp.array(dtype=int),
+                           fout: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    iout[0] = which(1)
+    iout[1] = which(n)
+    iout[2] = which(1.0)
+    iout[3] = which(float(n))
+    fout[i * 3 + 0] = weighted(x[i], c=n)
+    fout[i * 3 + 1] = weighted(b=x[i], a=wp.float64(0.5))
+    fout[i * 3 + 2] = weighted(x[i])
+
+
+def test_func_overloads_by_argument_type_and_keywords(wp, rng):
+    n = 50
+    x = rng.standard_normal(n)
+    k = int(rng.integers(-100, 100))
+    iout = wp.zeros(4, dtype=int)
+    fout = wp.zeros(3 * n, dtype=wp.float64)
+    wp.launch(overloads_and_keywords, dim=n, inputs=[k, wp.array(x, dtype=wp.float64), iout, fout])
+    np.testing.assert_array_equal(iout.numpy(), [2, 2, 1, 1])
+    ref = np.stack([x * 2.0 + k, 0.5 * x + 3.0, x * 2.0 + 3.0], axis=1).reshape(-1)
+    np.testing.assert_allclose(fout.numpy(), ref, rtol=1e-14)
+
+
+@wp.kernel
+def negative_components(v: wp.array(dtype=wp.vec4d), m: wp.array(dtype=wp.mat33d), k: int,
+                        out: wp.array(dtype=wp.float64), vout: wp.array(dtype=wp.vec4d),
+                        mout: wp.array(dtype=wp.mat33d)):
+    i = wp.tid()
+    a = v[i]
+    b = m[i]
+    out[i * 4 + 0] = a[-1] * wp.float64(10.0) + a[-4]
+    out[i * 4 + 1] = b[-1, -2]
+    out[i * 4 + 2] = b[-3][2]
+    out[i * 4 + 3] = a[k]              # runtime negative index
+    a[-2] = wp.float64(7.0)
+    a[k - 1] = a[0] + a[1]
+    b[-1, 0] = wp.float64(-1.0)
+    b[-2] = wp.vec3d(1.0, 2.0, 3.0)
+    vout[i] = a
+    mout[i] = b
+
+
+def test_negative_component_indices(wp, rng):
+    n = 40
+    v = rng.standard_normal((n, 4))
+    m = rng.standard_normal((n, 3, 3))
+    k = -3
+    out = wp.zeros(4 * n, dtype=wp.float64)
+    vout = wp.zeros(n, dtype=wp.vec4d)
+    mout = wp.zeros(n, dtype=wp.mat33d)
+    wp.launch(negative_components, dim=n,
+              inputs=[wp.array(v, dtype=wp.vec4d), wp.array(m, dtype=wp.mat33d), k, out, vout, mout])
+    ref = np.stack([v[:, 3] * 10.0 + v[:, 0], m[:, 2, 1], m[:, 0, 2], v[:, k]], axis=1).reshape(-1)
+    np.testing.assert_allclose(out.numpy(), ref, rtol=1e-14)
+    vref = v.copy()
+    vref[:, 2] = 7.0
+    vref[:, k - 1] = vref[:, 0] + vref[:, 1]
+    np.testing.assert_allclose(vout.numpy(), vref, rtol=1e-14)
+    mref = m.copy()
+    mref[:, 2, 0] = -1.0
+    mref[:, 1, :] = [1.0, 2.0, 3.0]
+    np.testing.assert_allclose(mout.numpy(), mref, rtol=1e-14)
+
+
+@wp.kernel
+def accumulate_transforms(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.transformd)):
+    i = wp.tid()
+    s = x[i]
+    q = wp.quat_from_axis_angle(wp.vec3d(0.0, 0.0, 1.0), s)
+    t = wp.transformd(wp.vec3d(s * s, wp.sin(s), wp.float64(1.0)), q)
+    out[i % 3] += t
+    wp.atomic_sub(out, (i + 1) % 3, t * s)
+
+
+def test_transform_atomics_and_gradient(wp, rng):
+    n = 30
+    x = rng.uniform(-1.0, 1.0, n)
+
+    def forward(xv):
+        acc = np.zeros((3, 7))
+        for i, s in enumerate(xv):
+            t = np.array([s * s, np.sin(s), 1.0, 0.0, 0.0, np.sin(s / 2), np.cos(s / 2)])
+            acc[i % 3] += t
+            acc[(i + 1) % 3] -= t * s
+        return acc
+
+    xa = wp.array(x, dtype=wp.float64, requires_grad=True)
+    out = wp.zeros(3, dtype=wp.transformd, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(accumulate_transforms, dim=n, inputs=[xa, out])
+    np.testing.assert_allclose(out.numpy(), forward(x), rtol=1e-12, atol=1e-12)
+    seed = rng.standard_normal((3, 7))
+    tape.backward(grads={out: seed})
+    h = 1e-6
+    fd = np.zeros(n)
+    for i in range(n):
+        xp, xm = x.copy(), x.copy()
+        xp[i] += h
+        xm[i] -= h
+        fd[i] = np.sum(seed * (forward(xp) - forward(xm))) / (2 * h)
     np.testing.assert_allclose(xa.grad.numpy(), fd, rtol=1e-6, atol=1e-8)
