@@ -40,6 +40,27 @@ bool HasArrays(const Type& t, const StructTable& structs) {
   return false;
 }
 
+// `#line N "file"` (emit_text.h) for generated code that belongs to user line N of f's file.
+std::string UserLine(const Function& f, int line) {
+  return codegen::LineDirective(static_cast<uint32_t>(line > 0 ? line : 1), f.file) + "\n";
+}
+
+// Prefixes every line of a generated chunk (argument blocks, entry points) with the line
+// directive of f's def line.
+std::string MapToDefLine(const Function& f, const std::string& chunk) {
+  std::string directive = UserLine(f, f.def_line), out;
+  size_t b = 0;
+  while (b < chunk.size()) {
+    size_t e = chunk.find('\n', b);
+    if (e == std::string::npos) e = chunk.size() - 1;
+    out += directive;
+    out.append(chunk, b, e - b + 1);
+    b = e + 1;
+  }
+  if (!out.empty() && out.back() != '\n') out += '\n';
+  return out;
+}
+
 class FnEmitter {
  public:
   enum class Mode { kForward, kReplay, kAdjoint };
@@ -128,7 +149,10 @@ class FnEmitter {
   bool Diff(const Type& t) const { return IsDifferentiable(t); }
   bool Links(const Type& t) const { return mode_ == Mode::kAdjoint && HasArrays(t, m_.structs); }
 
+  // Every line carries a #line directive naming the user's file and line, so a C++ compiler
+  // error in generated code (a weft bug) still points at the user's statement.
   void Line(const std::string& s) {
+    out_ += UserLine(f_, last_line_ > 0 ? last_line_ : f_.def_line);
     out_.append(static_cast<size_t>(indent_) * 2, ' ');
     out_ += s;
     out_ += '\n';
@@ -616,7 +640,10 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
     KernelLayout kl;
     kl.name = f.name;
     std::string args_struct = "weft_args_" + f.cpp_name;
-    o += "// argument block of kernel " + CommentText(f.name) + "\nstruct alignas(8) " + args_struct + " {\n";
+    const size_t block_start = o.size();
+    o += "// argument block of kernel " + CommentText(f.name) + "
+struct alignas(8) " + args_struct + " {
+";
     uint32_t off = 0, align = 8;
     for (size_t i = 0; i < f.params.size(); ++i) {
       const Type& t = f.vars[f.params[i]].type;
@@ -636,10 +663,12 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
     o += "static_assert(sizeof(" + args_struct + ") == " + std::to_string(kl.args_size) +
          ", \"weft: argument block layout mismatch\");\n\n";
 
+    o.replace(block_start, std::string::npos, MapToDefLine(f, o.substr(block_start)));
     std::string fwd = f.cpp_name + "_forward_body", bwd = f.cpp_name + "_backward_body";
     FnEmitter(m, f, options, &o).EmitKernelBody(false, args_struct, fwd);
     if (options.enable_backward) FnEmitter(m, f, options, &o).EmitKernelBody(true, args_struct, bwd);
 
+    const size_t entry_start = o.size();
     std::string target = options.target == Target::kCpu ? "cpu" : "cuda";
     kl.forward_symbol = "weft_" + MangleIdentifier(f.name) + "_" + target + "_forward";
     if (options.enable_backward) kl.backward_symbol = "weft_" + MangleIdentifier(f.name) + "_" + target + "_backward";
@@ -665,6 +694,7 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
              " __args, " + args_struct + " __adj_args) {\n" + loop + "    " + bwd +
              "(&__ctx, __args, __adj_args, __i);\n}\n\n";
     }
+    o.replace(entry_start, std::string::npos, MapToDefLine(f, o.substr(entry_start)));
     gm.kernels.push_back(std::move(kl));
     return Status::Ok();
     }));

@@ -75,21 +75,28 @@ Expected<DeviceRef> ParseDevice(const std::string& device) {
 // error lines located in the user's code — the generated translation unit (`main_file`) or a
 // file the module's functions name (#line) — message only, never source text; lines located
 // anywhere else (the native headers, any other daemon-side file) are only counted: their text
-// stays in the daemon log, so no daemon file content reaches a client.
+// stays in the daemon log, so no daemon file content reaches a client; such an error that a
+// note traces back to a user's line is reported at that line, without its text.
 void AppendCompilerDiagnostics(const std::string& log, const std::string& main_file, const ModuleSource& source,
                                std::vector<Diagnostic>* diags) {
   std::set<std::string> user_files{main_file};
   for (const auto& f : source.functions) user_files.insert(f.file);
   static const std::regex kClang(R"(^(.+?):(\d+):(\d+): (?:fatal )?error: (.*)$)");
   static const std::regex kNvrtc(R"(^(.+?)\((\d+)\): (?:catastrophic )?error: (.*)$)");
+  // clang's "note: in instantiation of ... requested here" lines after an error in a native
+  // header name the user's line (generated code carries #line directives).
+  static const std::regex kClangNote(R"(^(.+?):(\d+):(\d+): note: .*$)");
   constexpr size_t kMaxMessageBytes = 300;
   int elsewhere = 0;
-  size_t start = 0;
-  while (start < log.size()) {
+  std::vector<std::string> lines;
+  for (size_t start = 0; start < log.size();) {
     size_t end = log.find('\n', start);
     if (end == std::string::npos) end = log.size();
-    std::string line = log.substr(start, end - start);
+    lines.push_back(log.substr(start, end - start));
     start = end + 1;
+  }
+  for (size_t li = 0; li < lines.size(); ++li) {
+    const std::string& line = lines[li];
     std::smatch m;
     std::string file, message;
     uint32_t line_no = 0;
@@ -101,7 +108,26 @@ void AppendCompilerDiagnostics(const std::string& log, const std::string& main_f
       continue;
     }
     if (!user_files.count(file)) {
-      ++elsewhere;
+      std::string user_file;
+      uint32_t user_line = 0;
+      for (size_t n = li + 1; n < lines.size(); ++n) {
+        std::smatch nm;
+        if (std::regex_match(lines[n], nm, kClang) || std::regex_match(lines[n], nm, kNvrtc)) break;
+        if (std::regex_match(lines[n], nm, kClangNote) && user_files.count(nm[1].str()) && nm[1].str() != main_file) {
+          user_file = nm[1].str();
+          user_line = static_cast<uint32_t>(std::stoul(nm[2].str().substr(0, 9)));
+          break;
+        }
+      }
+      if (user_file.empty()) {
+        ++elsewhere;
+        continue;
+      }
+      Diagnostic d;
+      d.location = {user_file, user_line, 0};
+      d.message = "internal compiler error in weft's native library, instantiated from this line (the daemon log "
+                  "has the compiler's output)";
+      diags->push_back(std::move(d));
       continue;
     }
     if (message.size() > kMaxMessageBytes) message = message.substr(0, kMaxMessageBytes) + "...";

@@ -312,9 +312,10 @@ std::string BuiltinRegistry::Markdown() const {
       "| `wp.printf(fmt, *scalars)`, `print(values...)` | - | output reaches the launching client; skipped in the backward pass. |\n"
       "| `wp.float64(x)`, `int(x)`, `float(x)`, ... | scalar | conversions; literals are retyped at compile time. |\n"
       "| `wp.vec3(...)`, `wp.mat33(...)`, `wp.quat(...)`, `wp.transform(p, q)`, `wp.spatial_vector(w, v)`, user vector/matrix types | composite | no arguments: zeros; one scalar: fill; components (scalars and/or composites, concatenated row-major); one value of another scalar type: conversion; a matrix from R-vectors: columns (Warp's legacy rule). Differentiable. |\n"
-      "| `wp.vector(*args, length=, dtype=)`, `wp.matrix(*args, shape=(r, c), dtype=)`, `wp.quaternion(...)`, `wp.transformation(p, q)` | composite | as above with explicit shape/dtype. |\n"
+      "| `wp.vector(*args, length=, dtype=)`, `wp.matrix(*args, shape=(r, c), dtype=)`, `wp.quaternion(...)`, `wp.transformation(p, q)` | composite | as above with explicit shape/dtype (also spelled `wp.types.vector`, `wp.types.matrix`); `length` defaults to the arguments' component count, `shape` to a single matrix argument's; sizes are integer literals or module constants. |\n"
+      "| `wp.svd3(A, U, sigma, V)` (and `svd2`, `qr3`, `eig3`, `quat_to_axis_angle`) | - | out-parameter form of a builtin with several results: assigns them to the trailing arguments. |\n"
       "| `wp.identity(n=N, dtype=T)`, `wp.quat_identity(dtype)`, `wp.transform_identity(dtype)` | composite | identities. |\n"
-      "| `MyStruct()`, `MyStruct(field=value, ...)` | struct | zero-initialised; fields by keyword. |\n"
+      "| `MyStruct()`, `MyStruct(a, b)`, `MyStruct(field=value, ...)` | struct | zero-initialised; fields by position (declaration order) and/or keyword. |\n"
       "| `wp.pi`, `wp.tau`, `wp.e`, `wp.inf`, `wp.nan`, `wp.half_pi`, ... | float32 literal | adapt to float64 where needed. |\n";
   return out;
 }

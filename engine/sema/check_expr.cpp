@@ -343,6 +343,10 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
   if (base.kind == Value::Kind::kModule) {
     const std::string& n = a.attr;
     Value v;
+    if (n == "types") {  // wp.types.vector(...), wp.types.matrix(...): the same builtins
+      v.kind = Value::Kind::kModule;
+      return v;
+    }
     if (BuiltinRegistry::Get().Has(n) || IsSpecialBuiltin(n)) {
       v.kind = Value::Kind::kBuiltin;
       v.name = n;
@@ -615,11 +619,15 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     if (!t.is_scalar()) return Error(d->loc, "dtype must be a scalar type");
     return t.scalar;
   };
+  // A compile-time size: an integer literal or a module constant holding one.
   auto const_int = [&](const ast::Expr* e, const char* what) -> Expected<int> {
-    const auto* c = ast::As<ast::Constant>(e);
-    if (!c || c->type != ast::Constant::Type::kInt || c->int_value > 64)
-      return Error(e ? e->loc : loc, std::string(what) + " must be a small integer literal");
-    return static_cast<int>(c->int_value);
+    if (!e) return Error(loc, std::string(what) + " must be a small integer constant");
+    auto v = Eval(*e);
+    if (!v.ok()) return v.status();
+    if (v->kind != Value::Kind::kVar || !v->literal || !IsIntLiteralText(v->literal_text) ||
+        v->literal_text[0] == '-' || v->literal_text.size() > 3 || std::stoi(v->literal_text) > 64)
+      return Error(e->loc, std::string(what) + " must be a small integer constant (0 to 64)");
+    return std::stoi(v->literal_text);
   };
   if (name == "tid") {
     if (!args.empty()) return Error(loc, "wp.tid() takes no arguments");
@@ -636,6 +644,30 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     WEFT_ASSIGN_OR_RETURN(Value updated, ResolveAndEmitBuiltin(name, std::move(args), loc));
     WEFT_RETURN_IF_ERROR(LowerAssignTo(*call->args[0], updated));
     return Value();
+  }
+  // Warp's out-parameter form of builtins with several results: wp.svd3(A, U, sigma, V)
+  // assigns the results to the trailing arguments (names, fields or elements), as
+  // U, sigma, V = wp.svd3(A) does.
+  if (call && call->keywords.empty() && !args.empty()) {
+    for (const BuiltinOverload* o : BuiltinRegistry::Get().Overloads(name)) {
+      if (o->result_pattern.rfind("tuple(", 0) != 0) continue;
+      size_t n_in = o->param_patterns.size();
+      if (n_in >= args.size()) continue;
+      std::vector<Value> inputs(args.begin(), args.begin() + static_cast<long>(n_in));
+      std::vector<Type> in_types;
+      bool values = true;
+      for (const auto& a : inputs) {
+        values &= a.kind == Value::Kind::kVar;
+        if (values) in_types.push_back(TypeOf(a.var));
+      }
+      if (!values) continue;
+      auto m = BuiltinRegistry::Get().Resolve(name, in_types);
+      if (!m.ok() || !m->result.is_tuple() || m->result.sub.size() + n_in != args.size()) continue;
+      WEFT_ASSIGN_OR_RETURN(Value results, ResolveAndEmitBuiltin(name, std::move(inputs), loc));
+      for (size_t k = 0; k < results.elems.size(); ++k)
+        WEFT_RETURN_IF_ERROR(LowerAssignTo(*call->args[n_in + k], results.elems[k]));
+      return Value();
+    }
   }
   if (name == "range") return Error(loc, "range() is only allowed as the iterable of a for loop");
   if (name == "len") {
@@ -709,14 +741,25 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     WEFT_ASSIGN_OR_RETURN(ScalarKind s, dtype_kw(def));
     Type t;
     if (name == "vector") {
-      int len = static_cast<int>(vals.size());
+      // length: given, else the number of components of the arguments (a vector argument
+      // counts its components: wp.vector(v, dtype=wp.float16) converts v).
+      int len = 0;
+      for (const auto& v : vals)
+        if (v.kind == Value::Kind::kVar) len += TypeOf(v.var).is_composite() ? TypeOf(v.var).component_count() : 1;
       if (const ast::Expr* l = kwarg("length")) {
         WEFT_ASSIGN_OR_RETURN(len, const_int(l, "length"));
       }
+      if (len <= 0) return Error(loc, "wp.vector needs its components or length=N");
       t = Type::Vector(len, s);
     } else if (name == "matrix") {
       const ast::Expr* sh = kwarg("shape");
       const auto* tu = sh ? ast::As<ast::Tuple>(sh) : nullptr;
+      if (!sh && vals.size() == 1 && vals[0].kind == Value::Kind::kVar && TypeOf(vals[0].var).is_matrix()) {
+        const Type mt = TypeOf(vals[0].var);
+        t = Type::Matrix(mt.rows, mt.cols, s);
+        ast::Call empty;
+        return CallConstructor(t, std::move(vals), loc, call ? *call : empty);
+      }
       if (!tu || tu->elts.size() != 2) return Error(loc, "wp.matrix needs shape=(rows, cols)");
       WEFT_ASSIGN_OR_RETURN(int r, const_int(tu->elts[0].get(), "rows"));
       WEFT_ASSIGN_OR_RETURN(int cc, const_int(tu->elts[1].get(), "cols"));
@@ -769,11 +812,22 @@ Expected<Value> Checker::CallConstructor(const Type& t, std::vector<Value> args,
   if (t.is_struct()) {
     auto it = module_.structs.find(t.struct_name);
     if (it == module_.structs.end()) return Error(loc, "unknown struct '" + t.struct_name + "'");
-    if (!args.empty()) return Error(loc, "struct constructors take keyword arguments only");
+    const StructInfo& info = it->second;
+    if (args.size() > info.fields.size())
+      return Error(loc, "struct " + t.struct_name + " has " + std::to_string(info.fields.size()) + " fields but " +
+                            std::to_string(args.size()) + " positional arguments were given");
     d = NewVar(t);
     s.op.mode = ConstructMode::kZero;
     s.op.dst.push_back(d);
     Push(std::move(s));
+    // Positional arguments set the fields in declaration order (as Warp), keywords by name.
+    for (size_t k = 0; k < args.size(); ++k) {
+      const StructField& f = info.fields[k];
+      WEFT_ASSIGN_OR_RETURN(int cv, Coerce(args[k], f.type, loc, "field '" + f.name + "'"));
+      int nd = EmitOp(OpKind::kSetField, t, {d, cv}, f.name);
+      st_->block->back().op.field_index = static_cast<int>(k);
+      d = nd;
+    }
     for (const auto& kw : call.keywords) {
       int fi = -1;
       const StructField* f = it->second.Find(kw.name, &fi);

@@ -320,18 +320,19 @@ std::string StructCppName(std::string_view canonical) {
 }
 
 std::string CppType(const Type& t) {
+  // The element scalar of a composite: bool is the C++ keyword, not a wp:: typedef.
+  auto elem = [&]() { return CppType(Type::Scalar(t.scalar)); };
   switch (t.kind) {
     case TypeKind::kVoid: return "void";
     case TypeKind::kAny: return "/*any*/void";
     case TypeKind::kString: return "const char*";
     case TypeKind::kScalar:
       return t.scalar == ScalarKind::kBool ? "bool" : std::string("wp::") + ScalarName(t.scalar);
-    case TypeKind::kVector: return "wp::vec_t<" + std::to_string(t.rows) + ",wp::" + ScalarName(t.scalar) + ">";
+    case TypeKind::kVector: return "wp::vec_t<" + std::to_string(t.rows) + "," + elem() + ">";
     case TypeKind::kMatrix:
-      return "wp::mat_t<" + std::to_string(t.rows) + "," + std::to_string(t.cols) + ",wp::" +
-             ScalarName(t.scalar) + ">";
-    case TypeKind::kQuat: return std::string("wp::quat_t<wp::") + ScalarName(t.scalar) + ">";
-    case TypeKind::kTransform: return std::string("wp::transform_t<wp::") + ScalarName(t.scalar) + ">";
+      return "wp::mat_t<" + std::to_string(t.rows) + "," + std::to_string(t.cols) + "," + elem() + ">";
+    case TypeKind::kQuat: return "wp::quat_t<" + elem() + ">";
+    case TypeKind::kTransform: return "wp::transform_t<" + elem() + ">";
     case TypeKind::kArray: return "wp::array_t<" + CppType(t.elem()) + ">";
     case TypeKind::kStruct: return "wp::" + StructCppName(t.struct_name);
     case TypeKind::kTuple: return "/*tuple*/void";

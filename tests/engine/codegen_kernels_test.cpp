@@ -314,5 +314,51 @@ TEST(CodegenKernels, AugmentedAssignToArrayElements) {
                              {"x", "y", "a", "b"});
   ExpectCompiles(m, true);
 }
+
+// Warp-compatibility forms: keyword arguments and int-first overloads of @wp.func, the
+// out-parameter form of multi-result builtins, positional struct constructors,
+// wp.types.vector / wp.types.matrix, negative component indices, bool vectors and transform
+// atomics; forward and backward, CPU and CUDA.
+TEST(CodegenKernels, WarpCompatibilityForms) {
+  ModuleSource m;
+  m.name = "compat";
+  m.symbols.push_back(Wp());
+  m.symbols.push_back(FuncSym("scale", "compat.scale"));
+  Symbol st;
+  st.name = "Body";
+  st.kind = Symbol::Kind::kType;
+  st.target = "struct(compat.Body)";
+  m.symbols.push_back(st);
+  m.structs.push_back({"compat.Body", {{"x", "vec(3,float32)"}, {"m", "float32"}}});
+  FunctionSource scale = Fn("scale", "def scale(a: float, b: float = 2.0, n: int = 1):\n    return a * b * float(n)\n",
+                            {"float32", "float32", "int32"}, {"a", "b", "n"}, false, "compat.scale");
+  m.functions.push_back(scale);
+  m.functions.push_back(Fn("k",
+                           "def k(A: wp.array(dtype=wp.mat33), t: wp.array(dtype=wp.transform), out: wp.array(dtype=float)):\n"
+                           "    i = wp.tid()\n"
+                           "    U = wp.mat33()\n"
+                           "    s = wp.vec3()\n"
+                           "    V = wp.mat33()\n"
+                           "    wp.svd3(A[i], U, s, V)\n"
+                           "    axis = wp.vec3()\n"
+                           "    angle = float(0.0)\n"
+                           "    wp.quat_to_axis_angle(wp.quat_identity(), axis, angle)\n"
+                           "    b = Body(s, 2.0)\n"
+                           "    v = wp.types.vector(s, dtype=wp.float64)\n"
+                           "    w = wp.types.matrix(1.0, shape=(3, 2))\n"
+                           "    flags = wp.types.vector(True, False, length=2)\n"
+                           "    if v[-2] > wp.float64(0.0) and flags[-1]:\n"
+                           "        s[-1] = 1.0\n"
+                           "    out[i] = scale(b.m, n=3) + scale(a=s[0]) + U[-1, -1] + w[-1][0] + angle\n"
+                           "    t[i] += wp.transform_identity()\n",
+                           {"array(mat(3,3,float32),1)", "array(transform(float32),1)", "array(float32,1)"},
+                           {"A", "t", "out"}));
+  ExpectCompiles(m, true);
+  std::vector<Diagnostic> diags;
+  auto gm = GenerateModule(m, {}, &diags);
+  ASSERT_TRUE(gm.ok()) << gm.status().message();
+  // Generated lines name the user's file and line (a C++ error there points at the user).
+  EXPECT_NE(gm->source.find("#line 15 \"test_kernels.py\""), std::string::npos);
+}
 }  // namespace
 }  // namespace weft

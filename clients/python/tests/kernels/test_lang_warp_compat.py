@@ -218,3 +218,95 @@ def test_transform_atomics_and_gradient(wp, rng):
         xm[i] -= h
         fd[i] = np.sum(seed * (forward(xp) - forward(xm))) / (2 * h)
     np.testing.assert_allclose(xa.grad.numpy(), fd, rtol=1e-6, atol=1e-8)
+
+
+N_COMPONENTS = 3
+
+
+@wp.kernel
+def types_constructors(x: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    a = x[i]
+    h = wp.types.vector(a, dtype=wp.float64)                 # conversion, length from a
+    f = wp.types.vector(a[1], length=N_COMPONENTS)           # fill, length from a constant
+    z = wp.types.vector(length=2, dtype=wp.float16)
+    m = wp.types.matrix(h[0], h[1], 2.0, 3.0, shape=(2, 2), dtype=wp.float64)
+    g = wp.matrix(m)
+    flags = wp.types.vector(True, False, True)
+    out[i * 5 + 0] = h[0] * h[1]
+    out[i * 5 + 1] = wp.float64(f[0] + f[1] + f[2])
+    out[i * 5 + 2] = wp.float64(z[1]) + g[1, 1] * wp.determinant(m)
+    out[i * 5 + 3] = wp.float64(1.0) if flags[-1] and not flags[1] else wp.float64(-1.0)
+    out[i * 5 + 4] = g[0, 1]
+
+
+def test_types_vector_matrix_constructors(wp, rng):
+    n = 64
+    x = rng.standard_normal((n, 2)).astype(np.float32)
+    out = wp.zeros(5 * n, dtype=wp.float64)
+    wp.launch(types_constructors, dim=n, inputs=[wp.array(x, dtype=wp.vec2), out])
+    a = x.astype(np.float64)
+    det = a[:, 0] * 3.0 - a[:, 1] * 2.0
+    ref = np.stack([a[:, 0] * a[:, 1], 3 * a[:, 1], 3.0 * det, np.ones(n), a[:, 1]], axis=1).reshape(-1)
+    np.testing.assert_allclose(out.numpy(), ref, rtol=1e-6, atol=1e-6)
+
+
+@wp.struct
+class Body:
+    pos: wp.vec3d
+    mass: wp.float64
+    tag: int
+
+
+@wp.kernel
+def struct_positional(p: wp.array(dtype=wp.vec3d), m: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    b = Body(p[i], m[i], i)
+    c = Body(p[i] * wp.float64(2.0), tag=7)
+    out[i] = b.mass * wp.length(b.pos) + wp.float64(b.tag + c.tag) + c.mass + c.pos[0]
+
+
+def test_struct_positional_constructor(wp, rng):
+    n = 50
+    p = rng.standard_normal((n, 3))
+    m = rng.uniform(0.5, 2.0, n)
+    out = wp.zeros(n, dtype=wp.float64)
+    wp.launch(struct_positional, dim=n,
+              inputs=[wp.array(p, dtype=wp.vec3d), wp.array(m, dtype=wp.float64), out])
+    ref = m * np.linalg.norm(p, axis=1) + np.arange(n) + 7 + 0.0 + 2 * p[:, 0]
+    np.testing.assert_allclose(out.numpy(), ref, rtol=1e-12)
+
+
+@wp.kernel
+def svd_out_params(a: wp.array(dtype=wp.mat33d), u_out: wp.array(dtype=wp.mat33d), s_out: wp.array(dtype=wp.vec3d),
+                   v_out: wp.array(dtype=wp.mat33d), angle_out: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    U = wp.mat33d()
+    sigma = wp.vec3d()
+    V = wp.mat33d()
+    wp.svd3(a[i], U, sigma, V)
+    u_out[i] = U
+    s_out[i] = sigma
+    v_out[i] = V
+    axis = wp.vec3d()
+    angle = wp.float64(0.0)
+    q = wp.quat_from_axis_angle(wp.normalize(wp.vec3d(1.0, 2.0, 3.0)), wp.float64(0.1) * wp.float64(i + 1))
+    wp.quat_to_axis_angle(q, axis, angle)
+    angle_out[i] = angle
+
+
+def test_out_parameter_forms(wp, rng):
+    n = 20
+    a = rng.standard_normal((n, 3, 3))
+    u = wp.zeros(n, dtype=wp.mat33d)
+    s = wp.zeros(n, dtype=wp.vec3d)
+    v = wp.zeros(n, dtype=wp.mat33d)
+    ang = wp.zeros(n, dtype=wp.float64)
+    wp.launch(svd_out_params, dim=n, inputs=[wp.array(a, dtype=wp.mat33d), u, s, v, ang])
+    U, S, V = u.numpy(), s.numpy(), v.numpy()
+    recon = np.einsum("nij,nj,nkj->nik", U, S, V)
+    np.testing.assert_allclose(recon, a, rtol=1e-8, atol=1e-8)
+    # singular values up to sign (Warp's svd3 keeps U and V rotations, so one may be negative)
+    np.testing.assert_allclose(np.sort(np.abs(S), axis=1), np.sort(np.linalg.svd(a, compute_uv=False), axis=1),
+                               rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(ang.numpy(), 0.1 * np.arange(1, n + 1), rtol=1e-10)
