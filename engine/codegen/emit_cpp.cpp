@@ -319,6 +319,12 @@ class FnEmitter {
         Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.end() - 1));
         Line("wp::store(" + Args(op.args) + ");");
         return;
+      case OpKind::kView:
+        Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.end()));
+        Line(d() + " = wp::view(" + Args(op.args) + ");");
+        // the view's adjoint is the same view of the gradient array
+        if (Links(T(op.dst[0]))) Line(A(op.dst[0]) + " = wp::view(" + A(op.args[0]) + ", " + Args(op.args, 1) + ");");
+        return;
       case OpKind::kExtract: Line(d() + " = wp::cg_extract(" + Args(op.args) + ");"); return;
       case OpKind::kInsert: Line(d() + " = wp::cg_insert(" + Args(op.args) + ");"); return;
       case OpKind::kGetField:
@@ -449,6 +455,7 @@ class FnEmitter {
     switch (op.kind) {
       case OpKind::kConst:
       case OpKind::kRaw:
+      case OpKind::kView:
       case OpKind::kPrintf: return;
       case OpKind::kCopy:
         if (!Diff(dt())) return;

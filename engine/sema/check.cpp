@@ -500,6 +500,25 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
     WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
     if (base.kind != Value::Kind::kVar) return Error(loc, "cannot assign to an element of '" + ExprText(*sub->value) + "'");
     const Type bt = TypeOf(base.var);
+    const auto* slice = sub->indices.size() == 1 ? ast::As<ast::Slice>(sub->indices[0].get()) : nullptr;
+    if (slice && (bt.is_vector() || bt.kind == TypeKind::kQuat)) {
+      // v[a:b] = w: component by component
+      WEFT_ASSIGN_OR_RETURN(std::vector<int> comps, SliceComponents(*slice, bt.component_count()));
+      const Type vt = TypeOf(value.var);
+      Type want = Type::Vector(static_cast<int>(comps.size()), bt.scalar);
+      if (vt != want)
+        return Error(loc, "cannot assign a value of type " + TypeString(vt) + " to a slice of " +
+                              std::to_string(comps.size()) + " components of " + TypeString(bt) + " (expected " +
+                              TypeString(want) + ")");
+      int updated = base.var;
+      for (size_t k = 0; k < comps.size(); ++k) {
+        int src = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")");
+        int x = EmitOp(OpKind::kExtract, Type::Scalar(bt.scalar), {value.var, src});
+        int dst = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(comps[k]) + ")");
+        updated = EmitOp(OpKind::kInsert, bt, {updated, dst, x});
+      }
+      return LowerAssignTo(*sub->value, Value::OfVar(updated));
+    }
     WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(sub->indices));
     if (bt.is_array()) {
       if (static_cast<int>(idx.size()) != bt.ndim)

@@ -424,8 +424,60 @@ Expected<std::vector<int>> Checker::EvalIndices(const ast::ExprList& idx) {
   return out;
 }
 
+// The components a constant slice `lower:upper:step` selects from a value of n components,
+// with Python's rules (negative bounds count from the end, bounds are clamped).
+Expected<std::vector<int>> Checker::SliceComponents(const ast::Slice& sl, int n) {
+  auto bound = [&](const ast::ExprPtr& e, long def, long* out) -> Status {
+    *out = def;
+    if (!e) return Status::Ok();
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
+    if (v.kind != Value::Kind::kVar || !v.literal || v.literal_text.empty() ||
+        v.literal_text.find_first_not_of("-0123456789") != std::string::npos || v.literal_text.size() > 9)
+      return Error(e->loc, "slice bounds of vectors must be integer constants");
+    *out = std::stol(v.literal_text);
+    return Status::Ok();
+  };
+  long step = 1, lo = 0, hi = 0;
+  WEFT_RETURN_IF_ERROR(bound(sl.step, 1, &step));
+  if (step == 0) return Error(sl.loc, "slice step cannot be zero");
+  WEFT_RETURN_IF_ERROR(bound(sl.lower, step > 0 ? 0 : n - 1, &lo));
+  WEFT_RETURN_IF_ERROR(bound(sl.upper, step > 0 ? n : -n - 1, &hi));
+  auto clamp = [&](long v) {
+    if (v < 0) v += n;
+    if (step > 0) return v < 0 ? 0L : (v > n ? static_cast<long>(n) : v);
+    return v < -1 ? -1L : (v > n - 1 ? static_cast<long>(n - 1) : v);
+  };
+  lo = clamp(lo);
+  hi = (sl.upper || step > 0) ? clamp(hi) : -1;
+  std::vector<int> out;
+  for (long i = lo; step > 0 ? i < hi : i > hi; i += step) out.push_back(static_cast<int>(i));
+  if (out.empty()) return Error(sl.loc, "this slice selects no components");
+  return out;
+}
+
 Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
   WEFT_ASSIGN_OR_RETURN(Value base, Eval(*s.value));
+  if (base.kind == Value::Kind::kVar && s.indices.size() == 1 && ast::As<ast::Slice>(s.indices[0].get())) {
+    const Type bt = TypeOf(base.var);
+    if (bt.is_vector() || bt.kind == TypeKind::kQuat) {
+      // v[a:b:c]: a vector of the selected components
+      WEFT_ASSIGN_OR_RETURN(std::vector<int> comps,
+                            SliceComponents(*ast::As<ast::Slice>(s.indices[0].get()), bt.component_count()));
+      std::vector<int> parts;
+      for (int c : comps) {
+        int ci = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(c) + ")");
+        parts.push_back(EmitOp(OpKind::kExtract, Type::Scalar(bt.scalar), {base.var, ci}));
+      }
+      Stmt st;
+      st.op.kind = OpKind::kConstruct;
+      st.op.mode = ConstructMode::kConcat;
+      int d = NewVar(Type::Vector(static_cast<int>(comps.size()), bt.scalar));
+      st.op.dst.push_back(d);
+      st.op.args = parts;
+      Push(std::move(st));
+      return Value::OfVar(d);
+    }
+  }
   if (base.kind == Value::Kind::kTuple) {
     const auto* c = s.indices.size() == 1 ? ast::As<ast::Constant>(s.indices[0].get()) : nullptr;
     if (!c || c->type != ast::Constant::Type::kInt)
@@ -439,9 +491,23 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
   const Type bt = TypeOf(base.var);
   WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(s.indices));
   if (bt.is_array()) {
+    if (static_cast<int>(idx.size()) < bt.ndim) {
+      // a[i] on a 2-D array: the sub-array with the leading indices fixed (a view; its
+      // gradient is the same view of the gradient array).
+      std::vector<int> args{base.var};
+      args.insert(args.end(), idx.begin(), idx.end());
+      int v = EmitOp(OpKind::kView, Type::Array(bt.elem(), bt.ndim - static_cast<int>(idx.size())), args);
+      st_->block->back().op.array_param = ArrayParamOf(base.var);
+      st_->block->back().op.array_name = ExprText(*s.value);
+      if (ArrayParamOf(base.var) >= 0) st_->array_param[v] = ArrayParamOf(base.var);
+      st_->fn.may_fail = true;
+      Value r = Value::OfVar(v);
+      r.source = ExprText(s);
+      return r;
+    }
     if (static_cast<int>(idx.size()) != bt.ndim)
       return Error(s.loc, "array '" + ExprText(*s.value) + "' has " + std::to_string(bt.ndim) + " dimensions but " +
-                              std::to_string(idx.size()) + " indices were given (array views are not supported)");
+                              std::to_string(idx.size()) + " indices were given");
     std::vector<int> args{base.var};
     args.insert(args.end(), idx.begin(), idx.end());
     int v = EmitOp(OpKind::kLoad, bt.elem(), args);

@@ -91,6 +91,7 @@ class Checker {
   Expected<Value> EvalConstantSymbol(const weft::ConstantValue& c, const SourceLocation& loc);
   Expected<Type> EvalTypeExpr(const ast::Expr& e);
   Expected<std::vector<int>> EvalIndices(const ast::ExprList& idx);
+  Expected<std::vector<int>> SliceComponents(const ast::Slice& slice, int n);
 
   // emission helpers
   int NewVar(const Type& t, const std::string& hint = "", bool is_mutable = false);

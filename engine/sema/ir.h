@@ -41,6 +41,7 @@ enum class ConstructMode {
   X(Construct)  /* dst = type(args) per `mode` */                                        \
   X(Load)       /* dst = args[0][args[1..]] (array read, bounds-checked) */              \
   X(Store)      /* args[0][args[1..n-1]] = args[n] (array write, bounds-checked) */       \
+  X(View)       /* dst = sub-array args[0][args[1..]] (fewer indices than ndim; checked) */ \
   X(Extract)    /* dst = args[0][args[1..]] (vec/mat/quat component or matrix row) */    \
   X(Insert)     /* dst = args[0] with [args[1..n-1]] = args[n] */                        \
   X(GetField)   /* dst = args[0].text */                                                 \

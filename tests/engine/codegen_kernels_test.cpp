@@ -360,5 +360,22 @@ TEST(CodegenKernels, WarpCompatibilityForms) {
   // Generated lines name the user's file and line (a C++ error there points at the user).
   EXPECT_NE(gm->source.find("#line 15 \"test_kernels.py\""), std::string::npos);
 }
+
+// Sub-array views (fewer indices than ndim) and constant vector slices, read and written.
+TEST(CodegenKernels, ArrayViewsAndVectorSlices) {
+  ModuleSource m = OneKernel("views",
+                             "def views(a: wp.array2d(dtype=float), b: wp.array3d(dtype=wp.vec4), out: wp.array2d(dtype=wp.vec2)):\n"
+                             "    i = wp.tid()\n"
+                             "    row = a[i]\n"
+                             "    plane = b[i]\n"
+                             "    v = plane[0, 1]\n"
+                             "    w = v[1:3] * row[0]\n"
+                             "    v[::-2] += w\n"
+                             "    out[i][0] = v[-2:]\n"
+                             "    b[i][1][0] = v\n",
+                             {"array(float32,2)", "array(vec(4,float32),3)", "array(vec(2,float32),2)"},
+                             {"a", "b", "out"});
+  ExpectCompiles(m, true);
+}
 }  // namespace
 }  // namespace weft

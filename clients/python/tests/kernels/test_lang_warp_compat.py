@@ -310,3 +310,73 @@ def test_out_parameter_forms(wp, rng):
     np.testing.assert_allclose(np.sort(np.abs(S), axis=1), np.sort(np.linalg.svd(a, compute_uv=False), axis=1),
                                rtol=1e-8, atol=1e-8)
     np.testing.assert_allclose(ang.numpy(), 0.1 * np.arange(1, n + 1), rtol=1e-10)
+
+
+@wp.kernel
+def vector_slices(x: wp.array(dtype=wp.vec4d), out: wp.array(dtype=wp.vec4d), head: wp.array(dtype=wp.vec3d)):
+    i = wp.tid()
+    v = x[i]
+    w = wp.vec4d()
+    w[:2] = v[2:]                  # w0, w1 = v2, v3
+    w[1:-1] += v[:2] * v[3]        # w1 += v0 * v3, w2 += v1 * v3
+    w[3:0:-2] -= v[::2]            # w3 -= v0, w1 -= v2
+    out[i] = w
+    head[i] = v[-1:-4:-1]          # v3, v2, v1
+
+
+def _slices_reference(v):
+    w = np.zeros_like(v)
+    w[:, 0:2] = v[:, 2:]
+    w[:, 1:3] += v[:, :2] * v[:, 3:4]
+    w[:, 3:0:-2] -= v[:, ::2]
+    return w
+
+
+def test_vector_slices_and_gradient(wp, rng):
+    n = 30
+    v = rng.standard_normal((n, 4))
+    xa = wp.array(v, dtype=wp.vec4d, requires_grad=True)
+    out = wp.zeros(n, dtype=wp.vec4d, requires_grad=True)
+    head = wp.zeros(n, dtype=wp.vec3d, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(vector_slices, dim=n, inputs=[xa, out, head])
+    np.testing.assert_allclose(out.numpy(), _slices_reference(v), rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(head.numpy(), v[:, -1:-4:-1], rtol=1e-14)
+    seed = rng.standard_normal((n, 4))
+    tape.backward(grads={out: seed})
+    h = 1e-6
+    fd = np.zeros_like(v)
+    for c in range(4):
+        vp, vm = v.copy(), v.copy()
+        vp[:, c] += h
+        vm[:, c] -= h
+        fd[:, c] = np.sum(seed * (_slices_reference(vp) - _slices_reference(vm)), axis=1) / (2 * h)
+    np.testing.assert_allclose(xa.grad.numpy(), fd, rtol=1e-6, atol=1e-8)
+
+
+@wp.kernel
+def row_views(a: wp.array2d(dtype=wp.float64), b: wp.array3d(dtype=wp.float64), out: wp.array2d(dtype=wp.float64)):
+    i = wp.tid()
+    row = a[i]                     # a 1-D view of row i
+    plane = b[i]                   # a 2-D view
+    for j in range(row.shape[0]):
+        out[i][j] = row[j] * plane[j, 1] + wp.sin(b[i][j][0])
+
+
+def test_sub_array_views_and_gradient(wp, rng):
+    n, m = 6, 5
+    a = rng.standard_normal((n, m))
+    b = rng.standard_normal((n, m, 2))
+    aa = wp.array(a, dtype=wp.float64, requires_grad=True)
+    bb = wp.array(b, dtype=wp.float64, requires_grad=True)
+    out = wp.zeros((n, m), dtype=wp.float64, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(row_views, dim=n, inputs=[aa, bb, out])
+    np.testing.assert_allclose(out.numpy(), a * b[:, :, 1] + np.sin(b[:, :, 0]), rtol=1e-14)
+    seed = rng.standard_normal((n, m))
+    tape.backward(grads={out: seed})
+    np.testing.assert_allclose(aa.grad.numpy(), seed * b[:, :, 1], rtol=1e-12)
+    gb = np.stack([seed * np.cos(b[:, :, 0]), seed * a], axis=2)
+    np.testing.assert_allclose(bb.grad.numpy(), gb, rtol=1e-12)
