@@ -98,6 +98,13 @@ class FnEmitter {
       Line("wp::cg_unravel(__ctx->bounds, __tid_flat, __tid);");
       Line("(void)__tid;");
     }
+    if (mode == Mode::kAdjoint && f_.custom_grad >= 0) {
+      EmitCustomGradCall();
+      --indent_;
+      Line("}");
+      Line("");
+      return;
+    }
     Decls(mode == Mode::kAdjoint);
     Fwd(f_.body, mode != Mode::kForward);
     if (mode == Mode::kAdjoint) {
@@ -112,6 +119,30 @@ class FnEmitter {
     --indent_;
     Line("}");
     Line("");
+  }
+
+  // adj_<func> of a func with a custom gradient (wp.func_grad): calls the gradient function
+  // with the func's arguments and the adjoints of its results, and accumulates the adjoints
+  // it returns into the parameters' adjoints.
+  void EmitCustomGradCall() {
+    const Function& g = m_.functions.at(f_.custom_grad);
+    Line("// custom gradient: " + g.name);
+    std::string args = "__ctx, __tid_flat";
+    for (int p : f_.params) args += ", " + V(p);
+    for (size_t i = 0; i < f_.returns.size(); ++i) args += ", __adj_ret" + std::to_string(i);
+    std::vector<std::string> results;
+    for (size_t k = 0; k < g.returns.size(); ++k) {
+      results.push_back("__grad" + std::to_string(k));
+      Line(CppType(g.returns[k]) + " " + results.back() + "{};");
+    }
+    if (g.returns.size() == 1) {
+      Line(results[0] + " = " + g.cpp_name + "(" + args + ");");
+    } else {
+      for (const auto& r : results) args += ", " + r;
+      Line(g.cpp_name + "(" + args + ");");
+    }
+    for (size_t k = 0; k < g.grad_of_param.size(); ++k)
+      Line("wp::cg_accum(" + A(f_.params.at(g.grad_of_param[k])) + ", " + results[k] + ");");
   }
 
   // The per-thread body of a kernel: forward, or backward (replay + adjoint).

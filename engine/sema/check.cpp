@@ -125,8 +125,10 @@ std::vector<std::string> SplitLines(const std::string& s) {
 
 }  // namespace
 
+// grad_of_params >= 0: pf is the gradient function (wp.func_grad) of a func with that many
+// parameters; its first parameters are the func's, the rest its return values' adjoints.
 Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::vector<Type>& param_types,
-                                           const SourceLocation& call_loc) {
+                                           const SourceLocation& call_loc, int grad_of_params) {
   const FunctionSource& fs = *pf.source;
   std::string key = fs.key.empty() ? fs.name : fs.key;
   std::string inst = key + "(";
@@ -185,7 +187,24 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
     state.scope[params[i].name] = v;
     if (fs.is_kernel && (t.is_array() || t.is_struct())) state.array_param[v] = static_cast<int>(i);
   }
-  if (!fs.is_kernel && !fs.return_type.empty() && fs.return_type != "void" && fs.return_type != "None") {
+  if (grad_of_params >= 0) {
+    // The gradient function returns one adjoint slot per differentiable parameter of the
+    // forward func; `wp.adjoint[x] += ...` updates the slot of x.
+    for (int i = 0; i < grad_of_params && i < static_cast<int>(params.size()); ++i) {
+      const Type& t = param_types[i];
+      if (!IsDifferentiable(t) || t.is_struct()) continue;
+      int slot = NewVar(t, "adj_" + params[i].name, true);
+      fn.returns.push_back(t);
+      fn.return_slots.push_back(slot);
+      fn.grad_of_param.push_back(i);
+      state.adjoint_slots[params[i].name] = slot;
+      Stmt z;
+      z.op.kind = OpKind::kConstruct;
+      z.op.mode = ConstructMode::kZero;
+      z.op.dst.push_back(slot);
+      Push(std::move(z));
+    }
+  } else if (!fs.is_kernel && !fs.return_type.empty() && fs.return_type != "void" && fs.return_type != "None") {
     auto rt = ParseType(fs.return_type);
     if (!rt.ok()) return finish_error(Error(pf.def->loc, "return type: " + rt.status().message()));
     if (rt->is_tuple()) fn.returns = rt->sub;
@@ -208,6 +227,25 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
   if (!fn.is_kernel && fn.returns.empty() && !fs.return_type.empty() && fs.return_type != "void" &&
       fs.return_type != "None")
     return finish_error(Error(pf.def->loc, "'" + fs.name + "' declares a return type but never returns"));
+
+  // A custom gradient (wp.func_grad) of this func: instantiated with the func's parameter
+  // types followed by its return types (the adjoints of the results).
+  if (!fs.is_kernel && grad_of_params < 0) {
+    auto g = by_key_.find(key + "__custom_grad");
+    if (g != by_key_.end()) {
+      std::vector<Type> gtypes = param_types;
+      for (const auto& t : fn.returns) gtypes.push_back(t);
+      if (g->second->def->params.size() != gtypes.size())
+        return finish_error(Error(g->second->def->loc, "the gradient of '" + fs.name + "' must take its " +
+                                                           std::to_string(param_types.size()) + " parameters and " +
+                                                           std::to_string(fn.returns.size()) +
+                                                           " adjoint(s) of its return value(s)"));
+      auto gi = InstantiateFunction(*g->second, gtypes, g->second->def->loc, static_cast<int>(param_types.size()));
+      if (!gi.ok()) return finish_error(gi.status());
+      fn.custom_grad = *gi;
+      st_ = &state;
+    }
+  }
 
   st_ = saved;
   in_progress_.erase(inst);
@@ -498,6 +536,12 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
   if (value.kind != Value::Kind::kVar) return Error(loc, "only runtime values can be stored");
   if (const auto* sub = ast::As<ast::Subscript>(&target)) {
     WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
+    if (base.kind == Value::Kind::kBuiltin && base.name == "adjoint") {  // wp.adjoint[x] = ...
+      WEFT_ASSIGN_OR_RETURN(int slot, AdjointSlot(*sub));
+      WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, TypeOf(slot), loc, "the adjoint of '" + ExprText(*sub->indices[0]) + "'"));
+      EmitCopy(slot, v);
+      return Status::Ok();
+    }
     if (base.kind != Value::Kind::kVar) return Error(loc, "cannot assign to an element of '" + ExprText(*sub->value) + "'");
     const Type bt = TypeOf(base.var);
     const auto* slice = sub->indices.size() == 1 ? ast::As<ast::Slice>(sub->indices[0].get()) : nullptr;
@@ -824,10 +868,12 @@ Status Checker::LowerReturn(const ast::Return& s) {
       // default values; Warp rejects them, so do we.
       if (st_->has_bare_return) return Error(s.loc, "'" + fn.name + "' returns a value here but not on every path");
     }
-    if (vals.empty() && !fn.return_slots.empty())
+    if (vals.empty() && !fn.return_slots.empty() && st_->adjoint_slots.empty())
       return Error(s.loc, "'" + fn.name + "' must return " + std::to_string(fn.returns.size()) + " value(s)");
+    if (!st_->adjoint_slots.empty() && !vals.empty())
+      return Error(s.loc, "a gradient function (wp.func_grad) sets wp.adjoint[...] and returns no value");
     if (vals.empty()) st_->has_bare_return = true;
-    if (vals.size() != fn.return_slots.size())
+    if (vals.size() != fn.return_slots.size() && st_->adjoint_slots.empty())
       return Error(s.loc, "'" + fn.name + "' returns " + std::to_string(fn.returns.size()) + " value(s) elsewhere, " +
                               std::to_string(vals.size()) + " here");
     for (size_t i = 0; i < vals.size(); ++i) {

@@ -50,7 +50,8 @@ bool IsSpecialBuiltin(const std::string& n) {
                                                "printf",       "print",         "vector",
                                                "matrix",       "identity",      "quat_identity",
                                                "transform_identity", "quaternion", "transformation",
-                                               "zeros",        "cast",          "static"};
+                                               "zeros",        "cast",          "static",
+                                               "adjoint"};
   return kNames.count(n) != 0;
 }
 
@@ -455,8 +456,24 @@ Expected<std::vector<int>> Checker::SliceComponents(const ast::Slice& sl, int n)
   return out;
 }
 
+// wp.adjoint[x] in a gradient function (wp.func_grad): the adjoint slot of parameter x.
+Expected<int> Checker::AdjointSlot(const ast::Subscript& s) {
+  const auto* n = s.indices.size() == 1 ? ast::As<ast::Name>(s.indices[0].get()) : nullptr;
+  if (st_->adjoint_slots.empty())
+    return Error(s.loc, "wp.adjoint[...] is only available in a gradient function (@wp.func_grad)");
+  auto it = n ? st_->adjoint_slots.find(n->id) : st_->adjoint_slots.end();
+  if (it == st_->adjoint_slots.end())
+    return Error(s.loc, "wp.adjoint[...] takes a differentiable parameter of the function, got '" +
+                            ExprText(*s.indices.at(0)) + "'");
+  return it->second;
+}
+
 Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
   WEFT_ASSIGN_OR_RETURN(Value base, Eval(*s.value));
+  if (base.kind == Value::Kind::kBuiltin && base.name == "adjoint") {
+    WEFT_ASSIGN_OR_RETURN(int slot, AdjointSlot(s));
+    return Value::OfVar(slot);
+  }
   if (base.kind == Value::Kind::kVar && s.indices.size() == 1 && ast::As<ast::Slice>(s.indices[0].get())) {
     const Type bt = TypeOf(base.var);
     if (bt.is_vector() || bt.kind == TypeKind::kQuat) {

@@ -47,13 +47,15 @@ class Checker {
     std::map<int, int> array_param;  // var -> kernel param index (arrays and structs)
     int line = 0;                    // current user line
     bool has_bare_return = false;
+    // In a gradient function (wp.func_grad): parameter name -> its wp.adjoint[...] slot.
+    std::map<std::string, int> adjoint_slots;
     std::vector<std::string> source_lines;
   };
 
   // check.cpp
   Status Error(const SourceLocation& loc, const std::string& msg);
   Expected<int> InstantiateFunction(const ParsedFunction& pf, const std::vector<Type>& param_types,
-                                    const SourceLocation& call_loc);
+                                    const SourceLocation& call_loc, int grad_of_params = -1);
   Status LowerBlock(const ast::StmtList& stmts, size_t from = 0);
   Status LowerStmt(const ast::Stmt& s);
   Status LowerStmtUnguarded(const ast::Stmt& s);
@@ -73,6 +75,7 @@ class Checker {
   Expected<Value> EvalName(const ast::Name& n);
   Expected<Value> EvalAttribute(const ast::Attribute& a);
   Expected<Value> EvalSubscript(const ast::Subscript& s);
+  Expected<int> AdjointSlot(const ast::Subscript& s);
   Expected<Value> EvalCall(const ast::Call& c);
   Expected<Value> EvalBinOp(const ast::BinOp& b);
   Expected<Value> EvalCompare(const ast::Compare& c);

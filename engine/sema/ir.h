@@ -106,6 +106,12 @@ struct Function {
   std::vector<Type> returns;             // 0, 1 or more return values
   std::vector<int> return_slots;         // mutable vars holding return values
   int return_flag = -1;
+  // Custom gradients (wp.func_grad): on a func, the index of its gradient function (whose
+  // adj_<func> then calls it instead of reversing the body), -1 if none. On a gradient
+  // function, which parameter of the forward func each of its return values is the
+  // adjoint of (it returns the wp.adjoint[...] slots).
+  int custom_grad = -1;
+  std::vector<int> grad_of_param;
   bool may_fail = false;                 // contains bounds checks (directly or through calls)
   bool uses_tid = false;
   std::vector<Var> vars;

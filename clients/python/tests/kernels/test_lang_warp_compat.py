@@ -380,3 +380,66 @@ def test_sub_array_views_and_gradient(wp, rng):
     np.testing.assert_allclose(aa.grad.numpy(), seed * b[:, :, 1], rtol=1e-12)
     gb = np.stack([seed * np.cos(b[:, :, 0]), seed * a], axis=2)
     np.testing.assert_allclose(bb.grad.numpy(), gb, rtol=1e-12)
+
+
+@wp.func
+def clipped_sqrt(x: wp.float64):
+    return wp.sqrt(wp.max(x, wp.float64(0.0)))
+
+
+@wp.func_grad(clipped_sqrt)
+def adj_clipped_sqrt(x: wp.float64, adj_ret: wp.float64):
+    # the true derivative where x > 0, and 0 (not inf) at and below 0
+    if x > wp.float64(0.0):
+        wp.adjoint[x] += adj_ret / (wp.float64(2.0) * wp.sqrt(x))
+
+
+@wp.func
+def product_and_sum(a: wp.float64, b: wp.float64):
+    return a * b, a + b
+
+
+@wp.func_grad(product_and_sum)
+def adj_product_and_sum(a: wp.float64, b: wp.float64, adj_p: wp.float64, adj_s: wp.float64):
+    # deliberately not the true gradient, to show which one the backward pass uses
+    wp.adjoint[a] += wp.float64(10.0) * adj_p
+    wp.adjoint[b] += wp.float64(100.0) * adj_s
+
+
+@wp.kernel
+def custom_gradients(x: wp.array(dtype=wp.float64), w: wp.array(dtype=wp.float64), y: wp.array(dtype=wp.float64),
+                     z: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    y[i] = clipped_sqrt(x[i]) * wp.exp(x[i])
+    p, s = product_and_sum(x[i], w[i])
+    z[i] = p + s
+
+
+def test_custom_gradient_func_grad(wp, rng):
+    n = 40
+    x = rng.uniform(0.2, 3.0, n)
+    x[:5] = [-1.0, -0.5, 0.0, -2.0, 0.0]          # where the custom gradient differs from sqrt's
+    w = rng.standard_normal(n)
+    xa = wp.array(x, dtype=wp.float64, requires_grad=True)
+    wa = wp.array(w, dtype=wp.float64, requires_grad=True)
+    y = wp.zeros(n, dtype=wp.float64, requires_grad=True)
+    z = wp.zeros(n, dtype=wp.float64, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(custom_gradients, dim=n, inputs=[xa, wa, y, z])
+    f = lambda v: np.sqrt(np.maximum(v, 0.0)) * np.exp(v)  # noqa: E731
+    np.testing.assert_allclose(y.numpy(), f(x), rtol=1e-14)
+    np.testing.assert_allclose(z.numpy(), x * w + x + w, rtol=1e-14)
+    tape.backward(grads={y: np.ones(n)})
+    # where x > 0 the custom gradient is the true one: central finite differences
+    h = 1e-7
+    fd = (f(x + h) - f(x - h)) / (2 * h)
+    got = xa.grad.numpy()
+    np.testing.assert_allclose(got[5:], fd[5:], rtol=1e-6)
+    # at and below 0 only the exp factor's term remains (the sqrt factor is 0)
+    np.testing.assert_allclose(got[:5], 0.0, atol=1e-15)
+    tape.zero()
+    seed = rng.standard_normal(n)
+    tape.backward(grads={z: seed})
+    np.testing.assert_allclose(xa.grad.numpy(), 10.0 * seed + 100.0 * seed, rtol=1e-14)
+    np.testing.assert_allclose(wa.grad.numpy(), 100.0 * seed, rtol=1e-14)

@@ -11,7 +11,7 @@ import typing
 from . import module as module_mod
 from . import typestr
 from .errors import WarpCodegenError, WeftCompileError, WeftLaunchError
-from .functions import Function, FunctionDefinition, Kernel
+from .functions import Function, FunctionDefinition, Kernel, attach_gradient
 from .launch import Launch, launch
 from .structs import StructInstance, StructType, struct
 from .tape import Tape
@@ -28,6 +28,7 @@ __all__ = [
     "constant",
     "func",
     "func_native",
+    "func_grad",
     "get_module",
     "get_module_options",
     "kernel",
@@ -79,6 +80,20 @@ def func_native(snippet=None, adj_snippet=None, replay_snippet=None):
         "weft does not compile native snippets (@wp.func_native): the daemon compiles only the "
         "kernel language, never client C++ (see docs/security.md); write the function as a "
         "@wp.func instead")
+
+
+def func_grad(forward):
+    """@wp.func_grad(f): the decorated function is the gradient of @wp.func `f` (the overload
+    whose parameter types it starts with). It takes f's parameters, then the adjoints of f's
+    return values, and adds to `wp.adjoint[param]`; f's backward pass calls it instead of
+    differentiating f's body."""
+
+    def wrap(function):
+        gradient = attach_gradient(forward, FunctionDefinition(function, is_kernel=False))
+        module_mod.bump_version()
+        return gradient
+
+    return wrap
 
 
 def overload(target, arg_types=None):

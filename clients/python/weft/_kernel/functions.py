@@ -66,6 +66,7 @@ class FunctionDefinition:
                 except TypeError:
                     self.return_type = ""
         self.key = canonical_name(self.module, self.qualname)
+        self.custom_grad = None      # GradientFunction set by wp.func_grad
 
     def _annotations(self) -> dict:
         """The evaluated annotations; string annotations (PEP 563) are evaluated in the
@@ -160,6 +161,38 @@ class Function:
 
     def __repr__(self):
         return f"<weft func {self.key} ({len(self.overloads)} overload(s))>"
+
+
+class GradientFunction:
+    """A custom gradient (wp.func_grad) attached to one @wp.func overload. It is sent with the
+    overload, under the key `<overload key>__custom_grad`, whenever a kernel reaches the
+    overload; the daemon calls it in the func's backward pass instead of differentiating the
+    body. Parameters: the func's, then the adjoints of its return values; the body adds to
+    `wp.adjoint[param]`."""
+
+    def __init__(self, definition: FunctionDefinition):
+        self.definition = definition
+        self.overloads = [definition]
+
+
+def attach_gradient(forward: Function, definition: FunctionDefinition) -> GradientFunction:
+    """Attaches `definition` as the custom gradient of the overload of `forward` whose
+    parameter types it starts with. Raises TypeError when none does."""
+    if not isinstance(forward, Function):
+        raise TypeError(f"wp.func_grad expects a @wp.func, got {forward!r}")
+    gradient = GradientFunction(definition)
+    matched = False
+    for overload in forward.overloads:
+        n = len(overload.param_types)
+        if definition.param_types[:n] == overload.param_types:
+            overload.custom_grad = gradient
+            matched = True
+    if not matched:
+        raise TypeError(
+            f"{definition.file}:{definition.first_line}: error: gradient '{definition.name}' does not "
+            f"match any overload of '{forward.__name__}': its parameters must start with the "
+            f"func's parameter types, then take the adjoints of its return values")
+    return gradient
 
 
 class Kernel:

@@ -140,6 +140,10 @@ def resolve(definition: FunctionDefinition) -> Resolution:
             continue
         classify(name, value, add, functions, structs)
 
+    gradient = getattr(definition, "custom_grad", None)
+    if gradient is not None:     # wp.func_grad: travels with the func, keyed after it
+        gradient.definition.key = definition.key + "__custom_grad"
+        functions.append(gradient)
     return Resolution(list(symbols.values()), functions, structs)
 
 
