@@ -752,6 +752,26 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
       return Value();
     }
   }
+  if ((name == "matrix_from_rows" || name == "matrix_from_cols") && !args.empty() && args.size() <= 64 &&
+      (!call || call->keywords.empty())) {
+    // Any number of vectors of one type: rows fill the matrix row-major (a concatenation),
+    // columns use the column constructor; both are differentiable constructions.
+    for (const auto& a : args)
+      if (a.kind != Value::Kind::kVar || !TypeOf(a.var).is_vector() || TypeOf(a.var) != TypeOf(args[0].var))
+        return Error(loc, "wp." + name + " takes vectors of one type");
+    const Type vt = TypeOf(args[0].var);
+    int n = static_cast<int>(args.size());
+    bool rows = name == "matrix_from_rows";
+    Type t = rows ? Type::Matrix(n, vt.rows, vt.scalar) : Type::Matrix(vt.rows, n, vt.scalar);
+    Stmt st;
+    st.op.kind = OpKind::kConstruct;
+    st.op.mode = rows ? ConstructMode::kConcat : ConstructMode::kColumns;
+    int d = NewVar(t);
+    st.op.dst.push_back(d);
+    for (const auto& a : args) st.op.args.push_back(a.var);
+    Push(std::move(st));
+    return Value::OfVar(d);
+  }
   if (name == "range") return Error(loc, "range() is only allowed as the iterable of a for loop");
   if (name == "len") {
     if (args.size() != 1 || args[0].kind != Value::Kind::kVar) return Error(loc, "len() takes one value");

@@ -443,3 +443,45 @@ def test_custom_gradient_func_grad(wp, rng):
     tape.backward(grads={z: seed})
     np.testing.assert_allclose(xa.grad.numpy(), 10.0 * seed, rtol=1e-14)
     np.testing.assert_allclose(wa.grad.numpy(), 100.0 * seed, rtol=1e-14)
+
+
+@wp.kernel
+def rows_and_cols(v: wp.array(dtype=wp.vec3d), out: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    a = v[i * 4 + 0]
+    b = v[i * 4 + 1]
+    c = v[i * 4 + 2]
+    d = v[i * 4 + 3]
+    r = wp.matrix_from_rows(a, b)              # 2x3
+    k = wp.matrix_from_cols(a, b, c, d)        # 3x4
+    p = r @ k                                  # 2x4
+    out[i] = p[1, 3] + p[0, 0] * r[1, 2]
+
+
+def _rows_and_cols_reference(v):
+    v = v.reshape(-1, 4, 3)
+    r = v[:, :2, :]
+    k = np.transpose(v, (0, 2, 1))
+    p = r @ k
+    return p[:, 1, 3] + p[:, 0, 0] * r[:, 1, 2]
+
+
+def test_matrix_from_any_number_of_rows_or_columns(wp, rng):
+    n = 12
+    v = rng.standard_normal((4 * n, 3))
+    va = wp.array(v, dtype=wp.vec3d, requires_grad=True)
+    out = wp.zeros(n, dtype=wp.float64, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(rows_and_cols, dim=n, inputs=[va, out])
+    np.testing.assert_allclose(out.numpy(), _rows_and_cols_reference(v), rtol=1e-12)
+    tape.backward(grads={out: np.ones(n)})
+    h = 1e-6
+    fd = np.zeros_like(v)
+    for j in range(v.shape[0]):
+        for c in range(3):
+            vp, vm = v.copy(), v.copy()
+            vp[j, c] += h
+            vm[j, c] -= h
+            fd[j, c] = (np.sum(_rows_and_cols_reference(vp)) - np.sum(_rows_and_cols_reference(vm))) / (2 * h)
+    np.testing.assert_allclose(va.grad.numpy(), fd, rtol=1e-6, atol=1e-8)
