@@ -126,7 +126,7 @@ class FnEmitter {
   // it returns into the parameters' adjoints.
   void EmitCustomGradCall() {
     const Function& g = m_.functions.at(f_.custom_grad);
-    Line("// custom gradient: " + g.name);
+    Line("// custom gradient: " + CommentText(g.name));
     std::string args = "__ctx, __tid_flat";
     for (int p : f_.params) args += ", " + V(p);
     for (size_t i = 0; i < f_.returns.size(); ++i) args += ", __adj_ret" + std::to_string(i);
@@ -679,9 +679,7 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
     kl.name = f.name;
     std::string args_struct = "weft_args_" + f.cpp_name;
     const size_t block_start = o.size();
-    o += "// argument block of kernel " + CommentText(f.name) + "
-struct alignas(8) " + args_struct + " {
-";
+    o += "// argument block of kernel " + CommentText(f.name) + "\nstruct alignas(8) " + args_struct + " {\n";
     uint32_t off = 0, align = 8;
     for (size_t i = 0; i < f.params.size(); ++i) {
       const Type& t = f.vars[f.params[i]].type;
