@@ -110,7 +110,8 @@ TEST(EmitText, LineDirectiveFileNameIsOneQuotedToken) {
 
 // A module whose struct, field, function, kernel, parameter and file names all carry a
 // payload: the generated translation unit has exactly the two #include lines codegen writes
-// and no other preprocessor line, the payload never starts a line, and clang accepts it.
+// and otherwise only #line directives exactly as LineDirective writes them for the kernel's
+// file, the payload never starts a line, and clang accepts it.
 TEST(EmitText, HostileNamesNeverBecomeCode) {
   const std::string payload = "x\n#include \"/etc/passwd\"\nint injected = system(\"touch /tmp/pwned\");\n//";
   ModuleSource m;
@@ -152,6 +153,15 @@ TEST(EmitText, HostileNamesNeverBecomeCode) {
       std::string line = src.substr(start, end - start);
       start = end + 1;
       size_t first = line.find_first_not_of(' ');
+      // #line directives map generated code to the user's lines: each must be exactly
+      // LineDirective's output for the kernel's file (the file name one quoted, %-encoded token).
+      if (line.rfind("#line ", 0) == 0) {
+        size_t sp = line.find(' ', 6);
+        ASSERT_NE(sp, std::string::npos) << line;
+        uint32_t n = static_cast<uint32_t>(std::stoul(line.substr(6, sp - 6)));
+        EXPECT_EQ(line, codegen::LineDirective(n, k.file));
+        continue;
+      }
       if (first != std::string::npos && line[first] == '#') {
         EXPECT_TRUE(line == "#include \"weft.h\"" || line == "#include \"codegen_support.h\"") << line;
         ++includes;
