@@ -4,7 +4,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cstdlib>
+#include <tuple>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -35,6 +37,29 @@ Expected<std::string> ReadTokenFile(const std::string& path) {
   return t.substr(b, e - b + 1);
 }
 
+Expected<uint64_t> ParseByteSize(const std::string& text) {
+  const std::string bad = "'" + text + "' is not a byte size (expected e.g. 4096, 512M, 16G, 1T)";
+  size_t i = 0;
+  uint64_t v = 0;
+  if (text.empty() || !std::isdigit(static_cast<unsigned char>(text[0]))) return InvalidArgument(bad);
+  while (i < text.size() && std::isdigit(static_cast<unsigned char>(text[i]))) {
+    if (__builtin_mul_overflow(v, 10u, &v) || __builtin_add_overflow(v, static_cast<uint64_t>(text[i] - '0'), &v))
+      return InvalidArgument(bad);
+    ++i;
+  }
+  std::string unit = text.substr(i);
+  for (char& c : unit) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  int shift = 0;
+  if (unit.empty() || unit == "B") shift = 0;
+  else if (unit == "K" || unit == "KB" || unit == "KIB") shift = 10;
+  else if (unit == "M" || unit == "MB" || unit == "MIB") shift = 20;
+  else if (unit == "G" || unit == "GB" || unit == "GIB") shift = 30;
+  else if (unit == "T" || unit == "TB" || unit == "TIB") shift = 40;
+  else return InvalidArgument(bad);
+  if (shift && v > (~0ull >> shift)) return InvalidArgument(bad);
+  return v << shift;
+}
+
 namespace {
 
 const toml::node* Key(const toml::table& t, const std::string& dashed) {
@@ -61,7 +86,9 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
                                   "allow-unchecked", "allow_unchecked", "native-dir", "native_dir",
                                   "max-module-bytes", "max_module_bytes", "max-functions", "max_functions",
                                   "max-block-depth", "max_block_depth", "max-expression-depth",
-                                  "max_expression_depth"};
+                                  "max_expression_depth",
+                                  "max-memory", "max_memory", "max-principal-memory", "max_principal_memory",
+                                  "max-session-memory", "max_session_memory"};
     bool ok = false;
     for (const char* n : known) ok = ok || k.str() == n;
     if (!ok) return InvalidArgument("config " + path + ": unknown key '" + std::string(k.str()) + "'");
@@ -101,6 +128,27 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   if (!given("--allow-unchecked"))
     if (auto* n = Key(t, "allow-unchecked"))
       if (auto v = n->value<bool>()) c->allow_unchecked = *v;
+  // Byte sizes: an integer or a string with a unit ("16G").
+  auto bytes = [&](const char* key, const char* flag, uint64_t* out) -> Status {
+    if (given(flag)) return Status::Ok();
+    const toml::node* n = Key(t, key);
+    if (!n) return Status::Ok();
+    if (auto v = n->value<int64_t>()) {
+      if (*v < 0) return InvalidArgument("config " + path + ": " + key + " must be >= 0");
+      *out = static_cast<uint64_t>(*v);
+      return Status::Ok();
+    }
+    if (auto s = n->value<std::string>()) {
+      auto parsed = ParseByteSize(*s);
+      if (!parsed.ok()) return InvalidArgument("config " + path + ": " + key + ": " + parsed.status().message());
+      *out = *parsed;
+      return Status::Ok();
+    }
+    return InvalidArgument("config " + path + ": " + key + " must be a byte size");
+  };
+  WEFT_RETURN_IF_ERROR(bytes("max-memory", "--max-memory", &c->max_memory));
+  WEFT_RETURN_IF_ERROR(bytes("max-principal-memory", "--max-principal-memory", &c->max_principal_memory));
+  WEFT_RETURN_IF_ERROR(bytes("max-session-memory", "--max-session-memory", &c->max_session_memory));
   return Status::Ok();
 }
 
@@ -126,6 +174,11 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   app.add_option("--max-expression-depth", c.max_expression_depth,
                  "Deepest nesting of expressions in kernel code, 1..1000 (default 1000)");
   app.add_flag("--version", c.show_version, "Print the version and exit");
+  std::string max_memory, max_principal_memory, max_session_memory;
+  app.add_option("--max-memory", max_memory, "Daemon-wide limit on array memory, e.g. 16G (default: the size of /dev/shm)");
+  app.add_option("--max-principal-memory", max_principal_memory,
+                 "Limit on the array memory of one principal's sessions together (default: none)");
+  app.add_option("--max-session-memory", max_session_memory, "Limit on the array memory of one session (default: none)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -136,6 +189,14 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
     std::cout << "weftd " << WEFT_VERSION << "\n";
     *exit_code = 0;
     return Status(StatusCode::kCancelled, "exit");
+  }
+  for (auto [text, out, flag] : {std::tuple{&max_memory, &c.max_memory, "--max-memory"},
+                                 std::tuple{&max_principal_memory, &c.max_principal_memory, "--max-principal-memory"},
+                                 std::tuple{&max_session_memory, &c.max_session_memory, "--max-session-memory"}}) {
+    if (text->empty()) continue;
+    auto parsed = ParseByteSize(*text);
+    if (!parsed.ok()) return InvalidArgument(std::string(flag) + ": " + parsed.status().message());
+    *out = *parsed;
   }
   if (!config_file.empty()) WEFT_RETURN_IF_ERROR(ApplyToml(config_file, &c, app));
   if (c.cpu_threads < 0) return InvalidArgument("--cpu-threads must be >= 0");

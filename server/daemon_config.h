@@ -25,7 +25,14 @@ struct DaemonConfig {
   uint32_t max_functions = 2000;
   int max_block_depth = 100;
   int max_expression_depth = 1000;
+  // Array memory limits in bytes (reserved, not touched); 0 = the default (see docs/operations.md).
+  uint64_t max_memory = 0;             // daemon-wide (default: the size of /dev/shm)
+  uint64_t max_principal_memory = 0;   // per principal (default: none beyond max_memory)
+  uint64_t max_session_memory = 0;     // per session (default: none beyond the other two)
 };
+
+// "4096", "512M", "16G", "1T" (binary units, optional "iB"/"B") -> bytes.
+Expected<uint64_t> ParseByteSize(const std::string& text);
 
 // Parses argv (and the TOML file it names). Returns the exit code in *exit_code when the
 // process should stop now (--help, --version, bad flags).

@@ -111,6 +111,9 @@ int main(int argc, char** argv) {
   EngineOptions eo;
   eo.cpu_threads = cfg->cpu_threads;
   eo.allow_unchecked = cfg->allow_unchecked;
+  eo.memory.daemon = cfg->max_memory;
+  eo.memory.per_principal = cfg->max_principal_memory;
+  eo.memory.per_session = cfg->max_session_memory;
   eo.modules.cache_dir = cfg->cache_dir;
   eo.modules.native_dir = cfg->native_dir.empty() ? WEFT_NATIVE_DIR : cfg->native_dir;
   eo.modules.verify_cuda = cfg->verify_cuda;

@@ -212,10 +212,14 @@ class FnEmitter {
     return s;
   }
 
-  void Check(const Op& op, int line, int array, const std::vector<int>& idx) {
+  // Bounds check of an array access; `adjoint`: of the access to the array's adjoint (its
+  // gradient array, which has its own data and shape) in reverse code.
+  void Check(const Op& op, int line, int array, const std::vector<int>& idx, bool adjoint = false) {
     if (!opt_.bounds_checks) return;
-    std::string s = "if (!wp::cg_check(__ctx, " + std::to_string(f_.function_id) + ", " + std::to_string(line) + ", " +
-                    std::to_string(f_.is_kernel ? op.array_param : -1) + ", " + CppStringLiteral(op.array_name) + ", " + V(array);
+    std::string s = std::string(adjoint ? "if (!wp::cg_check_adj(__ctx, " : "if (!wp::cg_check(__ctx, ") +
+                    std::to_string(f_.function_id) + ", " + std::to_string(line) + ", " +
+                    std::to_string(f_.is_kernel ? op.array_param : -1) + ", " + CppStringLiteral(op.array_name) + ", " +
+                    (adjoint ? A(array) : V(array));
     for (int k = 0; k < 4; ++k) s += ", " + (k < static_cast<int>(idx.size()) ? V(idx[k]) : std::string("0"));
     s += ", " + std::to_string(idx.size()) + ")) " + fail_;
     Line(s);
@@ -392,7 +396,7 @@ class FnEmitter {
           int saved = last_line_;
           Loc(s.line);
           size_t mark = out_.size();
-          RevOp(s.op);
+          RevOp(s.op, s.line);
           if (out_.size() == mark) {  // nothing emitted: drop the location comment
             out_.resize(before);
             last_line_ = saved;
@@ -481,7 +485,7 @@ class FnEmitter {
     Line("}");
   }
 
-  void RevOp(const Op& op) {
+  void RevOp(const Op& op, int line) {
     auto dt = [&]() -> const Type& { return T(op.dst.at(0)); };
     switch (op.kind) {
       case OpKind::kConst:
@@ -500,6 +504,10 @@ class FnEmitter {
         bool any = false;
         for (int v : op.dst) any |= Diff(T(v));
         if (!any) return;
+        if (b->flags & kBuiltinArrayAccess) {
+          int ndim = T(op.args[0]).ndim;
+          Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.begin() + 1 + ndim), true);
+        }
         if (op.dst.size() > 1) {
           Line("wp::" + b->adjoint + "(" + Args(op.args) + ", " + Args(op.dst) + ", " + Args(op.args, 0, std::string::npos, true) +
                ", " + Args(op.dst, 0, std::string::npos, true) + ");");
@@ -533,11 +541,13 @@ class FnEmitter {
       }
       case OpKind::kLoad:
         if (!Diff(dt()) || dt().is_struct()) return;
+        Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.end()), true);
         Line("wp::adj_load(" + A(op.args[0]) + ", " + Args(op.args, 1) + ", " + A(op.dst[0]) + ");");
         return;
       case OpKind::kStore: {
         const Type& vt = T(op.args.back());
         if (!Diff(vt) || vt.is_struct()) return;
+        Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.end() - 1), true);
         Line("wp::adj_store(" + A(op.args[0]) + ", " + Args(op.args, 1, op.args.size() - 1) + ", " + A(op.args.back()) + ");");
         return;
       }
@@ -616,6 +626,10 @@ Expected<ParamLayout> LayoutParam(const std::string& name, const Type& type, con
     p.is_array = true;
     p.array_dtype = TypeString(type.elem());
     p.array_ndim = type.ndim;
+    if (!type.elem().is_any()) {
+      WEFT_ASSIGN_OR_RETURN(TypeLayout el, LayoutOf(type.elem(), structs));
+      p.array_elem_size = el.size;
+    }
   }
   if (type.is_struct()) {
     const StructInfo& si = structs.at(type.struct_name);

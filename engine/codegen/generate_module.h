@@ -28,6 +28,7 @@ struct ParamLayout {
   std::string array_dtype;  // element type string when is_array
   int array_ndim = 0;
   std::vector<ParamLayout> fields;  // struct parameters: their fields, offsets relative to it
+  uint32_t array_elem_size = 0;  // bytes of one element when is_array (the compiled layout's)
 };
 
 struct KernelLayout {

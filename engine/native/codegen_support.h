@@ -279,5 +279,14 @@ WP_FUNC bool cg_check(const launch_context_t* ctx, int32 function_id, int32 line
   report_error(ctx, a.data ? LAUNCH_OUT_OF_BOUNDS : LAUNCH_NULL_ARRAY, function_id, line, array_param, ndim, idx, a.shape, name);
   return false;
 }
+// The adjoint twin of cg_check, run before every adjoint array access (adj_load, adj_store,
+// atomic adjoints): an adjoint array without data (no gradient wanted) passes; otherwise every
+// index must lie inside the adjoint array's own shape, whatever the primal check found.
+template <typename T>
+WP_FUNC bool cg_check_adj(const launch_context_t* ctx, int32 function_id, int32 line, int32 array_param, const char* name,
+                          const array_t<T>& adj, int64 i, int64 j = 0, int64 k = 0, int64 l = 0, int32 ndim = 1) {
+  if (adj.data == nullptr) return true;
+  return cg_check(ctx, function_id, line, array_param, name, adj, i, j, k, l, ndim);
+}
 
 }  // namespace wp

@@ -23,8 +23,13 @@ struct Allocation {
   std::vector<int64_t> strides;    // bytes, C-contiguous
   std::string device = "cpu";
   uint64_t byte_size = 0;          // element size * element count
-  ShmSlabPool::Block block;        // CPU memory
+  ShmSlabPool::Block block;        // CPU memory (changes only when an export moves it: block_mu)
   std::function<void(const ShmSlabPool::Block&)> release;  // returns the block to its pool
+  // Where the bytes lived before an export moved them into a slab of their own; kept (never
+  // reused) until the allocation dies, so a stale pointer still names memory of this array.
+  ShmSlabPool::Block retired_block;
+  std::function<void(const ShmSlabPool::Block&)> release_retired;
+  mutable std::mutex block_mu;     // guards block/retired_block against concurrent Describe
   std::shared_ptr<Allocation> grad;  // requires_grad arrays
   bool is_grad = false;              // this allocation is some array's gradient
 
@@ -41,6 +46,7 @@ struct Allocation {
   Allocation& operator=(const Allocation&) = delete;
   ~Allocation() {
     if (release) release(block);
+    if (release_retired && retired_block.data) release_retired(retired_block);
   }
 };
 

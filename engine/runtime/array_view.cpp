@@ -4,6 +4,8 @@
 #include <cstring>
 #include <limits>
 
+#include "engine/core/checked_math.h"
+
 namespace weft {
 
 uint64_t ArrayView::element_count() const {
@@ -38,6 +40,12 @@ Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& 
                            " dimensions but " + std::to_string(ref.strides.size()) + " strides");
   for (int64_t d : ref.shape)
     if (d < 0) return InvalidArgument(name + ": negative extent in view shape " + ShapeString(ref.shape));
+  // The view's logical size (elements x element size) must fit kMaxCheckedSize, checked without
+  // wrapping: element counts, contiguous strides and temporaries are then exact in 64 bits.
+  uint64_t logical_bytes = 0;
+  if (!CheckedShapeProduct(ref.shape, esize, &logical_bytes))
+    return InvalidArgument(name + ": view shape " + ShapeString(ref.shape) + " has too many elements (more than " +
+                           std::to_string(kMaxCheckedSize) + " bytes of " + alloc->dtype.Name() + ")");
   v.shape = ref.shape;
   v.strides = ref.strides.empty() ? ContiguousStrides(ref.shape, esize) : ref.strides;
   v.byte_offset = ref.byte_offset;
@@ -168,19 +176,16 @@ Status CopyView(const ArrayView& dst, const ArrayView& src) {
     return Status::Ok();
   }
   // Walk both views in C order with one odometer each. When they share an allocation (they may
-  // overlap), gather the source into a contiguous temporary first.
-  std::vector<char> tmp;
+  // overlap), read the source from a snapshot of the allocation's bytes: its size is the
+  // allocation's, never derived from the view's element count (a stride-0 view may name far more
+  // elements than the allocation holds).
+  std::vector<char> snapshot;
   const char* sbase = src.data();
-  std::vector<int64_t> sshape = src.shape, sstrides = src.strides;
+  const std::vector<int64_t>& sshape = src.shape;
+  const std::vector<int64_t>& sstrides = src.strides;
   if (src.alloc == dst.alloc) {
-    tmp.resize(n * esize);
-    uint64_t j = 0;
-    ForEachElement(src.shape, src.strides, [&](int64_t off) {
-      std::memcpy(tmp.data() + (j++) * esize, sbase + off, esize);
-    });
-    sbase = tmp.data();
-    sshape = {static_cast<int64_t>(n)};
-    sstrides = {static_cast<int64_t>(esize)};
+    snapshot.assign(src.alloc->data(), src.alloc->data() + src.alloc->byte_size);
+    sbase = snapshot.data() + src.byte_offset;
   }
   Odometer so(sshape, sstrides);
   char* dbase = dst.data();

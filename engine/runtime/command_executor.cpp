@@ -3,6 +3,7 @@
 
 #include <cstring>
 
+#include "engine/runtime/array_validation.h"
 #include "engine/runtime/array_view.h"
 #include "engine/runtime/cpu_launch.h"
 #include "engine/runtime/launch_args.h"
@@ -20,9 +21,20 @@ Expected<std::shared_ptr<Allocation>> Lookup(const HandleSnapshot& h, uint64_t h
   return it->second;
 }
 
+// A checked view of an array a copy, fill or backward seed names (ValidateArray: the command
+// runs on the CPU; element types are compared by the operation itself).
 Expected<ArrayView> ViewOf(const HandleSnapshot& h, const ArrayRef& ref, const std::string& what) {
   WEFT_ASSIGN_OR_RETURN(auto a, Lookup(h, ref.handle, what));
-  return MakeView(std::move(a), ref, what);
+  ArrayRequirement req;
+  req.what = what;
+  return ValidateArray(std::move(a), ref, req);
+}
+
+// A checked view of an allocation the daemon picked itself (a gradient, the loss).
+Expected<ArrayView> ViewOfAllocation(std::shared_ptr<Allocation> a, const ArrayRef& ref, const std::string& what) {
+  ArrayRequirement req;
+  req.what = what;
+  return ValidateArray(std::move(a), ref, req);
 }
 
 void CollectArg(const ArgValue& a, std::vector<uint64_t>* out) {
@@ -187,7 +199,7 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
     if (!bk || !bk->cpu_backward)
       return Internal("module '" + c.module_id + "' has no backward for kernel '" + c.kernel + "'");
     WEFT_ASSIGN_OR_RETURN(std::vector<ResolvedArg> adj, ResolveArgs(c.adj_args, h, c.kernel + " (adjoint)"));
-    WEFT_ASSIGN_OR_RETURN(PackedArgs adj_packed, PackAdjointArgs(bk->layout, adj));
+    WEFT_ASSIGN_OR_RETURN(PackedArgs adj_packed, PackAdjointArgs(bk->layout, packed, adj));
     launch.module = bmod.get();
     launch.kernel = bk;
     launch.adj_args = &adj_packed;
@@ -293,11 +305,11 @@ Status CommandExecutor::Backward(Session& s, Tape& tape, const TapeCommand& c, c
     if (!loss->grad)
       return FailedPrecondition("backward: the loss array " + std::to_string(loss->handle) +
                                 " was not created with requires_grad=True");
-    WEFT_ASSIGN_OR_RETURN(ArrayView lv, MakeView(loss, c.loss, "backward loss"));
+    WEFT_ASSIGN_OR_RETURN(ArrayView lv, ViewOfAllocation(loss, c.loss, "backward loss"));
     WEFT_ASSIGN_OR_RETURN(one, OneElement(loss->dtype));
     ArrayRef gref = c.loss;
     gref.handle = loss->grad->handle;
-    WEFT_ASSIGN_OR_RETURN(loss_grad, MakeView(loss->grad, gref, "backward loss gradient"));
+    WEFT_ASSIGN_OR_RETURN(loss_grad, ViewOfAllocation(loss->grad, gref, "backward loss gradient"));
     tape.Touch(loss);
   }
   std::vector<std::pair<ArrayView, ArrayView>> seeds;
@@ -308,16 +320,23 @@ Status CommandExecutor::Backward(Session& s, Tape& tape, const TapeCommand& c, c
                                 " was not created with requires_grad=True");
     ArrayRef target = aref;
     target.handle = a->grad->handle;
-    WEFT_ASSIGN_OR_RETURN(ArrayView dst, MakeView(a->grad, target, "backward seed target"));
+    WEFT_ASSIGN_OR_RETURN(ArrayView dst, ViewOfAllocation(a->grad, target, "backward seed target"));
     WEFT_ASSIGN_OR_RETURN(ArrayView src, ViewOf(h, gref, "backward seed gradient"));
     seeds.emplace_back(std::move(dst), std::move(src));
     tape.Touch(a);
   }
+  // Validate every gradient block before running any adjoint, so a failure changes nothing.
+  std::vector<PackedArgs> adjoints;
+  for (Step& st : steps) {
+    WEFT_ASSIGN_OR_RETURN(PackedArgs adj, GradientArgs(st.kernel->layout, st.record->args, st.live));
+    adjoints.push_back(std::move(adj));
+  }
   if (loss_grad.alloc) WEFT_RETURN_IF_ERROR(FillView(loss_grad, one));
   for (auto& [dst, src] : seeds) WEFT_RETURN_IF_ERROR(CopyView(dst, src));
 
-  for (Step& st : steps) {
-    PackedArgs adj = GradientArgs(st.kernel->layout, st.record->args, st.live);
+  for (size_t si = 0; si < steps.size(); ++si) {
+    Step& st = steps[si];
+    PackedArgs& adj = adjoints[si];
     CpuLaunch launch;
     launch.module = st.module.get();
     launch.kernel = st.kernel;

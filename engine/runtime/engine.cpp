@@ -2,12 +2,14 @@
 #include "engine/runtime/engine.h"
 
 #include <sys/random.h>
+#include <sys/statvfs.h>
 
 #include <cstring>
 
 #include <spdlog/spdlog.h>
 
 #include "engine/codegen/emit_text.h"
+#include "engine/core/checked_math.h"
 #include "engine/runtime/array_view.h"
 #include "engine/runtime/ipc_token.h"
 
@@ -29,6 +31,18 @@ std::string NewSessionId() {
     s += hex[c & 15];
   }
   return s;
+}
+
+// The default daemon-wide array limit: the size of /dev/shm (where CPU arrays live), at most
+// physical memory + swap.
+uint64_t DefaultDaemonMemoryLimit(uint64_t physical_and_swap) {
+  struct statvfs vfs {};
+  uint64_t limit = physical_and_swap;
+  if (statvfs("/dev/shm", &vfs) == 0) {
+    uint64_t shm = static_cast<uint64_t>(vfs.f_blocks) * vfs.f_frsize;
+    if (shm > 0 && shm < limit) limit = shm;
+  }
+  return limit;
 }
 
 }  // namespace
@@ -53,6 +67,12 @@ Engine::Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store)
   eo.print_capacity = options.print_capacity;
   executor_ = std::make_unique<CommandExecutor>(*pool_, store_.get(), eo);
   memory_limit_ = PhysicalMemoryAndSwap();
+  MemoryLimits limits = options.memory;
+  if (limits.daemon == 0) limits.daemon = DefaultDaemonMemoryLimit(memory_limit_);
+  quota_ = std::make_unique<MemoryQuota>(limits);
+  spdlog::info("array memory limits: daemon {}, per principal {}, per session {}", ByteCountString(limits.daemon),
+               limits.per_principal ? ByteCountString(limits.per_principal) : std::string("none"),
+               limits.per_session ? ByteCountString(limits.per_session) : std::string("none"));
 }
 
 Engine::~Engine() {
@@ -120,46 +140,84 @@ std::vector<DeviceInfo> Engine::ListDevices() const {
 
 // ---- arrays ----
 
-Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(const DType& dtype, const std::vector<int64_t>& shape,
-                                                            bool zero) {
+Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(Session& owner, const DType& dtype,
+                                                            const std::vector<int64_t>& shape, bool zero) {
   WEFT_RETURN_IF_ERROR(dtype.Validate());
   if (shape.empty() || shape.size() > static_cast<size_t>(kMaxArrayDims))
     return InvalidArgument("array shape must have 1 to 4 dimensions, got " + std::to_string(shape.size()));
-  __int128 bytes = dtype.ElementSize();
-  for (int64_t d : shape) {
+  for (int64_t d : shape)
     if (d < 0) return InvalidArgument("array shape " + ShapeString(shape) + " has a negative dimension");
-    bytes *= d;
-    if (bytes > (static_cast<__int128>(1) << 62))
-      return ResourceExhausted("array of shape " + ShapeString(shape) + " is absurdly large");
-  }
-  if (static_cast<uint64_t>(bytes) > memory_limit_)
+  uint64_t bytes = 0;
+  if (!CheckedShapeProduct(shape, dtype.ElementSize(), &bytes))
+    return ResourceExhausted("array of shape " + ShapeString(shape) + " and dtype " + dtype.Name() +
+                             " is absurdly large (more than " + std::to_string(kMaxCheckedSize) + " bytes)");
+  if (bytes > memory_limit_)
     return ResourceExhausted("array of shape " + ShapeString(shape) + " and dtype " + dtype.Name() + " needs " +
-                             std::to_string(static_cast<uint64_t>(bytes)) +
-                             " bytes, more than this machine's memory + swap (" + std::to_string(memory_limit_) + ")");
-  WEFT_ASSIGN_OR_RETURN(ShmSlabPool::Block block, slabs_->Allocate(static_cast<uint64_t>(bytes)));
+                             std::to_string(bytes) + " bytes, more than this machine's memory + swap (" +
+                             std::to_string(memory_limit_) + ")");
+  // Reserve before allocating: the quota counts reserved bytes, not touched pages.
+  const std::string session_id = owner.id(), principal = owner.options().principal;
+  const uint64_t reserved = slabs_->ReservedSize(bytes);
+  WEFT_RETURN_IF_ERROR(quota_->Reserve(session_id, principal, reserved));
+  auto block = slabs_->Allocate(bytes, session_id);
+  if (!block.ok()) {
+    quota_->Release(session_id, principal, reserved);
+    return block.status();
+  }
   auto a = std::make_shared<Allocation>();
   a->handle = next_handle_++;
   a->dtype = dtype;
   a->shape = shape;
   a->strides = ContiguousStrides(shape, dtype.ElementSize());
-  a->byte_size = static_cast<uint64_t>(bytes);
-  a->block = block;
-  if (zero && !block.zeroed) std::memset(block.data, 0, a->byte_size);   // new slabs are zero already
+  a->byte_size = bytes;
+  a->block = *block;
+  if (zero && !a->block.zeroed) std::memset(a->block.data, 0, a->byte_size);   // new slabs are zero already
   const uint64_t handle = a->handle, size = a->byte_size;
   ShmSlabPool* pool = slabs_.get();
-  a->release = [this, pool, handle, size](const ShmSlabPool::Block& b) {
+  MemoryQuota* quota = quota_.get();
+  a->release = [this, pool, quota, handle, size, session_id, principal, reserved](const ShmSlabPool::Block& b) {
     {
       std::lock_guard<std::mutex> lock(alloc_mu_);
       allocations_.erase(handle);
     }
     live_bytes_ -= size;
     pool->Free(b);
+    quota->Release(session_id, principal, reserved);
   };
   live_bytes_ += size;
   std::lock_guard<std::mutex> lock(alloc_mu_);
   allocations_[a->handle] = a;
   return a;
 }
+
+Status Engine::MoveToOwnSlab(Allocation& a, const Session& owner) {
+  {
+    std::lock_guard<std::mutex> lock(a.block_mu);
+    if (a.block.dedicated || a.retired_block.data) return Status::Ok();
+  }
+  // The new slab is reserved too (the old block stays reserved until the array dies).
+  const std::string session_id = a.block.owner, principal = owner.options().principal;
+  const uint64_t reserved = slabs_->ReservedSize(a.byte_size);
+  WEFT_RETURN_IF_ERROR(quota_->Reserve(session_id, principal, reserved));
+  auto fresh = slabs_->Allocate(a.byte_size, session_id, /*dedicated=*/true);
+  if (!fresh.ok()) {
+    quota_->Release(session_id, principal, reserved);
+    return fresh.status();
+  }
+  if (a.byte_size) std::memcpy(fresh->data, a.block.data, a.byte_size);
+  ShmSlabPool* pool = slabs_.get();
+  MemoryQuota* quota = quota_.get();
+  std::lock_guard<std::mutex> lock(a.block_mu);
+  a.retired_block = a.block;
+  a.block = *fresh;
+  a.release_retired = [pool, quota, session_id, principal, reserved](const ShmSlabPool::Block& b) {
+    pool->Free(b);
+    quota->Release(session_id, principal, reserved);
+  };
+  return Status::Ok();
+}
+
+MemoryUsage Engine::MemoryUsageOf(const Session& s) const { return quota_->Usage(s.id(), s.options().principal); }
 
 ArrayDesc Engine::Describe(const Session& s, const Allocation& a) const {
   ArrayDesc d;
@@ -170,10 +228,17 @@ ArrayDesc Engine::Describe(const Session& s, const Allocation& a) const {
   d.device = a.device;
   d.byte_size = a.byte_size;
   d.grad_handle = a.grad ? a.grad->handle : 0;
+  // A local session gets the name of a slab only when mapping it shows nothing but memory it
+  // may see: a slab of its own (it holds only this session's arrays), or a slab holding this
+  // one allocation and nothing else (an exported array, a big array). Otherwise it moves the
+  // bytes with Read/Write.
   if (s.options().local) {
-    d.shm_name = a.block.slab_name;
-    d.shm_offset = a.block.offset;
-    d.shm_size = a.block.slab_size;
+    std::lock_guard<std::mutex> lock(a.block_mu);
+    if (a.block.owner == s.id() || a.block.dedicated) {
+      d.shm_name = a.block.slab_name;
+      d.shm_offset = a.block.offset;
+      d.shm_size = a.block.slab_size;
+    }
   }
   return d;
 }
@@ -199,16 +264,15 @@ Expected<ArrayDesc> Engine::CreateArray(Session& s, const CreateArrayParams& p) 
     return InvalidArgument("fill value has " + std::to_string(p.value.size()) + " bytes; one element of " +
                            p.dtype.Name() + " has " + std::to_string(esize));
   if (p.init == CreateArrayParams::Init::kData) {
-    __int128 want = esize;
-    for (int64_t d : p.shape) want *= d < 0 ? 0 : d;
-    if (static_cast<__int128>(p.value.size()) != want && p.dtype.Validate().ok())
+    uint64_t want = 0;
+    if (p.dtype.Validate().ok() && CheckedShapeProduct(p.shape, esize, &want) && p.value.size() != want)
       return InvalidArgument("data has " + std::to_string(p.value.size()) + " bytes; shape " + ShapeString(p.shape) +
-                             " of " + p.dtype.Name() + " needs " + std::to_string(static_cast<uint64_t>(want)));
+                             " of " + p.dtype.Name() + " needs " + std::to_string(want));
   }
   const bool zero = p.init == CreateArrayParams::Init::kZeros;
-  WEFT_ASSIGN_OR_RETURN(auto a, NewAllocation(p.dtype, p.shape, zero));
+  WEFT_ASSIGN_OR_RETURN(auto a, NewAllocation(s, p.dtype, p.shape, zero));
   if (p.requires_grad) {
-    WEFT_ASSIGN_OR_RETURN(auto g, NewAllocation(p.dtype, p.shape, true));
+    WEFT_ASSIGN_OR_RETURN(auto g, NewAllocation(s, p.dtype, p.shape, true));
     g->is_grad = true;
     a->grad = std::move(g);
   }
@@ -276,6 +340,15 @@ Expected<std::string> Engine::ExportArray(Session& s, uint64_t handle) {
   WEFT_ASSIGN_OR_RETURN(auto a, Held(s, handle));
   std::lock_guard<std::mutex> lock(a->export_mu);
   if (a->export_secret.empty()) {
+    // Before its first export an array is held by its owner only. Move it (and its gradient)
+    // into slabs of their own, on the owner's executor so no queued command of the owner runs
+    // meanwhile: an importer then maps this array's bytes and nothing else.
+    Status moved = Status::Ok();
+    s.queue().RunAndWait([&] {
+      moved = MoveToOwnSlab(*a, s);
+      if (moved.ok() && a->grad) moved = MoveToOwnSlab(*a->grad, s);
+    });
+    WEFT_RETURN_IF_ERROR(moved);
     a->export_secret = NewIpcSecret();
     a->export_principal = s.options().principal;
   } else if (a->export_principal != s.options().principal) {

@@ -16,6 +16,7 @@
 #include "engine/runtime/command_executor.h"
 #include "engine/runtime/commands.h"
 #include "engine/runtime/device_info.h"
+#include "engine/runtime/memory_quota.h"
 #include "engine/runtime/module_store.h"
 #include "engine/runtime/session.h"
 #include "engine/runtime/shm_slab_pool.h"
@@ -28,6 +29,9 @@ struct EngineOptions {
   int cpu_threads = 0;            // launch pool size; 0 = all cores
   bool allow_unchecked = false;   // modules may ask for "bounds_checks": "false"
   ShmSlabPoolOptions slabs;
+  // Array memory limits (reserved bytes). memory.daemon == 0: the size of /dev/shm, at most
+  // physical memory + swap.
+  MemoryLimits memory;
   uint64_t print_capacity = 1 << 20;   // per launch
   bool remove_stale_slabs = true;
 };
@@ -115,19 +119,26 @@ class Engine {
 
   EngineStats Stats() const;
   const EngineOptions& options() const { return options_; }
+  // Reserved array bytes of the session, its principal and the daemon, and the limits.
+  MemoryUsage MemoryUsageOf(const Session& s) const;
+  const MemoryLimits& memory_limits() const { return quota_->limits(); }
   ThreadPool& pool() { return *pool_; }
 
  private:
   Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store);
   // The executor task of one batch (holds the batch's arrays until it has run).
   std::function<void()> BatchTask(Session& s, std::vector<Command> commands);
-  Expected<std::shared_ptr<Allocation>> NewAllocation(const DType& dtype, const std::vector<int64_t>& shape,
-                                                      bool zero);
+  // A new allocation owned by `owner`: quota reserved, memory from the owner's slabs.
+  Expected<std::shared_ptr<Allocation>> NewAllocation(Session& owner, const DType& dtype,
+                                                      const std::vector<int64_t>& shape, bool zero);
+  // Moves an allocation's bytes into a slab of its own (before its first export).
+  Status MoveToOwnSlab(Allocation& a, const Session& owner);
   ArrayDesc Describe(const Session& s, const Allocation& a) const;
   Expected<std::shared_ptr<Allocation>> Held(const Session& s, uint64_t handle) const;
 
   EngineOptions options_;
   std::unique_ptr<ShmSlabPool> slabs_;   // destroyed last (declared first)
+  std::unique_ptr<MemoryQuota> quota_;   // outlives every allocation (declared early)
   std::unique_ptr<ModuleStore> store_;
   std::unique_ptr<ThreadPool> pool_;
   std::unique_ptr<CommandExecutor> executor_;

@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "engine/native/launch_abi.h"
+#include "engine/runtime/array_validation.h"
 
 namespace weft {
 
@@ -30,6 +31,7 @@ const char* KindName(ArgValue::Kind k) {
 struct Packer {
   const KernelLayout& kernel;
   bool adjoint = false;   // values stay zero; arrays fill `data` only
+  const PackedArgs* primal = nullptr;   // adjoint: the forward block the shapes must match
   PackedArgs out;
 
   std::string Where(const std::string& path, const ParamLayout& p) const {
@@ -54,19 +56,28 @@ struct Packer {
       slot.top_param = top;
       if (a.alloc) {
         Allocation& al = *a.alloc;
-        if (al.device != "cpu")
-          return InvalidArgument(Where(path, p) + ": array " + std::to_string(al.handle) + " lives on " +
-                                 al.device + ", the launch runs on cpu");
-        if (!adjoint && !al.dtype.MatchesParam(p.array_dtype))
-          return InvalidArgument(Where(path, p) + ": array " + std::to_string(al.handle) +
-                                 " has dtype " + al.dtype.Name() + ", expected " + p.array_dtype);
-        if (adjoint && !al.dtype.MatchesParam(p.array_dtype) && al.dtype.ElementSize() == 0)
-          return InvalidArgument(Where(path, p) + ": unusable adjoint array");
-        WEFT_ASSIGN_OR_RETURN(ArrayView v, MakeView(a.alloc, a.ref, Where(path, p)));
-        if (p.array_ndim > 0 && static_cast<int>(v.shape.size()) != p.array_ndim)
-          return InvalidArgument(Where(path, p) + ": array has " + std::to_string(v.shape.size()) +
-                                 " dimensions " + ShapeString(v.shape) + ", expected " +
-                                 std::to_string(p.array_ndim));
+        ArrayRequirement req;
+        req.what = Where(path, p);
+        req.device = "cpu";
+        req.dtype = p.array_dtype;
+        req.element_size = p.array_elem_size;
+        req.ndim = p.array_ndim;
+        // An adjoint array must have exactly the shape of the primal array in the same slot:
+        // the forward replay's bounds checks and the adjoint's index the same elements.
+        std::vector<int64_t> primal_shape;
+        if (adjoint && primal) {
+          for (const PackedArray& ps : primal->arrays) {
+            if (ps.offset != at || ps.handle == 0) continue;
+            if (static_cast<uint64_t>(at) + sizeof(wp::array_abi_t) > primal->block.size())
+              return Internal(Where(path, p) + ": adjoint layout differs from the forward layout (compiler bug)");
+            wp::array_abi_t pabi{};
+            std::memcpy(&pabi, primal->block.data() + at, sizeof(pabi));
+            const int nd = pabi.ndim < 0 ? 0 : (pabi.ndim > wp::ARRAY_MAX_DIMS ? wp::ARRAY_MAX_DIMS : pabi.ndim);
+            primal_shape.assign(pabi.shape, pabi.shape + nd);
+            req.shape = &primal_shape;
+          }
+        }
+        WEFT_ASSIGN_OR_RETURN(ArrayView v, ValidateArray(a.alloc, a.ref, req));
         abi.data = v.data();
         abi.grad = (!adjoint && al.grad) ? al.grad->data() + v.byte_offset : nullptr;
         abi.ndim = static_cast<wp::int32>(v.shape.size());
@@ -120,29 +131,50 @@ struct Packer {
 }  // namespace
 
 Expected<PackedArgs> PackArgs(const KernelLayout& kernel, const std::vector<ResolvedArg>& args) {
-  Packer p{kernel, false, {}};
+  Packer p{kernel, false, nullptr, {}};
   WEFT_RETURN_IF_ERROR(p.PackAll(args));
   return std::move(p.out);
 }
 
-Expected<PackedArgs> PackAdjointArgs(const KernelLayout& kernel, const std::vector<ResolvedArg>& adj_args) {
-  Packer p{kernel, true, {}};
+Expected<PackedArgs> PackAdjointArgs(const KernelLayout& kernel, const PackedArgs& primal,
+                                     const std::vector<ResolvedArg>& adj_args) {
+  Packer p{kernel, true, &primal, {}};
   WEFT_RETURN_IF_ERROR(p.PackAll(adj_args));
   return std::move(p.out);
 }
 
-PackedArgs GradientArgs(const KernelLayout& kernel, const PackedArgs& forward,
-                        const std::vector<std::shared_ptr<Allocation>>& live) {
+Expected<PackedArgs> GradientArgs(const KernelLayout& kernel, const PackedArgs& forward,
+                                  const std::vector<std::shared_ptr<Allocation>>& live) {
   PackedArgs out;
   out.block = ArgBlock(kernel.args_size);
   for (size_t i = 0; i < forward.arrays.size(); ++i) {
     const PackedArray& slot = forward.arrays[i];
+    if (static_cast<uint64_t>(slot.offset) + sizeof(wp::array_abi_t) > out.block.size())
+      return Internal("kernel '" + kernel.name + "': recorded array slot outside the argument block (daemon bug)");
     wp::array_abi_t abi{};
     std::memcpy(&abi, forward.block.data() + slot.offset, sizeof(abi));
     const std::shared_ptr<Allocation>& a = i < live.size() ? live[i] : nullptr;
-    abi.data = (a && a->grad) ? a->grad->data() + slot.byte_offset : nullptr;
+    abi.data = nullptr;
     abi.grad = nullptr;
-    if (a && a->grad) out.keep_alive.push_back(a->grad);
+    if (a && a->grad) {
+      // The gradient goes through the same validation as every array: the recorded view
+      // (offset, shape, strides) must lie inside the gradient allocation.
+      const int nd = abi.ndim < 0 ? 0 : (abi.ndim > wp::ARRAY_MAX_DIMS ? wp::ARRAY_MAX_DIMS : abi.ndim);
+      ArrayRef ref;
+      ref.handle = a->grad->handle;
+      ref.byte_offset = slot.byte_offset;
+      ref.shape.assign(abi.shape, abi.shape + nd);
+      ref.strides.assign(abi.strides, abi.strides + nd);
+      ArrayRequirement req;
+      req.what = "kernel '" + kernel.name + "' gradient of '" + slot.param + "'";
+      req.device = a->device;
+      req.dtype = a->dtype.Name();
+      req.element_size = a->dtype.ElementSize();
+      req.shape = &ref.shape;
+      WEFT_ASSIGN_OR_RETURN(ArrayView v, ValidateArray(a->grad, ref, req));
+      abi.data = v.data();
+      out.keep_alive.push_back(a->grad);
+    }
     std::memcpy(out.block.data() + slot.offset, &abi, sizeof(abi));
     out.arrays.push_back(slot);
   }

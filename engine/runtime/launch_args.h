@@ -57,12 +57,16 @@ struct PackedArgs {
 Expected<PackedArgs> PackArgs(const KernelLayout& kernel, const std::vector<ResolvedArg>& args);
 
 // Adjoint block from explicit adjoint arguments (LaunchCommand.adjoint): array slots take the
-// given arrays' data; value slots are zero.
-Expected<PackedArgs> PackAdjointArgs(const KernelLayout& kernel, const std::vector<ResolvedArg>& adj_args);
+// given arrays' data; value slots are zero. Each adjoint array passes ValidateArray with the
+// compiled element type and size, and must have the shape of the primal array in the same slot
+// of `primal` (the packed forward block).
+Expected<PackedArgs> PackAdjointArgs(const KernelLayout& kernel, const PackedArgs& primal,
+                                     const std::vector<ResolvedArg>& adj_args);
 
 // Adjoint block for a recorded launch: each array slot points at that array's own gradient
-// (data = null when it has none); value slots are zero. The forward allocations must be alive.
-PackedArgs GradientArgs(const KernelLayout& kernel, const PackedArgs& forward,
-                        const std::vector<std::shared_ptr<Allocation>>& live);
+// (data = null when it has none), validated like every array; value slots are zero. The forward
+// allocations must be alive.
+Expected<PackedArgs> GradientArgs(const KernelLayout& kernel, const PackedArgs& forward,
+                                  const std::vector<std::shared_ptr<Allocation>>& live);
 
 }  // namespace weft

@@ -109,6 +109,7 @@ void WriteParam(ByteWriter& w, const ParamLayout& p) {
   w.U32(p.is_array ? 1 : 0);
   w.Str(p.array_dtype);
   w.U32(uint32_t(p.array_ndim));
+  w.U32(p.array_elem_size);
   w.U64(p.fields.size());
   for (const auto& f : p.fields) WriteParam(w, f);
 }
@@ -119,7 +120,7 @@ bool ReadParam(ByteReader& r, ParamLayout* p, int depth) {
   uint64_t nfields = 0;
   if (!(r.Str(&p->name) && r.Str(&p->type) && r.U32(&p->offset) && r.U32(&p->size) &&
         r.U32(&p->align) && r.U32(&is_array) && r.Str(&p->array_dtype) && r.U32(&ndim) &&
-        r.Count(&nfields)))
+        r.U32(&p->array_elem_size) && r.Count(&nfields)))
     return false;
   p->is_array = is_array != 0;
   p->array_ndim = int(ndim);

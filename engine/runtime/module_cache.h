@@ -59,7 +59,7 @@ Expected<ModuleArtifact> DeserializeArtifact(std::string_view payload);
 // the payload) + payload. Disabled (every Load is NotFound, Store a no-op) when dir is empty.
 class DiskModuleCache {
  public:
-  static constexpr uint32_t kFormatVersion = 1;
+  static constexpr uint32_t kFormatVersion = 2;
 
   explicit DiskModuleCache(std::string dir) : dir_(std::move(dir)) {}
   // Creates the directory.

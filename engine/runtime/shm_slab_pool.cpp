@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/mman.h>
+#include <sys/random.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
@@ -18,6 +19,23 @@ namespace weft {
 
 namespace {
 uint64_t RoundUp(uint64_t v, uint64_t a) { return (v + a - 1) / a * a; }
+
+// 16 random hex digits: slab names cannot be guessed from the daemon pid and a counter.
+std::string RandomSuffix() {
+  unsigned char b[8] = {};
+  size_t got = 0;
+  while (got < sizeof(b)) {
+    ssize_t r = getrandom(b + got, sizeof(b) - got, 0);
+    if (r > 0) got += static_cast<size_t>(r);
+  }
+  static const char* hex = "0123456789abcdef";
+  std::string s;
+  for (unsigned char c : b) {
+    s += hex[c >> 4];
+    s += hex[c & 15];
+  }
+  return s;
+}
 }  // namespace
 
 ShmSlabPool::ShmSlabPool(ShmSlabPoolOptions options) : options_(std::move(options)) {
@@ -34,7 +52,7 @@ ShmSlabPool::~ShmSlabPool() {
   while (!slabs_.empty()) DestroySlabLocked(slabs_.begin()->first);
 }
 
-Expected<ShmSlabPool::Slab*> ShmSlabPool::NewSlabLocked(uint64_t size, bool dedicated) {
+Expected<ShmSlabPool::Slab*> ShmSlabPool::NewSlabLocked(uint64_t size, bool dedicated, const std::string& owner) {
   struct statvfs vfs {};
   if (statvfs("/dev/shm", &vfs) == 0) {
     uint64_t avail = static_cast<uint64_t>(vfs.f_bavail) * vfs.f_frsize;
@@ -44,9 +62,10 @@ Expected<ShmSlabPool::Slab*> ShmSlabPool::NewSlabLocked(uint64_t size, bool dedi
   }
   auto slab = std::make_unique<Slab>();
   slab->id = next_slab_id_++;
-  slab->name = options_.name_prefix + std::to_string(slab->id);
+  slab->name = options_.name_prefix + std::to_string(slab->id) + "-" + RandomSuffix();
   slab->size = size;
   slab->dedicated = dedicated;
+  slab->owner = owner;
   int fd = shm_open(slab->name.c_str(), O_RDWR | O_CREAT | O_EXCL, 0600);
   if (fd < 0) return Internal("shm_open(" + slab->name + "): " + std::strerror(errno));
   fchmod(fd, 0600);  // umask may have narrowed it; never widen beyond 0600
@@ -83,7 +102,13 @@ void ShmSlabPool::DestroySlabLocked(uint64_t id) {
   slabs_.erase(it);
 }
 
-Expected<ShmSlabPool::Block> ShmSlabPool::Allocate(uint64_t bytes) {
+uint64_t ShmSlabPool::ReservedSize(uint64_t bytes) const {
+  const uint64_t a = options_.alignment;
+  if (bytes > (1ull << 62)) return bytes;
+  return RoundUp(bytes == 0 ? a : bytes, a);
+}
+
+Expected<ShmSlabPool::Block> ShmSlabPool::Allocate(uint64_t bytes, const std::string& owner, bool dedicated) {
   const uint64_t a = options_.alignment;
   if (bytes > (1ull << 62)) return ResourceExhausted("allocation of " + std::to_string(bytes) + " bytes is too large");
   uint64_t size = RoundUp(bytes == 0 ? a : bytes, a);
@@ -91,13 +116,13 @@ Expected<ShmSlabPool::Block> ShmSlabPool::Allocate(uint64_t bytes) {
   Slab* slab = nullptr;
   uint64_t offset = 0;
   bool fresh = false;
-  if (size > options_.dedicated_threshold || size > options_.slab_size) {
+  if (dedicated || size > options_.dedicated_threshold || size > options_.slab_size) {
     uint64_t slab_size = RoundUp(size, static_cast<uint64_t>(getpagesize()));
-    WEFT_ASSIGN_OR_RETURN(slab, NewSlabLocked(slab_size, true));
+    WEFT_ASSIGN_OR_RETURN(slab, NewSlabLocked(slab_size, true, owner));
     fresh = true;
   } else {
     for (auto& [id, s] : slabs_) {
-      if (s->dedicated) continue;
+      if (s->dedicated || s->owner != owner) continue;
       for (auto& [off, len] : s->free_ranges) {
         if (len >= size) {
           slab = s.get();
@@ -108,7 +133,7 @@ Expected<ShmSlabPool::Block> ShmSlabPool::Allocate(uint64_t bytes) {
       if (slab) break;
     }
     if (!slab) {
-      WEFT_ASSIGN_OR_RETURN(slab, NewSlabLocked(options_.slab_size, false));
+      WEFT_ASSIGN_OR_RETURN(slab, NewSlabLocked(options_.slab_size, false, owner));
       offset = 0;
       fresh = true;
     }
@@ -129,6 +154,8 @@ Expected<ShmSlabPool::Block> ShmSlabPool::Allocate(uint64_t bytes) {
   b.size = size;
   b.data = slab->base + offset;
   b.zeroed = fresh;
+  b.dedicated = slab->dedicated;
+  b.owner = slab->owner;
   return b;
 }
 

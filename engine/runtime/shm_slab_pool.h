@@ -1,6 +1,9 @@
-// CPU memory: shared-memory slabs (shm_open, mode 0600, names /weft-<pid>-<n>, never reused)
-// sub-allocated first-fit with coalescing. Big requests get a slab of their own; a slab that
-// becomes empty is unmapped and unlinked. Thread-safe.
+// CPU memory: shared-memory slabs (shm_open, mode 0600, names /weft-<pid>-<n>-<random>, never
+// reused) sub-allocated first-fit with coalescing. Every slab has one owner (a session id): blocks
+// of one owner are carved only from that owner's slabs, so a slab never holds two sessions'
+// arrays and freed memory is reused only by the session that freed it. Big requests, and
+// requests that ask for it, get a slab of their own (dedicated: it holds that block only); a
+// slab that becomes empty is unmapped and unlinked. Thread-safe.
 #pragma once
 
 #include <cstdint>
@@ -39,6 +42,8 @@ class ShmSlabPool {
     uint64_t size = 0;        // rounded size
     void* data = nullptr;
     bool zeroed = false;      // from a slab created for this request: already all zero
+    bool dedicated = false;   // the slab holds this block and nothing else
+    std::string owner;        // the owner of the slab
   };
 
   explicit ShmSlabPool(ShmSlabPoolOptions options = {});
@@ -46,8 +51,12 @@ class ShmSlabPool {
   ShmSlabPool(const ShmSlabPool&) = delete;
   ShmSlabPool& operator=(const ShmSlabPool&) = delete;
 
-  // Allocates `bytes` (0 allowed: gets one alignment unit). Contents are unspecified.
-  Expected<Block> Allocate(uint64_t bytes);
+  // Allocates `bytes` (0 allowed: gets one alignment unit) in a slab of `owner`; `dedicated`
+  // forces a slab of its own. Contents are unspecified (but never another owner's data: a
+  // slab's memory is only ever reused by its owner).
+  Expected<Block> Allocate(uint64_t bytes, const std::string& owner = std::string(), bool dedicated = false);
+  // The rounded size Allocate reserves for `bytes` (what quotas count).
+  uint64_t ReservedSize(uint64_t bytes) const;
   void Free(const Block& block);
   ShmSlabPoolStats stats() const;
 
@@ -61,10 +70,11 @@ class ShmSlabPool {
     uint64_t size = 0;
     char* base = nullptr;
     bool dedicated = false;
+    std::string owner;
     uint64_t used = 0;
     std::map<uint64_t, uint64_t> free_ranges;  // offset -> size, non-adjacent
   };
-  Expected<Slab*> NewSlabLocked(uint64_t size, bool dedicated);
+  Expected<Slab*> NewSlabLocked(uint64_t size, bool dedicated, const std::string& owner);
   void DestroySlabLocked(uint64_t id);
 
   ShmSlabPoolOptions options_;

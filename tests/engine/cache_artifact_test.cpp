@@ -51,10 +51,10 @@ ModuleArtifact SampleArtifact(std::mt19937& rng) {
   k.forward_symbol = "weft_saxpy_cpu_forward";
   k.args_size = 184;
   k.args_align = 8;
-  ParamLayout a_param{"a", "float32", 0, 4, 4, false, "", 0, {}};
-  ParamLayout x_param{"x", "array(float32,1)", 8, 88, 8, true, "float32", 1, {}};
+  ParamLayout a_param{"a", "float32", 0, 4, 4, false, "", 0, {}, 0};
+  ParamLayout x_param{"x", "array(float32,1)", 8, 88, 8, true, "float32", 1, {}, 4};
   ParamLayout s_param{"s", "struct(m.S)", 96, 88, 8, false, "", 0,
-                      {ParamLayout{"f", "vec(3,float32)", 0, 12, 4, false, "", 0, {}}}};
+                      {ParamLayout{"f", "vec(3,float32)", 0, 12, 4, false, "", 0, {}, 0}}, 0};
   k.params = {a_param, x_param, s_param};
   a.kernels = {k, k};
   a.kernels[1].name = "other";
@@ -75,6 +75,7 @@ void ExpectSameParams(const std::vector<ParamLayout>& a, const std::vector<Param
     EXPECT_EQ(a[i].is_array, b[i].is_array);
     EXPECT_EQ(a[i].array_dtype, b[i].array_dtype);
     EXPECT_EQ(a[i].array_ndim, b[i].array_ndim);
+    EXPECT_EQ(a[i].array_elem_size, b[i].array_elem_size);
     ExpectSameParams(a[i].fields, b[i].fields);
   }
 }

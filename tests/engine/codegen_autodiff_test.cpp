@@ -374,6 +374,59 @@ TEST(CodegenAutodiff, OutOfBoundsReadStopsTheThreadAndReports) {
   EXPECT_EQ(out.data[2], 7);
 }
 
+TEST(CodegenAutodiff, AdjointAccessesAreBoundsCheckedAgainstTheAdjointArray) {
+  // Reads x[i], writes out[i + 1]: in the backward pass the
+  // adjoint arrays (gradients) are indexed at the same places; an adjoint array smaller than its
+  // primal must be reported, never written past.
+  auto m = Module1("adjoob",
+                   "def adjoob(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64), n: int):\n"
+                   "    i = wp.tid()\n"
+                   "    out[i + 1] = x[i] * 2.0\n",
+                   kInOutN, {"x", "out", "n"});
+  Built b = Build(m, "adjoob");
+  ASSERT_EQ(b.error, "");
+  Arr x{{1, 2, 3}, {0, 0, 0}, 3};
+  Arr out{{0, 0, 0, 0}, {1, 1, 1, 1}, 4};
+  Launch l(&b);
+  l.SetArray(0, x);
+  l.SetArray(1, out);
+  EXPECT_EQ(l.Run(3, false).kind, 0);
+  EXPECT_EQ(l.Run(3, true).kind, 0);
+  EXPECT_EQ(x.grad, (std::vector<double>{2, 2, 2}));
+  // The gradient of x: 1 element (+ a guard) for a primal of 3.
+  std::vector<double> small_grad = {0, -99};
+  wp::array_abi_t g = x.View(true);
+  g.data = small_grad.data();
+  g.shape[0] = 1;
+  std::memcpy(l.adj.data() + b.layout.params[0].offset, &g, sizeof g);
+  auto e = l.Run(3, true);
+  EXPECT_EQ(e.kind, wp::LAUNCH_OUT_OF_BOUNDS);
+  EXPECT_EQ(e.array_param, 0);
+  EXPECT_EQ(e.shape[0], 1);
+  EXPECT_STREQ(e.message, "x");
+  EXPECT_EQ(small_grad[1], -99);   // nothing written past the adjoint array
+  // A smaller gradient of `out` (read by the adjoint of the store).
+  Launch l2(&b);
+  l2.SetArray(0, x);
+  l2.SetArray(1, out);
+  std::vector<double> small_out_grad = {1, -99};
+  wp::array_abi_t og = out.View(true);
+  og.data = small_out_grad.data();
+  og.shape[0] = 1;
+  std::memcpy(l2.adj.data() + b.layout.params[1].offset, &og, sizeof og);
+  e = l2.Run(3, true);
+  EXPECT_EQ(e.kind, wp::LAUNCH_OUT_OF_BOUNDS);
+  EXPECT_EQ(e.array_param, 1);
+  // A None gradient (no gradient wanted) is not an error.
+  Launch l3(&b);
+  l3.SetArray(0, x);
+  l3.SetArray(1, out);
+  wp::array_abi_t none{};
+  none.ndim = 1;
+  std::memcpy(l3.adj.data() + b.layout.params[0].offset, &none, sizeof none);
+  EXPECT_EQ(l3.Run(3, true).kind, 0);
+}
+
 TEST(CodegenAutodiff, DivApproxInverseApproxForwardAndGradient) {
   auto m = Module1("k",
                    "def k(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):\n"

@@ -190,6 +190,9 @@ Expected<std::string> Array::Export() {
   auto context = core_->NewContext();
   WEFT_CLIENT_RETURN_IF_ERROR(detail::FromRpc(
       core_->arrays().Export(context.get(), request, &response), "ArrayService.Export"));
+  // The first export moves an array that shared a slab into a slab of its own (an importer maps
+  // the exported bytes and nothing else): refresh where it lives so later mappings follow it.
+  WEFT_CLIENT_RETURN_IF_ERROR(Describe().status());
   return response.token();
 }
 

@@ -566,11 +566,14 @@ TEST_F(ClientTest, LocalCpuArraysAreZeroCopy) {
   ASSERT_OK_E(bv);
   for (size_t i = 0; i < 1024; ++i) ASSERT_EQ((*bv)[i], static_cast<float>(i) * 0.5f) << i;
 
-  // And writes through the stream are visible in the mapping.
+  // And writes through the stream are visible in a mapping made after the export (the first
+  // export moved the array into a slab of its own; docs/security.md).
+  auto m3 = a->MapAs<float>();
+  ASSERT_OK_E(m3);
   std::vector<float> ones(1024, 1.0f);
   ASSERT_OK(b->Assign(ones));
   ASSERT_OK(client_.Synchronize());
-  for (size_t i = 0; i < 1024; ++i) ASSERT_EQ((*m1)[i], 1.0f) << i;
+  for (size_t i = 0; i < 1024; ++i) ASSERT_EQ((*m3)[i], 1.0f) << i;
 }
 
 TEST_F(ClientTest, LargeArraysTravelThroughMappingAndStreams) {

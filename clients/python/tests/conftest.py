@@ -357,3 +357,4 @@ def spawn_client(weftd):
         for stream in (proc.stdin, proc.stdout, proc.stderr):
             if stream is not None:
                 stream.close()
+

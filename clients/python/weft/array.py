@@ -885,6 +885,24 @@ class array:
         rt.flush()
         token = rt.call(rt.array_stub.Export,
                         _runtime.array_pb2.ExportArrayRequest(handle=self._handle)).token
+        # The first export moves an array that shared a slab into a slab of its own (an
+        # importer maps the exported bytes and nothing else): views made from now on use the
+        # new place. The info object is shared by every view of this allocation.
+        ap = _runtime.array_pb2
+        info = rt.call(rt.array_stub.Describe, ap.DescribeArrayRequest(handle=self._handle)).info
+        if info.shm_name != self._alloc.info.shm_name or info.shm_offset != self._alloc.info.shm_offset:
+            self._alloc.info.CopyFrom(info)
+            if self._info is not self._alloc.info:
+                self._info.CopyFrom(info)
+            self._alloc._mapping = None
+        grad = self._grad
+        if grad is not None and getattr(grad, "_alloc", None) is not None and grad._handle:
+            ginfo = rt.call(rt.array_stub.Describe, ap.DescribeArrayRequest(handle=grad._handle)).info
+            if ginfo.shm_name != grad._alloc.info.shm_name:
+                grad._alloc.info.CopyFrom(ginfo)
+                if grad._info is not grad._alloc.info:
+                    grad._info.CopyFrom(ginfo)
+                grad._alloc._mapping = None
         return token.encode()
 
 
