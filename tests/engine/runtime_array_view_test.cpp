@@ -58,7 +58,9 @@ TEST(ArrayView, RejectsViewsOutsideTheAllocation) {
       {{a->handle, 0, {1, 1, 1, 1, 1}, {}}, StatusCode::kInvalidArgument, "at most 4"},
       {{a->handle, 0, {2, 2}, {4}}, StatusCode::kInvalidArgument, "strides"},
       {{a->handle, 52, {0}, {}}, StatusCode::kOutOfRange, "past the end"},
-      {{a->handle, 0, {1ll << 62}, {1ll << 62}}, StatusCode::kOutOfRange, "reaches outside"},
+      {{a->handle, 0, {2}, {1ll << 62}}, StatusCode::kOutOfRange, "reaches outside"},
+      // 2^62 float32 elements are 2^64 bytes: refused before any span is computed.
+      {{a->handle, 0, {1ll << 62}, {1ll << 62}}, StatusCode::kInvalidArgument, "too many elements"},
   };
   for (auto& c : cases) {
     auto v = MakeView(a, c.ref, "dst");
