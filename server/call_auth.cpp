@@ -14,17 +14,23 @@ std::string Metadata(const grpc::ServerContext& ctx, const std::string& key) {
   return std::string(it->second.data(), it->second.size());
 }
 
-bool CallAuth::IsLocalPeer(const grpc::ServerContext& ctx) {
-  return ctx.peer().rfind("unix:", 0) == 0 || ctx.peer().rfind("unix-abstract:", 0) == 0;
+std::optional<PeerCredentials> CallAuth::LocalPeer(const grpc::ServerContext& ctx) const {
+  if (!unix_) return std::nullopt;
+  return unix_->PeerOf(ctx.peer());
 }
 
-std::string CallAuth::Principal(const grpc::ServerContext& ctx) {
-  if (IsLocalPeer(ctx)) return "unix-uid:" + std::to_string(getuid());
+bool CallAuth::IsLocalPeer(const grpc::ServerContext& ctx) const { return LocalPeer(ctx).has_value(); }
+
+std::string CallAuth::Principal(const grpc::ServerContext& ctx) const {
+  if (auto peer = LocalPeer(ctx)) return "unix-uid:" + std::to_string(peer->uid);
   return "tcp-token";
 }
 
 Status CallAuth::Authenticate(const grpc::ServerContext& ctx) const {
   if (IsLocalPeer(ctx)) return Status::Ok();
+  const std::string peer = ctx.peer();
+  if (peer.rfind("ipv4:", 0) != 0 && peer.rfind("ipv6:", 0) != 0)
+    return Status(StatusCode::kUnauthenticated, "connection of unknown kind refused");
   if (tcp_token_.empty())
     return Status(StatusCode::kUnauthenticated, "this daemon accepts no TCP clients without a token");
   std::string auth = Metadata(ctx, "authorization");
@@ -36,13 +42,16 @@ Status CallAuth::Authenticate(const grpc::ServerContext& ctx) const {
   return Status::Ok();
 }
 
+// The id is never echoed (messages may be logged); a wrong id and another principal's id get
+// different codes, but ids are 256 random bits, so the difference reveals nothing usable.
 Expected<std::shared_ptr<Session>> CallAuth::SessionById(const grpc::ServerContext& ctx, const std::string& id) const {
   WEFT_RETURN_IF_ERROR(Authenticate(ctx));
   if (id.empty()) return FailedPrecondition("no session: call SessionService.Open first");
   auto s = engine_.FindSession(id);
-  if (!s) return FailedPrecondition("no session: call SessionService.Open first (unknown session '" + id + "')");
+  if (!s) return FailedPrecondition("no session: call SessionService.Open first (unknown or closed session id)");
   if (s->options().principal != Principal(ctx))
-    return PermissionDenied("session '" + id + "' belongs to a client with other credentials");
+    return PermissionDenied("session " + s->label() + " belongs to another client (" + s->options().principal +
+                            "); a session may only be used by the principal that opened it");
   return s;
 }
 

@@ -1,25 +1,33 @@
-// Who is calling: Unix-socket peers are local (same user, by socket permissions); TCP peers
-// must present the daemon token as metadata "authorization: Bearer <token>". Resolves the
-// session named by metadata "weft-session" and checks it belongs to the same kind of caller.
+// Who is calling, and may they touch this session. A Unix-socket peer's principal is its uid
+// as the kernel reports it (SO_PEERCRED, read by UnixListener): "unix-uid:<uid>"; a TCP peer
+// must present the daemon token as metadata "authorization: Bearer <token>" and is
+// "tcp-token". Any other peer is refused. Every service method resolves its session through
+// SessionOf/SessionById, which refuse a session owned by another principal.
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <grpcpp/server_context.h>
 
 #include "engine/core/status.h"
 #include "engine/runtime/engine.h"
+#include "server/unix_listener.h"
 
 namespace weft::server {
 
 class CallAuth {
  public:
-  CallAuth(Engine& engine, std::string tcp_token) : engine_(engine), tcp_token_(std::move(tcp_token)) {}
+  CallAuth(Engine& engine, std::string tcp_token, const UnixListener* unix_listener)
+      : engine_(engine), tcp_token_(std::move(tcp_token)), unix_(unix_listener) {}
 
-  static bool IsLocalPeer(const grpc::ServerContext& ctx);
-  // "unix-uid:<uid>" for local peers, "tcp-token" for authenticated TCP peers.
-  static std::string Principal(const grpc::ServerContext& ctx);
+  // A connection accepted by the UnixListener.
+  bool IsLocalPeer(const grpc::ServerContext& ctx) const;
+  // The local peer's credentials (nullopt for TCP peers).
+  std::optional<PeerCredentials> LocalPeer(const grpc::ServerContext& ctx) const;
+  // "unix-uid:<peer uid>" for local peers, "tcp-token" for TCP peers.
+  std::string Principal(const grpc::ServerContext& ctx) const;
 
   // UNAUTHENTICATED when a TCP caller has no or a wrong token.
   Status Authenticate(const grpc::ServerContext& ctx) const;
@@ -34,6 +42,7 @@ class CallAuth {
  private:
   Engine& engine_;
   std::string tcp_token_;
+  const UnixListener* unix_;
 };
 
 // gRPC metadata value for `key`, or "".

@@ -9,6 +9,7 @@
 #include <tuple>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <type_traits>
 
@@ -81,16 +82,17 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   }
   auto given = [&](const char* flag) { return app.count(flag) > 0; };
   for (auto&& [k, v] : t) {
-    static const char* known[] = {"listen", "cache-dir", "cache_dir", "log-level", "log_level", "token-file",
-                                  "token_file", "cpu-threads", "cpu_threads", "verify-cuda", "verify_cuda",
-                                  "allow-unchecked", "allow_unchecked", "native-dir", "native_dir",
-                                  "max-module-bytes", "max_module_bytes", "max-functions", "max_functions",
-                                  "max-block-depth", "max_block_depth", "max-expression-depth",
-                                  "max_expression_depth",
-                                  "max-memory", "max_memory", "max-principal-memory", "max_principal_memory",
-                                  "max-session-memory", "max_session_memory"};
+    static const char* known[] = {"listen", "cache-dir", "log-level", "token-file", "cpu-threads", "verify-cuda",
+                                  "allow-unchecked", "native-dir", "max-module-bytes", "max-functions",
+                                  "max-block-depth", "max-expression-depth", "attach-timeout", "launch-time-limit",
+                                  "max-launch-threads", "max-sessions-per-principal", "max-queued-commands",
+                                  "cache-max-bytes", "max-memory", "max-principal-memory",
+                                  "max-session-memory"};
+    std::string dashed(k.str());
+    for (char& ch : dashed)
+      if (ch == '_') ch = '-';
     bool ok = false;
-    for (const char* n : known) ok = ok || k.str() == n;
+    for (const char* n : known) ok = ok || dashed == n;
     if (!ok) return InvalidArgument("config " + path + ": unknown key '" + std::string(k.str()) + "'");
   }
   if (!given("--listen")) {
@@ -149,6 +151,24 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   WEFT_RETURN_IF_ERROR(bytes("max-memory", "--max-memory", &c->max_memory));
   WEFT_RETURN_IF_ERROR(bytes("max-principal-memory", "--max-principal-memory", &c->max_principal_memory));
   WEFT_RETURN_IF_ERROR(bytes("max-session-memory", "--max-session-memory", &c->max_session_memory));
+  // Numbers: a wrong type or a negative value is an error, never ignored.
+  auto number = [&](const char* key, auto* out) -> Status {
+    if (given((std::string("--") + key).c_str())) return Status::Ok();
+    const toml::node* n = Key(t, key);
+    if (!n) return Status::Ok();
+    std::optional<double> v;
+    if (auto i = n->value<int64_t>()) v = static_cast<double>(*i);
+    else if (auto d = n->value<double>()) v = *d;
+    if (!v || *v < 0) return InvalidArgument("config " + path + ": " + key + " must be a number >= 0");
+    *out = static_cast<std::remove_pointer_t<decltype(out)>>(*v);
+    return Status::Ok();
+  };
+  WEFT_RETURN_IF_ERROR(number("attach-timeout", &c->attach_timeout_s));
+  WEFT_RETURN_IF_ERROR(number("launch-time-limit", &c->launch_time_limit_s));
+  WEFT_RETURN_IF_ERROR(number("max-launch-threads", &c->max_launch_threads));
+  WEFT_RETURN_IF_ERROR(number("max-sessions-per-principal", &c->max_sessions_per_principal));
+  WEFT_RETURN_IF_ERROR(number("max-queued-commands", &c->max_queued_commands));
+  WEFT_RETURN_IF_ERROR(number("cache-max-bytes", &c->cache_max_bytes));
   return Status::Ok();
 }
 
@@ -179,6 +199,18 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   app.add_option("--max-principal-memory", max_principal_memory,
                  "Limit on the array memory of one principal's sessions together (default: none)");
   app.add_option("--max-session-memory", max_session_memory, "Limit on the array memory of one session (default: none)");
+  app.add_option("--attach-timeout", c.attach_timeout_s,
+                 "Seconds a new session may go without an Attach stream before it is reaped (default 30)");
+  app.add_option("--launch-time-limit", c.launch_time_limit_s,
+                 "Seconds a kernel launch may run before it is stopped; 0 = no limit (default 300)");
+  app.add_option("--max-launch-threads", c.max_launch_threads,
+                 "Most threads in one launch, and elements in one fill or copy (default 2^32)");
+  app.add_option("--max-sessions-per-principal", c.max_sessions_per_principal,
+                 "Most open sessions per Unix user / per TCP token (default 256)");
+  app.add_option("--max-queued-commands", c.max_queued_commands,
+                 "Most commands queued and not yet run per session (default 65536)");
+  app.add_option("--cache-max-bytes", c.cache_max_bytes,
+                 "Size bound of the disk module cache; least recently used modules are removed (default 2 GiB)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -206,6 +238,11 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
     return InvalidArgument("--max-block-depth must be between 1 and 100");
   if (c.max_expression_depth < 1 || c.max_expression_depth > 1000)
     return InvalidArgument("--max-expression-depth must be between 1 and 1000");
+  if (c.attach_timeout_s <= 0) return InvalidArgument("--attach-timeout must be > 0 seconds");
+  if (c.launch_time_limit_s < 0) return InvalidArgument("--launch-time-limit must be >= 0 (0 = no limit)");
+  if (c.max_launch_threads == 0) return InvalidArgument("--max-launch-threads must be > 0");
+  if (c.max_sessions_per_principal == 0) return InvalidArgument("--max-sessions-per-principal must be > 0");
+  if (c.max_queued_commands == 0) return InvalidArgument("--max-queued-commands must be > 0");
   if (c.listen.empty()) c.listen.push_back("unix:" + DefaultSocketPath());
   for (const auto& l : c.listen)
     if (l.rfind("unix:", 0) != 0 && l.rfind("tcp:", 0) != 0)

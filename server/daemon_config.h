@@ -29,6 +29,13 @@ struct DaemonConfig {
   uint64_t max_memory = 0;             // daemon-wide (default: the size of /dev/shm)
   uint64_t max_principal_memory = 0;   // per principal (default: none beyond max_memory)
   uint64_t max_session_memory = 0;     // per session (default: none beyond the other two)
+  // Limits (docs/operations.md lists them with their defaults).
+  double attach_timeout_s = 30;              // a session with no Attach stream by then is reaped
+  double launch_time_limit_s = 300;          // a launch running longer is stopped; 0 = none
+  uint64_t max_launch_threads = uint64_t{1} << 32;   // per launch (and elements per fill/copy)
+  uint32_t max_sessions_per_principal = 256;
+  uint64_t max_queued_commands = 65536;      // per session
+  uint64_t cache_max_bytes = uint64_t{2} << 30;      // disk module cache; LRU files removed beyond it
 };
 
 // "4096", "512M", "16G", "1T" (binary units, optional "iB"/"B") -> bytes.

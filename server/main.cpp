@@ -1,5 +1,7 @@
-// weftd entry point: configuration, logging, the engine, the gRPC server (Unix sockets and
-// TCP with a token), keepalive, health service, and clean shutdown on SIGTERM/SIGINT.
+// weftd entry point: configuration, logging, the engine, the gRPC server (Unix sockets accepted
+// by UnixListener, TCP with a token), keepalive, health service, the reaper of unattached
+// sessions, and shutdown on SIGTERM/SIGINT within a bound: every session's work is cancelled
+// first, then calls get 2 s to finish, then sessions are closed.
 #include <signal.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -21,6 +23,8 @@
 #include "server/call_auth.h"
 #include "server/daemon_config.h"
 #include "server/services.h"
+#include "server/session_reaper.h"
+#include "server/unix_listener.h"
 
 using namespace weft;
 using namespace weft::server;
@@ -110,6 +114,11 @@ int main(int argc, char** argv) {
 
   EngineOptions eo;
   eo.cpu_threads = cfg->cpu_threads;
+  eo.limits.max_launch_threads = cfg->max_launch_threads;
+  eo.limits.max_queued_commands = cfg->max_queued_commands;
+  eo.launch_time_limit_s = cfg->launch_time_limit_s;
+  eo.max_sessions_per_principal = cfg->max_sessions_per_principal;
+  eo.modules.disk_capacity_bytes = cfg->cache_max_bytes;
   eo.allow_unchecked = cfg->allow_unchecked;
   eo.memory.daemon = cfg->max_memory;
   eo.memory.per_principal = cfg->max_principal_memory;
@@ -127,7 +136,12 @@ int main(int argc, char** argv) {
     return 1;
   }
 
-  CallAuth auth(**engine, token);
+  auto unix_listener = UnixListener::Listen(unix_paths);
+  if (!unix_listener.ok()) {
+    std::cerr << "weftd: " << unix_listener.status().message() << "\n";
+    return 1;
+  }
+  CallAuth auth(**engine, token, unix_listener->get());
   SessionServiceImpl session_service(auth);
   ArrayServiceImpl array_service(auth);
   ExecServiceImpl exec_service(auth);
@@ -137,10 +151,8 @@ int main(int argc, char** argv) {
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
-  for (const auto& l : cfg->listen) {
-    std::string addr = l.rfind("tcp:", 0) == 0 ? l.substr(4) : l;
-    builder.AddListeningPort(addr, grpc::InsecureServerCredentials());
-  }
+  for (const auto& l : cfg->listen)   // unix: paths are accepted by the UnixListener
+    if (l.rfind("tcp:", 0) == 0) builder.AddListeningPort(l.substr(4), grpc::InsecureServerCredentials());
   builder.SetMaxReceiveMessageSize(kMaxMessageBytes);
   builder.SetMaxSendMessageSize(kMaxMessageBytes);
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 2000);
@@ -158,7 +170,8 @@ int main(int argc, char** argv) {
     std::cerr << "weftd: could not listen on every address (in use, or a bad address)\n";
     return 1;
   }
-  for (const auto& p : unix_paths) chmod(p.c_str(), 0600);
+  (*unix_listener)->Start(server.get());
+  SessionReaper reaper(**engine, cfg->attach_timeout_s);
   for (const auto& l : cfg->listen) spdlog::info("listening on {}", l);
   spdlog::info("weftd {} ready (pid {}, {} CPU threads{})", WEFT_VERSION, getpid(), (*engine)->pool().size(),
                cfg->allow_unchecked ? ", unchecked kernels allowed" : "");
@@ -167,10 +180,13 @@ int main(int argc, char** argv) {
     int sig = 0;
     sigwait(&stop_signals, &sig);
     spdlog::info("signal {} received: shutting down", sig);
+    (*unix_listener)->Stop();
+    (*engine)->CancelAllSessions();   // running kernels stop at their next poll
     server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
   });
   server->Wait();
   waiter.join();
+  reaper.Stop();
   server.reset();
   (*engine).reset();   // closes sessions, unlinks every slab
   for (const auto& p : unix_paths) unlink(p.c_str());

@@ -1,4 +1,5 @@
-// SessionService: open/close, the Attach stream whose end reaps the session, daemon stats.
+// SessionService: open (bound to the caller's principal, limited per principal), close, the
+// Attach stream (one per session) whose end reaps the session, daemon stats.
 #include <unistd.h>
 
 #include <spdlog/spdlog.h>
@@ -16,35 +17,51 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
     return ToGrpc(st);
   }
   SessionOptions o;
-  o.client_name = req->client_name().empty() ? ctx->peer() : req->client_name();
-  o.client_pid = req->client_pid();
-  o.local = CallAuth::IsLocalPeer(*ctx);
-  o.principal = CallAuth::Principal(*ctx);
-  auto s = auth_.engine().OpenSession(o);
-  resp->set_session_id(s->id());
+  auto peer = auth_.LocalPeer(*ctx);
+  // Names and pids a client claims are for people reading logs; the kernel's pid wins locally.
+  o.client_name = req->client_name().substr(0, 256);
+  if (o.client_name.empty()) o.client_name = ctx->peer();
+  o.client_pid = peer ? peer->pid : req->client_pid();
+  o.local = peer.has_value();
+  o.principal = auth_.Principal(*ctx);
+  auto s = auth_.engine().OpenClientSession(o);
+  if (!s.ok()) {
+    spdlog::warn("refused session open from {}: {}", o.principal, s.status().message());
+    return ToGrpc(s.status());
+  }
+  resp->set_session_id((*s)->id());
   resp->set_daemon_version(WEFT_VERSION);
   resp->set_local(o.local);
   resp->set_daemon_pid(getpid());
   return grpc::Status::OK;
 }
 
+// The first Attach of a session claims it; when that stream ends the session is reaped. A
+// second Attach (a hijack attempt, or a confused client) is refused and changes nothing.
 grpc::Status SessionServiceImpl::Attach(grpc::ServerContext* ctx,
                                         grpc::ServerReaderWriter<v1::AttachEvent, v1::AttachRequest>* stream) {
   v1::AttachRequest first;
   if (!stream->Read(&first)) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "attach: no session id sent");
   std::string id = first.session_id().empty() ? Metadata(*ctx, "weft-session") : first.session_id();
-  auto s = auth_.SessionById(*ctx, id);
-  if (!s.ok()) return ToGrpc(s.status());
-  s->reset();   // do not keep the session alive from here
+  auto found = auth_.SessionById(*ctx, id);
+  if (!found.ok()) return ToGrpc(found.status());
+  std::shared_ptr<Session> s = std::move(found).value();
+  if (!s->ClaimAttach())
+    return ToGrpc(FailedPrecondition("session " + s->label() + " already has an Attach stream; a session is attached once"));
+  const std::string label = s->label();
+  std::weak_ptr<Session> watched = s;
+  s.reset();   // do not keep the session alive from here
   v1::AttachEvent hello;
-  hello.set_message("attached " + id);
+  hello.set_message("attached " + label);
   stream->Write(hello);
   v1::AttachRequest ignored;
   while (stream->Read(&ignored)) {
   }
-  // The stream ended: the client closed it or went away. Reap the session if it still exists.
-  if (auth_.engine().FindSession(id)) {
-    spdlog::info("session {}: attach stream ended ({})", id, ctx->IsCancelled() ? "client gone" : "closed by client");
+  // The stream ended: the client closed it or went away. Reap the session if it still exists
+  // (the same session object: ids are never reused, but check the object anyway).
+  if (auto still = watched.lock(); still && auth_.engine().FindSession(id) == still) {
+    spdlog::info("session {}: attach stream ended ({})", label, ctx->IsCancelled() ? "client gone" : "closed by client");
+    still.reset();
     (void)auth_.engine().CloseSession(id, /*reaped=*/true);
   }
   return grpc::Status::OK;

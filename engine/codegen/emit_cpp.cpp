@@ -253,16 +253,28 @@ class FnEmitter {
       if (c.next != c.slot) Line(V(c.slot) + " = " + V(c.next) + ";");
   }
 
+  // Loops poll the launch's cancel word (wp::cg_loop_poll) so a cancelled launch ends.
+  std::string PollDecl(const std::string& counter) {
+    return opt_.loop_cancel_poll ? "wp::uint32 " + counter + " = 0u;" : std::string();
+  }
+  void Poll(const std::string& counter) {
+    if (opt_.loop_cancel_poll) Line("if (wp::cg_loop_poll(__ctx, " + counter + ")) break;");
+  }
+
   void FwdLoop(const Stmt& s, bool replay) {
+    const std::string poll = "__poll" + std::to_string(s.counter);
     Line(V(s.break_flag) + " = false;");
     if (replay) Line(V(s.counter) + " = 0;");
+    Line("{ " + PollDecl(poll));
     if (!s.is_while) {
       Line("for (" + V(s.iter) + " = " + V(s.start) + "; wp::cg_range_continue(" + V(s.iter) + ", " + V(s.end) + ", " +
            V(s.step) + "); " + V(s.iter) + " += " + V(s.step) + ") {");
       ++indent_;
+      Poll(poll);
     } else {
       Line("for (;;) {");
       ++indent_;
+      Poll(poll);
       Fwd(s.cond_body, replay);
       Line("if (!" + V(s.cond) + ") break;");
     }
@@ -272,7 +284,7 @@ class FnEmitter {
     LoopBack(s);
     Line("if (" + V(s.break_flag) + " || " + V(s.return_flag) + ") break;");
     --indent_;
-    Line("}");
+    Line("}}");
   }
 
   void FwdOp(const Op& op, int line, bool replay) {
@@ -446,16 +458,22 @@ class FnEmitter {
     std::string k = "__k" + std::to_string(s.counter);
     std::string j = "__j" + std::to_string(s.counter);
     bool restore = !s.carried.empty() || s.is_while;
+    const std::string poll_k = "__pollk" + std::to_string(s.counter);
+    const std::string poll_j = "__pollj" + std::to_string(s.counter);
+    Line("{ " + PollDecl(poll_k));
     Line("for (wp::int64 " + k + " = " + V(s.counter) + " - 1; " + k + " >= 0; --" + k + ") {");
     ++indent_;
+    Poll(poll_k);
     Line(V(s.break_flag) + " = false;");
     Line(V(s.return_flag) + " = false;");
     if (restore) {
       Line("// recompute the loop state at the start of iteration " + k);
       for (const auto& c : s.carried) Line(V(c.slot) + " = " + V(c.init) + ";");
       if (!s.is_while) Line(V(s.iter) + " = " + V(s.start) + ";");
+      Line(PollDecl(poll_j));
       Line("for (wp::int64 " + j + " = 0; " + j + " < " + k + "; ++" + j + ") {");
       ++indent_;
+      Poll(poll_j);
       if (s.is_while) Fwd(s.cond_body, true);
       Line(V(s.continue_flag) + " = false;");
       Fwd(s.body, true);
@@ -482,7 +500,7 @@ class FnEmitter {
     for (int v : defs)
       if (Diff(T(v)) && !T(v).is_void() && !T(v).is_tuple()) Line(A(v) + " = wp::cg_zeros<" + CppType(T(v)) + ">();");
     --indent_;
-    Line("}");
+    Line("}}");
   }
 
   void RevOp(const Op& op, int line) {

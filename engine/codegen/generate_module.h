@@ -53,6 +53,7 @@ struct CodegenOptions {
   // Parse nesting limits (lang::ParseLimits; values above the parser's maxima are lowered).
   int max_block_depth = 100;
   int max_expression_depth = 1000;
+  bool loop_cancel_poll = true;   // loops poll the launch's cancel word (wp::cg_loop_poll)
 };
 
 // On failure returns InvalidArgument and appends the user-facing diagnostics to *diags.

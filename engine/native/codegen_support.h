@@ -255,6 +255,19 @@ template <typename T> WP_FUNC void cg_adj_phi(bool c, T& adj_a, T& adj_b, const 
 }
 template <typename I> WP_FUNC bool cg_range_continue(I i, I end, I step) { return step > 0 ? i < end : i > end; }
 
+// Loop cancellation poll, emitted at the top of every loop body: reads the launch's cancel
+// word on the first iteration and then every 1024th (`counter` is the loop's own iteration
+// count), so a loop of a cancelled launch ends within 1024 iterations and a nested loop
+// entered after the cancellation ends at once.
+WP_FUNC bool cg_loop_poll(const launch_context_t* ctx, uint32& counter) {
+  if ((counter++ & 1023u) != 0u || !ctx || !ctx->cancel) return false;
+#if WP_DEVICE_CODE
+  return *(const volatile int32*)ctx->cancel != 0;
+#else
+  return __atomic_load_n(ctx->cancel, __ATOMIC_RELAXED) != 0;
+#endif
+}
+
 // tid of flat launch index `flat`, unravelled by the launch shape (row-major).
 WP_FUNC void cg_unravel(const launch_bounds_t& b, int64 flat, int64* tid) {
   tid[0] = tid[1] = tid[2] = tid[3] = 0;

@@ -66,6 +66,9 @@ struct launch_context_t {
   print_buffer_t* print;
   uint32 flags;          // LAUNCH_FLAG_*
   uint32 _pad;
+  // Non-zero once the launch must stop (its session closed, or its time limit passed); the
+  // runtime sets it, loops in generated code poll it (cg_loop_poll). Null: never cancelled.
+  const int32* cancel;
 };
 
 constexpr uint32 LAUNCH_FLAG_NO_BOUNDS_CHECK = 1u;

@@ -1,6 +1,7 @@
 // ArrayView: range checks and strided elementwise fill/copy.
 #include "engine/runtime/array_view.h"
 
+#include <atomic>
 #include <cstring>
 #include <limits>
 
@@ -84,15 +85,24 @@ Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& 
 
 namespace {
 
-// Calls fn(byte offset of element) for every element of (shape, strides) in C order.
+// Calls fn(byte offset of element) for every element of (shape, strides) in C order. Checks
+// `cancel` (may be null) every kCancelCheckElements elements and returns false when it is set.
+constexpr uint64_t kCancelCheckElements = 1 << 16;
+
 template <typename Fn>
-void ForEachElement(const std::vector<int64_t>& shape, const std::vector<int64_t>& strides, Fn&& fn) {
+bool ForEachElement(const std::vector<int64_t>& shape, const std::vector<int64_t>& strides, Fn&& fn,
+                    const std::atomic<bool>* cancel = nullptr) {
   const size_t nd = shape.size();
   for (int64_t d : shape)
-    if (d == 0) return;
+    if (d == 0) return true;
   int64_t idx[kMaxArrayDims] = {0, 0, 0, 0};
   int64_t off = 0;
+  uint64_t until_check = kCancelCheckElements;
   while (true) {
+    if (cancel && --until_check == 0) {
+      if (cancel->load(std::memory_order_relaxed)) return false;
+      until_check = kCancelCheckElements;
+    }
     fn(off);
     size_t k = nd;
     while (k > 0) {
@@ -103,10 +113,14 @@ void ForEachElement(const std::vector<int64_t>& shape, const std::vector<int64_t
       }
       off -= strides[k] * (shape[k] - 1);
       idx[k] = 0;
-      if (k == 0) return;
+      if (k == 0) return true;
     }
-    if (nd == 0) return;
+    if (nd == 0) return true;
   }
+}
+
+Status CancelledWork(const char* what) {
+  return Status(StatusCode::kCancelled, std::string(what) + " cancelled: its session was closed");
 }
 
 // Byte offset of the current element of (shape, strides), advanced in C order by Next().
@@ -130,7 +144,7 @@ struct Odometer {
 
 }  // namespace
 
-Status FillView(const ArrayView& dst, const std::string& value) {
+Status FillView(const ArrayView& dst, const std::string& value, const std::atomic<bool>* cancel) {
   const uint64_t esize = dst.alloc->dtype.ElementSize();
   if (value.size() != esize)
     return InvalidArgument("fill: value has " + std::to_string(value.size()) +
@@ -156,11 +170,13 @@ Status FillView(const ArrayView& dst, const std::string& value) {
     }
     return Status::Ok();
   }
-  ForEachElement(dst.shape, dst.strides, [&](int64_t off) { std::memcpy(base + off, value.data(), esize); });
+  if (!ForEachElement(dst.shape, dst.strides, [&](int64_t off) { std::memcpy(base + off, value.data(), esize); },
+                      cancel))
+    return CancelledWork("fill");
   return Status::Ok();
 }
 
-Status CopyView(const ArrayView& dst, const ArrayView& src) {
+Status CopyView(const ArrayView& dst, const ArrayView& src, const std::atomic<bool>* cancel) {
   const uint64_t esize = dst.alloc->dtype.ElementSize();
   if (src.alloc->dtype.ElementSize() != esize || src.alloc->dtype.Name() != dst.alloc->dtype.Name())
     return InvalidArgument("copy: element types differ (dst " + dst.alloc->dtype.Name() + ", src " +
@@ -189,10 +205,11 @@ Status CopyView(const ArrayView& dst, const ArrayView& src) {
   }
   Odometer so(sshape, sstrides);
   char* dbase = dst.data();
-  ForEachElement(dst.shape, dst.strides, [&](int64_t off) {
-    std::memcpy(dbase + off, sbase + so.offset, esize);
-    so.Next();
-  });
+  if (!ForEachElement(dst.shape, dst.strides, [&](int64_t off) {
+        std::memcpy(dbase + off, sbase + so.offset, esize);
+        so.Next();
+      }, cancel))
+    return CancelledWork("copy");
   return Status::Ok();
 }
 

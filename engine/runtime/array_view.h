@@ -3,6 +3,7 @@
 // fill/copy over strided views.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -42,9 +43,11 @@ struct ArrayView {
 Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& ref,
                              const std::string& what);
 
-// Sets every element of `dst` to `value` (one element's bytes).
-Status FillView(const ArrayView& dst, const std::string& value);
+// Sets every element of `dst` to `value` (one element's bytes). A strided walk checks `cancel`
+// (may be null) every 65,536 elements and stops with CANCELLED once it is set.
+Status FillView(const ArrayView& dst, const std::string& value, const std::atomic<bool>* cancel = nullptr);
 // Copies src to dst elementwise in C order; same element size and element count required.
-Status CopyView(const ArrayView& dst, const ArrayView& src);
+// Cancellation as FillView.
+Status CopyView(const ArrayView& dst, const ArrayView& src, const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace weft

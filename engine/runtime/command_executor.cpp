@@ -1,6 +1,7 @@
 // Command execution: copy, fill, launch, tape, gradient replacement.
 #include "engine/runtime/command_executor.h"
 
+#include <cstdio>
 #include <cstring>
 
 #include "engine/runtime/array_validation.h"
@@ -114,8 +115,8 @@ void CollectHandles(const Command& c, std::vector<uint64_t>* out) {
 }
 
 Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapshot& h) {
-  if (auto* cp = std::get_if<CopyCommand>(&c.kind)) return Copy(*cp, h);
-  if (auto* f = std::get_if<FillCommand>(&c.kind)) return Fill(*f, h);
+  if (auto* cp = std::get_if<CopyCommand>(&c.kind)) return Copy(s, *cp, h);
+  if (auto* f = std::get_if<FillCommand>(&c.kind)) return Fill(s, *f, h);
   if (auto* l = std::get_if<LaunchCommand>(&c.kind)) return Launch(s, *l, h, c.origin);
   if (auto* t = std::get_if<TapeCommand>(&c.kind)) return TapeOp(s, *t, h);
   if (auto* sg = std::get_if<SetGradCommand>(&c.kind)) return SetGrad(s, *sg, h);
@@ -159,15 +160,32 @@ Status CommandExecutor::SetGrad(Session& s, const SetGradCommand& c, const Handl
   return Status::Ok();
 }
 
-Status CommandExecutor::Copy(const CopyCommand& c, const HandleSnapshot& h) {
+Status CommandExecutor::Copy(Session& s, const CopyCommand& c, const HandleSnapshot& h) {
   WEFT_ASSIGN_OR_RETURN(ArrayView dst, ViewOf(h, c.dst, "copy dst"));
   WEFT_ASSIGN_OR_RETURN(ArrayView src, ViewOf(h, c.src, "copy src"));
-  return CopyView(dst, src);
+  return CopyView(dst, src, s.cancel_flag());
 }
 
-Status CommandExecutor::Fill(const FillCommand& c, const HandleSnapshot& h) {
+Status CommandExecutor::Fill(Session& s, const FillCommand& c, const HandleSnapshot& h) {
   WEFT_ASSIGN_OR_RETURN(ArrayView dst, ViewOf(h, c.dst, "fill dst"));
-  return FillView(dst, c.value);
+  return FillView(dst, c.value, s.cancel_flag());
+}
+
+Status CommandExecutor::RunWatched(Session& s, CpuLaunch& launch, std::string* output) {
+  if (!options_.watchdog) return RunCpuLaunch(pool_, launch, output);
+  LaunchWatchdog::Watch watch(*options_.watchdog, s.cancel_flag(), options_.launch_time_limit_s);
+  launch.cancel = watch.word();
+  Status st = RunCpuLaunch(pool_, launch, output);
+  launch.cancel = nullptr;
+  if (st.code() != StatusCode::kCancelled) return st;
+  const std::string kernel = "kernel '" + launch.kernel->layout.name + "'" + (launch.adj_args ? " (adjoint)" : "");
+  if (watch.reason() == LaunchWatchdog::Reason::kTimeLimit) {
+    char limit[32];
+    std::snprintf(limit, sizeof(limit), "%g", options_.launch_time_limit_s);
+    return Status(StatusCode::kDeadlineExceeded, kernel + " ran longer than the launch time limit of " + limit +
+                                                     " s (weftd --launch-time-limit) and was stopped");
+  }
+  return Status(StatusCode::kCancelled, kernel + " was stopped: its session was closed");
 }
 
 Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleSnapshot& h,
@@ -192,7 +210,7 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
   if (!c.adjoint) {
     launch.module = module.get();
     launch.kernel = kernel;
-    st = RunCpuLaunch(pool_, launch, &output);
+    st = RunWatched(s, launch, &output);
   } else {
     WEFT_ASSIGN_OR_RETURN(std::shared_ptr<const LoadedModule> bmod, store_->WithBackward(c.module_id));
     const LoadedKernel* bk = bmod->Find(c.kernel);
@@ -203,7 +221,7 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
     launch.module = bmod.get();
     launch.kernel = bk;
     launch.adj_args = &adj_packed;
-    st = RunCpuLaunch(pool_, launch, &output);
+    st = RunWatched(s, launch, &output);
   }
   if (!output.empty()) s.AppendOutput(output);
   WEFT_RETURN_IF_ERROR(st);
@@ -226,6 +244,7 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
 
 Status CommandExecutor::TapeOp(Session& s, const TapeCommand& c, const HandleSnapshot& h) {
   if (c.tape_id == 0) return InvalidArgument("tape id 0 is reserved");
+  WEFT_RETURN_IF_ERROR(CheckTapeOp(c.op));
   switch (c.op) {
     case TapeCommand::Op::kBegin:
       if (s.active_tape != 0 && s.active_tape != c.tape_id)
@@ -331,8 +350,8 @@ Status CommandExecutor::Backward(Session& s, Tape& tape, const TapeCommand& c, c
     WEFT_ASSIGN_OR_RETURN(PackedArgs adj, GradientArgs(st.kernel->layout, st.record->args, st.live));
     adjoints.push_back(std::move(adj));
   }
-  if (loss_grad.alloc) WEFT_RETURN_IF_ERROR(FillView(loss_grad, one));
-  for (auto& [dst, src] : seeds) WEFT_RETURN_IF_ERROR(CopyView(dst, src));
+  if (loss_grad.alloc) WEFT_RETURN_IF_ERROR(FillView(loss_grad, one, s.cancel_flag()));
+  for (auto& [dst, src] : seeds) WEFT_RETURN_IF_ERROR(CopyView(dst, src, s.cancel_flag()));
 
   for (size_t si = 0; si < steps.size(); ++si) {
     Step& st = steps[si];
@@ -345,7 +364,7 @@ Status CommandExecutor::Backward(Session& s, Tape& tape, const TapeCommand& c, c
     launch.adj_args = &adj;
     launch.print_capacity = options_.print_capacity;
     std::string output;
-    Status r = RunCpuLaunch(pool_, launch, &output);
+    Status r = RunWatched(s, launch, &output);
     if (!output.empty()) s.AppendOutput(output);
     if (!r.ok()) {
       std::string where = st.record->origin.file.empty()

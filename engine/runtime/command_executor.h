@@ -1,7 +1,8 @@
 // Runs one queued command of a session on its executor thread: copy and fill over checked
 // views, CPU kernel launches (forward and explicit adjoint, recorded on the active tape), and
 // tape operations (begin/end, backward replay in reverse, zero, reset) and gradient
-// replacement (set_grad).
+// replacement (set_grad). Launches, fills and copies stop when the session is cancelled;
+// launches also at the per-launch time limit.
 #pragma once
 
 #include <cstdint>
@@ -11,6 +12,8 @@
 
 #include "engine/core/status.h"
 #include "engine/runtime/commands.h"
+#include "engine/runtime/cpu_launch.h"
+#include "engine/runtime/launch_watchdog.h"
 #include "engine/runtime/module_store.h"
 #include "engine/runtime/session.h"
 #include "engine/runtime/thread_pool.h"
@@ -23,6 +26,8 @@ using HandleSnapshot = std::unordered_map<uint64_t, std::shared_ptr<Allocation>>
 
 struct CommandExecutorOptions {
   uint64_t print_capacity = 1 << 20;
+  LaunchWatchdog* watchdog = nullptr;   // cancels launches of closed sessions / past the time limit
+  double launch_time_limit_s = 0;       // 0 = none
 };
 
 class CommandExecutor {
@@ -33,8 +38,10 @@ class CommandExecutor {
   Status Execute(Session& s, const Command& c, const HandleSnapshot& handles);
 
  private:
-  Status Copy(const CopyCommand& c, const HandleSnapshot& h);
-  Status Fill(const FillCommand& c, const HandleSnapshot& h);
+  Status Copy(Session& s, const CopyCommand& c, const HandleSnapshot& h);
+  Status Fill(Session& s, const FillCommand& c, const HandleSnapshot& h);
+  // Runs a launch under the watchdog (session cancel + time limit).
+  Status RunWatched(Session& s, CpuLaunch& launch, std::string* output);
   Status Launch(Session& s, const LaunchCommand& c, const HandleSnapshot& h, const SourceLocation& origin);
   Status TapeOp(Session& s, const TapeCommand& c, const HandleSnapshot& h);
   Status Backward(Session& s, Tape& tape, const TapeCommand& c, const HandleSnapshot& h);

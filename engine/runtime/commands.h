@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "engine/core/module_source.h"
+#include "engine/core/status.h"
 #include "engine/runtime/array_view.h"
 
 namespace weft {
@@ -55,6 +56,9 @@ struct SetGradCommand {
   ArrayRef array;
   ArrayRef grad;
 };
+
+// INVALID_ARGUMENT for an op value outside TapeCommand::Op (a client may send any number).
+Status CheckTapeOp(TapeCommand::Op op);
 
 struct Command {
   std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand, SetGradCommand> kind;

@@ -1,6 +1,7 @@
 // CPU launch execution and launch-error formatting.
 #include "engine/runtime/cpu_launch.h"
 
+#include <algorithm>
 #include <cstring>
 #include <memory>
 
@@ -94,20 +95,25 @@ Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
   wp::print_buffer_t print{print_data.get(), l.print_capacity, 0};
   ctx.print = &print;
   ctx.flags = l.bounds_checks ? 0u : wp::LAUNCH_FLAG_NO_BOUNDS_CHECK;
+  ctx.cancel = reinterpret_cast<const wp::int32*>(l.cancel);
 
+  // Runs [b, e) in pieces of kCancelChunk threads; stops early after an error or a cancel.
+  auto stopped = [&] {
+    return __atomic_load_n(&err.kind, __ATOMIC_RELAXED) != 0 ||
+           (l.cancel && __atomic_load_n(l.cancel, __ATOMIC_RELAXED) != 0);
+  };
   const void* args = l.args->block.data();
   if (!backward) {
     CpuForwardFn fn = l.kernel->cpu_forward;
     pool.ParallelFor(ctx.bounds.size, [&](int64_t b, int64_t e) {
-      if (__atomic_load_n(&err.kind, __ATOMIC_RELAXED) != 0) return;   // stop early after an error
-      fn(&ctx, args, b, e);
+      for (int64_t s = b; s < e && !stopped(); s += kCancelChunk) fn(&ctx, args, s, std::min(e, s + kCancelChunk));
     });
   } else {
     CpuBackwardFn fn = l.kernel->cpu_backward;
     const void* adj = l.adj_args->block.data();
     pool.ParallelFor(ctx.bounds.size, [&](int64_t b, int64_t e) {
-      if (__atomic_load_n(&err.kind, __ATOMIC_RELAXED) != 0) return;
-      fn(&ctx, args, adj, b, e);
+      for (int64_t s = b; s < e && !stopped(); s += kCancelChunk)
+        fn(&ctx, args, adj, s, std::min(e, s + kCancelChunk));
     });
   }
   uint64_t used = print.used < print.capacity ? print.used : print.capacity;
@@ -116,6 +122,8 @@ Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
     if (print.used > print.capacity) output->append("\n[weft: kernel print output truncated]\n");
   }
   if (err.kind != 0) return LaunchError(l, err);
+  if (l.cancel && __atomic_load_n(l.cancel, __ATOMIC_RELAXED) != 0)
+    return Status(StatusCode::kCancelled, "launch cancelled");
   return Status::Ok();
 }
 

@@ -1,5 +1,6 @@
 // Runs one kernel launch (forward or adjoint) on the CPU thread pool: builds the launch context
-// (bounds, error slot, print buffer), partitions the grid, and turns a kernel-reported error
+// (bounds, error slot, print buffer, cancel word), partitions the grid (checking the cancel
+// word between chunks of threads), and turns a kernel-reported error
 // into a Status naming the kernel, the array parameter, the index, the shape and file:line.
 #pragma once
 
@@ -22,12 +23,19 @@ struct CpuLaunch {
   const PackedArgs* adj_args = nullptr;   // non-null: run cpu_backward
   bool bounds_checks = true;
   uint64_t print_capacity = 1 << 20;
+  // The launch's cancel word (a LaunchWatchdog::Watch's), or null. Kernels poll it in loops
+  // and RunCpuLaunch checks it before every kCancelChunk threads.
+  const int32_t* cancel = nullptr;
 };
+
+// Threads run between two checks of the cancel word.
+constexpr int64_t kCancelChunk = 1 << 14;
 
 // Checks dim (1..4 extents, each >= 0, product < 2^62).
 Status CheckLaunchDim(const std::vector<int64_t>& dim);
 
-// Runs the launch; appends kernel print output to *output.
+// Runs the launch; appends kernel print output to *output. CANCELLED ("launch cancelled")
+// when the cancel word was set (threads after that point did not run).
 Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& launch, std::string* output);
 
 }  // namespace weft

@@ -17,8 +17,9 @@ namespace weft {
 
 namespace {
 
+// 256 bits from the kernel's CSPRNG, hex.
 std::string NewSessionId() {
-  unsigned char b[12];
+  unsigned char b[32];
   size_t got = 0;
   while (got < sizeof(b)) {
     ssize_t r = getrandom(b + got, sizeof(b) - got, 0);
@@ -63,8 +64,11 @@ Engine::Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store)
       slabs_(std::make_unique<ShmSlabPool>(options.slabs)),
       store_(std::move(store)),
       pool_(std::make_unique<ThreadPool>(options.cpu_threads)) {
+  watchdog_ = std::make_unique<LaunchWatchdog>();
   CommandExecutorOptions eo;
   eo.print_capacity = options.print_capacity;
+  eo.watchdog = watchdog_.get();
+  eo.launch_time_limit_s = options.launch_time_limit_s;
   executor_ = std::make_unique<CommandExecutor>(*pool_, store_.get(), eo);
   memory_limit_ = PhysicalMemoryAndSwap();
   MemoryLimits limits = options.memory;
@@ -76,8 +80,10 @@ Engine::Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store)
 }
 
 Engine::~Engine() {
+  CancelAllSessions();
   CloseAllSessions();
   executor_.reset();
+  watchdog_.reset();
   pool_.reset();
   store_.reset();
   slabs_.reset();
@@ -86,16 +92,30 @@ Engine::~Engine() {
 // ---- sessions ----
 
 std::shared_ptr<Session> Engine::OpenSession(const SessionOptions& options) {
-  auto s = std::make_shared<Session>(NewSessionId(), options);
+  const uint64_t serial = ++sessions_opened_;
+  auto s = std::make_shared<Session>(NewSessionId(), "#" + std::to_string(serial), options);
   s->unchecked_allowed = options_.allow_unchecked;
   {
     std::lock_guard<std::mutex> lock(mu_);
     sessions_[s->id()] = s;
   }
-  ++sessions_opened_;
-  spdlog::info("session {} opened: {} (pid {}, {})", s->id(), options.client_name, options.client_pid,
-               options.local ? "local" : "remote");
+  spdlog::info("session {} opened: {} (pid {}, {}, {})", s->label(), options.client_name, options.client_pid,
+               options.local ? "local" : "remote", options.principal);
   return s;
+}
+
+Expected<std::shared_ptr<Session>> Engine::OpenClientSession(const SessionOptions& options) {
+  if (stopping_) return Unavailable("the daemon is shutting down");
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    uint32_t same = 0;
+    for (const auto& [id, s] : sessions_) same += s->options().principal == options.principal ? 1 : 0;
+    if (same >= options_.max_sessions_per_principal)
+      return ResourceExhausted("too many sessions: " + options.principal + " already has " + std::to_string(same) +
+                               " open, the limit is " + std::to_string(options_.max_sessions_per_principal) +
+                               " (weftd --max-sessions-per-principal)");
+  }
+  return OpenSession(options);
 }
 
 std::shared_ptr<Session> Engine::FindSession(const std::string& id) const {
@@ -113,13 +133,37 @@ Status Engine::CloseSession(const std::string& id, bool reaped) {
     s = std::move(it->second);
     sessions_.erase(it);
   }
+  s->Cancel();   // queued batches are skipped, running launches/fills/copies stop
   s->queue().WaitIdle();
   size_t n = s->array_count();
   s->ReleaseAll();   // tapes hold weak references only; they go with the Session object
   if (reaped) ++sessions_reaped_;
-  spdlog::info("session {} {}: {} array handle(s) released", id,
+  spdlog::info("session {} {}: {} array handle(s) released", s->label(),
                reaped ? "reaped (client went away)" : "closed", n);
   return Status::Ok();
+}
+
+size_t Engine::ReapUnattachedSessions(std::chrono::steady_clock::duration timeout) {
+  const auto now = std::chrono::steady_clock::now();
+  std::vector<std::shared_ptr<Session>> stale;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (const auto& [id, s] : sessions_)
+      if (!s->attached() && now - s->opened_at() >= timeout) stale.push_back(s);
+  }
+  size_t n = 0;
+  for (const auto& s : stale) {
+    if (s->attached()) continue;   // claimed meanwhile
+    spdlog::info("session {}: no Attach stream within the attach timeout", s->label());
+    if (CloseSession(s->id(), /*reaped=*/true).ok()) ++n;
+  }
+  return n;
+}
+
+void Engine::CancelAllSessions() {
+  stopping_ = true;
+  std::lock_guard<std::mutex> lock(mu_);
+  for (auto& [id, s] : sessions_) s->Cancel();
 }
 
 void Engine::CloseAllSessions() {
@@ -393,23 +437,33 @@ std::function<void()> Engine::BatchTask(Session& s, std::vector<Command> command
   Session* sp = &s;
   return [exec, sp, batch, snapshot] {
     for (const Command& c : *batch) {
+      if (sp->cancelled()) break;   // closing: the rest of the batch does not run
       if (sp->failed()) {
         sp->CountSkipped();
         continue;
       }
       Status st = exec->Execute(*sp, c, *snapshot);
       if (!st.ok()) {
-        spdlog::warn("session {}: command failed: {}", sp->id(), st.ToString());
+        spdlog::warn("session {}: command failed: {}", sp->label(), st.ToString());
         sp->Fail(st, c.origin);
       }
     }
+    sp->queued_commands -= batch->size();
     snapshot->clear();
   };
+}
+
+Status Engine::AdmitBatch(Session& s, const std::vector<Command>& commands) {
+  if (s.cancelled()) return FailedPrecondition("session " + s.label() + " is closing");
+  WEFT_RETURN_IF_ERROR(CheckCommandBatch(commands, options_.limits, s.queued_commands.load()));
+  s.queued_commands += commands.size();
+  return Status::Ok();
 }
 
 Expected<uint64_t> Engine::Submit(Session& s, std::vector<Command> commands) {
   const uint64_t n = commands.size();
   if (n == 0) return n;
+  WEFT_RETURN_IF_ERROR(AdmitBatch(s, commands));
   s.queue().Post(BatchTask(s, std::move(commands)));
   return n;
 }
@@ -418,6 +472,7 @@ Expected<Session::SyncResult> Engine::SubmitAndSynchronize(Session& s, std::vect
   if (commands.empty()) {
     s.queue().WaitIdle();
   } else {
+    WEFT_RETURN_IF_ERROR(AdmitBatch(s, commands));
     s.queue().RunAndWait(BatchTask(s, std::move(commands)));
   }
   return s.TakeResult();
@@ -436,23 +491,28 @@ Expected<std::shared_ptr<const LoadedModule>> Engine::Compile(Session& s, Module
   const std::string dev = device.empty() ? "cpu" : device;
   if (dev != "cpu" && dev.rfind("cuda", 0) != 0)
     return InvalidArgument("unknown device '" + dev + "' (expected \"cpu\" or \"cuda:N\")");
-  bool unchecked_note = false;
-  auto it = source.options.find("bounds_checks");
-  if (it != source.options.end() && (it->second == "false" || it->second == "0" || it->second == "False") &&
-      !s.unchecked_allowed) {
-    it->second = "true";
-    unchecked_note = true;
+  // Options that weaken a safety net (bounds checks, the loops' cancellation poll) need
+  // --allow-unchecked; without it they are turned back on with a warning.
+  std::vector<std::string> ignored;
+  for (const char* option : {"bounds_checks", "cancel_poll"}) {
+    auto it = source.options.find(option);
+    if (it != source.options.end() && (it->second == "false" || it->second == "0" || it->second == "False") &&
+        !s.unchecked_allowed) {
+      it->second = "true";
+      ignored.push_back(option);
+    }
   }
   auto r = store_->Compile(source, dev, report);
-  if (unchecked_note && report) {
+  for (const auto& option : ignored) {
+    if (!report) break;
     Diagnostic d;
     d.severity = Diagnostic::Severity::kWarning;
-    d.message = "bounds_checks=false ignored: this daemon does not allow unchecked kernels (start weftd with --allow-unchecked)";
+    d.message = option + "=false ignored: this daemon does not allow unchecked kernels (start weftd with --allow-unchecked)";
     report->diagnostics.push_back(d);
   }
   // The name is the client's (checked only by the store): escaped, so it cannot forge log lines.
   if (!r.ok())
-    spdlog::info("session {}: compile of module '{}' failed: {}", s.id(), codegen::CommentText(source.name),
+    spdlog::info("session {}: compile of module '{}' failed: {}", s.label(), codegen::CommentText(source.name),
                  r.status().message());
   return r;
 }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -14,6 +15,8 @@
 
 #include "engine/core/status.h"
 #include "engine/runtime/command_executor.h"
+#include "engine/runtime/command_limits.h"
+#include "engine/runtime/launch_watchdog.h"
 #include "engine/runtime/commands.h"
 #include "engine/runtime/device_info.h"
 #include "engine/runtime/memory_quota.h"
@@ -34,6 +37,9 @@ struct EngineOptions {
   MemoryLimits memory;
   uint64_t print_capacity = 1 << 20;   // per launch
   bool remove_stale_slabs = true;
+  CommandLimits limits;                     // per command / per session, checked at submit
+  double launch_time_limit_s = 300;         // a launch running longer is stopped; 0 = none
+  uint32_t max_sessions_per_principal = 256;   // OpenClientSession refuses more
 };
 
 // Everything a client needs to know about an allocation (engine twin of weft.v1.ArrayInfo).
@@ -82,13 +88,23 @@ class Engine {
   Engine(const Engine&) = delete;
   Engine& operator=(const Engine&) = delete;
 
-  // Sessions.
+  // Sessions. Ids are 256 random bits (getrandom) and secret: logs name sessions by label.
+  // OpenSession opens without limits (tests, embedding); OpenClientSession is what the server
+  // calls: RESOURCE_EXHAUSTED when the principal already has max_sessions_per_principal
+  // sessions, UNAVAILABLE once the engine is stopping.
   std::shared_ptr<Session> OpenSession(const SessionOptions& options);
+  Expected<std::shared_ptr<Session>> OpenClientSession(const SessionOptions& options);
   std::shared_ptr<Session> FindSession(const std::string& id) const;
-  // Waits for the session's queued work, then frees everything it held. `reaped`: the client
-  // went away without closing.
+  // Cancels the session's queued and running work, waits for it to stop, then frees everything
+  // it held. `reaped`: the client went away without closing.
   Status CloseSession(const std::string& id, bool reaped = false);
   void CloseAllSessions();
+  // Closes (as reaped) every session that no Attach stream claimed within `timeout` of its
+  // opening; returns how many.
+  size_t ReapUnattachedSessions(std::chrono::steady_clock::duration timeout);
+  // Daemon shutdown, first step: cancels every session's work (running launches stop at their
+  // next poll) and refuses new sessions. Sessions stay open until CloseAllSessions.
+  void CancelAllSessions();
 
   std::vector<DeviceInfo> ListDevices() const;
 
@@ -128,6 +144,8 @@ class Engine {
   Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store);
   // The executor task of one batch (holds the batch's arrays until it has run).
   std::function<void()> BatchTask(Session& s, std::vector<Command> commands);
+  // Checks a batch against the limits and counts it as queued (BatchTask uncounts it).
+  Status AdmitBatch(Session& s, const std::vector<Command>& commands);
   // A new allocation owned by `owner`: quota reserved, memory from the owner's slabs.
   Expected<std::shared_ptr<Allocation>> NewAllocation(Session& owner, const DType& dtype,
                                                       const std::vector<int64_t>& shape, bool zero);
@@ -141,6 +159,7 @@ class Engine {
   std::unique_ptr<MemoryQuota> quota_;   // outlives every allocation (declared early)
   std::unique_ptr<ModuleStore> store_;
   std::unique_ptr<ThreadPool> pool_;
+  std::unique_ptr<LaunchWatchdog> watchdog_;
   std::unique_ptr<CommandExecutor> executor_;
   mutable std::mutex mu_;        // sessions_
   std::map<std::string, std::shared_ptr<Session>> sessions_;
@@ -150,6 +169,7 @@ class Engine {
   std::atomic<uint64_t> next_handle_{1};
   std::atomic<uint64_t> sessions_opened_{0};
   std::atomic<uint64_t> sessions_reaped_{0};
+  std::atomic<bool> stopping_{false};
   uint64_t memory_limit_ = 0;
 };
 

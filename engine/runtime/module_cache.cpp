@@ -242,6 +242,7 @@ std::string ModuleCacheKey(const ModuleSource& source, const CodegenOptions& cod
   w.Field("target", codegen.target == Target::kCpu ? "cpu" : "cuda");
   w.Field("backward", codegen.enable_backward ? 1 : 0);
   w.Field("bounds_checks", codegen.bounds_checks ? 1 : 0);
+  if (!codegen.loop_cancel_poll) w.Field("cancel_poll", 0);
   w.Field("native", context.native_version);
   w.Field("target_id", context.target_id);
   w.Field("build", context.build_id);
@@ -359,7 +360,47 @@ Expected<ModuleArtifact> DiskModuleCache::Load(const std::string& key) const {
     return corrupt("corrupted (hash mismatch)");
   auto artifact = DeserializeArtifact(payload);
   if (!artifact.ok()) return corrupt("malformed");
+  ::utimensat(AT_FDCWD, path.c_str(), nullptr, 0);   // mark as recently used (LRU bound)
   return artifact;
+}
+
+size_t DiskModuleCache::EvictToCapacity(const std::string& keep) const {
+  if (dir_.empty() || capacity_bytes_ == 0) return 0;
+  struct Entry {
+    std::string key;
+    uint64_t bytes = 0;
+    fs::file_time_type used;
+  };
+  std::map<std::string, Entry> entries;
+  uint64_t total = 0;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(dir_, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const fs::path& p = it->path();
+    const std::string ext = p.extension().string();
+    if (ext != ".wmod" && ext != ".cpp") continue;
+    std::error_code e2;
+    uint64_t size = it->file_size(e2);
+    if (e2) continue;
+    Entry& entry = entries[p.stem().string()];
+    entry.key = p.stem().string();
+    entry.bytes += size;
+    if (ext == ".wmod") entry.used = it->last_write_time(e2);
+    total += size;
+  }
+  if (total <= capacity_bytes_) return 0;
+  std::vector<Entry*> order;
+  for (auto& [k, e] : entries)
+    if (k != keep) order.push_back(&e);
+  std::sort(order.begin(), order.end(), [](const Entry* a, const Entry* b) { return a->used < b->used; });
+  size_t removed = 0;
+  for (Entry* e : order) {
+    if (total <= capacity_bytes_) break;
+    ::unlink(PathFor(e->key).c_str());
+    ::unlink((fs::path(dir_) / (e->key + ".cpp")).string().c_str());
+    total -= e->bytes;
+    ++removed;
+  }
+  return removed;
 }
 
 Status DiskModuleCache::Store(const std::string& key, const ModuleArtifact& artifact) const {
@@ -381,13 +422,15 @@ Status DiskModuleCache::Store(const std::string& key, const ModuleArtifact& arti
   WEFT_RETURN_IF_ERROR(Init());
   // The generated source next to the binary, for people (never read back).
   (void)WriteFileAtomically((fs::path(dir_) / (key + ".cpp")).string(), artifact.generated_source);
-  return WriteFileAtomically(PathFor(key), file);
+  WEFT_RETURN_IF_ERROR(WriteFileAtomically(PathFor(key), file));
+  EvictToCapacity(key);
+  return Status::Ok();
 }
 
 // ---- memory + coalescing -------------------------------------------------------------------
 
-ModuleCache::ModuleCache(std::string dir, size_t memory_capacity)
-    : disk_(std::move(dir)), capacity_(memory_capacity) {}
+ModuleCache::ModuleCache(std::string dir, size_t memory_capacity, uint64_t disk_capacity_bytes)
+    : disk_(std::move(dir), disk_capacity_bytes), capacity_(memory_capacity) {}
 
 ModuleCache::Module ModuleCache::Peek(const std::string& key) {
   std::lock_guard<std::mutex> lock(mutex_);

@@ -57,11 +57,15 @@ Expected<ModuleArtifact> DeserializeArtifact(std::string_view payload);
 
 // One file per key under a directory: header (magic, format version, payload size, SHA-256 of
 // the payload) + payload. Disabled (every Load is NotFound, Store a no-op) when dir is empty.
+// Bounded: after a Store, while the files of the directory (<key>.wmod + <key>.cpp) exceed
+// `capacity_bytes` (0 = no bound), the least recently used keys are removed (use = the .wmod's
+// mtime, set by Store and by every successful Load), never the key just stored.
 class DiskModuleCache {
  public:
   static constexpr uint32_t kFormatVersion = 2;
 
-  explicit DiskModuleCache(std::string dir) : dir_(std::move(dir)) {}
+  explicit DiskModuleCache(std::string dir, uint64_t capacity_bytes = 0)
+      : dir_(std::move(dir)), capacity_bytes_(capacity_bytes) {}
   // Creates the directory.
   Status Init() const;
   bool enabled() const { return !dir_.empty(); }
@@ -72,9 +76,13 @@ class DiskModuleCache {
   // Writes a temporary file and renames it into place (readers never see half a file).
   Status Store(const std::string& key, const ModuleArtifact& artifact) const;
   std::string PathFor(const std::string& key) const;
+  // Removes least recently used keys (never `keep`) until the directory fits the bound;
+  // returns how many keys were removed.
+  size_t EvictToCapacity(const std::string& keep) const;
 
  private:
   std::string dir_;
+  uint64_t capacity_bytes_ = 0;
 };
 
 // Memory LRU of loaded modules + disk cache + one build per key.
@@ -90,7 +98,7 @@ class ModuleCache {
     std::function<Expected<ModuleArtifact>(std::vector<Diagnostic>*)> build;
   };
 
-  ModuleCache(std::string dir, size_t memory_capacity);
+  ModuleCache(std::string dir, size_t memory_capacity, uint64_t disk_capacity_bytes = 0);
   Status Init() const { return disk_.Init(); }
 
   // The module of `key`: from memory, else from disk, else built (and stored). Concurrent

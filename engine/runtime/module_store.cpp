@@ -182,7 +182,8 @@ class ModuleStoreImpl final : public ModuleStore {
 #if WEFT_WITH_CUDA
     if (auto version = jit::NvrtcVersion(); version.ok()) nvrtc_version_ = *version;
 #endif
-    cache_ = std::make_unique<ModuleCache>(options_.cache_dir, options_.memory_capacity);
+    cache_ = std::make_unique<ModuleCache>(options_.cache_dir, options_.memory_capacity,
+                                           options_.disk_capacity_bytes);
     WEFT_RETURN_IF_ERROR(cache_->Init());
 #if WEFT_WITH_CPU_JIT
     jit::CpuJitOptions jit_options;
@@ -222,6 +223,9 @@ class ModuleStoreImpl final : public ModuleStore {
     variant.codegen.bounds_checks =
         checks == source.options.end() ||
         (checks->second != "false" && checks->second != "False" && checks->second != "0");
+    auto poll = source.options.find("cancel_poll");
+    variant.codegen.loop_cancel_poll =
+        poll == source.options.end() || (poll->second != "false" && poll->second != "False" && poll->second != "0");
     if (where.target == Target::kCuda) {
       WEFT_ASSIGN_OR_RETURN(variant.sm, CudaArchitecture(where.ordinal));
     }

@@ -60,6 +60,7 @@ struct ModuleStoreOptions {
   std::string cache_dir;          // disk cache; empty = memory only
   std::string native_dir;         // engine/native headers for the JIT; empty = WEFT_NATIVE_DIR
   size_t memory_capacity = 256;   // modules kept loaded (LRU)
+  uint64_t disk_capacity_bytes = uint64_t{2} << 30;   // disk cache bound (LRU files removed); 0 = none
   bool verify_cuda = false;       // also compile every generated module with NVRTC (sm_90)
   int verify_cuda_sm = 90;        // the architecture verify_cuda compiles for
   GenerateModuleFn generate;      // empty = weft::GenerateModule

@@ -3,7 +3,7 @@
 
 namespace weft {
 
-SerialQueue::SerialQueue() : thread_([this] { Loop(); }) {}
+SerialQueue::SerialQueue() = default;
 
 SerialQueue::~SerialQueue() {
   {
@@ -11,13 +11,14 @@ SerialQueue::~SerialQueue() {
     stop_ = true;
   }
   cv_.notify_all();
-  thread_.join();
+  if (thread_.joinable()) thread_.join();
 }
 
 void SerialQueue::Post(std::function<void()> task) {
   {
     std::lock_guard<std::mutex> lock(mu_);
     tasks_.push_back(std::move(task));
+    if (!thread_.joinable()) thread_ = std::thread([this] { Loop(); });
   }
   cv_.notify_one();
 }
@@ -32,6 +33,7 @@ void SerialQueue::RunAndWait(std::function<void()> task) {
     std::unique_lock<std::mutex> lock(mu_);
     if (!tasks_.empty() || running_task_) {
       tasks_.push_back(std::move(task));
+      if (!thread_.joinable()) thread_ = std::thread([this] { Loop(); });
       cv_.notify_one();
       idle_cv_.wait(lock, [&] { return tasks_.empty() && !running_task_; });
       return;

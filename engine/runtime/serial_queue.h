@@ -1,4 +1,5 @@
-// A session's executor: one thread that runs posted tasks in order. WaitIdle blocks until every
+// A session's executor: one thread that runs posted tasks in order, started by the first Post
+// (a session that never posts work costs no thread). WaitIdle blocks until every
 // task posted before it has finished. RunAndWait runs a task after everything posted before it
 // and returns when it is done: on the calling thread when the queue is idle (no thread hand-off,
 // the sync-point fast path), else posted and waited for. Tasks never overlap either way.

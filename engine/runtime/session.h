@@ -1,9 +1,14 @@
-// One client session: who it is, the arrays it holds, its ordered executor, the first error
-// since the last synchronize, kernel print output, and its autodiff tapes.
+// One client session: who it is (its principal), the arrays it holds, its ordered executor,
+// the first error since the last synchronize, kernel print output, its autodiff tapes, whether
+// its Attach stream has claimed it, and its cancellation flag (set when it closes: queued and
+// running work stops).
+// The id is a secret (whoever knows it may use the session); `label` ("#<n>") names the
+// session in logs and is never accepted in place of the id.
 // Threading: `mu` guards arrays/error/output; tapes are touched only on the executor thread.
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -23,15 +28,32 @@ struct SessionOptions {
   std::string client_name;
   int64_t client_pid = 0;
   bool local = false;          // unix-socket peer: gets shared-memory names
-  std::string principal;       // credential class: IPC imports need the same principal
+  std::string principal;       // who owns it: "unix-uid:<peer uid>" or "tcp-token"
 };
 
 class Session {
  public:
-  Session(std::string id, SessionOptions options) : id_(std::move(id)), options_(std::move(options)) {}
+  Session(std::string id, std::string label, SessionOptions options)
+      : id_(std::move(id)), label_(std::move(label)), options_(std::move(options)),
+        opened_at_(std::chrono::steady_clock::now()) {}
 
   const std::string& id() const { return id_; }
+  const std::string& label() const { return label_; }
   const SessionOptions& options() const { return options_; }
+  std::chrono::steady_clock::time_point opened_at() const { return opened_at_; }
+
+  // The first Attach stream claims the session; later ones are refused (false).
+  bool ClaimAttach() { return !attached_.exchange(true); }
+  bool attached() const { return attached_.load(); }
+
+  // Cancellation: set once when the session closes (or the daemon stops). Queued batches are
+  // skipped and running launches, fills and copies stop at their next check.
+  void Cancel() { cancelled_.store(true); }
+  bool cancelled() const { return cancelled_.load(std::memory_order_relaxed); }
+  const std::atomic<bool>* cancel_flag() const { return &cancelled_; }
+
+  // Commands submitted and not yet run (the per-session queue limit counts these).
+  std::atomic<uint64_t> queued_commands{0};
 
   // Held arrays (array handles and gradient handles).
   std::shared_ptr<Allocation> Find(uint64_t handle) const;
@@ -67,7 +89,11 @@ class Session {
 
  private:
   std::string id_;
+  std::string label_;
   SessionOptions options_;
+  std::chrono::steady_clock::time_point opened_at_;
+  std::atomic<bool> attached_{false};
+  std::atomic<bool> cancelled_{false};
   mutable std::mutex mu_;
   std::unordered_map<uint64_t, std::shared_ptr<Allocation>> arrays_;
   std::unordered_map<uint64_t, uint64_t> grad_owner_;   // grad handle -> array handle

@@ -9,6 +9,8 @@
 #include <fstream>
 #include <random>
 #include <string>
+#include <thread>
+#include <chrono>
 
 namespace weft {
 namespace {
@@ -210,6 +212,46 @@ TEST_F(CacheDisk, StoresAndLoads) {
   EXPECT_TRUE(fs::exists(dir_ / (key + ".cpp")));
   for (const auto& entry : fs::directory_iterator(dir_))
     EXPECT_EQ(entry.path().string().find(".tmp."), std::string::npos) << entry.path();
+}
+
+// The directory stays under its bound: storing past it removes the least recently used keys
+// (a Load counts as a use), never the key just stored.
+TEST_F(CacheDisk, BoundedByBytesWithLeastRecentlyUsedEviction) {
+  ModuleArtifact a = SampleArtifact(rng_);
+  a.object.assign(10000, 'x');
+  a.generated_source.assign(1000, 'y');
+  DiskModuleCache probe(dir_.string());
+  ASSERT_TRUE(probe.Init().ok());
+  ASSERT_TRUE(probe.Store(std::string(64, 'p'), a).ok());
+  uint64_t per_key = 0;
+  for (const auto& entry : fs::directory_iterator(dir_)) per_key += entry.file_size();
+  fs::remove_all(dir_);
+
+  DiskModuleCache disk(dir_.string(), 3 * per_key + per_key / 2);   // room for 3 keys
+  ASSERT_TRUE(disk.Init().ok());
+  auto key = [](char c) { return std::string(64, c); };
+  auto tick = [] { std::this_thread::sleep_for(std::chrono::milliseconds(20)); };   // distinct mtimes
+  for (char c : {'a', 'b', 'c'}) {
+    ASSERT_TRUE(disk.Store(key(c), a).ok());
+    tick();
+  }
+  ASSERT_TRUE(disk.Load(key('a')).ok());   // 'a' is now the most recently used
+  tick();
+  ASSERT_TRUE(disk.Store(key('d'), a).ok());   // over the bound: 'b' (least recent) goes
+  EXPECT_TRUE(disk.Load(key('a')).ok());
+  EXPECT_EQ(disk.Load(key('b')).status().code(), StatusCode::kNotFound);
+  EXPECT_FALSE(fs::exists(dir_ / (key('b') + ".cpp")));
+  EXPECT_TRUE(disk.Load(key('c')).ok());
+  EXPECT_TRUE(disk.Load(key('d')).ok());
+  uint64_t total = 0;
+  for (const auto& entry : fs::directory_iterator(dir_)) total += entry.file_size();
+  EXPECT_LE(total, 3 * per_key + per_key / 2);
+
+  // A bound smaller than one module keeps just the newest.
+  DiskModuleCache tiny(dir_.string(), 1);
+  ASSERT_TRUE(tiny.Store(key('e'), a).ok());
+  EXPECT_TRUE(tiny.Load(key('e')).ok());
+  for (char c : {'a', 'c', 'd'}) EXPECT_EQ(tiny.Load(key(c)).status().code(), StatusCode::kNotFound);
 }
 
 TEST_F(CacheDisk, CorruptedFileIsDetectedAndRemoved) {

@@ -16,8 +16,9 @@ Fixtures (any test under clients/python/tests/, kernels/ included, may use them)
              processes still alive at the end of the test are killed.
   client_env function: client_env(overrides) -> environment dict for a child client.
   daemon_path function: the weftd binary.
-Daemon objects also give .stats() (SessionService.Stats), .shm_files() and .raw_session()
-(bare gRPC stubs with a session of their own, for hand-made requests).
+Daemon objects also give .stats() (SessionService.Stats), .shm_files(), .threads(),
+.open_fds() and .raw_session() (bare gRPC stubs with a session of their own, for hand-made
+requests).
 The daemon binary is $WEFT_DAEMON, else <repo>/build/bin/weftd; tests are skipped with a
 clear reason when it does not exist.
 """
@@ -85,7 +86,10 @@ class Daemon:
     """One weftd process started by the tests, with its address, logs and shm checks.
     `extra_args` are more weftd flags (a test's own daemon with its own settings)."""
 
-    def __init__(self, workdir: Path, tcp: bool = False, extra_args=()):
+    def __init__(self, workdir: Path, tcp: bool = False, extra_args: tuple = (),
+                 also_tcp: bool = False):
+        """tcp: listen on TCP only; also_tcp: listen on the Unix socket (.address) and on TCP
+        (.tcp_target, token in .token); extra_args: more weftd flags (limits)."""
         self.workdir = workdir
         self.cache_dir = workdir / "cache"
         self.cache_dir.mkdir(parents=True, exist_ok=True)
@@ -106,6 +110,14 @@ class Daemon:
             self.address = f"unix:{self.socket_path}"
             self.grpc_target = self.address
             args += ["--listen", self.address]
+            if also_tcp:
+                self.port = _free_tcp_port()
+                self.token = secrets.token_hex(16)
+                self.token_file = workdir / "token"
+                self.token_file.write_text(self.token + "\n")
+                os.chmod(self.token_file, 0o600)
+                self.tcp_target = f"127.0.0.1:{self.port}"
+                args += ["--listen", f"tcp:{self.tcp_target}", "--token-file", str(self.token_file)]
         args += ["--cache-dir", str(self.cache_dir), "--log-level", "info"] + verify_cuda_flags()
         args += list(extra_args)   # e.g. limits a test sets on its own daemon
         self.args = args
@@ -153,9 +165,21 @@ class Daemon:
             return raw.session.Stats(session_pb2.StatsRequest(), metadata=raw.metadata,
                                      timeout=10)
 
-    def raw_session(self, name: str = "pytest raw"):
-        """A context manager: a session opened with bare gRPC stubs (RawSession)."""
-        return RawSession(self, name)
+    def raw_session(self, name: str = "pytest raw", target: str | None = None):
+        """A context manager: a session opened with bare gRPC stubs (RawSession), over
+        `target` (default: the daemon's own address)."""
+        return RawSession(self, name, target)
+
+    def threads(self) -> int:
+        """The daemon's thread count (/proc/<pid>/status)."""
+        for line in Path(f"/proc/{self.pid}/status").read_text().splitlines():
+            if line.startswith("Threads:"):
+                return int(line.split()[1])
+        raise AssertionError("no Threads: line")
+
+    def open_fds(self) -> int:
+        """How many file descriptors the daemon has open."""
+        return len(os.listdir(f"/proc/{self.pid}/fd"))
 
     def stop(self) -> int:
         """SIGTERM, wait, and return the exit code (kills it if it does not exit in time)."""
@@ -178,14 +202,14 @@ class RawSession:
     `.arrays`, `.exec`, `.devices`, `.modules` stubs; `.metadata` carries session and token;
     `.session_id`, `.opened` (OpenSessionResponse). Closes the session on exit."""
 
-    def __init__(self, daemon: Daemon, name: str):
+    def __init__(self, daemon: Daemon, name: str, target: str | None = None):
         import grpc
         from weft import _runtime
         from weft.v1 import session_pb2
 
         options = [("grpc.max_send_message_length", 64 << 20),
                    ("grpc.max_receive_message_length", 64 << 20)]
-        self.channel = grpc.insecure_channel(daemon.grpc_target, options=options)
+        self.channel = grpc.insecure_channel(target or daemon.grpc_target, options=options)
         self.session = _runtime.SessionServiceStub(self.channel)
         self.arrays = _runtime.ArrayServiceStub(self.channel)
         self.exec = _runtime.ExecServiceStub(self.channel)
@@ -199,9 +223,18 @@ class RawSession:
         self._session_pb2 = session_pb2
 
     def close(self):
+        """Closes the session (a session already closed or reaped is fine) and the channel."""
+        import grpc
+
+        if getattr(self, "_closed", False):
+            return
+        self._closed = True
         try:
             self.session.Close(self._session_pb2.CloseSessionRequest(session_id=self.session_id),
                                metadata=self.metadata, timeout=10)
+        except grpc.RpcError as error:
+            if error.code() != grpc.StatusCode.FAILED_PRECONDITION:
+                raise
         finally:
             self.channel.close()
 
@@ -275,14 +308,15 @@ def tcp_weftd():
 
 @pytest.fixture
 def start_weftd():
-    """start_weftd(extra_args) -> a Daemon of the test's own, started with more weftd flags
-    (limits, a --config file); stopped and checked like `weftd` when the test ends."""
+    """start_weftd(extra_args, also_tcp=False) -> a Daemon of the test's own, started with more
+    weftd flags (limits, a --config file), also on TCP with a token when also_tcp; stopped and
+    checked like `weftd` when the test ends."""
     _require_daemon()
     started = []
 
-    def start(extra_args=()):
+    def start(extra_args=(), also_tcp: bool = False):
         workdir = Path(tempfile.mkdtemp(prefix="weft-test-own-"))
-        started.append(Daemon(workdir, extra_args=extra_args))
+        started.append(Daemon(workdir, extra_args=tuple(extra_args), also_tcp=also_tcp))
         return started[-1]
 
     try:

@@ -1,0 +1,288 @@
+"""Sessions are bound to their principal (issue 7, finding 7, and the session limits of
+finding 9): ids are 256 random bits and never logged; only the principal that opened a
+session may attach, close or use it (every service method, over raw gRPC); a session is
+attached once; a session nobody attaches is reaped without costing a thread; the number of
+sessions per principal is limited. Every case checks a clear error, that the victim session
+is untouched and that the daemon keeps serving."""
+import os
+import re
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import grpc
+import numpy as np
+import pytest
+
+from weft.v1 import array_pb2, exec_pb2, module_pb2, session_pb2, types_pb2
+
+FLOAT32 = 11
+
+
+def wait_for(predicate, timeout_s, period_s=0.05):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(period_s)
+    return predicate()
+
+
+def create_array(raw, values: np.ndarray):
+    return raw.arrays.Create(array_pb2.CreateArrayRequest(
+        dtype=types_pb2.DType(scalar=FLOAT32, type_name="float32"), shape=[values.size],
+        device="cpu", init=array_pb2.CreateArrayRequest.DATA, value=values.tobytes()),
+        metadata=raw.metadata, timeout=10).info
+
+
+def read_array(raw, handle: int) -> np.ndarray:
+    chunks = raw.arrays.Read(array_pb2.ReadArrayRequest(handle=handle), metadata=raw.metadata,
+                             timeout=10)
+    return np.frombuffer(b"".join(c.data for c in chunks), np.float32)
+
+
+def attach(raw, session_id: str, metadata):
+    """Opens an Attach stream for `session_id`; returns (call, first event or the RpcError,
+    release) where release() ends the stream."""
+    done = threading.Event()
+
+    def requests():
+        yield session_pb2.AttachRequest(session_id=session_id)
+        done.wait()
+
+    call = raw.session.Attach(requests(), metadata=metadata)
+    try:
+        first = next(call)
+    except grpc.RpcError as error:
+        first = error
+    return call, first, done.set
+
+
+def refused(call, code):
+    with pytest.raises(grpc.RpcError) as info:
+        call()
+    assert info.value.code() == code, f"{info.value.code()}: {info.value.details()}"
+    assert info.value.details(), "the error must say what was wrong"
+    return info.value
+
+
+def every_call_with(stub_owner, victim_id: str, metadata_base: tuple, victim_handle: int):
+    """Every service method called with the victim's session id, as (name, callable)."""
+    md = tuple(m for m in metadata_base if m[0] != "weft-session") + (("weft-session", victim_id),)
+    dtype = types_pb2.DType(scalar=FLOAT32, type_name="float32")
+    fill = exec_pb2.Command(fill=exec_pb2.FillCommand(
+        dst=types_pb2.ArrayRef(handle=victim_handle), value=np.float32(7).tobytes()))
+    module = module_pb2.ModuleSource(name="hijack")
+    return [
+        ("Create", lambda: stub_owner.arrays.Create(array_pb2.CreateArrayRequest(
+            dtype=dtype, shape=[4], device="cpu"), metadata=md, timeout=10)),
+        ("Describe", lambda: stub_owner.arrays.Describe(
+            array_pb2.DescribeArrayRequest(handle=victim_handle), metadata=md, timeout=10)),
+        ("Read", lambda: list(stub_owner.arrays.Read(
+            array_pb2.ReadArrayRequest(handle=victim_handle), metadata=md, timeout=10))),
+        ("Write", lambda: stub_owner.arrays.Write(iter([array_pb2.WriteArrayRequest(
+            handle=victim_handle, chunk=array_pb2.ArrayChunk(byte_offset=0, data=b"\0" * 4))]),
+            metadata=md, timeout=10)),
+        ("Export", lambda: stub_owner.arrays.Export(
+            array_pb2.ExportArrayRequest(handle=victim_handle), metadata=md, timeout=10)),
+        ("Import", lambda: stub_owner.arrays.Import(
+            array_pb2.ImportArrayRequest(token="x"), metadata=md, timeout=10)),
+        ("Free", lambda: stub_owner.arrays.Free(
+            array_pb2.FreeArrayRequest(handle=victim_handle), metadata=md, timeout=10)),
+        ("Submit", lambda: stub_owner.exec.Submit(
+            exec_pb2.SubmitRequest(commands=[fill]), metadata=md, timeout=10)),
+        ("Submit+sync", lambda: stub_owner.exec.Submit(
+            exec_pb2.SubmitRequest(commands=[fill], synchronize=True), metadata=md, timeout=10)),
+        ("Synchronize", lambda: stub_owner.exec.Synchronize(
+            exec_pb2.SynchronizeRequest(), metadata=md, timeout=10)),
+        ("Compile", lambda: stub_owner.modules.Compile(
+            module_pb2.CompileRequest(module=module, device="cpu"), metadata=md, timeout=10)),
+        ("Close", lambda: stub_owner.session.Close(
+            session_pb2.CloseSessionRequest(session_id=victim_id), metadata=md, timeout=10)),
+    ]
+
+
+def test_session_ids_are_256_random_bits(weftd):
+    ids = []
+    for _ in range(8):
+        with weftd.raw_session("pytest id") as raw:
+            ids.append(raw.session_id)
+    for sid in ids:
+        assert re.fullmatch(r"s-[0-9a-f]{64}", sid), sid
+    assert len(set(ids)) == len(ids)
+    # 256 bits: across 8 ids every hex digit position varies (a counter or a clock would not)
+    assert len({sid[2:10] for sid in ids}) == len(ids)
+
+
+def test_session_ids_are_never_logged(weftd, run_client):
+    """Open, use (with errors), attach, close and get reaped: the log names sessions by
+    label only, never by id."""
+    ids = []
+    with weftd.raw_session("pytest log") as raw:
+        ids.append(raw.session_id)
+        info = create_array(raw, np.arange(4, dtype=np.float32))
+        with pytest.raises(grpc.RpcError):
+            raw.arrays.Describe(array_pb2.DescribeArrayRequest(handle=info.handle + 999),
+                                metadata=raw.metadata, timeout=10)
+        bad = exec_pb2.Command(fill=exec_pb2.FillCommand(
+            dst=types_pb2.ArrayRef(handle=info.handle), value=b"\0"))   # wrong size: fails
+        sync = raw.exec.Submit(exec_pb2.SubmitRequest(commands=[bad], synchronize=True),
+                               metadata=raw.metadata, timeout=10).sync
+        assert sync.error
+    out = run_client("""
+        import weft as wp
+        import weft._runtime as rt
+        wp.init()
+        print(rt.get_runtime().session_id)
+    """)
+    printed = out.stdout.strip().splitlines()
+    ids += [line for line in printed if line.startswith("s-")]
+    log = wait_for(lambda: weftd.log() if "closed" in weftd.log() else "", 5)
+    assert re.search(r"session #\d+ opened", log), log[-2000:]
+    for sid in ids:
+        assert sid not in log, "a session id was written to the log"
+        assert sid[2:18] not in log
+
+
+def test_attach_is_once_and_a_dropped_second_attach_frees_nothing(weftd):
+    with weftd.raw_session("victim") as victim, weftd.raw_session("attacker") as attacker:
+        values = np.arange(16, dtype=np.float32)
+        info = create_array(victim, values)
+        _, hello, release_owner = attach(victim, victim.session_id, victim.metadata)
+        assert not isinstance(hello, grpc.RpcError), hello
+        # the attacker knows the id (same principal) and attaches, then drops the stream
+        call, first, release = attach(attacker, victim.session_id, attacker.metadata)
+        assert isinstance(first, grpc.RpcError)
+        assert first.code() == grpc.StatusCode.FAILED_PRECONDITION
+        assert "already has an Attach stream" in first.details()
+        release()
+        call.cancel()
+        time.sleep(0.5)
+        np.testing.assert_array_equal(read_array(victim, info.handle), values)
+        victim.close()   # before the owner's stream ends (that would reap it)
+        release_owner()
+
+
+def test_another_principal_cannot_touch_a_session(start_weftd):
+    """A Unix-socket session (principal unix-uid:<uid>) and a TCP session (principal
+    tcp-token) on one daemon: each is refused every method on the other's session."""
+    daemon = start_weftd(also_tcp=True)
+    with daemon.raw_session("unix owner") as owner, \
+            daemon.raw_session("tcp attacker", target=daemon.tcp_target) as attacker:
+        assert owner.opened.local and not attacker.opened.local
+        values = np.arange(8, dtype=np.float32) + 1
+        info = create_array(owner, values)
+        for victim, thief, handle in ((owner, attacker, info.handle),
+                                      (attacker, owner, create_array(attacker, values).handle)):
+            for name, call in every_call_with(thief, victim.session_id, thief.metadata, handle):
+                with pytest.raises(grpc.RpcError) as error:
+                    call()
+                assert error.value.code() == grpc.StatusCode.PERMISSION_DENIED, \
+                    f"{name}: {error.value.code()} {error.value.details()}"
+                assert "another client" in error.value.details()
+                assert victim.session_id not in error.value.details()
+            _, first, release = attach(thief, victim.session_id, thief.metadata)
+            assert isinstance(first, grpc.RpcError)
+            assert first.code() == grpc.StatusCode.PERMISSION_DENIED
+            release()
+        # both victims are untouched and the daemon serves them
+        np.testing.assert_array_equal(read_array(owner, info.handle), values)
+        assert daemon.stats().sessions >= 2
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="needs root to run a client as another Unix user")
+def test_another_unix_user_is_another_principal(start_weftd):
+    """The principal of a Unix-socket session is the peer's uid (SO_PEERCRED), not the
+    daemon's: a client running as `nobody` (socket opened up deliberately, as an operator
+    sharing one daemon would) opens its own session but cannot touch root's."""
+    daemon = start_weftd()
+    os.chmod(daemon.workdir, 0o755)
+    os.chmod(daemon.socket_path, 0o666)
+    with daemon.raw_session("root owner") as owner:
+        values = np.arange(8, dtype=np.float32) + 3
+        info = create_array(owner, values)
+        client_dir = Path(__file__).resolve().parents[1]
+        code = textwrap.dedent(f"""
+            import os, sys, grpc
+            from weft import _runtime
+            from weft.v1 import session_pb2, array_pb2
+            os.setgid(65534); os.setuid(65534)   # connect as nobody (imports done before)
+            ch = grpc.insecure_channel("{daemon.address}")
+            s = _runtime.SessionServiceStub(ch)
+            a = _runtime.ArrayServiceStub(ch)
+            mine = s.Open(session_pb2.OpenSessionRequest(client_name="nobody"), timeout=10)
+            print("opened", mine.local, flush=True)
+            md = (("weft-session", "{owner.session_id}"),)
+            for name, call in [
+                ("describe", lambda: a.Describe(array_pb2.DescribeArrayRequest(handle={info.handle}),
+                                                metadata=md, timeout=10)),
+                ("close", lambda: s.Close(session_pb2.CloseSessionRequest(session_id="{owner.session_id}"),
+                                          metadata=md, timeout=10))]:
+                try:
+                    call()
+                    print(name, "ALLOWED", flush=True)
+                except grpc.RpcError as e:
+                    print(name, e.code().name, flush=True)
+        """)
+        env = dict(os.environ, PYTHONPATH=str(client_dir))
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                             timeout=60, env=env)
+        if "opened" not in out.stdout and ("Permission denied" in out.stderr
+                                           or "PermissionError" in out.stderr):
+            pytest.skip(f"user nobody cannot read the client package: {out.stderr[-300:]}")
+        assert "opened True" in out.stdout, out.stdout + out.stderr
+        assert "describe PERMISSION_DENIED" in out.stdout, out.stdout + out.stderr
+        assert "close PERMISSION_DENIED" in out.stdout, out.stdout + out.stderr
+        np.testing.assert_array_equal(read_array(owner, info.handle), values)
+    assert "unix-uid:65534" in daemon.log()
+    assert f"unix-uid:{os.getuid()}" in daemon.log()
+
+
+def test_unattached_sessions_are_reaped_without_a_thread_each(start_weftd):
+    daemon = start_weftd(["--attach-timeout", "1.5", "--max-sessions-per-principal", "2000"])
+    with daemon.raw_session("attached bystander") as bystander:
+        _, hello, release = attach(bystander, bystander.session_id, bystander.metadata)
+        assert not isinstance(hello, grpc.RpcError), hello
+        values = np.arange(32, dtype=np.float32)
+        info = create_array(bystander, values)
+        threads_before = daemon.threads()
+        opened_before = daemon.stats().sessions_reaped_total
+        channel = grpc.insecure_channel(daemon.grpc_target)
+        from weft import _runtime
+        stub = _runtime.SessionServiceStub(channel)
+        for i in range(1000):
+            stub.Open(session_pb2.OpenSessionRequest(client_name=f"idle {i}"), timeout=10)
+        during = daemon.stats()
+        threads_during = daemon.threads()
+        assert during.sessions >= 1001
+        assert threads_during - threads_before < 20, (threads_before, threads_during)
+        reaped = wait_for(lambda: daemon.stats().sessions <= 2, 10.0, 0.2)   # + stats' own
+        assert reaped, f"{daemon.stats().sessions} sessions left"
+        assert daemon.stats().sessions_reaped_total >= opened_before + 1000
+        channel.close()
+        # the attached session was not reaped and still works
+        np.testing.assert_array_equal(read_array(bystander, info.handle), values)
+        release()
+
+
+def test_sessions_per_principal_are_limited(start_weftd):
+    daemon = start_weftd(["--max-sessions-per-principal", "3"])
+    first = daemon.raw_session("one")
+    second = daemon.raw_session("two")
+    third = daemon.raw_session("three")
+    try:
+        error = refused(lambda: daemon.raw_session("four"), grpc.StatusCode.RESOURCE_EXHAUSTED)
+        assert "--max-sessions-per-principal" in error.details()
+        assert "limit is 3" in error.details()
+        values = np.arange(4, dtype=np.float32)
+        np.testing.assert_array_equal(read_array(first, create_array(first, values).handle), values)
+        third.close()
+        with daemon.raw_session("four again") as fourth:   # room again
+            assert fourth.session_id
+    finally:
+        first.close()
+        second.close()
