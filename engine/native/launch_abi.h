@@ -68,6 +68,7 @@ struct launch_context_t {
   uint32 _pad;
   // Non-zero once the launch must stop (its session closed, or its time limit passed); the
   // runtime sets it, loops in generated code poll it (cg_loop_poll). Null: never cancelled.
+  // On a GPU it must be null or point at memory the device can read (mapped host memory).
   const int32* cancel;
 };
 
