@@ -243,26 +243,29 @@ def test_another_unix_user_is_another_principal(start_weftd):
 
 
 def test_unattached_sessions_are_reaped_without_a_thread_each(start_weftd):
-    daemon = start_weftd(["--attach-timeout", "1.5", "--max-sessions-per-principal", "2000"])
+    daemon = start_weftd(["--attach-timeout", "5", "--max-sessions-per-principal", "2000"])
     with daemon.raw_session("attached bystander") as bystander:
         _, hello, release = attach(bystander, bystander.session_id, bystander.metadata)
         assert not isinstance(hello, grpc.RpcError), hello
         values = np.arange(32, dtype=np.float32)
         info = create_array(bystander, values)
         threads_before = daemon.threads()
-        opened_before = daemon.stats().sessions_reaped_total
+        reaped_before = daemon.stats().sessions_reaped_total
         channel = grpc.insecure_channel(daemon.grpc_target)
         from weft import _runtime
         stub = _runtime.SessionServiceStub(channel)
         for i in range(1000):
             stub.Open(session_pb2.OpenSessionRequest(client_name=f"idle {i}"), timeout=10)
-        during = daemon.stats()
         threads_during = daemon.threads()
-        assert during.sessions >= 1001
+        during = daemon.stats()
+        # on a loaded machine the first ones may already be reaped: all 1000 were opened, and
+        # at least half of them were alive while the threads were counted
+        assert during.sessions + during.sessions_reaped_total - reaped_before >= 1001
+        assert during.sessions >= 500
         assert threads_during - threads_before < 20, (threads_before, threads_during)
-        reaped = wait_for(lambda: daemon.stats().sessions <= 2, 10.0, 0.2)   # + stats' own
+        reaped = wait_for(lambda: daemon.stats().sessions <= 2, 20.0, 0.2)   # + stats' own
         assert reaped, f"{daemon.stats().sessions} sessions left"
-        assert daemon.stats().sessions_reaped_total >= opened_before + 1000
+        assert daemon.stats().sessions_reaped_total >= reaped_before + 1000
         channel.close()
         # the attached session was not reaped and still works
         np.testing.assert_array_equal(read_array(bystander, info.handle), values)
