@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 
 #include <grpcpp/server_posix.h>
@@ -93,8 +94,11 @@ void UnixListener::AcceptLoop() {
       while (true) {
         int c = accept4(fds[i].fd, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
         if (c < 0) {
-          if (errno == EMFILE || errno == ENFILE)
+          if (errno == EMFILE || errno == ENFILE) {
+            // Out of descriptors: the connection stays queued; back off instead of spinning.
             spdlog::warn("unix listener: cannot accept a connection: {}", std::strerror(errno));
+            std::this_thread::sleep_for(std::chrono::milliseconds(100));
+          }
           break;   // EAGAIN: nothing more to accept now
         }
         ucred cred{};

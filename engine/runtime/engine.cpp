@@ -153,7 +153,9 @@ size_t Engine::ReapUnattachedSessions(std::chrono::steady_clock::duration timeou
   }
   size_t n = 0;
   for (const auto& s : stale) {
-    if (s->attached()) continue;   // claimed meanwhile
+    // Claiming the session for the reap makes a racing Attach fail instead of attaching to
+    // a session that is about to close.
+    if (!s->ClaimAttach()) continue;   // an Attach claimed it meanwhile
     spdlog::info("session {}: no Attach stream within the attach timeout", s->label());
     if (CloseSession(s->id(), /*reaped=*/true).ok()) ++n;
   }
