@@ -1,5 +1,5 @@
 """Runs every weft benchmark (compile, launch overhead, kernels, foundation, bounds checks,
-lazy adjoint) and prints their tables. Arguments are passed to every benchmark.
+lazy adjoint, the loops' cancellation poll, 64 concurrent clients) and prints their tables. Arguments are passed to every benchmark.
 `make bench` installs warp-lang first so each table has a warp-lang ratio column."""
 from __future__ import annotations
 
