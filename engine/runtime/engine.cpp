@@ -136,8 +136,8 @@ Status Engine::CloseSession(const std::string& id, bool reaped) {
   s->Cancel();   // queued batches are skipped, running launches/fills/copies stop
   s->queue().WaitIdle();
   size_t n = s->array_count();
+  if (reaped) ++sessions_reaped_;   // counted before the arrays go: Stats never shows them freed but the reap uncounted
   s->ReleaseAll();   // tapes hold weak references only; they go with the Session object
-  if (reaped) ++sessions_reaped_;
   spdlog::info("session {} {}: {} array handle(s) released", s->label(),
                reaped ? "reaped (client went away)" : "closed", n);
   return Status::Ok();
