@@ -9,7 +9,7 @@
 //   line   = FunctionSource.first_line + (line in FunctionSource.source) - 1
 //   column = 1-based column in FunctionSource.source (the client dedents the source, so this
 //            is the column in the dedented text; the original indentation is not sent).
-// Annotation slots for semantic analysis (engine/sema, owner C2), never touched by lang:
+// Annotation slots for semantic analysis (engine/sema), never touched by lang:
 //   Expr::type_id  int, -1 until sema assigns the index of the expression's type.
 //   Expr::sema / Stmt::sema  opaque pointer, nullptr until sema sets it; the AST never frees
 //            it (sema keeps the pointee alive in its own arena).

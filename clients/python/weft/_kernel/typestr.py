@@ -163,7 +163,7 @@ def type_string(obj) -> str:
                 return text
         except TypeError:
             pass
-    # weft.types.type_str (engineer B1) knows every dtype of the array layer.
+    # weft.types.type_str knows every dtype of the array layer.
     try:
         from weft import types as weft_types  # noqa: PLC0415 - optional, written by B1
 
