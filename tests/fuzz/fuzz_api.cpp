@@ -45,53 +45,50 @@ constexpr uint64_t kMaxWork = uint64_t{1} << 20;
   std::abort();
 }
 
-FunctionSource Kernel(const std::string& name, const std::string& src, std::vector<std::string> types,
-                      std::vector<std::string> names) {
+// One kernel of the fuzz module: its parameters as Python text and as canonical types, and its
+// body (statements, one per line).
+struct KernelSpec {
+  const char* name;
+  const char* params;
+  const char* body;
+  std::vector<std::string> types;
+  std::vector<std::string> names;
+};
+
+const KernelSpec kKernelSpecs[] = {
+    {"k_axpy", "x: wp.array(dtype=float), y: wp.array(dtype=float), a: float",
+     "i = wp.tid()\ny[i] = a * x[i] + y[i]", {"array(float32,1)", "array(float32,1)", "float32"}, {"x", "y", "a"}},
+    {"k_vec", "v: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)", "i = wp.tid()\nout[i] = wp.length(v[i])",
+     {"array(vec(3,float32),1)", "array(float32,1)"}, {"v", "out"}},
+    {"k_2d", "m: wp.array2d(dtype=float), out: wp.array(dtype=float)",
+     "i, j = wp.tid()\nwp.atomic_add(out, i, m[i, j] * m[i, j])", {"array(float32,2)", "array(float32,1)"}, {"m", "out"}},
+    {"k_struct", "s: S, out: wp.array(dtype=float)", "i = wp.tid()\nout[i] = s.scale * s.data[i]",
+     {"struct(fz.S)", "array(float32,1)"}, {"s", "out"}},
+    {"k_loss", "x: wp.array(dtype=float), loss: wp.array(dtype=float)",
+     "i = wp.tid()\nwp.atomic_add(loss, 0, x[i] * x[i])", {"array(float32,1)", "array(float32,1)"}, {"x", "loss"}},
+    {"k_int", "a: wp.array(dtype=wp.int32), n: int", "i = wp.tid()\na[i] = a[i] + n", {"array(int32,1)", "int32"},
+     {"a", "n"}},
+};
+
+FunctionSource Kernel(const KernelSpec& k) {
   FunctionSource f;
-  f.name = name;
-  f.key = "fz." + name;
-  f.source = src;
+  f.name = k.name;
+  f.key = "fz." + f.name;
+  f.source = "def " + f.name + "(" + k.params + "):\n    ";
+  for (const char* c = k.body; *c; ++c) f.source += *c == '\n' ? std::string("\n    ") : std::string(1, *c);
+  f.source += "\n";
   f.file = "fuzz_api.py";
   f.first_line = 1;
   f.is_kernel = true;
-  f.param_types = std::move(types);
-  f.param_names = std::move(names);
+  f.param_types = k.types;
+  f.param_names = k.names;
   return f;
 }
 
 ModuleSource FuzzModule() {
   ModuleSource m;
   m.name = "fz";
-  m.functions.push_back(Kernel("k_axpy",
-                               "def k_axpy(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):\n"
-                               "    i = wp.tid()\n"
-                               "    y[i] = a * x[i] + y[i]\n",
-                               {"array(float32,1)", "array(float32,1)", "float32"}, {"x", "y", "a"}));
-  m.functions.push_back(Kernel("k_vec",
-                               "def k_vec(v: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):\n"
-                               "    i = wp.tid()\n"
-                               "    out[i] = wp.length(v[i])\n",
-                               {"array(vec(3,float32),1)", "array(float32,1)"}, {"v", "out"}));
-  m.functions.push_back(Kernel("k_2d",
-                               "def k_2d(m: wp.array2d(dtype=float), out: wp.array(dtype=float)):\n"
-                               "    i, j = wp.tid()\n"
-                               "    wp.atomic_add(out, i, m[i, j] * m[i, j])\n",
-                               {"array(float32,2)", "array(float32,1)"}, {"m", "out"}));
-  m.functions.push_back(Kernel("k_struct",
-                               "def k_struct(s: S, out: wp.array(dtype=float)):\n"
-                               "    i = wp.tid()\n"
-                               "    out[i] = s.scale * s.data[i]\n",
-                               {"struct(fz.S)", "array(float32,1)"}, {"s", "out"}));
-  m.functions.push_back(Kernel("k_loss",
-                               "def k_loss(x: wp.array(dtype=float), loss: wp.array(dtype=float)):\n"
-                               "    i = wp.tid()\n"
-                               "    wp.atomic_add(loss, 0, x[i] * x[i])\n",
-                               {"array(float32,1)", "array(float32,1)"}, {"x", "loss"}));
-  m.functions.push_back(Kernel("k_int",
-                               "def k_int(a: wp.array(dtype=wp.int32), n: int):\n"
-                               "    i = wp.tid()\n"
-                               "    a[i] = a[i] + n\n",
-                               {"array(int32,1)", "int32"}, {"a", "n"}));
+  for (const auto& k : kKernelSpecs) m.functions.push_back(Kernel(k));
   Symbol wp;
   wp.name = "wp";
   wp.kind = Symbol::Kind::kBuiltinModule;
@@ -104,8 +101,6 @@ ModuleSource FuzzModule() {
   m.structs.push_back({"fz.S", {{"scale", "float32"}, {"data", "array(float32,1)"}}});
   return m;
 }
-
-const char* const kKernels[] = {"k_axpy", "k_vec", "k_2d", "k_struct", "k_loss", "k_int"};
 
 DType Scalar(ScalarType t, std::vector<uint32_t> elem = {}) {
   DType d;
@@ -323,8 +318,9 @@ struct Run {
       case 3: {
         auto* l = c->mutable_launch();
         l->set_module_id(fdp.ConsumeIntegralInRange<int>(0, 15) ? w.module_id : Bytes(8));
-        l->set_kernel(fdp.ConsumeIntegralInRange<int>(0, 15) ? kKernels[fdp.ConsumeIntegralInRange<size_t>(0, 5)]
-                                                             : Bytes(8));
+        l->set_kernel(fdp.ConsumeIntegralInRange<int>(0, 15)
+                          ? kKernelSpecs[fdp.ConsumeIntegralInRange<size_t>(0, std::size(kKernelSpecs) - 1)].name
+                          : Bytes(8));
         int nd = fdp.ConsumeIntegralInRange<int>(0, 5);
         for (int i = 0; i < nd; ++i) l->add_dim(Int());
         int na = fdp.ConsumeIntegralInRange<int>(0, 4);
@@ -377,6 +373,7 @@ struct Run {
     CheckStatus(r.error);
   }
 
+  // Any status but INTERNAL/UNKNOWN is an answer to a hostile request (OK included).
   static void CheckStatus(const Status& st) {
     if (st.code() == StatusCode::kInternal || st.code() == StatusCode::kUnknown)
       Die("a hostile request produced an internal error: " + st.ToString());
@@ -439,26 +436,20 @@ struct Run {
         uint32_t chunk = fdp.ConsumeIntegral<uint32_t>();
         if (chunk == 0 || chunk > (16u << 20)) chunk = chunk == 0 ? (1u << 20) : (16u << 20);   // as the service
         uint64_t sum = 0;
-        Status st = w.engine->ReadArray(*s, h, off, count, chunk, [&](uint64_t, const char* data, size_t n) {
+        CheckStatus(w.engine->ReadArray(*s, h, off, count, chunk, [&](uint64_t, const char* data, size_t n) {
           for (size_t i = 0; i < n; ++i) sum += static_cast<unsigned char>(data[i]);
           return true;
-        });
-        if (!st.ok()) CheckStatus(st);
+        }));
         break;
       }
       case 2: {
         uint64_t h = Handle();
         uint64_t off = static_cast<uint64_t>(Int());
         std::string data = Bytes(128);
-        Status st = w.engine->WriteArray(*s, h, off, data.data(), data.size());
-        if (!st.ok()) CheckStatus(st);
+        CheckStatus(w.engine->WriteArray(*s, h, off, data.data(), data.size()));
         break;
       }
-      case 3: {
-        Status st = w.engine->FreeArray(*s, Handle());
-        if (!st.ok()) CheckStatus(st);
-        break;
-      }
+      case 3: CheckStatus(w.engine->FreeArray(*s, Handle())); break;
       case 4: {
         auto t = w.engine->ExportArray(*s, Handle());
         if (t.ok()) tokens.push_back(*t);
@@ -474,11 +465,7 @@ struct Run {
         else CheckStatus(r.status());
         break;
       }
-      case 6: {
-        auto r = w.engine->DescribeArray(*s, Handle());
-        if (!r.ok()) CheckStatus(r.status());
-        break;
-      }
+      case 6: CheckStatus(w.engine->DescribeArray(*s, Handle()).status()); break;
       default: {
         v1::SubmitRequest req;
         int n = fdp.ConsumeIntegralInRange<int>(1, 6);

@@ -16,9 +16,11 @@ Fixtures (any test under clients/python/tests/, kernels/ included, may use them)
              processes still alive at the end of the test are killed.
   client_env function: client_env(overrides) -> environment dict for a child client.
   daemon_path function: the weftd binary.
+  wait_for   function: wait_for(predicate, timeout_s, period_s=0.05) -> the predicate's first
+             truthy value, or its last value when the time is up.
 Daemon objects also give .stats() (SessionService.Stats), .shm_files(), .threads(),
-.open_fds() and .raw_session() (bare gRPC stubs with a session of their own, for hand-made
-requests).
+.thread_names(), .cpu_seconds(), .open_fds() and .raw_session() (bare gRPC stubs with a
+session of their own, for hand-made requests: .attach(), .create_array(), .read_array()).
 The daemon binary is $WEFT_DAEMON, else <repo>/build/bin/weftd; tests are skipped with a
 clear reason when it does not exist.
 """
@@ -61,6 +63,18 @@ def verify_cuda_flags() -> list:
     except (OSError, subprocess.SubprocessError):
         return []
     return ["--verify-cuda"] if "libnvrtc" in out else []
+
+
+def wait_until(predicate, timeout_s: float, period_s: float = 0.05):
+    """Calls `predicate` until it returns a truthy value (returned) or `timeout_s` passes (its
+    last value is returned)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(period_s)
+    return predicate()
 
 
 def _free_tcp_port() -> int:
@@ -177,6 +191,21 @@ class Daemon:
                 return int(line.split()[1])
         raise AssertionError("no Threads: line")
 
+    def thread_names(self) -> list[str]:
+        """The names (comm) of the daemon's threads, sorted: weftd's own are "weftd"."""
+        names = []
+        for tid in os.listdir(f"/proc/{self.pid}/task"):
+            try:
+                names.append(Path(f"/proc/{self.pid}/task/{tid}/comm").read_text().strip())
+            except OSError:
+                pass   # the thread ended meanwhile
+        return sorted(names)
+
+    def cpu_seconds(self) -> float:
+        """User + system CPU time the daemon has used so far (/proc/<pid>/stat)."""
+        fields = Path(f"/proc/{self.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
     def open_fds(self) -> int:
         """How many file descriptors the daemon has open."""
         return len(os.listdir(f"/proc/{self.pid}/fd"))
@@ -221,6 +250,45 @@ class RawSession:
         self.session_id = self.opened.session_id
         self.metadata = daemon.metadata(self.session_id)
         self._session_pb2 = session_pb2
+
+    def attach(self, session_id: str | None = None, metadata: tuple | None = None):
+        """Opens an Attach stream for `session_id` (default: this session) with `metadata`
+        (default: this session's); returns (call, first event or the RpcError, release), where
+        release() ends the stream (the daemon then reaps the session it claimed)."""
+        import grpc
+        import threading
+
+        done = threading.Event()
+        session_id = self.session_id if session_id is None else session_id
+
+        def requests():
+            yield self._session_pb2.AttachRequest(session_id=session_id)
+            done.wait()
+
+        call = self.session.Attach(requests(), metadata=self.metadata if metadata is None else metadata)
+        try:
+            first = next(call)
+        except grpc.RpcError as error:
+            first = error
+        return call, first, done.set
+
+    def create_array(self, values):
+        """A new array of the session holding `values` (a 1-D float32 numpy array); its ArrayInfo."""
+        from weft.v1 import array_pb2, types_pb2
+
+        return self.arrays.Create(array_pb2.CreateArrayRequest(
+            dtype=types_pb2.DType(scalar=types_pb2.FLOAT32, type_name="float32"),
+            shape=[values.size], device="cpu", init=array_pb2.CreateArrayRequest.DATA,
+            value=values.tobytes()), metadata=self.metadata, timeout=10).info
+
+    def read_array(self, handle: int):
+        """The contents of float32 array `handle` of the session, as a numpy array."""
+        import numpy as np
+        from weft.v1 import array_pb2
+
+        chunks = self.arrays.Read(array_pb2.ReadArrayRequest(handle=handle), metadata=self.metadata,
+                                  timeout=10)
+        return np.frombuffer(b"".join(c.data for c in chunks), np.float32)
 
     def close(self):
         """Closes the session (a session already closed or reaped is fine) and the channel."""
@@ -346,6 +414,12 @@ def client_env():
     WEFT_ADDRESS), the client package on PYTHONPATH, and `overrides` (None removes a key).
     Test modules cannot import conftest by name (tests/kernels has its own conftest)."""
     return _child_env
+
+
+@pytest.fixture
+def wait_for():
+    """wait_for(predicate, timeout_s, period_s=0.05): polls until the predicate holds."""
+    return wait_until
 
 
 @pytest.fixture

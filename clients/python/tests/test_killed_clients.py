@@ -11,7 +11,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-import threading
 import time
 
 import numpy as np
@@ -60,26 +59,6 @@ for pid in pids:
 """
 
 
-def wait_for(predicate, timeout_s, period_s=0.2):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(period_s)
-    return predicate()
-
-
-def thread_names(pid: int) -> list:
-    names = []
-    for tid in os.listdir(f"/proc/{pid}/task"):
-        try:
-            names.append(open(f"/proc/{pid}/task/{tid}/comm").read().strip())
-        except OSError:
-            pass
-    return sorted(names)
-
-
 def run_and_kill(daemon, script, clients: int, env) -> None:
     """Starts `clients` forked clients, waits until each has done work, lets them all launch
     for a second, then SIGKILLs every one."""
@@ -111,37 +90,24 @@ def run_and_kill(daemon, script, clients: int, env) -> None:
                 pass
 
 
-def test_100_clients_killed_mid_work_leak_nothing(start_weftd, client_env, tmp_path):
+def test_100_clients_killed_mid_work_leak_nothing(start_weftd, client_env, tmp_path, wait_for):
     daemon = start_weftd()
-    from weft.v1 import array_pb2, types_pb2
-
     script = tmp_path / "zygote.py"   # kernels must be defined in a file
     script.write_text(textwrap.dedent(ZYGOTE))
     env = client_env({"WEFT_ADDRESS": daemon.address})
-    from weft.v1 import session_pb2
-
     with daemon.raw_session("bystander") as bystander:
-        attached = threading.Event()
-
-        def hold():   # the bystander's Attach stream, held for the whole test
-            yield session_pb2.AttachRequest(session_id=bystander.session_id)
-            attached.wait()
-
-        stream = bystander.session.Attach(hold(), metadata=bystander.metadata)
-        next(stream)
+        _, hello, release = bystander.attach()   # held for the whole test
+        assert hello.message.startswith("attached "), hello
         values = np.random.default_rng(3).standard_normal(1000).astype(np.float32)
-        mine = bystander.arrays.Create(array_pb2.CreateArrayRequest(
-            dtype=types_pb2.DType(scalar=11, type_name="float32"), shape=[1000], device="cpu",
-            init=array_pb2.CreateArrayRequest.DATA, value=values.tobytes()),
-            metadata=bystander.metadata, timeout=10).info
+        mine = bystander.create_array(values)
         # A first round of 10 lets gRPC's own thread pools reach their working size; the
         # baseline is taken after it, so what the 100 leave behind is what they leaked.
         run_and_kill(daemon, script, 10, env)
-        assert wait_for(lambda: daemon.stats().sessions <= 2, 60)
+        assert wait_for(lambda: daemon.stats().sessions <= 2, 60, 0.2)
         time.sleep(2.0)
         before = daemon.stats()
         shm_before = daemon.shm_files()
-        names_before = thread_names(daemon.pid)
+        names_before = daemon.thread_names()
         fds_before = daemon.open_fds()
         threads_before = daemon.threads()
 
@@ -152,14 +118,14 @@ def test_100_clients_killed_mid_work_leak_nothing(start_weftd, client_env, tmp_p
             return (s.sessions <= before.sessions and s.arrays <= before.arrays
                     and s.array_bytes <= before.array_bytes)
 
-        assert wait_for(back_to_baseline, 60), f"daemon still holds the clients' work: {daemon.stats()}"
+        assert wait_for(back_to_baseline, 60, 0.2), f"daemon still holds the clients' work: {daemon.stats()}"
         after = daemon.stats()
         assert after.sessions_reaped_total >= before.sessions_reaped_total + CLIENTS
         assert after.array_bytes == before.array_bytes, "leaked bytes"
         assert after.arrays == before.arrays
-        assert wait_for(lambda: daemon.stats().cpu_slab_bytes <= before.cpu_slab_bytes, 10), \
+        assert wait_for(lambda: daemon.stats().cpu_slab_bytes <= before.cpu_slab_bytes, 10, 0.2), \
             f"leaked slabs: {daemon.stats().cpu_slabs} vs {before.cpu_slabs}"
-        assert wait_for(lambda: daemon.shm_files() == shm_before, 10), \
+        assert wait_for(lambda: daemon.shm_files() == shm_before, 10, 0.2), \
             f"leaked shared-memory files: {set(daemon.shm_files()) - set(shm_before)}"
         # weftd's own threads (named "weftd": executors, pool, watchdog, reaper, listener) come
         # back exactly; gRPC's internal pools (timers, executors) are shared by every client
@@ -167,17 +133,14 @@ def test_100_clients_killed_mid_work_leak_nothing(start_weftd, client_env, tmp_p
         def own(names):
             return sum(1 for n in names if n == "weftd")
 
-        assert wait_for(lambda: own(thread_names(daemon.pid)) == own(names_before), 30), \
-            f"leaked threads: {thread_names(daemon.pid)} vs {names_before}"
-        assert wait_for(lambda: daemon.threads() <= threads_before + 2, 30), \
-            f"gRPC threads grew: {thread_names(daemon.pid)} vs {names_before}"
-        assert wait_for(lambda: daemon.open_fds() <= fds_before, 30), \
+        assert wait_for(lambda: own(daemon.thread_names()) == own(names_before), 30, 0.2), \
+            f"leaked threads: {daemon.thread_names()} vs {names_before}"
+        assert wait_for(lambda: daemon.threads() <= threads_before + 2, 30, 0.2), \
+            f"gRPC threads grew: {daemon.thread_names()} vs {names_before}"
+        assert wait_for(lambda: daemon.open_fds() <= fds_before, 30, 0.2), \
             f"leaked file descriptors: {daemon.open_fds()} vs {fds_before}"
 
         # the bystander is untouched and served
-        chunks = bystander.arrays.Read(array_pb2.ReadArrayRequest(handle=mine.handle),
-                                       metadata=bystander.metadata, timeout=10)
-        np.testing.assert_array_equal(np.frombuffer(b"".join(c.data for c in chunks), np.float32),
-                                      values)
+        np.testing.assert_array_equal(bystander.read_array(mine.handle), values)
         bystander.close()
-        attached.set()
+        release()

@@ -50,28 +50,13 @@ def as_file(tmp_path, name: str, code: str) -> str:
     return f"import runpy; runpy.run_path({str(path)!r}, run_name='__main__')"
 
 
-def wait_for(predicate, timeout_s, period_s=0.05):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(period_s)
-    return predicate()
-
-
-def cpu_seconds(pid: int) -> float:
-    fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / 100.0   # utime + stime, in clock ticks
-
-
 @pytest.fixture
 def cpu(wp):
     with wp.ScopedDevice("cpu"):
         yield wp
 
 
-def test_infinite_loop_stops_when_its_client_dies(weftd, cpu, spawn_client, tmp_path):
+def test_infinite_loop_stops_when_its_client_dies(weftd, cpu, spawn_client, tmp_path, wait_for):
     wp = cpu
     mine = wp.array(np.arange(100, dtype=np.float32))
     before = weftd.stats()
@@ -85,9 +70,9 @@ def test_infinite_loop_stops_when_its_client_dies(weftd, cpu, spawn_client, tmp_
     reaped = wait_for(lambda: weftd.stats().sessions_reaped_total > before.sessions_reaped_total, 10.0)
     assert reaped, "the dead client's session was not reaped (its kernel still runs?)"
     assert time.monotonic() - killed < 10.0
-    idle_from = cpu_seconds(weftd.pid)
+    idle_from = weftd.cpu_seconds()
     time.sleep(1.0)
-    idle = cpu_seconds(weftd.pid) - idle_from
+    idle = weftd.cpu_seconds() - idle_from
     assert idle < 0.5, f"the daemon still burns CPU after the reap ({idle:.2f} s in 1 s)"
     assert weftd.stats().arrays <= before.arrays + 1
 
