@@ -7,26 +7,26 @@
 
 namespace weft::server {
 
-std::string Metadata(const grpc::ServerContext& ctx, const std::string& key) {
+std::string Metadata(const grpc::ServerContextBase& ctx, const std::string& key) {
   const auto& md = ctx.client_metadata();
   auto it = md.find(key);
   if (it == md.end()) return "";
   return std::string(it->second.data(), it->second.size());
 }
 
-std::optional<PeerCredentials> CallAuth::LocalPeer(const grpc::ServerContext& ctx) const {
+std::optional<PeerCredentials> CallAuth::LocalPeer(const grpc::ServerContextBase& ctx) const {
   if (!unix_) return std::nullopt;
   return unix_->PeerOf(ctx.peer());
 }
 
-bool CallAuth::IsLocalPeer(const grpc::ServerContext& ctx) const { return LocalPeer(ctx).has_value(); }
+bool CallAuth::IsLocalPeer(const grpc::ServerContextBase& ctx) const { return LocalPeer(ctx).has_value(); }
 
-std::string CallAuth::Principal(const grpc::ServerContext& ctx) const {
+std::string CallAuth::Principal(const grpc::ServerContextBase& ctx) const {
   if (auto peer = LocalPeer(ctx)) return "unix-uid:" + std::to_string(peer->uid);
   return "tcp-token";
 }
 
-Status CallAuth::Authenticate(const grpc::ServerContext& ctx) const {
+Status CallAuth::Authenticate(const grpc::ServerContextBase& ctx) const {
   if (IsLocalPeer(ctx)) return Status::Ok();
   const std::string peer = ctx.peer();
   if (peer.rfind("ipv4:", 0) != 0 && peer.rfind("ipv6:", 0) != 0)
@@ -44,7 +44,7 @@ Status CallAuth::Authenticate(const grpc::ServerContext& ctx) const {
 
 // The id is never echoed (messages may be logged); a wrong id and another principal's id get
 // different codes, but ids are 256 random bits, so the difference reveals nothing usable.
-Expected<std::shared_ptr<Session>> CallAuth::SessionById(const grpc::ServerContext& ctx, const std::string& id) const {
+Expected<std::shared_ptr<Session>> CallAuth::SessionById(const grpc::ServerContextBase& ctx, const std::string& id) const {
   WEFT_RETURN_IF_ERROR(Authenticate(ctx));
   if (id.empty()) return FailedPrecondition("no session: call SessionService.Open first");
   auto s = engine_.FindSession(id);
@@ -55,7 +55,7 @@ Expected<std::shared_ptr<Session>> CallAuth::SessionById(const grpc::ServerConte
   return s;
 }
 
-Expected<std::shared_ptr<Session>> CallAuth::SessionOf(const grpc::ServerContext& ctx) const {
+Expected<std::shared_ptr<Session>> CallAuth::SessionOf(const grpc::ServerContextBase& ctx) const {
   return SessionById(ctx, Metadata(ctx, "weft-session"));
 }
 

@@ -23,19 +23,19 @@ class CallAuth {
       : engine_(engine), tcp_token_(std::move(tcp_token)), unix_(unix_listener) {}
 
   // A connection accepted by the UnixListener.
-  bool IsLocalPeer(const grpc::ServerContext& ctx) const;
+  bool IsLocalPeer(const grpc::ServerContextBase& ctx) const;
   // The local peer's credentials (nullopt for TCP peers).
-  std::optional<PeerCredentials> LocalPeer(const grpc::ServerContext& ctx) const;
+  std::optional<PeerCredentials> LocalPeer(const grpc::ServerContextBase& ctx) const;
   // "unix-uid:<peer uid>" for local peers, "tcp-token" for TCP peers.
-  std::string Principal(const grpc::ServerContext& ctx) const;
+  std::string Principal(const grpc::ServerContextBase& ctx) const;
 
   // UNAUTHENTICATED when a TCP caller has no or a wrong token.
-  Status Authenticate(const grpc::ServerContext& ctx) const;
+  Status Authenticate(const grpc::ServerContextBase& ctx) const;
   // Authenticate + the session of metadata "weft-session" (FAILED_PRECONDITION when missing
   // or unknown).
-  Expected<std::shared_ptr<Session>> SessionOf(const grpc::ServerContext& ctx) const;
+  Expected<std::shared_ptr<Session>> SessionOf(const grpc::ServerContextBase& ctx) const;
   // Same, for an explicit id (Close/Attach carry it in the request).
-  Expected<std::shared_ptr<Session>> SessionById(const grpc::ServerContext& ctx, const std::string& id) const;
+  Expected<std::shared_ptr<Session>> SessionById(const grpc::ServerContextBase& ctx, const std::string& id) const;
 
   Engine& engine() const { return engine_; }
 
@@ -46,6 +46,6 @@ class CallAuth {
 };
 
 // gRPC metadata value for `key`, or "".
-std::string Metadata(const grpc::ServerContext& ctx, const std::string& key);
+std::string Metadata(const grpc::ServerContextBase& ctx, const std::string& key);
 
 }  // namespace weft::server

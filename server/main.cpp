@@ -142,7 +142,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   CallAuth auth(**engine, token, unix_listener->get());
-  SessionServiceImpl session_service(auth);
+  SessionReaper reaper(**engine, cfg->attach_timeout_s);   // before the services: Attach queues reaps to it
+  SessionServiceImpl session_service(auth, reaper);
   ArrayServiceImpl array_service(auth);
   ExecServiceImpl exec_service(auth);
   ModuleServiceImpl module_service(auth);
@@ -171,7 +172,6 @@ int main(int argc, char** argv) {
     return 1;
   }
   (*unix_listener)->Start(server.get());
-  SessionReaper reaper(**engine, cfg->attach_timeout_s);
   for (const auto& l : cfg->listen) spdlog::info("listening on {}", l);
   spdlog::info("weftd {} ready (pid {}, {} CPU threads{})", WEFT_VERSION, getpid(), (*engine)->pool().size(),
                cfg->allow_unchecked ? ", unchecked kernels allowed" : "");

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "server/call_auth.h"
+#include "server/session_reaper.h"
 #include "weft/v1/array.grpc.pb.h"
 #include "weft/v1/device.grpc.pb.h"
 #include "weft/v1/exec.grpc.pb.h"
@@ -12,16 +13,19 @@
 
 namespace weft::server {
 
-class SessionServiceImpl final : public v1::SessionService::Service {
+// Attach is served on gRPC's callback API: an attached session's stream waits without holding
+// a thread (a sync-API stream would hold one of gRPC's server threads for the session's whole
+// life); the other methods are synchronous.
+class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_Attach<v1::SessionService::Service> {
  public:
-  explicit SessionServiceImpl(const CallAuth& auth) : auth_(auth) {}
+  SessionServiceImpl(const CallAuth& auth, SessionReaper& reaper) : auth_(auth), reaper_(reaper) {}
   grpc::Status Open(grpc::ServerContext* ctx, const v1::OpenSessionRequest* req, v1::OpenSessionResponse* resp) override;
-  grpc::Status Attach(grpc::ServerContext* ctx,
-                      grpc::ServerReaderWriter<v1::AttachEvent, v1::AttachRequest>* stream) override;
+  grpc::ServerBidiReactor<v1::AttachRequest, v1::AttachEvent>* Attach(grpc::CallbackServerContext* ctx) override;
   grpc::Status Close(grpc::ServerContext* ctx, const v1::CloseSessionRequest* req, v1::CloseSessionResponse* resp) override;
   grpc::Status Stats(grpc::ServerContext* ctx, const v1::StatsRequest* req, v1::StatsResponse* resp) override;
  private:
   const CallAuth& auth_;
+  SessionReaper& reaper_;
 };
 
 class ArrayServiceImpl final : public v1::ArrayService::Service {

@@ -1,6 +1,11 @@
 // SessionService: open (bound to the caller's principal, limited per principal), close, the
-// Attach stream (one per session) whose end reaps the session, daemon stats.
+// Attach stream (one per session, on the callback API: no thread while it waits) whose end
+// reaps the session, daemon stats.
 #include <unistd.h>
+
+#include <memory>
+#include <mutex>
+#include <string>
 
 #include <spdlog/spdlog.h>
 
@@ -36,35 +41,89 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
   return grpc::Status::OK;
 }
 
-// The first Attach of a session claims it; when that stream ends the session is reaped. A
+namespace {
+
+// One Attach stream. The first message names the session; the first Attach of a session claims
+// it and, when that stream ends (the client closed it or went away), the session is reaped. A
 // second Attach (a hijack attempt, or a confused client) is refused and changes nothing.
-grpc::Status SessionServiceImpl::Attach(grpc::ServerContext* ctx,
-                                        grpc::ServerReaderWriter<v1::AttachEvent, v1::AttachRequest>* stream) {
-  v1::AttachRequest first;
-  if (!stream->Read(&first)) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "attach: no session id sent");
-  std::string id = first.session_id().empty() ? Metadata(*ctx, "weft-session") : first.session_id();
-  auto found = auth_.SessionById(*ctx, id);
-  if (!found.ok()) return ToGrpc(found.status());
-  std::shared_ptr<Session> s = std::move(found).value();
-  if (!s->ClaimAttach())
-    return ToGrpc(FailedPrecondition("session " + s->label() + " already has an Attach stream; a session is attached once"));
-  const std::string label = s->label();
-  std::weak_ptr<Session> watched = s;
-  s.reset();   // do not keep the session alive from here
-  v1::AttachEvent hello;
-  hello.set_message("attached " + label);
-  stream->Write(hello);
-  v1::AttachRequest ignored;
-  while (stream->Read(&ignored)) {
+// Reactions run on gRPC's callback threads and never block: the reap is queued to the
+// SessionReaper. OnReadDone and OnWriteDone may run at once; mu_ orders the end of the stream.
+class AttachReactor final : public grpc::ServerBidiReactor<v1::AttachRequest, v1::AttachEvent> {
+ public:
+  AttachReactor(grpc::CallbackServerContext* ctx, const CallAuth& auth, SessionReaper& reaper)
+      : ctx_(ctx), auth_(auth), reaper_(reaper) {
+    StartRead(&request_);
   }
-  // The stream ended: the client closed it or went away. Reap the session if it still exists
-  // (the same session object: ids are never reused, but check the object anyway).
-  if (auto still = watched.lock(); still && auth_.engine().FindSession(id) == still) {
-    spdlog::info("session {}: attach stream ended ({})", label, ctx->IsCancelled() ? "client gone" : "closed by client");
-    still.reset();
-    (void)auth_.engine().CloseSession(id, /*reaped=*/true);
+
+  void OnReadDone(bool ok) override {
+    if (!claimed_) {
+      if (!ok) return Finish(grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "attach: no session id sent"));
+      Claim();
+      return;
+    }
+    if (ok) {   // later messages mean nothing; keep reading until the stream ends
+      StartRead(&request_);
+      return;
+    }
+    reaper_.ReapDetached(id_, watched_, ctx_->IsCancelled());
+    bool finish_now;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      finish_after_write_ = writing_;
+      finish_now = !writing_;
+    }
+    if (finish_now) Finish(grpc::Status::OK);
   }
-  return grpc::Status::OK;
+
+  void OnWriteDone(bool) override {
+    bool finish_now;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      writing_ = false;
+      finish_now = finish_after_write_;
+    }
+    if (finish_now) Finish(grpc::Status::OK);
+  }
+
+  void OnDone() override { delete this; }
+
+ private:
+  void Claim() {
+    id_ = request_.session_id().empty() ? Metadata(*ctx_, "weft-session") : request_.session_id();
+    auto found = auth_.SessionById(*ctx_, id_);
+    if (!found.ok()) return Finish(ToGrpc(found.status()));
+    std::shared_ptr<Session> s = std::move(found).value();
+    if (!s->ClaimAttach())
+      return Finish(ToGrpc(FailedPrecondition("session " + s->label() +
+                                              " already has an Attach stream; a session is attached once")));
+    claimed_ = true;
+    watched_ = s;   // weak: the stream does not keep the session alive
+    hello_.set_message("attached " + s->label());
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      writing_ = true;
+    }
+    StartWrite(&hello_);
+    StartRead(&request_);
+  }
+
+  grpc::CallbackServerContext* ctx_;
+  const CallAuth& auth_;
+  SessionReaper& reaper_;
+  v1::AttachRequest request_;
+  v1::AttachEvent hello_;
+  bool claimed_ = false;   // only touched by OnReadDone (reads are sequential)
+  std::string id_;
+  std::weak_ptr<Session> watched_;
+  std::mutex mu_;
+  bool writing_ = false;
+  bool finish_after_write_ = false;
+};
+
+}  // namespace
+
+grpc::ServerBidiReactor<v1::AttachRequest, v1::AttachEvent>* SessionServiceImpl::Attach(grpc::CallbackServerContext* ctx) {
+  return new AttachReactor(ctx, auth_, reaper_);
 }
 
 grpc::Status SessionServiceImpl::Close(grpc::ServerContext* ctx, const v1::CloseSessionRequest* req,

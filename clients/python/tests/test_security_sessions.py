@@ -9,7 +9,6 @@ import re
 import subprocess
 import sys
 import textwrap
-import threading
 import time
 from pathlib import Path
 
@@ -20,46 +19,6 @@ import pytest
 from weft.v1 import array_pb2, exec_pb2, module_pb2, session_pb2, types_pb2
 
 FLOAT32 = 11
-
-
-def wait_for(predicate, timeout_s, period_s=0.05):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(period_s)
-    return predicate()
-
-
-def create_array(raw, values: np.ndarray):
-    return raw.arrays.Create(array_pb2.CreateArrayRequest(
-        dtype=types_pb2.DType(scalar=FLOAT32, type_name="float32"), shape=[values.size],
-        device="cpu", init=array_pb2.CreateArrayRequest.DATA, value=values.tobytes()),
-        metadata=raw.metadata, timeout=10).info
-
-
-def read_array(raw, handle: int) -> np.ndarray:
-    chunks = raw.arrays.Read(array_pb2.ReadArrayRequest(handle=handle), metadata=raw.metadata,
-                             timeout=10)
-    return np.frombuffer(b"".join(c.data for c in chunks), np.float32)
-
-
-def attach(raw, session_id: str, metadata):
-    """Opens an Attach stream for `session_id`; returns (call, first event or the RpcError,
-    release) where release() ends the stream."""
-    done = threading.Event()
-
-    def requests():
-        yield session_pb2.AttachRequest(session_id=session_id)
-        done.wait()
-
-    call = raw.session.Attach(requests(), metadata=metadata)
-    try:
-        first = next(call)
-    except grpc.RpcError as error:
-        first = error
-    return call, first, done.set
 
 
 def refused(call, code):
@@ -118,13 +77,13 @@ def test_session_ids_are_256_random_bits(weftd):
     assert len({sid[2:10] for sid in ids}) == len(ids)
 
 
-def test_session_ids_are_never_logged(weftd, run_client):
+def test_session_ids_are_never_logged(weftd, run_client, wait_for):
     """Open, use (with errors), attach, close and get reaped: the log names sessions by
     label only, never by id."""
     ids = []
     with weftd.raw_session("pytest log") as raw:
         ids.append(raw.session_id)
-        info = create_array(raw, np.arange(4, dtype=np.float32))
+        info = raw.create_array(np.arange(4, dtype=np.float32))
         with pytest.raises(grpc.RpcError):
             raw.arrays.Describe(array_pb2.DescribeArrayRequest(handle=info.handle + 999),
                                 metadata=raw.metadata, timeout=10)
@@ -151,18 +110,18 @@ def test_session_ids_are_never_logged(weftd, run_client):
 def test_attach_is_once_and_a_dropped_second_attach_frees_nothing(weftd):
     with weftd.raw_session("victim") as victim, weftd.raw_session("attacker") as attacker:
         values = np.arange(16, dtype=np.float32)
-        info = create_array(victim, values)
-        _, hello, release_owner = attach(victim, victim.session_id, victim.metadata)
+        info = victim.create_array(values)
+        _, hello, release_owner = victim.attach(victim.session_id, victim.metadata)
         assert not isinstance(hello, grpc.RpcError), hello
         # the attacker knows the id (same principal) and attaches, then drops the stream
-        call, first, release = attach(attacker, victim.session_id, attacker.metadata)
+        call, first, release = attacker.attach(victim.session_id, attacker.metadata)
         assert isinstance(first, grpc.RpcError)
         assert first.code() == grpc.StatusCode.FAILED_PRECONDITION
         assert "already has an Attach stream" in first.details()
         release()
         call.cancel()
         time.sleep(0.5)
-        np.testing.assert_array_equal(read_array(victim, info.handle), values)
+        np.testing.assert_array_equal(victim.read_array(info.handle), values)
         victim.close()   # before the owner's stream ends (that would reap it)
         release_owner()
 
@@ -175,9 +134,9 @@ def test_another_principal_cannot_touch_a_session(start_weftd):
             daemon.raw_session("tcp attacker", target=daemon.tcp_target) as attacker:
         assert owner.opened.local and not attacker.opened.local
         values = np.arange(8, dtype=np.float32) + 1
-        info = create_array(owner, values)
+        info = owner.create_array(values)
         for victim, thief, handle in ((owner, attacker, info.handle),
-                                      (attacker, owner, create_array(attacker, values).handle)):
+                                      (attacker, owner, attacker.create_array(values).handle)):
             for name, call in every_call_with(thief, victim.session_id, thief.metadata, handle):
                 with pytest.raises(grpc.RpcError) as error:
                     call()
@@ -185,12 +144,12 @@ def test_another_principal_cannot_touch_a_session(start_weftd):
                     f"{name}: {error.value.code()} {error.value.details()}"
                 assert "another client" in error.value.details()
                 assert victim.session_id not in error.value.details()
-            _, first, release = attach(thief, victim.session_id, thief.metadata)
+            _, first, release = thief.attach(victim.session_id, thief.metadata)
             assert isinstance(first, grpc.RpcError)
             assert first.code() == grpc.StatusCode.PERMISSION_DENIED
             release()
         # both victims are untouched and the daemon serves them
-        np.testing.assert_array_equal(read_array(owner, info.handle), values)
+        np.testing.assert_array_equal(owner.read_array(info.handle), values)
         assert daemon.stats().sessions >= 2
 
 
@@ -204,7 +163,7 @@ def test_another_unix_user_is_another_principal(start_weftd):
     os.chmod(daemon.socket_path, 0o666)
     with daemon.raw_session("root owner") as owner:
         values = np.arange(8, dtype=np.float32) + 3
-        info = create_array(owner, values)
+        info = owner.create_array(values)
         client_dir = Path(__file__).resolve().parents[1]
         code = textwrap.dedent(f"""
             import os, sys, grpc
@@ -237,18 +196,18 @@ def test_another_unix_user_is_another_principal(start_weftd):
         assert "opened True" in out.stdout, out.stdout + out.stderr
         assert "describe PERMISSION_DENIED" in out.stdout, out.stdout + out.stderr
         assert "close PERMISSION_DENIED" in out.stdout, out.stdout + out.stderr
-        np.testing.assert_array_equal(read_array(owner, info.handle), values)
+        np.testing.assert_array_equal(owner.read_array(info.handle), values)
     assert "unix-uid:65534" in daemon.log()
     assert f"unix-uid:{os.getuid()}" in daemon.log()
 
 
-def test_unattached_sessions_are_reaped_without_a_thread_each(start_weftd):
+def test_unattached_sessions_are_reaped_without_a_thread_each(start_weftd, wait_for):
     daemon = start_weftd(["--attach-timeout", "5", "--max-sessions-per-principal", "2000"])
     with daemon.raw_session("attached bystander") as bystander:
-        _, hello, release = attach(bystander, bystander.session_id, bystander.metadata)
+        _, hello, release = bystander.attach(bystander.session_id, bystander.metadata)
         assert not isinstance(hello, grpc.RpcError), hello
         values = np.arange(32, dtype=np.float32)
-        info = create_array(bystander, values)
+        info = bystander.create_array(values)
         threads_before = daemon.threads()
         reaped_before = daemon.stats().sessions_reaped_total
         channel = grpc.insecure_channel(daemon.grpc_target)
@@ -268,7 +227,7 @@ def test_unattached_sessions_are_reaped_without_a_thread_each(start_weftd):
         assert daemon.stats().sessions_reaped_total >= reaped_before + 1000
         channel.close()
         # the attached session was not reaped and still works
-        np.testing.assert_array_equal(read_array(bystander, info.handle), values)
+        np.testing.assert_array_equal(bystander.read_array(info.handle), values)
         release()
 
 
@@ -282,10 +241,67 @@ def test_sessions_per_principal_are_limited(start_weftd):
         assert "--max-sessions-per-principal" in error.details()
         assert "limit is 3" in error.details()
         values = np.arange(4, dtype=np.float32)
-        np.testing.assert_array_equal(read_array(first, create_array(first, values).handle), values)
+        np.testing.assert_array_equal(first.read_array(first.create_array(values).handle), values)
         third.close()
         with daemon.raw_session("four again") as fourth:   # room again
             assert fourth.session_id
     finally:
         first.close()
         second.close()
+
+
+def test_attached_sessions_hold_no_thread_and_other_clients_are_served(start_weftd, wait_for):
+    """250 sessions of one principal, each with its Attach stream open (as 250 idle client
+    processes would hold them), cost the daemon no thread each, and another client's calls
+    meanwhile answer promptly; when the streams end, every session is reaped."""
+    import asyncio
+
+    n = 250   # under the default --max-sessions-per-principal (256)
+    daemon = start_weftd()
+    threads_before = daemon.threads()
+    reaped_before = daemon.stats().sessions_reaped_total
+    result = {}
+
+    async def hold_attached():
+        from weft.v1 import session_pb2_grpc
+
+        channel = grpc.aio.insecure_channel(daemon.grpc_target)
+        stub = session_pb2_grpc.SessionServiceStub(channel)
+        calls = []
+        for i in range(n):
+            opened = await stub.Open(session_pb2.OpenSessionRequest(client_name=f"attached {i}"),
+                                     timeout=10)
+            call = stub.Attach(timeout=120)
+            await call.write(session_pb2.AttachRequest(session_id=opened.session_id))
+            calls.append(call)
+        hellos = await asyncio.wait_for(asyncio.gather(*(c.read() for c in calls)), 60)
+        result["hellos"] = sum(1 for h in hellos if h.message.startswith("attached "))
+        result["sessions"] = daemon.stats().sessions
+        result["threads"] = daemon.threads()
+        # another client, on its own connection: every call answers promptly
+        loop = asyncio.get_running_loop()
+        result["other"] = await loop.run_in_executor(None, other_client)
+        for c in calls:
+            c.cancel()   # as if every client died
+        await channel.close()
+
+    def other_client():
+        latencies = []
+        with daemon.raw_session("other client") as other:
+            for _ in range(20):
+                start = time.monotonic()
+                info = other.create_array(np.arange(64, dtype=np.float32))
+                values = other.read_array(info.handle)
+                latencies.append(time.monotonic() - start)
+                assert values[63] == 63
+        return max(latencies)
+
+    asyncio.run(hold_attached())
+    assert result["hellos"] == n
+    assert result["sessions"] >= n
+    # a sync-API Attach held one gRPC server thread per attached session (+250 here)
+    assert result["threads"] - threads_before < 30, (threads_before, result["threads"])
+    assert result["other"] < 2.0, f"another client waited {result['other']:.2f} s for a call"
+    reaped = wait_for(lambda: daemon.stats().sessions <= 1, 30.0, 0.2)   # + stats' own
+    assert reaped, f"{daemon.stats().sessions} sessions left after their streams ended"
+    assert daemon.stats().sessions_reaped_total >= reaped_before + n
