@@ -114,10 +114,11 @@ def _channel_ready(target: str, timeout_s: float) -> bool:
 
 
 class BenchDaemon:
-    """One weftd on a temp Unix socket (`address`) with an empty --cache-dir; with tcp=True
-    also on TCP 127.0.0.1:<free port> (`tcp_target`) behind a token (`token`)."""
+    """One weftd on a temp Unix socket (`address`) with an empty --cache-dir and `log_level`;
+    with tcp=True also on TCP 127.0.0.1:<free port> (`tcp_target`) behind a token (`token`)."""
 
-    def __init__(self, extra_args=(), tcp: bool = False, binary: Path | None = None):
+    def __init__(self, extra_args=(), tcp: bool = False, binary: Path | None = None,
+                 log_level: str = "warn"):
         import secrets  # noqa: PLC0415
         import socket  # noqa: PLC0415
         import subprocess  # noqa: PLC0415
@@ -128,7 +129,7 @@ class BenchDaemon:
         self.tcp_target = self.token = None
         self.log_path = self.workdir / "weftd.log"
         args = [str(self.binary), "--listen", self.address, "--cache-dir",
-                str(self.workdir / "cache"), "--log-level", "warn", *extra_args]
+                str(self.workdir / "cache"), "--log-level", log_level, *extra_args]
         if tcp:
             with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
                 s.bind(("127.0.0.1", 0))

@@ -85,6 +85,7 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
     static const char* known[] = {"listen", "cache-dir", "log-level", "token-file", "cpu-threads", "verify-cuda",
                                   "allow-unchecked", "native-dir", "max-module-bytes", "max-functions",
                                   "max-block-depth", "max-expression-depth", "attach-timeout", "launch-time-limit",
+                                  "compile-time-limit",
                                   "max-launch-threads", "max-sessions-per-principal", "max-queued-commands",
                                   "cache-max-bytes", "max-memory", "max-principal-memory",
                                   "max-session-memory"};
@@ -165,6 +166,7 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   };
   WEFT_RETURN_IF_ERROR(number("attach-timeout", &c->attach_timeout_s));
   WEFT_RETURN_IF_ERROR(number("launch-time-limit", &c->launch_time_limit_s));
+  WEFT_RETURN_IF_ERROR(number("compile-time-limit", &c->compile_time_limit_s));
   WEFT_RETURN_IF_ERROR(number("max-launch-threads", &c->max_launch_threads));
   WEFT_RETURN_IF_ERROR(number("max-sessions-per-principal", &c->max_sessions_per_principal));
   WEFT_RETURN_IF_ERROR(number("max-queued-commands", &c->max_queued_commands));
@@ -203,6 +205,9 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
                  "Seconds a new session may go without an Attach stream before it is reaped (default 30)");
   app.add_option("--launch-time-limit", c.launch_time_limit_s,
                  "Seconds a kernel launch may run before it is stopped; 0 = no limit (default 300)");
+  app.add_option("--compile-time-limit", c.compile_time_limit_s,
+                 "Seconds clang may spend on one module for the CPU before the compile is stopped; it then runs "
+                 "in a child process (weft-cc); 0 = no limit, in process (default 30)");
   app.add_option("--max-launch-threads", c.max_launch_threads,
                  "Most threads in one launch, and elements in one fill or copy (default 2^32)");
   app.add_option("--max-sessions-per-principal", c.max_sessions_per_principal,
@@ -240,6 +245,7 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
     return InvalidArgument("--max-expression-depth must be between 1 and 1000");
   if (c.attach_timeout_s <= 0) return InvalidArgument("--attach-timeout must be > 0 seconds");
   if (c.launch_time_limit_s < 0) return InvalidArgument("--launch-time-limit must be >= 0 (0 = no limit)");
+  if (c.compile_time_limit_s < 0) return InvalidArgument("--compile-time-limit must be >= 0 (0 = no limit)");
   if (c.max_launch_threads == 0) return InvalidArgument("--max-launch-threads must be > 0");
   if (c.max_sessions_per_principal == 0) return InvalidArgument("--max-sessions-per-principal must be > 0");
   if (c.max_queued_commands == 0) return InvalidArgument("--max-queued-commands must be > 0");

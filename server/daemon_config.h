@@ -32,6 +32,7 @@ struct DaemonConfig {
   // Limits (docs/operations.md lists them with their defaults).
   double attach_timeout_s = 30;              // a session with no Attach stream by then is reaped
   double launch_time_limit_s = 300;          // a launch running longer is stopped; 0 = none
+  double compile_time_limit_s = 30;          // a CPU compile running longer is stopped; 0 = none
   uint64_t max_launch_threads = uint64_t{1} << 32;   // per launch (and elements per fill/copy)
   uint32_t max_sessions_per_principal = 256;
   uint64_t max_queued_commands = 65536;      // per session

@@ -1,7 +1,8 @@
 // weftd entry point: configuration, logging, the engine, the gRPC server (Unix sockets accepted
 // by UnixListener, TCP with a token), keepalive, health service, the reaper of unattached
 // sessions, and shutdown on SIGTERM/SIGINT within a bound: every session's work is cancelled
-// first, then calls get 2 s to finish, then sessions are closed.
+// and every compiler process killed first, then calls get 2 s to finish, then sessions are
+// closed.
 #include <signal.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -20,6 +21,9 @@
 #include <spdlog/spdlog.h>
 
 #include "engine/runtime/engine.h"
+#if WEFT_WITH_CPU_JIT
+#include "engine/jit/cpu/compile_process.h"
+#endif
 #include "server/call_auth.h"
 #include "server/daemon_config.h"
 #include "server/services.h"
@@ -117,6 +121,7 @@ int main(int argc, char** argv) {
   eo.limits.max_launch_threads = cfg->max_launch_threads;
   eo.limits.max_queued_commands = cfg->max_queued_commands;
   eo.launch_time_limit_s = cfg->launch_time_limit_s;
+  eo.modules.compile_time_limit_s = cfg->compile_time_limit_s;
   eo.max_sessions_per_principal = cfg->max_sessions_per_principal;
   eo.modules.disk_capacity_bytes = cfg->cache_max_bytes;
   eo.allow_unchecked = cfg->allow_unchecked;
@@ -182,6 +187,9 @@ int main(int argc, char** argv) {
     spdlog::info("signal {} received: shutting down", sig);
     (*unix_listener)->Stop();
     (*engine)->CancelAllSessions();   // running kernels stop at their next poll
+#if WEFT_WITH_CPU_JIT
+    jit::StopCompilerChildren();      // running compiles end now (Unavailable)
+#endif
     server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
   });
   server->Wait();

@@ -189,6 +189,7 @@ class ModuleStoreImpl final : public ModuleStore {
     jit::CpuJitOptions jit_options;
     jit_options.include_dirs = {options_.native_dir};
     jit_options.host_symbols = native::HostSymbols();  // print's snprintf, ...
+    jit_options.compile_time_limit_s = options_.compile_time_limit_s;
     auto cpu_jit = jit::CpuJit::Create(jit_options);
     if (!cpu_jit.ok()) {
       // A native header that does not precompile must not keep the daemon down: every module
@@ -381,6 +382,10 @@ class ModuleStoreImpl final : public ModuleStore {
 #if WEFT_WITH_CPU_JIT
       const std::string main_file = SafeName(source.name);
       auto object = cpu_jit_->Compile(generated.source, main_file);
+      // The compile time limit (the client's module) or the daemon stopping: not a weft bug.
+      if (!object.ok() && (object.status().code() == StatusCode::kResourceExhausted ||
+                           object.status().code() == StatusCode::kUnavailable))
+        return object.status();
       if (!object.ok()) {
         AppendCompilerDiagnostics(object.status().message(), main_file, source, diags);
         return GeneratedCodeRejected(source.name, "the CPU (clang)", object.status());

@@ -3,6 +3,8 @@
 // that invocation, so a compile costs only the frontend and the backend.
 #include "engine/jit/cpu/cpu_jit.h"
 
+#include "engine/jit/cpu/compile_process.h"
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -102,12 +104,14 @@ struct CpuJit::Impl {
   CpuJitOptions options;
   std::shared_ptr<clang::CompilerInvocation> base_invocation;  // driver output, no inputs
   std::string pch_path;       // empty = no PCH
+  bool owns_pch = true;       // built here (removed with the CpuJit), not a parent's
   double pch_build_ms = 0;
   std::string target_id;
-  std::shared_ptr<JitSession> session;
+  std::shared_ptr<JitSession> session;   // null when compile_only
+  std::string compiler_child;            // with a compile time limit
 
   ~Impl() {
-    if (!pch_path.empty()) llvm::sys::fs::remove(pch_path);
+    if (!pch_path.empty() && owns_pch) llvm::sys::fs::remove(pch_path);
   }
 
   // A fresh invocation for one compile of `input` (a path, or a remapped in-memory file).
@@ -226,6 +230,19 @@ Expected<std::unique_ptr<CpuJit>> CpuJit::Create(const CpuJitOptions& options) {
   for (const auto& f : features) id << f << ',';
   impl->target_id = id.str();
 
+  if (options.compile_time_limit_s > 0) {
+    impl->compiler_child = options.compiler_child.empty() ? DefaultCompilerChild() : options.compiler_child;
+    if (::access(impl->compiler_child.c_str(), X_OK) != 0)
+      return FailedPrecondition("the compiler process " + impl->compiler_child +
+                                " (needed for a compile time limit) is missing or not executable");
+  }
+  if (!options.existing_pch.empty()) {
+    if (!FileExists(options.existing_pch)) return FailedPrecondition("no PCH file " + options.existing_pch);
+    impl->pch_path = options.existing_pch;
+    impl->owns_pch = false;
+  }
+  if (options.compile_only) return std::unique_ptr<CpuJit>(new CpuJit(std::move(impl)));
+
   // The JIT.
   auto lljit = llvm::orc::LLJITBuilder().create();
   if (!lljit) return Internal("cannot create the LLVM JIT: " + ToString(lljit.takeError()));
@@ -251,7 +268,7 @@ Expected<std::unique_ptr<CpuJit>> CpuJit::Create(const CpuJitOptions& options) {
   }
 
   // The precompiled native header, once.
-  if (!options.pch_header.empty()) {
+  if (!options.pch_header.empty() && impl->pch_path.empty()) {
     for (const auto& dir : options.include_dirs) {
       llvm::SmallString<256> candidate(dir);
       llvm::sys::path::append(candidate, options.pch_header);
@@ -269,6 +286,17 @@ Expected<std::string> CpuJit::Compile(std::string_view source, std::string_view 
   auto start = std::chrono::steady_clock::now();
   std::string file_name(name.empty() ? "weft_module" : name);
   if (llvm::sys::path::extension(file_name).empty()) file_name += ".cpp";
+  if (impl_->options.compile_time_limit_s > 0) {
+    const double limit = impl_->options.compile_time_limit_s;
+    auto object = CompileInChild(impl_->compiler_child,
+                                 CompilerChildArgs(impl_->options, impl_->pch_path, file_name, limit), source,
+                                 file_name, limit);
+    const double ms = MillisecondsSince(start);
+    if (times) times->frontend_and_codegen_ms = ms;
+    spdlog::debug("cpu jit: {} ({} bytes of C++) in a child process: {:.1f} ms{}", file_name, source.size(), ms,
+                  object.ok() ? "" : " (" + object.status().message().substr(0, 80) + ")");
+    return object;
+  }
 
   auto invocation = impl_->NewInvocation();
   invocation->getFrontendOpts().Inputs.emplace_back(file_name,
@@ -286,13 +314,16 @@ Expected<std::string> CpuJit::Compile(std::string_view source, std::string_view 
   clang::EmitObjAction action;
   std::string diagnostics;
   bool ok = Impl::Run(invocation, action, std::move(stream), &diagnostics);
-  if (times) times->frontend_and_codegen_ms = MillisecondsSince(start);
+  const double ms = MillisecondsSince(start);
+  if (times) times->frontend_and_codegen_ms = ms;
+  spdlog::debug("cpu jit: {} ({} bytes of C++) in process: {:.1f} ms", file_name, source.size(), ms);
   if (!ok) return Internal("clang rejected " + file_name + ":\n" + diagnostics);
   if (object->empty()) return Internal("clang produced no object code for " + file_name);
   return std::string(object->data(), object->size());
 }
 
 Expected<std::shared_ptr<CpuCode>> CpuJit::Load(std::string_view object, std::string_view name) {
+  if (!impl_->session) return FailedPrecondition("this CpuJit compiles only (no JIT)");
   auto& jit = *impl_->session->lljit;
   std::string dylib_name = "weft." + std::string(name) + "." +
                            std::to_string(impl_->session->next_dylib.fetch_add(1));
@@ -314,5 +345,18 @@ Expected<std::shared_ptr<CpuCode>> CpuJit::Load(std::string_view object, std::st
 const std::string& CpuJit::target_id() const { return impl_->target_id; }
 bool CpuJit::has_pch() const { return !impl_->pch_path.empty(); }
 double CpuJit::pch_build_ms() const { return impl_->pch_build_ms; }
+const std::string& CpuJit::pch_path() const { return impl_->pch_path; }
+
+std::string DefaultCompilerChild() {
+  char buf[4096];
+  ssize_t n = ::readlink("/proc/self/exe", buf, sizeof(buf) - 1);
+  if (n > 0) {
+    llvm::SmallString<256> self(llvm::StringRef(buf, static_cast<size_t>(n)));
+    llvm::SmallString<256> next_to(llvm::sys::path::parent_path(self));
+    llvm::sys::path::append(next_to, "weft-cc");
+    if (::access(next_to.c_str(), X_OK) == 0) return std::string(next_to);
+  }
+  return WEFT_CC_BUILD_PATH;
+}
 
 }  // namespace weft::jit

@@ -2,6 +2,8 @@
 // module, which includes engine/native/weft.h) to an object file in memory; ORC LLJIT loads
 // objects, one JITDylib per module so dropping a module frees its code.
 // A precompiled header of the native library is built once, when the CpuJit is created.
+// With a compile time limit, each compile runs clang in a child process (weft-cc,
+// compile_process.h) that is killed when the limit passes; without one, in this process.
 // Thread safety: Compile and Load may be called from several threads at once.
 // This header carries no LLVM/clang types: the runtime includes it without LLVM's headers.
 #pragma once
@@ -28,6 +30,15 @@ struct CpuJitOptions {
   // Symbols generated code may call that the process does not export (name -> address).
   // Everything the process exports (dlsym) is visible too.
   std::map<std::string, void*> host_symbols;
+  // > 0: every Compile runs in a child process (`compiler_child`) that is killed after this
+  // many seconds; the compile then fails with ResourceExhausted. 0: in this process, unbounded.
+  double compile_time_limit_s = 0;
+  // The child compiler executable; empty = DefaultCompilerChild().
+  std::string compiler_child;
+  // Use this existing PCH file instead of building one (the child uses its parent's).
+  std::string existing_pch;
+  // No JIT (compiles only; the child compiler).
+  bool compile_only = false;
 };
 
 // Code of one loaded object. Destroying the last reference removes its code from the JIT.
@@ -48,8 +59,11 @@ class CpuCode {
 };
 
 struct CpuCompileTimes {
-  double frontend_and_codegen_ms = 0;  // whole clang run
+  double frontend_and_codegen_ms = 0;  // whole clang run (with a child: spawn to exit)
 };
+
+// weft-cc next to the running executable (/proc/self/exe), else the one of the build tree.
+std::string DefaultCompilerChild();
 
 class CpuJit {
  public:
@@ -72,6 +86,8 @@ class CpuJit {
   bool has_pch() const;
   // Milliseconds spent building the PCH in Create (0 without one).
   double pch_build_ms() const;
+  // The PCH file compiles use (empty without one).
+  const std::string& pch_path() const;
 
   struct Impl;
 
