@@ -19,8 +19,8 @@ INT32 = 7
 # The bound docs/operations.md states for SIGTERM (cancel, 2 s grace for calls, close).
 SIGTERM_BOUND_S = 5.0
 
-SPINNER = """
-import sys
+# A kernel that never ends by itself (client code; the prelude of the spinning clients).
+SPIN_KERNEL = """
 import weft as wp
 wp.init()
 wp.set_device("cpu")
@@ -31,7 +31,9 @@ def spin(out: wp.array(dtype=int)):
     while True:
         i = (i + 1) % 1000003
         out[0] = i
+"""
 
+SPINNER = SPIN_KERNEL + """
 out = wp.zeros(1, dtype=int)
 wp.synchronize()
 wp.launch(spin, dim=2, inputs=[out])
@@ -87,18 +89,8 @@ def test_infinite_loop_stops_when_its_client_dies(weftd, cpu, spawn_client, tmp_
 
 def test_launch_time_limit_stops_a_spinning_kernel(start_weftd, run_client, tmp_path):
     daemon = start_weftd(["--launch-time-limit", "1"])
-    out = run_client(as_file(tmp_path, "time_limit", """
+    out = run_client(as_file(tmp_path, "time_limit", SPIN_KERNEL + textwrap.dedent("""
         import time
-        import weft as wp
-        wp.init()
-        wp.set_device("cpu")
-
-        @wp.kernel
-        def spin(out: wp.array(dtype=int)):
-            i = int(0)
-            while True:
-                i = (i + 1) % 1000003
-                out[0] = i
 
         @wp.kernel
         def one(out: wp.array(dtype=int)):
@@ -115,7 +107,7 @@ def test_launch_time_limit_stops_a_spinning_kernel(start_weftd, run_client, tmp_
             print("stopped after", round(time.monotonic() - start, 2), "s:", e)
         wp.launch(one, dim=4, inputs=[out])
         print("after", out.numpy().tolist())
-    """), env={"WEFT_ADDRESS": daemon.address}, timeout=120)
+    """)), env={"WEFT_ADDRESS": daemon.address}, timeout=120)
     assert "stopped after" in out.stdout, out.stdout + out.stderr
     assert "launch time limit of 1 s" in out.stdout, out.stdout
     assert "--launch-time-limit" in out.stdout
