@@ -191,3 +191,38 @@ def test_bracket_array_annotations():
     alias2 = wp.array2d[float]
     assert alias2.__origin__._default_ndim_ == 2 and alias2.__args__ == (float,)
     assert types.type_str(wp.array4d(dtype=wp.mat22)) == "array(mat(2,2,float32),4)"
+
+
+@pytest.mark.parametrize("wp_type,np_type,name", SCALARS)
+def test_scalar_class_hierarchy_and_ctypes_like_warp(wp_type, np_type, name):
+    import ctypes
+
+    if name == "bool":
+        assert not issubclass(wp_type, types.scalar_base)
+    elif name.startswith(("int", "uint")):
+        assert issubclass(wp_type, types.int_base) and not issubclass(wp_type, types.float_base)
+    else:
+        assert issubclass(wp_type, types.float_base) and not issubclass(wp_type, types.int_base)
+    assert ctypes.sizeof(wp_type._type_) == np.dtype(np_type).itemsize
+    # the bases are not dtypes
+    for base in (types.scalar_base, types.int_base, types.float_base):
+        assert not types.is_dtype(base)
+    value = wp_type(1)
+    assert ctypes.c_float(value).value == 1.0 and ctypes.c_bool(value).value is True
+    if name != "bool" and not name.startswith("float"):
+        assert ctypes.c_int(value).value == 1
+        assert wp_type._type_(-1).value == np.array(-1).astype(np_type).item()
+
+
+@pytest.mark.parametrize("name", ["int8", "uint8", "uint16", "uint32", "uint64", "int64"])
+def test_integer_components_wrap_like_c(name):
+    dtype = getattr(wp, name)
+    np_t = np.dtype(name)
+    v = wp.types.vector(4, dtype)(1, 2, 3, 4)
+    v[0] = -1
+    v[1:3] = (-2, 300)
+    expected = np.array([-1, -2, 300, 4]).astype(np_t)
+    assert list(v) == expected.tolist()
+    m = wp.types.matrix((2, 2), dtype)(1, 2, 3, 4)
+    m[1, 0] = -3
+    assert m[1, 0] == np.array(-3).astype(np_t).item()

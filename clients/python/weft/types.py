@@ -9,6 +9,7 @@ Every dtype class carries `_type_str` (canonical string, e.g. "vec(3,float32)"),
 from __future__ import annotations
 
 import builtins
+import ctypes
 import typing
 from typing import Any
 
@@ -86,8 +87,23 @@ class _Scalar(metaclass=_ScalarMeta):
         return str(self.value)
 
 
+class scalar_base(_Scalar):
+    """Base of the numeric scalar types (Warp's warp.types.scalar_base); not a dtype itself."""
+
+
+class int_base(scalar_base):
+    """Base of the integer scalar types int8..uint64 (Warp's warp.types.int_base)."""
+
+    _py_type_ = _py_int
+
+
+class float_base(scalar_base):
+    """Base of the floating-point scalar types float16/32/64 (Warp's warp.types.float_base)."""
+
+
 def _make_scalar(name: str, np_dtype, py_type):
-    cls = _ScalarMeta(name, (_Scalar,), {
+    base = _Scalar if py_type is _py_bool else int_base if py_type is _py_int else float_base
+    cls = _ScalarMeta(name, (base,), {
         "_type_str": name,
         "_np_dtype_": np.dtype(np_dtype).newbyteorder("<") if np.dtype(np_dtype).itemsize > 1
         else np.dtype(np_dtype),
@@ -97,7 +113,15 @@ def _make_scalar(name: str, np_dtype, py_type):
         "__doc__": f"weft scalar type {name} (Warp's wp.{name}).",
     })
     cls._wp_scalar_type_ = cls
+    cls._type_ = _CTYPES[name]
     return cls
+
+
+# Warp's `_type_`: the ctypes type of one scalar (float16 is stored as its 16 bits).
+_CTYPES = {"bool": ctypes.c_bool, "int8": ctypes.c_int8, "int16": ctypes.c_int16,
+           "int32": ctypes.c_int32, "int64": ctypes.c_int64, "uint8": ctypes.c_uint8,
+           "uint16": ctypes.c_uint16, "uint32": ctypes.c_uint32, "uint64": ctypes.c_uint64,
+           "float16": ctypes.c_uint16, "float32": ctypes.c_float, "float64": ctypes.c_double}
 
 
 bool = _make_scalar("bool", np.bool_, _py_bool)  # noqa: A001 - Warp's name
@@ -138,7 +162,7 @@ def _canonical_scalar(dtype):
         return int32
     if dtype is _py_bool:
         return bool
-    if isinstance(dtype, type) and issubclass(dtype, _Scalar):
+    if isinstance(dtype, type) and issubclass(dtype, _Scalar) and dtype._type_str:
         return dtype
     if isinstance(dtype, (np.dtype, type)) and dtype is not Any:
         try:
@@ -338,9 +362,9 @@ class _Vector(_Composite):
 
     def __setitem__(self, key, value):
         if isinstance(key, slice):
-            self._data[key] = np.asarray(value)
+            self._data[key] = _wrapped(np.asarray(value), self._data.dtype)
         else:
-            self._data[_index(key, self._length_)] = _scalar_value(value)
+            self._data[_index(key, self._length_)] = _wrapped(_scalar_value(value), self._data.dtype)
 
     def __getattr__(self, name):
         if len(name) == 1 and name in "xyzw" and "xyzw".index(name) < self._length_:
@@ -406,9 +430,19 @@ class _Matrix(_Composite):
             if len(key) != 2:
                 raise KeyError(f"Invalid key, expected one or two indices, got {len(key)}")
             self._data[_index(key[0], self._shape_[0]),
-                       _index(key[1], self._shape_[1])] = _scalar_value(value)
+                       _index(key[1], self._shape_[1])] = _wrapped(_scalar_value(value),
+                                                                   self._data.dtype)
         else:
             self.set_row(key, value)
+
+
+def _wrapped(value, dtype):
+    """Integers stored into an integer component wrap around as in C (uint8 -1 -> 255), as
+    Warp's ctypes storage does; anything else is left to NumPy's assignment rules."""
+    if dtype.kind in "iu" and isinstance(value, (_py_int, np.integer, np.ndarray)) \
+            and not isinstance(value, _py_bool) and np.asarray(value).dtype.kind in "iu":
+        return np.asarray(value).astype(dtype)
+    return value
 
 
 def _index(key, length):
@@ -614,7 +648,7 @@ def is_array(x) -> _py_bool:
 
 def is_dtype(t) -> _py_bool:
     """True for weft scalar and composite dtype classes."""
-    return isinstance(t, type) and issubclass(t, (_Scalar, _Composite))
+    return isinstance(t, type) and issubclass(t, (_Scalar, _Composite)) and _py_bool(t._type_str)
 
 
 def type_scalar_type(t):

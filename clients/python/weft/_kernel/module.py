@@ -252,33 +252,67 @@ def _merge(into: _Closure, other: _Closure) -> None:
             into.structs.append(s)
 
 
+# Options the daemon does not read and that must not split a module into several builds:
+# enable_backward (adjoints are generated only when a backward pass first needs them).
+_CLIENT_ONLY_OPTIONS = ("enable_backward",)
+
+
+def _message_options(kernel: Kernel) -> dict:
+    options = build_options(kernel)
+    for key in _CLIENT_ONLY_OPTIONS:
+        options.pop(key, None)
+    return options
+
+
+_partitions: dict = {}   # module name -> (registry version, {id(kernel): _Closure})
+
+
+def _partition_groups(module: Module) -> dict:
+    """Splits the module's kernels into build groups, in registration order: each kernel joins
+    the first group whose kernels it does not clash with (a name bound differently, a key with
+    other source, a kernel of the same name, other compile options), else starts a new one.
+    The split depends only on the registered kernels, never on which kernel asks, so every
+    kernel of a group sends the same message and the group is built once.
+    Returns {id(kernel): the group's _Closure}."""
+    cached = _partitions.get(module.name)
+    if cached is not None and cached[0] == _registry_version:
+        return cached[1]
+    groups = []      # [closure, kernel names, options]
+    member: dict = {}
+    for k in list(module.kernels.values()):
+        if k.broken or k.is_generic or k.options.get("module") == "unique":
+            continue
+        try:
+            closure = _closure_of(k)
+            options = _message_options(k)
+        except Exception:  # noqa: BLE001 - an unresolvable kernel is built alone when launched
+            continue
+        for group in groups:
+            if group[2] == options and k.name not in group[1] and not _conflicts(group[0], closure):
+                _merge(group[0], closure)
+                group[1].add(k.name)
+                member[id(k)] = group[0]
+                break
+        else:
+            groups.append([closure, {k.name}, options])
+            member[id(k)] = closure
+    _partitions[module.name] = (_registry_version, member)
+    return member
+
+
 def build_module_source(kernel: Kernel, backward: bool = False):
-    """The ModuleSource that compiles `kernel` together with the other kernels of its module
-    (those whose names and symbols do not clash with it), as a protobuf message."""
+    """The ModuleSource that compiles `kernel` together with the other kernels of its module's
+    build group (see _partition_groups), as a protobuf message. A kernel outside the groups
+    (module="unique", a generic kernel's instance, one whose own build failed) is built alone."""
     from weft.v1 import module_pb2  # noqa: PLC0415
 
     with _lock:
         module = get_module(kernel.module_name)
-        group = _closure_of(kernel)
-        kernel_names = {kernel.name}
-        if kernel.options.get("module") != "unique":
-            for other in list(module.kernels.values()):
-                if other is kernel or other.broken or other.name in kernel_names:
-                    continue
-                if other.is_generic:      # compiled only as concrete instances (launch types)
-                    continue
-                if other.options.get("module") == "unique":
-                    continue
-                try:
-                    closure = _closure_of(other)
-                except Exception:  # noqa: BLE001 - an unresolvable sibling is left out
-                    continue
-                if _conflicts(group, closure):
-                    continue
-                _merge(group, closure)
-                kernel_names.add(other.name)
+        group = _partition_groups(module).get(id(kernel))
+        if group is None or not any(d is kernel.definition for d in group.definitions):
+            group = _closure_of(kernel)
 
-    options = build_options(kernel)
+    options = _message_options(kernel)
     msg = module_pb2.ModuleSource(name=kernel.module_name)
     for key in sorted(options):
         value = options[key]

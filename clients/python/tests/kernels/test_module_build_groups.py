@@ -1,0 +1,90 @@
+"""How a module's kernels are split into builds (weft/_kernel/module.py, _partition_groups):
+kernels made per dtype from one factory (a name bound to another type in each) and kernels
+with their own enable_backward option are compiled once per build group, whichever kernel is
+launched first, and each still computes its own result (float64 reference, random data)."""
+from __future__ import annotations
+
+import numpy as np
+
+SOURCE = '''
+DTYPES = (wp.float32, wp.float64, wp.int32)
+kernels = {}
+
+
+def make(dtype):
+    vec3 = wp.types.vector(length=3, dtype=dtype)
+
+    def scale_fn(a: wp.array(dtype=vec3), out: wp.array(dtype=dtype)):
+        i = wp.tid()
+        v = vec3(dtype(2)) + a[i]
+        out[i] = v[0] + v[1] + v[2]
+
+    def negate_fn(a: wp.array(dtype=dtype), out: wp.array(dtype=dtype)):
+        i = wp.tid()
+        out[i] = -a[i]
+
+    name = dtype.__name__
+    kernels["scale", name] = wp.Kernel(func=scale_fn, key="scale_" + name,
+                                       options={"enable_backward": dtype is not wp.int32})
+    kernels["negate", name] = wp.Kernel(func=negate_fn, key="negate_" + name,
+                                        options={"enable_backward": False})
+
+
+for t in DTYPES:
+    make(t)
+'''
+
+
+def test_kernels_of_one_factory_build_once_per_group(wp, kernel_module, rng, device):
+    from weft._kernel import module as module_mod
+
+    mod = kernel_module(SOURCE)
+    # one build message per group, whichever kernel asks
+    messages = {}
+    for (kind, name), k in mod.kernels.items():
+        msg, _ = module_mod.build_module_source(k)
+        messages.setdefault(module_mod.content_hash(msg), set()).add((kind, name))
+    # scale_fn binds `vec3` to another type per dtype: three groups, each holding one scale
+    # kernel; a negate kernel joins the first group without a kernel of its name
+    assert len(messages) == 3, messages
+    for members in messages.values():
+        assert len({name for _kind, name in members if _kind == "scale"}) == 1
+    # kernel-level enable_backward does not split a build (the daemon generates adjoints
+    # only when a backward pass needs them)
+    msg, _ = module_mod.build_module_source(mod.kernels["negate", "float32"])
+    assert "enable_backward" not in msg.options
+
+    for (kind, name), k in mod.kernels.items():
+        dtype = getattr(wp, name)
+        np_t = np.dtype(wp.types.dtype_to_numpy(dtype))
+        n = 17
+        if kind == "scale":
+            x = rng.uniform(0.5, 2.0, size=(n, 3)) if np_t.kind == "f" else \
+                rng.integers(1, 50, size=(n, 3))
+            a = wp.array(x.astype(np_t), dtype=wp.types.vector(3, dtype), device=device)
+            ref = 6.0 + x.astype(np_t).astype(np.float64).sum(axis=1)
+        else:
+            x = rng.uniform(0.5, 2.0, size=n) if np_t.kind == "f" else rng.integers(1, 50, size=n)
+            a = wp.array(x.astype(np_t), dtype=dtype, device=device)
+            ref = -x.astype(np_t).astype(np.float64)
+        out = wp.zeros(n, dtype=dtype, device=device)
+        wp.launch(k, dim=n, inputs=[a, out], device=device)
+        tol = 1e-12 if np_t == np.float64 else 1e-5
+        np.testing.assert_allclose(out.numpy().astype(np.float64), ref, rtol=tol)
+
+    # six launches, three builds: each group's message was compiled,
+    built = {digest for (_rt, digest, dev) in module_mod.compiled_modules() if dev == device}
+    assert set(messages) <= built
+
+
+def test_backward_of_a_group_member(wp, kernel_module, rng, device):
+    mod = kernel_module(SOURCE)
+    n = 9
+    x = rng.uniform(0.5, 2.0, size=(n, 3))
+    a = wp.array(x, dtype=wp.types.vector(3, wp.float64), device=device, requires_grad=True)
+    out = wp.zeros(n, dtype=wp.float64, device=device, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(mod.kernels["scale", "float64"], dim=n, inputs=[a, out], device=device)
+    tape.backward(grads={out: wp.array(np.ones(n), dtype=wp.float64, device=device)})
+    np.testing.assert_allclose(a.grad.numpy(), np.ones((n, 3)), rtol=1e-12)
