@@ -226,3 +226,29 @@ def test_integer_components_wrap_like_c(name):
     m = wp.types.matrix((2, 2), dtype)(1, 2, 3, 4)
     m[1, 0] = -3
     assert m[1, 0] == np.array(-3).astype(np_t).item()
+
+
+def test_matrix_from_vectors_in_python_scope():
+    rng = np.random.default_rng()
+    rows = rng.standard_normal((3, 4))
+    vecs = [wp.types.vector(4, wp.float64)(*r) for r in rows]
+    m = wp.matrix_from_rows(*vecs)
+    assert type(m)._shape_ == (3, 4)
+    np.testing.assert_array_equal(np.asarray(m), rows)
+    c = wp.matrix_from_cols(*vecs)
+    assert type(c)._shape_ == (4, 3)
+    np.testing.assert_array_equal(np.asarray(c), rows.T)
+    assert c.get_col(1) == vecs[1]
+    assert c.get_row(2) == wp.types.vector(3, wp.float64)(*rows[:, 2])
+    c.set_col(0, vecs[2])
+    np.testing.assert_array_equal(np.asarray(c)[:, 0], rows[2])
+    with pytest.raises(TypeError):
+        wp.matrix_from_rows(wp.vec3(1.0, 2.0, 3.0), wp.vec2(1.0, 2.0))
+    with pytest.raises(TypeError):
+        wp.matrix_from_cols()
+
+
+def test_log_levels_and_deterministic_mode_like_warp():
+    assert (wp.LOG_DEBUG, wp.LOG_INFO, wp.LOG_WARNING, wp.LOG_ERROR) == (10, 20, 30, 40)
+    assert wp.DeterministicMode.NOT_GUARANTEED == 0
+    assert wp.config.DeterministicMode is wp.DeterministicMode

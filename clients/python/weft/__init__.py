@@ -5,6 +5,8 @@ wp.array and the array functions, devices, synchronization, and (from weft._kern
 kernel API (@wp.kernel, @wp.func, @wp.struct, wp.launch, wp.Tape). See docs/python-api.md.
 """
 from . import config, types, utils  # noqa: F401
+from .config import (LOG_DEBUG, LOG_ERROR, LOG_INFO, LOG_WARNING,  # noqa: F401
+                     DeterministicMode)
 from .array import (ARRAY_MAX_DIMS, array, array1d, array2d, array3d, array4d, clone,  # noqa: F401
                     copy, empty, empty_like, from_ipc_handle, from_numpy, full, full_like, ones,
                     ones_like, zeros, zeros_like)

@@ -25,7 +25,7 @@ __all__ = [
     "type_str", "type_size_in_bytes", "type_scalar_type", "type_length", "types_equal",
     "dtype_to_numpy", "dtype_from_numpy", "value_to_bytes", "is_array", "is_value",
     "is_vector", "is_matrix", "is_quaternion", "is_transformation", "is_float", "is_int",
-    "scalar_short_name",
+    "scalar_short_name", "matrix_from_rows", "matrix_from_cols",
 ]
 
 # Python's own names, kept before this module shadows `bool`, `float` and `int`.
@@ -417,6 +417,12 @@ class _Matrix(_Composite):
     def set_row(self, r, v):
         self._data[_index(r, self._shape_[0])] = np.asarray(v)
 
+    def get_col(self, c):
+        return vector(self._shape_[0], self._wp_scalar_type_)(self._data[:, _index(c, self._shape_[1])])
+
+    def set_col(self, c, v):
+        self._data[:, _index(c, self._shape_[1])] = np.asarray(v)
+
     def __getitem__(self, key):
         if isinstance(key, tuple):
             if len(key) != 2:
@@ -434,6 +440,30 @@ class _Matrix(_Composite):
                                                                    self._data.dtype)
         else:
             self.set_row(key, value)
+
+
+def _matrix_from_vectors(vectors, by_rows: _py_bool):
+    if not vectors or not all(isinstance(v, _Vector) for v in vectors):
+        raise TypeError("matrix_from_rows/matrix_from_cols take one or more vectors")
+    first = type(vectors[0])
+    if any(type(v)._shape_ != first._shape_ or type(v)._wp_scalar_type_ is not first._wp_scalar_type_
+           for v in vectors):
+        raise TypeError("matrix_from_rows/matrix_from_cols: all vectors must have the same "
+                        "length and scalar type")
+    data = np.stack([v._data for v in vectors])
+    if not by_rows:
+        data = data.T
+    return matrix(data.shape, first._wp_scalar_type_)(data.reshape(-1))
+
+
+def matrix_from_rows(*rows):
+    """Python scope wp.matrix_from_rows(v0, v1, ...): the matrix whose rows are the vectors."""
+    return _matrix_from_vectors(rows, True)
+
+
+def matrix_from_cols(*cols):
+    """Python scope wp.matrix_from_cols(v0, v1, ...): the matrix whose columns are the vectors."""
+    return _matrix_from_vectors(cols, False)
 
 
 def _wrapped(value, dtype):

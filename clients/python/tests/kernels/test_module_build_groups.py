@@ -88,3 +88,34 @@ def test_backward_of_a_group_member(wp, kernel_module, rng, device):
         wp.launch(mod.kernels["scale", "float64"], dim=n, inputs=[a, out], device=device)
     tape.backward(grads={out: wp.array(np.ones(n), dtype=wp.float64, device=device)})
     np.testing.assert_allclose(a.grad.numpy(), np.ones((n, 3)), rtol=1e-12)
+
+
+BROKEN_SOURCE = '''
+@wp.kernel
+def fine_kernel(a: wp.array(dtype=float), out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = a[i] * 3.0
+
+
+@wp.kernel
+def broken_kernel(a: wp.array(dtype=float)):
+    i = wp.tid()
+    a[i] = wp.no_such_builtin(a[i])
+'''
+
+
+def test_module_load_leaves_out_a_kernel_that_does_not_compile(wp, kernel_module, rng, device):
+    import pytest
+    from weft._kernel.errors import WeftCompileError
+
+    mod = kernel_module(BROKEN_SOURCE)
+    mod.fine_kernel.module.load(device)          # the broken kernel does not stop the load
+    assert mod.broken_kernel.broken and not mod.fine_kernel.broken
+    x = rng.uniform(-2.0, 2.0, size=11)
+    a = wp.array(x, dtype=float, device=device)
+    out = wp.zeros(11, dtype=float, device=device)
+    wp.launch(mod.fine_kernel, dim=11, inputs=[a, out], device=device)
+    np.testing.assert_allclose(out.numpy(), 3.0 * x.astype(np.float32), rtol=1e-6)
+    # launching the broken kernel raises its own error, with its line
+    with pytest.raises(WeftCompileError, match="no_such_builtin"):
+        wp.launch(mod.broken_kernel, dim=11, inputs=[a], device=device)

@@ -38,8 +38,10 @@ class Module:
 
     def load(self, device=None, block_dim=None, binary_path=None):
         """Compiles every (non-generic) kernel of the module for device now; returns the
-        CompiledModule of the last kernel (None when the module has no kernels). block_dim is
-        accepted for Warp's signature: CPU launches run one thread per block."""
+        CompiledModule of the last kernel (None when the module has no kernels). A kernel whose
+        own code does not compile is left out and raises its error when launched (Warp fails the
+        whole module load). block_dim is accepted for Warp's signature: CPU launches run one
+        thread per block."""
         from .launch import device_name  # noqa: PLC0415
 
         if binary_path is not None:
@@ -48,11 +50,14 @@ class Module:
         dev = device_name(device)
         result = None
         for k in kernels_of(self.name):
-            if k.is_generic:
-                for instance in list(k._specializations.values()):
+            for instance in list(k._specializations.values()) if k.is_generic else [k]:
+                try:
                     result = compile_kernel(instance, dev)[0]
-                continue
-            result = compile_kernel(k, dev)[0]
+                except WeftCompileError:
+                    # A kernel whose own code fails is left out of its group's build (the
+                    # others load); launching it raises its error. Anything else raises now.
+                    if not instance.broken:
+                        raise
         return result
 
     def unload(self):
@@ -399,11 +404,12 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
         except WeftCompileError as err:
             # a sibling kernel's error must not block this one: retry it alone
             broken = _kernels_at_fault(err, group)
-            if broken and kernel not in broken:
+            if broken and not all(k.broken for k in broken):
                 for k in broken:
                     k.broken = True
                 bump_version()
-                return compile_kernel(kernel, device, backward)
+                if kernel not in broken:
+                    return compile_kernel(kernel, device, backward)
             raise
         _compiled[(runtime_id, digest, device)] = compiled
         if _config.verbose and not compiled.cache_hit:
