@@ -11,7 +11,7 @@ import typing
 from . import module as module_mod
 from . import typestr
 from .errors import WarpCodegenError, WeftCompileError, WeftLaunchError
-from .functions import Function, FunctionDefinition, Kernel, attach_gradient
+from .functions import Function, FunctionDefinition, Kernel, attach_gradient, static
 from .launch import Launch, launch
 from .structs import StructInstance, StructType, struct
 from .tape import Tape
@@ -36,6 +36,7 @@ __all__ = [
     "load_module",
     "overload",
     "set_module_options",
+    "static",
     "struct",
 ]
 

@@ -40,6 +40,8 @@ class FunctionDefinition:
         self.last_line = self.first_line + len(body_lines) - 1
         self.tree = next(n for n in ast.parse(self.source).body
                          if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)))
+        self.static_values: dict = {}     # name in source -> value of a wp.static(...) call
+        self._expand_static()
         self.param_names = [a.arg for a in self.tree.args.args]
         hints = self._annotations()
         self.annotations = {}
@@ -67,6 +69,58 @@ class FunctionDefinition:
                     self.return_type = ""
         self.key = canonical_name(self.module, self.qualname)
         self.custom_grad = None      # GradientFunction set by wp.func_grad
+
+    def _is_static_call(self, node, scope: dict) -> bool:
+        chain = []
+        while isinstance(node, ast.Attribute):
+            chain.append(node.attr)
+            node = node.value
+        if not isinstance(node, ast.Name):
+            return False
+        value = scope.get(node.id)
+        for attr in reversed(chain):
+            value = getattr(value, attr, None)
+        return value is static
+
+    def _expand_static(self) -> None:
+        """wp.static(expr): the expression is evaluated here, in the function's globals and
+        closure, and its call is replaced in the source by a name bound to the value (a
+        constant, a @wp.func, a type; resolved like any global). Warp evaluates it at code
+        generation. An expression that cannot be evaluated here (it names a kernel variable)
+        is left in place, and the daemon reports it at its line."""
+        scope = dict(self.func.__globals__)
+        scope.update(self.environment())
+        calls = [n for n in ast.walk(self.tree)
+                 if isinstance(n, ast.Call) and self._is_static_call(n.func, scope)]
+        if not calls:
+            return
+        inner = {id(m) for c in calls for m in ast.walk(c) if m is not c}
+        calls = [c for c in calls if id(c) not in inner]
+        lines = [ln.encode() for ln in self.source.splitlines(keepends=True)]
+        edits = []
+        for call in calls:
+            if len(call.args) != 1 or call.keywords:
+                continue
+            try:
+                code = compile(ast.Expression(call.args[0]), self.file, "eval")
+                value = eval(code, scope)  # noqa: S307 - the user's own wp.static expression
+            except Exception:  # noqa: BLE001 - reported by the daemon at the call's line
+                continue
+            name = f"_wp_static_{len(self.static_values)}"
+            self.static_values[name] = value
+            edits.append((call, name))
+        # replace from the end so earlier offsets (UTF-8 bytes, as ast gives them) stay valid;
+        # a call over several lines keeps its line count: (name\n...\n)
+        for call, name in sorted(edits, key=lambda e: (e[0].lineno, e[0].col_offset), reverse=True):
+            first, last = call.lineno - 1, call.end_lineno - 1
+            text = ("(" + name + "\n" * (last - first) + ")").encode()
+            lines[first] = lines[first][:call.col_offset] + text + lines[last][call.end_col_offset:]
+            for k in range(first + 1, last + 1):
+                lines[k] = b""
+        if edits:
+            self.source = b"".join(lines).decode()
+            self.tree = next(n for n in ast.parse(self.source).body
+                             if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)))
 
     def _annotations(self) -> dict:
         """The evaluated annotations; string annotations (PEP 563) are evaluated in the
@@ -104,6 +158,13 @@ class FunctionDefinition:
                 except ValueError:       # cell not filled yet
                     pass
         return env
+
+
+def static(expr):
+    """wp.static(expr) in kernel code: the value of a Python expression, evaluated once when
+    the kernel or func is defined (see FunctionDefinition._expand_static). In Python scope it
+    returns expr."""
+    return expr
 
 
 def _return_type_string(ret) -> str:

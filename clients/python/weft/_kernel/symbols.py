@@ -1,11 +1,13 @@
 """Symbol resolution (docs/protocol.md): finds every global name and attribute chain a kernel
 or @wp.func uses (body and annotations) and classifies it as the warp module, a constant, a
-@wp.func, or a type, evaluating it in the function's closure and globals."""
+@wp.func, or a type, evaluating it in the function's closure and globals. A Python enum
+member (MyEnum.A, MyEnum.A.value) is the constant of its value."""
 from __future__ import annotations
 
 import ast
 import builtins
 import dataclasses
+import enum
 import types
 import typing
 
@@ -108,7 +110,11 @@ def resolve(definition: FunctionDefinition) -> Resolution:
     functions: list = []
     structs: list = []
 
+    statics = getattr(definition, "static_values", {})
+
     def lookup(name):
+        if name in statics:
+            return statics[name]
         if name in env:
             return env[name]
         return scope.get(name, _MISSING)
@@ -134,6 +140,16 @@ def resolve(definition: FunctionDefinition) -> Resolution:
                 break
         if value is _MISSING:
             continue
+        # Python enums: MyEnum.A and MyEnum.A.value are the member's value (an int constant)
+        if isinstance(value, enum.EnumMeta) and used < len(chain):
+            value = value.__members__.get(chain[used], _MISSING)
+            used += 1
+            if value is _MISSING:
+                continue
+        if isinstance(value, enum.Enum):
+            if used < len(chain) and chain[used] == "value":
+                used += 1
+            value = value.value
         name = ".".join(chain[:used])
         if is_warp_module(value):
             add(ResolvedSymbol(name, "builtin_module", "warp"))

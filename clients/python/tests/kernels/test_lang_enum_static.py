@@ -1,0 +1,114 @@
+"""Python values the client resolves into kernel constants: members of Python enums
+(IntEnum, IntFlag: MyEnum.A, MyEnum.A.value) and wp.static(expr) (evaluated in the function's
+globals and closure when it is defined: constants, vectors, @wp.func objects, enum members),
+against float64 references on random data."""
+import enum
+
+import numpy as np
+import pytest
+
+import weft as wp
+
+
+class Color(enum.IntEnum):
+    RED = 1
+    GREEN = 2
+    BLUE = 7
+
+
+class Flags(enum.IntFlag):
+    A = 1
+    B = enum.auto()
+    C = enum.auto()
+
+
+SCALE = 2.5
+OFFSET = wp.vec3(1.0, -2.0, 0.5)
+
+
+@wp.func
+def plus_one(x: float):
+    return x + 1.0
+
+
+@wp.func
+def times_two(x: float):
+    return x * 2.0
+
+
+@wp.kernel
+def enum_kernel(keys: wp.array(dtype=int), out: wp.array(dtype=int)):
+    i = wp.tid()
+    k = keys[i]
+    r = 0
+    if k & Flags.A:
+        r += Color.RED
+    if k & Flags.B.value:
+        r += Color.GREEN.value
+    if k & Flags.C:
+        r += int(Color.BLUE) * 10
+    out[i] = r + (Flags.A | Flags.C)
+
+
+@wp.kernel
+def static_kernel(x: wp.array(dtype=float), out: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    s = wp.static(SCALE * 2.0)
+    v = wp.static(OFFSET * 2.0)
+    out[i] = v * (x[i] * s) + wp.vec3(wp.static(plus_one)(x[i]), float(wp.static(Color.BLUE)),
+                                      wp.static(
+                                          Color.GREEN.value + 1))
+
+
+def test_enum_members_are_constants(wp, rng, device):
+    keys = rng.integers(0, 8, size=64).astype(np.int32)
+    a = wp.array(keys, dtype=int, device=device)
+    out = wp.zeros(64, dtype=int, device=device)
+    wp.launch(enum_kernel, dim=64, inputs=[a, out], device=device)
+    ref = (np.where(keys & 1, 1, 0) + np.where(keys & 2, 2, 0) + np.where(keys & 4, 70, 0) + 5)
+    np.testing.assert_array_equal(out.numpy(), ref)
+
+
+def test_static_expressions(wp, rng, device):
+    x = rng.uniform(-3.0, 3.0, size=33)
+    a = wp.array(x, dtype=float, device=device)
+    out = wp.zeros(33, dtype=wp.vec3, device=device)
+    wp.launch(static_kernel, dim=33, inputs=[a, out], device=device)
+    xf = x.astype(np.float32).astype(np.float64)
+    ref = np.outer(xf * 5.0, np.array([2.0, -4.0, 1.0])) + \
+        np.stack([xf + 1.0, np.full_like(xf, 7.0), np.full_like(xf, 3.0)], axis=1)
+    np.testing.assert_allclose(out.numpy(), ref, rtol=1e-5, atol=1e-5)
+    # the definition's source names the values; lines are kept
+    d = static_kernel.definition
+    assert "wp.static" not in d.source
+    assert d.source.count("\n") == d.last_line - d.first_line + 1
+
+
+@pytest.mark.parametrize("chosen", ["plus_one", "times_two"])
+def test_static_picks_a_func_per_kernel(wp, rng, device, chosen):
+    op = {"plus_one": plus_one, "times_two": times_two}[chosen]
+
+    @wp.kernel(module="unique")
+    def apply(x: wp.array(dtype=float), out: wp.array(dtype=float)):
+        i = wp.tid()
+        out[i] = wp.static(op)(x[i])
+
+    x = rng.uniform(-3.0, 3.0, size=20)
+    a = wp.array(x, dtype=float, device=device)
+    out = wp.zeros(20, dtype=float, device=device)
+    wp.launch(apply, dim=20, inputs=[a, out], device=device)
+    xf = x.astype(np.float32).astype(np.float64)
+    np.testing.assert_allclose(out.numpy(), xf + 1.0 if chosen == "plus_one" else xf * 2.0,
+                               rtol=1e-6)
+
+
+def test_static_of_a_kernel_variable_is_an_error_at_its_line(wp, device):
+    @wp.kernel(module="unique")
+    def uses_local(out: wp.array(dtype=int)):
+        i = wp.tid()
+        out[i] = wp.static(i * 2)
+
+    out = wp.zeros(4, dtype=int, device=device)
+    with pytest.raises(wp.WeftCompileError, match=r"test_lang_enum_static\.py:\d+"):
+        wp.launch(uses_local, dim=4, inputs=[out], device=device)
+    assert wp.static(5) == 5          # Python scope: the value itself
