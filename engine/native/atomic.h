@@ -39,8 +39,10 @@ template <> WP_FUNC float64 from_bits<float64>(uint64 b) { return bits_to_double
 // Read-modify-write operations for the CAS loops.
 struct atomic_op_add { template <typename T> WP_CALLABLE static T apply(T a, T b) { return add(a, b); } };
 struct atomic_op_sub { template <typename T> WP_CALLABLE static T apply(T a, T b) { return sub(a, b); } };
-struct atomic_op_min { template <typename T> WP_CALLABLE static T apply(T a, T b) { return b < a ? b : a; } };
-struct atomic_op_max { template <typename T> WP_CALLABLE static T apply(T a, T b) { return b > a ? b : a; } };
+// min/max as the scalar min/max (fmin/fmax for floats): a NaN slot takes the value, a NaN value
+// leaves the slot.
+struct atomic_op_min { template <typename T> WP_CALLABLE static T apply(T a, T b) { return (isnan(a) || b < a) ? b : a; } };
+struct atomic_op_max { template <typename T> WP_CALLABLE static T apply(T a, T b) { return (isnan(a) || b > a) ? b : a; } };
 struct atomic_op_exch { template <typename T> WP_CALLABLE static T apply(T, T b) { return b; } };
 struct atomic_op_and { template <typename T> WP_CALLABLE static T apply(T a, T b) { return bit_and(a, b); } };
 struct atomic_op_or { template <typename T> WP_CALLABLE static T apply(T a, T b) { return bit_or(a, b); } };
@@ -120,7 +122,7 @@ WP_FUNC T atomic_sub_ptr(T* p, T v) {
   else return (T)__atomic_fetch_sub(p, v, __ATOMIC_RELAXED);
 #endif
 }
-// min/max: NaN values never replace a number (comparison with NaN is false).
+// min/max: a NaN value never replaces a number; a NaN slot is replaced (atomic_op_min/max).
 template <typename T>
 WP_FUNC T atomic_min_ptr(T* p, T v) {
 #if WP_DEVICE_CODE
@@ -325,7 +327,7 @@ template <typename T> WP_FUNC void adj_store(const array_t<T>& adj_a, int64 i, i
 //   adj_atomic_add(a, i[, j, k, l], v, adj_a, adj_i[, adj_j, ...], adj_v, adj_ret)
 // where adj_a is the gradient array of `a`; index adjoints are ignored.
 template <typename T> WP_FUNC void adj_atomic_minmax_ptr(const T* p, const T& v, const T* g, T& adj_v) {
-  if (g && *p == v) adj_v += *g;
+  if (g && (*p == v || (isnan(*p) && isnan(v)))) adj_v += *g;   // v won (also NaN over NaN)
 }
 template <unsigned N, typename T> WP_FUNC void adj_atomic_minmax_ptr(const vec_t<N, T>* p, const vec_t<N, T>& v, const vec_t<N, T>* g, vec_t<N, T>& adj_v) {
   if (g)

@@ -165,6 +165,8 @@ template <typename T> WP_FUNC void print_value(print_line& l, const transform_t<
   print_value(l, t.q);
   l.add(")");
 }
+// Types without a printed form (structs): Warp's placeholder text.
+template <typename T> WP_FUNC void print_value(print_line& l, const T&) { l.add("<type without print implementation>"); }
 template <typename T> WP_FUNC void print_value(print_line& l, const array_t<T>& a) {
   l.add("array(ndim=%d, shape=(%lld", a.ndim, (long long)a.shape[0]);
   for (int d = 1; d < a.ndim && d < ARRAY_MAX_DIMS; ++d) l.add(", %lld", (long long)a.shape[d]);

@@ -314,7 +314,9 @@ WP_FLOAT_OPS(half)
 #undef WP_FLOAT_OPS
 
 // ---------------------------------------------------------------------------------------------
-// Arithmetic on floats (float32, float64; half through float32).
+// Arithmetic on floats (float32, float64; half through float32). min/max are C's fmin/fmax
+// (Warp): a NaN operand is a missing value, the other operand wins; NaN only when both are.
+// clamp(x, lo, hi) = min(max(lo, x), hi) inherits that (clamp(NaN, lo, hi) == min(lo, hi)).
 #define WP_FLOAT_ARITH(T) \
   WP_FUNC T add(T a, T b) { return T(a + b); } \
   WP_FUNC T sub(T a, T b) { return T(a - b); } \
@@ -324,8 +326,8 @@ WP_FLOAT_OPS(half)
   WP_FUNC T floordiv(T a, T b) { return floor(T(a / b)); } \
   WP_FUNC T neg(T a) { return T(-a); } \
   WP_FUNC T pos(T a) { return a; } \
-  WP_FUNC T min(T a, T b) { return a < b ? a : b; } \
-  WP_FUNC T max(T a, T b) { return a > b ? a : b; } \
+  WP_FUNC T min(T a, T b) { return isnan(a) ? b : (isnan(b) ? a : (a < b ? a : b)); } \
+  WP_FUNC T max(T a, T b) { return isnan(a) ? b : (isnan(b) ? a : (a > b ? a : b)); } \
   WP_FUNC T clamp(T x, T lo, T hi) { return min(max(lo, x), hi); } \
   WP_FUNC T abs(T x) { return x < T(0) ? T(-x) : (x == T(0) ? T(0) : x); } \
   WP_FUNC T sign(T x) { return x < T(0) ? T(-1) : T(1); } \
@@ -388,6 +390,13 @@ WP_IS_NEG_S(int32) WP_IS_NEG_U(uint32) WP_IS_NEG_S(int64) WP_IS_NEG_U(uint64)
   WP_FUNC T lshift(T a, T b) { return T(U(W(a) << (W(b) & W(BITS - 1)))); } \
   WP_FUNC T rshift(T a, T b) { return T(a >> (W(b) & W(BITS - 1))); } \
   WP_FUNC T div_approx(T a, T b) { return div(a, b); } \
+  /* bit_count: set bits of the BITS-wide two's-complement pattern (Kernighan's loop). */ \
+  WP_FUNC int32 bit_count(T a) { \
+    W v = W(U(a)); \
+    int32 n = 0; \
+    while (v) { v &= v - 1u; ++n; } \
+    return n; \
+  } \
   /* pow: repeated squaring, wraps; negative exponents give 0 unless |a| == 1. */ \
   WP_FUNC T pow(T a, T b) { \
     if (is_neg(b)) { \
@@ -459,15 +468,23 @@ WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_mod(T a, T b, T& adj_a, T& adj_b, T ad
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_floordiv(T, T, T&, T&, T) {}
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_neg(T, T& adj_a, T adj_ret) { adj_a -= adj_ret; }
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_pos(T, T& adj_a, T adj_ret) { adj_a += adj_ret; }
-// Ties: min -> b, max -> b (Warp).
+// The gradient goes to the operand the forward returned: a NaN operand never gets it unless
+// both are NaN (then b); ties: min -> b, max -> b (Warp).
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_min(T a, T b, T& adj_a, T& adj_b, T adj_ret) {
-  if (a < b) adj_a += adj_ret; else adj_b += adj_ret;
+  if (!isnan(a) && (isnan(b) || a < b)) adj_a += adj_ret; else adj_b += adj_ret;
 }
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_max(T a, T b, T& adj_a, T& adj_b, T adj_ret) {
-  if (a > b) adj_a += adj_ret; else adj_b += adj_ret;
+  if (!isnan(a) && (isnan(b) || a > b)) adj_a += adj_ret; else adj_b += adj_ret;
 }
-// Below the range -> lo, above -> hi, inside or on a bound -> x (Warp).
+// Below the range -> lo, above -> hi, inside or on a bound -> x (Warp). With a NaN operand,
+// the chain rule of min(max(lo, x), hi): the gradient goes to the operand the forward returned.
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_clamp(T x, T lo, T hi, T& adj_x, T& adj_lo, T& adj_hi, T adj_ret) {
+  if (isnan(x) || isnan(lo) || isnan(hi)) {
+    T m = max(lo, x), adj_m = T(0);
+    adj_min(m, hi, adj_m, adj_hi, adj_ret);
+    adj_max(lo, x, adj_lo, adj_x, adj_m);
+    return;
+  }
   if (x < lo) adj_lo += adj_ret;
   else if (x > hi) adj_hi += adj_ret;
   else adj_x += adj_ret;
@@ -485,8 +502,9 @@ WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_round(T, T&, T) {}
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_rint(T, T&, T) {}
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_trunc(T, T&, T) {}
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_frac(T, T& adj_x, T adj_ret) { adj_x += adj_ret; }
+// d/dx copysign(x, y) = +1 when the sign bits of x and y agree (-0.0 counts as negative).
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_copysign(T x, T y, T& adj_x, T&, T adj_ret) {
-  bool same = (x < T(0)) == (copysign(T(1), y) < T(0));
+  bool same = (copysign(T(1), x) < T(0)) == (copysign(T(1), y) < T(0));
   if (same) adj_x += adj_ret; else adj_x -= adj_ret;
 }
 WP_SCALAR_FLOAT_TEMPLATE WP_FUNC void adj_sin(T x, T& adj_x, T adj_ret) { adj_x += cos(x) * adj_ret; }

@@ -226,19 +226,19 @@ WP_FUNC T max(const vec_t<N, T>& a) {
   for (unsigned i = 1; i < N; ++i) r = max(r, a.c[i]);
   return r;
 }
-// First index of the extreme value.
+// First index of the extreme value; NaN components are skipped unless all are NaN (as min/max).
 template <unsigned N, typename T>
 WP_FUNC uint32 argmin(const vec_t<N, T>& a) {
   uint32 k = 0;
   for (unsigned i = 1; i < N; ++i)
-    if (a.c[i] < a.c[k]) k = i;
+    if (!isnan(a.c[i]) && (isnan(a.c[k]) || a.c[i] < a.c[k])) k = i;
   return k;
 }
 template <unsigned N, typename T>
 WP_FUNC uint32 argmax(const vec_t<N, T>& a) {
   uint32 k = 0;
   for (unsigned i = 1; i < N; ++i)
-    if (a.c[i] > a.c[k]) k = i;
+    if (!isnan(a.c[i]) && (isnan(a.c[k]) || a.c[i] > a.c[k])) k = i;
   return k;
 }
 template <unsigned N, typename T>

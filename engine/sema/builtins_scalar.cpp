@@ -8,19 +8,19 @@ void AddScalarBuiltins(std::vector<BuiltinOverload>* rows) {
   auto add = [rows](const char* sig, const char* doc, unsigned flags = kBuiltinNone, const char* native = "") {
     rows->push_back(Builtin("Scalar math", sig, doc, flags, native));
   };
-  add("min(a: Scalar, b: Scalar) -> Scalar", "Smaller of two scalars; the gradient goes to `b` on ties (as Warp).");
+  add("min(a: Scalar, b: Scalar) -> Scalar", "Smaller of two scalars (as C fmin: a NaN operand is ignored); the gradient goes to `b` on ties (as Warp).");
   add("min(a: vec(N,Scalar), b: vec(N,Scalar)) -> vec(N,Scalar)", "Componentwise minimum.");
-  add("min(a: vec(N,Scalar)) -> Scalar", "Smallest component.");
-  add("max(a: Scalar, b: Scalar) -> Scalar", "Larger of two scalars; the gradient goes to `b` on ties (as Warp).");
+  add("min(a: vec(N,Scalar)) -> Scalar", "Smallest component (NaN components are ignored unless all are NaN).");
+  add("max(a: Scalar, b: Scalar) -> Scalar", "Larger of two scalars (as C fmax: a NaN operand is ignored); the gradient goes to `b` on ties (as Warp).");
   add("max(a: vec(N,Scalar), b: vec(N,Scalar)) -> vec(N,Scalar)", "Componentwise maximum.");
-  add("max(a: vec(N,Scalar)) -> Scalar", "Largest component.");
+  add("max(a: vec(N,Scalar)) -> Scalar", "Largest component (NaN components are ignored unless all are NaN).");
   add("clamp(x: Scalar, low: Scalar, high: Scalar) -> Scalar",
-      "`x` limited to [low, high]; gradient 1 inside, 0 outside (to the bound that clamps).");
+      "`x` limited to [low, high], as min(max(low, x), high); gradient 1 inside, 0 outside (to the bound that clamps).");
   add("abs(x: Scalar) -> Scalar", "Absolute value; subgradient 1 at 0 (as Warp).");
   add("abs(x: vec(N,Scalar)) -> vec(N,Scalar)", "Componentwise absolute value.");
   add("sign(x: Scalar) -> Scalar", "-1 if x < 0 else 1; gradient 0.");
   add("sign(x: vec(N,Scalar)) -> vec(N,Scalar)", "Componentwise sign; gradient 0.");
-  add("copysign(x: Float, y: Float) -> Float", "|x| with the sign of y.");
+  add("copysign(x: Float, y: Float) -> Float", "|x| with the sign of y; d/dx is +1 when the sign bits agree, else -1.");
   add("step(x: Scalar) -> Scalar", "1 if x < 0 else 0; gradient 0.");
   add("nonzero(x: Scalar) -> Scalar", "1 if x != 0 else 0; gradient 0.");
   const char* unary[][2] = {
@@ -92,6 +92,8 @@ void AddScalarBuiltins(std::vector<BuiltinOverload>* rows) {
   op("lshift(a: Int, b: Int) -> Int", "`a << b`.", kBuiltinNotDiff);
   op("rshift(a: Int, b: Int) -> Int", "`a >> b`.", kBuiltinNotDiff);
   op("invert(a: Int) -> Int", "`~a`.", kBuiltinNotDiff);
+  add("bit_count(x: Int) -> int32", "Number of set bits in x's fixed-width two's-complement pattern (-1 as int8: 8).",
+      kBuiltinNotDiff);
   op("unot(a: Cond) -> bool", "`not a`: true when a is false / zero.", kBuiltinNotDiff);
   for (const char* sig : {"unot(a: array(X,1)) -> bool", "unot(a: array(X,2)) -> bool", "unot(a: array(X,3)) -> bool",
                           "unot(a: array(X,4)) -> bool"}) {

@@ -232,6 +232,13 @@ TEST(NativeAtomic, ReturnValuesAndOddTypes) {
   wp::atomic_min(na, 0, NAN);
   wp::atomic_max(na, 0, NAN);
   EXPECT_EQ(nb[0], 1.0f);
+  // A NaN slot takes the value (fmin/fmax, Warp); the old value is returned.
+  nb[0] = NAN;
+  EXPECT_TRUE(std::isnan(wp::atomic_min(na, 0, -2.0f)));
+  EXPECT_EQ(nb[0], -2.0f);
+  nb[0] = NAN;
+  EXPECT_TRUE(std::isnan(wp::atomic_max(na, 0, 3.0f)));
+  EXPECT_EQ(nb[0], 3.0f);
   // 2-4 index forms.
   std::vector<double> d4(16);
   auto a4 = MakeArray(d4, {2, 2, 2, 2});

@@ -301,3 +301,71 @@ TEST(NativeScalar, Float16Conversions) {
 }
 
 }  // namespace
+
+namespace {
+
+// min/max/clamp are C's fmin/fmax (Warp): a NaN operand is a missing value. The adjoints send
+// the gradient to the operand the forward returned; copysign's adjoint compares sign bits.
+template <typename T>
+void CheckNanMinMax() {
+  const T nan = T(NAN), one = T(1), m1 = T(-1), two = T(2);
+  std::mt19937 rng(0x5eed);
+  std::uniform_real_distribution<double> u(-4.0, 4.0);
+  for (int k = 0; k < 200; ++k) {
+    double a = u(rng), b = u(rng);
+    bool na = k % 4 == 1 || k % 4 == 3, nb = k % 4 == 2 || k % 4 == 3;
+    T ta = na ? nan : T(a), tb = nb ? nan : T(b);
+    double fa = na ? NAN : double(T(a)), fb = nb ? NAN : double(T(b));
+    double rmin = std::fmin(fa, fb), rmax = std::fmax(fa, fb);
+    ExpectClose(double(wp::min(ta, tb)), rmin, 0, 0, "min", a);
+    ExpectClose(double(wp::max(ta, tb)), rmax, 0, 0, "max", a);
+    ExpectClose(double(wp::clamp(ta, m1, one)), std::fmin(std::fmax(fa, -1.0), 1.0), 0, 0, "clamp", a);
+    T ga = T(0), gb = T(0);
+    wp::adj_min(ta, tb, ga, gb, one);
+    if (!(na && nb)) {
+      // the gradient reaches exactly the operand whose value min returned
+      bool to_a = !na && (nb || double(ta) < double(tb));
+      EXPECT_EQ(double(ga), to_a ? 1.0 : 0.0) << a << " " << b << " " << na << nb;
+      EXPECT_EQ(double(gb), to_a ? 0.0 : 1.0) << a << " " << b << " " << na << nb;
+    }
+  }
+  // clamp adjoint through min(max(lo, x), hi) when an operand is NaN
+  struct Row { T x, lo, hi; double gx, glo, ghi; };
+  const Row rows[] = {{nan, m1, one, 0, 1, 0}, {nan, one, m1, 0, 0, 1}, {T(0.5), nan, one, 1, 0, 0},
+                      {two, nan, one, 0, 0, 1}, {T(-2), m1, nan, 0, 1, 0}, {T(0.5), m1, one, 1, 0, 0}};
+  for (const Row& r : rows) {
+    T gx = T(0), glo = T(0), ghi = T(0);
+    wp::adj_clamp(r.x, r.lo, r.hi, gx, glo, ghi, one);
+    EXPECT_EQ(double(gx), r.gx);
+    EXPECT_EQ(double(glo), r.glo);
+    EXPECT_EQ(double(ghi), r.ghi);
+  }
+  // vector reductions skip NaN components, and so do their adjoints
+  wp::vec_t<3, T> v(nan, m1, two);
+  EXPECT_EQ(double(wp::min(v)), -1.0);
+  EXPECT_EQ(double(wp::max(v)), 2.0);
+  wp::vec_t<3, T> gv;
+  wp::adj_min(v, gv, one);
+  wp::adj_max(v, gv, one);
+  EXPECT_EQ(double(gv.c[0]), 0.0);
+  EXPECT_EQ(double(gv.c[1]), 1.0);
+  EXPECT_EQ(double(gv.c[2]), 1.0);
+  // copysign: d/dx is +1 when the sign bits agree; -0.0 is negative
+  T g = T(0), gy = T(0);
+  wp::adj_copysign(T(-0.0), m1, g, gy, one);
+  EXPECT_EQ(double(g), 1.0);
+  g = T(0);
+  wp::adj_copysign(T(0.0), m1, g, gy, one);
+  EXPECT_EQ(double(g), -1.0);
+  g = T(0);
+  wp::adj_copysign(T(3), T(-0.0), g, gy, one);
+  EXPECT_EQ(double(g), -1.0);
+  EXPECT_EQ(double(gy), 0.0);
+}
+
+}  // namespace
+
+TEST(NativeScalar, MinMaxClampTreatNanAsMissing) {
+  CheckNanMinMax<float>();
+  CheckNanMinMax<double>();
+}

@@ -107,7 +107,7 @@ def overload(target, arg_types=None):
         if isinstance(arg_types, dict):
             arg_types = [arg_types.get(n, a) for n, a in
                          zip(target.param_names, target.definition.annotations.values())]
-        return target.specialize([typestr.type_string(t) for t in arg_types])
+        return target.specialize([typestr.type_string(t) for t in arg_types], list(arg_types))
     if isinstance(target, Function):
         return target
     if callable(target):
@@ -161,8 +161,7 @@ def compile(target=None, device=None, backward: bool = False):  # noqa: A001 - W
         raise TypeError(f"wp.compile expects a kernel, a module or a module name, got "
                         f"{target!r}")
     result = None
-    for k in module_mod.kernels_of(name):
-        compiled = module_mod.compile_kernel(k, dev, backward)[0]
+    for compiled in module_mod.compile_module(name, dev, backward):
         if result is None or (result.cache_hit and not compiled.cache_hit):
             result = compiled
     return result

@@ -307,8 +307,10 @@ class Kernel:
     def is_generic(self) -> bool:
         return self.definition.is_generic
 
-    def specialize(self, param_types: list) -> "Kernel":
-        """The instance of a generic kernel (typing.Any parameters) for concrete types."""
+    def specialize(self, param_types: list, annotations: typing.Optional[list] = None) -> "Kernel":
+        """The instance of a generic kernel (typing.Any parameters) for concrete types;
+        `annotations`, when given, are the concrete Python types (structs they name are
+        compiled with the instance)."""
         key = tuple(param_types)
         existing = self._specializations.get(key)
         if existing is not None:
@@ -320,6 +322,8 @@ class Kernel:
         definition = copy.copy(self.definition)
         definition.param_types = list(param_types)
         definition.key = sanitize_key(self.key + "__" + "_".join(param_types))
+        if annotations is not None:
+            definition.annotations = dict(zip(definition.param_names, annotations))
         instance = Kernel(definition=definition, module=self.module_name, options=self.options,
                           register=False)
         instance.key = self.key

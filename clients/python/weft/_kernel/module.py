@@ -47,18 +47,8 @@ class Module:
         if binary_path is not None:
             raise NotImplementedError("Module.load(binary_path=...): weft compiles modules in "
                                       "the daemon and loads no binaries from the client")
-        dev = device_name(device)
-        result = None
-        for k in kernels_of(self.name):
-            for instance in list(k._specializations.values()) if k.is_generic else [k]:
-                try:
-                    result = compile_kernel(instance, dev)[0]
-                except WeftCompileError:
-                    # A kernel whose own code fails is left out of its group's build (the
-                    # others load); launching it raises its error. Anything else raises now.
-                    if not instance.broken:
-                        raise
-        return result
+        built = compile_module(self.name, device_name(device))
+        return built[-1] if built else None
 
     def unload(self):
         """Forgets this process's compiled state of the module (the daemon keeps its cache:
@@ -421,6 +411,22 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
                                f"no kernel named {kernel.name!r} (has {sorted(compiled.kernels)})")
     kernel._compiled[fast_key] = (_registry_version, compiled, info)
     return compiled, info
+
+
+def compile_module(module_name: str, device: str, backward: bool = False) -> list:
+    """Compiles every kernel of a module (a generic kernel: its instances, from wp.overload or
+    launches) and returns the CompiledModule of each, in order. A kernel whose own code fails
+    is left out of its group's build (the others load) and raises its error when launched;
+    any other error raises now."""
+    built = []
+    for k in kernels_of(module_name):
+        for instance in list(k._specializations.values()) if k.is_generic else [k]:
+            try:
+                built.append(compile_kernel(instance, device, backward)[0])
+            except WeftCompileError:
+                if not instance.broken:
+                    raise
+    return built
 
 
 def _kernels_at_fault(err: WeftCompileError, group: _Closure) -> list:
