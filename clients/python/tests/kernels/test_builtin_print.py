@@ -62,3 +62,35 @@ def test_output_stays_in_its_session(wp, run_script, capfd):
     assert child.stdout.count("from-the-child") == 2, child.stdout
     wp.synchronize()
     assert "from-the-child" not in capfd.readouterr().out
+
+
+GENERIC_PRINT = '''
+import typing
+
+
+@wp.struct
+class Pair:
+    x: float
+    y: float
+
+
+@wp.kernel
+def show(x: typing.Any):
+    print(x)
+
+
+for t in (wp.int16, wp.vec2d, Pair):
+    wp.overload(show, [t])
+'''
+
+
+def test_generic_kernel_instances_load_and_structs_print_a_placeholder(wp, kernel_module, capfd):
+    mod = kernel_module(GENERIC_PRINT)
+    wp.load_module(mod.__name__, device="cpu")        # compiles the instances, not the generic
+    wp.launch(mod.show, dim=1, inputs=[wp.int16(-17)], device="cpu")
+    wp.launch(mod.show, dim=1, inputs=[wp.vec2d(1.5, -2.0)], device="cpu")
+    wp.launch(mod.show, dim=1, inputs=[mod.Pair()], device="cpu")
+    wp.synchronize()
+    out = capfd.readouterr().out
+    assert "-17" in out and re.search(r"1\.5,? +-2", out), out
+    assert "<type without print implementation>" in out, out
