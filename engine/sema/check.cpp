@@ -787,8 +787,16 @@ Status Checker::LowerFor(const ast::For& s) {
   if (!tn) return Error(s.target->loc, "a for loop needs a single name as its target: for i in range(...)");
   const auto* call = ast::As<ast::Call>(s.iter.get());
   const auto* fname = call ? ast::As<ast::Name>(call->func.get()) : nullptr;
+  // reversed(range(...)): the same values, last first (Python's semantics)
+  bool reversed = false;
+  if (fname && fname->id == "reversed" && !st_->scope.count("reversed") && call->args.size() == 1 &&
+      call->keywords.empty()) {
+    reversed = true;
+    call = ast::As<ast::Call>(call->args[0].get());
+    fname = call ? ast::As<ast::Name>(call->func.get()) : nullptr;
+  }
   if (!fname || fname->id != "range" || st_->scope.count("range"))
-    return Error(s.iter->loc, "for loops iterate over range(...) only");
+    return Error(s.iter->loc, "for loops iterate over range(...) or reversed(range(...)) only");
   if (call->args.empty() || call->args.size() > 3 || !call->keywords.empty())
     return Error(s.iter->loc, "range() takes 1 to 3 positional arguments");
   std::vector<Value> vals;
@@ -819,6 +827,18 @@ Status Checker::LowerFor(const ast::For& s) {
     start = vars[0];
     end = vars[1];
     step = vars.size() == 3 ? vars[2] : EmitConst(it, "(" + CppType(it) + ")1");
+  }
+  if (reversed) {
+    // n = len(range(start, end, step)); reversed: range(start + (n-1)*step, start - step, -step)
+    // (n == 0: start - step twice, no iteration). A zero step iterates nothing.
+    int n = EmitRaw(it,
+                    "(($2) > 0 ? (($1) > ($0) ? (($1) - ($0) + ($2) - 1) / ($2) : 0)"
+                    " : (($2) < 0 ? (($0) > ($1) ? (($0) - ($1) - ($2) - 1) / (0 - ($2)) : 0) : 0))",
+                    {start, end, step});
+    int last = EmitRaw(it, "(($0) > 0 ? ($1) + (($0) - 1) * ($2) : ($1) - ($2))", {n, start, step});
+    end = EmitRaw(it, "(($0) - ($1))", {start, step});
+    step = EmitRaw(it, "(0 - ($0))", {step});
+    start = last;
   }
   LoopBuilder lb{this, {}, {}};
   WEFT_RETURN_IF_ERROR(lb.Begin(s.body));

@@ -94,7 +94,7 @@ TEST(SemaErrors, BranchesDisagreeOnType) {
 }
 
 TEST(SemaErrors, ForOverNonRange) {
-  ExpectError(Compile("    for v in a:\n        pass\n"), 11, "for loops iterate over range(...) only");
+  ExpectError(Compile("    for v in a:\n        pass\n"), 11, "for loops iterate over range(...) or reversed(range(...)) only");
 }
 
 TEST(SemaErrors, RangeNeedsIntegers) {

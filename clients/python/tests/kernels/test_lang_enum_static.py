@@ -1,7 +1,8 @@
 """Python values the client resolves into kernel constants: members of Python enums
 (IntEnum, IntFlag: MyEnum.A, MyEnum.A.value) and wp.static(expr) (evaluated in the function's
 globals and closure when it is defined: constants, vectors, @wp.func objects, enum members),
-against float64 references on random data."""
+against float64 references on random data; and `for i in reversed(range(...))` against
+Python's own reversed(), with the gradient of a loop-carried sum."""
 import enum
 
 import numpy as np
@@ -112,3 +113,40 @@ def test_static_of_a_kernel_variable_is_an_error_at_its_line(wp, device):
     with pytest.raises(wp.WeftCompileError, match=r"test_lang_enum_static\.py:\d+"):
         wp.launch(uses_local, dim=4, inputs=[out], device=device)
     assert wp.static(5) == 5          # Python scope: the value itself
+
+
+@wp.kernel
+def reversed_range(start: int, end: int, step: int, count: wp.array(dtype=int),
+                   values: wp.array(dtype=int), weights: wp.array(dtype=float),
+                   acc: wp.array(dtype=float)):
+    n = int(0)
+    s = float(0.0)
+    for i in reversed(range(start, end, step)):
+        values[n] = i
+        s = s * 0.5 + weights[0] * float(i)
+        n += 1
+    count[0] = n
+    acc[0] = s
+
+
+def test_reversed_range_matches_python(wp, rng, device):
+    cases = [(-2, 8, 3), (9, -3, -2), (0, 0, 1), (5, 1, 1), (1, 5, -1), (0, 7, 1), (3, 4, 5)]
+    cases += [tuple(int(x) for x in rng.integers(-20, 20, size=2)) + (int(rng.choice([-3, -1, 2, 4])),)
+              for _ in range(6)]
+    for start, end, step in cases:
+        count = wp.zeros(1, dtype=int, device=device)
+        values = wp.zeros(64, dtype=int, device=device)
+        w = wp.array([rng.uniform(0.5, 2.0)], dtype=float, device=device, requires_grad=True)
+        acc = wp.zeros(1, dtype=float, device=device, requires_grad=True)
+        tape = wp.Tape()
+        with tape:
+            wp.launch(reversed_range, dim=1, inputs=[start, end, step, count, values, w, acc],
+                      device=device)
+        expected = list(reversed(range(start, end, step)))
+        assert count.numpy()[0] == len(expected), (start, end, step)
+        np.testing.assert_array_equal(values.numpy()[:len(expected)], expected)
+        # acc = sum_k 0.5^(n-1-k) * w * x_k: d acc / d w against the float64 reference
+        coeff = sum(0.5 ** (len(expected) - 1 - k) * x for k, x in enumerate(expected))
+        np.testing.assert_allclose(acc.numpy()[0], coeff * float(w.numpy()[0]), rtol=1e-5, atol=1e-5)
+        tape.backward(loss=acc)
+        np.testing.assert_allclose(w.grad.numpy()[0], coeff, rtol=1e-5, atol=1e-5)
