@@ -47,7 +47,7 @@ class Module:
         if binary_path is not None:
             raise NotImplementedError("Module.load(binary_path=...): weft compiles modules in "
                                       "the daemon and loads no binaries from the client")
-        built = compile_module(self.name, device_name(device))
+        built = compile_module(self.name, device_name(device), leave_out_failing=True)
         return built[-1] if built else None
 
     def unload(self):
@@ -259,19 +259,13 @@ def _message_options(kernel: Kernel) -> dict:
     return options
 
 
-_partitions: dict = {}   # module name -> (registry version, {id(kernel): _Closure})
-
-
 def _partition_groups(module: Module) -> dict:
     """Splits the module's kernels into build groups, in registration order: each kernel joins
     the first group whose kernels it does not clash with (a name bound differently, a key with
     other source, a kernel of the same name, other compile options), else starts a new one.
     The split depends only on the registered kernels, never on which kernel asks, so every
-    kernel of a group sends the same message and the group is built once.
-    Returns {id(kernel): the group's _Closure}."""
-    cached = _partitions.get(module.name)
-    if cached is not None and cached[0] == _registry_version:
-        return cached[1]
+    kernel of a group sends the same message and the group is built once. Computed on every
+    build (globals may have changed since). Returns {id(kernel): the group's _Closure}."""
     groups = []      # [closure, kernel names, options]
     member: dict = {}
     for k in list(module.kernels.values()):
@@ -291,7 +285,6 @@ def _partition_groups(module: Module) -> dict:
         else:
             groups.append([closure, {k.name}, options])
             member[id(k)] = closure
-    _partitions[module.name] = (_registry_version, member)
     return member
 
 
@@ -413,18 +406,19 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
     return compiled, info
 
 
-def compile_module(module_name: str, device: str, backward: bool = False) -> list:
+def compile_module(module_name: str, device: str, backward: bool = False,
+                   leave_out_failing: bool = False) -> list:
     """Compiles every kernel of a module (a generic kernel: its instances, from wp.overload or
     launches) and returns the CompiledModule of each, in order. A kernel whose own code fails
-    is left out of its group's build (the others load) and raises its error when launched;
-    any other error raises now."""
+    raises its error, or with leave_out_failing is left out of its group's build (the others
+    load) and raises when launched; any other error raises."""
     built = []
     for k in kernels_of(module_name):
         for instance in list(k._specializations.values()) if k.is_generic else [k]:
             try:
                 built.append(compile_kernel(instance, device, backward)[0])
             except WeftCompileError:
-                if not instance.broken:
+                if not (leave_out_failing and instance.broken):
                     raise
     return built
 
