@@ -1,20 +1,34 @@
-"""GPU arrays through the daemon (skipped when it has no CUDA device): creation, fills of
-slices, copies between cpu and cuda, clone/to, numpy() copies read in chunks, assign."""
+"""GPU arrays through the daemon (skipped with the reason when it has no CUDA device it can run
+kernels on): creation, fills of slices, copies between cpu and cuda, clone/to, numpy() copies,
+assign; the client's CUDA IPC mapping (ptr, __cuda_array_interface__ v3, DLPack kDLCUDA) and
+the copy fallback when IPC is off (WEFT_CUDA_IPC=0); streams and events."""
 import numpy as np
 import pytest
 
 
 @pytest.fixture
 def cuda(wp):
-    if not wp.is_cuda_available():
-        pytest.skip("weftd has no CUDA device")
+    if not any(d.is_cuda and d.is_compute_supported for d in wp.get_cuda_devices()):
+        pytest.skip("weftd has no CUDA device it can run kernels on")
     return wp.get_cuda_device(0)
 
 
+@pytest.fixture
+def ipc(wp, cuda):
+    """The client's CUDA IPC state; skips tests that need the zero-copy path where it is off."""
+    from weft import _cuda_ipc
+
+    a = wp.zeros(1, device=cuda)
+    if a.ptr is None:
+        pytest.skip(f"CUDA IPC is not available in this client: {_cuda_ipc.reason()}")
+    print(f"CUDA IPC: on ({_cuda_ipc.stats()})")
+    return _cuda_ipc
+
+
 def test_cuda_is_the_default_device(wp, cuda):
-    assert wp.get_device() == cuda and cuda.alias == "cuda:0"
-    a = wp.zeros(4)
-    assert a.device.is_cuda and a.ptr is None
+    assert wp.get_preferred_device() == cuda and cuda.alias == "cuda:0"
+    a = wp.zeros(4, device=cuda)
+    assert a.device.is_cuda
     with pytest.raises(AttributeError):
         a.__array_interface__
 
@@ -51,10 +65,100 @@ def test_cuda_cpu_copies(wp, cuda):
 
 def test_cuda_assign_and_large_read(wp, cuda):
     rng = np.random.default_rng(22)
-    ref = rng.random(24 << 20, dtype=np.float32)   # 96 MiB: many Read chunks
+    ref = rng.random(24 << 20, dtype=np.float32)   # 96 MiB: a slab of its own, many chunks
     a = wp.empty(ref.size, dtype=wp.float32, device=cuda)
     a.assign(ref)
     np.testing.assert_array_equal(a.numpy(), ref)
     a[5:10].assign(np.arange(5, dtype=np.float32))
     ref[5:10] = np.arange(5)
     np.testing.assert_array_equal(a[:16].numpy(), ref[:16])
+    big = wp.array(ref, device=cuda)               # initial data above the inline limit
+    np.testing.assert_array_equal(big.numpy(), ref)
+
+
+def test_cuda_array_interface(wp, cuda, ipc):
+    rng = np.random.default_rng(23)
+    values = rng.standard_normal((64, 3)).astype(np.float32)
+    a = wp.array(values, dtype=wp.vec3, device=cuda)
+    cai = a.__cuda_array_interface__
+    assert cai["version"] == 3 and cai["typestr"] == "<f4" and cai["shape"] == (64, 3)
+    assert cai["strides"] is None and cai["stream"] is None
+    assert cai["data"] == (a.ptr, False)
+    view = a[1::2]
+    vcai = view.__cuda_array_interface__
+    assert vcai["data"][0] == a.ptr + 12 and vcai["strides"] == (24, 4)
+    assert vcai["shape"] == (32, 3)
+    # the same slab is mapped once: a second array of the session lands in the same mapping
+    opened = ipc.stats()["opened"]
+    b = wp.zeros(16, device=cuda)
+    assert b.ptr is not None and ipc.stats()["opened"] == opened
+
+
+def test_cuda_dlpack_capsule(wp, cuda):
+    a = wp.zeros(8, dtype=wp.vec2, device=cuda)
+    assert a.__dlpack_device__() == (2, cuda.ordinal)
+    if a.ptr is None:
+        with pytest.raises(BufferError, match="CUDA IPC"):
+            a.__dlpack__()
+        return
+    capsule = a.__dlpack__(stream=None)
+    assert type(capsule).__name__ == "PyCapsule"
+    del capsule                        # unconsumed: its destructor runs the deleter
+
+
+def test_cuda_numpy_paths_agree(wp, cuda, run_client):
+    """numpy()/assign through the IPC mapping (when on) and through the daemon (IPC off in a
+    child client) give the same bytes; the child says which path it ran."""
+    rng = np.random.default_rng(24)
+    values = rng.standard_normal(3000).astype(np.float64)
+    a = wp.array(values, device=cuda)
+    token = a.ipc_handle().decode()
+    code = f"""
+import numpy as np, weft as wp
+from weft import _cuda_ipc
+b = wp.from_ipc_handle({token!r}.encode())
+print("path", "ipc" if b.ptr is not None else "copy:" + _cuda_ipc.reason())
+assert b.ptr is None and not hasattr(b, "__cuda_array_interface__")
+v = b.numpy()
+print("sum", repr(float(v.sum())))
+b[10:20].assign(np.full(10, 7.0))
+wp.synchronize()
+"""
+    out = run_client(code, env={"WEFT_CUDA_IPC": "0"}).stdout
+    assert "path copy:WEFT_CUDA_IPC=0" in out
+    assert f"sum {float(values.sum())!r}" in out
+    values[10:20] = 7.0
+    np.testing.assert_array_equal(a.numpy(), values)
+
+
+def test_streams_and_events(wp, cuda):
+    s = wp.get_stream(cuda)
+    assert s == wp.Stream(cuda) and s.device == cuda
+    start = wp.Event(cuda, enable_timing=True)
+    end = wp.Event(cuda, enable_timing=True)
+    a = wp.zeros(1 << 20, device=cuda)
+    wp.record_event(start)
+    for _ in range(10):
+        a.fill_(3.0)
+    s.record_event(end)
+    wp.synchronize_event(end)
+    elapsed = wp.get_event_elapsed_time(start, end)
+    assert elapsed > 0.0
+    plain = wp.record_event(wp.Event(cuda))
+    plain.synchronize()
+    assert plain.query()
+    with wp.ScopedStream(s):
+        assert wp.get_stream() is s
+    s.wait_event(plain)
+    wp.synchronize_stream(s)
+    wp.synchronize_device(cuda)
+    np.testing.assert_array_equal(a.numpy()[:4], 3.0)
+    with pytest.raises(RuntimeError, match="enable_timing"):
+        wp.get_event_elapsed_time(plain, end)
+
+
+def test_streams_are_cuda_only(wp):
+    with pytest.raises(RuntimeError, match="CUDA objects"):
+        wp.Stream("cpu")
+    with pytest.raises(RuntimeError, match="CUDA objects"):
+        wp.Event("cpu")

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from . import _runtime, types
+from . import _cuda_ipc, _runtime, types
 from .device import Device, get_device
 from .errors import WeftError
 from .interop import memory as _interop_memory
@@ -206,7 +206,8 @@ def _infer_dtype(data):
 class _Allocation:
     """One daemon allocation held by this process; freed when the last view lets go."""
 
-    __slots__ = ("runtime", "info", "owned", "parent", "_mapping", "__weakref__")
+    __slots__ = ("runtime", "info", "owned", "parent", "_mapping", "_cuda", "_cuda_slab",
+                 "__weakref__")
 
     def __init__(self, runtime, info, owned=True, parent=None):
         self.runtime = runtime
@@ -214,6 +215,31 @@ class _Allocation:
         self.owned = owned
         self.parent = parent   # a gradient keeps its array's allocation alive
         self._mapping = None
+        self._cuda = None      # device address in this process (0: no IPC mapping)
+        self._cuda_slab = None  # slab id whose mapping this allocation holds
+
+    def cuda_address(self):
+        """The allocation's device address in this process (GPU arrays of local sessions,
+        through the CUDA IPC mapping of its slab, opened once per slab), else None."""
+        if self._cuda is None:
+            info = self.info
+            address = 0
+            if self.runtime.local and getattr(info, "cuda_slab_size", 0) and \
+                    info.device.startswith("cuda:"):
+                base = _cuda_ipc.slab_address(info, int(info.device.split(":")[1]))
+                if base is not None:
+                    address = base + int(info.cuda_ipc_offset)
+                    self._cuda_slab = int(info.cuda_slab_id)
+                    _interop_memory.note_range(self, info.device, address, int(info.byte_size))
+            self._cuda = address
+        return self._cuda or None
+
+    def forget_cuda(self):
+        """Drops the device address (the allocation moved to another slab)."""
+        if self._cuda_slab is not None:
+            _cuda_ipc.release(self._cuda_slab)
+        self._cuda = None
+        self._cuda_slab = None
 
     def mapping(self):
         """The slab mapping of this allocation (local CPU arrays), mapped on first use."""
@@ -224,6 +250,8 @@ class _Allocation:
 
     def __del__(self):
         try:
+            if self._cuda_slab is not None:
+                _cuda_ipc.release(self._cuda_slab)
             if self.owned and self.info.handle:
                 self.runtime.free_later(self.info.handle)
         except Exception:  # noqa: BLE001 - interpreter shutdown: nothing left to free
@@ -254,7 +282,18 @@ def _slab_bytes(rt, info, byte_offset, count) -> np.ndarray:
     return np.frombuffer(mapping.mm, dtype=np.uint8, count=count, offset=start)
 
 
-def _write_bytes(rt, info, byte_offset: int, payload) -> None:
+def _gpu_direct(rt, alloc):
+    """(ordinal, device address of the allocation) when this process reaches the GPU
+    allocation through its CUDA IPC mapping, else None (copies go through the daemon)."""
+    if alloc is None or not alloc.info.device.startswith("cuda:"):
+        return None
+    address = alloc.cuda_address()
+    if address is None:
+        return None
+    return int(alloc.info.device.split(":")[1]), address
+
+
+def _write_bytes(rt, info, byte_offset: int, payload, alloc=None) -> None:
     """Writes `payload` (bytes-like) at `byte_offset` of the allocation."""
     data = np.frombuffer(memoryview(payload).cast("B"), dtype=np.uint8)
     if byte_offset < 0 or byte_offset + data.size > info.byte_size:
@@ -262,6 +301,12 @@ def _write_bytes(rt, info, byte_offset: int, payload) -> None:
                         f"allocation ({info.byte_size} bytes)", "OUT_OF_RANGE")
     if _is_local_cpu(rt, info):
         _slab_bytes(rt, info, byte_offset, data.size)[:] = data
+        return
+    direct = _gpu_direct(rt, alloc)
+    if direct is not None and data.size:
+        rt.synchronize_if_needed()          # the daemon's queued work on this memory first
+        data = np.ascontiguousarray(data)
+        _cuda_ipc.copy_from_host(direct[0], direct[1] + byte_offset, data.ctypes.data, data.size)
         return
     ap = _runtime.array_pb2
 
@@ -281,13 +326,18 @@ def _write_bytes(rt, info, byte_offset: int, payload) -> None:
         raise WeftError(f"daemon wrote {response.bytes_written} of {data.size} bytes", "DATA_LOSS")
 
 
-def _read_bytes(rt, info, byte_offset: int, count: int) -> np.ndarray:
+def _read_bytes(rt, info, byte_offset: int, count: int, alloc=None) -> np.ndarray:
     """Reads `count` bytes at `byte_offset` of the allocation into a new uint8 array."""
     out = np.empty(count, dtype=np.uint8)
     if count == 0:
         return out
     if _is_local_cpu(rt, info):
         out[:] = _slab_bytes(rt, info, byte_offset, count)
+        return out
+    direct = _gpu_direct(rt, alloc)
+    if direct is not None:
+        rt.synchronize_if_needed()
+        _cuda_ipc.copy_to_host(direct[0], out.ctypes.data, direct[1] + byte_offset, count)
         return out
     request = _runtime.array_pb2.ReadArrayRequest(handle=info.handle, byte_offset=byte_offset,
                                                   byte_count=count, chunk_size=CHUNK_BYTES)
@@ -327,6 +377,8 @@ def _create(dtype, shape, device, requires_grad, init, value=b""):
                                     device=device.alias, requires_grad=bool(requires_grad),
                                     init=init, value=value)
     info = rt.call(rt.array_stub.Create, request).info
+    if not device.is_cpu:
+        rt._unsynchronized = True   # its zeroing/fill is queued on the session's GPU stream
     return rt, info
 
 
@@ -481,8 +533,9 @@ class array:
         nbytes = arr.nbytes
         ap = _runtime.array_pb2
         rt = _runtime.get_runtime()
-        local_cpu = rt.local and self.device.is_cpu
-        if nbytes <= INLINE_DATA_MAX_BYTES and not (local_cpu and nbytes >= LOCAL_WRITE_MIN_BYTES):
+        local_direct = rt.local and (self.device.is_cpu or _cuda_ipc.available())
+        if nbytes <= INLINE_DATA_MAX_BYTES and not (local_direct and
+                                                    nbytes >= LOCAL_WRITE_MIN_BYTES):
             rt, info = _create(dtype, arr_shape, self.device, requires_grad,
                                ap.CreateArrayRequest.DATA, arr.tobytes())
             self._adopt(rt, info, dtype)
@@ -490,7 +543,7 @@ class array:
             rt, info = _create(dtype, arr_shape, self.device, requires_grad,
                                ap.CreateArrayRequest.EMPTY)
             self._adopt(rt, info, dtype)
-            _write_bytes(rt, info, 0, arr.reshape(-1).view(np.uint8))
+            _write_bytes(rt, info, 0, arr.reshape(-1).view(np.uint8), self._alloc)
 
     @classmethod
     def _from_info(cls, info, dtype=None, owned=True):
@@ -537,8 +590,15 @@ class array:
 
     @property
     def ptr(self):
-        """The address of the first element in this process (local CPU arrays), else None."""
-        if self._info is None or not self._info.shm_name:
+        """The address of the first element in this process: in the shared-memory slab for
+        CPU arrays, in the CUDA IPC mapping of the slab for GPU arrays (local sessions where
+        the client has a CUDA driver, see weft._cuda_ipc); None otherwise."""
+        if self._info is None:
+            return None
+        if self.device is not None and self.device.is_cuda:
+            address = self._alloc.cuda_address()
+            return None if address is None else address + self._byte_offset
+        if not self._info.shm_name:
             return None
         if not self._alloc.runtime.local:
             return None
@@ -723,7 +783,7 @@ class array:
                 interface["descr"] = np_dtype.descr
             return np.asarray(_NumpyHolder(interface, (self._alloc, mapping)))
         low, count = self._span()
-        raw = _read_bytes(rt, self._info, low, count)
+        raw = _read_bytes(rt, self._info, low, count, self._alloc)
         if self.size == 0:
             return np.empty(full_shape, dtype=np_dtype)
         typed = np.ndarray(full_shape, dtype=np_dtype, buffer=raw,
@@ -748,6 +808,32 @@ class array:
             raise AttributeError("__array_interface__ is only available for CPU arrays of "
                                  "local (Unix-socket) sessions; use .numpy()")
         return self.numpy().__array_interface__
+
+    @property
+    def __cuda_array_interface__(self):
+        """CUDA Array Interface v3 of a GPU array, over this process's IPC mapping of the
+        daemon's memory (zero-copy). Weft's queued work is finished before it is returned, so
+        "stream" is None: the consumer may use the data on any stream at once. Absent
+        (AttributeError) where IPC is not available: consumers then fall back to __array__,
+        a copy."""
+        if self._info is None or self.device is None or not self.device.is_cuda:
+            raise AttributeError("__cuda_array_interface__ is only available for GPU arrays")
+        ptr = self.ptr
+        if ptr is None:
+            raise AttributeError(f"__cuda_array_interface__: no CUDA IPC mapping in this client "
+                                 f"({_cuda_ipc.reason() or 'not a local session'}); use "
+                                 f".numpy() for a copy")
+        self._alloc.runtime.synchronize_if_needed()
+        _interop_memory.mark_shared(self._alloc)
+        np_dtype, inner = _elem_layout(self.dtype)
+        if np_dtype.fields is not None:
+            raise AttributeError("__cuda_array_interface__ cannot describe struct elements")
+        shape = tuple(self.shape) + tuple(inner)
+        strides = tuple(self.strides) + _inner_strides(np_dtype, inner)
+        contiguous = strides == _contiguous_strides(shape, np_dtype.itemsize)
+        return {"shape": shape, "typestr": np_dtype.str, "descr": [("", np_dtype.str)],
+                "data": (ptr if self.size else 0, False),
+                "strides": None if contiguous else strides, "version": 3, "stream": None}
 
     def __dlpack__(self, stream=None, max_version=None, dl_device=None, copy=None):
         """A DLPack capsule over this array's memory (weft.interop.dlpack.export)."""
@@ -817,7 +903,7 @@ class array:
         if self.is_contiguous:
             rt.synchronize_if_needed()
             payload = np.ascontiguousarray(values, dtype=np_dtype).reshape(-1).view(np.uint8)
-            _write_bytes(rt, self._info, self._byte_offset, payload)
+            _write_bytes(rt, self._info, self._byte_offset, payload, self._alloc)
         else:
             tmp = array(values, dtype=self.dtype, shape=self.shape, device=self.device)
             copy(self, tmp)
@@ -890,19 +976,27 @@ class array:
         # new place. The info object is shared by every view of this allocation.
         ap = _runtime.array_pb2
         info = rt.call(rt.array_stub.Describe, ap.DescribeArrayRequest(handle=self._handle)).info
-        if info.shm_name != self._alloc.info.shm_name or info.shm_offset != self._alloc.info.shm_offset:
+        if (info.shm_name != self._alloc.info.shm_name or
+                info.shm_offset != self._alloc.info.shm_offset or
+                getattr(info, "cuda_slab_id", 0) != getattr(self._alloc.info, "cuda_slab_id", 0)
+                or getattr(info, "cuda_ipc_offset", 0) !=
+                getattr(self._alloc.info, "cuda_ipc_offset", 0)):
             self._alloc.info.CopyFrom(info)
             if self._info is not self._alloc.info:
                 self._info.CopyFrom(info)
             self._alloc._mapping = None
+            self._alloc.forget_cuda()
         grad = self._grad
         if grad is not None and getattr(grad, "_alloc", None) is not None and grad._handle:
             ginfo = rt.call(rt.array_stub.Describe, ap.DescribeArrayRequest(handle=grad._handle)).info
-            if ginfo.shm_name != grad._alloc.info.shm_name:
+            if (ginfo.shm_name != grad._alloc.info.shm_name or
+                    getattr(ginfo, "cuda_slab_id", 0) !=
+                    getattr(grad._alloc.info, "cuda_slab_id", 0)):
                 grad._alloc.info.CopyFrom(ginfo)
                 if grad._info is not grad._alloc.info:
                     grad._info.CopyFrom(ginfo)
                 grad._alloc._mapping = None
+                grad._alloc.forget_cuda()
         return token.encode()
 
 

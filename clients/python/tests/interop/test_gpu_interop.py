@@ -43,3 +43,84 @@ def test_device_mismatch_errors(wp, cuda, torch):
     if torch.cuda.is_available():
         with pytest.raises(Exception, match="launched on cpu"):
             wp.launch(add_one, dim=4, inputs=[torch.zeros(4, device="cuda")], device="cpu")
+
+
+@wp.kernel
+def scale_sum(x: wp.array(dtype=float), s: float, total: wp.array(dtype=float)):
+    i = wp.tid()
+    x[i] = x[i] * s
+    wp.atomic_add(total, 0, x[i])
+
+
+def _torch_cuda(torch):
+    if not torch.cuda.is_available():
+        pytest.skip("Torch has no CUDA device")
+
+
+def test_torch_cuda_tensor_as_launch_argument(wp, cuda, torch, rng):
+    """A Torch CUDA tensor passed to wp.launch: moved into weft memory once (the tensor is
+    re-pointed where IPC works; a copy written back where it does not), writes seen by Torch."""
+    _torch_cuda(torch)
+    values = rng.standard_normal(5000).astype(np.float32)
+    t = torch.tensor(values, device="cuda")
+    total = wp.zeros(1, dtype=float, device=cuda)
+    wp.launch(scale_sum, dim=t.shape[0], inputs=[t, 2.0, total], device=cuda)
+    np.testing.assert_allclose(t.cpu().numpy(), values * 2.0, rtol=1e-6)
+    t.add_(1.0)                       # Torch work before the next launch is visible to it
+    total.zero_()
+    wp.launch(scale_sum, dim=t.shape[0], inputs=[t, 3.0, total], device=cuda)
+    ref = (values.astype(np.float64) * 2.0 + 1.0) * 3.0
+    np.testing.assert_allclose(t.cpu().numpy(), ref, rtol=1e-5)
+    np.testing.assert_allclose(total.numpy()[0], ref.sum(), rtol=1e-4, atol=1e-2)
+    a = wp.from_torch(t)
+    if a.ptr is not None:
+        assert a.ptr == t.data_ptr()  # moved: zero-copy from now on
+    print("path:", "moved into weft memory" if a.ptr == t.data_ptr() else "copy")
+
+
+def test_cupy_array_as_launch_argument_and_from_dlpack(wp, cuda, rng):
+    cp = pytest.importorskip("cupy", reason="CuPy is not installed")
+    values = rng.standard_normal(777).astype(np.float32)
+    c = cp.asarray(values)
+    total = wp.zeros(1, dtype=float, device=cuda)
+    wp.launch(scale_sum, dim=c.size, inputs=[c, 0.5, total], device=cuda)
+    np.testing.assert_allclose(cp.asnumpy(c), values * 0.5, rtol=1e-6)   # copied back
+    np.testing.assert_allclose(total.numpy()[0], (values.astype(np.float64) * 0.5).sum(),
+                               rtol=1e-4, atol=1e-3)
+    a = wp.from_dlpack(c)
+    assert a.device == cuda
+    np.testing.assert_array_equal(a.numpy(), cp.asnumpy(c))
+    strided = cp.asarray(rng.standard_normal((40, 6)).astype(np.float32))[:, ::2]
+    wp.launch(add_one, dim=1, inputs=[cp.zeros(1, dtype=cp.float32)], device=cuda)
+    b = wp.from_dlpack(strided)
+    np.testing.assert_array_equal(b.numpy(), cp.asnumpy(strided))
+
+
+def test_reused_framework_block_is_never_read_stale(wp, cuda, torch):
+    """A framework block freed and handed out again (Torch's caching allocator reuses it at
+    once): every launch reads the memory as it is then, never an old mapping's view."""
+    _torch_cuda(torch)
+    total = wp.zeros(1, dtype=float, device=cuda)
+    base = torch.zeros(2 * 4096, device="cuda")
+    seen = set()
+    for k in range(1, 6):
+        block = torch.full((4096,), float(k), device="cuda")
+        view = block[:]               # a view: copied in and back, never moved
+        seen.add(view.data_ptr())
+        total.zero_()
+        wp.launch(scale_sum, dim=4096, inputs=[view, 1.0, total], device=cuda)
+        assert total.numpy()[0] == pytest.approx(4096.0 * k)
+        del view, block               # the block goes back to Torch's cache
+    print(f"distinct block addresses over 5 rounds: {len(seen)}")
+    del base
+
+
+def test_gpu_device_mismatch_is_a_clear_error(wp, cuda, torch):
+    _torch_cuda(torch)
+    from weft.interop import cuda_import, external
+
+    t = torch.zeros(4, device="cuda:0")
+    with pytest.raises(external.InteropError, match="lives on cuda:0 but the target is cuda:1"):
+        cuda_import.copy_in(t, None, "cuda:1", "x")
+    with pytest.raises(Exception, match="launched on cpu"):
+        wp.launch(add_one, dim=4, inputs=[t], device="cpu")

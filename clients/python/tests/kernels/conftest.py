@@ -23,9 +23,22 @@ def rng(request):
     return np.random.default_rng(seed)
 
 
-@pytest.fixture
-def device(wp):
-    return "cpu"
+TEST_DEVICES = [d.strip() for d in os.environ.get("WEFT_TEST_DEVICES", "cpu,cuda:0").split(",")
+                if d.strip()]
+
+
+@pytest.fixture(params=TEST_DEVICES, autouse=True)
+def device(request, wp):
+    """The device of every kernel test: each runs on `cpu` and on `cuda:0` as the default
+    device (skipped with the reason when the daemon has no GPU it can run kernels on); tests
+    that name a device keep it. WEFT_TEST_DEVICES narrows the list (e.g. "cpu")."""
+    name = request.param
+    if name.startswith("cuda"):
+        if not any(d.is_cuda and d.is_compute_supported and d.alias == name
+                   for d in wp.get_cuda_devices()):
+            pytest.skip(f"weftd has no CUDA device {name} it can run kernels on")
+    with wp.ScopedDevice(name):
+        yield name
 
 
 @pytest.fixture

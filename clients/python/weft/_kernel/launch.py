@@ -235,7 +235,8 @@ class ArgPacker:
                              f"{desc.elem.text}: {err}")
         self.temps.append(temp)
         if copy_back is not None:
-            self.copy_backs.append(_PendingCopyBack(copy_back, temp))
+            self.copy_backs.append(copy_back if hasattr(copy_back, "apply")
+                                   else _PendingCopyBack(copy_back, temp))
         return temp
 
 
@@ -616,6 +617,9 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
                                     args=packed, adjoint=bool(adjoint), adj_args=adj_packed,
                                     device=device),
             origin=caller_origin())
+    if device.startswith("cuda") and _interop_memory.any_shared() and \
+            _interop_memory.touches_shared(resolved):
+        _sync_framework_gpu(resolved)  # framework work on shared GPU memory is done first
     rt.submit(command)
     if pause:
         tape.resume_recording()
@@ -631,6 +635,20 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     if _config.verify_fp:
         verify_finite(kernel, resolved, command.origin)
     return None
+
+
+def _sync_framework_gpu(values) -> None:
+    """Waits for this process's own GPU work (Torch, CuPy, ... streams) on the devices of
+    the shared weft GPU arrays among `values`, so a launch in the daemon sees its writes."""
+    from weft import _cuda_ipc  # noqa: PLC0415
+
+    ordinals = set()
+    for value in values:
+        device = getattr(value, "device", None)
+        if device is not None and getattr(device, "is_cuda", False):
+            ordinals.add(int(device.ordinal))
+    for ordinal in ordinals:
+        _cuda_ipc.synchronize(ordinal)
 
 
 def verify_finite(kernel: Kernel, args, origin) -> None:

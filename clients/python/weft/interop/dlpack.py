@@ -166,7 +166,18 @@ def from_dlpack(source, dtype=None):
         out, _ = external.weft_array(view, dtype=dtype, device="cpu", what="wp.from_dlpack")
         return out
     if kind == _KDL_CUDA:
-        raise external.InteropError(
-            f"wp.from_dlpack: importing CUDA memory (device cuda:{ordinal}) of another "
-            f"framework needs CUDA IPC import, which this client does not have yet")
+        # weft memory (a round trip) is used in place; other GPU memory is copied into a
+        # weft array (cuda_import.py; Torch tensors are moved into weft memory instead)
+        from . import cuda_import  # noqa: PLC0415
+
+        if external.is_torch_tensor(source):
+            out, _ = cuda_import.adopt_torch(source, dtype, f"cuda:{ordinal}", "wp.from_dlpack")
+            return out
+        if hasattr(source, "__cuda_array_interface__"):
+            found = external.find_cuda_in_place(source, dtype, f"cuda:{ordinal}",
+                                                "wp.from_dlpack")
+            if found is not None:
+                return found
+        out, _ = cuda_import.copy_in(source, dtype, f"cuda:{ordinal}", "wp.from_dlpack")
+        return out
     raise external.InteropError(f"wp.from_dlpack: unsupported DLPack device type {kind}")

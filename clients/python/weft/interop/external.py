@@ -303,13 +303,24 @@ def launch_array(value, dtype, device: str, what: str):
         if not device.startswith("cuda"):
             raise InteropError(f"{what}: the array lives on {source_device} but the kernel is "
                                f"launched on {device}")
+        if device == "cuda":
+            from ..device import get_device  # noqa: PLC0415
+
+            device = get_device("cuda").alias
         found = find_cuda_in_place(value, dtype, device, what)
         if found is not None:
             return found, None
-        raise InteropError(f"{what}: GPU framework arrays as launch arguments need CUDA IPC "
-                           f"import into weftd, which is not built yet; only GPU memory that "
-                           f"is already weft's (wp.to_torch / DLPack of a weft array) is "
-                           f"accepted")
+        # not weft memory: a copy into a weft array, written back after the launch
+        # (cuda_import.py; a Torch tensor is moved into weft memory once instead)
+        from . import cuda_import  # noqa: PLC0415
+
+        if is_torch_tensor(value):
+            temp, src = cuda_import.adopt_torch(value, dtype, device, what)
+        else:
+            temp, src = cuda_import.copy_in(value, dtype, device, what, cast_ok=True)
+        if src is None:
+            return temp, None
+        return temp, cuda_import.CopyBack(src, temp)
     if not device.startswith("cpu"):
         raise InteropError(f"{what}: the array lives on the CPU but the kernel is launched on "
                            f"{device}; copy it with wp.array(..., device={device!r})")

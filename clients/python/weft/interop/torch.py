@@ -102,13 +102,6 @@ def _check_tensor(t, what):
         raise TypeError(f"{what} expects a torch.Tensor, got {type(t).__name__}")
 
 
-def _cuda_unavailable(what, t):
-    return external.InteropError(
-        f"{what}: the tensor lives on {t.device} in this process's memory; importing it needs "
-        f"CUDA IPC import into weftd, which is not built yet (tensors made by wp.to_torch of a "
-        f"weft GPU array are accepted)")
-
-
 def _adopt_tensor(t, dtype, what, requires_grad=False):
     """A weft array over `t`'s memory: in place when it is a weft slab, else after moving the
     tensor's storage into a new slab (created with a daemon-side gradient when
@@ -185,9 +178,11 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
     what = "wp.from_torch"
     _check_tensor(t, what)
     if t.device.type == "cuda":
-        a = external.find_cuda_in_place(t, dtype, f"cuda:{t.device.index or 0}", what)
-        if a is None:
-            raise _cuda_unavailable(what, t)
+        from . import cuda_import  # noqa: PLC0415
+
+        # in place, or moved into weft memory (t re-pointed); a copy (a snapshot later
+        # Torch writes do not reach) only for views and where IPC is unavailable
+        a, _ = cuda_import.adopt_torch(t, dtype, f"cuda:{t.device.index or 0}", what)
         if requires_grad if requires_grad is not None else t.requires_grad:
             ga = memory.grad_view(a)
             if ga is not None:

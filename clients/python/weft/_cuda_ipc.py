@@ -1,0 +1,299 @@
+"""The client's CUDA driver access: libcuda through ctypes, CUDA IPC mappings of the daemon's
+GPU slabs, and the few driver calls the client makes itself (copies through a mapping,
+context synchronization, pointer queries).
+
+weftd exports every GPU slab once with a legacy CUDA IPC handle (docs/cuda.md); ArrayInfo of a
+local session carries it (cuda_ipc_handle, cuda_ipc_offset, cuda_slab_size, cuda_slab_id). This
+module opens each slab once per process with cuIpcOpenMemHandle in the device's primary context
+(the context Torch, CuPy and JAX use, so their kernels can use the pointer), keeps the mapping
+while arrays of this process use the slab plus a few idle ones (slab ids are never reused, so an
+idle mapping is never handed out for other memory), and closes every mapping at exit.
+
+Nothing here is required: without a driver (or with WEFT_CUDA_IPC=0, or when the sandbox
+refuses IPC), `available()` is False, `reason()` says why, and the array layer falls back to
+copies through the daemon (ArrayService.Read/Write).
+"""
+from __future__ import annotations
+
+import atexit
+import collections
+import ctypes
+import os
+import threading
+
+CU_IPC_MEM_LAZY_ENABLE_PEER_ACCESS = 1
+CU_POINTER_ATTRIBUTE_CONTEXT = 1
+CU_POINTER_ATTRIBUTE_MEMORY_TYPE = 2
+CU_POINTER_ATTRIBUTE_DEVICE_ORDINAL = 9
+CU_MEMORYTYPE_DEVICE = 2
+CU_EVENT_DEFAULT = 0
+CU_EVENT_DISABLE_TIMING = 2
+IDLE_MAPPINGS_KEPT = 16          # mappings with no live array kept open (reopening costs)
+
+_lock = threading.RLock()
+_lib = None
+_reason = None                   # why IPC is off (None: not tried yet / on)
+_contexts: dict = {}             # ordinal -> primary context (retained)
+_mappings: dict = {}             # slab id -> _Mapping
+_idle = collections.OrderedDict()  # slab id -> None, least recently idle first
+_stats = {"opened": 0, "closed": 0, "open_failures": 0}
+
+
+class CudaError(RuntimeError):
+    """A CUDA driver call the client made failed."""
+
+
+class _IpcHandle(ctypes.Structure):
+    _fields_ = [("reserved", ctypes.c_char * 64)]
+
+
+def _load():
+    """Loads libcuda and initialises it once; sets _reason when it cannot be used."""
+    global _lib, _reason
+    if _lib is not None or _reason is not None:
+        return _lib
+    if os.environ.get("WEFT_CUDA_IPC", "1") == "0":
+        _reason = "WEFT_CUDA_IPC=0"
+        return None
+    try:
+        lib = ctypes.CDLL("libcuda.so.1")
+    except OSError as err:
+        _reason = f"no CUDA driver in this process ({err})"
+        return None
+    u = ctypes.c_uint
+    vp = ctypes.c_void_p
+    sz = ctypes.c_size_t
+    p = ctypes.POINTER
+    signatures = {
+        "cuInit": [u],
+        "cuDeviceGet": [p(ctypes.c_int), ctypes.c_int],
+        "cuDevicePrimaryCtxRetain": [p(vp), ctypes.c_int],
+        "cuDevicePrimaryCtxRelease_v2": [ctypes.c_int],
+        "cuCtxPushCurrent_v2": [vp],
+        "cuCtxPopCurrent_v2": [p(vp)],
+        "cuCtxSynchronize": [],
+        "cuIpcOpenMemHandle_v2": [p(ctypes.c_uint64), _IpcHandle, u],
+        "cuIpcCloseMemHandle": [ctypes.c_uint64],
+        "cuMemcpyDtoH_v2": [vp, ctypes.c_uint64, sz],
+        "cuMemcpyHtoD_v2": [ctypes.c_uint64, vp, sz],
+        "cuMemcpyDtoD_v2": [ctypes.c_uint64, ctypes.c_uint64, sz],
+        "cuMemcpy2D_v2": [vp],
+        "cuPointerGetAttribute": [vp, ctypes.c_int, ctypes.c_uint64],
+        "cuEventCreate": [p(vp), u],
+        "cuEventDestroy_v2": [vp],
+        "cuEventRecord": [vp, vp],
+        "cuEventSynchronize": [vp],
+        "cuEventElapsedTime": [p(ctypes.c_float), vp, vp],
+        "cuGetErrorName": [ctypes.c_int, p(ctypes.c_char_p)],
+    }
+    try:
+        for name, args in signatures.items():
+            fn = getattr(lib, name)
+            fn.argtypes = args
+            fn.restype = ctypes.c_int
+    except AttributeError as err:
+        _reason = f"libcuda lacks {err}"
+        return None
+    rc = lib.cuInit(0)
+    if rc != 0:
+        _reason = f"cuInit failed ({_name(lib, rc)})"
+        return None
+    _lib = lib
+    return lib
+
+
+def _name(lib, rc) -> str:
+    out = ctypes.c_char_p()
+    if lib.cuGetErrorName(rc, ctypes.byref(out)) == 0 and out.value:
+        return out.value.decode()
+    return f"CUresult {rc}"
+
+
+def _check(rc, what):
+    if rc != 0:
+        raise CudaError(f"{what}: {_name(_lib, rc)}")
+
+
+def available() -> bool:
+    """Whether this process can use the CUDA driver (IPC mappings may still fail per slab;
+    see reason())."""
+    with _lock:
+        return _load() is not None and _reason is None
+
+
+def reason() -> str:
+    """'' when CUDA IPC works here, else why the client copies instead."""
+    with _lock:
+        _load()
+        return _reason or ""
+
+
+def disable(why: str) -> None:
+    """Turns IPC off for this process (a sandbox that refuses it); later calls copy."""
+    global _reason
+    with _lock:
+        _reason = why
+
+
+def stats() -> dict:
+    with _lock:
+        return dict(_stats, open=len(_mappings), idle=len(_idle))
+
+
+def _context(ordinal: int):
+    ctx = _contexts.get(ordinal)
+    if ctx is None:
+        dev = ctypes.c_int()
+        _check(_lib.cuDeviceGet(ctypes.byref(dev), int(ordinal)), f"cuDeviceGet({ordinal})")
+        handle = ctypes.c_void_p()
+        _check(_lib.cuDevicePrimaryCtxRetain(ctypes.byref(handle), dev),
+               "cuDevicePrimaryCtxRetain")
+        ctx = _contexts[ordinal] = handle
+    return ctx
+
+
+class _Scope:
+    """The device's primary context made current for a few driver calls."""
+
+    def __init__(self, ordinal: int):
+        self.ordinal = ordinal
+
+    def __enter__(self):
+        _check(_lib.cuCtxPushCurrent_v2(_context(self.ordinal)), "cuCtxPushCurrent")
+        return self
+
+    def __exit__(self, *exc):
+        popped = ctypes.c_void_p()
+        _lib.cuCtxPopCurrent_v2(ctypes.byref(popped))
+
+
+class _Mapping:
+    __slots__ = ("slab_id", "ordinal", "base", "size", "users")
+
+    def __init__(self, slab_id, ordinal, base, size):
+        self.slab_id = slab_id
+        self.ordinal = ordinal
+        self.base = base
+        self.size = size
+        self.users = 0
+
+
+def _close(mapping) -> None:
+    try:
+        with _Scope(mapping.ordinal):
+            _lib.cuIpcCloseMemHandle(ctypes.c_uint64(mapping.base))
+        _stats["closed"] += 1
+    except CudaError:
+        pass
+
+
+def slab_address(info, ordinal: int):
+    """The device address of the slab of GPU ArrayInfo `info` in this process (its IPC
+    mapping, opened on first use), or None when IPC is unavailable for it. The caller pairs a
+    successful call with release(info) when its allocation goes away."""
+    handle = bytes(info.cuda_ipc_handle)
+    if len(handle) != 64 or not info.cuda_slab_size:
+        return None
+    with _lock:
+        if _load() is None or _reason is not None:
+            return None
+        slab_id = int(info.cuda_slab_id)
+        mapping = _mappings.get(slab_id)
+        if mapping is None:
+            raw = _IpcHandle()
+            ctypes.memmove(ctypes.addressof(raw), handle, 64)
+            ptr = ctypes.c_uint64()
+            try:
+                with _Scope(ordinal):
+                    rc = _lib.cuIpcOpenMemHandle_v2(ctypes.byref(ptr), raw,
+                                                    CU_IPC_MEM_LAZY_ENABLE_PEER_ACCESS)
+            except CudaError as err:
+                disable(f"no usable CUDA context here ({err})")
+                return None
+            if rc != 0:
+                _stats["open_failures"] += 1
+                # A sandbox refusing IPC fails every open the same way: turn it off once.
+                disable(f"cuIpcOpenMemHandle failed ({_name(_lib, rc)})")
+                return None
+            mapping = _mappings[slab_id] = _Mapping(slab_id, ordinal, int(ptr.value),
+                                                   int(info.cuda_slab_size))
+            _stats["opened"] += 1
+        mapping.users += 1
+        _idle.pop(slab_id, None)
+        return mapping.base
+
+
+def release(slab_id: int) -> None:
+    """An allocation of slab `slab_id` that used its mapping (slab_address) went away."""
+    with _lock:
+        mapping = _mappings.get(int(slab_id))
+        if mapping is None or mapping.users <= 0:
+            return
+        mapping.users -= 1
+        if mapping.users:
+            return
+        _idle[mapping.slab_id] = None
+        while len(_idle) > IDLE_MAPPINGS_KEPT:
+            slab_id, _ = _idle.popitem(last=False)
+            old = _mappings.pop(slab_id, None)
+            if old is not None:
+                _close(old)
+
+
+def copy_to_host(ordinal: int, dst_address: int, src_device: int, nbytes: int) -> None:
+    with _lock, _Scope(ordinal):
+        _check(_lib.cuMemcpyDtoH_v2(ctypes.c_void_p(dst_address), ctypes.c_uint64(src_device),
+                                    nbytes), "cuMemcpyDtoH")
+
+
+def copy_from_host(ordinal: int, dst_device: int, src_address: int, nbytes: int) -> None:
+    """Host -> device, finished (visible to other processes) when it returns."""
+    with _lock, _Scope(ordinal):
+        _check(_lib.cuMemcpyHtoD_v2(ctypes.c_uint64(dst_device), ctypes.c_void_p(src_address),
+                                    nbytes), "cuMemcpyHtoD")
+        _check(_lib.cuCtxSynchronize(), "cuCtxSynchronize")
+
+
+def copy_device(ordinal: int, dst_device: int, src_device: int, nbytes: int) -> None:
+    """Device -> device in this process's context, finished when it returns."""
+    with _lock, _Scope(ordinal):
+        _check(_lib.cuMemcpyDtoD_v2(ctypes.c_uint64(dst_device), ctypes.c_uint64(src_device),
+                                    nbytes), "cuMemcpyDtoD")
+        _check(_lib.cuCtxSynchronize(), "cuCtxSynchronize")
+
+
+def synchronize(ordinal: int) -> None:
+    """Waits for every stream of this process on the device (Torch's, CuPy's, ...)."""
+    with _lock:
+        if _load() is None:
+            return
+        with _Scope(ordinal):
+            _check(_lib.cuCtxSynchronize(), "cuCtxSynchronize")
+
+
+def pointer_device(address: int):
+    """The CUDA device ordinal of a device pointer of this process, or None (host memory, or
+    no driver)."""
+    with _lock:
+        if _load() is None:
+            return None
+        kind = ctypes.c_uint()
+        if _lib.cuPointerGetAttribute(ctypes.byref(kind), CU_POINTER_ATTRIBUTE_MEMORY_TYPE,
+                                      ctypes.c_uint64(address)) != 0:
+            return None
+        ordinal = ctypes.c_int()
+        if _lib.cuPointerGetAttribute(ctypes.byref(ordinal), CU_POINTER_ATTRIBUTE_DEVICE_ORDINAL,
+                                      ctypes.c_uint64(address)) != 0:
+            return None
+        return int(ordinal.value)
+
+
+@atexit.register
+def _close_all() -> None:
+    with _lock:
+        if _lib is None:
+            return
+        for mapping in list(_mappings.values()):
+            _close(mapping)
+        _mappings.clear()
+        _idle.clear()

@@ -1,0 +1,115 @@
+"""DLPack capsules over weft GPU arrays (kDLCUDA), made with ctypes.
+
+The capsule's data pointer is the array's address in this process's CUDA IPC mapping of the
+daemon's slab (weft._cuda_ipc), so the consumer (Torch, CuPy, JAX) reads and writes the
+daemon's memory without a copy. The managed tensor keeps the array's allocation (and so the
+mapping) alive until the consumer calls its deleter; a capsule dropped unconsumed runs the
+deleter itself. Legacy ("dltensor") capsules only: every consumer of the Python array API
+accepts them.
+"""
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+KDL_CUDA = 2
+_KDL_INT, _KDL_UINT, _KDL_FLOAT, _KDL_BOOL = 0, 1, 2, 6
+
+
+class DLDevice(ctypes.Structure):
+    _fields_ = [("device_type", ctypes.c_int32), ("device_id", ctypes.c_int32)]
+
+
+class DLDataType(ctypes.Structure):
+    _fields_ = [("code", ctypes.c_uint8), ("bits", ctypes.c_uint8), ("lanes", ctypes.c_uint16)]
+
+
+class DLTensor(ctypes.Structure):
+    _fields_ = [("data", ctypes.c_void_p), ("device", DLDevice), ("ndim", ctypes.c_int32),
+                ("dtype", DLDataType), ("shape", ctypes.POINTER(ctypes.c_int64)),
+                ("strides", ctypes.POINTER(ctypes.c_int64)), ("byte_offset", ctypes.c_uint64)]
+
+
+class DLManagedTensor(ctypes.Structure):
+    pass
+
+
+_DELETER = ctypes.CFUNCTYPE(None, ctypes.POINTER(DLManagedTensor))
+DLManagedTensor._fields_ = [("dl_tensor", DLTensor), ("manager_ctx", ctypes.c_void_p),
+                            ("deleter", _DELETER)]
+
+_CAPSULE_DESTRUCTOR = ctypes.CFUNCTYPE(None, ctypes.c_void_p)
+_PyCapsule_New = ctypes.pythonapi.PyCapsule_New
+_PyCapsule_New.restype = ctypes.py_object
+_PyCapsule_New.argtypes = [ctypes.c_void_p, ctypes.c_char_p, _CAPSULE_DESTRUCTOR]
+_PyCapsule_IsValid = ctypes.pythonapi.PyCapsule_IsValid
+_PyCapsule_IsValid.restype = ctypes.c_int
+_PyCapsule_IsValid.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
+_PyCapsule_GetPointer = ctypes.pythonapi.PyCapsule_GetPointer
+_PyCapsule_GetPointer.restype = ctypes.c_void_p
+_PyCapsule_GetPointer.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
+
+_live: dict = {}        # managed tensor address -> (struct, shape/strides buffers, keep-alive)
+
+
+@_DELETER
+def _deleter(managed):
+    _live.pop(ctypes.addressof(managed.contents), None)
+
+
+@_CAPSULE_DESTRUCTOR
+def _capsule_destructor(capsule):
+    # An unconsumed capsule (still named "dltensor") owns its tensor; a consumer renames it.
+    if _PyCapsule_IsValid(capsule, b"dltensor"):
+        address = _PyCapsule_GetPointer(capsule, b"dltensor")
+        _live.pop(address, None)
+
+
+def dl_dtype(np_dtype: np.dtype) -> DLDataType:
+    kind = np_dtype.kind
+    code = {"i": _KDL_INT, "u": _KDL_UINT, "f": _KDL_FLOAT, "b": _KDL_BOOL}.get(kind)
+    if code is None:
+        raise BufferError(f"DLPack cannot describe elements of dtype {np_dtype}")
+    return DLDataType(code, np_dtype.itemsize * 8, 1)
+
+
+def to_capsule(a):
+    """A "dltensor" capsule over GPU array `a` in this process's IPC mapping (BufferError
+    when the mapping is not available: no CUDA driver here, or IPC refused)."""
+    from ._cuda_ipc import reason  # noqa: PLC0415
+    from .array import _elem_layout  # noqa: PLC0415
+
+    ptr = a.ptr
+    if ptr is None:
+        raise BufferError(f"DLPack export of {a.device} memory needs CUDA IPC in this client "
+                          f"({reason() or 'not a local session'}); use a.numpy() for a copy")
+    np_dtype, inner = _elem_layout(a.dtype)
+    if np_dtype.fields is not None:
+        raise BufferError(f"DLPack cannot describe arrays of struct elements ({a.dtype})")
+    itemsize = np_dtype.itemsize
+    shape = tuple(a.shape) + tuple(inner)
+    inner_strides = []
+    step = 1
+    for n in reversed(inner):
+        inner_strides.append(step)
+        step *= n
+    strides = tuple(s // itemsize for s in a.strides) + tuple(reversed(inner_strides))
+    if any(s % itemsize for s in a.strides):
+        raise BufferError("strides that are not a multiple of the element size")
+    ndim = len(shape)
+    shape_buf = (ctypes.c_int64 * ndim)(*shape)
+    strides_buf = (ctypes.c_int64 * ndim)(*strides)
+    managed = DLManagedTensor()
+    managed.dl_tensor.data = ctypes.c_void_p(int(ptr))
+    managed.dl_tensor.device = DLDevice(KDL_CUDA, int(a.device.ordinal))
+    managed.dl_tensor.ndim = ndim
+    managed.dl_tensor.dtype = dl_dtype(np_dtype)
+    managed.dl_tensor.shape = shape_buf
+    managed.dl_tensor.strides = strides_buf
+    managed.dl_tensor.byte_offset = 0
+    managed.manager_ctx = None
+    managed.deleter = _deleter
+    address = ctypes.addressof(managed)
+    _live[address] = (managed, shape_buf, strides_buf, a._alloc)
+    return _PyCapsule_New(address, b"dltensor", _capsule_destructor)

@@ -1,0 +1,248 @@
+"""Framework GPU memory into weft: a Torch/CuPy/JAX (or any `__cuda_array_interface__` or
+CUDA DLPack) array of this process used by a weft launch or wp.from_torch/from_dlpack.
+
+The daemon does not open this process's CUDA allocations (docs/interop.md, "GPU memory of a
+framework"): the data is copied into a weft GPU array (a device-to-device copy through this
+process's IPC mapping of the weft slab; through the host where IPC is not available), and for
+launches copied back after the kernel ran. Because nothing in the daemon ever maps framework
+memory, a block the framework frees and hands out again can never be read through a stale
+mapping: every use copies from the address as it is at that moment.
+
+Torch tensors that own their storage are moved instead, as on the CPU: the tensor is
+re-pointed at the weft array's memory (`t.data = ...`, one copy), so from then on both sides
+share it and later launches and from_torch calls are zero-copy.
+"""
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+from .. import _cuda_ipc
+from . import external, memory
+
+_KDL_CUDA = 2
+
+
+class _Source:
+    """Pointer, layout and device of a foreign GPU array, and what keeps it alive."""
+
+    def __init__(self, ptr, np_dtype, shape, strides, keep, ordinal):
+        self.ptr = int(ptr)
+        self.np_dtype = np.dtype(np_dtype)
+        self.shape = tuple(int(s) for s in shape)
+        if strides is None:
+            strides, step = [], self.np_dtype.itemsize
+            for n in reversed(self.shape):
+                strides.append(step)
+                step *= max(n, 1)
+            strides = tuple(reversed(strides))
+        self.strides = tuple(int(s) for s in strides)
+        self.keep = keep
+        self.ordinal = ordinal
+
+    @property
+    def contiguous(self) -> bool:
+        step = self.np_dtype.itemsize
+        for n, s in zip(reversed(self.shape), reversed(self.strides)):
+            if n > 1 and s != step:
+                return False
+            step *= n
+        return True
+
+    @property
+    def nbytes(self) -> int:
+        return int(np.prod(self.shape, dtype=np.int64)) * self.np_dtype.itemsize
+
+
+def _from_interface(obj, what) -> _Source:
+    iface = external.cuda_interface(obj)
+    if iface.get("mask") is not None:
+        raise external.InteropError(f"{what}: masked CUDA arrays are not supported")
+    ptr = int(iface["data"][0])
+    ordinal = None
+    if external.is_torch_tensor(obj):
+        ordinal = obj.device.index if obj.device.index is not None else 0
+    elif ptr:
+        ordinal = _cuda_ipc.pointer_device(ptr)
+    return _Source(ptr, iface["typestr"], iface["shape"], iface.get("strides"), obj, ordinal)
+
+
+class _DLTensorView(ctypes.Structure):
+    _fields_ = [("data", ctypes.c_void_p), ("device_type", ctypes.c_int32),
+                ("device_id", ctypes.c_int32), ("ndim", ctypes.c_int32),
+                ("code", ctypes.c_uint8), ("bits", ctypes.c_uint8), ("lanes", ctypes.c_uint16),
+                ("shape", ctypes.POINTER(ctypes.c_int64)),
+                ("strides", ctypes.POINTER(ctypes.c_int64)), ("byte_offset", ctypes.c_uint64)]
+
+
+_DL_CODES = {0: "i", 1: "u", 2: "f", 6: "b"}
+
+
+class _Capsule:
+    """A consumed "dltensor" capsule: calls the producer's deleter when collected."""
+
+    def __init__(self, capsule):
+        get = ctypes.pythonapi.PyCapsule_GetPointer
+        get.restype = ctypes.c_void_p
+        get.argtypes = [ctypes.py_object, ctypes.c_char_p]
+        self.address = get(capsule, b"dltensor")
+        rename = ctypes.pythonapi.PyCapsule_SetName
+        rename.restype = ctypes.c_int
+        rename.argtypes = [ctypes.py_object, ctypes.c_char_p]
+        rename(capsule, b"used_dltensor")
+        self.tensor = _DLTensorView.from_address(self.address)
+
+    def __del__(self):
+        # DLManagedTensor: DLTensor (48 bytes on 64-bit), manager_ctx, deleter
+        deleter_at = self.address + ctypes.sizeof(_DLTensorView) + ctypes.sizeof(ctypes.c_void_p)
+        deleter = ctypes.c_void_p.from_address(deleter_at).value
+        if deleter:
+            ctypes.CFUNCTYPE(None, ctypes.c_void_p)(deleter)(self.address)
+
+
+def _from_dlpack(source, what) -> _Source:
+    try:
+        capsule = source.__dlpack__(stream=None)
+    except TypeError:
+        capsule = source.__dlpack__()
+    if type(capsule).__name__ != "PyCapsule":
+        raise external.InteropError(f"{what}: __dlpack__ did not return a capsule")
+    try:
+        held = _Capsule(capsule)
+    except (ValueError, SystemError):
+        raise external.InteropError(f"{what}: only legacy ('dltensor') CUDA capsules are "
+                                    f"imported") from None
+    t = held.tensor
+    if t.device_type != _KDL_CUDA:
+        raise external.InteropError(f"{what}: DLPack device type {t.device_type} is not CUDA")
+    kind = _DL_CODES.get(int(t.code))
+    if kind is None or t.lanes != 1:
+        raise external.InteropError(f"{what}: unsupported DLPack dtype (code {t.code}, "
+                                    f"{t.bits} bits, {t.lanes} lanes)")
+    np_dtype = np.dtype("?") if kind == "b" else np.dtype(f"{kind}{t.bits // 8}")
+    shape = [int(t.shape[i]) for i in range(t.ndim)]
+    strides = ([int(t.strides[i]) * np_dtype.itemsize for i in range(t.ndim)]
+               if t.strides else None)
+    return _Source(int(t.data or 0) + int(t.byte_offset), np_dtype, shape, strides, held,
+                   int(t.device_id))
+
+
+def source_of(obj, what) -> _Source:
+    """The GPU memory of a foreign array (CUDA Array Interface first, then DLPack)."""
+    if hasattr(obj, "__cuda_array_interface__") or external.is_torch_tensor(obj):
+        return _from_interface(obj, what)
+    if hasattr(obj, "__dlpack__"):
+        return _from_dlpack(obj, what)
+    raise external.InteropError(f"{what}: {type(obj).__name__} has neither "
+                                f"__cuda_array_interface__ nor __dlpack__")
+
+
+def _check_device(src: _Source, device: str, what: str) -> int:
+    ordinal = int(device.split(":")[1]) if ":" in device else 0
+    if src.ordinal is not None and int(src.ordinal) != ordinal:
+        raise external.InteropError(f"{what}: the array lives on cuda:{src.ordinal} but the "
+                                    f"target is cuda:{ordinal}")
+    return ordinal
+
+
+def _host_copy(src: _Source, ordinal: int) -> np.ndarray:
+    """The source's elements in host memory (through the driver, after the framework's work
+    on the device finished)."""
+    low = sum(min(0, (n - 1) * s) for n, s in zip(src.shape, src.strides) if n > 0)
+    high = sum(max(0, (n - 1) * s) for n, s in zip(src.shape, src.strides) if n > 0)
+    span = high - low + src.np_dtype.itemsize if src.nbytes else 0
+    raw = np.empty(max(span, 0), dtype=np.uint8)
+    if span:
+        if not _cuda_ipc.available() and _cuda_ipc._load() is None:
+            raise external.InteropError("reading framework GPU memory needs the CUDA driver in "
+                                        f"this process ({_cuda_ipc.reason()})")
+        _cuda_ipc.synchronize(ordinal)
+        _cuda_ipc.copy_to_host(ordinal, raw.ctypes.data, src.ptr + low, span)
+    if not src.nbytes:
+        return np.empty(src.shape, dtype=src.np_dtype)
+    return np.ndarray(src.shape, dtype=src.np_dtype, buffer=raw, offset=-low,
+                      strides=src.strides)
+
+
+def copy_in(obj, dtype, device: str, what: str, requires_grad=False, cast_ok=False):
+    """(weft GPU array holding a copy of `obj`, _Source). Device-to-device through the IPC
+    mapping when there is one, else through the host."""
+    from ..array import array, empty  # noqa: PLC0415
+
+    src = source_of(obj, what)
+    ordinal = _check_device(src, device, what)
+    fake = np.lib.stride_tricks.as_strided(np.zeros(1, dtype=src.np_dtype), shape=src.shape,
+                                           strides=src.strides, writeable=False)
+    wdtype, shape, strides = external.resolve_layout(fake, dtype, what, cast_ok=cast_ok)
+    same_scalar = external._scalar_compatible(src.np_dtype, wdtype._wp_scalar_type_)
+    out = empty(shape, dtype=wdtype, device=f"cuda:{ordinal}", requires_grad=requires_grad)
+    if out.size == 0:
+        return out, src
+    target = out.ptr if same_scalar and src.contiguous else None
+    if target is not None:
+        out._alloc.runtime.synchronize_if_needed()
+        _cuda_ipc.synchronize(ordinal)           # the framework's writes are done
+        _cuda_ipc.copy_device(ordinal, target, src.ptr, src.nbytes)
+        return out, src
+    host = _host_copy(src, ordinal)
+    np_target = np.dtype(wdtype._wp_scalar_type_._np_dtype_)
+    host = np.ascontiguousarray(host)
+    host = host.view(np_target) if same_scalar else host.astype(np_target)
+    out.assign(host.reshape(tuple(shape) + tuple(wdtype._shape_)))
+    return out, src
+
+
+class CopyBack:
+    """After a launch: the weft temporary's contents written back into the framework array."""
+
+    def __init__(self, src: _Source, temp):
+        self.src = src
+        self.temp = temp
+
+    def apply(self) -> None:
+        src, temp = self.src, self.temp
+        ordinal = int(temp.device.ordinal)
+        same = external._scalar_compatible(src.np_dtype, temp.dtype._wp_scalar_type_)
+        if same and src.contiguous and temp.ptr is not None:
+            _cuda_ipc.copy_device(ordinal, src.ptr, temp.ptr, src.nbytes)
+            return
+        values = np.asarray(temp.numpy())
+        host = np.ascontiguousarray(values.reshape(src.shape).astype(src.np_dtype, copy=False))
+        if src.contiguous:
+            _cuda_ipc.copy_from_host(ordinal, src.ptr, host.ctypes.data, host.nbytes)
+            return
+        # a strided framework array: element rows through the host, one copy per element
+        itemsize = src.np_dtype.itemsize
+        flat = host.reshape(-1)
+        for k, index in enumerate(np.ndindex(*src.shape)):
+            offset = sum(i * s for i, s in zip(index, src.strides))
+            _cuda_ipc.copy_from_host(ordinal, src.ptr + offset,
+                                     flat[k:k + 1].ctypes.data, itemsize)
+
+
+def adopt_torch(t, dtype, device: str, what: str, requires_grad=False):
+    """A weft GPU array for CUDA tensor `t`: in place when its memory is weft's, else a copy
+    into a new weft array and, where IPC works and the tensor owns its storage, `t` re-pointed
+    at that array's memory (one copy; zero-copy afterwards)."""
+    found = external.find_cuda_in_place(t, dtype, device, what)
+    if found is not None:
+        memory.mark_shared(found._alloc)
+        return found, None
+    out, src = copy_in(t, dtype, device, what, requires_grad=requires_grad)
+    if out.ptr is not None and t._base is None and not t.is_inference() and t.is_contiguous() \
+            and out.size:
+        import torch  # noqa: PLC0415
+
+        moved = torch.utils.dlpack.from_dlpack(out)
+        if moved.dtype != t.dtype:
+            moved = moved.view(t.dtype)
+        moved = moved.reshape(t.shape)
+        try:
+            with torch.no_grad():
+                t.data = moved
+            memory.mark_shared(out._alloc)
+            return out, None
+        except RuntimeError:
+            pass
+    return out, src

@@ -1,0 +1,208 @@
+"""wp.Stream and wp.Event for a client of weftd, as far as they make sense across the process
+boundary (docs/cuda.md, "Streams and events in the client").
+
+A CUDA stream is an object of one process's CUDA context. A weft client's GPU work runs in the
+daemon, on the one stream the daemon gives the session per GPU; commands of a session run in
+the order they were submitted. So every `wp.Stream` of a device names that same session
+stream: `wait_event`/`wait_stream` are already satisfied (one ordered queue), and
+`stream.synchronize()` waits for all of the session's work. `cuda_stream` is None: no handle of
+the daemon's stream exists in this process.
+
+Events mark a point in the session's command order. `record_event` of an event created with
+`enable_timing=True` waits for the work queued before it and takes the host clock then, so
+`get_event_elapsed_time(start, end)` is the time from the completion of the work before
+`start` to the completion of the work before `end`, in milliseconds (it includes one daemon
+round trip, tens of microseconds locally). An event without timing records without waiting;
+`synchronize_event` then waits for the session's work.
+"""
+from __future__ import annotations
+
+import time
+
+from . import _runtime
+from .device import get_device
+
+__all__ = ["Stream", "Event", "get_stream", "set_stream", "ScopedStream", "synchronize_stream",
+           "synchronize_event", "record_event", "wait_event", "wait_stream",
+           "get_event_elapsed_time"]
+
+
+def _cuda_device(device):
+    device = get_device(device)
+    if not device.is_cuda:
+        raise RuntimeError(f"streams and events are CUDA objects; {device} has none (CPU work "
+                           f"is ordered by synchronization)")
+    return device
+
+
+class Event:
+    """A point in the session's command order on a device (Warp's wp.Event)."""
+
+    def __init__(self, device=None, enable_timing=False, interprocess=False):
+        if interprocess:
+            raise RuntimeError("interprocess events are not available to weft clients: share "
+                               "arrays with ipc_handle/from_ipc_handle and synchronize instead")
+        self.device = _cuda_device(device)
+        self.enable_timing = bool(enable_timing)
+        self.is_ipc = False
+        self._time = None           # host clock when the work before it was done
+        self._recorded = False
+
+    def _record(self) -> None:
+        rt = _runtime.get_runtime()
+        if self.enable_timing:
+            rt.synchronize()
+            self._time = time.perf_counter()
+        else:
+            rt.flush()
+        self._recorded = True
+
+    def query(self) -> bool:
+        """True when the work before the last record is done (always after a timed record)."""
+        if not self._recorded or self._time is not None:
+            return True
+        rt = _runtime.get_runtime()
+        return not (rt._unsynchronized or rt._batch)
+
+    def synchronize(self) -> None:
+        if self._recorded and self._time is None:
+            _runtime.get_runtime().synchronize_if_needed()
+
+    @property
+    def cuda_event(self):
+        return None
+
+    def __repr__(self):
+        return f"<weft Event on {self.device} timing={self.enable_timing}>"
+
+
+class Stream:
+    """The session's stream on a CUDA device in the daemon (Warp's wp.Stream)."""
+
+    def __init__(self, device=None, priority=0, **_kwargs):
+        self.device = _cuda_device(device)
+        self.priority = int(priority)
+        self._torch_stream = None
+
+    @property
+    def cuda_stream(self):
+        return None
+
+    @property
+    def is_capturing(self) -> bool:
+        return False
+
+    def record_event(self, event=None) -> Event:
+        if event is None:
+            event = Event(self.device)
+        elif event.device != self.device:
+            raise RuntimeError(f"event on {event.device} cannot be recorded on a stream of "
+                               f"{self.device}")
+        event._record()
+        return event
+
+    def wait_event(self, event) -> None:
+        """Satisfied already: the session's commands run in order on one stream per device;
+        across devices the daemon orders copies itself."""
+        if not isinstance(event, Event):
+            raise TypeError("wait_event expects a wp.Event")
+
+    def wait_stream(self, other, event=None) -> None:
+        if not isinstance(other, Stream):
+            raise TypeError("wait_stream expects a wp.Stream")
+
+    def synchronize(self) -> None:
+        _runtime.get_runtime().synchronize()
+
+    def __eq__(self, other):
+        return isinstance(other, Stream) and other.device == self.device
+
+    def __hash__(self):
+        return hash(("weft-stream", self.device.alias))
+
+    def __repr__(self):
+        return f"<weft Stream of the session on {self.device}>"
+
+
+_current: dict = {}
+
+
+def get_stream(device=None) -> Stream:
+    device = _cuda_device(device)
+    stream = _current.get(device.alias)
+    if stream is None:
+        stream = _current[device.alias] = Stream(device)
+    return stream
+
+
+def set_stream(stream, device=None, sync=False) -> None:
+    if not isinstance(stream, Stream):
+        raise TypeError("set_stream expects a wp.Stream")
+    if sync:
+        stream.synchronize()
+    _current[stream.device.alias] = stream
+
+
+class ScopedStream:
+    """with wp.ScopedStream(s): the current stream (and device) while inside."""
+
+    def __init__(self, stream, sync_enter=True, sync_exit=False):
+        self.stream = stream
+        self.sync_exit = sync_exit
+        self._device_scope = None
+        self._saved = None
+
+    def __enter__(self):
+        if self.stream is None:
+            return None
+        from .device import ScopedDevice  # noqa: PLC0415
+
+        self._device_scope = ScopedDevice(self.stream.device)
+        self._device_scope.__enter__()
+        self._saved = _current.get(self.stream.device.alias)
+        _current[self.stream.device.alias] = self.stream
+        return self.stream
+
+    def __exit__(self, *exc):
+        if self.stream is None:
+            return
+        if self.sync_exit:
+            self.stream.synchronize()
+        if self._saved is None:
+            _current.pop(self.stream.device.alias, None)
+        else:
+            _current[self.stream.device.alias] = self._saved
+        self._device_scope.__exit__(*exc)
+
+
+def synchronize_stream(stream_or_device=None) -> None:
+    _runtime.get_runtime().synchronize()
+
+
+def record_event(event=None) -> Event:
+    """Records `event` (a new one when None) on the current stream."""
+    device = event.device if event is not None else None
+    return get_stream(device).record_event(event)
+
+
+def wait_event(event) -> None:
+    get_stream(event.device).wait_event(event)
+
+
+def wait_stream(other_stream, event=None) -> None:
+    get_stream(other_stream.device).wait_stream(other_stream, event)
+
+
+def synchronize_event(event) -> None:
+    event.synchronize()
+
+
+def get_event_elapsed_time(start_event, end_event, synchronize=True) -> float:
+    """Milliseconds between two timed events (see the module docstring for what is timed)."""
+    for e in (start_event, end_event):
+        if not e.enable_timing:
+            raise RuntimeError("get_event_elapsed_time needs events created with "
+                               "enable_timing=True")
+        if e._time is None:
+            raise RuntimeError("get_event_elapsed_time: the event was not recorded")
+    return (end_event._time - start_event._time) * 1000.0
