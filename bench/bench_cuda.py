@@ -229,6 +229,41 @@ def warm_second_client(lib, libname: str, warp_cache: str | None) -> float | Non
     return None
 
 
+TRANSFER_CHILD = '''
+import sys, time, numpy as np
+sys.path.insert(0, {client!r})
+import weft as wp
+from weft import _cuda_ipc
+n = 10_000_000
+host = np.random.default_rng(5).random(n, dtype=np.float32)
+a = wp.empty(n, dtype=float, device="cuda:0")
+path = "ipc" if a.ptr is not None else "copy (" + (_cuda_ipc.reason() or "no IPC") + ")"
+best_r = best_w = 1e9
+for _ in range(3):
+    t = time.perf_counter(); a.assign(host); wp.synchronize(); best_w = min(best_w, time.perf_counter() - t)
+    t = time.perf_counter(); back = a.numpy(); best_r = min(best_r, time.perf_counter() - t)
+assert np.array_equal(back, host)
+print("XFER", path, best_w, best_r)
+'''
+
+
+def transfers():
+    """{path: (write s, read s)} of 40 MB host<->GPU in a child client, IPC on and off."""
+    out = {}
+    for env_value in ("1", "0"):
+        code = TRANSFER_CHILD.format(client=str(HERE.parent / "clients" / "python"))
+        env = dict(os.environ, WEFT_CUDA_IPC=env_value)
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              timeout=300, env=env)
+        for line in proc.stdout.splitlines():
+            if line.startswith("XFER "):
+                parts = line.split()
+                out[" ".join(parts[1:-2])] = (float(parts[-2]), float(parts[-1]))
+        if proc.returncode:
+            print(f"(transfer child failed: {proc.stderr[-600:]})")
+    return out
+
+
 def copy_rate(warp) -> tuple:
     """(bytes/s of a device-to-device copy of 1e8 floats, what measured it)."""
     n = 100_000_000
@@ -275,6 +310,7 @@ def main():
     os.environ["WEFT_ADDRESS"] = daemon.address
     results = {}
     notes = []
+    xfer = {}
     try:
         import weft  # noqa: PLC0415
         from weft import _cuda_ipc  # noqa: PLC0415
@@ -320,6 +356,11 @@ def main():
                     except Exception:  # noqa: BLE001
                         pass
             print(f"{name}: done", flush=True)
+        try:
+            xfer = transfers()
+        except Exception as err:  # noqa: BLE001
+            xfer = {}
+            notes.append(f"transfers failed: {err}")
     finally:
         daemon.stop()
 
@@ -344,6 +385,9 @@ def main():
     for key, label in (("cold", "cold compile+load+launch"), ("warm", "warm load, 2nd client")):
         a, b = weft_r.get(key), warp_r.get(key)
         rows.append([label, bc.fmt_time(a), bc.fmt_time(b), bc.fmt_ratio(a, b), "", "", "", ""])
+    for path, (w, r) in xfer.items():
+        rows.append([f"40 MB assign / numpy(), {path}", f"{bc.fmt_time(w)} / {bc.fmt_time(r)}",
+                     "", "", f"{0.04 / w:.1f} / {0.04 / r:.1f} GB/s", "", "", ""])
     for note in notes:
         print(note)
     bc.print_table("weft vs warp-lang on cuda:0 (ratio = Warp time / weft time; >= 1.0: weft "

@@ -40,16 +40,17 @@ DLManagedTensor._fields_ = [("dl_tensor", DLTensor), ("manager_ctx", ctypes.c_vo
                             ("deleter", _DELETER)]
 
 _CAPSULE_DESTRUCTOR = ctypes.CFUNCTYPE(None, ctypes.c_void_p)
-_PyCapsule_New = ctypes.pythonapi.PyCapsule_New
+_PyCapsule_New = ctypes.pythonapi["PyCapsule_New"]   # a function object of its own
 _PyCapsule_New.restype = ctypes.py_object
 _PyCapsule_New.argtypes = [ctypes.c_void_p, ctypes.c_char_p, _CAPSULE_DESTRUCTOR]
-_PyCapsule_IsValid = ctypes.pythonapi.PyCapsule_IsValid
+_PyCapsule_IsValid = ctypes.pythonapi["PyCapsule_IsValid"]   # a function object of its own
 _PyCapsule_IsValid.restype = ctypes.c_int
 _PyCapsule_IsValid.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
-_PyCapsule_GetPointer = ctypes.pythonapi.PyCapsule_GetPointer
+_PyCapsule_GetPointer = ctypes.pythonapi["PyCapsule_GetPointer"]   # a function object of its own
 _PyCapsule_GetPointer.restype = ctypes.c_void_p
 _PyCapsule_GetPointer.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
 
+_NAME = b"dltensor"     # a capsule keeps the name pointer: this bytes object lives on
 _live: dict = {}        # managed tensor address -> (struct, shape/strides buffers, keep-alive)
 
 
@@ -112,4 +113,4 @@ def to_capsule(a):
     managed.deleter = _deleter
     address = ctypes.addressof(managed)
     _live[address] = (managed, shape_buf, strides_buf, a._alloc)
-    return _PyCapsule_New(address, b"dltensor", _capsule_destructor)
+    return _PyCapsule_New(address, _NAME, _capsule_destructor)

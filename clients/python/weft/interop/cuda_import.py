@@ -79,18 +79,22 @@ class _DLTensorView(ctypes.Structure):
 _DL_CODES = {0: "i", 1: "u", 2: "f", 6: "b"}
 
 
+_USED_NAME = b"used_dltensor"   # a capsule keeps the name pointer: this bytes object lives on
+
+
 class _Capsule:
     """A consumed "dltensor" capsule: calls the producer's deleter when collected."""
 
     def __init__(self, capsule):
-        get = ctypes.pythonapi.PyCapsule_GetPointer
+        get = ctypes.pythonapi["PyCapsule_GetPointer"]       # own function objects: other
+        # modules set other argtypes on the shared attributes
         get.restype = ctypes.c_void_p
         get.argtypes = [ctypes.py_object, ctypes.c_char_p]
         self.address = get(capsule, b"dltensor")
-        rename = ctypes.pythonapi.PyCapsule_SetName
+        rename = ctypes.pythonapi["PyCapsule_SetName"]
         rename.restype = ctypes.c_int
         rename.argtypes = [ctypes.py_object, ctypes.c_char_p]
-        rename(capsule, b"used_dltensor")
+        rename(capsule, _USED_NAME)
         self.tensor = _DLTensorView.from_address(self.address)
 
     def __del__(self):
