@@ -600,6 +600,9 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     for d in dims:
         if d == 0:
             return None
+    if device.startswith("cuda") and _interop_memory.any_shared() and \
+            _interop_memory.touches_shared(resolved):
+        _sync_framework_gpu(resolved)  # framework work on shared GPU memory is done first
     tape = tape_mod.active_tape()
     pause = tape is not None and (adjoint or not record_tape)
     if pause:
@@ -617,9 +620,6 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
                                     args=packed, adjoint=bool(adjoint), adj_args=adj_packed,
                                     device=device),
             origin=caller_origin())
-    if device.startswith("cuda") and _interop_memory.any_shared() and \
-            _interop_memory.touches_shared(resolved):
-        _sync_framework_gpu(resolved)  # framework work on shared GPU memory is done first
     rt.submit(command)
     if pause:
         tape.resume_recording()
