@@ -6,8 +6,11 @@ weftd exports every GPU slab once with a legacy CUDA IPC handle (docs/cuda.md); 
 local session carries it (cuda_ipc_handle, cuda_ipc_offset, cuda_slab_size, cuda_slab_id). This
 module opens each slab once per process with cuIpcOpenMemHandle in the device's primary context
 (the context Torch, CuPy and JAX use, so their kernels can use the pointer), keeps the mapping
-while arrays of this process use the slab plus a few idle ones (slab ids are never reused, so an
-idle mapping is never handed out for other memory), and closes every mapping at exit.
+while arrays of this process use the slab, plus up to 16 idle regular (64 MiB) slabs, which the
+daemon keeps for the session's next arrays (slab ids are never reused, so an idle mapping is
+never handed out for other memory); a slab of its own (a large or exported array) is closed
+with its last array, and every mapping at exit. A new slab may get the handle bytes of a freed
+one: an idle mapping with those bytes is closed before the new one is opened.
 
 Nothing here is required: without a driver (or with WEFT_CUDA_IPC=0, or when the sandbox
 refuses IPC), `available()` is False, `reason()` says why, and the array layer falls back to
@@ -28,7 +31,8 @@ CU_POINTER_ATTRIBUTE_DEVICE_ORDINAL = 9
 CU_MEMORYTYPE_DEVICE = 2
 CU_EVENT_DEFAULT = 0
 CU_EVENT_DISABLE_TIMING = 2
-IDLE_MAPPINGS_KEPT = 16          # mappings with no live array kept open (reopening costs)
+IDLE_MAPPINGS_KEPT = 16          # regular slabs with no live array kept open (reopening costs)
+REGULAR_SLAB_BYTES = 64 << 20    # the daemon keeps a session's regular slabs for reuse
 
 _lock = threading.RLock()
 _lib = None
@@ -36,7 +40,7 @@ _reason = None                   # why IPC is off (None: not tried yet / on)
 _contexts: dict = {}             # ordinal -> primary context (retained)
 _mappings: dict = {}             # slab id -> _Mapping
 _idle = collections.OrderedDict()  # slab id -> None, least recently idle first
-_stats = {"opened": 0, "closed": 0, "open_failures": 0}
+_stats = {"opened": 0, "closed": 0, "open_failures": 0, "last_failure": ""}
 
 
 class CudaError(RuntimeError):
@@ -168,14 +172,15 @@ class _Scope:
 
 
 class _Mapping:
-    __slots__ = ("slab_id", "ordinal", "base", "size", "users")
+    __slots__ = ("slab_id", "ordinal", "base", "size", "users", "handle")
 
-    def __init__(self, slab_id, ordinal, base, size):
+    def __init__(self, slab_id, ordinal, base, size, handle):
         self.slab_id = slab_id
         self.ordinal = ordinal
         self.base = base
         self.size = size
         self.users = 0
+        self.handle = handle
 
 
 def _close(mapping) -> None:
@@ -187,10 +192,13 @@ def _close(mapping) -> None:
         pass
 
 
+CUDA_ERROR_ALREADY_MAPPED = 208
+
+
 def slab_address(info, ordinal: int):
     """The device address of the slab of GPU ArrayInfo `info` in this process (its IPC
     mapping, opened on first use), or None when IPC is unavailable for it. The caller pairs a
-    successful call with release(info) when its allocation goes away."""
+    successful call with release(slab id) when its allocation goes away."""
     handle = bytes(info.cuda_ipc_handle)
     if len(handle) != 64 or not info.cuda_slab_size:
         return None
@@ -200,27 +208,53 @@ def slab_address(info, ordinal: int):
         slab_id = int(info.cuda_slab_id)
         mapping = _mappings.get(slab_id)
         if mapping is None:
-            raw = _IpcHandle()
-            ctypes.memmove(ctypes.addressof(raw), handle, 64)
-            ptr = ctypes.c_uint64()
-            try:
-                with _Scope(ordinal):
-                    rc = _lib.cuIpcOpenMemHandle_v2(ctypes.byref(ptr), raw,
-                                                    CU_IPC_MEM_LAZY_ENABLE_PEER_ACCESS)
-            except CudaError as err:
-                disable(f"no usable CUDA context here ({err})")
+            mapping = _open(slab_id, handle, ordinal, int(info.cuda_slab_size))
+            if mapping is None:
                 return None
-            if rc != 0:
-                _stats["open_failures"] += 1
-                # A sandbox refusing IPC fails every open the same way: turn it off once.
-                disable(f"cuIpcOpenMemHandle failed ({_name(_lib, rc)})")
-                return None
-            mapping = _mappings[slab_id] = _Mapping(slab_id, ordinal, int(ptr.value),
-                                                   int(info.cuda_slab_size))
-            _stats["opened"] += 1
         mapping.users += 1
         _idle.pop(slab_id, None)
         return mapping.base
+
+
+def _open(slab_id, handle, ordinal, size):
+    # The driver hands out the same handle bytes for a new allocation that took the place of a
+    # freed one, and refuses a second open of a handle (ALREADY_MAPPED). A mapping of this
+    # process with the same handle and no live array is such a freed slab: close it first. One
+    # with live arrays is the same memory (a live slab is never freed under them): share it.
+    for other in list(_mappings.values()):
+        if other.handle == handle and other.ordinal == ordinal:
+            if other.users > 0 and other.size == size:
+                _mappings[slab_id] = other
+                return other
+            _forget(other)
+    raw = _IpcHandle()
+    ctypes.memmove(ctypes.addressof(raw), handle, 64)
+    ptr = ctypes.c_uint64()
+    try:
+        with _Scope(ordinal):
+            rc = _lib.cuIpcOpenMemHandle_v2(ctypes.byref(ptr), raw,
+                                            CU_IPC_MEM_LAZY_ENABLE_PEER_ACCESS)
+    except CudaError as err:
+        disable(f"no usable CUDA context here ({err})")
+        return None
+    if rc != 0:
+        _stats["open_failures"] += 1
+        _stats["last_failure"] = _name(_lib, rc)
+        if rc != CUDA_ERROR_ALREADY_MAPPED:
+            # A sandbox refusing IPC fails every open the same way: turn it off once.
+            disable(f"cuIpcOpenMemHandle failed ({_name(_lib, rc)})")
+        return None
+    mapping = _mappings[slab_id] = _Mapping(slab_id, ordinal, int(ptr.value), size, handle)
+    _stats["opened"] += 1
+    return mapping
+
+
+def _forget(mapping) -> None:
+    """Closes `mapping` and drops every slab id that names it."""
+    for key in [k for k, m in _mappings.items() if m is mapping]:
+        del _mappings[key]
+        _idle.pop(key, None)
+    _close(mapping)
 
 
 def release(slab_id: int) -> None:
@@ -232,12 +266,15 @@ def release(slab_id: int) -> None:
         mapping.users -= 1
         if mapping.users:
             return
-        _idle[mapping.slab_id] = None
+        if mapping.size != REGULAR_SLAB_BYTES:
+            _forget(mapping)    # a slab of one array: the daemon frees it with that array
+            return
+        _idle[int(slab_id)] = None
         while len(_idle) > IDLE_MAPPINGS_KEPT:
-            slab_id, _ = _idle.popitem(last=False)
-            old = _mappings.pop(slab_id, None)
-            if old is not None:
-                _close(old)
+            old_id, _ = _idle.popitem(last=False)
+            old = _mappings.get(old_id)
+            if old is not None and old.users == 0:
+                _forget(old)
 
 
 def copy_to_host(ordinal: int, dst_address: int, src_device: int, nbytes: int) -> None:
@@ -293,7 +330,7 @@ def _close_all() -> None:
     with _lock:
         if _lib is None:
             return
-        for mapping in list(_mappings.values()):
+        for mapping in {id(m): m for m in _mappings.values()}.values():
             _close(mapping)
         _mappings.clear()
         _idle.clear()

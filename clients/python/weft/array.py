@@ -835,8 +835,19 @@ class array:
                 "data": (ptr if self.size else 0, False),
                 "strides": None if contiguous else strides, "version": 3, "stream": None}
 
-    def __dlpack__(self, stream=None, max_version=None, dl_device=None, copy=None):
-        """A DLPack capsule over this array's memory (weft.interop.dlpack.export)."""
+    @property
+    def __dlpack__(self):
+        """A DLPack capsule over this array's memory (weft.interop.dlpack.export). Absent
+        (AttributeError) for GPU arrays this process has no CUDA IPC mapping of, so consumers
+        (torch.as_tensor, cupy.asarray) fall back to __array__, a copy."""
+        if (self.device is not None and self.device.is_cuda and self._info is not None
+                and self.ptr is None):
+            raise AttributeError(f"__dlpack__: no CUDA IPC mapping of this {self.device} array "
+                                 f"in this client ({_cuda_ipc.reason() or 'not a local session'})"
+                                 f"; use .numpy() for a copy")
+        return self._dlpack
+
+    def _dlpack(self, stream=None, max_version=None, dl_device=None, copy=None):
         from .interop import dlpack  # noqa: PLC0415
 
         return dlpack.export(self, stream=stream, max_version=max_version,

@@ -33,7 +33,7 @@ def test_to_torch_of_gpu_array_is_zero_copy(wp, cuda, torch, rng):
 def test_dlpack_device_of_gpu_array(wp, cuda):
     a = wp.zeros(4, dtype=float, device=cuda)
     assert a.__dlpack_device__() == (2, cuda.ordinal)
-    with pytest.raises(BufferError):
+    with pytest.raises((BufferError, AttributeError)):   # AttributeError: no IPC mapping
         a.__dlpack__(dl_device=(1, 0), copy=False)
 
 
