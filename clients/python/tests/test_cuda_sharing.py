@@ -132,8 +132,8 @@ def test_torch_sees_the_same_device_pointer(wp, cuda):
 
 def test_ipc_off_falls_back_to_copies(wp, cuda, run_client):
     """Without CUDA IPC (WEFT_CUDA_IPC=0, as in a sandbox that refuses it) GPU arrays have no
-    pointer or __cuda_array_interface__; CuPy and Torch conversions go through __array__ (a
-    copy) and are correct."""
+    pointer, __cuda_array_interface__ or __dlpack__; cupy.asarray goes through __array__ and
+    wp.to_torch copies (both correct)."""
     code = """
 import numpy as np, weft as wp
 a = wp.array(np.arange(10, dtype=np.float32), device="cuda:0")
@@ -147,8 +147,11 @@ except ImportError:
     print("cupy missing")
 try:
     import torch
-    t = torch.as_tensor(a, device="cuda" if torch.cuda.is_available() else "cpu")
-    assert (t.cpu().numpy() == np.arange(10)).all()
+    if torch.cuda.is_available():
+        t = wp.to_torch(a)                 # a copy on Torch's cuda:0
+        assert t.device.type == "cuda" and (t.cpu().numpy() == np.arange(10)).all()
+    t2 = torch.as_tensor(np.asarray(a))    # Torch takes no __array__: through NumPy
+    assert (t2.numpy() == np.arange(10)).all()
     print("torch copy ok")
 except ImportError:
     print("torch missing")

@@ -444,12 +444,19 @@ class array:
                    else _contiguous_strides(shape, elem))
         if len(strides) != len(shape):
             raise RuntimeError(f"strides {strides} do not match shape {shape}")
+        candidates = []
         for alloc in list(_ADDRESSED):
+            base = alloc.mapping().address + alloc.info.shm_offset
+            if base <= ptr < base + max(int(alloc.info.byte_size), 1):
+                candidates.append((alloc, ptr - base))
+        if not candidates:
+            # GPU arrays: their addresses in this process's CUDA IPC mappings (see .ptr)
+            for space in [s for s in list(_interop_memory._spaces) if s.startswith("cuda:")]:
+                hit = _interop_memory.find(ptr, 0, space)
+                if hit is not None:
+                    candidates.append(hit)
+        for alloc, offset in candidates[:1]:
             info = alloc.info
-            base = alloc.mapping().address + info.shm_offset
-            if not base <= ptr < base + max(int(info.byte_size), 1):
-                continue
-            offset = ptr - base
             lo = offset + sum((n - 1) * st for n, st in zip(shape, strides) if n > 0 and st < 0)
             hi = offset + sum((n - 1) * st for n, st in zip(shape, strides) if n > 0 and st > 0)
             if math.prod(shape) and (lo < 0 or hi + elem > info.byte_size):

@@ -4,6 +4,8 @@ of another session does not leak into this one."""
 import re
 import textwrap
 
+import pytest
+
 import weft as wp
 
 
@@ -19,6 +21,13 @@ def say(x: wp.array(dtype=float)):
 def check(a: wp.array(dtype=int), b: wp.array(dtype=int)):
     i = wp.tid()
     wp.expect_eq(a[i], b[i])
+
+
+@pytest.fixture(autouse=True)
+def _gpu_print_not_forwarded(device):
+    if device.startswith("cuda"):
+        pytest.xfail("kernel print on a GPU reaches the daemon's stdout, not the client, yet "
+                     "(docs/cuda.md, 'Not done yet')")
 
 
 def test_print_and_printf_reach_stdout(wp, capfd):

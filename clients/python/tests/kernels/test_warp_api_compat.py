@@ -121,7 +121,7 @@ def test_config_mode_is_checked_and_part_of_the_module(wp, rng):
         wp.config.mode = old
 
 
-def test_config_print_launches(wp, capsys):
+def test_config_print_launches(wp, capsys, device):
     x = wp.ones(4, dtype=float)
     y = wp.zeros(4, dtype=float)
     wp.launch(square, dim=4, inputs=[x, y])
@@ -132,7 +132,7 @@ def test_config_print_launches(wp, capsys):
     finally:
         wp.config.print_launches = False
     out = capsys.readouterr().out
-    assert out.startswith("kernel: square dim: 4 inputs: [") and "device: cpu" in out
+    assert out.startswith("kernel: square dim: 4 inputs: [") and f"device: {device}" in out
 
 
 def test_config_verify_fp(wp, rng):
@@ -152,7 +152,7 @@ def test_config_verify_fp(wp, rng):
     wp.launch(log_of, dim=8, inputs=[bad, y])            # off again: no check
 
 
-def test_config_verbose_reports_real_compiles(wp, kernel_module, capsys):
+def test_config_verbose_reports_real_compiles(wp, kernel_module, capsys, device):
     mod = kernel_module("""
         @wp.kernel
         def fresh(x: wp.array(dtype=float)):
@@ -168,7 +168,8 @@ def test_config_verbose_reports_real_compiles(wp, kernel_module, capsys):
         second = capsys.readouterr().out
     finally:
         wp.config.verbose = False
-    assert re.match(rf"Module {mod.__name__} \w+ load on device 'cpu' took [0-9.]+ ms", first)
+    assert re.match(rf"Module {mod.__name__} \w+ load on device '{device}' took [0-9.]+ ms",
+                    first)
     assert second == ""
     np.testing.assert_array_equal(x.numpy(), 82.0)
 

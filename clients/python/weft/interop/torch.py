@@ -239,7 +239,11 @@ def to_torch(a, requires_grad=None):
         raise TypeError(f"wp.to_torch expects a weft array, got {type(a).__name__}")
     torch = _torch()
     if a.device is not None and a.device.is_cuda:
-        t = torch.utils.dlpack.from_dlpack(a)
+        if a._info is not None and a.ptr is None:
+            # no CUDA IPC mapping in this client (docs/cuda-client.md): a copy
+            t = torch.from_numpy(np.array(a.numpy(), copy=True)).to(device_to_torch(a.device))
+        else:
+            t = torch.utils.dlpack.from_dlpack(a)
     else:
         t = _tensor_over(a, dtype_to_torch(a.dtype), tuple(a.numpy().shape)) \
             if a._info is not None else None
