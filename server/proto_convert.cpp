@@ -39,6 +39,12 @@ void ToProto(const ArrayDesc& d, v1::ArrayInfo* p) {
   p->set_shm_name(d.shm_name);
   p->set_shm_offset(d.shm_offset);
   p->set_shm_size(d.shm_size);
+  if (!d.cuda_ipc_handle.empty()) {
+    p->set_cuda_ipc_handle(d.cuda_ipc_handle);
+    p->set_cuda_ipc_offset(d.cuda_ipc_offset);
+    p->set_cuda_slab_size(d.cuda_slab_size);
+    p->set_cuda_slab_id(d.cuda_slab_id);
+  }
 }
 
 SourceLocation FromProto(const v1::SourceLocation& p) {
@@ -174,6 +180,8 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
       lc.adjoint = l.adjoint();
       for (const auto& a : l.adj_args()) lc.adj_args.push_back(ArgFromProto(a));
       lc.device = l.device();
+      lc.block_dim = l.block_dim();
+      lc.max_blocks = l.max_blocks();
       c.kind = std::move(lc);
       break;
     }

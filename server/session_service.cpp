@@ -151,6 +151,12 @@ grpc::Status SessionServiceImpl::Stats(grpc::ServerContext* ctx, const v1::Stats
   resp->set_module_cache_misses(e.module_cache_misses);
   resp->set_sessions_opened_total(e.sessions_opened_total);
   resp->set_sessions_reaped_total(e.sessions_reaped_total);
+  resp->set_gpu_slabs(e.gpu_slabs);
+  resp->set_gpu_slab_bytes(e.gpu_slab_bytes);
+  resp->set_gpu_resets(e.gpu_resets);
+  resp->set_last_gpu_reset_ms(e.last_gpu_reset_ms);
+  // The calling session's placement, when the call names one.
+  if (auto s = auth_.SessionOf(*ctx); s.ok()) resp->set_cuda_placement(auth_.engine().CudaPlacement(**s));
   return grpc::Status::OK;
 }
 

@@ -8,6 +8,7 @@
 #include "engine/runtime/array_view.h"
 #include "engine/runtime/cpu_launch.h"
 #include "engine/runtime/launch_args.h"
+#include "engine/runtime/session.h"
 
 namespace weft {
 
@@ -22,12 +23,13 @@ Expected<std::shared_ptr<Allocation>> Lookup(const HandleSnapshot& h, uint64_t h
   return it->second;
 }
 
-// A checked view of an array a copy, fill or backward seed names (ValidateArray: the command
-// runs on the CPU; element types are compared by the operation itself).
+// A checked view of an array a copy, fill or backward seed names (ValidateArray on the array's
+// own device: copies move between devices; element types are compared by the operation itself).
 Expected<ArrayView> ViewOf(const HandleSnapshot& h, const ArrayRef& ref, const std::string& what) {
   WEFT_ASSIGN_OR_RETURN(auto a, Lookup(h, ref.handle, what));
   ArrayRequirement req;
   req.what = what;
+  req.device = a->device;
   return ValidateArray(std::move(a), ref, req);
 }
 
@@ -35,6 +37,7 @@ Expected<ArrayView> ViewOf(const HandleSnapshot& h, const ArrayRef& ref, const s
 Expected<ArrayView> ViewOfAllocation(std::shared_ptr<Allocation> a, const ArrayRef& ref, const std::string& what) {
   ArrayRequirement req;
   req.what = what;
+  req.device = a->device;
   return ValidateArray(std::move(a), ref, req);
 }
 
@@ -84,14 +87,25 @@ Expected<std::string> OneElement(const DType& d) {
   return out;
 }
 
-Status ZeroGradients(Tape& tape) {
+}  // namespace
+
+Expected<Device*> CommandExecutor::DeviceOf(const Allocation& a) const {
+  Device* d = devices_.Find(a.device);
+  if (!d) return Internal("array " + std::to_string(a.handle) + " lives on unknown device '" + a.device + "'");
+  return d;
+}
+
+Status CommandExecutor::ZeroGradients(Session& s, Tape& tape) {
   for (auto& w : tape.touched) {
-    if (auto a = w.lock(); a && a->grad) std::memset(a->grad->data(), 0, a->grad->byte_size);
+    auto a = w.lock();
+    if (!a || !a->grad) continue;
+    std::shared_ptr<Allocation> g = a->grad;
+    WEFT_ASSIGN_OR_RETURN(ArrayView v, ViewOfAllocation(g, ArrayRef{}, "tape gradient"));
+    WEFT_ASSIGN_OR_RETURN(Device * d, DeviceOf(*g));
+    WEFT_RETURN_IF_ERROR(d->Fill(s, v, std::string(g->dtype.ElementSize(), '\0')));
   }
   return Status::Ok();
 }
-
-}  // namespace
 
 void CollectHandles(const Command& c, std::vector<uint64_t>* out) {
   if (auto* cp = std::get_if<CopyCommand>(&c.kind)) {
@@ -163,65 +177,60 @@ Status CommandExecutor::SetGrad(Session& s, const SetGradCommand& c, const Handl
 Status CommandExecutor::Copy(Session& s, const CopyCommand& c, const HandleSnapshot& h) {
   WEFT_ASSIGN_OR_RETURN(ArrayView dst, ViewOf(h, c.dst, "copy dst"));
   WEFT_ASSIGN_OR_RETURN(ArrayView src, ViewOf(h, c.src, "copy src"));
-  return CopyView(dst, src, s.cancel_flag());
+  // A GPU side does the copy (the destination's GPU first); CPU to CPU stays on the CPU.
+  WEFT_ASSIGN_OR_RETURN(Device * d, DeviceOf(*dst.alloc));
+  if (d->is_cpu()) {
+    WEFT_ASSIGN_OR_RETURN(d, DeviceOf(*src.alloc));
+  }
+  return d->Copy(s, dst, src);
 }
 
 Status CommandExecutor::Fill(Session& s, const FillCommand& c, const HandleSnapshot& h) {
   WEFT_ASSIGN_OR_RETURN(ArrayView dst, ViewOf(h, c.dst, "fill dst"));
-  return FillView(dst, c.value, s.cancel_flag());
-}
-
-Status CommandExecutor::RunWatched(Session& s, CpuLaunch& launch, std::string* output) {
-  if (!options_.watchdog) return RunCpuLaunch(pool_, launch, output);
-  LaunchWatchdog::Watch watch(*options_.watchdog, s.cancel_flag(), options_.launch_time_limit_s);
-  launch.cancel = watch.word();
-  Status st = RunCpuLaunch(pool_, launch, output);
-  launch.cancel = nullptr;
-  if (st.code() != StatusCode::kCancelled) return st;
-  const std::string kernel = "kernel '" + launch.kernel->layout.name + "'" + (launch.adj_args ? " (adjoint)" : "");
-  if (watch.reason() == LaunchWatchdog::Reason::kTimeLimit) {
-    char limit[32];
-    std::snprintf(limit, sizeof(limit), "%g", options_.launch_time_limit_s);
-    return Status(StatusCode::kDeadlineExceeded, kernel + " ran longer than the launch time limit of " + limit +
-                                                     " s (weftd --launch-time-limit) and was stopped");
-  }
-  return Status(StatusCode::kCancelled, kernel + " was stopped: its session was closed");
+  WEFT_ASSIGN_OR_RETURN(Device * d, DeviceOf(*dst.alloc));
+  return d->Fill(s, dst, c.value);
 }
 
 Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleSnapshot& h,
                                const SourceLocation& origin) {
-  if (!c.device.empty() && c.device != "cpu")
-    return Unimplemented("launch on device '" + c.device + "': only cpu launches are supported by this daemon");
+  WEFT_ASSIGN_OR_RETURN(Device * device, devices_.Resolve(s.id(), c.device));
   if (!store_) return FailedPrecondition("this daemon has no module store");
   WEFT_RETURN_IF_ERROR(CheckLaunchDim(c.dim));
   std::shared_ptr<const LoadedModule> module = store_->Find(c.module_id);
   if (!module) return NotFound("unknown module '" + c.module_id + "' (compile it first with ModuleService.Compile)");
+  if ((module->target == Target::kCpu) != device->is_cpu())
+    return InvalidArgument("module '" + c.module_id + "' was compiled for " +
+                           (module->target == Target::kCpu ? std::string("the CPU") : std::string("CUDA")) +
+                           "; the launch runs on " + device->name() + " (compile it for that device)");
   const LoadedKernel* kernel = module->Find(c.kernel);
   if (!kernel) return NotFound("module '" + c.module_id + "' has no kernel '" + c.kernel + "'");
   WEFT_ASSIGN_OR_RETURN(std::vector<ResolvedArg> args, ResolveArgs(c.args, h, c.kernel));
-  WEFT_ASSIGN_OR_RETURN(PackedArgs packed, PackArgs(kernel->layout, args));
+  WEFT_ASSIGN_OR_RETURN(PackedArgs packed, PackArgs(kernel->layout, args, device->name()));
 
-  CpuLaunch launch;
+  KernelLaunch launch;
   launch.dim = c.dim;
   launch.args = &packed;
-  launch.print_capacity = options_.print_capacity;
+  launch.block_dim = c.block_dim;
+  launch.max_blocks = c.max_blocks;
+  launch.origin = origin;
   std::string output;
   Status st;
+  PackedArgs adj_packed;
   if (!c.adjoint) {
-    launch.module = module.get();
+    launch.module = module;
     launch.kernel = kernel;
-    st = RunWatched(s, launch, &output);
+    st = device->Launch(s, launch, &output);
   } else {
     WEFT_ASSIGN_OR_RETURN(std::shared_ptr<const LoadedModule> bmod, store_->WithBackward(c.module_id));
     const LoadedKernel* bk = bmod->Find(c.kernel);
-    if (!bk || !bk->cpu_backward)
+    if (!bk || (device->is_cpu() ? !bk->cpu_backward : bk->layout.backward_symbol.empty()))
       return Internal("module '" + c.module_id + "' has no backward for kernel '" + c.kernel + "'");
     WEFT_ASSIGN_OR_RETURN(std::vector<ResolvedArg> adj, ResolveArgs(c.adj_args, h, c.kernel + " (adjoint)"));
-    WEFT_ASSIGN_OR_RETURN(PackedArgs adj_packed, PackAdjointArgs(bk->layout, packed, adj));
-    launch.module = bmod.get();
+    WEFT_ASSIGN_OR_RETURN(adj_packed, PackAdjointArgs(bk->layout, packed, adj, device->name()));
+    launch.module = bmod;
     launch.kernel = bk;
     launch.adj_args = &adj_packed;
-    st = RunWatched(s, launch, &output);
+    st = device->Launch(s, launch, &output);
   }
   if (!output.empty()) s.AppendOutput(output);
   WEFT_RETURN_IF_ERROR(st);
@@ -234,6 +243,9 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
     r.kernel = c.kernel;
     r.dim = c.dim;
     r.origin = origin;
+    r.device = device->name();
+    r.block_dim = c.block_dim;
+    r.max_blocks = c.max_blocks;
     for (auto& a : packed.keep_alive) tape.Touch(a);
     r.args = std::move(packed);
     r.args.keep_alive.clear();   // tapes do not keep arrays alive
@@ -272,9 +284,9 @@ Status CommandExecutor::TapeOp(Session& s, const TapeCommand& c, const HandleSna
   Tape& tape = it->second;
   switch (c.op) {
     case TapeCommand::Op::kZero:
-      return ZeroGradients(tape);
+      return ZeroGradients(s, tape);
     case TapeCommand::Op::kReset:
-      WEFT_RETURN_IF_ERROR(ZeroGradients(tape));
+      WEFT_RETURN_IF_ERROR(ZeroGradients(s, tape));
       tape.records.clear();
       tape.touched.clear();
       return Status::Ok();
@@ -298,11 +310,12 @@ Status CommandExecutor::Backward(Session& s, Tape& tape, const TapeCommand& c, c
     std::shared_ptr<const LoadedModule> module;
     const LoadedKernel* kernel;
     std::vector<std::shared_ptr<Allocation>> live;
+    Device* device = nullptr;
   };
   std::vector<Step> steps;
   for (size_t i = tape.records.size(); i-- > 0;) {
     const TapeRecord& r = tape.records[i];
-    Step st{&r, nullptr, nullptr, {}};
+    Step st{&r, nullptr, nullptr, {}, nullptr};
     for (const PackedArray& slot : r.args.arrays) {
       std::shared_ptr<Allocation> a = slot.alloc.lock();
       if (slot.handle != 0 && (!a || !s.Holds(slot.handle)))
@@ -313,7 +326,8 @@ Status CommandExecutor::Backward(Session& s, Tape& tape, const TapeCommand& c, c
     }
     WEFT_ASSIGN_OR_RETURN(st.module, store_->WithBackward(r.module_id));
     st.kernel = st.module->Find(r.kernel);
-    if (!st.kernel || !st.kernel->cpu_backward)
+    WEFT_ASSIGN_OR_RETURN(st.device, devices_.Resolve(s.id(), r.device));
+    if (!st.kernel || (st.device->is_cpu() ? !st.kernel->cpu_backward : st.kernel->layout.backward_symbol.empty()))
       return Internal("module '" + r.module_id + "' has no backward for kernel '" + r.kernel + "'");
     steps.push_back(std::move(st));
   }
@@ -350,21 +364,32 @@ Status CommandExecutor::Backward(Session& s, Tape& tape, const TapeCommand& c, c
     WEFT_ASSIGN_OR_RETURN(PackedArgs adj, GradientArgs(st.kernel->layout, st.record->args, st.live));
     adjoints.push_back(std::move(adj));
   }
-  if (loss_grad.alloc) WEFT_RETURN_IF_ERROR(FillView(loss_grad, one, s.cancel_flag()));
-  for (auto& [dst, src] : seeds) WEFT_RETURN_IF_ERROR(CopyView(dst, src, s.cancel_flag()));
+  if (loss_grad.alloc) {
+    WEFT_ASSIGN_OR_RETURN(Device * d, DeviceOf(*loss_grad.alloc));
+    WEFT_RETURN_IF_ERROR(d->Fill(s, loss_grad, one));
+  }
+  for (auto& [dst, src] : seeds) {
+    WEFT_ASSIGN_OR_RETURN(Device * d, DeviceOf(*dst.alloc));
+    if (d->is_cpu()) {
+      WEFT_ASSIGN_OR_RETURN(d, DeviceOf(*src.alloc));
+    }
+    WEFT_RETURN_IF_ERROR(d->Copy(s, dst, src));
+  }
 
   for (size_t si = 0; si < steps.size(); ++si) {
     Step& st = steps[si];
     PackedArgs& adj = adjoints[si];
-    CpuLaunch launch;
-    launch.module = st.module.get();
+    KernelLaunch launch;
+    launch.module = st.module;
     launch.kernel = st.kernel;
     launch.dim = st.record->dim;
     launch.args = &st.record->args;
     launch.adj_args = &adj;
-    launch.print_capacity = options_.print_capacity;
+    launch.block_dim = st.record->block_dim;
+    launch.max_blocks = st.record->max_blocks;
+    launch.origin = st.record->origin;
     std::string output;
-    Status r = RunWatched(s, launch, &output);
+    Status r = st.device->Launch(s, launch, &output);
     if (!output.empty()) s.AppendOutput(output);
     if (!r.ok()) {
       std::string where = st.record->origin.file.empty()

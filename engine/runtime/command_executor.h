@@ -1,8 +1,9 @@
 // Runs one queued command of a session on its executor thread: copy and fill over checked
-// views, CPU kernel launches (forward and explicit adjoint, recorded on the active tape), and
+// views, kernel launches (forward and explicit adjoint, recorded on the active tape), and
 // tape operations (begin/end, backward replay in reverse, zero, reset) and gradient
-// replacement (set_grad). Launches, fills and copies stop when the session is cancelled;
-// launches also at the per-launch time limit.
+// replacement (set_grad). Every operation goes to the Device the arrays or the launch name
+// (engine/device): the CPU runs it here, a GPU queues it on the session's stream. Cancellation
+// and the per-launch time limit are the devices' (see cpu_device.h, cuda_device.h).
 #pragma once
 
 #include <cstdint>
@@ -12,11 +13,9 @@
 
 #include "engine/core/status.h"
 #include "engine/runtime/commands.h"
-#include "engine/runtime/cpu_launch.h"
-#include "engine/runtime/launch_watchdog.h"
+#include "engine/device/device_set.h"
 #include "engine/runtime/module_store.h"
 #include "engine/runtime/session.h"
-#include "engine/runtime/thread_pool.h"
 
 namespace weft {
 
@@ -24,32 +23,25 @@ namespace weft {
 // from under a queued command.
 using HandleSnapshot = std::unordered_map<uint64_t, std::shared_ptr<Allocation>>;
 
-struct CommandExecutorOptions {
-  uint64_t print_capacity = 1 << 20;
-  LaunchWatchdog* watchdog = nullptr;   // cancels launches of closed sessions / past the time limit
-  double launch_time_limit_s = 0;       // 0 = none
-};
-
 class CommandExecutor {
  public:
-  CommandExecutor(ThreadPool& pool, ModuleStore* store, CommandExecutorOptions options)
-      : pool_(pool), store_(store), options_(options) {}
+  CommandExecutor(DeviceSet& devices, ModuleStore* store) : devices_(devices), store_(store) {}
 
   Status Execute(Session& s, const Command& c, const HandleSnapshot& handles);
 
  private:
   Status Copy(Session& s, const CopyCommand& c, const HandleSnapshot& h);
   Status Fill(Session& s, const FillCommand& c, const HandleSnapshot& h);
-  // Runs a launch under the watchdog (session cancel + time limit).
-  Status RunWatched(Session& s, CpuLaunch& launch, std::string* output);
+  // The device of an allocation / of a copy (the GPU side when one side is a GPU).
+  Expected<Device*> DeviceOf(const Allocation& a) const;
+  Status ZeroGradients(Session& s, Tape& tape);
   Status Launch(Session& s, const LaunchCommand& c, const HandleSnapshot& h, const SourceLocation& origin);
   Status TapeOp(Session& s, const TapeCommand& c, const HandleSnapshot& h);
   Status Backward(Session& s, Tape& tape, const TapeCommand& c, const HandleSnapshot& h);
   Status SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h);
 
-  ThreadPool& pool_;
+  DeviceSet& devices_;
   ModuleStore* store_;
-  CommandExecutorOptions options_;
 };
 
 // Every array handle a command names (for the snapshot).

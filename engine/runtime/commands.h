@@ -40,7 +40,9 @@ struct LaunchCommand {
   std::vector<ArgValue> args;
   bool adjoint = false;             // run the kernel's adjoint with adj_args
   std::vector<ArgValue> adj_args;   // array slots: the arrays receiving/providing adjoints
-  std::string device;
+  std::string device;               // "cpu", "cuda:N", "cuda" (the session's GPU)
+  uint32_t block_dim = 0;           // GPU threads per block (0 = 256), Warp's block_dim
+  uint32_t max_blocks = 0;          // GPU grid bound (0 = none), Warp's max_blocks
 };
 
 struct TapeCommand {

@@ -33,12 +33,15 @@ std::string IndexString(const wp::int64* v, int n) {
   return s + "]";
 }
 
-Status LaunchError(const CpuLaunch& l, const wp::launch_error_t& e) {
-  const KernelLayout& k = l.kernel->layout;
+}  // namespace
+
+Status FormatLaunchError(const LoadedModule& module, const LoadedKernel& kernel, bool adjoint,
+                         const wp::launch_error_t& e) {
+  const KernelLayout& k = kernel.layout;
   // function_names[id] = "file.py:function"
   std::string file, func = k.name;
-  if (e.function_id >= 0 && static_cast<size_t>(e.function_id) < l.module->function_names.size()) {
-    const std::string& fn = l.module->function_names[e.function_id];
+  if (e.function_id >= 0 && static_cast<size_t>(e.function_id) < module.function_names.size()) {
+    const std::string& fn = module.function_names[e.function_id];
     size_t colon = fn.rfind(':');
     if (colon == std::string::npos) {
       func = fn;
@@ -49,7 +52,7 @@ Status LaunchError(const CpuLaunch& l, const wp::launch_error_t& e) {
   }
   std::string where = file.empty() ? std::string("line ") + std::to_string(e.line)
                                    : file + ":" + std::to_string(e.line);
-  std::string in = "kernel '" + k.name + "'" + (l.adj_args ? " (adjoint)" : "");
+  std::string in = "kernel '" + k.name + "'" + (adjoint ? " (adjoint)" : "");
   if (func != k.name) in += ", in function '" + func + "'";
   std::string array = "array";
   if (e.array_param >= 0 && static_cast<size_t>(e.array_param) < k.params.size())
@@ -72,6 +75,10 @@ Status LaunchError(const CpuLaunch& l, const wp::launch_error_t& e) {
   }
 }
 
+namespace {
+Status LaunchError(const CpuLaunch& l, const wp::launch_error_t& e) {
+  return FormatLaunchError(*l.module, *l.kernel, l.adj_args != nullptr, e);
+}
 }  // namespace
 
 Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {

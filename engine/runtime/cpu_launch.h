@@ -34,6 +34,11 @@ constexpr int64_t kCancelChunk = 1 << 14;
 // Checks dim (1..4 extents, each >= 0, product < 2^62).
 Status CheckLaunchDim(const std::vector<int64_t>& dim);
 
+// A kernel-reported error as the Status clients see (kernel, function, array, index, shape,
+// file:line); used by every device.
+Status FormatLaunchError(const LoadedModule& module, const LoadedKernel& kernel, bool adjoint,
+                         const wp::launch_error_t& e);
+
 // Runs the launch; appends kernel print output to *output. CANCELLED ("launch cancelled")
 // when the cancel word was set (threads after that point did not run).
 Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& launch, std::string* output);

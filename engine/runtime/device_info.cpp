@@ -1,11 +1,12 @@
-// Device queries: /proc/cpuinfo + sysinfo for the CPU, the CUDA driver API through dlopen.
+// Device queries: /proc/cpuinfo + sysinfo for the CPU, the CUDA driver API through the one loader (engine/device/cuda_driver).
 #include "engine/runtime/device_info.h"
 
-#include <dlfcn.h>
 #include <sys/sysinfo.h>
 
 #include <fstream>
 #include <mutex>
+
+#include "engine/device/cuda_driver.h"
 
 namespace weft {
 
@@ -39,97 +40,40 @@ DeviceInfo QueryCpuDevice(int pool_threads) {
   return d;
 }
 
-namespace {
-
-// The few driver entry points the device list needs (CUDA driver API, ABI-stable).
-struct CudaDriver {
-  using InitFn = int (*)(unsigned);
-  using CountFn = int (*)(int*);
-  using GetFn = int (*)(int*, int);
-  using NameFn = int (*)(char*, int, int);
-  using TotalMemFn = int (*)(size_t*, int);
-  using AttrFn = int (*)(int*, int, int);
-  using CtxCreateFn = int (*)(void**, unsigned, int);
-  using CtxDestroyFn = int (*)(void*);
-  using MemInfoFn = int (*)(size_t*, size_t*);
-  using PrimaryRetainFn = int (*)(void**, int);
-  using PrimaryReleaseFn = int (*)(int);
-  using CtxSetFn = int (*)(void*);
-  void* lib = nullptr;
-  InitFn init = nullptr;
-  CountFn count = nullptr;
-  GetFn get = nullptr;
-  NameFn name = nullptr;
-  TotalMemFn total_mem = nullptr;
-  AttrFn attr = nullptr;
-  MemInfoFn mem_info = nullptr;
-  PrimaryRetainFn retain = nullptr;
-  PrimaryReleaseFn release = nullptr;
-  CtxSetFn set_current = nullptr;
-  bool ok = false;
-};
-
-const CudaDriver& Driver() {
-  static CudaDriver d;
-  static std::once_flag once;
-  std::call_once(once, [] {
-    d.lib = dlopen("libcuda.so.1", RTLD_NOW | RTLD_LOCAL);
-    if (!d.lib) return;
-    d.init = reinterpret_cast<CudaDriver::InitFn>(dlsym(d.lib, "cuInit"));
-    d.count = reinterpret_cast<CudaDriver::CountFn>(dlsym(d.lib, "cuDeviceGetCount"));
-    d.get = reinterpret_cast<CudaDriver::GetFn>(dlsym(d.lib, "cuDeviceGet"));
-    d.name = reinterpret_cast<CudaDriver::NameFn>(dlsym(d.lib, "cuDeviceGetName"));
-    d.total_mem = reinterpret_cast<CudaDriver::TotalMemFn>(dlsym(d.lib, "cuDeviceTotalMem_v2"));
-    d.attr = reinterpret_cast<CudaDriver::AttrFn>(dlsym(d.lib, "cuDeviceGetAttribute"));
-    d.mem_info = reinterpret_cast<CudaDriver::MemInfoFn>(dlsym(d.lib, "cuMemGetInfo_v2"));
-    d.retain = reinterpret_cast<CudaDriver::PrimaryRetainFn>(dlsym(d.lib, "cuDevicePrimaryCtxRetain"));
-    d.release = reinterpret_cast<CudaDriver::PrimaryReleaseFn>(dlsym(d.lib, "cuDevicePrimaryCtxRelease_v2"));
-    d.set_current = reinterpret_cast<CudaDriver::CtxSetFn>(dlsym(d.lib, "cuCtxSetCurrent"));
-    d.ok = d.init && d.count && d.get && d.name && d.total_mem && d.attr && d.init(0) == 0;
-  });
-  return d;
-}
-
-constexpr int kAttrMultiprocessorCount = 16;
-constexpr int kAttrComputeCapabilityMajor = 75;
-constexpr int kAttrComputeCapabilityMinor = 76;
-
-}  // namespace
-
 std::vector<DeviceInfo> QueryCudaDevices() {
   std::vector<DeviceInfo> out;
-  const CudaDriver& d = Driver();
-  if (!d.ok) return out;
+  auto loaded = jit::CudaDriver::Get();
+  if (!loaded.ok()) return out;
+  const jit::CudaDriver& d = **loaded;
   int n = 0;
-  if (d.count(&n) != 0) return out;
+  if (d.DeviceGetCount(&n) != 0) return out;
   for (int i = 0; i < n; ++i) {
-    int dev = 0;
-    if (d.get(&dev, i) != 0) continue;
+    jit::CuDevice dev = 0;
+    if (d.DeviceGet(&dev, i) != 0) continue;
     DeviceInfo info;
     info.name = "cuda:" + std::to_string(i);
     info.kind = "cuda";
     char name[256] = {0};
-    d.name(name, sizeof(name) - 1, dev);
+    d.DeviceGetName(name, sizeof(name) - 1, dev);
     info.description = name;
     size_t total = 0;
-    d.total_mem(&total, dev);
+    d.DeviceTotalMem(&total, dev);
     info.total_memory = total;
     info.free_memory = total;
-    d.attr(&info.compute_capability_major, kAttrComputeCapabilityMajor, dev);
-    d.attr(&info.compute_capability_minor, kAttrComputeCapabilityMinor, dev);
-    d.attr(&info.cores, kAttrMultiprocessorCount, dev);
-    // Free memory needs a context: use the device's primary context (shared, cheap once made).
-    if (d.retain && d.set_current && d.mem_info) {
-      void* ctx = nullptr;
-      if (d.retain(&ctx, dev) == 0) {
-        if (d.set_current(ctx) == 0) {
-          size_t free_b = 0, total_b = 0;
-          if (d.mem_info(&free_b, &total_b) == 0) info.free_memory = free_b;
-          d.set_current(nullptr);
-        }
-        // Keep the primary context retained: releasing the last reference destroys it, and
-        // recreating it costs far more than the query.
+    d.DeviceGetAttribute(&info.compute_capability_major, jit::kCuAttributeComputeCapabilityMajor, dev);
+    d.DeviceGetAttribute(&info.compute_capability_minor, jit::kCuAttributeComputeCapabilityMinor, dev);
+    d.DeviceGetAttribute(&info.cores, jit::kCuAttributeMultiprocessorCount, dev);
+    // Free memory needs a context: the device's primary context, retained for the query and
+    // released after it (the CUDA device holds its own reference; a device reset must be able to
+    // drop every reference of the daemon).
+    jit::CuContext ctx = nullptr;
+    if (d.DevicePrimaryCtxRetain(&ctx, dev) == 0) {
+      if (d.CtxSetCurrent(ctx) == 0) {
+        size_t free_b = 0, total_b = 0;
+        if (d.MemGetInfo(&free_b, &total_b) == 0) info.free_memory = free_b;
+        d.CtxSetCurrent(nullptr);
       }
+      d.DevicePrimaryCtxRelease(dev);
     }
     out.push_back(std::move(info));
   }

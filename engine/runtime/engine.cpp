@@ -61,15 +61,34 @@ Expected<std::unique_ptr<Engine>> Engine::Create(const EngineOptions& options,
 
 Engine::Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store)
     : options_(options),
-      slabs_(std::make_unique<ShmSlabPool>(options.slabs)),
       store_(std::move(store)),
       pool_(std::make_unique<ThreadPool>(options.cpu_threads)) {
   watchdog_ = std::make_unique<LaunchWatchdog>();
-  CommandExecutorOptions eo;
-  eo.print_capacity = options.print_capacity;
-  eo.watchdog = watchdog_.get();
-  eo.launch_time_limit_s = options.launch_time_limit_s;
-  executor_ = std::make_unique<CommandExecutor>(*pool_, store_.get(), eo);
+  CpuDeviceOptions cpu;
+  cpu.slabs = options.slabs;
+  cpu.print_capacity = options.print_capacity;
+  cpu.launch_time_limit_s = options.launch_time_limit_s;
+  std::vector<std::unique_ptr<CudaDevice>> gpus;
+  if (options.use_gpus) {
+    ModuleStore* st = store_.get();
+    for (const DeviceInfo& info : QueryCudaDevices()) {
+      CudaDeviceOptions o;
+      o.ordinal = std::stoi(info.name.substr(5));
+      o.launch_time_limit_s = options.launch_time_limit_s;
+      if (st) o.compile = [st](const std::string& source, const std::string& name, int sm) {
+        return st->CompileCudaSource(source, name, sm);
+      };
+      auto gpu = CudaDevice::Create(o);
+      if (!gpu.ok()) {
+        spdlog::warn("{} ({}) cannot compute here: {}", info.name, info.description, gpu.status().ToString());
+        continue;
+      }
+      spdlog::info("{}: {} (sm_{}) ready", info.name, info.description, (*gpu)->sm());
+      gpus.push_back(std::move(*gpu));
+    }
+  }
+  devices_ = std::make_unique<DeviceSet>(std::make_unique<CpuDevice>(*pool_, watchdog_.get(), cpu), std::move(gpus));
+  executor_ = std::make_unique<CommandExecutor>(*devices_, store_.get());
   memory_limit_ = PhysicalMemoryAndSwap();
   MemoryLimits limits = options.memory;
   if (limits.daemon == 0) limits.daemon = DefaultDaemonMemoryLimit(memory_limit_);
@@ -86,7 +105,7 @@ Engine::~Engine() {
   watchdog_.reset();
   pool_.reset();
   store_.reset();
-  slabs_.reset();
+  devices_.reset();
 }
 
 // ---- sessions ----
@@ -135,9 +154,12 @@ Status Engine::CloseSession(const std::string& id, bool reaped) {
   }
   s->Cancel();   // queued batches are skipped, running launches/fills/copies stop
   s->queue().WaitIdle();
+  for (auto& g : devices_->gpus()) (void)g->Synchronize(*s);   // GPU loops see the cancel word
   size_t n = s->array_count();
   if (reaped) ++sessions_reaped_;   // counted before the arrays go: Stats never shows them freed but the reap uncounted
   s->ReleaseAll();   // tapes hold weak references only; they go with the Session object
+  for (auto& g : devices_->gpus()) g->CloseSession(*s);
+  devices_->Forget(s->id());
   spdlog::info("session {} {}: {} array handle(s) released", s->label(),
                reaped ? "reaped (client went away)" : "closed", n);
   return Status::Ok();
@@ -180,13 +202,17 @@ void Engine::CloseAllSessions() {
 std::vector<DeviceInfo> Engine::ListDevices() const {
   std::vector<DeviceInfo> out;
   out.push_back(QueryCpuDevice(pool_->size()));
-  for (auto& d : QueryCudaDevices()) out.push_back(std::move(d));
+  for (auto& d : QueryCudaDevices()) {
+    Device* dev = devices_->Find(d.name);
+    d.compute_supported = dev != nullptr && !static_cast<CudaDevice*>(dev)->lost();
+    out.push_back(std::move(d));
+  }
   return out;
 }
 
 // ---- arrays ----
 
-Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(Session& owner, const DType& dtype,
+Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(Session& owner, Device& device, const DType& dtype,
                                                             const std::vector<int64_t>& shape, bool zero) {
   WEFT_RETURN_IF_ERROR(dtype.Validate());
   if (shape.empty() || shape.size() > static_cast<size_t>(kMaxArrayDims))
@@ -203,9 +229,9 @@ Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(Session& owner, cons
                              std::to_string(memory_limit_) + ")");
   // Reserve before allocating: the quota counts reserved bytes, not touched pages.
   const std::string session_id = owner.id(), principal = owner.options().principal;
-  const uint64_t reserved = slabs_->ReservedSize(bytes);
+  const uint64_t reserved = device.ReservedSize(bytes);
   WEFT_RETURN_IF_ERROR(quota_->Reserve(session_id, principal, reserved));
-  auto block = slabs_->Allocate(bytes, session_id);
+  auto block = device.Allocate(bytes, session_id, false);
   if (!block.ok()) {
     quota_->Release(session_id, principal, reserved);
     return block.status();
@@ -216,10 +242,10 @@ Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(Session& owner, cons
   a->shape = shape;
   a->strides = ContiguousStrides(shape, dtype.ElementSize());
   a->byte_size = bytes;
+  a->device = device.name();
   a->block = *block;
-  if (zero && !a->block.zeroed) std::memset(a->block.data, 0, a->byte_size);   // new slabs are zero already
   const uint64_t handle = a->handle, size = a->byte_size;
-  ShmSlabPool* pool = slabs_.get();
+  Device* pool = &device;
   MemoryQuota* quota = quota_.get();
   a->release = [this, pool, quota, handle, size, session_id, principal, reserved](const ShmSlabPool::Block& b) {
     {
@@ -231,27 +257,45 @@ Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(Session& owner, cons
     quota->Release(session_id, principal, reserved);
   };
   live_bytes_ += size;
-  std::lock_guard<std::mutex> lock(alloc_mu_);
-  allocations_[a->handle] = a;
+  {
+    std::lock_guard<std::mutex> lock(alloc_mu_);
+    allocations_[a->handle] = a;
+  }
+  if (zero && !a->block.zeroed && a->byte_size) {   // new CPU slabs are zero already
+    if (device.is_cpu()) {
+      std::memset(a->block.data, 0, a->byte_size);
+    } else {
+      ArrayView v;
+      v.alloc = a;
+      v.shape = a->shape;
+      v.strides = a->strides;
+      WEFT_RETURN_IF_ERROR(device.Fill(owner, v, std::string(dtype.ElementSize(), '\0')));
+    }
+  }
   return a;
 }
 
-Status Engine::MoveToOwnSlab(Allocation& a, const Session& owner) {
+Status Engine::MoveToOwnSlab(Allocation& a, Session& owner) {
   {
     std::lock_guard<std::mutex> lock(a.block_mu);
     if (a.block.dedicated || a.retired_block.data) return Status::Ok();
   }
   // The new slab is reserved too (the old block stays reserved until the array dies).
   const std::string session_id = a.block.owner, principal = owner.options().principal;
-  const uint64_t reserved = slabs_->ReservedSize(a.byte_size);
+  Device* pool = devices_->Find(a.device);
+  if (!pool) return Internal("array " + std::to_string(a.handle) + " lives on unknown device '" + a.device + "'");
+  const uint64_t reserved = pool->ReservedSize(a.byte_size);
   WEFT_RETURN_IF_ERROR(quota_->Reserve(session_id, principal, reserved));
-  auto fresh = slabs_->Allocate(a.byte_size, session_id, /*dedicated=*/true);
+  auto fresh = pool->Allocate(a.byte_size, session_id, /*dedicated=*/true);
   if (!fresh.ok()) {
     quota_->Release(session_id, principal, reserved);
     return fresh.status();
   }
-  if (a.byte_size) std::memcpy(fresh->data, a.block.data, a.byte_size);
-  ShmSlabPool* pool = slabs_.get();
+  if (Status copied = pool->CopyBlock(owner, *fresh, a.block, a.byte_size); !copied.ok()) {
+    pool->Free(*fresh);
+    quota_->Release(session_id, principal, reserved);
+    return copied;
+  }
   MemoryQuota* quota = quota_.get();
   std::lock_guard<std::mutex> lock(a.block_mu);
   a.retired_block = a.block;
@@ -281,9 +325,16 @@ ArrayDesc Engine::Describe(const Session& s, const Allocation& a) const {
   if (s.options().local) {
     std::lock_guard<std::mutex> lock(a.block_mu);
     if (a.block.owner == s.id() || a.block.dedicated) {
-      d.shm_name = a.block.slab_name;
-      d.shm_offset = a.block.offset;
-      d.shm_size = a.block.slab_size;
+      if (a.device == "cpu") {
+        d.shm_name = a.block.slab_name;
+        d.shm_offset = a.block.offset;
+        d.shm_size = a.block.slab_size;
+      } else {
+        d.cuda_ipc_handle = a.block.ipc_handle;
+        d.cuda_ipc_offset = a.block.offset;
+        d.cuda_slab_size = a.block.slab_size;
+        d.cuda_slab_id = a.block.slab_id;
+      }
     }
   }
   return d;
@@ -299,11 +350,7 @@ Expected<std::shared_ptr<Allocation>> Engine::Held(const Session& s, uint64_t ha
 }
 
 Expected<ArrayDesc> Engine::CreateArray(Session& s, const CreateArrayParams& p) {
-  if (!p.device.empty() && p.device != "cpu") {
-    if (p.device == "cuda" || p.device.rfind("cuda:", 0) == 0)
-      return Unimplemented("device '" + p.device + "': CUDA arrays are not supported by this daemon yet");
-    return InvalidArgument("unknown device '" + p.device + "' (expected \"cpu\" or \"cuda:N\")");
-  }
+  WEFT_ASSIGN_OR_RETURN(Device * device, devices_->Resolve(s.id(), p.device));
   const uint64_t esize = p.dtype.ElementSize();
   // Check the initial value before allocating anything.
   if (p.init == CreateArrayParams::Init::kFill && p.value.size() != esize)
@@ -316,9 +363,9 @@ Expected<ArrayDesc> Engine::CreateArray(Session& s, const CreateArrayParams& p) 
                              " of " + p.dtype.Name() + " needs " + std::to_string(want));
   }
   const bool zero = p.init == CreateArrayParams::Init::kZeros;
-  WEFT_ASSIGN_OR_RETURN(auto a, NewAllocation(s, p.dtype, p.shape, zero));
+  WEFT_ASSIGN_OR_RETURN(auto a, NewAllocation(s, *device, p.dtype, p.shape, zero));
   if (p.requires_grad) {
-    WEFT_ASSIGN_OR_RETURN(auto g, NewAllocation(s, p.dtype, p.shape, true));
+    WEFT_ASSIGN_OR_RETURN(auto g, NewAllocation(s, *device, p.dtype, p.shape, true));
     g->is_grad = true;
     a->grad = std::move(g);
   }
@@ -327,9 +374,9 @@ Expected<ArrayDesc> Engine::CreateArray(Session& s, const CreateArrayParams& p) 
     v.alloc = a;
     v.shape = a->shape;
     v.strides = a->strides;
-    WEFT_RETURN_IF_ERROR(FillView(v, p.value));
+    WEFT_RETURN_IF_ERROR(device->Fill(s, v, p.value));
   } else if (p.init == CreateArrayParams::Init::kData && !p.value.empty()) {
-    std::memcpy(a->data(), p.value.data(), p.value.size());
+    WEFT_RETURN_IF_ERROR(device->Upload(s, a->block, 0, p.value.data(), p.value.size()));
   }
   s.Hold(a);
   return Describe(s, *a);
@@ -362,6 +409,19 @@ Status Engine::ReadArray(Session& s, uint64_t handle, uint64_t offset, uint64_t 
   if (chunk == 0) chunk = 1u << 20;
   if (chunk > (32u << 20)) chunk = 32u << 20;
   s.queue().WaitIdle();
+  if (a->device != "cpu") {
+    // GPU: each chunk is downloaded after the session's queued work on the device.
+    Device* d = devices_->Find(a->device);
+    if (!d) return Internal("array " + std::to_string(handle) + " lives on unknown device '" + a->device + "'");
+    std::vector<char> buf(std::min<uint64_t>(chunk, count));
+    for (uint64_t done = 0; done < count;) {
+      size_t n = static_cast<size_t>(std::min<uint64_t>(chunk, count - done));
+      WEFT_RETURN_IF_ERROR(d->Download(s, a->block, offset + done, buf.data(), n));
+      if (!sink(offset + done, buf.data(), n)) return Status(StatusCode::kCancelled, "read cancelled");
+      done += n;
+    }
+    return Status::Ok();
+  }
   const char* base = a->data();
   for (uint64_t done = 0; done < count;) {
     size_t n = static_cast<size_t>(std::min<uint64_t>(chunk, count - done));
@@ -378,6 +438,11 @@ Status Engine::WriteArray(Session& s, uint64_t handle, uint64_t offset, const vo
                       " runs past the end of array " + std::to_string(handle) + " (" +
                       std::to_string(a->byte_size) + " bytes)");
   s.queue().WaitIdle();
+  if (a->device != "cpu") {
+    Device* d = devices_->Find(a->device);
+    if (!d) return Internal("array " + std::to_string(handle) + " lives on unknown device '" + a->device + "'");
+    return d->Upload(s, a->block, offset, data, size);
+  }
   if (size) std::memcpy(a->data() + offset, data, size);
   return Status::Ok();
 }
@@ -477,12 +542,24 @@ Expected<Session::SyncResult> Engine::SubmitAndSynchronize(Session& s, std::vect
     WEFT_RETURN_IF_ERROR(AdmitBatch(s, commands));
     s.queue().RunAndWait(BatchTask(s, std::move(commands)));
   }
+  SynchronizeDevices(s);
   return s.TakeResult();
 }
 
 Session::SyncResult Engine::Synchronize(Session& s) {
   s.queue().WaitIdle();
+  SynchronizeDevices(s);
   return s.TakeResult();
+}
+
+void Engine::SynchronizeDevices(Session& s) {
+  for (auto& g : devices_->gpus()) {
+    DeviceSyncResult r = g->Synchronize(s);
+    if (!r.error.ok()) {
+      spdlog::warn("session {}: {}: {}", s.label(), g->name(), r.error.ToString());
+      s.Fail(r.error, r.origin);
+    }
+  }
 }
 
 // ---- modules ----
@@ -490,9 +567,14 @@ Session::SyncResult Engine::Synchronize(Session& s) {
 Expected<std::shared_ptr<const LoadedModule>> Engine::Compile(Session& s, ModuleSource source,
                                                               const std::string& device, CompileReport* report) {
   if (!store_) return FailedPrecondition("this daemon has no module store");
-  const std::string dev = device.empty() ? "cpu" : device;
+  std::string dev = device.empty() ? "cpu" : device;
   if (dev != "cpu" && dev.rfind("cuda", 0) != 0)
     return InvalidArgument("unknown device '" + dev + "' (expected \"cpu\" or \"cuda:N\")");
+  // "cuda" is the session's GPU; without one the store compiles for its default architecture.
+  if (dev == "cuda" && !devices_->gpus().empty()) {
+    WEFT_ASSIGN_OR_RETURN(Device * placed, devices_->Resolve(s.id(), dev));
+    dev = placed->name();
+  }
   // Options that weaken a safety net (bounds checks, the loops' cancellation poll) need
   // --allow-unchecked; without it they are turned back on with a warning.
   std::vector<std::string> ignored;
@@ -530,9 +612,15 @@ EngineStats Engine::Stats() const {
     st.arrays = allocations_.size();
   }
   st.array_bytes = live_bytes_.load();
-  auto ps = slabs_->stats();
-  st.cpu_slabs = ps.slabs;
-  st.cpu_slab_bytes = ps.slab_bytes;
+  st.cpu_slabs = devices_->cpu().SlabCount();
+  st.cpu_slab_bytes = devices_->cpu().SlabBytes();
+  for (auto& g : devices_->gpus()) {
+    st.gpu_slabs += g->SlabCount();
+    st.gpu_slab_bytes += g->SlabBytes();
+    CudaDeviceStats gs = g->stats();
+    st.gpu_resets += gs.resets;
+    if (gs.resets) st.last_gpu_reset_ms = gs.last_reset_ms;
+  }
   if (store_) {
     auto ms = store_->stats();
     st.module_cache_hits = ms.memory_hits;

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "engine/core/status.h"
+#include "engine/device/device_set.h"
 #include "engine/runtime/command_executor.h"
 #include "engine/runtime/command_limits.h"
 #include "engine/runtime/launch_watchdog.h"
@@ -40,6 +41,7 @@ struct EngineOptions {
   CommandLimits limits;                     // per command / per session, checked at submit
   double launch_time_limit_s = 300;         // a launch running longer is stopped; 0 = none
   uint32_t max_sessions_per_principal = 256;   // OpenClientSession refuses more
+  bool use_gpus = true;                     // create a CUDA device for every GPU that computes
 };
 
 // Everything a client needs to know about an allocation (engine twin of weft.v1.ArrayInfo).
@@ -54,6 +56,12 @@ struct ArrayDesc {
   std::string shm_name;   // local sessions only
   uint64_t shm_offset = 0;
   uint64_t shm_size = 0;
+  // GPU arrays, local sessions only: the slab's CUDA IPC handle (64 bytes), the offset of the
+  // array inside the slab, the slab's size and id (open each slab once).
+  std::string cuda_ipc_handle;
+  uint64_t cuda_ipc_offset = 0;
+  uint64_t cuda_slab_size = 0;
+  uint64_t cuda_slab_id = 0;
 };
 
 struct CreateArrayParams {
@@ -77,6 +85,10 @@ struct EngineStats {
   uint64_t module_cache_misses = 0;
   uint64_t sessions_opened_total = 0;
   uint64_t sessions_reaped_total = 0;
+  uint32_t gpu_slabs = 0;            // every GPU together
+  uint64_t gpu_slab_bytes = 0;
+  uint64_t gpu_resets = 0;           // device resets after kernel faults
+  double last_gpu_reset_ms = 0;
 };
 
 class Engine {
@@ -139,6 +151,9 @@ class Engine {
   MemoryUsage MemoryUsageOf(const Session& s) const;
   const MemoryLimits& memory_limits() const { return quota_->limits(); }
   ThreadPool& pool() { return *pool_; }
+  DeviceSet& devices() { return *devices_; }
+  // The GPU the alias "cuda" means for the session ("" before its first use).
+  std::string CudaPlacement(const Session& s) const { return devices_->Placement(s.id()); }
 
  private:
   Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store);
@@ -146,16 +161,18 @@ class Engine {
   std::function<void()> BatchTask(Session& s, std::vector<Command> commands);
   // Checks a batch against the limits and counts it as queued (BatchTask uncounts it).
   Status AdmitBatch(Session& s, const std::vector<Command>& commands);
-  // A new allocation owned by `owner`: quota reserved, memory from the owner's slabs.
-  Expected<std::shared_ptr<Allocation>> NewAllocation(Session& owner, const DType& dtype,
+  // A new allocation owned by `owner` on `device`: quota reserved, memory from the owner's slabs.
+  Expected<std::shared_ptr<Allocation>> NewAllocation(Session& owner, Device& device, const DType& dtype,
                                                       const std::vector<int64_t>& shape, bool zero);
   // Moves an allocation's bytes into a slab of its own (before its first export).
-  Status MoveToOwnSlab(Allocation& a, const Session& owner);
+  Status MoveToOwnSlab(Allocation& a, Session& owner);
+  // Waits for the session's work on every GPU; the first asynchronous error becomes its error.
+  void SynchronizeDevices(Session& s);
   ArrayDesc Describe(const Session& s, const Allocation& a) const;
   Expected<std::shared_ptr<Allocation>> Held(const Session& s, uint64_t handle) const;
 
   EngineOptions options_;
-  std::unique_ptr<ShmSlabPool> slabs_;   // destroyed last (declared first)
+  std::unique_ptr<DeviceSet> devices_;   // destroyed last (declared first); made in the constructor
   std::unique_ptr<MemoryQuota> quota_;   // outlives every allocation (declared early)
   std::unique_ptr<ModuleStore> store_;
   std::unique_ptr<ThreadPool> pool_;

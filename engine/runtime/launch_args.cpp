@@ -32,6 +32,7 @@ struct Packer {
   const KernelLayout& kernel;
   bool adjoint = false;   // values stay zero; arrays fill `data` only
   const PackedArgs* primal = nullptr;   // adjoint: the forward block the shapes must match
+  std::string device = "cpu";           // where the launch runs: every array must live there
   PackedArgs out;
 
   std::string Where(const std::string& path, const ParamLayout& p) const {
@@ -58,7 +59,7 @@ struct Packer {
         Allocation& al = *a.alloc;
         ArrayRequirement req;
         req.what = Where(path, p);
-        req.device = "cpu";
+        req.device = device;
         req.dtype = p.array_dtype;
         req.element_size = p.array_elem_size;
         req.ndim = p.array_ndim;
@@ -130,15 +131,16 @@ struct Packer {
 
 }  // namespace
 
-Expected<PackedArgs> PackArgs(const KernelLayout& kernel, const std::vector<ResolvedArg>& args) {
-  Packer p{kernel, false, nullptr, {}};
+Expected<PackedArgs> PackArgs(const KernelLayout& kernel, const std::vector<ResolvedArg>& args,
+                              const std::string& device) {
+  Packer p{kernel, false, nullptr, device, {}};
   WEFT_RETURN_IF_ERROR(p.PackAll(args));
   return std::move(p.out);
 }
 
 Expected<PackedArgs> PackAdjointArgs(const KernelLayout& kernel, const PackedArgs& primal,
-                                     const std::vector<ResolvedArg>& adj_args) {
-  Packer p{kernel, true, &primal, {}};
+                                     const std::vector<ResolvedArg>& adj_args, const std::string& device) {
+  Packer p{kernel, true, &primal, device, {}};
   WEFT_RETURN_IF_ERROR(p.PackAll(adj_args));
   return std::move(p.out);
 }

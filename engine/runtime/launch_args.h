@@ -54,14 +54,16 @@ struct PackedArgs {
 };
 
 // Packs forward arguments. Errors name the kernel and the parameter.
-Expected<PackedArgs> PackArgs(const KernelLayout& kernel, const std::vector<ResolvedArg>& args);
+// Every array must live on `device` (the launch's).
+Expected<PackedArgs> PackArgs(const KernelLayout& kernel, const std::vector<ResolvedArg>& args,
+                              const std::string& device = "cpu");
 
 // Adjoint block from explicit adjoint arguments (LaunchCommand.adjoint): array slots take the
 // given arrays' data; value slots are zero. Each adjoint array passes ValidateArray with the
 // compiled element type and size, and must have the shape of the primal array in the same slot
 // of `primal` (the packed forward block).
 Expected<PackedArgs> PackAdjointArgs(const KernelLayout& kernel, const PackedArgs& primal,
-                                     const std::vector<ResolvedArg>& adj_args);
+                                     const std::vector<ResolvedArg>& adj_args, const std::string& device = "cpu");
 
 // Adjoint block for a recorded launch: each array slot points at that array's own gradient
 // (data = null when it has none), validated like every array; value slots are zero. The forward

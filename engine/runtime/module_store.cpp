@@ -24,7 +24,7 @@
 #include "engine/native/host_symbols.h"
 #endif
 #if WEFT_WITH_CUDA
-#include "engine/jit/cuda/cuda_driver.h"
+#include "engine/device/cuda_driver.h"
 #include "engine/jit/cuda/nvrtc_compiler.h"
 #endif
 
@@ -342,12 +342,43 @@ class ModuleStoreImpl final : public ModuleStore {
   }
 
 #if WEFT_WITH_CUDA
-  // NVRTC for `sm`; a rejection is a weft bug (Internal) with the log as diagnostics too.
-  Expected<std::string> CompileCuda(const ModuleSource& source, const std::string& cuda_source,
-                                    int sm, std::vector<Diagnostic>* diags) const {
+  // CUBIN for an architecture NVRTC knows, else PTX for the newest virtual one it knows (the
+  // driver JIT-compiles it at load).
+  jit::NvrtcOptions NvrtcFor(int sm) const {
     jit::NvrtcOptions nvrtc;
     nvrtc.sm = sm;
     nvrtc.include_dirs = {options_.native_dir};
+    if (!jit::NvrtcSupportsArch(sm)) {
+      nvrtc.cubin = false;
+      int best = 0;
+      for (int a : {52, 60, 70, 75, 80, 86, 89, 90, 100, 120})
+        if (a <= sm && jit::NvrtcSupportsArch(a)) best = a;
+      if (best) nvrtc.sm = best;
+    }
+    return nvrtc;
+  }
+
+ public:
+  Expected<std::string> CompileCudaSource(const std::string& source, const std::string& name, int sm) override {
+    auto compiled = jit::NvrtcCompile(source, name, NvrtcFor(sm));
+    if (!compiled.ok()) return compiled.status();
+    return std::move(compiled->image);
+  }
+
+ private:
+  // NVRTC for `sm`; a rejection is a weft bug (Internal) with the log as diagnostics too.
+  Expected<std::string> CompileCuda(const ModuleSource& source, const std::string& cuda_source,
+                                    int sm, std::vector<Diagnostic>* diags) const {
+    jit::NvrtcOptions nvrtc = NvrtcFor(sm);
+    // Warp's module options: fast_math, lineinfo, mode="debug".
+    auto flag = [&](const char* option) {
+      auto it = source.options.find(option);
+      return it != source.options.end() && (it->second == "true" || it->second == "True" || it->second == "1");
+    };
+    if (flag("fast_math")) nvrtc.extra_flags.push_back("--use_fast_math");
+    if (flag("lineinfo")) nvrtc.extra_flags.push_back("-lineinfo");
+    if (auto mode = source.options.find("mode"); mode != source.options.end() && mode->second == "debug")
+      nvrtc.extra_flags.push_back("-G");
     const std::string main_file = SafeName(source.name) + ".cu";
     auto compiled = jit::NvrtcCompile(cuda_source, main_file, nvrtc);
     if (!compiled.ok()) {

@@ -94,6 +94,13 @@ class ModuleStore {
   // The same module with backward entry points (generated and compiled on first request).
   virtual Expected<std::shared_ptr<const LoadedModule>> WithBackward(const std::string& module_id) = 0;
   virtual ModuleStoreStats stats() const = 0;
+  // CUDA C++ that is not a weft module (the CUDA device's built-in copy/fill kernels) compiled
+  // for sm_XX with the native headers on the include path: a CUBIN, or PTX when NVRTC does not
+  // know the architecture.
+  virtual Expected<std::string> CompileCudaSource(const std::string& source, const std::string& name, int sm) {
+    (void)source, (void)name, (void)sm;
+    return Unimplemented("this module store cannot compile CUDA");
+  }
 };
 
 }  // namespace weft

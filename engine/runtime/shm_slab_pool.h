@@ -44,6 +44,10 @@ class ShmSlabPool {
     bool zeroed = false;      // from a slab created for this request: already all zero
     bool dedicated = false;   // the slab holds this block and nothing else
     std::string owner;        // the owner of the slab
+    // GPU blocks (engine/device/cuda_device): the slab's CUDA IPC handle (64 bytes) and the
+    // device generation (bumped by a device reset: blocks of older generations are lost).
+    std::string ipc_handle;
+    uint64_t generation = 0;
   };
 
   explicit ShmSlabPool(ShmSlabPoolOptions options = {});

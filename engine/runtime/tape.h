@@ -18,6 +18,9 @@ struct TapeRecord {
   std::vector<int64_t> dim;
   PackedArgs args;          // keep_alive is empty: the tape does not keep arrays alive
   SourceLocation origin;
+  std::string device = "cpu";   // where it ran (the adjoint runs there too)
+  uint32_t block_dim = 0;
+  uint32_t max_blocks = 0;
 };
 
 struct Tape {

@@ -156,7 +156,7 @@ TEST(CpuLaunch, BadArgumentsGetClearErrorsAndChangeNothing) {
   { auto l = Saxpy(xa->handle, ya->handle, 1, 2); l.args[0].array = ArrayRef{xa->handle, 0, {3}, {}}; cases.push_back({l, StatusCode::kOutOfRange, "reaches outside"}); }
   { auto l = Saxpy(xa->handle, ya->handle, 1, 2); l.dim = {}; cases.push_back({l, StatusCode::kInvalidArgument, "1 to 4 dimensions"}); }
   { auto l = Saxpy(xa->handle, ya->handle, 1, 2); l.dim = {-3}; cases.push_back({l, StatusCode::kInvalidArgument, "negative"}); }
-  { auto l = Saxpy(xa->handle, ya->handle, 1, 2); l.device = "cuda:0"; cases.push_back({l, StatusCode::kUnimplemented, "cuda:0"}); }
+  { auto l = Saxpy(xa->handle, ya->handle, 1, 2); l.device = "cuda:0"; cases.push_back({l, StatusCode::kInvalidArgument, "cuda:0"}); }
   for (auto& c : cases) {
     ASSERT_TRUE(e->Submit(*s, {Cmd(c.l)}).ok());
     auto r = e->Synchronize(*s);

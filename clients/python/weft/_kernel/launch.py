@@ -620,6 +620,10 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
                                     args=packed, adjoint=bool(adjoint), adj_args=adj_packed,
                                     device=device),
             origin=caller_origin())
+    if block_dim and block_dim != 256:        # GPU launch geometry (Warp's options)
+        command.launch.block_dim = int(block_dim)
+    if max_blocks:
+        command.launch.max_blocks = int(max_blocks)
     rt.submit(command)
     if pause:
         tape.resume_recording()

@@ -1,5 +1,6 @@
 // CUDA driver loader: dlopen libcuda.so.1 once, resolve the versioned entry points, cuInit.
-#include "engine/jit/cuda/cuda_driver.h"
+// (device_info.cpp lists devices through it; the CUDA device and module_store use it.)
+#include "engine/device/cuda_driver.h"
 
 #include <dlfcn.h>
 
@@ -29,7 +30,27 @@ Expected<const CudaDriver*> Load() {
   Resolve(library, "cuDeviceGetAttribute", &driver.DeviceGetAttribute, &missing);
   Resolve(library, "cuDeviceGetName", &driver.DeviceGetName, &missing);
   Resolve(library, "cuDevicePrimaryCtxRetain", &driver.DevicePrimaryCtxRetain, &missing);
+  Resolve(library, "cuDeviceTotalMem_v2", &driver.DeviceTotalMem, &missing);
   Resolve(library, "cuDevicePrimaryCtxRelease_v2", &driver.DevicePrimaryCtxRelease, &missing);
+  Resolve(library, "cuDevicePrimaryCtxReset_v2", &driver.DevicePrimaryCtxReset, &missing);
+  Resolve(library, "cuMemGetInfo_v2", &driver.MemGetInfo, &missing);
+  Resolve(library, "cuFuncGetAttribute", &driver.FuncGetAttribute, &missing);
+  Resolve(library, "cuMemcpyDtoD_v2", &driver.MemcpyDtoD, &missing);
+  Resolve(library, "cuMemcpyHtoDAsync_v2", &driver.MemcpyHtoDAsync, &missing);
+  Resolve(library, "cuMemcpyDtoHAsync_v2", &driver.MemcpyDtoHAsync, &missing);
+  Resolve(library, "cuMemcpyDtoDAsync_v2", &driver.MemcpyDtoDAsync, &missing);
+  Resolve(library, "cuMemcpyPeerAsync", &driver.MemcpyPeerAsync, &missing);
+  Resolve(library, "cuMemsetD8Async", &driver.MemsetD8Async, &missing);
+  Resolve(library, "cuMemsetD16Async", &driver.MemsetD16Async, &missing);
+  Resolve(library, "cuMemsetD32Async", &driver.MemsetD32Async, &missing);
+  Resolve(library, "cuStreamCreate", &driver.StreamCreate, &missing);
+  Resolve(library, "cuStreamDestroy_v2", &driver.StreamDestroy, &missing);
+  Resolve(library, "cuStreamSynchronize", &driver.StreamSynchronize, &missing);
+  Resolve(library, "cuStreamQuery", &driver.StreamQuery, &missing);
+  Resolve(library, "cuMemHostAlloc", &driver.MemHostAlloc, &missing);
+  Resolve(library, "cuMemFreeHost", &driver.MemFreeHost, &missing);
+  Resolve(library, "cuMemHostGetDevicePointer_v2", &driver.MemHostGetDevicePointer, &missing);
+  Resolve(library, "cuIpcGetMemHandle", &driver.IpcGetMemHandle, &missing);
   Resolve(library, "cuCtxSetCurrent", &driver.CtxSetCurrent, &missing);
   Resolve(library, "cuCtxSynchronize", &driver.CtxSynchronize, &missing);
   Resolve(library, "cuModuleLoadData", &driver.ModuleLoadData, &missing);
@@ -62,6 +83,30 @@ Status CudaDriver::Check(CuResult result, const char* what) const {
   if (GetErrorString) GetErrorString(result, &text);
   return Internal(std::string(what) + ": " + (name ? name : "CUDA error " + std::to_string(result)) +
                   (text ? std::string(" (") + text + ")" : std::string()));
+}
+
+std::string CudaDriver::ErrorName(CuResult result) const {
+  const char* name = nullptr;
+  if (GetErrorName) GetErrorName(result, &name);
+  return name ? std::string(name) : "CUDA error " + std::to_string(result);
+}
+
+bool IsStickyCudaError(CuResult result) {
+  switch (result) {
+    case 700:   // CUDA_ERROR_ILLEGAL_ADDRESS
+    case 702:   // CUDA_ERROR_LAUNCH_TIMEOUT
+    case 710:   // CUDA_ERROR_ASSERT
+    case 714:   // CUDA_ERROR_HARDWARE_STACK_ERROR
+    case 715:   // CUDA_ERROR_ILLEGAL_INSTRUCTION
+    case 716:   // CUDA_ERROR_MISALIGNED_ADDRESS
+    case 717:   // CUDA_ERROR_INVALID_ADDRESS_SPACE
+    case 718:   // CUDA_ERROR_INVALID_PC
+    case 719:   // CUDA_ERROR_LAUNCH_FAILED (a __trap)
+    case 999:   // CUDA_ERROR_UNKNOWN
+      return true;
+    default:
+      return false;
+  }
 }
 
 Expected<int> CudaDriver::ComputeCapability(int ordinal) const {

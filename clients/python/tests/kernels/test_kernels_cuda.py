@@ -1,0 +1,235 @@
+"""Kernels on cuda:0 (skipped with the reason when the daemon computes on no GPU): saxpy and a
+vec3 integration step against float64 references on random data, Warp's block_dim/max_blocks
+launch options, out-of-bounds errors reported at the next sync exactly as on the CPU (kernel,
+array, index, shape, file:line), tape backward on the GPU, and fault containment: a kernel
+that faults (an illegal address with bounds checks off under --allow-unchecked) gives its
+session a clear error, another session on the same GPU is told its arrays are lost, and the
+daemon keeps serving. After the fault the GPU either works again (the context reset cleared
+the error) or, when the driver keeps the sticky error for the life of the process (driver 580
+does), refuses every GPU command with "restart weftd" while the CPU keeps working; the test
+prints which, and the time the reset took."""
+import inspect
+
+import numpy as np
+import pytest
+
+import weft as wp
+
+
+@wp.kernel
+def saxpy(a: float, x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = a * x[i] + y[i]
+
+
+@wp.kernel
+def integrate(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), g: wp.vec3, dt: float):
+    i = wp.tid()
+    vi = v[i] + g * dt
+    v[i] = vi
+    x[i] = x[i] + vi * dt
+
+
+@wp.kernel
+def oob(data: wp.array(dtype=float), n: int):
+    i = wp.tid()
+    data[i + n] = 7.0
+
+
+@wp.kernel
+def square_sum(x: wp.array(dtype=float), loss: wp.array(dtype=float)):
+    i = wp.tid()
+    wp.atomic_add(loss, 0, x[i] * x[i])
+
+
+@pytest.fixture
+def gpu(wp):
+    if not wp.is_cuda_available():
+        pytest.skip("weftd has no CUDA device")
+    dev = wp.get_cuda_device(0)
+    if not dev.is_compute_supported:
+        pytest.skip("weftd lists cuda:0 but cannot compute on it")
+    return dev.alias
+
+
+def test_saxpy_matches_float64(wp, gpu, rng):
+    n = 100_003
+    x0 = rng.standard_normal(n).astype(np.float32)
+    y0 = rng.standard_normal(n).astype(np.float32)
+    x = wp.array(x0, dtype=float, device=gpu)
+    y = wp.array(y0, dtype=float, device=gpu)
+    wp.launch(saxpy, dim=n, inputs=[1.5, x, y], device=gpu)
+    ref = 1.5 * x0.astype(np.float64) + y0
+    np.testing.assert_allclose(y.numpy(), ref, rtol=1e-6, atol=1e-6)
+
+
+def test_integrate_vec3_matches_float64(wp, gpu, rng):
+    n = 4097
+    x0 = rng.standard_normal((n, 3)).astype(np.float32)
+    v0 = rng.standard_normal((n, 3)).astype(np.float32)
+    x = wp.array(x0, dtype=wp.vec3, device=gpu)
+    v = wp.array(v0, dtype=wp.vec3, device=gpu)
+    wp.launch(integrate, dim=n, inputs=[x, v, wp.vec3(0.0, -9.8, 0.0), 0.01], device=gpu)
+    dt = np.float64(np.float32(0.01))
+    vr = v0 + np.array([0.0, -9.8, 0.0]) * dt
+    np.testing.assert_allclose(v.numpy(), vr, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(x.numpy(), x0 + vr * dt, rtol=1e-5, atol=1e-5)
+
+
+@pytest.mark.parametrize("block_dim,max_blocks", [(32, 0), (1024, 0), (64, 3), (256, 1)])
+def test_block_dim_and_max_blocks(wp, gpu, rng, block_dim, max_blocks):
+    n = 10_007
+    x0 = rng.standard_normal(n).astype(np.float32)
+    x = wp.array(x0, dtype=float, device=gpu)
+    y = wp.zeros(n, dtype=float, device=gpu)
+    wp.launch(saxpy, dim=n, inputs=[2.0, x, y], device=gpu, block_dim=block_dim, max_blocks=max_blocks)
+    np.testing.assert_allclose(y.numpy(), 2.0 * x0.astype(np.float64), rtol=1e-6)
+
+
+def test_out_of_bounds_is_reported_like_the_cpu(wp, gpu):
+    messages = {}
+    for device in ("cpu", gpu):
+        data = wp.zeros(8, dtype=float, device=device)
+        wp.launch(oob, dim=8, inputs=[data, 4], device=device)
+        with pytest.raises(wp.WeftError) as info:
+            wp.synchronize()
+        messages[device] = str(info.value)
+    lines, start = inspect.getsourcelines(oob.func)
+    line = start + next(k for k, t in enumerate(lines) if "data[i + n]" in t)
+    for text in messages.values():
+        assert f"test_kernels_cuda.py:{line}" in text and "kernel 'oob'" in text, text
+        assert "array 'data' of shape (8,)" in text, text
+    # the same words on both devices, bar the thread that hit it first
+    assert messages["cpu"].split("index")[0] == messages[gpu].split("index")[0]
+    # the session goes on
+    z = wp.zeros(4, dtype=float, device=gpu)
+    wp.launch(saxpy, dim=4, inputs=[1.0, wp.full(4, 2.0, dtype=float, device=gpu), z], device=gpu)
+    np.testing.assert_array_equal(z.numpy(), 2.0)
+
+
+def test_tape_backward_on_gpu(wp, gpu, rng):
+    x0 = rng.standard_normal(1000).astype(np.float32)
+    x = wp.array(x0, dtype=float, device=gpu, requires_grad=True)
+    loss = wp.zeros(1, dtype=float, device=gpu, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(square_sum, dim=1000, inputs=[x, loss], device=gpu)
+    tape.backward(loss=loss)
+    np.testing.assert_allclose(loss.numpy()[0], np.sum(x0.astype(np.float64) ** 2), rtol=1e-4)
+    np.testing.assert_allclose(x.grad.numpy(), 2.0 * x0.astype(np.float64), rtol=1e-6)
+    tape.zero()
+    np.testing.assert_array_equal(x.grad.numpy(), 0.0)
+
+
+FAULT_VICTIM = '''
+import os, sys, time
+import numpy as np
+import weft as wp
+
+@wp.kernel
+def add_one(a: wp.array(dtype=float)):
+    a[wp.tid()] = a[wp.tid()] + 1.0
+
+wp.init()
+keep = wp.array(np.arange(16, dtype=np.float32), dtype=float, device="cuda:0")
+wp.launch(add_one, dim=16, inputs=[keep], device="cuda:0")
+wp.synchronize()
+open(sys.argv[1], "w").write("ready")
+while not os.path.exists(sys.argv[2]):
+    time.sleep(0.05)
+try:
+    wp.launch(add_one, dim=16, inputs=[keep], device="cuda:0")
+    wp.synchronize()
+    print("VICTIM no error")
+except Exception as exc:
+    print("VICTIM error:", exc)
+try:
+    fresh = wp.array(np.arange(16, dtype=np.float32), dtype=float, device="cuda:0")
+    wp.launch(add_one, dim=16, inputs=[fresh], device="cuda:0")
+    print("VICTIM after:", np.array_equal(fresh.numpy(), np.arange(16) + 1))
+except Exception as exc:
+    print("VICTIM refused:", exc)
+'''
+
+FAULTER = '''
+import time
+import numpy as np
+import weft as wp
+
+wp.set_module_options({"bounds_checks": False})
+
+@wp.kernel
+def wild(a: wp.array(dtype=float), n: int):
+    i = wp.tid()
+    a[i * n] = 1.0
+
+wp.init()
+a = wp.zeros(16, dtype=float, device="cuda:0")
+t = time.perf_counter()
+try:
+    wp.launch(wild, dim=1024, inputs=[a, 1 << 28], device="cuda:0")
+    wp.synchronize()
+    print("FAULTER no error")
+except Exception as exc:
+    print("FAULTER error:", exc)
+print(f"FAULTER error after {1e3 * (time.perf_counter() - t):.1f} ms")
+c = wp.array(np.ones(8, dtype=np.float32), dtype=float, device="cpu")
+print("FAULTER cpu after:", np.array_equal(c.numpy(), np.ones(8)))
+try:
+    b = wp.array(np.ones(8, dtype=np.float32), dtype=float, device="cuda:0")
+    print("FAULTER gpu after:", np.array_equal(b.numpy(), np.ones(8)))
+except Exception as exc:
+    print("FAULTER gpu refused:", exc)
+'''
+
+
+def test_faulting_kernel_resets_the_device(wp, gpu, start_weftd, run_script, tmp_path):
+    import subprocess
+    import sys
+    import time
+
+    daemon = start_weftd(["--allow-unchecked"])
+    ready, go = tmp_path / "ready", tmp_path / "go"
+    victim_path = tmp_path / "victim.py"
+    victim_path.write_text(FAULT_VICTIM)
+    env = dict(__import__("os").environ)
+    env["WEFT_ADDRESS"] = daemon.address
+    env["PYTHONPATH"] = __import__("os").path.dirname(__import__("os").path.dirname(wp.__file__))
+    victim = subprocess.Popen([sys.executable, str(victim_path), str(ready), str(go)], env=env,
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        for _ in range(600):
+            if ready.exists() or victim.poll() is not None:
+                break
+            time.sleep(0.05)
+        assert ready.exists(), victim.communicate(timeout=5)[0]
+        out = run_script(FAULTER, env={"WEFT_ADDRESS": daemon.address}).stdout
+        go.write_text("go")
+        victim_out = victim.communicate(timeout=60)[0]
+    finally:
+        if victim.poll() is None:
+            victim.kill()
+    print(out)
+    print(victim_out)
+    assert "FAULTER error:" in out and "these arrays are lost" in out, out
+    assert "FAULTER cpu after: True" in out, out
+    assert "VICTIM error:" in victim_out and "these arrays are lost" in victim_out, victim_out
+    stats = daemon.stats()
+    if "FAULTER gpu after: True" in out:
+        assert "VICTIM after: True" in victim_out, victim_out
+        assert stats.gpu_resets >= 1
+        print(f"cuda:0 came back: the reset took {stats.last_gpu_reset_ms:.1f} ms")
+    else:
+        assert "FAULTER gpu refused:" in out and "restart weftd" in out, out
+        assert "VICTIM refused:" in victim_out and "restart weftd" in victim_out, victim_out
+        print(f"cuda:0 lost for this daemon process (reset tried for {stats.last_gpu_reset_ms:.1f} ms)")
+    # the daemon still serves: a new client works on the CPU and sees the GPU's state
+    check = run_script('''
+import numpy as np
+import weft as wp
+wp.init()
+a = wp.array(np.arange(4, dtype=np.float32), dtype=float, device="cpu")
+print("NEW cpu:", np.array_equal(a.numpy(), np.arange(4)), "cuda:0 computes:", wp.get_cuda_device(0).is_compute_supported)
+''', env={"WEFT_ADDRESS": daemon.address}).stdout
+    assert "NEW cpu: True" in check, check
+    assert ("cuda:0 computes: True" in check) == ("FAULTER gpu after: True" in out), check

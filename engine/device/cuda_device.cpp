@@ -1,0 +1,844 @@
+// CudaDevice: context, slabs, streams, modules, built-in copy/fill kernels, asynchronous launch
+// errors, bounded waits with cancellation, reset after a sticky fault.
+#include "engine/device/cuda_device.h"
+
+#include <sched.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <thread>
+
+#include <spdlog/spdlog.h>
+
+#include "engine/native/launch_abi.h"
+#include "engine/runtime/cpu_launch.h"
+#include "engine/runtime/session.h"
+
+namespace weft {
+
+struct wp_launch_error : wp::launch_error_t {};
+
+namespace {
+
+constexpr uint64_t kAlignment = 256;
+
+uint64_t RoundUp(uint64_t v, uint64_t a) { return (v + a - 1) / a * a; }
+
+// Strided copy and fill over views of up to 4 dimensions; elements move in words of `word`
+// bytes (the largest of 8/4/2/1 that divides the element size, every stride and both bases).
+const char* kBuiltinSource = R"CUDA(
+typedef long long i64;
+struct weft_view { i64 shape[4]; i64 strides[4]; int ndim; int pad; };
+struct weft_value { unsigned char b[512]; };
+__device__ __forceinline__ i64 weft_offset(const weft_view& v, i64 flat) {
+  i64 off = 0;
+  for (int d = v.ndim - 1; d >= 0; --d) {
+    i64 n = v.shape[d];
+    i64 idx = d == 0 ? flat : flat % n;
+    flat = d == 0 ? 0 : flat / n;
+    off += idx * v.strides[d];
+  }
+  return off;
+}
+template <typename W> __device__ __forceinline__ void weft_move(char* d, const char* s, int esize) {
+  for (int k = 0; k < esize; k += (int)sizeof(W)) *(W*)(d + k) = *(const W*)(s + k);
+}
+extern "C" __global__ void weft_copy_strided(char* dst, weft_view dv, const char* src, weft_view sv, i64 n,
+                                             int esize, int word) {
+  for (i64 i = (i64)blockIdx.x * blockDim.x + threadIdx.x; i < n; i += (i64)blockDim.x * gridDim.x) {
+    char* d = dst + weft_offset(dv, i);
+    const char* s = src + weft_offset(sv, i);
+    if (word == 8) weft_move<unsigned long long>(d, s, esize);
+    else if (word == 4) weft_move<unsigned int>(d, s, esize);
+    else if (word == 2) weft_move<unsigned short>(d, s, esize);
+    else weft_move<unsigned char>(d, s, esize);
+  }
+}
+extern "C" __global__ void weft_fill_strided(char* dst, weft_view dv, weft_value v, i64 n, int esize, int word) {
+  for (i64 i = (i64)blockIdx.x * blockDim.x + threadIdx.x; i < n; i += (i64)blockDim.x * gridDim.x) {
+    char* d = dst + weft_offset(dv, i);
+    const char* s = (const char*)v.b;
+    if (word == 8) weft_move<unsigned long long>(d, s, esize);
+    else if (word == 4) weft_move<unsigned int>(d, s, esize);
+    else if (word == 2) weft_move<unsigned short>(d, s, esize);
+    else weft_move<unsigned char>(d, s, esize);
+  }
+}
+)CUDA";
+
+struct ViewArg {
+  int64_t shape[4] = {1, 1, 1, 1};
+  int64_t strides[4] = {0, 0, 0, 0};
+  int32_t ndim = 1;
+  int32_t pad = 0;
+};
+struct ValueArg {
+  unsigned char b[512];
+};
+
+ViewArg ViewArgOf(const ArrayView& v) {
+  ViewArg a;
+  a.ndim = static_cast<int32_t>(v.shape.size());
+  for (size_t i = 0; i < v.shape.size() && i < 4; ++i) {
+    a.shape[i] = v.shape[i];
+    a.strides[i] = v.strides[i];
+  }
+  return a;
+}
+
+int WordOf(uint64_t esize, const std::vector<const ArrayView*>& views) {
+  for (int w : {8, 4, 2}) {
+    bool ok = esize % w == 0;
+    for (const ArrayView* v : views) {
+      ok = ok && reinterpret_cast<uintptr_t>(v->data()) % w == 0;
+      for (int64_t s : v->strides) ok = ok && s % w == 0;
+    }
+    if (ok) return w;
+  }
+  return 1;
+}
+
+unsigned GridFor(uint64_t n, unsigned block, uint64_t max_blocks) {
+  uint64_t g = (n + block - 1) / block;
+  if (max_blocks > 0 && g > max_blocks) g = max_blocks;
+  if (g > 0x7fffffffull) g = 0x7fffffffull;
+  return static_cast<unsigned>(g ? g : 1);
+}
+
+// A contiguous view over memory that belongs to no array (staging buffers).
+ArrayView ScratchView(const DType& dtype, uint64_t count, void* data, const std::string& device) {
+  auto a = std::make_shared<Allocation>();
+  a->dtype = dtype;
+  a->shape = {static_cast<int64_t>(count)};
+  a->strides = ContiguousStrides(a->shape, dtype.ElementSize());
+  a->byte_size = count * dtype.ElementSize();
+  a->device = device;
+  a->block.data = data;
+  a->block.size = a->byte_size;
+  ArrayView v;
+  v.alloc = a;
+  v.shape = a->shape;
+  v.strides = a->strides;
+  return v;
+}
+
+std::string Where(const SourceLocation& o) {
+  return o.file.empty() ? std::string() : " (launched at " + o.file + ":" + std::to_string(o.line) + ")";
+}
+
+}  // namespace
+
+CudaDevice::CudaDevice(CudaDeviceOptions options)
+    : options_(std::move(options)), name_("cuda:" + std::to_string(options_.ordinal)) {}
+
+Expected<std::unique_ptr<CudaDevice>> CudaDevice::Create(const CudaDeviceOptions& options) {
+  std::unique_ptr<CudaDevice> d(new CudaDevice(options));
+  WEFT_RETURN_IF_ERROR(d->Init());
+  return d;
+}
+
+Status CudaDevice::Init() {
+  WEFT_ASSIGN_OR_RETURN(driver_, jit::CudaDriver::Get());
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->DeviceGet(&device_, options_.ordinal), "cuDeviceGet"));
+  WEFT_ASSIGN_OR_RETURN(sm_, driver_->ComputeCapability(options_.ordinal));
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->DevicePrimaryCtxRetain(&ctx_, device_), "cuDevicePrimaryCtxRetain"));
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  // A first allocation proves the context works (a GPU that lists but cannot compute fails here).
+  jit::CuDevicePtr probe = 0;
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemAlloc(&probe, 256), "cuMemAlloc"));
+  driver_->MemFree(probe);
+  return Status::Ok();
+}
+
+CudaDevice::~CudaDevice() {
+  if (!driver_ || !ctx_) return;
+  (void)MakeCurrent();
+  std::lock_guard<std::mutex> lock(mu_);
+  for (auto& [id, st] : streams_) DestroyStream(*st);
+  streams_.clear();
+  for (auto& [id, m] : modules_) driver_->ModuleUnload(m.module);
+  if (builtins_) driver_->ModuleUnload(builtins_);
+  for (auto& [id, slab] : slabs_) driver_->MemFree(slab->base);
+  slabs_.clear();
+}
+
+Status CudaDevice::MakeCurrent() const {
+  return driver_->Check(driver_->CtxSetCurrent(ctx_), "cuCtxSetCurrent");
+}
+
+CudaDeviceStats CudaDevice::stats() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return {resets_, last_reset_ms_};
+}
+
+// ---- memory ----
+
+uint64_t CudaDevice::ReservedSize(uint64_t bytes) const {
+  return RoundUp(bytes ? bytes : 1, kAlignment);
+}
+
+Expected<CudaDevice::Slab*> CudaDevice::NewSlabLocked(uint64_t size, bool dedicated, const std::string& owner) {
+  auto slab = std::make_unique<Slab>();
+  slab->id = next_slab_id_++;
+  slab->size = size;
+  slab->dedicated = dedicated;
+  slab->owner = owner;
+  jit::CuResult r = driver_->MemAlloc(&slab->base, size);
+  if (r == 2 /* CUDA_ERROR_OUT_OF_MEMORY */)
+    return ResourceExhausted(name_ + " is out of memory (a slab of " + std::to_string(size) + " bytes)");
+  WEFT_RETURN_IF_ERROR(driver_->Check(r, "cuMemAlloc"));
+  jit::CuIpcMemHandle handle{};
+  if (driver_->IpcGetMemHandle(&handle, slab->base) == 0) slab->ipc.assign(handle.reserved, sizeof(handle.reserved));
+  slab->free_ranges[0] = size;
+  Slab* out = slab.get();
+  slabs_[slab->id] = std::move(slab);
+  return out;
+}
+
+Expected<MemoryBlock> CudaDevice::Allocate(uint64_t bytes, const std::string& owner, bool dedicated) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  WEFT_RETURN_IF_ERROR(CheckUsable());
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  const uint64_t need = ReservedSize(bytes);
+  if (!owner.empty()) WEFT_RETURN_IF_ERROR(StreamOf(owner).status());   // the owner's stream exists
+  std::lock_guard<std::mutex> lock(mu_);
+  Slab* slab = nullptr;
+  uint64_t offset = 0;
+  if (dedicated || need > options_.dedicated_threshold) {
+    WEFT_ASSIGN_OR_RETURN(slab, NewSlabLocked(need, true, owner));
+  } else {
+    for (auto& [id, s] : slabs_) {
+      if (s->dedicated || s->owner != owner) continue;
+      for (auto& [off, size] : s->free_ranges) {
+        if (size >= need) {
+          slab = s.get();
+          offset = off;
+          break;
+        }
+      }
+      if (slab) break;
+    }
+    if (!slab) {
+      WEFT_ASSIGN_OR_RETURN(slab, NewSlabLocked(std::max(options_.slab_size, need), false, owner));
+    }
+  }
+  if (!slab->dedicated || slab->used == 0) {
+    auto it = slab->free_ranges.find(offset);
+    uint64_t size = it->second;
+    slab->free_ranges.erase(it);
+    if (size > need) slab->free_ranges[offset + need] = size - need;
+  }
+  slab->used += need;
+  MemoryBlock b;
+  b.slab_id = slab->id;
+  b.slab_size = slab->size;
+  b.offset = offset;
+  b.size = need;
+  b.data = reinterpret_cast<void*>(static_cast<uintptr_t>(slab->base + offset));
+  b.dedicated = slab->dedicated;
+  b.owner = owner;
+  b.ipc_handle = slab->ipc;
+  b.generation = generation_.load();
+  return b;
+}
+
+void CudaDevice::Free(const MemoryBlock& b) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  if (b.generation != generation_.load()) return;   // its memory went with the old context
+  (void)MakeCurrent();
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = slabs_.find(b.slab_id);
+  if (it == slabs_.end()) return;
+  Slab& s = *it->second;
+  s.used -= std::min(s.used, b.size);
+  if (s.used == 0 && (s.dedicated || !streams_.count(s.owner))) {
+    // An empty dedicated slab, or one whose owner has closed, goes back to the driver; the
+    // regular slabs of a live session stay for its next arrays.
+    driver_->MemFree(s.base);
+    slabs_.erase(it);
+    return;
+  }
+  uint64_t off = b.offset, size = b.size;
+  auto next = s.free_ranges.lower_bound(off);
+  if (next != s.free_ranges.end() && off + size == next->first) {
+    size += next->second;
+    next = s.free_ranges.erase(next);
+  }
+  if (next != s.free_ranges.begin()) {
+    auto prev = std::prev(next);
+    if (prev->first + prev->second == off) {
+      prev->second += size;
+      return;
+    }
+  }
+  s.free_ranges[off] = size;
+}
+
+uint64_t CudaDevice::SlabBytes() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  uint64_t n = 0;
+  for (auto& [id, s] : slabs_) n += s->size;
+  return n;
+}
+
+uint32_t CudaDevice::SlabCount() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return static_cast<uint32_t>(slabs_.size());
+}
+
+Status CudaDevice::CheckUsable() const {
+  if (lost_.load())
+    return FailedPrecondition(name_ + " is unusable: " + lost_reason_ +
+                              "; restart weftd to use this GPU again (the CPU and other GPUs keep working)");
+  return Status::Ok();
+}
+
+Status CudaDevice::CheckBlock(const MemoryBlock& b, const std::string& what) const {
+  WEFT_RETURN_IF_ERROR(CheckUsable());
+  if (b.generation != generation_.load())
+    return FailedPrecondition(name_ + " was reset after a kernel fault: " + what +
+                              " was lost with it (device was reset, these arrays are lost)");
+  return Status::Ok();
+}
+
+// ---- streams ----
+
+CudaDevice::Stream* CudaDevice::FindStream(const std::string& session_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = streams_.find(session_id);
+  return it == streams_.end() ? nullptr : it->second.get();
+}
+
+Expected<CudaDevice::Stream*> CudaDevice::StreamOf(const std::string& session_id) {
+  if (Stream* st = FindStream(session_id)) return st;
+  auto st = std::make_unique<Stream>();
+  st->generation = generation_.load();
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->StreamCreate(&st->stream, jit::kCuStreamNonBlocking), "cuStreamCreate"));
+  Status s = driver_->Check(driver_->MemAlloc(&st->errors, kErrorSlots * sizeof(wp::launch_error_t)), "cuMemAlloc");
+  if (s.ok()) s = driver_->Check(driver_->MemsetD8Async(st->errors, 0, kErrorSlots * sizeof(wp::launch_error_t), st->stream), "cuMemsetD8Async");
+  void* pinned = nullptr;
+  if (s.ok()) s = driver_->Check(driver_->MemHostAlloc(&pinned, kErrorSlots * sizeof(wp::launch_error_t), 0), "cuMemHostAlloc");
+  if (s.ok()) st->errors_host = static_cast<wp_launch_error*>(pinned);
+  void* host = nullptr;
+  if (s.ok()) s = driver_->Check(driver_->MemHostAlloc(&host, 64, jit::kCuMemHostAllocMapped), "cuMemHostAlloc");
+  if (s.ok()) {
+    st->cancel_host = static_cast<int32_t*>(host);
+    __atomic_store_n(st->cancel_host, 0, __ATOMIC_RELAXED);
+    s = driver_->Check(driver_->MemHostGetDevicePointer(&st->cancel_device, host, 0), "cuMemHostGetDevicePointer");
+  }
+  if (!s.ok()) {
+    DestroyStream(*st);
+    return s;
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  auto [it, fresh] = streams_.emplace(session_id, std::move(st));
+  if (!fresh) DestroyStream(*st);   // another thread made it meanwhile (not expected: one executor per session)
+  return it->second.get();
+}
+
+void CudaDevice::DestroyStream(Stream& st) {
+  if (st.stream) driver_->StreamDestroy(st.stream);
+  if (st.errors) driver_->MemFree(st.errors);
+  if (st.cancel_host) driver_->MemFreeHost(st.cancel_host);
+  if (st.errors_host) driver_->MemFreeHost(st.errors_host);
+  st.errors_host = nullptr;
+  st.stream = nullptr;
+  st.errors = 0;
+  st.cancel_host = nullptr;
+}
+
+void CudaDevice::CloseSession(Session& s) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  (void)MakeCurrent();
+  std::unique_ptr<Stream> st;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    reset_sessions_.erase(s.id());
+    auto it = streams_.find(s.id());
+    if (it == streams_.end()) return;
+    st = std::move(it->second);
+    streams_.erase(it);
+  }
+  if (st->generation == generation_.load()) {
+    driver_->StreamSynchronize(st->stream);
+    DestroyStream(*st);
+  }
+  // The session's empty slabs go back to the driver (slabs still holding shared arrays follow
+  // when those are freed).
+  std::lock_guard<std::mutex> lock(mu_);
+  for (auto it = slabs_.begin(); it != slabs_.end();) {
+    if (it->second->owner == s.id() && it->second->used == 0) {
+      driver_->MemFree(it->second->base);
+      it = slabs_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+jit::CuResult CudaDevice::WaitStream(Session& s, Stream& st, int* cancel_reason) {
+  *cancel_reason = 0;
+  const auto start = std::chrono::steady_clock::now();
+  for (int polls = 0;; ++polls) {
+    jit::CuResult r = driver_->StreamQuery(st.stream);
+    if (r != jit::kCuErrorNotReady) return r;
+    if (*cancel_reason == 0) {
+      if (s.cancelled()) {
+        *cancel_reason = 1;
+      } else if (options_.launch_time_limit_s > 0 &&
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >
+                     options_.launch_time_limit_s) {
+        *cancel_reason = 2;
+      }
+      if (*cancel_reason) __atomic_store_n(st.cancel_host, 1, __ATOMIC_SEQ_CST);
+    }
+    // Spin briefly (short kernels), then sleep in small steps.
+    if (polls < 4000) sched_yield();
+    else std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
+}
+
+Status CudaDevice::QueueErrorReadback(Stream& st) {
+  const size_t n = st.pending.size();
+  if (n == 0) return Status::Ok();
+  return driver_->Check(driver_->MemcpyDtoHAsync(st.errors_host, st.errors, n * sizeof(wp::launch_error_t), st.stream),
+                        "cuMemcpyDtoHAsync (launch errors)");
+}
+
+DeviceSyncResult CudaDevice::Drain(Stream& st) {
+  const size_t n = st.pending.size();
+  if (n == 0) return {};
+  DeviceSyncResult out;
+  for (size_t i = 0; i < n; ++i) {
+    const wp::launch_error_t& e = st.errors_host[i];
+    if (e.kind == 0) continue;
+    const Pending& p = st.pending[i];
+    out.error = FormatLaunchError(*p.module, *p.kernel, p.adjoint, e);
+    out.origin = p.origin;
+    break;
+  }
+  // Only slots that hold an error need clearing (the next launches reuse them).
+  if (!out.error.ok()) {
+    Status cleared = driver_->Check(driver_->MemsetD8Async(st.errors, 0, n * sizeof(wp::launch_error_t), st.stream),
+                                    "cuMemsetD8Async");
+    if (!cleared.ok()) out.error = cleared;
+    std::memset(static_cast<void*>(st.errors_host), 0, n * sizeof(wp::launch_error_t));
+  }
+  st.pending.clear();
+  return out;
+}
+
+DeviceSyncResult CudaDevice::Synchronize(Session& s) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  DeviceSyncResult out;
+  Stream* st = FindStream(s.id());
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto lost = reset_sessions_.find(s.id());
+    if (lost != reset_sessions_.end()) {
+      reset_sessions_.erase(lost);
+      out.error = Status(StatusCode::kAborted,
+                         name_ + (lost_.load() ? " was lost" : " was reset") +
+                             " after a kernel fault of another session: the arrays this session had on it are lost "
+                             "(device was reset, these arrays are lost)" +
+                             (lost_.load() ? "; " + lost_reason_ + ", restart weftd to use it again" : "; create them again"));
+      return out;
+    }
+  }
+  if (!st || lost_.load()) return out;
+  (void)MakeCurrent();
+  if (st->generation != generation_.load()) return out;
+  int reason = 0;
+  Status queued = QueueErrorReadback(*st);
+  jit::CuResult r = WaitStream(s, *st, &reason);
+  if (r == 0 && !queued.ok()) {
+    st->pending.clear();
+    out.error = queued;
+    return out;
+  }
+  if (r != 0) {
+    const uint64_t gen = st->generation;
+    std::string what = st->pending.empty() ? std::string("a copy or fill")
+                                           : "one of the " + std::to_string(st->pending.size()) +
+                                                 " launches since the last synchronize (the first: kernel '" +
+                                                 st->pending.front().kernel->layout.name + "'" +
+                                                 Where(st->pending.front().origin) + ")";
+    out.origin = st->pending.empty() ? SourceLocation{} : st->pending.front().origin;
+    if (!jit::IsStickyCudaError(r)) {
+      st->pending.clear();
+      out.error = Internal(name_ + ": " + what + " failed: " + driver_->ErrorName(r));
+      return out;
+    }
+    reset.unlock();
+    const double ms = [&] {
+      auto t0 = std::chrono::steady_clock::now();
+      Reset(gen);
+      return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    }();
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      reset_sessions_.erase(s.id());   // told here
+    }
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%.1f", ms);
+    out.error = Status(StatusCode::kAborted,
+                       name_ + ": a kernel faulted (" + driver_->ErrorName(r) + ") in " + what +
+                           (lost_.load() ? "; the device could not be brought back in this process (" + std::string(buf) +
+                                               " ms): restart weftd to use it again; every array on it is lost "
+                                               "(device was reset, these arrays are lost)"
+                                         : "; the device was reset in " + std::string(buf) +
+                                               " ms and every array on it is lost (device was reset, these arrays "
+                                               "are lost)"));
+    return out;
+  }
+  out = Drain(*st);
+  if (reason != 0) {
+    __atomic_store_n(st->cancel_host, 0, __ATOMIC_SEQ_CST);
+    if (out.error.ok()) {
+      if (reason == 1) {
+        out.error = Status(StatusCode::kCancelled, name_ + ": launches were stopped: the session was closed");
+      } else {
+        char limit[32];
+        std::snprintf(limit, sizeof(limit), "%g", options_.launch_time_limit_s);
+        out.error = Status(StatusCode::kDeadlineExceeded,
+                           name_ + ": launches ran longer than the launch time limit of " + std::string(limit) +
+                               " s (weftd --launch-time-limit) and were stopped");
+      }
+    }
+  }
+  return out;
+}
+
+void CudaDevice::Reset(uint64_t faulted_generation) {
+  std::unique_lock<std::shared_mutex> reset(reset_mu_);
+  if (generation_.load() != faulted_generation) return;   // another session reset it already
+  const auto t0 = std::chrono::steady_clock::now();
+  driver_->CtxSetCurrent(ctx_);
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    // Every session with a stream or memory here is told at its next synchronize.
+    for (auto& [id, st] : streams_) {
+      reset_sessions_[id] = faulted_generation;
+      DestroyStream(*st);
+    }
+    streams_.clear();
+    for (auto& [id, slab] : slabs_) {
+      if (!slab->owner.empty()) reset_sessions_[slab->owner] = faulted_generation;
+      driver_->MemFree(slab->base);
+    }
+    slabs_.clear();
+    for (auto& [id, m] : modules_) driver_->ModuleUnload(m.module);
+    modules_.clear();
+    if (builtins_) driver_->ModuleUnload(builtins_);
+    builtins_ = nullptr;
+    builtin_functions_.clear();
+  }
+  // Drop the daemon's reference, reset the primary context, take a fresh one and prove it
+  // works (an allocation, a memset, a synchronize); the driver may need more than one try
+  // before the sticky error is gone.
+  std::string log;
+  bool healthy = false;
+  for (int attempt = 1; attempt <= 3 && !healthy; ++attempt) {
+    driver_->CtxSetCurrent(nullptr);
+    jit::CuResult released = driver_->DevicePrimaryCtxRelease(device_);
+    jit::CuResult reset_r = driver_->DevicePrimaryCtxReset(device_);
+    jit::CuContext fresh = nullptr;
+    jit::CuResult retained = driver_->DevicePrimaryCtxRetain(&fresh, device_);
+    if (retained == 0) ctx_ = fresh;
+    jit::CuResult probe_r = driver_->CtxSetCurrent(ctx_);
+    jit::CuDevicePtr probe = 0;
+    if (probe_r == 0) probe_r = driver_->MemAlloc(&probe, 256);
+    if (probe_r == 0) probe_r = driver_->MemsetD8Async(probe, 0, 256, nullptr);
+    if (probe_r == 0) probe_r = driver_->CtxSynchronize();
+    if (probe) driver_->MemFree(probe);
+    healthy = retained == 0 && probe_r == 0;
+    log += " [try " + std::to_string(attempt) + ": release " + driver_->ErrorName(released) + ", reset " +
+           driver_->ErrorName(reset_r) + ", retain " + driver_->ErrorName(retained) + ", probe " +
+           driver_->ErrorName(probe_r) + "]";
+  }
+  if (!healthy && !lost_.load()) {
+    lost_reason_ = "a kernel faulted and the CUDA driver keeps the error for the life of the daemon process";
+    lost_.store(true);
+  }
+  generation_++;
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  std::lock_guard<std::mutex> lock(mu_);
+  if (healthy) ++resets_;
+  last_reset_ms_ = ms;
+  if (healthy)
+    spdlog::warn("{}: reset after a kernel fault in {:.1f} ms:{}", name_, ms, log);
+  else
+    spdlog::error("{}: the device did not come back after a kernel fault ({:.1f} ms):{}", name_, ms, log);
+}
+
+// ---- modules ----
+
+Expected<jit::CuFunction> CudaDevice::Function(const LoadedModule& module, const std::string& symbol) {
+  if (module.target != Target::kCuda || module.cuda_image.empty())
+    return InvalidArgument("module '" + module.id + "' was compiled for the CPU; compile it for " + name_ +
+                           " to launch there");
+  if (module.cuda_sm != sm_)
+    return InvalidArgument("module '" + module.id + "' was compiled for sm_" + std::to_string(module.cuda_sm) +
+                           ", " + name_ + " is sm_" + std::to_string(sm_));
+  const std::string key = module.id + (module.has_backward ? "/b" : "/f");
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = modules_.find(key);
+  if (it == modules_.end()) {
+    CuModuleEntry e;
+    WEFT_RETURN_IF_ERROR(driver_->Check(driver_->ModuleLoadData(&e.module, module.cuda_image.data()), "cuModuleLoadData"));
+    it = modules_.emplace(key, std::move(e)).first;
+  }
+  auto f = it->second.functions.find(symbol);
+  if (f != it->second.functions.end()) return f->second;
+  jit::CuFunction fn = nullptr;
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->ModuleGetFunction(&fn, it->second.module, symbol.c_str()),
+                                      ("cuModuleGetFunction " + symbol).c_str()));
+  it->second.functions[symbol] = fn;
+  return fn;
+}
+
+Expected<jit::CuFunction> CudaDevice::Builtin(const char* name) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!builtins_) {
+    if (!options_.compile) return Unimplemented(name_ + ": no CUDA compiler in this daemon (strided copies and fills)");
+    WEFT_ASSIGN_OR_RETURN(std::string image, options_.compile(kBuiltinSource, "weft_builtin_copy_fill.cu", sm_));
+    WEFT_RETURN_IF_ERROR(driver_->Check(driver_->ModuleLoadData(&builtins_, image.data()), "cuModuleLoadData"));
+  }
+  auto f = builtin_functions_.find(name);
+  if (f != builtin_functions_.end()) return f->second;
+  jit::CuFunction fn = nullptr;
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->ModuleGetFunction(&fn, builtins_, name), name));
+  builtin_functions_[name] = fn;
+  return fn;
+}
+
+// ---- work ----
+
+Status CudaDevice::Upload(Session& s, const MemoryBlock& dst, uint64_t offset, const void* src, uint64_t n) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  WEFT_RETURN_IF_ERROR(CheckBlock(dst, "the array"));
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  if (n == 0) return Status::Ok();
+  const jit::CuDevicePtr d = reinterpret_cast<uintptr_t>(dst.data) + offset;
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyHtoDAsync(d, src, n, st->stream), "cuMemcpyHtoDAsync"));
+  return driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
+}
+
+Status CudaDevice::Download(Session& s, const MemoryBlock& src, uint64_t offset, void* dst, uint64_t n) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  WEFT_RETURN_IF_ERROR(CheckBlock(src, "the array"));
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  if (n == 0) return Status::Ok();
+  const jit::CuDevicePtr p = reinterpret_cast<uintptr_t>(src.data) + offset;
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyDtoHAsync(dst, p, n, st->stream), "cuMemcpyDtoHAsync"));
+  return driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
+}
+
+Status CudaDevice::CopyBlock(Session& s, const MemoryBlock& dst, const MemoryBlock& src, uint64_t n) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  WEFT_RETURN_IF_ERROR(CheckBlock(src, "the array"));
+  WEFT_RETURN_IF_ERROR(CheckBlock(dst, "the array"));
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  if (n == 0) return Status::Ok();
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyDtoDAsync(reinterpret_cast<uintptr_t>(dst.data),
+                                                               reinterpret_cast<uintptr_t>(src.data), n, st->stream),
+                                      "cuMemcpyDtoDAsync"));
+  return driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
+}
+
+Status CudaDevice::Fill(Session& s, const ArrayView& dst, const std::string& value) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  WEFT_RETURN_IF_ERROR(CheckBlock(dst.alloc->block, "fill dst array " + std::to_string(dst.alloc->handle)));
+  const uint64_t esize = dst.alloc->dtype.ElementSize();
+  if (value.size() != esize)
+    return InvalidArgument("fill value has " + std::to_string(value.size()) + " bytes; one element of " +
+                           dst.alloc->dtype.Name() + " has " + std::to_string(esize));
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  const uint64_t n = dst.element_count();
+  if (n == 0) return Status::Ok();
+  const jit::CuDevicePtr d = reinterpret_cast<uintptr_t>(dst.data());
+  if (dst.contiguous()) {
+    // A value that repeats a 1-, 2- or 4-byte pattern is a memset.
+    for (uint64_t w : {1, 2, 4}) {
+      if (esize % w || d % w) continue;
+      bool repeats = true;
+      for (uint64_t i = w; i < esize && repeats; ++i) repeats = value[i] == value[i % w];
+      if (!repeats) continue;
+      const uint64_t count = n * esize / w;
+      if (w == 1) return driver_->Check(driver_->MemsetD8Async(d, static_cast<unsigned char>(value[0]), count, st->stream), "cuMemsetD8Async");
+      if (w == 2) {
+        uint16_t v;
+        std::memcpy(&v, value.data(), 2);
+        return driver_->Check(driver_->MemsetD16Async(d, v, count, st->stream), "cuMemsetD16Async");
+      }
+      uint32_t v;
+      std::memcpy(&v, value.data(), 4);
+      return driver_->Check(driver_->MemsetD32Async(d, v, count, st->stream), "cuMemsetD32Async");
+    }
+  }
+  ValueArg v{};
+  if (esize > sizeof(v.b))
+    return Unimplemented("fill of " + std::to_string(esize) + "-byte elements on " + name_ + " (at most " +
+                         std::to_string(sizeof(v.b)) + ")");
+  std::memcpy(v.b, value.data(), esize);
+  WEFT_ASSIGN_OR_RETURN(jit::CuFunction fn, Builtin("weft_fill_strided"));
+  ViewArg dv = ViewArgOf(dst);
+  int64_t count = static_cast<int64_t>(n);
+  int32_t es = static_cast<int32_t>(esize), word = WordOf(esize, {&dst});
+  void* params[] = {const_cast<jit::CuDevicePtr*>(&d), &dv, &v, &count, &es, &word};
+  return driver_->Check(driver_->LaunchKernel(fn, GridFor(n, 256, 65536), 1, 1, 256, 1, 1, 0, st->stream, params, nullptr),
+                        "cuLaunchKernel (fill)");
+}
+
+Status CudaDevice::StridedCopyOnDevice(Stream& st, const ArrayView& dst, const ArrayView& src) {
+  const uint64_t n = dst.element_count();
+  const uint64_t esize = dst.alloc->dtype.ElementSize();
+  jit::CuDevicePtr d = reinterpret_cast<uintptr_t>(dst.data()), s = reinterpret_cast<uintptr_t>(src.data());
+  if (dst.contiguous() && src.contiguous())
+    return driver_->Check(driver_->MemcpyDtoDAsync(d, s, n * esize, st.stream), "cuMemcpyDtoDAsync");
+  WEFT_ASSIGN_OR_RETURN(jit::CuFunction fn, Builtin("weft_copy_strided"));
+  ViewArg dv = ViewArgOf(dst), sv = ViewArgOf(src);
+  int64_t count = static_cast<int64_t>(n);
+  int32_t es = static_cast<int32_t>(esize), word = WordOf(esize, {&dst, &src});
+  void* params[] = {&d, &dv, &s, &sv, &count, &es, &word};
+  return driver_->Check(driver_->LaunchKernel(fn, GridFor(n, 256, 65536), 1, 1, 256, 1, 1, 0, st.stream, params, nullptr),
+                        "cuLaunchKernel (copy)");
+}
+
+Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  const uint64_t esize = dst.alloc->dtype.ElementSize();
+  if (src.alloc->dtype.ElementSize() != esize)
+    return InvalidArgument("copy: element sizes differ (" + dst.alloc->dtype.Name() + " vs " +
+                           src.alloc->dtype.Name() + ")");
+  const uint64_t n = dst.element_count();
+  if (src.element_count() != n)
+    return InvalidArgument("copy: dst has " + std::to_string(n) + " elements, src has " +
+                           std::to_string(src.element_count()));
+  const bool dst_here = dst.alloc->device == name_, src_here = src.alloc->device == name_;
+  if (dst_here) WEFT_RETURN_IF_ERROR(CheckBlock(dst.alloc->block, "copy dst array " + std::to_string(dst.alloc->handle)));
+  if (src_here) WEFT_RETURN_IF_ERROR(CheckBlock(src.alloc->block, "copy src array " + std::to_string(src.alloc->handle)));
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  if (n == 0) return Status::Ok();
+  const uint64_t bytes = n * esize;
+  if (dst_here && src_here) return StridedCopyOnDevice(*st, dst, src);
+
+  const bool src_cpu = src.alloc->device == "cpu", dst_cpu = dst.alloc->device == "cpu";
+  if (src_cpu || dst_cpu) {
+    // Host memory is touched by later CPU commands of the session: these copies complete
+    // before Copy returns.
+    const ArrayView& host = src_cpu ? src : dst;
+    const ArrayView& dev = src_cpu ? dst : src;
+    std::vector<char> staging;
+    const char* host_src = nullptr;
+    char* host_dst = nullptr;
+    ArrayView host_contig;
+    if (host.contiguous()) {
+      host_contig = host;
+    } else {
+      staging.resize(bytes);
+      host_contig = ScratchView(host.alloc->dtype, n, staging.data(), "cpu");
+      if (src_cpu) WEFT_RETURN_IF_ERROR(CopyView(host_contig, host, s.cancel_flag()));
+    }
+    host_src = host_contig.data();
+    host_dst = host_contig.data();
+    jit::CuDevicePtr scratch = 0;
+    ArrayView dev_contig = dev;
+    if (!dev.contiguous()) {
+      WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemAlloc(&scratch, bytes), "cuMemAlloc (staging)"));
+      dev_contig = ScratchView(dev.alloc->dtype, n, reinterpret_cast<void*>(static_cast<uintptr_t>(scratch)), name_);
+    }
+    Status r = Status::Ok();
+    const jit::CuDevicePtr dp = reinterpret_cast<uintptr_t>(dev_contig.data());
+    if (src_cpu) {
+      r = driver_->Check(driver_->MemcpyHtoDAsync(dp, host_src, bytes, st->stream), "cuMemcpyHtoDAsync");
+      if (r.ok() && scratch) r = StridedCopyOnDevice(*st, dev, dev_contig);
+    } else {
+      if (scratch) r = StridedCopyOnDevice(*st, dev_contig, dev);
+      if (r.ok()) r = driver_->Check(driver_->MemcpyDtoHAsync(host_dst, dp, bytes, st->stream), "cuMemcpyDtoHAsync");
+    }
+    if (r.ok()) r = driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
+    if (scratch) driver_->MemFree(scratch);
+    if (r.ok() && !src_cpu && !staging.empty()) r = CopyView(host, host_contig, s.cancel_flag());
+    return r;
+  }
+  // Between two GPUs: peer copy (the driver stages it when peer access is off).
+  const ArrayView& other = dst_here ? src : dst;
+  CudaDevice* peer = nullptr;
+  for (CudaDevice* p : peers_)
+    if (p->name() == other.alloc->device) peer = p;
+  if (!peer) return InvalidArgument("copy between " + dst.alloc->device + " and " + src.alloc->device + ": unknown device");
+  if (!dst.contiguous() || !src.contiguous())
+    return Unimplemented("copy between two GPUs of strided views (copy into a contiguous array first)");
+  WEFT_RETURN_IF_ERROR(peer->CheckBlock(other.alloc->block, "copy array " + std::to_string(other.alloc->handle)));
+  // The other GPU's queued work of this session comes first.
+  if (Stream* ps = peer->FindStream(s.id())) {
+    (void)peer->MakeCurrent();
+    WEFT_RETURN_IF_ERROR(driver_->Check(driver_->StreamSynchronize(ps->stream), "cuStreamSynchronize (peer)"));
+    WEFT_RETURN_IF_ERROR(MakeCurrent());
+  }
+  const jit::CuContext dctx = dst_here ? ctx_ : peer->context(), sctx = dst_here ? peer->context() : ctx_;
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyPeerAsync(reinterpret_cast<uintptr_t>(dst.data()), dctx,
+                                                               reinterpret_cast<uintptr_t>(src.data()), sctx, bytes,
+                                                               st->stream),
+                                      "cuMemcpyPeerAsync"));
+  return driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
+}
+
+Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  WEFT_RETURN_IF_ERROR(CheckUsable());
+  for (const PackedArgs* block : {l.args, l.adj_args}) {
+    if (!block) continue;
+    for (const auto& a : block->keep_alive)
+      WEFT_RETURN_IF_ERROR(CheckBlock(a->block, "kernel '" + l.kernel->layout.name + "' array " + std::to_string(a->handle)));
+  }
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  const bool adjoint = l.adj_args != nullptr;
+  const std::string& symbol = adjoint ? l.kernel->layout.backward_symbol : l.kernel->layout.forward_symbol;
+  if (symbol.empty()) return Internal("kernel '" + l.kernel->layout.name + "' has no CUDA entry point");
+  WEFT_ASSIGN_OR_RETURN(jit::CuFunction fn, Function(*l.module, symbol));
+  if (l.block_dim > 1024) return InvalidArgument("block_dim " + std::to_string(l.block_dim) + " is more than 1024");
+
+  wp::launch_context_t ctx{};
+  ctx.bounds.ndim = static_cast<wp::int32>(l.dim.size());
+  ctx.bounds.size = 1;
+  for (size_t i = 0; i < wp::ARRAY_MAX_DIMS; ++i) ctx.bounds.shape[i] = i < l.dim.size() ? l.dim[i] : 1;
+  for (int64_t d : l.dim) ctx.bounds.size *= d;
+  if (ctx.bounds.size == 0) return Status::Ok();
+  WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  if (st->pending.size() >= kErrorSlots) {
+    // Every error slot is in use: wait for the stream and read them back.
+    int reason = 0;
+    WEFT_RETURN_IF_ERROR(QueueErrorReadback(*st));
+    jit::CuResult r = WaitStream(s, *st, &reason);
+    if (r != 0) return driver_->Check(r, "cuStreamQuery");
+    DeviceSyncResult drained = Drain(*st);
+    if (!drained.error.ok())
+      return Status(drained.error.code(), drained.error.message() + Where(drained.origin));
+  }
+  const size_t slot = st->pending.size();
+  ctx.error = reinterpret_cast<wp::launch_error_t*>(static_cast<uintptr_t>(st->errors + slot * sizeof(wp::launch_error_t)));
+  ctx.print = nullptr;
+  ctx.flags = 0;
+  ctx.cancel = reinterpret_cast<const wp::int32*>(static_cast<uintptr_t>(st->cancel_device));
+  const unsigned block = l.block_dim ? l.block_dim : 256;
+  const unsigned grid = GridFor(static_cast<uint64_t>(ctx.bounds.size), block, l.max_blocks);
+  void* args = const_cast<char*>(l.args->block.data());
+  void* adj = adjoint ? const_cast<char*>(l.adj_args->block.data()) : nullptr;
+  void* params_fwd[] = {&ctx, args};
+  void* params_adj[] = {&ctx, args, adj};
+  WEFT_RETURN_IF_ERROR(driver_->Check(
+      driver_->LaunchKernel(fn, grid, 1, 1, block, 1, 1, 0, st->stream, adjoint ? params_adj : params_fwd, nullptr),
+      ("cuLaunchKernel " + symbol).c_str()));
+  st->pending.push_back(Pending{l.module, l.kernel, adjoint, l.origin});
+  return Status::Ok();
+}
+
+}  // namespace weft

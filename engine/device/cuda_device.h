@@ -1,0 +1,162 @@
+// One GPU as a Device: the device's primary context (retained for the daemon's life, rebuilt
+// after a fault), memory in slabs of driver allocations (cuMemAlloc) sub-allocated first-fit
+// per owner like the CPU slabs and each exported once for CUDA IPC (cuIpcGetMemHandle), one
+// non-blocking stream per session, modules loaded lazily per module id from the CUBIN the
+// module store built, built-in strided copy/fill kernels (NVRTC, compiled on first use), and
+// asynchronous launch errors: each launch gets its own error slot in device memory, read back
+// at Synchronize and reported like the CPU's (kernel, array, index, shape, file:line).
+// Cancellation: every stream has a cancel word in mapped host memory that kernels poll at loop
+// back-edges; Synchronize waits in bounded steps and sets it when the session is closing or the
+// launch time limit has passed. A sticky fault (illegal address, __trap) resets the device:
+// streams, modules and memory of the old context are dropped, the primary context is reset and
+// retained again; blocks and streams of the old generation report "device was reset". When the
+// driver keeps the sticky error through the reset (driver 580 does: the process must end), the
+// device is marked lost: its sessions get a clear error, the CPU and other GPUs keep serving.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <shared_mutex>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "engine/device/cuda_driver.h"
+#include "engine/device/device.h"
+
+namespace weft {
+
+struct wp_launch_error;   // wp::launch_error_t (engine/native/launch_abi.h), kept opaque here
+
+struct CudaDeviceOptions {
+  int ordinal = 0;
+  uint64_t slab_size = 64ull << 20;
+  uint64_t dedicated_threshold = 16ull << 20;
+  double launch_time_limit_s = 0;     // 0 = none
+  // Compiles CUDA C++ for sm_XX to a loadable image (NVRTC through the module store).
+  std::function<Expected<std::string>(const std::string& source, const std::string& name, int sm)> compile;
+};
+
+struct CudaDeviceStats {
+  uint64_t resets = 0;
+  double last_reset_ms = 0;
+};
+
+class CudaDevice final : public Device {
+ public:
+  static Expected<std::unique_ptr<CudaDevice>> Create(const CudaDeviceOptions& options);
+  ~CudaDevice() override;
+
+  const std::string& name() const override { return name_; }
+  bool is_cpu() const override { return false; }
+  int sm() const { return sm_; }
+  int ordinal() const { return options_.ordinal; }
+  jit::CuContext context() const { return ctx_; }
+  // Other GPUs (peer copies).
+  void SetPeers(std::vector<CudaDevice*> peers) { peers_ = std::move(peers); }
+
+  uint64_t ReservedSize(uint64_t bytes) const override;
+  Expected<MemoryBlock> Allocate(uint64_t bytes, const std::string& owner, bool dedicated) override;
+  void Free(const MemoryBlock& block) override;
+  uint64_t SlabBytes() const override;
+  uint32_t SlabCount() const override;
+
+  Status Upload(Session& s, const MemoryBlock& dst, uint64_t offset, const void* src, uint64_t n) override;
+  Status Download(Session& s, const MemoryBlock& src, uint64_t offset, void* dst, uint64_t n) override;
+  Status CopyBlock(Session& s, const MemoryBlock& dst, const MemoryBlock& src, uint64_t n) override;
+  Status Fill(Session& s, const ArrayView& dst, const std::string& value) override;
+  Status Copy(Session& s, const ArrayView& dst, const ArrayView& src) override;
+  Status Launch(Session& s, const KernelLaunch& launch, std::string* output) override;
+  DeviceSyncResult Synchronize(Session& s) override;
+  void CloseSession(Session& s) override;
+
+  CudaDeviceStats stats() const;
+  // True once a fault left the device unusable for the rest of this process (the driver kept
+  // the sticky error through the context reset); every operation then fails with the reason.
+  bool lost() const { return lost_.load(); }
+
+ private:
+  struct Slab {
+    uint64_t id = 0;
+    jit::CuDevicePtr base = 0;
+    uint64_t size = 0;
+    bool dedicated = false;
+    std::string owner;
+    uint64_t used = 0;
+    std::map<uint64_t, uint64_t> free_ranges;   // offset -> size
+    std::string ipc;
+  };
+  struct Pending {
+    std::shared_ptr<const LoadedModule> module;
+    const LoadedKernel* kernel = nullptr;
+    bool adjoint = false;
+    SourceLocation origin;
+  };
+  struct Stream {
+    uint64_t generation = 0;
+    jit::CuStream stream = nullptr;
+    jit::CuDevicePtr errors = 0;      // kErrorSlots launch_error_t
+    wp_launch_error* errors_host = nullptr;   // pinned copy, read after the stream finished
+    std::vector<Pending> pending;     // launches since the last drain, slot = index
+    int32_t* cancel_host = nullptr;   // mapped host memory
+    jit::CuDevicePtr cancel_device = 0;
+    std::string first_error_text;
+  };
+  struct CuModuleEntry {
+    jit::CuModule module = nullptr;
+    std::unordered_map<std::string, jit::CuFunction> functions;
+  };
+  static constexpr uint32_t kErrorSlots = 1024;
+
+  explicit CudaDevice(CudaDeviceOptions options);
+  Status Init();
+  Status MakeCurrent() const;
+  Expected<Stream*> StreamOf(const std::string& session_id);   // created on first use (mu_ not held)
+  Stream* FindStream(const std::string& session_id);
+  void DestroyStream(Stream& st);
+  Expected<Slab*> NewSlabLocked(uint64_t size, bool dedicated, const std::string& owner);
+  Status CheckBlock(const MemoryBlock& b, const std::string& what) const;
+  Status CheckUsable() const;
+  Expected<jit::CuFunction> Function(const LoadedModule& module, const std::string& symbol);
+  Expected<jit::CuFunction> Builtin(const char* name);
+  // Waits for the stream (bounded steps: sets the cancel word when `s` is cancelled or the time
+  // limit passes). Returns the CUDA result and why the cancel word was set (0 none, 1 session, 2 limit).
+  jit::CuResult WaitStream(Session& s, Stream& st, int* cancel_reason);
+  // Queues the read-back of the pending launches' error slots (before waiting for the stream).
+  Status QueueErrorReadback(Stream& st);
+  // After the wait: the first error of the pending launches (or Ok); their slots are cleared.
+  DeviceSyncResult Drain(Stream& st);
+  // After a sticky fault: a fresh context. Called without locks held.
+  void Reset(uint64_t faulted_generation);
+  Status StridedCopyOnDevice(Stream& st, const ArrayView& dst, const ArrayView& src);
+
+  CudaDeviceOptions options_;
+  std::string name_;
+  const jit::CudaDriver* driver_ = nullptr;
+  jit::CuDevice device_ = 0;
+  jit::CuContext ctx_ = nullptr;
+  int sm_ = 0;
+  std::vector<CudaDevice*> peers_;
+
+  // Held shared by every operation, exclusively by Reset.
+  mutable std::shared_mutex reset_mu_;
+  std::atomic<uint64_t> generation_{1};
+  std::atomic<bool> lost_{false};
+  std::string lost_reason_;   // set once, before lost_
+  mutable std::mutex mu_;   // slabs_, streams_, modules_, builtins_
+  std::map<uint64_t, std::unique_ptr<Slab>> slabs_;
+  uint64_t next_slab_id_ = 1;
+  std::unordered_map<std::string, std::unique_ptr<Stream>> streams_;
+  std::unordered_map<std::string, CuModuleEntry> modules_;   // by module id + "/f" or "/b"
+  jit::CuModule builtins_ = nullptr;
+  std::unordered_map<std::string, jit::CuFunction> builtin_functions_;
+  std::map<std::string, uint64_t> reset_sessions_;   // session id -> generation it lost arrays in
+  uint64_t resets_ = 0;
+  double last_reset_ms_ = 0;
+};
+
+}  // namespace weft

@@ -1,0 +1,76 @@
+// The device interface: what the engine, the command executor and the tapes ask of a place
+// where arrays live and kernels run. One CPU implementation (shared-memory slabs, the thread
+// pool) and one CUDA implementation per GPU (primary context, slabs of driver memory, one
+// stream per session). Work a session submits runs in order on that session's stream of the
+// device; asynchronous errors are collected at Synchronize. Memory blocks are slab
+// sub-allocations (ShmSlabPool::Block; on a GPU `data` is the device address).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/core/module_source.h"
+#include "engine/core/status.h"
+#include "engine/runtime/array_view.h"
+#include "engine/runtime/launch_args.h"
+#include "engine/runtime/module_store.h"
+#include "engine/runtime/shm_slab_pool.h"
+
+namespace weft {
+
+class Session;
+using MemoryBlock = ShmSlabPool::Block;
+
+// One kernel launch, forward (adj_args null) or adjoint.
+struct KernelLaunch {
+  std::shared_ptr<const LoadedModule> module;
+  const LoadedKernel* kernel = nullptr;
+  std::vector<int64_t> dim;
+  const PackedArgs* args = nullptr;
+  const PackedArgs* adj_args = nullptr;
+  uint32_t block_dim = 0;     // threads per block (GPU); 0 = 256
+  uint32_t max_blocks = 0;    // GPU grid bound (threads loop over the rest); 0 = as many as needed
+  SourceLocation origin;      // where the client launched it (asynchronous errors name it)
+};
+
+// The first asynchronous error of a session on a device since its last Synchronize.
+struct DeviceSyncResult {
+  Status error;
+  SourceLocation origin;
+};
+
+class Device {
+ public:
+  virtual ~Device() = default;
+  virtual const std::string& name() const = 0;   // "cpu", "cuda:0"
+  virtual bool is_cpu() const = 0;
+
+  // Memory. Allocate: `bytes` in a slab of `owner` (a session id), `dedicated` = a slab of its
+  // own. ReservedSize: what Allocate reserves for `bytes` (the quotas count it).
+  virtual uint64_t ReservedSize(uint64_t bytes) const = 0;
+  virtual Expected<MemoryBlock> Allocate(uint64_t bytes, const std::string& owner, bool dedicated) = 0;
+  virtual void Free(const MemoryBlock& block) = 0;
+  // Bytes of slabs held / slab count (stats).
+  virtual uint64_t SlabBytes() const = 0;
+  virtual uint32_t SlabCount() const = 0;
+
+  // Synchronous transfers between a block and host memory, ordered after the session's queued
+  // work on this device (ReadArray, WriteArray, initial data, exports).
+  virtual Status Upload(Session& s, const MemoryBlock& dst, uint64_t offset, const void* src, uint64_t n) = 0;
+  virtual Status Download(Session& s, const MemoryBlock& src, uint64_t offset, void* dst, uint64_t n) = 0;
+  virtual Status CopyBlock(Session& s, const MemoryBlock& dst, const MemoryBlock& src, uint64_t n) = 0;
+
+  // Ordered work of a session (possibly asynchronous: errors may surface at Synchronize).
+  virtual Status Fill(Session& s, const ArrayView& dst, const std::string& value) = 0;
+  // dst or src (or both) live on this device; the other one may live on the CPU or another GPU.
+  virtual Status Copy(Session& s, const ArrayView& dst, const ArrayView& src) = 0;
+  virtual Status Launch(Session& s, const KernelLaunch& launch, std::string* output) = 0;
+  // Waits for the session's work on this device; the first asynchronous error, if any.
+  virtual DeviceSyncResult Synchronize(Session& s) = 0;
+  // The session closed (its work already stopped and waited for): drop its stream.
+  virtual void CloseSession(Session& s) = 0;
+};
+
+}  // namespace weft
