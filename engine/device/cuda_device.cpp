@@ -290,7 +290,8 @@ uint32_t CudaDevice::SlabCount() const {
 Status CudaDevice::CheckUsable() const {
   if (lost_.load())
     return FailedPrecondition(name_ + " is unusable: " + lost_reason_ +
-                              "; restart weftd to use this GPU again (the CPU and other GPUs keep working)");
+                              "; every array on it is lost (device was reset, these arrays are lost); restart weftd "
+                              "to use this GPU again (the CPU and other GPUs keep working)");
   return Status::Ok();
 }
 

@@ -375,7 +375,9 @@ class ModuleStoreImpl final : public ModuleStore {
       auto it = source.options.find(option);
       return it != source.options.end() && (it->second == "true" || it->second == "True" || it->second == "1");
     };
-    if (flag("fast_math")) nvrtc.extra_flags.push_back("--use_fast_math");
+    // No FMA contraction unless fast_math: the CPU JIT compiles with -ffp-contract=off, so a
+    // kernel gives the same float results on both (and matches NumPy's separate roundings).
+    nvrtc.extra_flags.push_back(flag("fast_math") ? "--use_fast_math" : "--fmad=false");
     if (flag("lineinfo")) nvrtc.extra_flags.push_back("-lineinfo");
     if (auto mode = source.options.find("mode"); mode != source.options.end() && mode->second == "debug")
       nvrtc.extra_flags.push_back("-G");
