@@ -34,6 +34,18 @@ void SessionReaper::Stop() {
   }
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
+  JoinClosings(/*all=*/true);
+}
+
+void SessionReaper::JoinClosings(bool all) {
+  for (auto it = closing_.begin(); it != closing_.end();) {
+    if (all || it->done->load()) {
+      it->thread.join();
+      it = closing_.erase(it);
+    } else {
+      ++it;
+    }
+  }
 }
 
 // Ids are never reused, but the object is compared anyway: a session closed by its client and
@@ -57,7 +69,15 @@ void SessionReaper::Loop() {
     std::deque<Detached> batch;
     batch.swap(detached_);
     lock.unlock();
-    for (const auto& d : batch) Reap(d);
+    for (auto& d : batch) {
+      auto done = std::make_shared<std::atomic<bool>>(false);
+      closing_.push_back(Closing{std::thread([this, d = std::move(d), done] {
+                                   Reap(d);
+                                   done->store(true);
+                                 }),
+                                 done});
+    }
+    JoinClosings(/*all=*/false);
     if (std::chrono::steady_clock::now() >= next_sweep) {
       engine_.ReapUnattachedSessions(timeout_);
       next_sweep = std::chrono::steady_clock::now() + period;

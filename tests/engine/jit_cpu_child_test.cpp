@@ -103,11 +103,11 @@ extern "C" void weft_k(float* out) {
 }
 
 // A compile that never ends: the source includes a FIFO nobody writes, so clang blocks in
-// open(). It is killed at the limit; the CpuJit compiles the next module normally.
+// open(). It is killed at the limit (4 s); the CpuJit compiles the next module normally.
 TEST_F(JitCpuChild, ACompileOverTheLimitIsKilledAndTheJitGoesOn) {
   const fs::path fifo = dir_ / "never.h";
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
-  auto jit = CpuJit::Create(Options(1.0));
+  auto jit = CpuJit::Create(Options(4.0));   // room for the next, small compile on a loaded machine
   ASSERT_TRUE(jit.ok()) << jit.status().ToString();
   const std::string source = "#include \"" + fifo.string() + "\"\nint x;\n";
   auto start = std::chrono::steady_clock::now();
@@ -117,8 +117,8 @@ TEST_F(JitCpuChild, ACompileOverTheLimitIsKilledAndTheJitGoesOn) {
   EXPECT_EQ(object.status().code(), StatusCode::kResourceExhausted) << object.status().ToString();
   EXPECT_NE(object.status().message().find("--compile-time-limit"), std::string::npos) << object.status().message();
   EXPECT_NE(object.status().message().find("endless.cpp"), std::string::npos) << object.status().message();
-  EXPECT_GE(ms, 1000.0);
-  EXPECT_LT(ms, 5000.0) << "the compile was not stopped at its limit";
+  EXPECT_GE(ms, 4000.0);
+  EXPECT_LT(ms, 12000.0) << "the compile was not stopped at its limit";
   EXPECT_EQ(Children(), "") << "the killed compiler process was not reaped";
   auto next = (*jit)->Compile(kSource, "twice");
   EXPECT_TRUE(next.ok()) << next.status().ToString();
