@@ -808,10 +808,7 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   if (l.block_dim > 1024) return InvalidArgument("block_dim " + std::to_string(l.block_dim) + " is more than 1024");
 
   wp::launch_context_t ctx{};
-  ctx.bounds.ndim = static_cast<wp::int32>(l.dim.size());
-  ctx.bounds.size = 1;
-  for (size_t i = 0; i < wp::ARRAY_MAX_DIMS; ++i) ctx.bounds.shape[i] = i < l.dim.size() ? l.dim[i] : 1;
-  for (int64_t d : l.dim) ctx.bounds.size *= d;
+  WEFT_ASSIGN_OR_RETURN(ctx.bounds, LaunchBoundsOf(l.dim));
   if (ctx.bounds.size == 0) return Status::Ok();
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
   if (st->pending.size() >= kErrorSlots) {

@@ -22,6 +22,16 @@ Status CheckLaunchDim(const std::vector<int64_t>& dim) {
   return Status::Ok();
 }
 
+Expected<wp::launch_bounds_t> LaunchBoundsOf(const std::vector<int64_t>& dim) {
+  WEFT_RETURN_IF_ERROR(CheckLaunchDim(dim));
+  wp::launch_bounds_t b{};
+  b.ndim = static_cast<wp::int32>(dim.size());
+  b.size = 1;
+  for (size_t i = 0; i < wp::ARRAY_MAX_DIMS; ++i) b.shape[i] = i < dim.size() ? dim[i] : 1;
+  for (int64_t d : dim) b.size *= d;
+  return b;
+}
+
 namespace {
 
 std::string IndexString(const wp::int64* v, int n) {
@@ -82,7 +92,6 @@ Status LaunchError(const CpuLaunch& l, const wp::launch_error_t& e) {
 }  // namespace
 
 Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
-  WEFT_RETURN_IF_ERROR(CheckLaunchDim(l.dim));
   const bool backward = l.adj_args != nullptr;
   if (!backward && !l.kernel->cpu_forward)
     return Internal("kernel '" + l.kernel->layout.name + "' has no CPU forward entry point");
@@ -90,10 +99,7 @@ Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
     return Internal("kernel '" + l.kernel->layout.name + "' has no CPU backward entry point");
 
   wp::launch_context_t ctx{};
-  ctx.bounds.ndim = static_cast<wp::int32>(l.dim.size());
-  ctx.bounds.size = 1;
-  for (size_t i = 0; i < wp::ARRAY_MAX_DIMS; ++i) ctx.bounds.shape[i] = i < l.dim.size() ? l.dim[i] : 1;
-  for (int64_t d : l.dim) ctx.bounds.size *= d;
+  WEFT_ASSIGN_OR_RETURN(ctx.bounds, LaunchBoundsOf(l.dim));
   if (ctx.bounds.size == 0) return Status::Ok();
   wp::launch_error_t err{};
   err.array_param = -1;

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "engine/core/status.h"
+#include "engine/native/launch_abi.h"
 #include "engine/runtime/launch_args.h"
 #include "engine/runtime/module_store.h"
 #include "engine/runtime/thread_pool.h"
@@ -33,6 +34,8 @@ constexpr int64_t kCancelChunk = 1 << 14;
 
 // Checks dim (1..4 extents, each >= 0, product < 2^62).
 Status CheckLaunchDim(const std::vector<int64_t>& dim);
+// The launch bounds of a checked dim (CheckLaunchDim first), shared by every device's launch.
+Expected<wp::launch_bounds_t> LaunchBoundsOf(const std::vector<int64_t>& dim);
 
 // A kernel-reported error as the Status clients see (kernel, function, array, index, shape,
 // file:line); used by every device.

@@ -993,28 +993,10 @@ class array:
         # importer maps the exported bytes and nothing else): views made from now on use the
         # new place. The info object is shared by every view of this allocation.
         ap = _runtime.array_pb2
-        info = rt.call(rt.array_stub.Describe, ap.DescribeArrayRequest(handle=self._handle)).info
-        if (info.shm_name != self._alloc.info.shm_name or
-                info.shm_offset != self._alloc.info.shm_offset or
-                getattr(info, "cuda_slab_id", 0) != getattr(self._alloc.info, "cuda_slab_id", 0)
-                or getattr(info, "cuda_ipc_offset", 0) !=
-                getattr(self._alloc.info, "cuda_ipc_offset", 0)):
-            self._alloc.info.CopyFrom(info)
-            if self._info is not self._alloc.info:
-                self._info.CopyFrom(info)
-            self._alloc._mapping = None
-            self._alloc.forget_cuda()
+        _follow_moved_bytes(self, rt, ap)
         grad = self._grad
         if grad is not None and getattr(grad, "_alloc", None) is not None and grad._handle:
-            ginfo = rt.call(rt.array_stub.Describe, ap.DescribeArrayRequest(handle=grad._handle)).info
-            if (ginfo.shm_name != grad._alloc.info.shm_name or
-                    getattr(ginfo, "cuda_slab_id", 0) !=
-                    getattr(grad._alloc.info, "cuda_slab_id", 0)):
-                grad._alloc.info.CopyFrom(ginfo)
-                if grad._info is not grad._alloc.info:
-                    grad._info.CopyFrom(ginfo)
-                grad._alloc._mapping = None
-                grad._alloc.forget_cuda()
+            _follow_moved_bytes(grad, rt, ap)
         return token.encode()
 
 
@@ -1267,3 +1249,18 @@ def from_ipc_handle(handle, dtype=None, shape=None, strides=None, device=None):
                            f"allocation ({info.byte_size} bytes)")
     view = out._make_view(0, shape, strides)
     return view
+
+
+def _follow_moved_bytes(arr, rt, ap):
+    """An export may move an allocation into a slab of its own: re-describe it and drop the
+    client's mapping of the old place (CPU slab or CUDA IPC mapping) when it moved."""
+    info = rt.call(rt.array_stub.Describe, ap.DescribeArrayRequest(handle=arr._handle)).info
+    old = arr._alloc.info
+    if (info.shm_name, info.shm_offset, info.cuda_slab_id, info.cuda_ipc_offset) == \
+            (old.shm_name, old.shm_offset, old.cuda_slab_id, old.cuda_ipc_offset):
+        return
+    old.CopyFrom(info)
+    if arr._info is not old:
+        arr._info.CopyFrom(info)
+    arr._alloc._mapping = None
+    arr._alloc.forget_cuda()
