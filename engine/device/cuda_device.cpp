@@ -178,9 +178,12 @@ uint64_t CudaDevice::ReservedSize(uint64_t bytes) const {
   return RoundUp(bytes ? bytes : 1, kAlignment);
 }
 
+// Slab ids are unique across every GPU of the daemon (clients key their IPC mappings by them).
+static std::atomic<uint64_t> next_slab_id{1};
+
 Expected<CudaDevice::Slab*> CudaDevice::NewSlabLocked(uint64_t size, bool dedicated, const std::string& owner) {
   auto slab = std::make_unique<Slab>();
-  slab->id = next_slab_id_++;
+  slab->id = next_slab_id.fetch_add(1, std::memory_order_relaxed);
   slab->size = size;
   slab->dedicated = dedicated;
   slab->owner = owner;
@@ -291,7 +294,7 @@ Status CudaDevice::CheckUsable() const {
   if (lost_.load())
     return FailedPrecondition(name_ + " is unusable: " + lost_reason_ +
                               "; every array on it is lost (device was reset, these arrays are lost); restart weftd "
-                              "to use this GPU again (the CPU and other GPUs keep working)");
+                              "to use this GPU again (the CPU, and every GPU the driver still serves, keep working)");
   return Status::Ok();
 }
 
@@ -511,7 +514,26 @@ DeviceSyncResult CudaDevice::Synchronize(Session& s) {
   return out;
 }
 
-void CudaDevice::Reset(uint64_t faulted_generation) {
+void CudaDevice::ProbeAfterFaultOn(const std::string& faulted) {
+  uint64_t gen = 0;
+  jit::CuResult r = 0;
+  {
+    std::shared_lock<std::shared_mutex> reset(reset_mu_);
+    if (lost_.load()) return;
+    gen = generation_.load();
+    r = driver_->CtxSetCurrent(ctx_);
+    jit::CuDevicePtr probe = 0;
+    if (r == 0) r = driver_->MemAlloc(&probe, 256);
+    if (r == 0) r = driver_->MemsetD8Async(probe, 0, 256, nullptr);
+    if (r == 0) r = driver_->CtxSynchronize();
+    if (probe) driver_->MemFree(probe);
+  }
+  if (r == 0) return;
+  spdlog::error("{}: after the kernel fault on {} this GPU fails too ({})", name_, faulted, driver_->ErrorName(r));
+  Reset(gen, "a kernel fault on " + faulted + " (" + driver_->ErrorName(r) + " here too)");
+}
+
+void CudaDevice::Reset(uint64_t faulted_generation, const std::string& cause) {
   std::unique_lock<std::shared_mutex> reset(reset_mu_);
   if (generation_.load() != faulted_generation) return;   // another session reset it already
   const auto t0 = std::chrono::steady_clock::now();
@@ -559,18 +581,24 @@ void CudaDevice::Reset(uint64_t faulted_generation) {
            driver_->ErrorName(probe_r) + "]";
   }
   if (!healthy && !lost_.load()) {
-    lost_reason_ = "a kernel faulted and the CUDA driver keeps the error for the life of the daemon process";
+    lost_reason_ = cause + " and the CUDA driver keeps the error for the life of the daemon process";
     lost_.store(true);
   }
   generation_++;
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  std::lock_guard<std::mutex> lock(mu_);
-  if (healthy) ++resets_;
-  last_reset_ms_ = ms;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (healthy) ++resets_;
+    last_reset_ms_ = ms;
+  }
   if (healthy)
     spdlog::warn("{}: reset after a kernel fault in {:.1f} ms:{}", name_, ms, log);
   else
     spdlog::error("{}: the device did not come back after a kernel fault ({:.1f} ms):{}", name_, ms, log);
+  reset.unlock();
+  if (!healthy)
+    for (CudaDevice* p : peers_)
+      if (p != this) p->ProbeAfterFaultOn(name_);
 }
 
 // ---- modules ----
@@ -775,8 +803,6 @@ Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) 
   for (CudaDevice* p : peers_)
     if (p->name() == other.alloc->device) peer = p;
   if (!peer) return InvalidArgument("copy between " + dst.alloc->device + " and " + src.alloc->device + ": unknown device");
-  if (!dst.contiguous() || !src.contiguous())
-    return Unimplemented("copy between two GPUs of strided views (copy into a contiguous array first)");
   WEFT_RETURN_IF_ERROR(peer->CheckBlock(other.alloc->block, "copy array " + std::to_string(other.alloc->handle)));
   // The other GPU's queued work of this session comes first.
   if (Stream* ps = peer->FindStream(s.id())) {
@@ -784,12 +810,52 @@ Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) 
     WEFT_RETURN_IF_ERROR(driver_->Check(driver_->StreamSynchronize(ps->stream), "cuStreamSynchronize (peer)"));
     WEFT_RETURN_IF_ERROR(MakeCurrent());
   }
-  const jit::CuContext dctx = dst_here ? ctx_ : peer->context(), sctx = dst_here ? peer->context() : ctx_;
-  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyPeerAsync(reinterpret_cast<uintptr_t>(dst.data()), dctx,
-                                                               reinterpret_cast<uintptr_t>(src.data()), sctx, bytes,
-                                                               st->stream),
-                                      "cuMemcpyPeerAsync"));
-  return driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
+  CudaDevice* const src_gpu = dst_here ? peer : this;
+  CudaDevice* const dst_gpu = dst_here ? this : peer;
+  // A strided view is gathered into (source) or scattered from (destination) contiguous scratch
+  // memory on its own GPU, with that GPU's stream of the session; the peer copy itself always
+  // moves one contiguous range.
+  jit::CuDevicePtr src_scratch = 0, dst_scratch = 0;
+  auto release = [&] {
+    if (src_scratch && src_gpu->MakeCurrent().ok()) driver_->MemFree(src_scratch);
+    if (dst_scratch && dst_gpu->MakeCurrent().ok()) driver_->MemFree(dst_scratch);
+    (void)MakeCurrent();
+  };
+  Status r = Status::Ok();
+  ArrayView src_contig = src, dst_contig = dst;
+  if (!src.contiguous()) {
+    r = src_gpu->MakeCurrent();
+    if (r.ok()) r = driver_->Check(driver_->MemAlloc(&src_scratch, bytes), "cuMemAlloc (peer staging)");
+    if (r.ok()) {
+      src_contig = ScratchView(src.alloc->dtype, n, reinterpret_cast<void*>(static_cast<uintptr_t>(src_scratch)),
+                               src_gpu->name());
+      auto sst = src_gpu->StreamOf(s.id());
+      r = sst.ok() ? src_gpu->StridedCopyOnDevice(**sst, src_contig, src) : sst.status();
+      if (r.ok()) r = driver_->Check(driver_->StreamSynchronize((*sst)->stream), "cuStreamSynchronize (gather)");
+    }
+  }
+  if (r.ok() && !dst.contiguous()) {
+    r = dst_gpu->MakeCurrent();
+    if (r.ok()) r = driver_->Check(driver_->MemAlloc(&dst_scratch, bytes), "cuMemAlloc (peer staging)");
+    if (r.ok())
+      dst_contig = ScratchView(dst.alloc->dtype, n, reinterpret_cast<void*>(static_cast<uintptr_t>(dst_scratch)),
+                               dst_gpu->name());
+  }
+  if (r.ok()) r = MakeCurrent();
+  if (r.ok())
+    r = driver_->Check(driver_->MemcpyPeerAsync(reinterpret_cast<uintptr_t>(dst_contig.data()), dst_gpu->context(),
+                                                reinterpret_cast<uintptr_t>(src_contig.data()), src_gpu->context(),
+                                                bytes, st->stream),
+                       "cuMemcpyPeerAsync");
+  if (r.ok()) r = driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
+  if (r.ok() && dst_scratch) {
+    r = dst_gpu->MakeCurrent();
+    auto dst_stream = r.ok() ? dst_gpu->StreamOf(s.id()) : Expected<Stream*>(r);
+    r = dst_stream.ok() ? dst_gpu->StridedCopyOnDevice(**dst_stream, dst, dst_contig) : dst_stream.status();
+    if (r.ok()) r = driver_->Check(driver_->StreamSynchronize((*dst_stream)->stream), "cuStreamSynchronize (scatter)");
+  }
+  release();
+  return r;
 }
 
 Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {

@@ -130,8 +130,14 @@ class CudaDevice final : public Device {
   Status QueueErrorReadback(Stream& st);
   // After the wait: the first error of the pending launches (or Ok); their slots are cleared.
   DeviceSyncResult Drain(Stream& st);
-  // After a sticky fault: a fresh context. Called without locks held.
-  void Reset(uint64_t faulted_generation);
+  // After a sticky fault: a fresh context. Called without locks held. `cause` names the fault
+  // in the lost-device message when the context cannot be brought back. When it cannot, every
+  // other GPU of the daemon is probed (ProbeAfterFaultOn): the driver may keep the error for
+  // all of the process's contexts.
+  void Reset(uint64_t faulted_generation, const std::string& cause = "a kernel faulted");
+  // A tiny allocation + memset + synchronize on this GPU after `faulted` could not be brought
+  // back; a sticky error here resets (and, failing that, marks lost) this GPU too.
+  void ProbeAfterFaultOn(const std::string& faulted);
   Status StridedCopyOnDevice(Stream& st, const ArrayView& dst, const ArrayView& src);
 
   CudaDeviceOptions options_;
@@ -149,7 +155,6 @@ class CudaDevice final : public Device {
   std::string lost_reason_;   // set once, before lost_
   mutable std::mutex mu_;   // slabs_, streams_, modules_, builtins_
   std::map<uint64_t, std::unique_ptr<Slab>> slabs_;
-  uint64_t next_slab_id_ = 1;
   std::unordered_map<std::string, std::unique_ptr<Stream>> streams_;
   std::unordered_map<std::string, CuModuleEntry> modules_;   // by module id + "/f" or "/b"
   jit::CuModule builtins_ = nullptr;
