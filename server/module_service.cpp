@@ -1,6 +1,8 @@
-// ModuleService: compile a module through the engine's ModuleStore.
+// ModuleService: compile a module through the engine: for a device (loaded, with a module id),
+// or compile-only for a CUDA architecture (cuda_arch: the CUBIN report, no GPU needed).
 #include <spdlog/spdlog.h>
 
+#include "engine/codegen/emit_text.h"
 #include "server/grpc_status.h"
 #include "server/proto_convert.h"
 #include "server/services.h"
@@ -12,17 +14,51 @@ grpc::Status ModuleServiceImpl::Compile(grpc::ServerContext* ctx, const v1::Comp
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
   CompileReport report;
-  auto m = auth_.engine().Compile(**s, FromProto(req->module()), req->device(), &report);
-  for (const auto& d : report.diagnostics) ToProto(d, resp->add_diagnostics());
-  if (!m.ok()) {
-    std::string msg = m.status().message();
+  // The status with the error diagnostics that its message does not already carry.
+  auto failed = [&](const Status& status) {
+    std::string msg = status.message();
     for (const auto& d : report.diagnostics) {
       if (d.severity != Diagnostic::Severity::kError) continue;
       std::string text = d.ToString();
       if (msg.find(text) == std::string::npos) msg += "\n" + text;
     }
-    return ToGrpc(Status(m.status().code(), msg));
+    return ToGrpc(Status(status.code(), msg));
+  };
+  if (req->cuda_arch() != 0) {
+    const std::string& device = req->device();
+    const bool cuda_n = device.size() > 5 && device.size() <= 9 && device.rfind("cuda:", 0) == 0 &&
+                        device.find_first_not_of("0123456789", 5) == std::string::npos;
+    if (!device.empty() && device != "cuda" && !cuda_n)
+      return ToGrpc(InvalidArgument("cuda_arch compiles for a CUDA device; device must be empty, \"cuda\" or "
+                                    "\"cuda:N\", not '" + codegen::CommentText(device.substr(0, 64)) + "'"));
+    if (req->cuda_arch() > 1000)
+      return ToGrpc(InvalidArgument("unknown CUDA architecture " + std::to_string(req->cuda_arch())));
+    auto c = auth_.engine().CompileForArch(**s, FromProto(req->module()), static_cast<int>(req->cuda_arch()), &report);
+    for (const auto& d : report.diagnostics) ToProto(d, resp->add_diagnostics());
+    if (!c.ok()) return failed(c.status());
+    auto* cuda = resp->mutable_cuda();
+    cuda->set_arch(static_cast<uint32_t>(c->arch));
+    cuda->set_binary_size(c->image.size());
+    cuda->set_nvrtc_version(c->nvrtc_version);
+    for (const auto& k : c->kernels) {
+      auto* r = cuda->add_kernels();
+      r->set_kernel(k.kernel);
+      r->set_adjoint(k.adjoint);
+      r->set_symbol(k.symbol);
+      r->set_registers(k.registers);
+      r->set_code_bytes(k.code_bytes);
+      r->set_shared_bytes(k.shared_bytes);
+      r->set_local_bytes(k.local_bytes);
+      r->set_const_bytes(k.const_bytes);
+    }
+    if (req->return_binary()) cuda->set_binary(std::move(c->image));
+    resp->set_cache_hit(report.cache_hit || report.disk_hit);
+    resp->set_compile_ms(report.compile_ms);
+    return grpc::Status::OK;
   }
+  auto m = auth_.engine().Compile(**s, FromProto(req->module()), req->device(), &report);
+  for (const auto& d : report.diagnostics) ToProto(d, resp->add_diagnostics());
+  if (!m.ok()) return failed(m.status());
   const LoadedModule& mod = **m;
   resp->set_module_id(mod.id);
   for (const auto& k : mod.kernels) {

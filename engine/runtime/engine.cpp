@@ -575,18 +575,43 @@ Expected<std::shared_ptr<const LoadedModule>> Engine::Compile(Session& s, Module
     WEFT_ASSIGN_OR_RETURN(Device * placed, devices_->Resolve(s.id(), dev));
     dev = placed->name();
   }
-  // Options that weaken a safety net (bounds checks, the loops' cancellation poll) need
-  // --allow-unchecked; without it they are turned back on with a warning.
+  std::vector<std::string> ignored = DropUncheckedOptions(s, &source);
+  auto r = store_->Compile(source, dev, report);
+  WarnIgnoredOptions(ignored, report);
+  // The name is the client's (checked only by the store): escaped, so it cannot forge log lines.
+  if (!r.ok())
+    spdlog::info("session {}: compile of module '{}' failed: {}", s.label(), codegen::CommentText(source.name),
+                 r.status().message());
+  return r;
+}
+
+Expected<CudaArchCompile> Engine::CompileForArch(Session& s, ModuleSource source, int arch, CompileReport* report) {
+  if (!store_) return FailedPrecondition("this daemon has no module store");
+  std::vector<std::string> ignored = DropUncheckedOptions(s, &source);
+  auto r = store_->CompileForArch(source, arch, report);
+  WarnIgnoredOptions(ignored, report);
+  if (!r.ok())
+    spdlog::info("session {}: compile of module '{}' for sm_{} failed: {}", s.label(),
+                 codegen::CommentText(source.name), arch, r.status().message());
+  return r;
+}
+
+// Options that weaken a safety net (bounds checks, the loops' cancellation poll) need
+// --allow-unchecked; without it they are turned back on (the names are returned for a warning).
+std::vector<std::string> Engine::DropUncheckedOptions(const Session& s, ModuleSource* source) {
   std::vector<std::string> ignored;
   for (const char* option : {"bounds_checks", "cancel_poll"}) {
-    auto it = source.options.find(option);
-    if (it != source.options.end() && (it->second == "false" || it->second == "0" || it->second == "False") &&
+    auto it = source->options.find(option);
+    if (it != source->options.end() && (it->second == "false" || it->second == "0" || it->second == "False") &&
         !s.unchecked_allowed) {
       it->second = "true";
       ignored.push_back(option);
     }
   }
-  auto r = store_->Compile(source, dev, report);
+  return ignored;
+}
+
+void Engine::WarnIgnoredOptions(const std::vector<std::string>& ignored, CompileReport* report) {
   for (const auto& option : ignored) {
     if (!report) break;
     Diagnostic d;
@@ -594,11 +619,6 @@ Expected<std::shared_ptr<const LoadedModule>> Engine::Compile(Session& s, Module
     d.message = option + "=false ignored: this daemon does not allow unchecked kernels (start weftd with --allow-unchecked)";
     report->diagnostics.push_back(d);
   }
-  // The name is the client's (checked only by the store): escaped, so it cannot forge log lines.
-  if (!r.ok())
-    spdlog::info("session {}: compile of module '{}' failed: {}", s.label(), codegen::CommentText(source.name),
-                 r.status().message());
-  return r;
 }
 
 EngineStats Engine::Stats() const {

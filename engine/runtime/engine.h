@@ -144,6 +144,9 @@ class Engine {
   // Modules.
   Expected<std::shared_ptr<const LoadedModule>> Compile(Session& s, ModuleSource source,
                                                         const std::string& device, CompileReport* report);
+  // Compile only, with NVRTC for sm_<arch> (no GPU needed): the CUBIN and a report per entry
+  // point (ModuleStore::CompileForArch).
+  Expected<CudaArchCompile> CompileForArch(Session& s, ModuleSource source, int arch, CompileReport* report);
 
   EngineStats Stats() const;
   const EngineOptions& options() const { return options_; }
@@ -157,6 +160,8 @@ class Engine {
 
  private:
   Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store);
+  static std::vector<std::string> DropUncheckedOptions(const Session& s, ModuleSource* source);
+  static void WarnIgnoredOptions(const std::vector<std::string>& ignored, CompileReport* report);
   // The executor task of one batch (holds the batch's arrays until it has run).
   std::function<void()> BatchTask(Session& s, std::vector<Command> commands);
   // Checks a batch against the limits and counts it as queued (BatchTask uncounts it).

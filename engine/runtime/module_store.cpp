@@ -14,6 +14,7 @@
 #include <mutex>
 #include <regex>
 #include <set>
+#include <thread>
 #include <unordered_map>
 
 #include "engine/runtime/module_cache.h"
@@ -25,6 +26,7 @@
 #endif
 #if WEFT_WITH_CUDA
 #include "engine/device/cuda_driver.h"
+#include "engine/jit/cuda/cubin_info.h"
 #include "engine/jit/cuda/nvrtc_compiler.h"
 #endif
 
@@ -182,6 +184,18 @@ class ModuleStoreImpl final : public ModuleStore {
 #if WEFT_WITH_CUDA
     if (auto version = jit::NvrtcVersion(); version.ok()) nvrtc_version_ = *version;
 #endif
+    if (options_.verify_cuda) {
+      if (options_.verify_cuda_archs.empty()) options_.verify_cuda_archs = {options_.verify_cuda_sm};
+      std::set<int> unique(options_.verify_cuda_archs.begin(), options_.verify_cuda_archs.end());
+      options_.verify_cuda_archs.assign(unique.begin(), unique.end());
+      std::string archs;
+      for (int arch : options_.verify_cuda_archs) {
+        if (Status known = CheckArch(arch); !known.ok()) return FailedPrecondition("verify_cuda: " + known.message());
+        archs += (archs.empty() ? "" : ",") + std::to_string(arch);
+      }
+      // Modules checked for other architectures are other cache entries.
+      if (archs != "90") context_.build_id += " verify-cuda=" + archs;
+    }
     cache_ = std::make_unique<ModuleCache>(options_.cache_dir, options_.memory_capacity,
                                            options_.disk_capacity_bytes);
     WEFT_RETURN_IF_ERROR(cache_->Init());
@@ -215,18 +229,7 @@ class ModuleStoreImpl final : public ModuleStore {
     WEFT_ASSIGN_OR_RETURN(DeviceRef where, ParseDevice(device));
     // The request's names and size are checked before it is hashed, cached or compiled.
     WEFT_RETURN_IF_ERROR(codegen::CheckModuleSource(source, options_.limits));
-    Variant variant;
-    variant.source = source;
-    variant.codegen.target = where.target;
-    variant.codegen.max_block_depth = options_.limits.max_block_depth;
-    variant.codegen.max_expression_depth = options_.limits.max_expression_depth;
-    auto checks = source.options.find("bounds_checks");
-    variant.codegen.bounds_checks =
-        checks == source.options.end() ||
-        (checks->second != "false" && checks->second != "False" && checks->second != "0");
-    auto poll = source.options.find("cancel_poll");
-    variant.codegen.loop_cancel_poll =
-        poll == source.options.end() || (poll->second != "false" && poll->second != "False" && poll->second != "0");
+    Variant variant = VariantOf(source, where.target);
     if (where.target == Target::kCuda) {
       WEFT_ASSIGN_OR_RETURN(variant.sm, CudaArchitecture(where.ordinal));
     }
@@ -247,6 +250,63 @@ class ModuleStoreImpl final : public ModuleStore {
     }
     entry.forward = *module;
     return *module;
+  }
+
+  Expected<CudaArchCompile> CompileForArch(const ModuleSource& source, int arch, CompileReport* report) override {
+#if WEFT_WITH_CUDA
+    auto start = std::chrono::steady_clock::now();
+    CompileReport local;
+    if (!report) report = &local;
+    WEFT_RETURN_IF_ERROR(CheckArch(arch));
+    WEFT_RETURN_IF_ERROR(codegen::CheckModuleSource(source, options_.limits));
+    Variant variant = VariantOf(source, Target::kCuda);
+    variant.sm = arch;
+    // The adjoint entry points too, unless the module turns them off (Warp's enable_backward).
+    auto backward = source.options.find("enable_backward");
+    variant.codegen.enable_backward =
+        backward == source.options.end() ||
+        (backward->second != "false" && backward->second != "False" && backward->second != "0");
+    const std::string key = Key(variant);
+    ModuleCache::Source from = ModuleCache::Source::kBuilt;
+    auto module = Get(key, key, variant, &from, &report->diagnostics);
+    report->cache_hit = module.ok() && from == ModuleCache::Source::kMemory;
+    report->disk_hit = module.ok() && from == ModuleCache::Source::kDisk;
+    report->compile_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    if (!module.ok()) return module.status();
+    CudaArchCompile out;
+    out.arch = arch;
+    out.image = (*module)->cuda_image;
+    out.nvrtc_version = nvrtc_version_;
+    auto cubin = jit::ParseCubin(out.image);
+    if (!cubin.ok()) return Internal("module " + source.name + ": NVRTC's CUBIN for sm_" + std::to_string(arch) +
+                                     " cannot be read (weft bug): " + cubin.status().message());
+    if (cubin->sm != static_cast<uint32_t>(arch))
+      return Internal("module " + source.name + ": NVRTC built sm_" + std::to_string(cubin->sm) + " for sm_" +
+                      std::to_string(arch) + " (weft bug)");
+    for (const LoadedKernel& k : (*module)->kernels) {
+      for (bool adjoint : {false, true}) {
+        const std::string& symbol = adjoint ? k.layout.backward_symbol : k.layout.forward_symbol;
+        if (symbol.empty()) continue;
+        const jit::CubinKernelInfo* info = cubin->Find(symbol);
+        if (!info) return Internal("module " + source.name + ": entry point " + symbol + " missing from the CUBIN");
+        CudaKernelReport r;
+        r.kernel = k.layout.name;
+        r.adjoint = adjoint;
+        r.symbol = symbol;
+        r.registers = info->registers;
+        r.code_bytes = info->code_bytes;
+        r.shared_bytes = info->shared_bytes;
+        r.local_bytes = info->local_bytes;
+        r.const_bytes = info->const_bytes;
+        out.kernels.push_back(std::move(r));
+      }
+    }
+    return out;
+#else
+    (void)source, (void)arch, (void)report;
+    return Unimplemented("this weft was built without CUDA (NVRTC)");
+#endif
   }
 
   std::shared_ptr<const LoadedModule> Find(const std::string& module_id) const override {
@@ -303,6 +363,39 @@ class ModuleStoreImpl final : public ModuleStore {
     std::weak_ptr<const LoadedModule> forward;
     std::weak_ptr<const LoadedModule> backward;
   };
+
+  // How `source` is generated for `target` (the module options that change the code).
+  Variant VariantOf(const ModuleSource& source, Target target) const {
+    Variant variant;
+    variant.source = source;
+    variant.codegen.target = target;
+    variant.codegen.max_block_depth = options_.limits.max_block_depth;
+    variant.codegen.max_expression_depth = options_.limits.max_expression_depth;
+    auto checks = source.options.find("bounds_checks");
+    variant.codegen.bounds_checks =
+        checks == source.options.end() ||
+        (checks->second != "false" && checks->second != "False" && checks->second != "0");
+    auto poll = source.options.find("cancel_poll");
+    variant.codegen.loop_cancel_poll =
+        poll == source.options.end() || (poll->second != "false" && poll->second != "False" && poll->second != "0");
+    return variant;
+  }
+
+  // An architecture a client asked for: one of kCudaArchs that this NVRTC supports.
+  static Status CheckArch(int arch) {
+    std::string known;
+    bool found = false;
+    for (int a : kCudaArchs) {
+#if WEFT_WITH_CUDA
+      if (!jit::NvrtcSupportsArch(a)) continue;
+#endif
+      known += (known.empty() ? "" : ", ") + std::to_string(a);
+      found = found || a == arch;
+    }
+    if (found) return Status::Ok();
+    return InvalidArgument("unknown CUDA architecture " + std::to_string(arch) + " (this daemon's NVRTC compiles for " +
+                           (known.empty() ? std::string("none") : known) + ")");
+  }
 
   std::string Key(const Variant& variant) const {
     if (variant.codegen.target == Target::kCpu) {
@@ -385,10 +478,38 @@ class ModuleStoreImpl final : public ModuleStore {
     auto compiled = jit::NvrtcCompile(cuda_source, main_file, nvrtc);
     if (!compiled.ok()) {
       AppendCompilerDiagnostics(compiled.status().message(), main_file, source, diags);
-      return GeneratedCodeRejected(source.name, "CUDA (NVRTC)", compiled.status());
+      return GeneratedCodeRejected(source.name, "CUDA sm_" + std::to_string(sm) + " (NVRTC)", compiled.status());
     }
     return std::move(compiled->image);
   }
+#endif
+
+#if WEFT_WITH_CUDA
+  // verify_cuda: the CUDA flavour of a CPU module compiled by NVRTC for every architecture of
+  // verify_cuda_archs, one thread each (NVRTC calls are independent).
+  Status VerifyCuda(const Variant& variant, std::vector<Diagnostic>* diags) const {
+    CodegenOptions cuda = variant.codegen;
+    cuda.target = Target::kCuda;
+    WEFT_ASSIGN_OR_RETURN(GeneratedModule cuda_module, options_.generate(variant.source, cuda, diags));
+    const auto& archs = options_.verify_cuda_archs;
+    std::vector<Status> results(archs.size());
+    std::vector<std::vector<Diagnostic>> found(archs.size());
+    auto check = [&](size_t i) {
+      results[i] = CompileCuda(variant.source, cuda_module.source, archs[i], &found[i]).status();
+    };
+    std::vector<std::thread> threads;
+    for (size_t i = 1; i < archs.size(); ++i) threads.emplace_back(check, i);
+    if (!archs.empty()) check(0);
+    for (auto& t : threads) t.join();
+    for (size_t i = 0; i < archs.size(); ++i) {
+      if (results[i].ok()) continue;
+      diags->insert(diags->end(), found[i].begin(), found[i].end());
+      return results[i];
+    }
+    return Status::Ok();
+  }
+#else
+  Status VerifyCuda(const Variant&, std::vector<Diagnostic>*) const { return Status::Ok(); }
 #endif
 
   Expected<ModuleArtifact> Build(const Variant& variant, std::vector<Diagnostic>* diags) const {
@@ -404,13 +525,7 @@ class ModuleStoreImpl final : public ModuleStore {
 #endif
     } else {
 #if WEFT_WITH_CUDA
-      if (options_.verify_cuda) {
-        CodegenOptions cuda = variant.codegen;
-        cuda.target = Target::kCuda;
-        WEFT_ASSIGN_OR_RETURN(GeneratedModule cuda_module, options_.generate(source, cuda, diags));
-        WEFT_RETURN_IF_ERROR(
-            CompileCuda(source, cuda_module.source, options_.verify_cuda_sm, diags).status());
-      }
+      if (options_.verify_cuda) WEFT_RETURN_IF_ERROR(VerifyCuda(variant, diags));
 #endif
 #if WEFT_WITH_CPU_JIT
       const std::string main_file = SafeName(source.name);

@@ -52,6 +52,30 @@ struct CompileReport {
   std::vector<Diagnostic> diagnostics;
 };
 
+// One entry point of a module compiled for a CUDA architecture, as the CUBIN describes it.
+struct CudaKernelReport {
+  std::string kernel;          // the kernel's name in the module
+  bool adjoint = false;        // the backward (adjoint) entry point
+  std::string symbol;          // its symbol in the CUBIN
+  uint32_t registers = 0;      // per thread
+  uint64_t code_bytes = 0;     // machine code
+  uint64_t shared_bytes = 0;   // static shared memory
+  uint64_t local_bytes = 0;    // stack frame per thread
+  uint64_t const_bytes = 0;    // constant bank 0 (parameters and the driver's area)
+};
+
+// A module compiled for sm_<arch> without loading it (no GPU needed): the CUBIN and a report
+// per entry point (forward, and adjoint unless the module turns enable_backward off).
+struct CudaArchCompile {
+  int arch = 0;
+  std::string image;           // the CUBIN
+  std::string nvrtc_version;
+  std::vector<CudaKernelReport> kernels;
+};
+
+// The architectures CompileForArch accepts (those NVRTC supports among these).
+inline constexpr int kCudaArchs[] = {75, 80, 86, 87, 89, 90, 100, 103, 110, 120, 121};
+
 // The compiler front half (engine/codegen's GenerateModule); replaceable for tests.
 using GenerateModuleFn = std::function<Expected<GeneratedModule>(
     const ModuleSource&, const CodegenOptions&, std::vector<Diagnostic>*)>;
@@ -61,8 +85,12 @@ struct ModuleStoreOptions {
   std::string native_dir;         // engine/native headers for the JIT; empty = WEFT_NATIVE_DIR
   size_t memory_capacity = 256;   // modules kept loaded (LRU)
   uint64_t disk_capacity_bytes = uint64_t{2} << 30;   // disk cache bound (LRU files removed); 0 = none
-  bool verify_cuda = false;       // also compile every generated module with NVRTC (sm_90)
-  int verify_cuda_sm = 90;        // the architecture verify_cuda compiles for
+  // Also compile every generated CPU module's CUDA flavour with NVRTC, for each architecture
+  // of verify_cuda_archs (in parallel; empty = {verify_cuda_sm}): a module NVRTC rejects fails
+  // to compile (Internal, naming the architecture). A check for CI on machines without a GPU.
+  bool verify_cuda = false;
+  std::vector<int> verify_cuda_archs;
+  int verify_cuda_sm = 90;        // cuda:N's architecture when no driver is present
   GenerateModuleFn generate;      // empty = weft::GenerateModule
   codegen::CompileLimits limits;  // checked on every Compile request (names, size, depth)
   // > 0: each CPU compile runs clang in a child process killed after this many seconds
@@ -94,6 +122,13 @@ class ModuleStore {
   // The same module with backward entry points (generated and compiled on first request).
   virtual Expected<std::shared_ptr<const LoadedModule>> WithBackward(const std::string& module_id) = 0;
   virtual ModuleStoreStats stats() const = 0;
+  // Compiles the module with NVRTC for sm_<arch> (a kCudaArchs entry NVRTC supports, else
+  // InvalidArgument listing them) and reports each entry point; cached like other modules
+  // (memory and disk), never loaded on a device and never given a module id.
+  virtual Expected<CudaArchCompile> CompileForArch(const ModuleSource& source, int arch, CompileReport* report) {
+    (void)source, (void)arch, (void)report;
+    return Unimplemented("this module store cannot compile CUDA");
+  }
   // CUDA C++ that is not a weft module (the CUDA device's built-in copy/fill kernels) compiled
   // for sm_XX with the native headers on the include path: a CUBIN, or PTX when NVRTC does not
   // know the architecture.

@@ -8,6 +8,7 @@ import sys
 import types
 import typing
 
+from . import cuda_compile
 from . import module as module_mod
 from . import typestr
 from .errors import WarpCodegenError, WeftCompileError, WeftLaunchError
@@ -25,6 +26,7 @@ __all__ = [
     "WeftCompileError",
     "WeftLaunchError",
     "compile",
+    "compile_aot_module",
     "constant",
     "func",
     "func_native",
@@ -141,16 +143,39 @@ def _caller_module_name(depth: int = 2) -> str:
     return frame.f_globals.get("__name__", "__main__")
 
 
-def compile(target=None, device=None, backward: bool = False):  # noqa: A001 - Warp-style name
+def compile(target=None, device=None, backward: bool = False, arch=None):  # noqa: A001 - Warp-style name
     """Compiles a kernel, a Python module (object or name) or, with no target, the caller's
     module, ahead of time on device. Raises WeftCompileError with the daemon's diagnostics.
     Returns the CompiledModule that did the work: the first one the daemon really compiled
-    (kernels of one module share one build, so later kernels are cache hits), else the first."""
+    (kernels of one module share one build, so later kernels are cache hits), else the first.
+
+    With arch (75, 80, 90, "sm_90", ... or a list of them) the daemon compiles for that CUDA
+    architecture with NVRTC instead, without loading anything (no GPU needed; device must be
+    None, "cuda" or "cuda:N"), and this returns a CudaCompileReport (a list of them for a list
+    of architectures): the CUBIN size and, per kernel, forward and adjoint, registers per
+    thread, code, shared, local and constant bytes."""
+    if arch is not None:
+        if isinstance(target, Kernel):
+            kernels = [target]
+        else:
+            kernels = module_mod.kernels_of(_target_module_name(target))
+        if isinstance(arch, (list, tuple)):
+            return [cuda_compile.compile_for_arch(kernels, a, device) for a in arch]
+        return cuda_compile.compile_for_arch(kernels, arch, device)
     dev = _device_of(device)
     if isinstance(target, Kernel):
         return module_mod.compile_kernel(target, dev, backward)[0]
+    name = _target_module_name(target)
+    result = None
+    for compiled in module_mod.compile_module(name, dev, backward):
+        if result is None or (result.cache_hit and not compiled.cache_hit):
+            result = compiled
+    return result
+
+
+def _target_module_name(target) -> str:
     if target is None:
-        name = _caller_module_name()
+        name = _caller_module_name(3)
     elif isinstance(target, types.ModuleType):
         name = target.__name__
     elif isinstance(target, str):
@@ -160,11 +185,10 @@ def compile(target=None, device=None, backward: bool = False):  # noqa: A001 - W
     else:
         raise TypeError(f"wp.compile expects a kernel, a module or a module name, got "
                         f"{target!r}")
-    result = None
-    for compiled in module_mod.compile_module(name, dev, backward):
-        if result is None or (result.cache_hit and not compiled.cache_hit):
-            result = compiled
-    return result
+    return name
+
+
+compile_aot_module = cuda_compile.compile_aot_module
 
 
 def load_module(module=None, device=None, recursive: bool = False):
