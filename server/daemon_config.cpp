@@ -83,6 +83,7 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   auto given = [&](const char* flag) { return app.count(flag) > 0; };
   for (auto&& [k, v] : t) {
     static const char* known[] = {"listen", "cache-dir", "log-level", "token-file", "cpu-threads", "verify-cuda",
+                                  "verify-cuda-archs",
                                   "allow-unchecked", "native-dir", "max-module-bytes", "max-functions",
                                   "max-block-depth", "max-expression-depth", "attach-timeout", "launch-time-limit",
                                   "compile-time-limit",
@@ -119,6 +120,7 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   if (!given("--verify-cuda"))
     if (auto* n = Key(t, "verify-cuda"))
       if (auto v = n->value<bool>()) c->verify_cuda = *v;
+  str("verify-cuda-archs", "--verify-cuda-archs", &c->verify_cuda_archs_text);
   auto integer = [&](const char* key, const char* flag, auto* out) {
     if (given(flag)) return;
     if (auto* n = Key(t, key))
@@ -189,6 +191,8 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   app.add_option("--cpu-threads", c.cpu_threads, "Threads of the CPU launch pool (default: all cores)");
   app.add_option("--native-dir", c.native_dir, "engine/native headers for the CPU JIT");
   app.add_flag("--verify-cuda", c.verify_cuda, "Also compile every generated module with NVRTC");
+  app.add_option("--verify-cuda-archs", c.verify_cuda_archs_text,
+                 "The CUDA architectures --verify-cuda compiles for, comma separated, e.g. 75,90 (default 90)");
   app.add_flag("--allow-unchecked", c.allow_unchecked, "Let sessions turn array bounds checks off");
   app.add_option("--max-module-bytes", c.max_module_bytes, "Largest module source a client may compile, in bytes (default 2 MiB)");
   app.add_option("--max-functions", c.max_functions, "Most kernels and funcs in one module (default 2000)");
@@ -237,6 +241,17 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   }
   if (!config_file.empty()) WEFT_RETURN_IF_ERROR(ApplyToml(config_file, &c, app));
   if (c.cpu_threads < 0) return InvalidArgument("--cpu-threads must be >= 0");
+  for (size_t at = 0; at < c.verify_cuda_archs_text.size();) {
+    size_t end = c.verify_cuda_archs_text.find(',', at);
+    if (end == std::string::npos) end = c.verify_cuda_archs_text.size();
+    std::string item = c.verify_cuda_archs_text.substr(at, end - at);
+    if (item.rfind("sm_", 0) == 0) item = item.substr(3);
+    if (item.empty() || item.size() > 3 || item.find_first_not_of("0123456789") != std::string::npos)
+      return InvalidArgument("--verify-cuda-archs: '" + c.verify_cuda_archs_text +
+                             "' is not a comma-separated list of architectures such as 75,90");
+    c.verify_cuda_archs.push_back(std::stoi(item));
+    at = end + 1;
+  }
   if (c.max_module_bytes == 0 || c.max_functions == 0)
     return InvalidArgument("--max-module-bytes and --max-functions must be > 0");
   if (c.max_block_depth < 1 || c.max_block_depth > 100)

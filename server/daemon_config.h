@@ -18,6 +18,10 @@ struct DaemonConfig {
   std::string native_dir;
   int cpu_threads = 0;
   bool verify_cuda = false;
+  // The architectures --verify-cuda compiles every module for: the text ("75,90") and the
+  // parsed list (empty = sm_90).
+  std::string verify_cuda_archs_text;
+  std::vector<int> verify_cuda_archs;
   bool allow_unchecked = false;
   bool show_version = false;
   // Compile limits (engine/codegen/check_source.h CompileLimits; the defaults are its defaults).

@@ -131,6 +131,7 @@ int main(int argc, char** argv) {
   eo.modules.cache_dir = cfg->cache_dir;
   eo.modules.native_dir = cfg->native_dir.empty() ? WEFT_NATIVE_DIR : cfg->native_dir;
   eo.modules.verify_cuda = cfg->verify_cuda;
+  eo.modules.verify_cuda_archs = cfg->verify_cuda_archs;
   eo.modules.limits.max_module_bytes = cfg->max_module_bytes;
   eo.modules.limits.max_functions = cfg->max_functions;
   eo.modules.limits.max_block_depth = cfg->max_block_depth;

@@ -51,18 +51,30 @@ def daemon_binary() -> Path:
     return Path(os.environ.get("WEFT_DAEMON", REPO_ROOT / "build" / "bin" / "weftd"))
 
 
+_HAS_NVRTC: dict = {}
+
+
+def daemon_has_nvrtc() -> bool:
+    """Whether this weftd was built with NVRTC (it links libnvrtc)."""
+    binary = str(daemon_binary())
+    if binary not in _HAS_NVRTC:
+        try:
+            out = subprocess.run(["ldd", binary], capture_output=True, text=True, timeout=30).stdout
+        except (OSError, subprocess.SubprocessError):
+            out = ""
+        _HAS_NVRTC[binary] = "libnvrtc" in out
+    return _HAS_NVRTC[binary]
+
+
 def verify_cuda_flags() -> list:
-    """["--verify-cuda"] when this weftd was built with NVRTC (it links libnvrtc): every kernel
-    the tests compile is then also compiled for the GPU (sm_90), on machines without one too.
-    WEFT_TEST_VERIFY_CUDA=0 turns it off."""
-    if os.environ.get("WEFT_TEST_VERIFY_CUDA", "1") == "0":
+    """["--verify-cuda", "--verify-cuda-archs", "75,90"] when this weftd was built with NVRTC:
+    every kernel the tests compile is then also compiled by NVRTC for sm_75 and sm_90 (CI's
+    check that every test kernel compiles for the GPU), on machines without one too; a kernel
+    NVRTC rejects fails its test. WEFT_TEST_VERIFY_CUDA=0 turns it off;
+    WEFT_TEST_VERIFY_CUDA_ARCHS chooses the architectures."""
+    if os.environ.get("WEFT_TEST_VERIFY_CUDA", "1") == "0" or not daemon_has_nvrtc():
         return []
-    try:
-        out = subprocess.run(["ldd", str(daemon_binary())], capture_output=True, text=True,
-                             timeout=30).stdout
-    except (OSError, subprocess.SubprocessError):
-        return []
-    return ["--verify-cuda"] if "libnvrtc" in out else []
+    return ["--verify-cuda", "--verify-cuda-archs", os.environ.get("WEFT_TEST_VERIFY_CUDA_ARCHS", "75,90")]
 
 
 def wait_until(predicate, timeout_s: float, period_s: float = 0.05):
