@@ -16,6 +16,7 @@ Fixtures (any test under clients/python/tests/, kernels/ included, may use them)
              processes still alive at the end of the test are killed.
   client_env function: client_env(overrides) -> environment dict for a child client.
   daemon_path function: the weftd binary.
+  needs_nvrtc function: skips the test when this weftd was built without NVRTC.
   wait_for   function: wait_for(predicate, timeout_s, period_s=0.05) -> the predicate's first
              truthy value, or its last value when the time is up.
 Daemon objects also give .stats() (SessionService.Stats), .shm_files(), .threads(),
@@ -384,6 +385,13 @@ def tcp_weftd():
         yield daemon
     finally:
         _stop_and_check(daemon)
+
+
+@pytest.fixture
+def needs_nvrtc():
+    """Skips the test (with the reason) when this weftd was built without NVRTC."""
+    if not daemon_has_nvrtc():
+        pytest.skip("this weftd was built without NVRTC (no CUDA compiles)")
 
 
 @pytest.fixture

@@ -8,10 +8,7 @@ import grpc
 import numpy as np
 import pytest
 
-from conftest import daemon_has_nvrtc
-
-pytestmark = pytest.mark.skipif(not daemon_has_nvrtc(),
-                                reason="this weftd was built without NVRTC (no CUDA compiles)")
+pytestmark = pytest.mark.usefixtures("needs_nvrtc")
 
 
 @pytest.fixture(scope="module")
