@@ -53,8 +53,8 @@ def test_a_module_reports_every_kernel_and_archs_differ(wp, kernels):
         names = {(k.kernel, k.adjoint) for k in report.kernels}
         assert {("arch_saxpy", False), ("arch_saxpy", True), ("arch_heavy", False),
                 ("arch_heavy", True)} <= names, names
-        heavy = report.kernel("arch_heavy")
-        assert heavy.registers > report.kernel("arch_saxpy").registers
+        # more work, more machine code (registers are allocated in steps: they may tie)
+        assert report.kernel("arch_heavy").code_bytes > report.kernel("arch_saxpy").code_bytes
     # The CUBIN differs per architecture (different machine code).
     assert reports[0].binary_size != reports[1].binary_size or \
         reports[0].kernel("arch_heavy").code_bytes != reports[1].kernel("arch_heavy").code_bytes
