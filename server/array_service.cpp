@@ -1,4 +1,5 @@
-// ArrayService: create/free/describe, chunked read/write, IPC export/import.
+// ArrayService: create/free/describe, chunked read/write, IPC export/import, CUDA IPC import of
+// the client's GPU memory.
 #include <spdlog/spdlog.h>
 
 #include "server/grpc_status.h"
@@ -110,6 +111,23 @@ grpc::Status ArrayServiceImpl::Import(grpc::ServerContext* ctx, const v1::Import
   if (!s.ok()) return ToGrpc(s.status());
   auto r = auth_.engine().ImportArray(**s, req->token());
   if (!r.ok()) return Fail(ctx, "array import", r.status());
+  ToProto(*r, resp->mutable_info());
+  return grpc::Status::OK;
+}
+
+grpc::Status ArrayServiceImpl::ImportCuda(grpc::ServerContext* ctx, const v1::ImportCudaRequest* req,
+                                          v1::ImportCudaResponse* resp) {
+  auto s = auth_.SessionOf(*ctx);
+  if (!s.ok()) return ToGrpc(s.status());
+  CudaImportParams p;
+  p.device = req->device();
+  p.dtype = FromProto(req->dtype());
+  p.shape.assign(req->shape().begin(), req->shape().end());
+  p.data = {req->data().ipc_handle(), req->data().allocation_id(), req->data().byte_offset()};
+  p.has_grad = req->has_grad();
+  if (p.has_grad) p.grad = {req->grad().ipc_handle(), req->grad().allocation_id(), req->grad().byte_offset()};
+  auto r = auth_.engine().ImportCudaArray(**s, p);
+  if (!r.ok()) return Fail(ctx, "CUDA import", r.status());
   ToProto(*r, resp->mutable_info());
   return grpc::Status::OK;
 }

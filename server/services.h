@@ -40,6 +40,8 @@ class ArrayServiceImpl final : public v1::ArrayService::Service {
                      v1::WriteArrayResponse* resp) override;
   grpc::Status Export(grpc::ServerContext* ctx, const v1::ExportArrayRequest* req, v1::ExportArrayResponse* resp) override;
   grpc::Status Import(grpc::ServerContext* ctx, const v1::ImportArrayRequest* req, v1::ImportArrayResponse* resp) override;
+  grpc::Status ImportCuda(grpc::ServerContext* ctx, const v1::ImportCudaRequest* req,
+                          v1::ImportCudaResponse* resp) override;
  private:
   const CallAuth& auth_;
 };

@@ -27,6 +27,7 @@
 
 #include "engine/device/cuda_driver.h"
 #include "engine/device/device.h"
+#include "engine/device/imported_memory.h"
 
 namespace weft {
 
@@ -73,6 +74,17 @@ class CudaDevice final : public Device {
   Status Launch(Session& s, const KernelLaunch& launch, std::string* output) override;
   DeviceSyncResult Synchronize(Session& s) override;
   void CloseSession(Session& s) override;
+
+  // CUDA IPC import of a client process's allocation (cuda_device_import.cpp): the open
+  // mapping of `handle` (64 bytes) for `session_id`, from the session's cache when the same
+  // handle and allocation identity were imported before. Errors: a handle of the wrong size, one
+  // naming this daemon's own memory, one another session imported, one the driver cannot open
+  // (forged, freed, not cudaMalloc memory), memory on another GPU.
+  Expected<std::shared_ptr<ImportedMemory>> OpenImport(const std::string& session_id, const std::string& handle,
+                                                       uint64_t identity);
+  // Open imported allocations (stats, tests).
+  size_t ImportCount() const;
+  uint64_t ImportOpens() const { return import_opens_.load(); }
 
   CudaDeviceStats stats() const;
   // True once a fault left the device unusable for the rest of this process (the driver kept
@@ -159,6 +171,15 @@ class CudaDevice final : public Device {
   std::unordered_map<std::string, CuModuleEntry> modules_;   // by module id + "/f" or "/b"
   jit::CuModule builtins_ = nullptr;
   std::unordered_map<std::string, jit::CuFunction> builtin_functions_;
+  // CUDA IPC imports: every open mapping by handle bytes (weak: the holders own it), and per
+  // session the most recently imported ones (kept open for the next import of the same block).
+  static constexpr size_t kRecentImports = 16;
+  mutable std::mutex imports_mu_;   // never drops an ImportedMemory while held
+  std::unordered_map<std::string, std::weak_ptr<ImportedMemory>> imports_;
+  std::unordered_map<std::string, std::vector<std::shared_ptr<ImportedMemory>>> recent_imports_;
+  std::atomic<uint64_t> import_opens_{0};
+  // Drops the session's recent imports (session close).
+  void ForgetImports(const std::string& session_id);
   std::map<std::string, uint64_t> reset_sessions_;   // session id -> generation it lost arrays in
   uint64_t resets_ = 0;
   double last_reset_ms_ = 0;

@@ -51,6 +51,10 @@ Expected<const CudaDriver*> Load() {
   Resolve(library, "cuMemFreeHost", &driver.MemFreeHost, &missing);
   Resolve(library, "cuMemHostGetDevicePointer_v2", &driver.MemHostGetDevicePointer, &missing);
   Resolve(library, "cuIpcGetMemHandle", &driver.IpcGetMemHandle, &missing);
+  Resolve(library, "cuIpcOpenMemHandle_v2", &driver.IpcOpenMemHandle, &missing);
+  Resolve(library, "cuIpcCloseMemHandle", &driver.IpcCloseMemHandle, &missing);
+  Resolve(library, "cuMemGetAddressRange_v2", &driver.MemGetAddressRange, &missing);
+  Resolve(library, "cuPointerGetAttribute", &driver.PointerGetAttribute, &missing);
   Resolve(library, "cuCtxSetCurrent", &driver.CtxSetCurrent, &missing);
   Resolve(library, "cuCtxSynchronize", &driver.CtxSynchronize, &missing);
   Resolve(library, "cuModuleLoadData", &driver.ModuleLoadData, &missing);

@@ -73,6 +73,11 @@ struct CudaDriver {
   CuResult (*MemFreeHost)(void* pointer) = nullptr;
   CuResult (*MemHostGetDevicePointer)(CuDevicePtr* device_pointer, void* host, unsigned flags) = nullptr;
   CuResult (*IpcGetMemHandle)(CuIpcMemHandle* handle, CuDevicePtr pointer) = nullptr;
+  // Importing another process's allocation (engine/device/cuda_import.h).
+  CuResult (*IpcOpenMemHandle)(CuDevicePtr* pointer, CuIpcMemHandle handle, unsigned flags) = nullptr;
+  CuResult (*IpcCloseMemHandle)(CuDevicePtr pointer) = nullptr;
+  CuResult (*MemGetAddressRange)(CuDevicePtr* base, size_t* size, CuDevicePtr pointer) = nullptr;
+  CuResult (*PointerGetAttribute)(void* data, int attribute, CuDevicePtr pointer) = nullptr;
   CuResult (*GetErrorName)(CuResult result, const char** name) = nullptr;
   CuResult (*GetErrorString)(CuResult result, const char** text) = nullptr;
 
@@ -88,6 +93,10 @@ struct CudaDriver {
 constexpr int kCuAttributeMultiprocessorCount = 16;
 constexpr int kCuAttributeComputeCapabilityMajor = 75;
 constexpr int kCuAttributeComputeCapabilityMinor = 76;
+// CUpointer_attribute values.
+constexpr int kCuPointerAttributeDeviceOrdinal = 9;
+// CUresult values the IPC import reports by name.
+constexpr CuResult kCuErrorAlreadyMapped = 208;
 // CUfunction_attribute values.
 constexpr int kCuFuncAttributeNumRegs = 4;
 // cuStreamCreate flags, cuStreamQuery's "still running".

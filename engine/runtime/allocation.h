@@ -32,6 +32,9 @@ struct Allocation {
   mutable std::mutex block_mu;     // guards block/retired_block against concurrent Describe
   std::shared_ptr<Allocation> grad;  // requires_grad arrays
   bool is_grad = false;              // this allocation is some array's gradient
+  // Client GPU memory imported by CUDA IPC (Engine::ImportCudaArray): `block` points into the
+  // mapping, which `release` keeps open; never exported, never moved.
+  bool imported = false;
 
   // Export secret (set on first export) and the credential of the exporting session.
   std::mutex export_mu;

@@ -10,6 +10,7 @@
 
 #include "engine/codegen/emit_text.h"
 #include "engine/core/checked_math.h"
+#include "engine/runtime/array_validation.h"
 #include "engine/runtime/array_view.h"
 #include "engine/runtime/ipc_token.h"
 
@@ -449,6 +450,10 @@ Status Engine::WriteArray(Session& s, uint64_t handle, uint64_t offset, const vo
 
 Expected<std::string> Engine::ExportArray(Session& s, uint64_t handle) {
   WEFT_ASSIGN_OR_RETURN(auto a, Held(s, handle));
+  if (a->imported)
+    return FailedPrecondition("array " + std::to_string(handle) +
+                              " is GPU memory of this client imported by CUDA IPC; it cannot be shared with other "
+                              "sessions (share a weft copy: wp.clone)");
   std::lock_guard<std::mutex> lock(a->export_mu);
   if (a->export_secret.empty()) {
     // Before its first export an array is held by its owner only. Move it (and its gradient)
@@ -485,6 +490,71 @@ Expected<ArrayDesc> Engine::ImportArray(Session& s, const std::string& token) {
     if (a->export_principal != s.options().principal)
       return PermissionDenied("IPC token was exported by a session with other credentials");
   }
+  s.Hold(a);
+  return Describe(s, *a);
+}
+
+Expected<std::shared_ptr<Allocation>> Engine::ImportedAllocation(Session& s, CudaDevice& gpu, const DType& dtype,
+                                                                const std::vector<int64_t>& shape, uint64_t bytes,
+                                                                const CudaMemoryRef& ref, const char* what) {
+  WEFT_ASSIGN_OR_RETURN(auto mem, gpu.OpenImport(s.id(), ref.ipc_handle, ref.allocation_id));
+  if (ref.byte_offset > mem->size || bytes > mem->size - ref.byte_offset)
+    return OutOfRange(std::string("CUDA import: the ") + what + " (" + std::to_string(bytes) + " bytes at offset " +
+                      std::to_string(ref.byte_offset) + ") runs past the end of the imported allocation (" +
+                      std::to_string(mem->size) + " bytes)");
+  if ((mem->base + ref.byte_offset) % dtype.ComponentSize() != 0)
+    return InvalidArgument(std::string("CUDA import: the ") + what + " at offset " + std::to_string(ref.byte_offset) +
+                           " is not aligned for " + dtype.Name());
+  auto a = std::make_shared<Allocation>();
+  a->handle = next_handle_++;
+  a->dtype = dtype;
+  a->shape = shape;
+  a->strides = ContiguousStrides(shape, dtype.ElementSize());
+  a->byte_size = bytes;
+  a->device = gpu.name();
+  a->imported = true;
+  a->block.data = reinterpret_cast<void*>(static_cast<uintptr_t>(mem->base + ref.byte_offset));
+  a->block.size = bytes;
+  a->block.offset = ref.byte_offset;
+  a->block.generation = mem->generation;
+  // No slab: Describe gives the client no handle (the memory is its own already).
+  a->release = [mem](const ShmSlabPool::Block&) {};   // holds the mapping while the array lives
+  return a;
+}
+
+Expected<ArrayDesc> Engine::ImportCudaArray(Session& s, const CudaImportParams& p) {
+  if (!s.options().local)
+    return PermissionDenied("CUDA IPC import needs a local (Unix-socket) session: the memory must belong to a "
+                            "process on the daemon's machine");
+  if (p.device.rfind("cuda:", 0) != 0)
+    return InvalidArgument("CUDA import: device '" + p.device + "' is not a GPU (\"cuda:N\")");
+  WEFT_RETURN_IF_ERROR(p.dtype.Validate());
+  if (p.shape.empty() || p.shape.size() > static_cast<size_t>(kMaxArrayDims))
+    return InvalidArgument("array shape must have 1 to 4 dimensions, got " + std::to_string(p.shape.size()));
+  for (int64_t d : p.shape)
+    if (d < 0) return InvalidArgument("array shape " + ShapeString(p.shape) + " has a negative dimension");
+  uint64_t bytes = 0;
+  if (!CheckedShapeProduct(p.shape, p.dtype.ElementSize(), &bytes))
+    return OutOfRange("CUDA import: shape " + ShapeString(p.shape) + " of " + p.dtype.Name() +
+                      " overflows (more than " + std::to_string(kMaxCheckedSize) + " bytes)");
+  for (const CudaMemoryRef* ref : {&p.data, p.has_grad ? &p.grad : nullptr}) {
+    if (!ref) continue;
+    if (ref->ipc_handle.size() != 64)
+      return InvalidArgument("CUDA import: an IPC handle has 64 bytes, got " + std::to_string(ref->ipc_handle.size()));
+    if (ref->allocation_id == 0) return InvalidArgument("CUDA import: the allocation id is 0");
+    if (ref->byte_offset > kMaxCheckedSize)
+      return OutOfRange("CUDA import: byte offset " + std::to_string(ref->byte_offset) + " is absurdly large");
+  }
+  WEFT_ASSIGN_OR_RETURN(Device * device, devices_->Resolve(s.id(), p.device));
+  if (device->is_cpu()) return InvalidArgument("CUDA import: device '" + p.device + "' is not a GPU");
+  auto& gpu = static_cast<CudaDevice&>(*device);
+  WEFT_ASSIGN_OR_RETURN(auto a, ImportedAllocation(s, gpu, p.dtype, p.shape, bytes, p.data, "array"));
+  if (p.has_grad) {
+    WEFT_ASSIGN_OR_RETURN(auto g, ImportedAllocation(s, gpu, p.dtype, p.shape, bytes, p.grad, "gradient"));
+    g->is_grad = true;
+    a->grad = std::move(g);
+  }
+  WEFT_RETURN_IF_ERROR(CheckAllocationConsistent(*a));
   s.Hold(a);
   return Describe(s, *a);
 }

@@ -74,6 +74,22 @@ struct CreateArrayParams {
   std::string value;   // kFill: one element; kData: all bytes, C order
 };
 
+// One view of client GPU memory to import by CUDA IPC (weft.v1.CudaMemoryRef).
+struct CudaMemoryRef {
+  std::string ipc_handle;      // 64 bytes
+  uint64_t allocation_id = 0;  // the client's buffer id of the allocation
+  uint64_t byte_offset = 0;    // the array's start inside the allocation
+};
+
+struct CudaImportParams {
+  std::string device;          // "cuda:N"
+  DType dtype;
+  std::vector<int64_t> shape;  // C-contiguous
+  CudaMemoryRef data;
+  bool has_grad = false;
+  CudaMemoryRef grad;          // same dtype and shape
+};
+
 struct EngineStats {
   uint32_t sessions = 0;
   uint64_t arrays = 0;
@@ -133,6 +149,10 @@ class Engine {
   Status WriteArray(Session& s, uint64_t handle, uint64_t offset, const void* data, size_t size);
   Expected<std::string> ExportArray(Session& s, uint64_t handle);
   Expected<ArrayDesc> ImportArray(Session& s, const std::string& token);
+  // An array over GPU memory of the session's client process, opened by CUDA IPC (local
+  // sessions only; the view is checked against the opened allocation, sizes overflow-checked).
+  // Kernels use it in place; it is not counted in the memory quotas (the client owns it).
+  Expected<ArrayDesc> ImportCudaArray(Session& s, const CudaImportParams& p);
 
   // Commands: queued in order on the session's executor; errors surface at Synchronize.
   Expected<uint64_t> Submit(Session& s, std::vector<Command> commands);
@@ -169,6 +189,10 @@ class Engine {
   // A new allocation owned by `owner` on `device`: quota reserved, memory from the owner's slabs.
   Expected<std::shared_ptr<Allocation>> NewAllocation(Session& owner, Device& device, const DType& dtype,
                                                       const std::vector<int64_t>& shape, bool zero);
+  // One imported allocation of ImportCudaArray (the view checked against the mapping).
+  Expected<std::shared_ptr<Allocation>> ImportedAllocation(Session& s, CudaDevice& gpu, const DType& dtype,
+                                                           const std::vector<int64_t>& shape, uint64_t bytes,
+                                                           const CudaMemoryRef& ref, const char* what);
   // Moves an allocation's bytes into a slab of its own (before its first export).
   Status MoveToOwnSlab(Allocation& a, Session& owner);
   // Waits for the session's work on every GPU; the first asynchronous error becomes its error.
