@@ -1,14 +1,16 @@
 """Torch interop overhead (Warp's benchmark_interop_torch pattern): each iteration converts
 five Torch tensors and launches one kernel on them, in three modes: wp.from_torch (default),
 wp.from_torch(..., return_ctype=True), and the tensors passed to wp.launch directly. weft and
-warp-lang run the same kernel on the CPU in the same process. Time is per iteration (median
+warp-lang run the same kernel on the same device in the same process (--device cpu, the
+default, or cuda:N with CUDA tensors). Time is per iteration (median
 of repeats). Error: after the timed iterations the accumulated output is compared with a
 float64 NumPy reference (max relative error). Ratio = warp time / weft time.
 
-weft notes: from_torch of a CPU tensor moves its storage into a weft slab on the first call,
-so later conversions are zero-copy look-ups, and a launch that touches memory Torch holds
-finishes before it returns (one round trip to weftd). Tensors passed directly are copied into
-the daemon and back on every launch (docs/interop.md)."""
+weft notes (docs/interop.md): from_torch of a CPU tensor moves its storage into a weft slab on
+the first call, so later conversions are zero-copy look-ups; a CUDA tensor is imported by CUDA
+IPC on the first conversion (one round trip) and remembered on the tensor, so later conversions
+and direct launch arguments cost no round trip. A launch that touches memory Torch holds waits
+for this process's GPU work first and finishes before it returns (one round trip to weftd)."""
 from __future__ import annotations
 
 import argparse
@@ -27,10 +29,12 @@ def inc5(a: wp.array(dtype=float), b: wp.array(dtype=float), c: wp.array(dtype=f
 MODES = ["from_torch", "from_torch(return_ctype=True)", "direct tensors"]
 
 
-def run(wp, mod, torch, mode, n, iters, repeat, seed):
+def run(wp, mod, torch, mode, n, iters, repeat, seed, device="cpu"):
     rng = np.random.default_rng(seed)
     inputs = [rng.standard_normal(n).astype(np.float32) for _ in range(4)]
-    ts = [torch.tensor(x) for x in inputs] + [torch.zeros(n, dtype=torch.float32)]
+    tdev = "cpu" if device == "cpu" else device
+    ts = [torch.tensor(x, device=tdev) for x in inputs] + \
+        [torch.zeros(n, dtype=torch.float32, device=tdev)]
     done = [0]
 
     def body():
@@ -40,14 +44,16 @@ def run(wp, mod, torch, mode, n, iters, repeat, seed):
             else:
                 ctype = mode != "from_torch"
                 args = [wp.from_torch(t, return_ctype=ctype) for t in ts]
-            wp.launch(mod.inc5, dim=n, inputs=args, device="cpu")
+            wp.launch(mod.inc5, dim=n, inputs=args, device=device)
         wp.synchronize()
+        if device != "cpu":
+            torch.cuda.synchronize()
         done[0] += iters
 
     body()                                   # warm-up: compile, first conversions
     seconds = bc.median_time(body, repeat=repeat) / iters
     reference = done[0] * sum(x.astype(np.float64) for x in inputs)
-    got = ts[4].numpy().astype(np.float64)
+    got = ts[4].cpu().numpy().astype(np.float64)
     error = float(np.max(np.abs(got - reference) / np.maximum(np.abs(reference), 1.0)))
     return seconds, error
 
@@ -57,6 +63,7 @@ def main():
     parser.add_argument("--n", type=int, default=1024)
     parser.add_argument("--iters", type=int, default=200)
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--device", default="cpu", help="cpu or cuda:N (CUDA tensors)")
     args, _ = parser.parse_known_args()
     try:
         import torch
@@ -76,15 +83,21 @@ def main():
         warp_mod = bc.load_kernels(SOURCE, "warp", "interop") if warp is not None else None
         rows = []
         for i, mode in enumerate(MODES):
-            ws, we = run(weft, weft_mod, torch, mode, args.n, args.iters, args.repeat, 100 + i)
+            ws, we = run(weft, weft_mod, torch, mode, args.n, args.iters, args.repeat, 100 + i,
+                         args.device)
             if warp is not None:
                 ps, pe = run(warp, warp_mod, torch, mode, args.n, args.iters, args.repeat,
-                             100 + i)
+                             100 + i, args.device)
             else:
                 ps = pe = None
             rows.append([mode, bc.fmt_time(ws), f"{we:.1e}", bc.fmt_time(ps),
                          "n/a" if pe is None else f"{pe:.1e}", bc.fmt_ratio(ws, ps)])
-        bc.print_table(f"Torch interop, CPU: 5 conversions + 1 launch per iteration "
+        if args.device != "cpu":
+            from weft import _cuda_ipc
+
+            print(f"weft CUDA IPC: {_cuda_ipc.reason() or 'on'}; imports opened by weftd "
+                  f"are cached per session")
+        bc.print_table(f"Torch interop, {args.device}: 5 conversions + 1 launch per iteration "
                        f"(n={args.n}, {args.iters} iterations x {args.repeat})",
                        ["mode", "weft", "weft err", "warp-lang", "warp err", "ratio"], rows)
     finally:

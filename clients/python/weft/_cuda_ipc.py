@@ -27,6 +27,7 @@ import threading
 CU_IPC_MEM_LAZY_ENABLE_PEER_ACCESS = 1
 CU_POINTER_ATTRIBUTE_CONTEXT = 1
 CU_POINTER_ATTRIBUTE_MEMORY_TYPE = 2
+CU_POINTER_ATTRIBUTE_BUFFER_ID = 7
 CU_POINTER_ATTRIBUTE_DEVICE_ORDINAL = 9
 CU_MEMORYTYPE_DEVICE = 2
 CU_EVENT_DEFAULT = 0
@@ -83,6 +84,8 @@ def _load():
         "cuMemcpyDtoD_v2": [ctypes.c_uint64, ctypes.c_uint64, sz],
         "cuMemcpy2D_v2": [vp],
         "cuPointerGetAttribute": [vp, ctypes.c_int, ctypes.c_uint64],
+        "cuMemGetAddressRange_v2": [p(ctypes.c_uint64), p(sz), ctypes.c_uint64],
+        "cuIpcGetMemHandle": [p(_IpcHandle), ctypes.c_uint64],
         "cuEventCreate": [p(vp), u],
         "cuEventDestroy_v2": [vp],
         "cuEventRecord": [vp, vp],
@@ -323,6 +326,43 @@ def pointer_device(address: int):
                                       ctypes.c_uint64(address)) != 0:
             return None
         return int(ordinal.value)
+
+
+_exported = collections.OrderedDict()   # (ordinal, base, buffer id) -> handle bytes
+EXPORTED_KEPT = 256
+
+
+def export_allocation(ordinal: int, address: int):
+    """(base, size, buffer id, 64 handle bytes) of the CUDA allocation (cudaMalloc block) of
+    this process that holds device address `address`: what weftd needs to import it
+    (ArrayService.ImportCuda). The buffer id is unique for the life of this process, so a block
+    freed and allocated again is a new identity even if the driver reuses its handle bytes.
+    Raises CudaError where the memory cannot be exported (not cudaMalloc memory: VMM or
+    stream-ordered pools, managed or host memory)."""
+    with _lock:
+        if _load() is None:
+            raise CudaError(f"no CUDA driver ({_reason})")
+        base = ctypes.c_uint64()
+        size = ctypes.c_size_t()
+        buffer_id = ctypes.c_uint64()
+        with _Scope(ordinal):
+            _check(_lib.cuMemGetAddressRange_v2(ctypes.byref(base), ctypes.byref(size),
+                                                ctypes.c_uint64(address)), "cuMemGetAddressRange")
+            _check(_lib.cuPointerGetAttribute(ctypes.byref(buffer_id),
+                                              CU_POINTER_ATTRIBUTE_BUFFER_ID,
+                                              ctypes.c_uint64(address)),
+                   "cuPointerGetAttribute(BUFFER_ID)")
+            key = (ordinal, base.value, buffer_id.value)
+            handle = _exported.get(key)
+            if handle is None:
+                h = _IpcHandle()
+                _check(_lib.cuIpcGetMemHandle(ctypes.byref(h), base), "cuIpcGetMemHandle")
+                handle = _exported[key] = ctypes.string_at(ctypes.addressof(h), 64)
+                if len(_exported) > EXPORTED_KEPT:
+                    _exported.popitem(last=False)
+            else:
+                _exported.move_to_end(key)
+        return int(base.value), int(size.value), int(buffer_id.value), handle
 
 
 @atexit.register

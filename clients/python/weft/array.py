@@ -207,7 +207,7 @@ class _Allocation:
     """One daemon allocation held by this process; freed when the last view lets go."""
 
     __slots__ = ("runtime", "info", "owned", "parent", "_mapping", "_cuda", "_cuda_slab",
-                 "__weakref__")
+                 "keep", "__weakref__")
 
     def __init__(self, runtime, info, owned=True, parent=None):
         self.runtime = runtime
@@ -217,6 +217,7 @@ class _Allocation:
         self._mapping = None
         self._cuda = None      # device address in this process (0: no IPC mapping)
         self._cuda_slab = None  # slab id whose mapping this allocation holds
+        self.keep = None       # imported framework memory: the object that owns it
 
     def cuda_address(self):
         """The allocation's device address in this process (GPU arrays of local sessions,

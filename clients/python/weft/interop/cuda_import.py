@@ -1,16 +1,21 @@
 """Framework GPU memory into weft: a Torch/CuPy/JAX (or any `__cuda_array_interface__` or
-CUDA DLPack) array of this process used by a weft launch or wp.from_torch/from_dlpack.
+CUDA DLPack) array of this process used by a weft launch or wp.from_torch/from_dlpack/from_jax.
 
-The daemon does not open this process's CUDA allocations (docs/interop.md, "GPU memory of a
-framework"): the data is copied into a weft GPU array (a device-to-device copy through this
-process's IPC mapping of the weft slab; through the host where IPC is not available), and for
-launches copied back after the kernel ran. Because nothing in the daemon ever maps framework
-memory, a block the framework frees and hands out again can never be read through a stale
-mapping: every use copies from the address as it is at that moment.
+Imported in place where it can be (local session, CUDA driver in this process, cudaMalloc
+memory): the client finds the array's base allocation (cuMemGetAddressRange), its buffer id
+(unique for the life of the process) and its legacy IPC handle (cuIpcGetMemHandle, cached per
+allocation), and weftd opens the handle (ArrayService.ImportCuda, cached per session by handle
+bytes and buffer id) and returns an array handle that kernels use in place. The weft array
+keeps a reference to the framework object for as long as it (or any view of it) lives, so the
+framework cannot free or hand out that block meanwhile; a block freed and allocated again has a
+new buffer id, so weftd never reads it through an old mapping (docs/interop.md). The imported
+array of a Torch tensor is remembered on the tensor (keyed by its pointer, layout, dtype and
+gradient pointer), so converting the same tensor again costs no round trip.
 
-Torch tensors that own their storage are moved instead, as on the CPU: the tensor is
-re-pointed at the weft array's memory (`t.data = ...`, one copy), so from then on both sides
-share it and later launches and from_torch calls are zero-copy.
+Where import is impossible (remote session, IPC off, VMM or pool memory the driver cannot
+export, negative strides) the data is copied into a weft GPU array (device to device through
+this process's IPC mapping of the weft slab; through the host where IPC is not available) and,
+for launches, copied back after the kernel ran.
 """
 from __future__ import annotations
 
@@ -18,7 +23,7 @@ import ctypes
 
 import numpy as np
 
-from .. import _cuda_ipc
+from .. import _cuda_ipc, _runtime
 from . import external, memory
 
 _KDL_CUDA = 2
@@ -197,6 +202,158 @@ def copy_in(obj, dtype, device: str, what: str, requires_grad=False, cast_ok=Fal
     return out, src
 
 
+def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
+                  grad_src: "_Source | None" = None):
+    """A weft array over `src`'s memory, opened by weftd through CUDA IPC (None where that
+    cannot be done: the caller copies instead). `grad_src` (same layout) becomes the array's
+    gradient, the same memory on both sides."""
+    from ..array import _contiguous_strides, _dtype_proto, _elem_size, array  # noqa: PLC0415
+
+    rt = _runtime.get_runtime()
+    if not rt.local or not src.ptr or not _cuda_ipc.available():
+        return None
+    elem = _elem_size(wdtype)
+    low, span = external._span(shape, strides, elem)
+    if low < 0 or span == 0 or span % elem:
+        return None
+    refs = []
+    for part in (src, grad_src):
+        if part is None:
+            continue
+        try:
+            base, size, buffer_id, handle = _cuda_ipc.export_allocation(ordinal, part.ptr)
+        except _cuda_ipc.CudaError:
+            return None                     # not cudaMalloc memory: copied instead
+        offset = part.ptr - base
+        if offset < 0 or offset + span > size:
+            return None
+        refs.append(_runtime.array_pb2.CudaMemoryRef(ipc_handle=handle,
+                                                     allocation_id=buffer_id,
+                                                     byte_offset=offset))
+    contiguous = tuple(strides) == _contiguous_strides(tuple(shape), elem)
+    flat_shape = tuple(shape) if contiguous else (span // elem,)
+    request = _runtime.array_pb2.ImportCudaRequest(
+        device=f"cuda:{ordinal}", dtype=_dtype_proto(wdtype), shape=list(flat_shape),
+        data=refs[0])
+    if len(refs) > 1:
+        request.grad.CopyFrom(refs[1])
+    rt.drain_frees()
+    info = rt.call(rt.array_stub.ImportCuda, request).info
+    out = array._from_info(info, wdtype)
+    out._alloc.keep = src.keep              # the framework memory lives as long as the array
+    out._alloc._cuda = src.ptr              # its address in this process
+    memory.mark_shared(out._alloc)          # launches order with the framework
+    if not contiguous:
+        out = out._make_view(0, shape, strides)
+    if grad_src is not None:
+        ginfo = _runtime.array_pb2.ArrayInfo()
+        ginfo.CopyFrom(info)
+        ginfo.handle = info.grad_handle
+        ginfo.grad_handle = 0
+        g = array._from_info(ginfo, wdtype, owned=False)   # released with the array
+        g._alloc.parent = out._alloc
+        g._alloc.keep = grad_src.keep
+        g._alloc._cuda = grad_src.ptr
+        memory.mark_shared(g._alloc)
+        if not contiguous:
+            g = g._make_view(0, shape, strides)
+        out._grad = g
+        out._requires_grad = True
+    return out
+
+
+def _fresh(a):
+    """A new array object over imported array `a` (each conversion returns its own object,
+    as in Warp; they share the allocation, the gradient and the framework reference)."""
+    v = a._make_view(a._byte_offset, a.shape, a.strides)
+    v._grad = a._grad
+    v._requires_grad = a._requires_grad
+    return v
+
+
+_TORCH_IMPORTS_KEPT = 4      # imported arrays remembered per tensor (dtypes/gradients differ)
+
+
+def import_torch(t, dtype, what, requires_grad=False, grad=None):
+    """A weft array over CUDA tensor `t`'s memory, imported by CUDA IPC (None where that cannot
+    be done). With `requires_grad` the array's gradient is `grad` (default `t.grad`, zeros put
+    there first when the tensor has none, as Warp does): the same memory on both sides. The
+    imported array is remembered on the tensor, keyed by pointer, layout and gradient pointer:
+    converting the same tensor again costs no round trip."""
+    from .torch import _dtype_map  # noqa: PLC0415
+
+    rt = _runtime.get_runtime()
+    if not rt.local or not _cuda_ipc.available() or t.is_sparse:
+        return None
+    scalar = _dtype_map().get(t.dtype)
+    if scalar is None:
+        return None
+    g = None
+    if requires_grad:
+        g = grad if grad is not None else t.grad
+        if g is None:
+            import torch  # noqa: PLC0415
+
+            with torch.no_grad():
+                t.grad = torch.zeros_like(t)
+            g = t.grad
+        if g.device != t.device or g.dtype != t.dtype or g.shape != t.shape or \
+                g.stride() != t.stride():
+            return None
+    key = (t.data_ptr(), tuple(t.shape), tuple(t.stride()), t.dtype, dtype,
+           g.data_ptr() if g is not None else None)
+    cache = t.__dict__.get("_weft_imports")
+    if cache is not None:
+        hit = cache.get(key)
+        if hit is not None:
+            return _fresh(hit)
+    ordinal = t.device.index if t.device.index is not None else 0
+    try:
+        if external.find_cuda_in_place(t, dtype, f"cuda:{ordinal}", what) is not None:
+            return None                 # weft's own memory: used in place by the caller
+    except external.InteropError:
+        pass
+    np_dtype = np.dtype(scalar._np_dtype_)
+    strides = tuple(s * np_dtype.itemsize for s in t.stride())
+    try:
+        wdtype, shape, wstrides = external.resolve_parts(np_dtype, tuple(t.shape), strides,
+                                                         dtype, what, cast_ok=True)
+    except external.InteropError:
+        return None
+    if not external._scalar_compatible(np_dtype, wdtype._wp_scalar_type_):
+        return None
+    src = _Source(t.data_ptr(), np_dtype, t.shape, strides, t.untyped_storage(), ordinal)
+    gsrc = None if g is None else _Source(g.data_ptr(), np_dtype, g.shape, strides,
+                                          g.untyped_storage(), ordinal)
+    a = import_memory(src, wdtype, shape, wstrides, ordinal, what, gsrc)
+    if a is None:
+        return None
+    if cache is None:
+        cache = t.__dict__["_weft_imports"] = {}
+    if len(cache) >= _TORCH_IMPORTS_KEPT:
+        cache.pop(next(iter(cache)))
+    cache[key] = a
+    return _fresh(a)
+
+
+def import_object(obj, dtype, device: str, what: str):
+    """A weft array over foreign GPU array `obj` (CUDA Array Interface or DLPack), imported by
+    CUDA IPC, or None (the caller copies)."""
+    if not _runtime.get_runtime().local or not _cuda_ipc.available():
+        return None
+    src = source_of(obj, what)
+    ordinal = _check_device(src, device, what)
+    fake = np.lib.stride_tricks.as_strided(np.zeros(1, dtype=src.np_dtype), shape=src.shape,
+                                           strides=src.strides, writeable=False)
+    try:
+        wdtype, shape, strides = external.resolve_layout(fake, dtype, what, cast_ok=True)
+    except external.InteropError:
+        return None
+    if not external._scalar_compatible(src.np_dtype, wdtype._wp_scalar_type_):
+        return None
+    return import_memory(src, wdtype, shape, strides, ordinal, what)
+
+
 class CopyBack:
     """After a launch: the weft temporary's contents written back into the framework array."""
 
@@ -229,6 +386,11 @@ def adopt_torch(t, dtype, device: str, what: str, requires_grad=False):
     """A weft GPU array for CUDA tensor `t`: in place when its memory is weft's, else a copy
     into a new weft array and, where IPC works and the tensor owns its storage, `t` re-pointed
     at that array's memory (one copy; zero-copy afterwards)."""
+    _check_device(_Source(t.data_ptr(), "u1", (0,), None, None, t.device.index or 0), device,
+                  what)
+    imported = import_torch(t, dtype, what)
+    if imported is not None:
+        return imported, None
     found = external.find_cuda_in_place(t, dtype, device, what)
     if found is not None:
         memory.mark_shared(found._alloc)

@@ -166,8 +166,8 @@ def from_dlpack(source, dtype=None):
         out, _ = external.weft_array(view, dtype=dtype, device="cpu", what="wp.from_dlpack")
         return out
     if kind == _KDL_CUDA:
-        # weft memory (a round trip) is used in place; other GPU memory is copied into a
-        # weft array (cuda_import.py; Torch tensors are moved into weft memory instead)
+        # weft memory (a round trip) is used in place; other GPU memory is imported by CUDA
+        # IPC, or copied into a weft array where it cannot be (cuda_import.py)
         from . import cuda_import  # noqa: PLC0415
 
         if external.is_torch_tensor(source):
@@ -178,6 +178,9 @@ def from_dlpack(source, dtype=None):
                                                 "wp.from_dlpack")
             if found is not None:
                 return found
+        out = cuda_import.import_object(source, dtype, f"cuda:{ordinal}", "wp.from_dlpack")
+        if out is not None:
+            return out
         out, _ = cuda_import.copy_in(source, dtype, f"cuda:{ordinal}", "wp.from_dlpack")
         return out
     raise external.InteropError(f"wp.from_dlpack: unsupported DLPack device type {kind}")

@@ -307,19 +307,22 @@ def launch_array(value, dtype, device: str, what: str):
             from ..device import get_device  # noqa: PLC0415
 
             device = get_device("cuda").alias
-        found = find_cuda_in_place(value, dtype, device, what)
-        if found is not None:
-            return found, None
-        # not weft memory: a copy into a weft array, written back after the launch
-        # (cuda_import.py; a Torch tensor is moved into weft memory once instead)
         from . import cuda_import  # noqa: PLC0415
 
         if is_torch_tensor(value):
+            # weft memory in place, else imported by CUDA IPC (remembered on the tensor), else
+            # moved into weft memory once or copied (cuda_import.adopt_torch)
             temp, src = cuda_import.adopt_torch(value, dtype, device, what)
-        else:
-            temp, src = cuda_import.copy_in(value, dtype, device, what, cast_ok=True)
-        if src is None:
-            return temp, None
+            return temp, (None if src is None else cuda_import.CopyBack(src, temp))
+        found = find_cuda_in_place(value, dtype, device, what)
+        if found is not None:
+            return found, None
+        # not weft memory: imported by CUDA IPC where possible, else a copy into a weft array
+        # written back after the launch (cuda_import.py)
+        temp = cuda_import.import_object(value, dtype, device, what)
+        if temp is not None:
+            return temp, None           # imported by CUDA IPC: used in place
+        temp, src = cuda_import.copy_in(value, dtype, device, what, cast_ok=True)
         return temp, cuda_import.CopyBack(src, temp)
     if not device.startswith("cpu"):
         raise InteropError(f"{what}: the array lives on the CPU but the kernel is launched on "

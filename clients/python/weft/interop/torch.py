@@ -180,8 +180,15 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
     if t.device.type == "cuda":
         from . import cuda_import  # noqa: PLC0415
 
-        # in place, or moved into weft memory (t re-pointed); a copy (a snapshot later
-        # Torch writes do not reach) only for views and where IPC is unavailable
+        rg = requires_grad if requires_grad is not None else t.requires_grad
+        if grad is not None:
+            _check_tensor(grad, what + " (grad)")
+        # imported by CUDA IPC in place, the gradient too (docs/interop.md)
+        a = cuda_import.import_torch(t, dtype, what, bool(rg), grad)
+        if a is not None:
+            return a
+        # weft memory in place, or moved into weft memory (t re-pointed); a copy (a snapshot
+        # later Torch writes do not reach) only for views and where IPC is unavailable
         a, _ = cuda_import.adopt_torch(t, dtype, f"cuda:{t.device.index or 0}", what)
         if requires_grad if requires_grad is not None else t.requires_grad:
             ga = memory.grad_view(a)

@@ -1,0 +1,209 @@
+"""Framework GPU memory imported into weftd by CUDA IPC (ArrayService.ImportCuda; skipped with
+the reason without a GPU the daemon computes on, without Torch/CuPy on CUDA, or where the client
+cannot use CUDA IPC): wp.from_torch, tensors passed to wp.launch, from_dlpack of CuPy arrays
+are the framework's memory (same device pointer, no copy, the tensor not re-pointed), writes
+seen both ways with Torch's stream work ordered before the launch, the gradient the same memory
+on both sides, a tensor converted again costs no new import, blocks the caching allocator frees
+and hands out again (also after empty_cache) are never read through an old mapping; hostile
+requests (a forged handle, a range past the allocation, a handle another session imported,
+memory of another GPU) get clear errors; an imported array cannot be exported."""
+import numpy as np
+import pytest
+
+import weft as wp
+
+
+@wp.kernel
+def scale_sum(x: wp.array(dtype=float), s: float, total: wp.array(dtype=float)):
+    i = wp.tid()
+    x[i] = x[i] * s
+    wp.atomic_add(total, 0, x[i])
+
+
+@wp.kernel
+def square_sum(x: wp.array(dtype=float), loss: wp.array(dtype=float)):
+    i = wp.tid()
+    wp.atomic_add(loss, 0, x[i] * x[i])
+
+
+@pytest.fixture
+def tcuda(wp, cuda, torch):
+    """Torch on CUDA with CUDA IPC usable by this client (else skipped with the reason)."""
+    if not torch.cuda.is_available():
+        pytest.skip("Torch has no CUDA device")
+    from weft import _cuda_ipc
+
+    if not _cuda_ipc.available():
+        pytest.skip(f"CUDA IPC is not available in this client: {_cuda_ipc.reason()}")
+    return cuda
+
+
+def _imported(a) -> bool:
+    return a._alloc.keep is not None
+
+
+def test_from_torch_imports_in_place_and_writes_are_seen_both_ways(wp, tcuda, torch, rng):
+    values = rng.standard_normal(5000).astype(np.float32)
+    t = torch.tensor(values, device="cuda")
+    before = t.data_ptr()
+    a = wp.from_torch(t)
+    assert _imported(a), "not imported (copied or moved)"
+    assert a.ptr == t.data_ptr() == before          # the tensor is not re-pointed
+    total = wp.zeros(1, dtype=float, device=tcuda)
+    wp.launch(scale_sum, dim=a.size, inputs=[a, 2.0, total], device=tcuda)
+    np.testing.assert_allclose(t.cpu().numpy(), values.astype(np.float64) * 2.0, rtol=1e-6)
+    t.add_(1.0)        # Torch's stream work before the launch is visible to it
+    total.zero_()
+    wp.launch(scale_sum, dim=a.size, inputs=[a, 3.0, total], device=tcuda)
+    ref = (values.astype(np.float64) * 2.0 + 1.0) * 3.0
+    np.testing.assert_allclose(t.cpu().numpy(), ref, rtol=1e-5)
+    np.testing.assert_allclose(total.numpy()[0], ref.sum(), rtol=1e-4, atol=1e-2)
+
+
+def test_tensor_passed_to_launch_is_imported_and_remembered(wp, tcuda, torch, rng):
+    values = rng.standard_normal(3000).astype(np.float32)
+    t = torch.tensor(values, device="cuda")
+    before = t.data_ptr()
+    total = wp.zeros(1, dtype=float, device=tcuda)
+    for k in range(3):
+        wp.launch(scale_sum, dim=t.shape[0], inputs=[t, 1.5, total], device=tcuda)
+    assert t.data_ptr() == before
+    np.testing.assert_allclose(t.cpu().numpy(), values.astype(np.float64) * 1.5 ** 3, rtol=1e-5)
+    imports = t.__dict__["_weft_imports"]
+    assert len(imports) == 1                       # one import for three launches
+    a, b = wp.from_torch(t), wp.from_torch(t)
+    assert a is not b and a._handle == b._handle == next(iter(imports.values()))._handle
+
+
+def test_strided_tensor_view_is_imported(wp, tcuda, torch, rng):
+    base = torch.tensor(rng.standard_normal((64, 6)).astype(np.float32), device="cuda")
+    view = base[:, ::2]
+    a = wp.from_torch(view)
+    assert _imported(a) and a.ptr == view.data_ptr() and a.shape == (64, 3)
+    np.testing.assert_array_equal(a.numpy(), view.cpu().numpy())
+
+
+def test_gradients_are_the_same_memory(wp, tcuda, torch, rng):
+    values = rng.standard_normal(1024).astype(np.float32)
+    t = torch.tensor(values, device="cuda", requires_grad=True)
+    a = wp.from_torch(t)
+    assert a.requires_grad and t.grad is not None
+    assert a.grad.ptr == t.grad.data_ptr()
+    loss = wp.zeros(1, dtype=float, device=tcuda, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(square_sum, dim=a.size, inputs=[a, loss], device=tcuda)
+    tape.backward(loss=loss)
+    wp.synchronize()
+    np.testing.assert_allclose(t.grad.cpu().numpy(), 2.0 * values.astype(np.float64), rtol=1e-6)
+    with torch.no_grad():
+        t.grad.mul_(0.5)                             # Torch writes the weft gradient
+    np.testing.assert_allclose(a.grad.numpy(), values.astype(np.float64), rtol=1e-6)
+
+
+def test_reused_blocks_are_never_read_through_an_old_mapping(wp, tcuda, torch):
+    """Blocks handed out again by Torch's caching allocator (same segment), and segments freed
+    with empty_cache() and allocated again (same address, maybe the same handle bytes, a new
+    buffer id): every launch reads the values the tensor holds then."""
+    total = wp.zeros(1, dtype=float, device=tcuda)
+    for k in range(1, 9):
+        block = torch.full((1 << 16,), float(k), device="cuda")
+        total.zero_()
+        wp.launch(scale_sum, dim=block.shape[0], inputs=[wp.from_torch(block), 1.0, total],
+                  device=tcuda)
+        assert total.numpy()[0] == pytest.approx(float(k) * (1 << 16))
+        del block
+        wp.synchronize()
+        import gc
+
+        gc.collect()                 # the weft array (and its hold on the tensor) goes
+        if k % 2 == 0:
+            torch.cuda.empty_cache()  # the segment goes back to the driver
+
+
+def _raw_import(wp, handle: bytes, allocation_id: int, offset: int, n: int, device="cuda:0"):
+    from weft import _runtime
+    from weft.array import _dtype_proto
+
+    rt = _runtime.get_runtime()
+    ap = _runtime.array_pb2
+    request = ap.ImportCudaRequest(device=device, dtype=_dtype_proto(wp.float32), shape=[n],
+                                   data=ap.CudaMemoryRef(ipc_handle=handle,
+                                                         allocation_id=allocation_id,
+                                                         byte_offset=offset))
+    return rt.call(rt.array_stub.ImportCuda, request).info
+
+
+def test_hostile_imports_get_clear_errors(wp, tcuda, torch, rng):
+    from weft import _cuda_ipc
+
+    t = torch.zeros(1000, device="cuda")
+    base, size, buffer_id, handle = _cuda_ipc.export_allocation(0, t.data_ptr())
+    offset = t.data_ptr() - base
+    info = _raw_import(wp, handle, buffer_id, offset, 1000)     # the honest request works
+    assert info.byte_size == 4000
+    wp.array._from_info(info)        # owned: freed when collected (t outlives it)
+    with pytest.raises(Exception, match="runs past the end of the imported allocation"):
+        _raw_import(wp, handle, buffer_id, size - 8, 4)
+    with pytest.raises(Exception, match="could not be opened on cuda:0"):
+        _raw_import(wp, bytes(rng.integers(0, 256, 64, dtype=np.uint8)), 5, 0, 4)
+    with pytest.raises(Exception, match="IPC handle has 64 bytes"):
+        _raw_import(wp, handle[:63], buffer_id, 0, 4)
+    with pytest.raises(Exception, match="not a GPU"):
+        _raw_import(wp, handle, buffer_id, 0, 4, device="cpu")
+    own = wp.zeros(16, dtype=float, device=tcuda)
+    with pytest.raises(Exception, match="weft's own memory"):
+        _raw_import(wp, own._info.cuda_ipc_handle, 9, 0, 4)
+    a = wp.from_torch(t)
+    with pytest.raises(Exception, match="cannot be shared with other sessions"):
+        a.ipc_handle()
+
+
+CHILD = """
+import sys, torch, weft as wp
+from weft import _cuda_ipc
+t = torch.ones(256, device="cuda")
+a = wp.from_torch(t)
+base, size, buffer_id, handle = _cuda_ipc.export_allocation(0, t.data_ptr())
+print(handle.hex(), buffer_id, t.data_ptr() - base, flush=True)
+sys.stdin.readline()
+"""
+
+
+def test_a_handle_another_session_imported_is_refused(wp, tcuda, torch, spawn_client):
+    child = spawn_client(CHILD)
+    line = child.stdout.readline().split()
+    assert line, child.stderr.read()
+    handle, buffer_id, offset = bytes.fromhex(line[0]), int(line[1]), int(line[2])
+    try:
+        with pytest.raises(Exception, match="imported by another session"):
+            _raw_import(wp, handle, buffer_id, offset, 256)
+    finally:
+        child.stdin.write("\n")
+        child.stdin.flush()
+        child.wait(timeout=60)
+
+
+def test_memory_of_another_gpu_is_refused(wp, tcuda, torch):
+    if torch.cuda.device_count() < 2 or len([d for d in wp.get_cuda_devices()]) < 2:
+        pytest.skip("needs two GPUs")
+    from weft import _cuda_ipc
+
+    t = torch.zeros(64, device="cuda:1")
+    base, size, buffer_id, handle = _cuda_ipc.export_allocation(1, t.data_ptr())
+    with pytest.raises(Exception, match="names memory on cuda:1, not on cuda:0"):
+        _raw_import(wp, handle, buffer_id, t.data_ptr() - base, 64, device="cuda:0")
+    with pytest.raises(Exception, match="lives on cuda:1"):
+        wp.launch(scale_sum, dim=64, inputs=[t, 1.0, wp.zeros(1, device="cuda:0")],
+                  device="cuda:0")
+
+
+def test_cupy_arrays_are_imported(wp, tcuda, rng):
+    cp = pytest.importorskip("cupy", reason="CuPy is not installed")
+    values = rng.standard_normal(777).astype(np.float32)
+    c = cp.asarray(values)
+    a = wp.from_dlpack(c)
+    assert _imported(a) and a.ptr == c.data.ptr
+    total = wp.zeros(1, dtype=float, device=tcuda)
+    wp.launch(scale_sum, dim=c.size, inputs=[c, 0.5, total], device=tcuda)
+    np.testing.assert_allclose(cp.asnumpy(c), values.astype(np.float64) * 0.5, rtol=1e-6)
