@@ -83,7 +83,9 @@ Expected<std::shared_ptr<ImportedMemory>> CudaDevice::OpenImport(const std::stri
   jit::CuIpcMemHandle h{};
   std::memcpy(h.reserved, handle.data(), sizeof(h.reserved));
   jit::CuDevicePtr p = 0;
-  jit::CuResult r = driver_->IpcOpenMemHandle(&p, h, 0);
+  // The driver requires CU_IPC_MEM_LAZY_ENABLE_PEER_ACCESS (0 is refused with INVALID_VALUE);
+  // memory of another GPU then opens too and is refused by the ordinal check below.
+  jit::CuResult r = driver_->IpcOpenMemHandle(&p, h, jit::kCuIpcMemLazyEnablePeerAccess);
   if (r != 0)
     return InvalidArgument("the CUDA IPC handle (" + HandlePrefix(handle) + "...) could not be opened on " + name_ +
                            " (" + driver_->ErrorName(r) +

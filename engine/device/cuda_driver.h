@@ -93,6 +93,8 @@ struct CudaDriver {
 constexpr int kCuAttributeMultiprocessorCount = 16;
 constexpr int kCuAttributeComputeCapabilityMajor = 75;
 constexpr int kCuAttributeComputeCapabilityMinor = 76;
+// cuIpcOpenMemHandle flags.
+constexpr unsigned kCuIpcMemLazyEnablePeerAccess = 1;
 // CUpointer_attribute values.
 constexpr int kCuPointerAttributeDeviceOrdinal = 9;
 // CUresult values the IPC import reports by name.

@@ -24,9 +24,16 @@ import ctypes
 import numpy as np
 
 from .. import _cuda_ipc, _runtime
+from ..errors import WeftError
 from . import external, memory
 
 _KDL_CUDA = 2
+_import_refused = ""     # why weftd cannot open this process's IPC handles ("" = it can)
+
+
+def import_refused() -> str:
+    """'' while weftd imports this process's GPU memory, else why it cannot (copies instead)."""
+    return _import_refused
 
 
 class _Source:
@@ -209,8 +216,9 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
     gradient, the same memory on both sides."""
     from ..array import _contiguous_strides, _dtype_proto, _elem_size, array  # noqa: PLC0415
 
+    global _import_refused
     rt = _runtime.get_runtime()
-    if not rt.local or not src.ptr or not _cuda_ipc.available():
+    if not rt.local or not src.ptr or not _cuda_ipc.available() or _import_refused:
         return None
     elem = _elem_size(wdtype)
     low, span = external._span(shape, strides, elem)
@@ -238,7 +246,15 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
     if len(refs) > 1:
         request.grad.CopyFrom(refs[1])
     rt.drain_frees()
-    info = rt.call(rt.array_stub.ImportCuda, request).info
+    try:
+        info = rt.call(rt.array_stub.ImportCuda, request).info
+    except WeftError as err:
+        if "could not be opened" not in str(err):
+            raise
+        # the daemon cannot open this process's handles (a sandbox, another PID namespace):
+        # copies from now on, as without IPC
+        _import_refused = str(err)
+        return None
     out = array._from_info(info, wdtype)
     out._alloc.keep = src.keep              # the framework memory lives as long as the array
     out._alloc._cuda = src.ptr              # its address in this process
