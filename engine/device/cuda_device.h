@@ -79,7 +79,9 @@ class CudaDevice final : public Device {
   // mapping of `handle` (64 bytes) for `session_id`, from the session's cache when the same
   // handle and allocation identity were imported before. Errors: a handle of the wrong size, one
   // naming this daemon's own memory, one another session imported, one the driver cannot open
-  // (forged, freed, not cudaMalloc memory), memory on another GPU.
+  // (forged, freed, not cudaMalloc memory), memory the driver reports on another GPU (with
+  // the peer-access flag the driver requires, another GPU's memory is usually mapped here and
+  // reported as this GPU's: the client checks the device, docs/interop.md).
   Expected<std::shared_ptr<ImportedMemory>> OpenImport(const std::string& session_id, const std::string& handle,
                                                        uint64_t identity);
   // Open imported allocations (stats, tests).

@@ -84,7 +84,8 @@ Expected<std::shared_ptr<ImportedMemory>> CudaDevice::OpenImport(const std::stri
   std::memcpy(h.reserved, handle.data(), sizeof(h.reserved));
   jit::CuDevicePtr p = 0;
   // The driver requires CU_IPC_MEM_LAZY_ENABLE_PEER_ACCESS (0 is refused with INVALID_VALUE);
-  // memory of another GPU then opens too and is refused by the ordinal check below.
+  // memory of another GPU then opens too (mapped with peer access; the ordinal check below
+  // refuses it only where the driver reports the other GPU).
   jit::CuResult r = driver_->IpcOpenMemHandle(&p, h, jit::kCuIpcMemLazyEnablePeerAccess);
   if (r != 0)
     return InvalidArgument("the CUDA IPC handle (" + HandlePrefix(handle) + "...) could not be opened on " + name_ +

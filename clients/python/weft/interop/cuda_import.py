@@ -262,7 +262,7 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
     if not contiguous:
         out = out._make_view(0, shape, strides)
     if grad_src is not None:
-        ginfo = _runtime.array_pb2.ArrayInfo()
+        ginfo = type(info)()
         ginfo.CopyFrom(info)
         ginfo.handle = info.grad_handle
         ginfo.grad_handle = 0
@@ -316,8 +316,17 @@ def import_torch(t, dtype, what, requires_grad=False, grad=None):
         if g.device != t.device or g.dtype != t.dtype or g.shape != t.shape or \
                 g.stride() != t.stride():
             return None
-    key = (t.data_ptr(), tuple(t.shape), tuple(t.stride()), t.dtype, dtype,
-           g.data_ptr() if g is not None else None)
+    np_dtype = np.dtype(scalar._np_dtype_)
+    strides = tuple(s * np_dtype.itemsize for s in t.stride())
+    try:
+        wdtype, shape, wstrides = external.resolve_parts(np_dtype, tuple(t.shape), strides,
+                                                         dtype, what, cast_ok=True)
+    except external.InteropError:
+        return None
+    if not external._scalar_compatible(np_dtype, wdtype._wp_scalar_type_):
+        return None
+    # keyed by what the array is (resolved dtype), not by how it was asked for
+    key = (t.data_ptr(), tuple(t.shape), strides, wdtype, g.data_ptr() if g is not None else None)
     cache = t.__dict__.get("_weft_imports")
     if cache is not None:
         hit = cache.get(key)
@@ -329,15 +338,6 @@ def import_torch(t, dtype, what, requires_grad=False, grad=None):
             return None                 # weft's own memory: used in place by the caller
     except external.InteropError:
         pass
-    np_dtype = np.dtype(scalar._np_dtype_)
-    strides = tuple(s * np_dtype.itemsize for s in t.stride())
-    try:
-        wdtype, shape, wstrides = external.resolve_parts(np_dtype, tuple(t.shape), strides,
-                                                         dtype, what, cast_ok=True)
-    except external.InteropError:
-        return None
-    if not external._scalar_compatible(np_dtype, wdtype._wp_scalar_type_):
-        return None
     src = _Source(t.data_ptr(), np_dtype, t.shape, strides, t.untyped_storage(), ordinal)
     gsrc = None if g is None else _Source(g.data_ptr(), np_dtype, g.shape, strides,
                                           g.untyped_storage(), ordinal)
