@@ -58,8 +58,9 @@ def _torch_cuda(torch):
 
 
 def test_torch_cuda_tensor_as_launch_argument(wp, cuda, torch, rng):
-    """A Torch CUDA tensor passed to wp.launch: moved into weft memory once (the tensor is
-    re-pointed where IPC works; a copy written back where it does not), writes seen by Torch."""
+    """A Torch CUDA tensor passed to wp.launch: imported by CUDA IPC in place where the client
+    and weftd can (else moved into weft memory once, or copied and written back), writes seen
+    by Torch and Torch's writes seen by the next launch."""
     _torch_cuda(torch)
     values = rng.standard_normal(5000).astype(np.float32)
     t = torch.tensor(values, device="cuda")
@@ -74,8 +75,8 @@ def test_torch_cuda_tensor_as_launch_argument(wp, cuda, torch, rng):
     np.testing.assert_allclose(total.numpy()[0], ref.sum(), rtol=1e-4, atol=1e-2)
     a = wp.from_torch(t)
     if a.ptr is not None:
-        assert a.ptr == t.data_ptr()  # moved: zero-copy from now on
-    print("path:", "moved into weft memory" if a.ptr == t.data_ptr() else "copy")
+        assert a.ptr == t.data_ptr()  # imported (or moved): zero-copy
+    print("path:", "zero-copy" if a.ptr == t.data_ptr() else "copy")
 
 
 def test_cupy_array_as_launch_argument_and_from_dlpack(wp, cuda, rng):
@@ -98,14 +99,15 @@ def test_cupy_array_as_launch_argument_and_from_dlpack(wp, cuda, rng):
 
 def test_reused_framework_block_is_never_read_stale(wp, cuda, torch):
     """A framework block freed and handed out again (Torch's caching allocator reuses it at
-    once): every launch reads the memory as it is then, never an old mapping's view."""
+    once): every launch reads the memory as it is then, never an old mapping's view (views are
+    imported by CUDA IPC too; test_cuda_import.py covers segments freed with empty_cache)."""
     _torch_cuda(torch)
     total = wp.zeros(1, dtype=float, device=cuda)
     base = torch.zeros(2 * 4096, device="cuda")
     seen = set()
     for k in range(1, 6):
         block = torch.full((4096,), float(k), device="cuda")
-        view = block[:]               # a view: copied in and back, never moved
+        view = block[:]               # a view: imported (or copied in and back), never moved
         seen.add(view.data_ptr())
         total.zero_()
         wp.launch(scale_sum, dim=4096, inputs=[view, 1.0, total], device=cuda)
