@@ -268,14 +268,16 @@ WP_FUNC bool cg_loop_poll(const launch_context_t* ctx, uint32& counter) {
 #endif
 }
 
-// tid of flat launch index `flat`, unravelled by the launch shape (row-major).
+// tid of flat launch index `flat`, unravelled by the launch shape (row-major). The outermost
+// index is what is left of `flat`: a 1-D launch does no division at all.
 WP_FUNC void cg_unravel(const launch_bounds_t& b, int64 flat, int64* tid) {
-  tid[0] = tid[1] = tid[2] = tid[3] = 0;
-  for (int d = b.ndim - 1; d >= 0; --d) {
+  tid[1] = tid[2] = tid[3] = 0;
+  for (int d = b.ndim - 1; d > 0; --d) {
     int64 n = b.shape[d] > 0 ? b.shape[d] : 1;
-    tid[d] = d == 0 ? flat : flat % n;
+    tid[d] = flat % n;
     flat /= n;
   }
+  tid[0] = b.ndim > 0 ? flat : 0;
 }
 
 // ---- bounds checks -----------------------------------------------------------------------

@@ -45,6 +45,9 @@ class _CallLog:
         self._saved = {}
 
     def __enter__(self):
+        # The calls of the fused path only: batches wait for the sync point (no asynchronous
+        # Submit while launches are queued; test_submit_pipeline.py checks that path).
+        self._pipelined, self.runtime.pipelined = self.runtime.pipelined, False
         for name in ("Submit", "Synchronize"):
             original = getattr(self.runtime.exec_stub, name)
             self._saved[name] = original
@@ -59,6 +62,7 @@ class _CallLog:
     def __exit__(self, *exc):
         for name, original in self._saved.items():
             setattr(self.runtime.exec_stub, name, original)
+        self.runtime.pipelined = self._pipelined
 
     def names(self):
         return [name for name, _ in self.calls]

@@ -129,6 +129,9 @@ _CODE_NAMES = {code.value[0]: code.name for code in grpc.StatusCode}
 # Submit(synchronize=true) (flush + Synchronize in one round trip), when the generated message
 # modules are recent enough to have the field (`make proto-py` regenerates them).
 _FUSED_SYNC = "synchronize" in exec_pb2.SubmitRequest.DESCRIPTOR.fields_by_name
+# Batches go out as soon as no Submit is in flight (Runtime._pump); WEFT_PIPELINE=0 keeps them
+# until the next synchronize (or a full batch).
+_PIPELINED = os.environ.get("WEFT_PIPELINE", "1") != "0"
 
 
 # ------------------------------------------------------------------------------------------
@@ -307,6 +310,9 @@ class Runtime:
         self._pending_frees: collections.deque = collections.deque()
         self._free_calls: list = []
         self._deferred_error: WeftError | None = None
+        self._inflight = None   # the asynchronous Submit in flight (at most one), see _pump
+        self.pipelined = _PIPELINED
+        self._pump_at = 2
         self._slabs = weakref.WeakValueDictionary()   # name -> _SlabMapping in use
         self._devices = None
         self._unsynchronized = False   # commands were queued since the last Synchronize
@@ -345,7 +351,9 @@ class Runtime:
 
     # -- command batch
     def submit(self, cmd) -> None:
-        """Appends an exec_pb2.Command to the batch (origin = caller's file:line if unset)."""
+        """Appends an exec_pb2.Command to the batch (origin = caller's file:line if unset).
+        When no Submit is in flight the batch goes out at once, without waiting for the reply
+        (see _pump): the daemon starts on it while this process queues more."""
         if not cmd.HasField("origin"):
             cmd.origin.CopyFrom(caller_location())
         with self._lock:
@@ -353,12 +361,53 @@ class Runtime:
             self._batch.append(cmd)
             self._batch_bytes += cmd.ByteSize()
             full = len(self._batch) >= BATCH_MAX_COMMANDS or self._batch_bytes >= BATCH_MAX_BYTES
+            if not full:
+                self._pump()
         if full:
             self.flush()
+
+    def _pump(self) -> None:
+        """Sends the batch as an asynchronous Submit when no Submit is in flight and the batch
+        holds at least `_pump_at` commands (caller holds the lock). Without this a batch waited
+        for the next synchronize, and the device idled while the client queued launches
+        (Warp's launches start at once). At most one Submit is in flight, so the daemon
+        receives batches in order; while one is on its way, commands accumulate. `_pump_at`
+        starts at 2 after each sync point and doubles with each asynchronous Submit, so the
+        device gets work after the second launch while a long run of launches costs only a
+        few extra round trips; a single launch stays, and launch + synchronize remains one
+        round trip (the fused Submit). A failed asynchronous Submit (nothing of it was queued)
+        is raised by the next synchronize, and nothing more is sent before that."""
+        if not self.pipelined or self._deferred_error is not None:
+            return
+        if self._inflight is not None:
+            if not self._inflight.done():
+                return
+            self._collect_inflight()
+            if self._deferred_error is not None:
+                return
+        if len(self._batch) < self._pump_at:
+            return
+        batch, self._batch, self._batch_bytes = self._batch, [], 0
+        self._pump_at = min(2 * self._pump_at, BATCH_MAX_COMMANDS)
+        self._inflight = self.exec_stub.Submit.future(exec_pb2.SubmitRequest(commands=batch),
+                                                      metadata=self.metadata)
+
+    def _collect_inflight(self) -> None:
+        """Waits for the asynchronous Submit in flight, if any (caller holds the lock); its
+        error becomes the deferred error."""
+        call, self._inflight = self._inflight, None
+        if call is None:
+            return
+        try:
+            call.result()
+        except grpc.RpcError as err:
+            if self._deferred_error is None:
+                self._deferred_error = error_from_rpc(err)
 
     def flush(self) -> None:
         """Sends the batched commands (ExecService.Submit), then the deferred frees."""
         with self._lock:
+            self._collect_inflight()
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch:
                 self.call(self.exec_stub.Submit, exec_pb2.SubmitRequest(commands=batch))
@@ -369,6 +418,8 @@ class Runtime:
         With commands pending this is ONE round trip: Submit(synchronize=true) queues them and
         returns what Synchronize would; with none pending, a plain Synchronize."""
         with self._lock:
+            self._collect_inflight()
+            self._pump_at = 2
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch and _FUSED_SYNC:
                 response = self.call(self.exec_stub.Submit,
@@ -408,7 +459,8 @@ class Runtime:
     def drain_frees(self) -> None:
         """Frees what finalizers released, if no command that may use them is unsent."""
         with self._lock:
-            if self._batch:
+            if self._batch or (self._inflight is not None and not self._inflight.done()):
+                # Commands that may use them are not in the daemon yet.
                 if len(self._pending_frees) < PENDING_FREE_LIMIT:
                     return
                 self.flush()

@@ -1,0 +1,127 @@
+"""The pipelined submit path (weft._runtime.Runtime._pump): queued launches reach the daemon
+before any sync point, so the device works while the client queues more (Warp's launches start
+at once); one Submit at a time keeps them in order; a lone launch followed by a sync is still
+one fused round trip; a daemon's rejection of an asynchronous Submit surfaces at the next
+sync. Runs on the CPU device of a local session (a CPU array's numpy() is a view of the memory
+the daemon writes, so the test sees the launches run without synchronizing)."""
+import os
+
+import numpy as np
+import pytest
+
+import weft as wp_module
+from weft import _runtime
+
+
+@wp_module.kernel
+def pipe_add(data: wp_module.array(dtype=float), x: float):
+    i = wp_module.tid()
+    data[i] = data[i] + x
+
+
+@pytest.fixture
+def runtime(wp):
+    wp.synchronize()
+    rt = _runtime.get_runtime()
+    if not rt.local:
+        pytest.skip("needs a local (Unix-socket) session: numpy() of a CPU array is a view there")
+    saved = rt.pipelined
+    rt.pipelined = True
+    yield rt
+    rt.pipelined = saved
+    wp.synchronize()
+
+
+def test_queued_launches_run_before_a_sync(wp, runtime, wait_for):
+    seed = int.from_bytes(os.urandom(4), "little")
+    rng = np.random.default_rng(seed)
+    values = rng.standard_normal(256).astype(np.float32)
+    data = wp.array(values, dtype=float, device="cpu")
+    view = data.numpy()   # synchronizes once; from here on a view of the daemon's memory
+    steps = [float(x) for x in rng.uniform(0.5, 2.0, size=6)]
+    for x in steps:
+        wp.launch(pipe_add, dim=256, inputs=[data, x], device="cpu")
+    expected = values.astype(np.float64) + sum(np.float64(np.float32(x)) for x in steps)
+    # No sync point: the first two went out together (later ones may still be batched).
+    assert wait_for(lambda: np.all(np.abs(view.astype(np.float64) - values) > 0.4), 20), \
+        f"seed={seed}: no launch ran before a sync point"
+    wp.synchronize()
+    np.testing.assert_allclose(view.astype(np.float64), expected, rtol=1e-5, atol=1e-5,
+                               err_msg=f"seed={seed}")
+
+
+def test_order_kept_across_many_asynchronous_submits(wp, runtime):
+    data = wp.zeros(64, dtype=float, device="cpu")
+    wp.synchronize()
+    sent = []
+    original = runtime.exec_stub.Submit
+
+    class _Counting:
+        def __call__(self, request, *args, **kwargs):
+            return original(request, *args, **kwargs)
+
+        def future(self, request, *args, **kwargs):
+            sent.append(len(request.commands))
+            return original.future(request, *args, **kwargs)
+
+    runtime.exec_stub.Submit = _Counting()
+    try:
+        total = 0.0
+        for k in range(300):
+            # x_k = k+1; each launch depends on the one before through `data`.
+            wp.launch(pipe_add, dim=64, inputs=[data, float(k + 1)], device="cpu")
+            total += k + 1
+        got = data.numpy()
+    finally:
+        runtime.exec_stub.Submit = original
+    np.testing.assert_array_equal(got, np.full(64, total, dtype=np.float32))
+    assert sent, "no asynchronous Submit was sent"
+    assert all(n >= 2 for n in sent), sent
+
+
+def test_one_launch_then_sync_is_one_round_trip(wp, runtime):
+    data = wp.zeros(8, dtype=float, device="cpu")
+    wp.synchronize()
+    calls = []
+    original_submit, original_sync = runtime.exec_stub.Submit, runtime.exec_stub.Synchronize
+
+    class _Logged:
+        def __init__(self, name, method):
+            self.name, self.method = name, method
+
+        def __call__(self, request, *args, **kwargs):
+            calls.append((self.name, getattr(request, "synchronize", None)))
+            return self.method(request, *args, **kwargs)
+
+        def future(self, request, *args, **kwargs):
+            calls.append((self.name + ".future", None))
+            return self.method.future(request, *args, **kwargs)
+
+    runtime.exec_stub.Submit = _Logged("Submit", original_submit)
+    runtime.exec_stub.Synchronize = _Logged("Synchronize", original_sync)
+    try:
+        wp.launch(pipe_add, dim=8, inputs=[data, 1.5], device="cpu")
+        got = data.numpy()
+    finally:
+        runtime.exec_stub.Submit, runtime.exec_stub.Synchronize = original_submit, original_sync
+    assert calls == [("Submit", True)], calls
+    np.testing.assert_array_equal(got, 1.5)
+
+
+def test_rejected_asynchronous_submit_raises_at_the_next_sync(wp, runtime):
+    from weft.v1 import exec_pb2
+
+    data = wp.zeros(4, dtype=float, device="cpu")
+    wp.synchronize()
+    bad = exec_pb2.Command()   # no command in it: the daemon refuses the whole batch
+    with runtime._lock:
+        runtime._batch.append(bad)
+    runtime._unsynchronized = True
+    wp.launch(pipe_add, dim=4, inputs=[data, 1.0], device="cpu")   # two queued: sent now
+    with pytest.raises(wp.WeftError):
+        wp.synchronize()
+    wp.synchronize()   # taken: nothing more to report
+    wp.launch(pipe_add, dim=4, inputs=[data, 2.0], device="cpu")
+    wp.launch(pipe_add, dim=4, inputs=[data, 3.0], device="cpu")
+    got = data.numpy()
+    assert np.all(got == 5.0) or np.all(got == 6.0), got
