@@ -6,11 +6,13 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstddef>
 #include <cstring>
 #include <thread>
 
 #include <spdlog/spdlog.h>
 
+#include "engine/device/cuda_print.h"
 #include "engine/native/launch_abi.h"
 #include "engine/runtime/cpu_launch.h"
 #include "engine/runtime/session.h"
@@ -319,11 +321,25 @@ Expected<CudaDevice::Stream*> CudaDevice::StreamOf(const std::string& session_id
   auto st = std::make_unique<Stream>();
   st->generation = generation_.load();
   WEFT_RETURN_IF_ERROR(driver_->Check(driver_->StreamCreate(&st->stream, jit::kCuStreamNonBlocking), "cuStreamCreate"));
-  Status s = driver_->Check(driver_->MemAlloc(&st->errors, kErrorSlots * sizeof(wp::launch_error_t)), "cuMemAlloc");
-  if (s.ok()) s = driver_->Check(driver_->MemsetD8Async(st->errors, 0, kErrorSlots * sizeof(wp::launch_error_t), st->stream), "cuMemsetD8Async");
+  const uint64_t slots_bytes = kErrorSlots * sizeof(wp::launch_error_t);
+  Status s = driver_->Check(driver_->MemAlloc(&st->errors_base, kPrintHeader + slots_bytes), "cuMemAlloc");
+  if (s.ok()) st->errors = st->errors_base + kPrintHeader;
+  if (s.ok()) s = driver_->Check(driver_->MemAlloc(&st->print_data, kPrintCapacity), "cuMemAlloc (print buffer)");
   void* pinned = nullptr;
-  if (s.ok()) s = driver_->Check(driver_->MemHostAlloc(&pinned, kErrorSlots * sizeof(wp::launch_error_t), 0), "cuMemHostAlloc");
-  if (s.ok()) st->errors_host = static_cast<wp_launch_error*>(pinned);
+  if (s.ok()) s = driver_->Check(driver_->MemHostAlloc(&pinned, kPrintHeader + slots_bytes, 0), "cuMemHostAlloc");
+  if (s.ok()) {
+    st->readback = static_cast<char*>(pinned);
+    st->errors_host = reinterpret_cast<wp_launch_error*>(st->readback + kPrintHeader);
+    std::memset(st->readback, 0, kPrintHeader + slots_bytes);
+    wp::print_buffer_t header{};
+    header.data = reinterpret_cast<char*>(static_cast<uintptr_t>(st->print_data));
+    header.capacity = kPrintCapacity;
+    std::memcpy(st->readback, &header, sizeof(header));
+    // Zeroed slots and the header, from pinned memory; later read-backs into `readback` are
+    // queued on the same stream, after this copy.
+    s = driver_->Check(driver_->MemcpyHtoDAsync(st->errors_base, st->readback, kPrintHeader + slots_bytes, st->stream),
+                       "cuMemcpyHtoDAsync (launch errors)");
+  }
   void* host = nullptr;
   if (s.ok()) s = driver_->Check(driver_->MemHostAlloc(&host, 64, jit::kCuMemHostAllocMapped), "cuMemHostAlloc");
   if (s.ok()) {
@@ -343,12 +359,16 @@ Expected<CudaDevice::Stream*> CudaDevice::StreamOf(const std::string& session_id
 
 void CudaDevice::DestroyStream(Stream& st) {
   if (st.stream) driver_->StreamDestroy(st.stream);
-  if (st.errors) driver_->MemFree(st.errors);
+  if (st.errors_base) driver_->MemFree(st.errors_base);
+  if (st.print_data) driver_->MemFree(st.print_data);
   if (st.cancel_host) driver_->MemFreeHost(st.cancel_host);
-  if (st.errors_host) driver_->MemFreeHost(st.errors_host);
+  if (st.readback) driver_->MemFreeHost(st.readback);
+  st.readback = nullptr;
   st.errors_host = nullptr;
   st.stream = nullptr;
+  st.errors_base = 0;
   st.errors = 0;
+  st.print_data = 0;
   st.cancel_host = nullptr;
 }
 
@@ -407,7 +427,9 @@ jit::CuResult CudaDevice::WaitStream(Session& s, Stream& st, int* cancel_reason)
 Status CudaDevice::QueueErrorReadback(Stream& st) {
   const size_t n = st.pending.size();
   if (n == 0) return Status::Ok();
-  return driver_->Check(driver_->MemcpyDtoHAsync(st.errors_host, st.errors, n * sizeof(wp::launch_error_t), st.stream),
+  // The print buffer's header (its `used`) comes along with the slots.
+  return driver_->Check(driver_->MemcpyDtoHAsync(st.readback, st.errors_base, kPrintHeader + n * sizeof(wp::launch_error_t),
+                                                 st.stream),
                         "cuMemcpyDtoHAsync (launch errors)");
 }
 
@@ -431,6 +453,23 @@ DeviceSyncResult CudaDevice::Drain(Stream& st) {
     std::memset(static_cast<void*>(st.errors_host), 0, n * sizeof(wp::launch_error_t));
   }
   st.pending.clear();
+  // Kernel print output: the records the launches appended (the stream is idle here).
+  wp::print_buffer_t header;
+  std::memcpy(&header, st.readback, sizeof(header));
+  if (header.used > 0) {
+    const uint64_t n_bytes = std::min<uint64_t>(header.used, kPrintCapacity);
+    std::string records(n_bytes, '\0');
+    Status copied = driver_->Check(driver_->MemcpyDtoHAsync(records.data(), st.print_data, n_bytes, st.stream),
+                                   "cuMemcpyDtoHAsync (print output)");
+    if (copied.ok()) copied = driver_->Check(driver_->StreamSynchronize(st.stream), "cuStreamSynchronize");
+    if (copied.ok()) out.output = FormatPrintRecords(records.data(), header.used, kPrintCapacity);
+    const uint64_t zero_used = st.errors_base + offsetof(wp::print_buffer_t, used);
+    Status reset = driver_->Check(driver_->MemsetD8Async(zero_used, 0, sizeof(header.used), st.stream), "cuMemsetD8Async");
+    header.used = 0;
+    std::memcpy(st.readback, &header, sizeof(header));
+    if (out.error.ok() && !copied.ok()) out.error = copied;
+    if (out.error.ok() && !reset.ok()) out.error = reset;
+  }
   return out;
 }
 
@@ -885,12 +924,13 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
     jit::CuResult r = WaitStream(s, *st, &reason);
     if (r != 0) return driver_->Check(r, "cuStreamQuery");
     DeviceSyncResult drained = Drain(*st);
+    if (!drained.output.empty()) s.AppendOutput(drained.output);
     if (!drained.error.ok())
       return Status(drained.error.code(), drained.error.message() + Where(drained.origin));
   }
   const size_t slot = st->pending.size();
   ctx.error = reinterpret_cast<wp::launch_error_t*>(static_cast<uintptr_t>(st->errors + slot * sizeof(wp::launch_error_t)));
-  ctx.print = nullptr;
+  ctx.print = reinterpret_cast<wp::print_buffer_t*>(static_cast<uintptr_t>(st->errors_base));
   ctx.flags = 0;
   ctx.cancel = reinterpret_cast<const wp::int32*>(static_cast<uintptr_t>(st->cancel_device));
   const unsigned block = l.block_dim ? l.block_dim : 256;

@@ -113,8 +113,13 @@ class CudaDevice final : public Device {
   struct Stream {
     uint64_t generation = 0;
     jit::CuStream stream = nullptr;
-    jit::CuDevicePtr errors = 0;      // kErrorSlots launch_error_t
-    wp_launch_error* errors_host = nullptr;   // pinned copy, read after the stream finished
+    // One device allocation: the print buffer's header (wp::print_buffer_t, kPrintHeader
+    // bytes) then kErrorSlots launch_error_t; read back together into `readback` (pinned).
+    jit::CuDevicePtr errors_base = 0;
+    jit::CuDevicePtr errors = 0;      // errors_base + kPrintHeader
+    char* readback = nullptr;         // pinned: header, then the slots
+    wp_launch_error* errors_host = nullptr;   // readback + kPrintHeader, read after the stream finished
+    jit::CuDevicePtr print_data = 0;  // kPrintCapacity bytes of print records
     std::vector<Pending> pending;     // launches since the last drain, slot = index
     int32_t* cancel_host = nullptr;   // mapped host memory
     jit::CuDevicePtr cancel_device = 0;
@@ -125,6 +130,8 @@ class CudaDevice final : public Device {
     std::unordered_map<std::string, jit::CuFunction> functions;
   };
   static constexpr uint32_t kErrorSlots = 1024;
+  static constexpr uint64_t kPrintHeader = 64;
+  static constexpr uint64_t kPrintCapacity = 1 << 20;   // print records between two synchronizes
 
   explicit CudaDevice(CudaDeviceOptions options);
   Status Init();

@@ -39,6 +39,7 @@ struct KernelLaunch {
 struct DeviceSyncResult {
   Status error;
   SourceLocation origin;
+  std::string output;   // kernel print output of the launches since the last synchronize
 };
 
 class Device {

@@ -4,9 +4,14 @@
 // CPU: text is formatted by the host callback weft_host_snprintf (exported by the daemon process, resolved by the JIT) and appended to
 // ctx->print, one reservation per call (atomic add on `used`) so lines of different threads never
 // interleave; text past `capacity` is dropped (used > capacity tells the reader it overflowed).
-// CUDA: device printf.
+// CUDA: each line is one binary record (print_record: the format pieces and their argument
+// values) appended to ctx->print (device memory) with one atomic reservation; the daemon turns
+// the records into text with the host's snprintf at the next synchronize
+// (engine/device/cuda_print.h), so a line reads the same on both devices. The daemon re-checks
+// every piece's format against its argument kinds (printf_check.h) before formatting.
 #pragma once
 
+#include "printf_check.h"
 #include "transform.h"
 
 #if !WP_DEVICE_CODE
@@ -39,21 +44,106 @@ WP_FUNC int32 print_arg(int16 v) { return v; }
 WP_FUNC uint32 print_arg(uint8 v) { return v; }
 WP_FUNC uint32 print_arg(uint16 v) { return v; }
 
-// A line built piecewise; on CUDA each piece goes straight to printf.
-struct print_line {
-#if !WP_DEVICE_CODE
-  char buf[1024];
+// ---- GPU print records ---------------------------------------------------------------------
+// A record: u32 size (the whole record, this field included), then its pieces, each
+//   u16 fmt_len, the format's bytes (no NUL), u8 nargs, nargs kind bytes, then the arguments:
+//   'i' (32-bit integer, widened to 8 bytes), 'I' (64-bit integer), 'f' (double): 8 bytes
+//   little-endian; 's' (a string: only as the single argument of the format "%s"): u16 length
+//   and the bytes. Unaligned; built in the thread's own memory, then copied in one piece.
+constexpr int PRINT_RECORD_MAX = 1024;
+
+WP_FUNC char print_record_kind(int32) { return 'i'; }
+WP_FUNC char print_record_kind(uint32) { return 'i'; }
+WP_FUNC char print_record_kind(int64) { return 'I'; }
+WP_FUNC char print_record_kind(uint64) { return 'I'; }
+WP_FUNC char print_record_kind(float64) { return 'f'; }
+WP_FUNC char print_record_kind(const char*) { return 's'; }
+
+struct print_record {
+  char buf[PRINT_RECORD_MAX];
+  int n;       // bytes used, the size field included
+  bool full;   // a piece did not fit: it and every later one are left out
+  WP_CALLABLE print_record() : n(4), full(false) {}
+  WP_CALLABLE bool put(const void* p, int k) {
+    if (full || k < 0 || n + k > PRINT_RECORD_MAX) return false;
+    for (int i = 0; i < k; ++i) buf[n + i] = static_cast<const char*>(p)[i];
+    n += k;
+    return true;
+  }
+  WP_CALLABLE bool put_arg(int32 v) { int64 w = v; return put(&w, 8); }
+  WP_CALLABLE bool put_arg(uint32 v) { int64 w = (int64)(int32)v; return put(&w, 8); }
+  WP_CALLABLE bool put_arg(int64 v) { return put(&v, 8); }
+  WP_CALLABLE bool put_arg(uint64 v) { return put(&v, 8); }
+  WP_CALLABLE bool put_arg(float64 v) { return put(&v, 8); }
+  WP_CALLABLE bool put_arg(const char* s) {
+    int len = 0;
+    while (s && s[len] && len < PRINT_RECORD_MAX) ++len;
+    uint16 l = (uint16)len;
+    return put(&l, 2) && put(s, len);
+  }
+  template <typename... A>
+  WP_CALLABLE void add(const char* fmt, A... args) {
+    if (full) return;
+    const int saved = n;
+    int len = 0;
+    while (fmt[len] && len < PRINT_RECORD_MAX) ++len;
+    const uint16 flen = (uint16)len;
+    const uint8 nargs = (uint8)sizeof...(A);
+    const char kinds[] = {print_record_kind(print_arg(args))..., '\0'};
+    bool ok = put(&flen, 2) && put(fmt, len) && put(&nargs, 1) && put(kinds, (int)nargs);
+    ok = ok && (put_arg(print_arg(args)) && ...);
+    if (!ok) {
+      n = saved;
+      full = true;
+    }
+  }
+  // The finished record (size field filled in); size() bytes.
+  WP_CALLABLE const char* bytes() {
+    const uint32 size = (uint32)n;
+    for (int i = 0; i < 4; ++i) buf[i] = (char)((size >> (8 * i)) & 0xffu);
+    return buf;
+  }
+  WP_CALLABLE int size() const { return n; }
+};
+
+// Appends a finished record to the launch's print buffer with one reservation. A record that
+// would run past `capacity` is left out (only its size field is written when it fits, so the
+// reader knows where the text ends); `used` keeps counting, and used > capacity tells the
+// reader that output was dropped.
+WP_FUNC void print_record_flush(const launch_context_t* ctx, print_record& r) {
+#if WP_DEVICE_CODE
+  if (!ctx || !ctx->print || !ctx->print->data || r.size() <= 4) return;
+  print_buffer_t* pb = ctx->print;
+  const char* src = r.bytes();
+  const uint64 n = (uint64)r.size();
+  const uint64 off = atomicAdd((unsigned long long*)&pb->used, (unsigned long long)n);
+  if (off >= pb->capacity || pb->capacity - off < 4) return;
+  const uint64 m = pb->capacity - off < n ? 4 : n;
+  for (uint64 i = 0; i < m; ++i) pb->data[off + i] = src[i];
+#else
+  (void)ctx;
+  (void)r;
 #endif
+}
+
+// A line built piecewise: text formatted at once on the CPU, a record on a GPU.
+struct print_line {
+#if WP_DEVICE_CODE
+  print_record rec;
+#else
+  char buf[1024];
   int n;
-  WP_CALLABLE print_line() : n(0) {
+#endif
+  WP_CALLABLE print_line() {
 #if !WP_DEVICE_CODE
+    n = 0;
     buf[0] = '\0';
 #endif
   }
   template <typename... A>
   WP_CALLABLE void add(const char* fmt, A... args) {
 #if WP_DEVICE_CODE
-    ::printf(fmt, print_arg(args)...);
+    rec.add(fmt, args...);
 #else
     buf[n] = '\0';
     // Read through a volatile so the weak symbol's null test is not folded away (or warned about).
@@ -65,7 +155,9 @@ struct print_line {
 #endif
   }
   WP_CALLABLE void flush(const launch_context_t* ctx) {
-#if !WP_DEVICE_CODE
+#if WP_DEVICE_CODE
+    print_record_flush(ctx, rec);
+#else
     print_buffer_append(ctx, buf, (uint64)n);
 #endif
   }
@@ -86,35 +178,6 @@ WP_FUNC char printf_kind(uint32) { return 'i'; }
 WP_FUNC char printf_kind(int64) { return 'I'; }
 WP_FUNC char printf_kind(uint64) { return 'I'; }
 WP_FUNC char printf_kind(float64) { return 'f'; }
-
-// Defence in depth behind the compiler's check (engine/sema/printf_format.h): true when `fmt`
-// has exactly one conversion per entry of `kinds` (NUL-terminated), each of the form the
-// compiler emits: %[-+ #0]*[0-9]{0,3}(.[0-9]{0,3})? then `ll` + d i u x X o for 'I', d i u x X o
-// for 'i', f F e E g G a A for 'f'; and `%%`. Nothing else (%s %p %n %c, `*`) passes.
-WP_FUNC bool printf_format_ok(const char* fmt, const char* kinds) {
-  int k = 0;
-  for (int i = 0; fmt[i]; ++i) {
-    if (fmt[i] != '%') continue;
-    ++i;
-    if (fmt[i] == '%') continue;
-    while (fmt[i] == '-' || fmt[i] == '+' || fmt[i] == ' ' || fmt[i] == '#' || fmt[i] == '0') ++i;
-    for (int d = 0; d < 3 && fmt[i] >= '0' && fmt[i] <= '9'; ++d) ++i;
-    if (fmt[i] == '.') {
-      ++i;
-      for (int d = 0; d < 3 && fmt[i] >= '0' && fmt[i] <= '9'; ++d) ++i;
-    }
-    bool ll = fmt[i] == 'l' && fmt[i + 1] == 'l';
-    if (ll) i += 2;
-    char c = fmt[i];
-    bool is_int = c == 'd' || c == 'i' || c == 'u' || c == 'x' || c == 'X' || c == 'o';
-    bool is_float = c == 'f' || c == 'F' || c == 'e' || c == 'E' || c == 'g' || c == 'G' || c == 'a' || c == 'A';
-    char kind = kinds[k];
-    if (kind == '\0') return false;  // more conversions than arguments
-    if (!((is_int && kind == (ll ? 'I' : 'i')) || (is_float && !ll && kind == 'f'))) return false;
-    ++k;
-  }
-  return kinds[k] == '\0';
-}
 
 template <typename... A>
 WP_FUNC void printf(const launch_context_t* ctx, const char* fmt, A... args) {

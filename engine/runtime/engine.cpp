@@ -625,6 +625,7 @@ Session::SyncResult Engine::Synchronize(Session& s) {
 void Engine::SynchronizeDevices(Session& s) {
   for (auto& g : devices_->gpus()) {
     DeviceSyncResult r = g->Synchronize(s);
+    if (!r.output.empty()) s.AppendOutput(r.output);
     if (!r.error.ok()) {
       spdlog::warn("session {}: {}: {}", s.label(), g->name(), r.error.ToString());
       s.Fail(r.error, r.origin);
