@@ -31,6 +31,8 @@ MAX_MESSAGE_BYTES = 64 << 20
 BATCH_MAX_COMMANDS = 1000
 BATCH_MAX_BYTES = 16 << 20
 PENDING_FREE_LIMIT = 4096
+PUMP_FIRST = 8         # commands queued before the first early Submit after a sync point
+PUMP_AFTER_S = 0.002   # or: two commands, the oldest queued this long ago
 DAEMON_START_TIMEOUT_S = 30.0
 RPC_TIMEOUT_S = None  # unary calls wait as long as the daemon needs (compiles can be slow)
 
@@ -312,7 +314,8 @@ class Runtime:
         self._deferred_error: WeftError | None = None
         self._inflight = None   # the asynchronous Submit in flight (at most one), see _pump
         self.pipelined = _PIPELINED
-        self._pump_at = 2
+        self._pump_at = PUMP_FIRST
+        self._batch_since = 0.0   # when the oldest command of the batch was queued
         self._slabs = weakref.WeakValueDictionary()   # name -> _SlabMapping in use
         self._devices = None
         self._unsynchronized = False   # commands were queued since the last Synchronize
@@ -358,6 +361,8 @@ class Runtime:
             cmd.origin.CopyFrom(caller_location())
         with self._lock:
             self._unsynchronized = True
+            if not self._batch:
+                self._batch_since = time.perf_counter()
             self._batch.append(cmd)
             self._batch_bytes += cmd.ByteSize()
             full = len(self._batch) >= BATCH_MAX_COMMANDS or self._batch_bytes >= BATCH_MAX_BYTES
@@ -368,15 +373,16 @@ class Runtime:
 
     def _pump(self) -> None:
         """Sends the batch as an asynchronous Submit when no Submit is in flight and the batch
-        holds at least `_pump_at` commands (caller holds the lock). Without this a batch waited
-        for the next synchronize, and the device idled while the client queued launches
-        (Warp's launches start at once). At most one Submit is in flight, so the daemon
-        receives batches in order; while one is on its way, commands accumulate. `_pump_at`
-        starts at 2 after each sync point and doubles with each asynchronous Submit, so the
-        device gets work after the second launch while a long run of launches costs only a
-        few extra round trips; a single launch stays, and launch + synchronize remains one
-        round trip (the fused Submit). A failed asynchronous Submit (nothing of it was queued)
-        is raised by the next synchronize, and nothing more is sent before that."""
+        holds at least `_pump_at` commands, or two commands the oldest of which was queued
+        PUMP_AFTER_S ago (caller holds the lock). Without this a batch waited for the next
+        synchronize, and the device idled while the client queued launches (Warp's launches
+        start at once). At most one Submit is in flight, so the daemon receives batches in
+        order; while one is on its way, commands accumulate. `_pump_at` starts at PUMP_FIRST
+        after each sync point and doubles with each asynchronous Submit, so a long run of
+        launches costs only a few extra round trips, while a short step (a few launches, then
+        a sync) stays one fused Submit: an early Submit there would add a round trip. A failed
+        asynchronous Submit (nothing of it was queued) is raised by the next synchronize, and
+        nothing more is sent before that."""
         if not self.pipelined or self._deferred_error is not None:
             return
         if self._inflight is not None:
@@ -385,7 +391,8 @@ class Runtime:
             self._collect_inflight()
             if self._deferred_error is not None:
                 return
-        if len(self._batch) < self._pump_at:
+        n = len(self._batch)
+        if n < self._pump_at and not (n >= 2 and time.perf_counter() - self._batch_since >= PUMP_AFTER_S):
             return
         batch, self._batch, self._batch_bytes = self._batch, [], 0
         self._pump_at = min(2 * self._pump_at, BATCH_MAX_COMMANDS)
@@ -419,7 +426,7 @@ class Runtime:
         returns what Synchronize would; with none pending, a plain Synchronize."""
         with self._lock:
             self._collect_inflight()
-            self._pump_at = 2
+            self._pump_at = PUMP_FIRST
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch and _FUSED_SYNC:
                 response = self.call(self.exec_stub.Submit,
