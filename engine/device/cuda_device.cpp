@@ -341,11 +341,11 @@ Expected<CudaDevice::Stream*> CudaDevice::StreamOf(const std::string& session_id
                        "cuMemcpyHtoDAsync (launch errors)");
   }
   void* host = nullptr;
-  if (s.ok()) s = driver_->Check(driver_->MemHostAlloc(&host, 64, jit::kCuMemHostAllocMapped), "cuMemHostAlloc");
+  if (s.ok()) s = driver_->Check(driver_->MemHostAlloc(&host, 64, 0), "cuMemHostAlloc");
   if (s.ok()) {
     st->cancel_host = static_cast<int32_t*>(host);
-    __atomic_store_n(st->cancel_host, 0, __ATOMIC_RELAXED);
-    s = driver_->Check(driver_->MemHostGetDevicePointer(&st->cancel_device, host, 0), "cuMemHostGetDevicePointer");
+    *st->cancel_host = 1;   // the value a cancel copies into the device word
+    s = driver_->Check(driver_->StreamCreate(&st->cancel_stream, jit::kCuStreamNonBlocking), "cuStreamCreate (cancel)");
   }
   if (!s.ok()) {
     DestroyStream(*st);
@@ -361,6 +361,8 @@ void CudaDevice::DestroyStream(Stream& st) {
   if (st.stream) driver_->StreamDestroy(st.stream);
   if (st.errors_base) driver_->MemFree(st.errors_base);
   if (st.print_data) driver_->MemFree(st.print_data);
+  if (st.cancel_stream) driver_->StreamDestroy(st.cancel_stream);
+  st.cancel_stream = nullptr;
   if (st.cancel_host) driver_->MemFreeHost(st.cancel_host);
   if (st.readback) driver_->MemFreeHost(st.readback);
   st.readback = nullptr;
@@ -416,12 +418,23 @@ jit::CuResult CudaDevice::WaitStream(Session& s, Stream& st, int* cancel_reason)
                      options_.launch_time_limit_s) {
         *cancel_reason = 2;
       }
-      if (*cancel_reason) __atomic_store_n(st.cancel_host, 1, __ATOMIC_SEQ_CST);
+      if (*cancel_reason && !st.cancel_set) {
+        // The copy engine writes the word while the session's kernels run.
+        st.cancel_set = driver_->MemcpyHtoDAsync(st.errors_base + kCancelOffset, st.cancel_host, sizeof(int32_t),
+                                                 st.cancel_stream) == 0;
+      }
     }
     // Spin briefly (short kernels), then sleep in small steps.
     if (polls < 4000) sched_yield();
     else std::this_thread::sleep_for(std::chrono::microseconds(100));
   }
+}
+
+Status CudaDevice::ClearCancel(Stream& st) {
+  if (!st.cancel_set) return Status::Ok();
+  st.cancel_set = false;
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->StreamSynchronize(st.cancel_stream), "cuStreamSynchronize (cancel)"));
+  return driver_->Check(driver_->MemsetD32Async(st.errors_base + kCancelOffset, 0, 1, st.stream), "cuMemsetD32Async (cancel)");
 }
 
 Status CudaDevice::QueueErrorReadback(Stream& st) {
@@ -538,7 +551,8 @@ DeviceSyncResult CudaDevice::Synchronize(Session& s) {
   }
   out = Drain(*st);
   if (reason != 0) {
-    __atomic_store_n(st->cancel_host, 0, __ATOMIC_SEQ_CST);
+    Status cleared = ClearCancel(*st);
+    if (out.error.ok() && !cleared.ok()) out.error = cleared;
     if (out.error.ok()) {
       if (reason == 1) {
         out.error = Status(StatusCode::kCancelled, name_ + ": launches were stopped: the session was closed");
@@ -923,6 +937,7 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
     WEFT_RETURN_IF_ERROR(QueueErrorReadback(*st));
     jit::CuResult r = WaitStream(s, *st, &reason);
     if (r != 0) return driver_->Check(r, "cuStreamQuery");
+    if (reason != 0) WEFT_RETURN_IF_ERROR(ClearCancel(*st));
     DeviceSyncResult drained = Drain(*st);
     if (!drained.output.empty()) s.AppendOutput(drained.output);
     if (!drained.error.ok())
@@ -932,7 +947,7 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   ctx.error = reinterpret_cast<wp::launch_error_t*>(static_cast<uintptr_t>(st->errors + slot * sizeof(wp::launch_error_t)));
   ctx.print = reinterpret_cast<wp::print_buffer_t*>(static_cast<uintptr_t>(st->errors_base));
   ctx.flags = 0;
-  ctx.cancel = reinterpret_cast<const wp::int32*>(static_cast<uintptr_t>(st->cancel_device));
+  ctx.cancel = reinterpret_cast<const wp::int32*>(static_cast<uintptr_t>(st->errors_base + kCancelOffset));
   const unsigned block = l.block_dim ? l.block_dim : 256;
   const unsigned grid = GridFor(static_cast<uint64_t>(ctx.bounds.size), block, l.max_blocks);
   void* args = const_cast<char*>(l.args->block.data());

@@ -5,7 +5,7 @@
 // module store built, built-in strided copy/fill kernels (NVRTC, compiled on first use), and
 // asynchronous launch errors: each launch gets its own error slot in device memory, read back
 // at Synchronize and reported like the CPU's (kernel, array, index, shape, file:line).
-// Cancellation: every stream has a cancel word in mapped host memory that kernels poll at loop
+// Cancellation: every stream has a cancel word in device memory that kernels poll at loop
 // back-edges; Synchronize waits in bounded steps and sets it when the session is closing or the
 // launch time limit has passed. A sticky fault (illegal address, __trap) resets the device:
 // streams, modules and memory of the old context are dropped, the primary context is reset and
@@ -121,8 +121,13 @@ class CudaDevice final : public Device {
     wp_launch_error* errors_host = nullptr;   // readback + kPrintHeader, read after the stream finished
     jit::CuDevicePtr print_data = 0;  // kPrintCapacity bytes of print records
     std::vector<Pending> pending;     // launches since the last drain, slot = index
-    int32_t* cancel_host = nullptr;   // mapped host memory
-    jit::CuDevicePtr cancel_device = 0;
+    // The cancel word kernels poll (cg_loop_poll) is device memory, in the print header's
+    // block (errors_base + kCancelOffset): a poll is an L2 read. The daemon sets it while a
+    // kernel runs with a copy from `cancel_host` (pinned, holds 1) on `cancel_stream`, which
+    // the copy engine runs beside the kernel; it is cleared on the stream once the wait ends.
+    int32_t* cancel_host = nullptr;
+    jit::CuStream cancel_stream = nullptr;
+    bool cancel_set = false;
     std::string first_error_text;
   };
   struct CuModuleEntry {
@@ -131,6 +136,7 @@ class CudaDevice final : public Device {
   };
   static constexpr uint32_t kErrorSlots = 1024;
   static constexpr uint64_t kPrintHeader = 64;
+  static constexpr uint64_t kCancelOffset = 48;   // in the print header's block, past print_buffer_t
   static constexpr uint64_t kPrintCapacity = 1 << 20;   // print records between two synchronizes
 
   explicit CudaDevice(CudaDeviceOptions options);
@@ -147,6 +153,8 @@ class CudaDevice final : public Device {
   // Waits for the stream (bounded steps: sets the cancel word when `s` is cancelled or the time
   // limit passes). Returns the CUDA result and why the cancel word was set (0 none, 1 session, 2 limit).
   jit::CuResult WaitStream(Session& s, Stream& st, int* cancel_reason);
+  // After a wait that set the cancel word: clears it (ordered before the stream's next work).
+  Status ClearCancel(Stream& st);
   // Queues the read-back of the pending launches' error slots (before waiting for the stream).
   Status QueueErrorReadback(Stream& st);
   // After the wait: the first error of the pending launches (or Ok); their slots are cleared.

@@ -87,9 +87,16 @@ def test_infinite_loop_stops_when_its_client_dies(weftd, cpu, spawn_client, tmp_
     np.testing.assert_allclose(mine.numpy(), np.arange(100) * 2.0)
 
 
-def test_launch_time_limit_stops_a_spinning_kernel(start_weftd, run_client, tmp_path):
+@pytest.mark.parametrize("device", ["cpu", "cuda:0"])
+def test_launch_time_limit_stops_a_spinning_kernel(start_weftd, run_client, tmp_path, device):
+    # On a GPU the loop polls a cancel word in device memory that the daemon sets with a copy
+    # on another stream while the kernel runs (docs/cuda.md).
     daemon = start_weftd(["--launch-time-limit", "1"])
-    out = run_client(as_file(tmp_path, "time_limit", SPIN_KERNEL + textwrap.dedent("""
+    prelude = SPIN_KERNEL.replace('wp.set_device("cpu")', f'wp.set_device("{device}")')
+    if device != "cpu":
+        prelude = prelude.replace("wp.init()\n", "wp.init()\nif not wp.is_cuda_available():\n"
+                                  "    print('NO CUDA'); raise SystemExit(0)\n", 1)
+    out = run_client(as_file(tmp_path, "time_limit", prelude + textwrap.dedent("""
         import time
 
         @wp.kernel
@@ -108,6 +115,8 @@ def test_launch_time_limit_stops_a_spinning_kernel(start_weftd, run_client, tmp_
         wp.launch(one, dim=4, inputs=[out])
         print("after", out.numpy().tolist())
     """)), env={"WEFT_ADDRESS": daemon.address}, timeout=120)
+    if "NO CUDA" in out.stdout:
+        pytest.skip("weftd has no CUDA device")
     assert "stopped after" in out.stdout, out.stdout + out.stderr
     assert "launch time limit of 1 s" in out.stdout, out.stdout
     assert "--launch-time-limit" in out.stdout
