@@ -24,9 +24,9 @@ def check(a: wp.array(dtype=int), b: wp.array(dtype=int)):
 
 
 @pytest.fixture(autouse=True)
-def _gpu_print_not_forwarded(device):
-    if device.startswith("cuda"):
-        pytest.xfail("kernel print on a GPU reaches the daemon's stdout, not the client, yet "
+def _gpu_expect_values_not_reported(device, request):
+    if device.startswith("cuda") and request.node.name.startswith("test_expect_eq"):
+        pytest.xfail("a failed wp.expect_eq on a GPU reports its line but not its values yet "
                      "(docs/cuda.md, 'Not done yet')")
 
 
