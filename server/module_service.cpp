@@ -9,13 +9,22 @@
 
 namespace weft::server {
 
+namespace {
+constexpr size_t kDiagnosticsTrailerMaxBytes = 4096;
+}  // namespace
+
 grpc::Status ModuleServiceImpl::Compile(grpc::ServerContext* ctx, const v1::CompileRequest* req,
                                         v1::CompileResponse* resp) {
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
   CompileReport report;
-  // The status with the error diagnostics that its message does not already carry.
+  // The status with the error diagnostics that its message does not already carry. The
+  // diagnostics (with their kinds) also travel in a binary trailer, as a CompileResponse: a
+  // failed call delivers no response message. Left out when large (the status message carries
+  // their text either way).
   auto failed = [&](const Status& status) {
+    if (resp->diagnostics_size() > 0 && resp->ByteSizeLong() <= kDiagnosticsTrailerMaxBytes)
+      ctx->AddTrailingMetadata("weft-compile-diagnostics-bin", resp->SerializeAsString());
     std::string msg = status.message();
     for (const auto& d : report.diagnostics) {
       if (d.severity != Diagnostic::Severity::kError) continue;

@@ -70,6 +70,7 @@ void ToProto(const Diagnostic& d, v1::Diagnostic* p) {
   p->set_message(d.message);
   ToProto(d.location, p->mutable_location());
   p->set_source_line(d.source_line);
+  p->set_kind(d.kind);
 }
 
 void ToProto(const DeviceInfo& d, v1::DeviceInfo* p) {

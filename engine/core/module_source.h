@@ -21,6 +21,10 @@ struct Diagnostic {
   std::string message;
   SourceLocation location;
   std::string source_line;
+  // The class of error for clients that raise typed exceptions: "" (a general compile error),
+  // "type" (an operand or argument of the wrong type), "value" (a value out of the allowed
+  // set, e.g. a non-constant slice bound), "attribute", "index", "key".
+  std::string kind;
   std::string ToString() const;  // "file:line:col: error: message\n  source\n  ^"
 };
 

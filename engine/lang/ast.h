@@ -44,7 +44,8 @@ namespace weft::ast {
   X(Compare)                      \
   X(IfExp)                        \
   X(Tuple)                        \
-  X(List)
+  X(List)                         \
+  X(Starred)
 
 #define WEFT_FOR_EACH_AST_STMT(X) \
   X(FunctionDef)                  \
@@ -231,7 +232,8 @@ struct Keyword {
   ExprPtr value;
 };
 
-// `func(args..., name=value...)`. Star-args (`*a`, `**k`) are rejected by the parser.
+// `func(args..., name=value...)`. A positional argument may be a Starred (`f(*v)`); `**k` is
+// rejected by the parser.
 struct Call : Expr {
   static constexpr ExprKind kKind = ExprKind::kCall;
   Call() : Expr(kKind) {}
@@ -297,6 +299,14 @@ struct List : Expr {
   static constexpr ExprKind kKind = ExprKind::kList;
   List() : Expr(kKind) {}
   ExprList elts;
+};
+
+// `*value`, only as a positional call argument (`wp.vec4(*v, 1.0)`): sema expands it into
+// the components of a vector, quaternion, matrix (its rows), tuple or constant array slice.
+struct Starred : Expr {
+  static constexpr ExprKind kKind = ExprKind::kStarred;
+  Starred() : Expr(kKind) {}
+  ExprPtr value;
 };
 
 // ---------------------------------------------------------------------------------------

@@ -102,6 +102,8 @@ class ExprPrinter : public ast::ConstExprVisitor<ExprPrinter, std::string> {
     for (const auto& e : l.elts) out += " " + Print(e.get());
     return out + ")";
   }
+
+  std::string VisitStarred(const ast::Starred& s) { return "(* " + Print(s.value.get()) + ")"; }
 };
 
 std::string P(const ast::Expr* e) { return ExprPrinter().Print(e); }

@@ -924,9 +924,22 @@ class Parser {
     std::set<std::string> keywords;
     while (!IsOp(")")) {
       const Token& t = Peek();
-      if (IsOp("*") || IsOp("**")) {
-        Fail(t, "argument unpacking (*args, **kwargs) is not supported in kernels");
+      if (IsOp("**")) {
+        Fail(t, "keyword argument unpacking (**kwargs) is not supported in kernels");
         return false;
+      }
+      if (IsOp("*")) {
+        if (!call->keywords.empty()) {
+          Fail(t, "iterable argument unpacking follows keyword argument");
+          return false;
+        }
+        Next();
+        auto star = Make<ast::Starred>(t);
+        star->value = ParseExpression();
+        if (!star->value) return false;
+        call->args.push_back(std::move(star));
+        if (!AcceptOp(",")) break;
+        continue;
       }
       if (t.kind == TokenKind::kName && IsOp("=", 1)) {
         Next();

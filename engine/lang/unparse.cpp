@@ -168,6 +168,8 @@ class Unparser : public ast::ConstExprVisitor<Unparser, std::string> {
     return out + ")";
   }
 
+  std::string VisitStarred(const ast::Starred& s) { return "*" + At(s.value.get(), kBitOr); }
+
   std::string VisitList(const ast::List& l) {
     std::string out = "[";
     for (size_t i = 0; i < l.elts.size(); ++i) {

@@ -20,6 +20,7 @@ template <> struct bits_t<uint8> { typedef uint8 type; };
 template <> struct bits_t<int16> { typedef uint16 type; };
 template <> struct bits_t<uint16> { typedef uint16 type; };
 template <> struct bits_t<half> { typedef uint16 type; };
+template <> struct bits_t<bfloat16> { typedef uint16 type; };
 template <> struct bits_t<int32> { typedef uint32 type; };
 template <> struct bits_t<uint32> { typedef uint32 type; };
 template <> struct bits_t<float32> { typedef uint32 type; };
@@ -29,10 +30,12 @@ template <> struct bits_t<float64> { typedef uint64 type; };
 
 template <typename T> WP_FUNC typename bits_t<T>::type to_bits(T v) { return (typename bits_t<T>::type)v; }
 template <> WP_FUNC uint16 to_bits<half>(half v) { return v.u; }
+template <> WP_FUNC uint16 to_bits<bfloat16>(bfloat16 v) { return v.u; }
 template <> WP_FUNC uint32 to_bits<float32>(float32 v) { return float_to_bits(v); }
 template <> WP_FUNC uint64 to_bits<float64>(float64 v) { return double_to_bits(v); }
 template <typename T> WP_FUNC T from_bits(typename bits_t<T>::type b) { return (T)b; }
 template <> WP_FUNC half from_bits<half>(uint16 b) { return half::from_bits(b); }
+template <> WP_FUNC bfloat16 from_bits<bfloat16>(uint16 b) { return bfloat16::from_bits(b); }
 template <> WP_FUNC float32 from_bits<float32>(uint32 b) { return bits_to_float(b); }
 template <> WP_FUNC float64 from_bits<float64>(uint64 b) { return bits_to_double(b); }
 

@@ -46,6 +46,7 @@ WP_FUNC void cg_accum(uint64& a, const uint64& b) { a += b; }
 WP_FUNC void cg_accum(float32& a, const float32& b) { a += b; }
 WP_FUNC void cg_accum(float64& a, const float64& b) { a += b; }
 WP_FUNC void cg_accum(half& a, const half& b) { a = add(a, b); }
+WP_FUNC void cg_accum(bfloat16& a, const bfloat16& b) { a = add(a, b); }
 template <typename T> WP_FUNC void cg_accum(array_t<T>&, const array_t<T>&) {}
 template <unsigned N, typename T> WP_FUNC void cg_accum(vec_t<N, T>& a, const vec_t<N, T>& b) {
   for (unsigned i = 0; i < N; ++i) cg_accum(a.c[i], b.c[i]);

@@ -38,6 +38,7 @@ WP_FUNC void print_buffer_append(const launch_context_t* ctx, const char* s, uin
 template <typename T> WP_FUNC T print_arg(T v) { return v; }
 WP_FUNC float64 print_arg(float32 v) { return (float64)v; }
 WP_FUNC float64 print_arg(half v) { return (float64)(float32)v; }
+WP_FUNC float64 print_arg(bfloat16 v) { return (float64)(float32)v; }
 WP_FUNC int32 print_arg(bool v) { return v ? 1 : 0; }
 WP_FUNC int32 print_arg(int8 v) { return v; }
 WP_FUNC int32 print_arg(int16 v) { return v; }
@@ -192,6 +193,7 @@ WP_FUNC void printf(const launch_context_t* ctx, const char* fmt, A... args) {
 WP_FUNC void print_value(print_line& l, float32 v) { l.add("%g", v); }
 WP_FUNC void print_value(print_line& l, float64 v) { l.add("%g", v); }
 WP_FUNC void print_value(print_line& l, half v) { l.add("%g", v); }
+WP_FUNC void print_value(print_line& l, bfloat16 v) { l.add("%g", v); }
 WP_FUNC void print_value(print_line& l, bool v) { l.add("%s", v ? "True" : "False"); }
 WP_FUNC void print_value(print_line& l, int8 v) { l.add("%d", v); }
 WP_FUNC void print_value(print_line& l, int16 v) { l.add("%d", v); }

@@ -1,5 +1,5 @@
 // Native library: scalar types and scalar builtins with their adjoints.
-// Owns: wp::half (float16) and its conversions, bit casts, integer arithmetic with Warp's
+// Owns: wp::half (float16), wp::bfloat16 and their conversions, bit casts, integer arithmetic with Warp's
 // wrap-around semantics (and no traps: x / 0 == 0 for integers), float math over compiler
 // builtins (host) or CUDA's device math (NVRTC), and adj_* twins that accumulate with +=.
 // No standard library headers: compiles under clang (CPU JIT), g++ (tests) and NVRTC.
@@ -139,6 +139,44 @@ typedef half float16;
 template <> struct is_float_t<half> { static constexpr bool value = true; };
 
 // ---------------------------------------------------------------------------------------------
+// bfloat16: the upper 16 bits of a float32, rounded to nearest even (a NaN stays a quiet NaN).
+// Arithmetic promotes to float32 and rounds back on assignment, as for half.
+WP_FUNC uint16 float_to_bfloat16_bits(float32 f) {
+  uint32 x = float_to_bits(f);
+  if ((x & 0x7fffffffu) > 0x7f800000u) return (uint16)((x >> 16) | 0x40u);
+  x += 0x7fffu + ((x >> 16) & 1u);
+  return (uint16)(x >> 16);
+}
+WP_FUNC float32 bfloat16_bits_to_float(uint16 b) { return bits_to_float((uint32)b << 16); }
+
+struct bfloat16 {
+  uint16 u;
+
+  WP_CALLABLE bfloat16() : u(0) {}
+  WP_CALLABLE bfloat16(float32 f) : u(float_to_bfloat16_bits(f)) {}
+  WP_CALLABLE bfloat16(float64 d) : u(float_to_bfloat16_bits((float32)d)) {}
+  WP_CALLABLE bfloat16(half h) : u(float_to_bfloat16_bits((float32)h)) {}
+  WP_CALLABLE bfloat16(int8 i) : u(float_to_bfloat16_bits((float32)i)) {}
+  WP_CALLABLE bfloat16(uint8 i) : u(float_to_bfloat16_bits((float32)i)) {}
+  WP_CALLABLE bfloat16(int16 i) : u(float_to_bfloat16_bits((float32)i)) {}
+  WP_CALLABLE bfloat16(uint16 i) : u(float_to_bfloat16_bits((float32)i)) {}
+  WP_CALLABLE bfloat16(int32 i) : u(float_to_bfloat16_bits((float32)i)) {}
+  WP_CALLABLE bfloat16(uint32 i) : u(float_to_bfloat16_bits((float32)i)) {}
+  WP_CALLABLE bfloat16(int64 i) : u(float_to_bfloat16_bits((float32)i)) {}
+  WP_CALLABLE bfloat16(uint64 i) : u(float_to_bfloat16_bits((float32)i)) {}
+  WP_CALLABLE bfloat16(bool b) : u(b ? 0x3f80u : 0u) {}
+  WP_CALLABLE operator float32() const { return bfloat16_bits_to_float(u); }
+
+  WP_CALLABLE bfloat16& operator+=(float32 v) { *this = bfloat16(float32(*this) + v); return *this; }
+  WP_CALLABLE bfloat16& operator-=(float32 v) { *this = bfloat16(float32(*this) - v); return *this; }
+  WP_CALLABLE bfloat16& operator*=(float32 v) { *this = bfloat16(float32(*this) * v); return *this; }
+  WP_CALLABLE bfloat16& operator/=(float32 v) { *this = bfloat16(float32(*this) / v); return *this; }
+  WP_CALLABLE static bfloat16 from_bits(uint16 b) { bfloat16 h; h.u = b; return h; }
+};
+
+template <> struct is_float_t<bfloat16> { static constexpr bool value = true; };
+
+// ---------------------------------------------------------------------------------------------
 // Classification (bit tests, valid under fast-math).
 WP_FUNC bool isnan(float32 x) { return (float_to_bits(x) & 0x7fffffffu) > 0x7f800000u; }
 WP_FUNC bool isinf(float32 x) { return (float_to_bits(x) & 0x7fffffffu) == 0x7f800000u; }
@@ -149,6 +187,9 @@ WP_FUNC bool isfinite(float64 x) { return (double_to_bits(x) & 0x7ff000000000000
 WP_FUNC bool isnan(half x) { return (x.u & 0x7fffu) > 0x7c00u; }
 WP_FUNC bool isinf(half x) { return (x.u & 0x7fffu) == 0x7c00u; }
 WP_FUNC bool isfinite(half x) { return (x.u & 0x7c00u) != 0x7c00u; }
+WP_FUNC bool isnan(bfloat16 x) { return (x.u & 0x7fffu) > 0x7f80u; }
+WP_FUNC bool isinf(bfloat16 x) { return (x.u & 0x7fffu) == 0x7f80u; }
+WP_FUNC bool isfinite(bfloat16 x) { return (x.u & 0x7f80u) != 0x7f80u; }
 #define WP_INT_CLASSIFY(T) \
   WP_FUNC bool isnan(T) { return false; } \
   WP_FUNC bool isinf(T) { return false; } \
@@ -163,20 +204,24 @@ WP_INT_CLASSIFY(int32) WP_INT_CLASSIFY(uint32) WP_INT_CLASSIFY(int64) WP_INT_CLA
 #define WP_MATH1(name, fn32, fn64) \
   WP_FUNC float32 name(float32 x) { return ::fn32(x); } \
   WP_FUNC float64 name(float64 x) { return ::fn64(x); } \
-  WP_FUNC half name(half x) { return half(::fn32(float32(x))); }
+  WP_FUNC half name(half x) { return half(::fn32(float32(x))); } \
+  WP_FUNC bfloat16 name(bfloat16 x) { return bfloat16(::fn32(float32(x))); }
 #define WP_MATH2(name, fn32, fn64) \
   WP_FUNC float32 name(float32 x, float32 y) { return ::fn32(x, y); } \
   WP_FUNC float64 name(float64 x, float64 y) { return ::fn64(x, y); } \
-  WP_FUNC half name(half x, half y) { return half(::fn32(float32(x), float32(y))); }
+  WP_FUNC half name(half x, half y) { return half(::fn32(float32(x), float32(y))); } \
+  WP_FUNC bfloat16 name(bfloat16 x, bfloat16 y) { return bfloat16(::fn32(float32(x), float32(y))); }
 #else
 #define WP_MATH1(name, fn32, fn64) \
   WP_FUNC float32 name(float32 x) { return __builtin_##fn32(x); } \
   WP_FUNC float64 name(float64 x) { return __builtin_##fn64(x); } \
-  WP_FUNC half name(half x) { return half(__builtin_##fn32(float32(x))); }
+  WP_FUNC half name(half x) { return half(__builtin_##fn32(float32(x))); } \
+  WP_FUNC bfloat16 name(bfloat16 x) { return bfloat16(__builtin_##fn32(float32(x))); }
 #define WP_MATH2(name, fn32, fn64) \
   WP_FUNC float32 name(float32 x, float32 y) { return __builtin_##fn32(x, y); } \
   WP_FUNC float64 name(float64 x, float64 y) { return __builtin_##fn64(x, y); } \
-  WP_FUNC half name(half x, half y) { return half(__builtin_##fn32(float32(x), float32(y))); }
+  WP_FUNC half name(half x, half y) { return half(__builtin_##fn32(float32(x), float32(y))); } \
+  WP_FUNC bfloat16 name(bfloat16 x, bfloat16 y) { return bfloat16(__builtin_##fn32(float32(x), float32(y))); }
 #endif
 
 WP_MATH1(sin, sinf, sin)
@@ -215,6 +260,7 @@ WP_MATH2(fmod, fmodf, fmod)
 WP_ARC(float32)
 WP_ARC(float64)
 WP_ARC(half)
+WP_ARC(bfloat16)
 #undef WP_ARC
 
 // erfinv / erfcinv: CUDA has them; the host uses Giles' approximation (float) refined by
@@ -301,6 +347,8 @@ WP_FUNC float32 erfcinv(float32 x) { return (float32)erfcinv((float64)x); }
 #endif
 WP_FUNC half erfinv(half x) { return half(erfinv(float32(x))); }
 WP_FUNC half erfcinv(half x) { return half(erfcinv(float32(x))); }
+WP_FUNC bfloat16 erfinv(bfloat16 x) { return bfloat16(erfinv(float32(x))); }
+WP_FUNC bfloat16 erfcinv(bfloat16 x) { return bfloat16(erfcinv(float32(x))); }
 
 // Float-only scalar builtins.
 #define WP_FLOAT_OPS(T) \
@@ -311,6 +359,7 @@ WP_FUNC half erfcinv(half x) { return half(erfcinv(float32(x))); }
 WP_FLOAT_OPS(float32)
 WP_FLOAT_OPS(float64)
 WP_FLOAT_OPS(half)
+WP_FLOAT_OPS(bfloat16)
 #undef WP_FLOAT_OPS
 
 // ---------------------------------------------------------------------------------------------
@@ -337,6 +386,7 @@ WP_FLOAT_OPS(half)
 WP_FLOAT_ARITH(float32)
 WP_FLOAT_ARITH(float64)
 WP_FLOAT_ARITH(half)
+WP_FLOAT_ARITH(bfloat16)
 #undef WP_FLOAT_ARITH
 
 // ---------------------------------------------------------------------------------------------
@@ -441,6 +491,7 @@ WP_FUNC T select(C cond, const T& if_false, const T& if_true) { return cond ? if
 WP_FLOAT_INTERP(float32)
 WP_FLOAT_INTERP(float64)
 WP_FLOAT_INTERP(half)
+WP_FLOAT_INTERP(bfloat16)
 #undef WP_FLOAT_INTERP
 
 // Generic cast (wp.cast / constructors like wp.float32(x) are plain C++ casts).

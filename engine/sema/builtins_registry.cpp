@@ -273,7 +273,7 @@ Expected<BuiltinMatch> BuiltinRegistry::Resolve(const std::string& name, const s
   }
   std::string got;
   for (size_t k = 0; k < args.size(); ++k) got += (k ? ", " : "") + TypeString(args[k]);
-  std::string msg = "no overload of '" + name + "' accepts (" + got + "); candidates:";
+  std::string msg = "Couldn't find function overload for '" + name + "' that accepts (" + got + "); candidates:";
   for (size_t i : it->second) msg += "\n      " + rows_[i].signature;
   return InvalidArgument(msg);
 }
@@ -284,7 +284,7 @@ std::string BuiltinRegistry::Markdown() const {
       "Generated from the builtin registry (engine/sema/builtins_*.cpp) by\n"
       "`weft_engine_tests --gtest_filter=SemaBuiltinsDoc*` (it rewrites this file when\n"
       "`WEFT_WRITE_DOCS=1`). Call them as `wp.name(...)`.\n\n"
-      "Type patterns: `Float` = float16/32/64, `Int` = any integer, `Scalar` = any number; all\n"
+      "Type patterns: `Float` = float16/32/64 and bfloat16, `Int` = any integer, `Scalar` = any number; all\n"
       "occurrences of one pattern letter in a signature are the same type. `Index` = any integer,\n"
       "`Cond` = bool or integer, `X` = any value type, `N M K D` = sizes. The adjoint column is\n"
       "the native adjoint the backward pass calls (`-` = not differentiable: gradient stops).\n";

@@ -17,9 +17,12 @@ Checker::Checker(const ModuleSource& module, const std::vector<ParsedFunction>& 
   for (const auto& p : parsed) by_key_[p.source->key.empty() ? p.source->name : p.source->key] = &p;
 }
 
-Status Checker::Error(const SourceLocation& loc, const std::string& msg) {
+Status Checker::Error(const SourceLocation& loc, const std::string& msg) { return ErrorOf("", loc, msg); }
+
+Status Checker::ErrorOf(const char* kind, const SourceLocation& loc, const std::string& msg) {
   Diagnostic d;
   d.message = msg;
+  d.kind = kind;
   d.location = loc;
   if (st_ && loc.line > 0) {
     int rel = static_cast<int>(loc.line) - st_->fn.def_line;

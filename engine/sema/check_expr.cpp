@@ -98,7 +98,7 @@ Expected<std::string> CppLiteral(const Type& t, const std::string& text) {
       else return InvalidArgument("'" + s + "' is not a number");
     }
     std::string f = FloatText(v);
-    if (t.scalar == ScalarKind::kFloat16) return ct + "(" + f + "f)";
+    if (t.scalar == ScalarKind::kFloat16 || t.scalar == ScalarKind::kBFloat16) return ct + "(" + f + "f)";
     return ct + "(" + f + ")";
   }
   if (t.is_composite()) {
@@ -199,6 +199,8 @@ Expected<Value> Checker::Eval(const ast::Expr& e) {
       return v;
     }
     case ast::ExprKind::kList: return Error(e.loc, "lists are not supported in kernels; use a vector type");
+    case ast::ExprKind::kStarred:
+      return ErrorOf("type", e.loc, "Starred expressions are only supported as positional arguments of a call");
   }
   return Error(e.loc, "unsupported expression");
 }
@@ -434,7 +436,7 @@ Expected<std::vector<int>> Checker::SliceComponents(const ast::Slice& sl, int n)
     WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
     if (v.kind != Value::Kind::kVar || !v.literal || v.literal_text.empty() ||
         v.literal_text.find_first_not_of("-0123456789") != std::string::npos || v.literal_text.size() > 9)
-      return Error(e->loc, "slice bounds of vectors must be integer constants");
+      return ErrorOf("value", e->loc, "Slice component must be a compile-time constant (an integer literal)");
     *out = std::stol(v.literal_text);
     return Status::Ok();
   };
@@ -611,10 +613,89 @@ Expected<Type> Checker::EvalTypeExpr(const ast::Expr& e) {
 // Calls
 // ---------------------------------------------------------------------------------------
 
+// `*x` as a call argument: x's components in order (vector and quaternion components, matrix
+// rows, tuple elements), with constant slices of those, or the elements of a constant slice
+// of a 1-D array (`*a[:3]`: explicit upper bound, no negative bounds or step).
+Status Checker::ExpandStarred(const ast::Starred& s, std::vector<Value>* out) {
+  const ast::Expr& inner = *s.value;
+  auto components = [&](int var, const std::vector<int>& which) -> Status {
+    const Type t = TypeOf(var);
+    const Type comp = t.is_matrix() ? Type::Vector(t.cols, t.scalar) : Type::Scalar(t.scalar);
+    for (int k : which) {
+      int ci = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")");
+      out->push_back(Value::OfVar(EmitOp(OpKind::kExtract, comp, {var, ci})));
+    }
+    return Status::Ok();
+  };
+  auto count_of = [&](const Type& t) { return t.is_matrix() ? t.rows : t.component_count(); };
+  auto unpackable = [](const Type& t) { return t.is_vector() || t.is_matrix() || t.kind == TypeKind::kQuat; };
+  const auto* sub = ast::As<ast::Subscript>(&inner);
+  const auto* sl = sub && sub->indices.size() == 1 ? ast::As<ast::Slice>(sub->indices[0].get()) : nullptr;
+  if (sl) {
+    WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
+    const Type bt = base.kind == Value::Kind::kVar ? TypeOf(base.var) : Type();
+    if (base.kind == Value::Kind::kVar && bt.is_array()) {
+      if (bt.ndim != 1)
+        return ErrorOf("type", sl->loc, "Starred slices of arrays need a 1-D array, '" + ExprText(*sub->value) +
+                                            "' has " + std::to_string(bt.ndim) + " dimensions");
+      auto bound = [&](const ast::ExprPtr& e, long def, long* v) -> Status {
+        *v = def;
+        if (!e) return Status::Ok();
+        WEFT_ASSIGN_OR_RETURN(Value x, Eval(*e));
+        if (x.kind != Value::Kind::kVar || !x.literal || x.literal_text.empty() ||
+            x.literal_text.find_first_not_of("-0123456789") != std::string::npos || x.literal_text.size() > 9)
+          return ErrorOf("value", e->loc, "Slice component must be a compile-time constant (an integer literal)");
+        *v = std::stol(x.literal_text);
+        return Status::Ok();
+      };
+      if (!sl->upper)
+        return ErrorOf("value", sl->loc, "Starred array slice requires explicit upper bound: '" + ExprText(inner) + "'");
+      long lo = 0, hi = 0, step = 1;
+      WEFT_RETURN_IF_ERROR(bound(sl->lower, 0, &lo));
+      WEFT_RETURN_IF_ERROR(bound(sl->upper, 0, &hi));
+      WEFT_RETURN_IF_ERROR(bound(sl->step, 1, &step));
+      if (lo < 0 || hi < 0) return ErrorOf("value", sl->loc, "Slice bounds cannot be negative for arrays");
+      if (step <= 0)
+        return ErrorOf("value", sl->loc, step == 0 ? "Slice step cannot be zero" : "Slice step cannot be negative for arrays");
+      if ((hi - lo) / step > 1024) return ErrorOf("value", sl->loc, "Starred array slice selects more than 1024 elements");
+      for (long k = lo; k < hi; k += step) {
+        int ci = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")");
+        out->push_back(Value::OfVar(EmitOp(OpKind::kLoad, bt.elem(), {base.var, ci})));
+        st_->block->back().op.array_param = ArrayParamOf(base.var);
+        st_->block->back().op.array_name = ExprText(*sub->value);
+        st_->fn.may_fail = true;
+      }
+      return Status::Ok();
+    }
+    if (base.kind == Value::Kind::kVar && unpackable(bt)) {
+      WEFT_ASSIGN_OR_RETURN(std::vector<int> which, SliceComponents(*sl, count_of(bt)));
+      return components(base.var, which);
+    }
+  }
+  WEFT_ASSIGN_OR_RETURN(Value v, Eval(inner));
+  if (v.kind == Value::Kind::kTuple) {
+    for (const auto& e : v.elems) out->push_back(e);
+    return Status::Ok();
+  }
+  if (v.kind == Value::Kind::kVar && unpackable(TypeOf(v.var))) {
+    std::vector<int> all(count_of(TypeOf(v.var)));
+    for (size_t k = 0; k < all.size(); ++k) all[k] = static_cast<int>(k);
+    return components(v.var, all);
+  }
+  return ErrorOf("type", s.loc,
+                 "Starred expressions are only supported for vectors, quaternions, matrices, tuples and constant "
+                 "slices of arrays; '" + ExprText(inner) + "' is " +
+                     (v.kind == Value::Kind::kVar ? "a " + TypeString(TypeOf(v.var)) : std::string("not a value")));
+}
+
 Expected<Value> Checker::EvalCall(const ast::Call& c) {
   WEFT_ASSIGN_OR_RETURN(Value callee, Eval(*c.func));
   std::vector<Value> args;
   for (const auto& a : c.args) {
+    if (const auto* star = ast::As<ast::Starred>(a.get())) {
+      WEFT_RETURN_IF_ERROR(ExpandStarred(*star, &args));
+      continue;
+    }
     WEFT_ASSIGN_OR_RETURN(Value v, Eval(*a));
     args.push_back(v);
   }
@@ -841,6 +922,16 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
         def = TypeOf(v.var).scalar;
         break;
       }
+    if (name == "vector" && !kwarg("dtype")) {
+      // Without dtype every value must have one type (Warp): 1.0 and 2 do not mix.
+      int ints = 0, floats = 0;
+      for (const auto& v : vals) {
+        if (v.kind != Value::Kind::kVar || !TypeOf(v.var).is_scalar()) continue;
+        const bool is_int = v.literal ? IsIntLiteralText(v.literal_text) : IsInt(TypeOf(v.var).scalar);
+        (is_int ? ints : floats)++;
+      }
+      if (ints && floats) return ErrorOf("type", loc, "all values given when constructing a vector must have the same type");
+    }
     WEFT_ASSIGN_OR_RETURN(ScalarKind s, dtype_kw(def));
     Type t;
     if (name == "vector") {
@@ -850,9 +941,15 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
       for (const auto& v : vals)
         if (v.kind == Value::Kind::kVar) len += TypeOf(v.var).is_composite() ? TypeOf(v.var).component_count() : 1;
       if (const ast::Expr* l = kwarg("length")) {
+        const auto* lc = ast::As<ast::Constant>(l);
+        if (lc && lc->type == ast::Constant::Type::kInt && lc->int_fits_u64 && len > 0 &&
+            lc->int_value != static_cast<uint64_t>(len) &&
+            !(vals.size() == 1 && vals[0].kind == Value::Kind::kVar && TypeOf(vals[0].var).is_scalar()))
+          return Error(loc, "incompatible number of values given (" + std::to_string(len) +
+                                ") when constructing a vector of length " + lc->int_decimal);
         WEFT_ASSIGN_OR_RETURN(len, const_int(l, "length"));
       }
-      if (len <= 0) return Error(loc, "wp.vector needs its components or length=N");
+      if (len <= 0) return Error(loc, "the `length` argument must be specified when zero-initializing a vector");
       t = Type::Vector(len, s);
     } else if (name == "matrix") {
       const ast::Expr* sh = kwarg("shape");
@@ -863,6 +960,8 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
         ast::Call empty;
         return CallConstructor(t, std::move(vals), loc, call ? *call : empty);
       }
+      if (!sh && !vals.empty())
+        return Error(loc, "the `shape` argument must be specified when initializing a matrix by value");
       if (!tu || tu->elts.size() != 2) return Error(loc, "wp.matrix needs shape=(rows, cols)");
       WEFT_ASSIGN_OR_RETURN(int r, const_int(tu->elts[0].get(), "rows"));
       WEFT_ASSIGN_OR_RETURN(int cc, const_int(tu->elts[1].get(), "cols"));
@@ -960,12 +1059,33 @@ Expected<Value> Checker::CallConstructor(const Type& t, std::vector<Value> args,
     s.op.mode = ConstructMode::kConvert;
   } else if (t.is_composite()) {
     int n = t.component_count();
+    // Warp's wording for vectors and matrices ("this vector", "a matrix of shape (2, 2)").
+    const char* noun = t.is_matrix() ? "matrix" : "vector";
+    auto size_text = [](const Type& x) {
+      return x.is_matrix() ? "shape (" + std::to_string(x.rows) + ", " + std::to_string(x.cols) + ")"
+                           : "length " + std::to_string(x.component_count());
+    };
+    auto scalar_of = [&](const Value& a, const char* what) -> Expected<int> {
+      if (!a.literal && TypeOf(a.var).is_scalar() && TypeOf(a.var).scalar != t.scalar &&
+          (t.is_vector() || t.is_matrix()))
+        return ErrorOf("type", loc, std::string(what) + noun + " are expected to be of the type `" +
+                                        TypeString(Type::Scalar(t.scalar)) + "`");
+      return Coerce(a, Type::Scalar(t.scalar), loc, "component");
+    };
     if (args.empty()) {
       s.op.mode = ConstructMode::kZero;
     } else if (args.size() == 1 && TypeOf(args[0].var).is_scalar()) {
       s.op.mode = ConstructMode::kFill;
+      if (!args[0].literal && TypeOf(args[0].var).scalar != t.scalar && (t.is_vector() || t.is_matrix()))
+        return ErrorOf("type", loc, std::string("the value used to fill this ") + noun +
+                                        " is expected to be of the type `" + TypeString(Type::Scalar(t.scalar)) + "`");
       WEFT_ASSIGN_OR_RETURN(int v, Coerce(args[0], Type::Scalar(t.scalar), loc, "the fill value"));
       args[0] = Value::OfVar(v);
+    } else if (args.size() == 1 && (t.is_vector() || t.is_matrix()) && TypeOf(args[0].var).kind == t.kind &&
+               (TypeOf(args[0].var).component_count() != n ||
+                (t.is_matrix() && TypeOf(args[0].var).rows != t.rows))) {
+      return Error(loc, std::string("incompatible ") + noun + " of " + size_text(t) +
+                            " given when copy constructing a " + noun + " of " + size_text(TypeOf(args[0].var)));
     } else if (args.size() == 1 && TypeOf(args[0].var).kind == t.kind &&
                TypeOf(args[0].var).component_count() == n) {
       if (TypeOf(args[0].var) == t) return args[0];
@@ -982,7 +1102,7 @@ Expected<Value> Checker::CallConstructor(const Type& t, std::vector<Value> args,
       for (auto& a : args) {
         const Type& at = TypeOf(a.var);
         if (at.is_scalar()) {
-          WEFT_ASSIGN_OR_RETURN(int v, Coerce(a, Type::Scalar(t.scalar), loc, "component " + std::to_string(total)));
+          WEFT_ASSIGN_OR_RETURN(int v, scalar_of(a, "all values used to initialize this "));
           a = Value::OfVar(v);
           total += 1;
         } else if (at.is_composite() && at.scalar == t.scalar) {
@@ -991,8 +1111,12 @@ Expected<Value> Checker::CallConstructor(const Type& t, std::vector<Value> args,
           return Error(loc, "cannot build " + TypeString(t) + " from a value of type " + TypeString(at));
         }
       }
-      if (total != n)
+      if (total != n) {
+        if (t.is_vector() || t.is_matrix())
+          return Error(loc, "incompatible number of values given (" + std::to_string(total) + ") when constructing a " +
+                                noun + " of " + size_text(t));
         return Error(loc, TypeString(t) + " needs " + std::to_string(n) + " components, got " + std::to_string(total));
+      }
     }
   } else {
     return Error(loc, "values of type " + TypeString(t) + " cannot be constructed in kernels");

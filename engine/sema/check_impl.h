@@ -54,6 +54,8 @@ class Checker {
 
   // check.cpp
   Status Error(const SourceLocation& loc, const std::string& msg);
+  // An error of a class (Diagnostic::kind: "type", "value", ...) the client raises as such.
+  Status ErrorOf(const char* kind, const SourceLocation& loc, const std::string& msg);
   Expected<int> InstantiateFunction(const ParsedFunction& pf, const std::vector<Type>& param_types,
                                     const SourceLocation& call_loc, int grad_of_params = -1);
   Status LowerBlock(const ast::StmtList& stmts, size_t from = 0);
@@ -77,6 +79,7 @@ class Checker {
   Expected<Value> EvalSubscript(const ast::Subscript& s);
   Expected<int> AdjointSlot(const ast::Subscript& s);
   Expected<Value> EvalCall(const ast::Call& c);
+  Status ExpandStarred(const ast::Starred& s, std::vector<Value>* out);
   Expected<Value> EvalBinOp(const ast::BinOp& b);
   Expected<Value> EvalCompare(const ast::Compare& c);
   Expected<Value> EvalConstant(const ast::Constant& c);

@@ -20,6 +20,7 @@ constexpr ScalarRow kScalars[] = {
     {ScalarKind::kUInt16, "uint16", 2},   {ScalarKind::kUInt32, "uint32", 4},
     {ScalarKind::kUInt64, "uint64", 8},   {ScalarKind::kFloat16, "float16", 2},
     {ScalarKind::kFloat32, "float32", 4}, {ScalarKind::kFloat64, "float64", 8},
+    {ScalarKind::kBFloat16, "bfloat16", 2},
 };
 
 // Recursive-descent reader over a type string.
@@ -231,7 +232,8 @@ bool Type::operator==(const Type& o) const {
 bool Type::operator<(const Type& o) const { return TypeString(*this) < TypeString(o); }
 
 bool IsFloat(ScalarKind s) {
-  return s == ScalarKind::kFloat16 || s == ScalarKind::kFloat32 || s == ScalarKind::kFloat64;
+  return s == ScalarKind::kFloat16 || s == ScalarKind::kFloat32 || s == ScalarKind::kFloat64 ||
+         s == ScalarKind::kBFloat16;
 }
 bool IsInt(ScalarKind s) { return !IsFloat(s) && s != ScalarKind::kBool; }
 bool IsSigned(ScalarKind s) {

@@ -27,6 +27,7 @@ enum class ScalarKind : uint8_t {
   kFloat16,
   kFloat32,
   kFloat64,
+  kBFloat16,  // bfloat16: float32's upper 16 bits (wp::bfloat16)
 };
 
 enum class TypeKind : uint8_t {

@@ -23,8 +23,8 @@ constexpr uint32_t kFirstLine = 100;
 
 // Sorted by name.
 const ErrorCase kCases[] = {
-    {"argument_unpacking", "    f(*a)\n", "argument unpacking (*args, **kwargs) is not supported", 101, 7},
-    {"argument_unpacking_kw", "    f(**a)\n", "argument unpacking (*args, **kwargs) is not supported", 101, 7},
+    {"argument_unpacking_after_kw", "    f(x=1, *a)\n", "iterable argument unpacking follows keyword argument", 101, 12},
+    {"argument_unpacking_kw", "    f(**a)\n", "keyword argument unpacking (**kwargs) is not supported", 101, 7},
     {"assign_to_call", "    f(x) = 1\n", "cannot assign to function call", 101, 5},
     {"assign_to_comparison", "    a < b = 1\n", "cannot assign to comparison", 101, 5},
     {"assign_to_literal", "    1 = x\n", "cannot assign to literal", 101, 5},

@@ -599,6 +599,7 @@ struct NameCounter : ast::ConstExprVisitor<NameCounter, int> {
     for (const auto& v : t.elts) n += Count(v.get());
     return n;
   }
+  int VisitStarred(const ast::Starred& s) { return Count(s.value.get()); }
   int VisitList(const ast::List& l) {
     int n = 0;
     for (const auto& v : l.elts) n += Count(v.get());

@@ -66,6 +66,36 @@ def _canonical_dtype(dtype):
         raise TypeError(f"Invalid array dtype {dtype!r}") from None
 
 
+def _is_bf16(dtype) -> bool:
+    """bfloat16 or a vector/matrix/... of bfloat16 (stored as its 16 bits)."""
+    return getattr(dtype, "_wp_scalar_type_", None) is types.bfloat16
+
+
+def _ml_bfloat16():
+    """ml_dtypes.bfloat16 when that package is installed, else None."""
+    try:
+        import ml_dtypes  # noqa: PLC0415 - optional
+    except ImportError:
+        return None
+    return ml_dtypes.bfloat16
+
+
+def _to_bf16_bits(values) -> np.ndarray:
+    from ._kernel.typestr import to_bfloat16_bits  # noqa: PLC0415 - weft._kernel imports this module
+    return to_bfloat16_bits(values)
+
+
+def _bf16_source(data):
+    """Data for a bfloat16 array: NumPy arrays as they are (uint16 = bits), other values
+    (lists, tuples, scalars, weft scalars) as float32."""
+    if isinstance(data, np.ndarray):
+        return data if data.dtype in (np.uint16,) or data.dtype.name == "bfloat16" \
+            else data.astype(np.float32)
+    if isinstance(data, types.bfloat16):
+        data = data.value
+    return np.asarray(data, dtype=np.float32)
+
+
 def _is_struct(dtype) -> bool:
     """@wp.struct types (weft._kernel.structs.StructType): numpy_dtype() gives their layout."""
     return callable(getattr(dtype, "numpy_dtype", None)) or hasattr(dtype, "_struct_size_")
@@ -124,6 +154,9 @@ def _inner_strides(np_dtype, inner) -> tuple:
 
 def _dtype_proto(dtype):
     tp = _runtime.types_pb2
+    if _is_bf16(dtype):   # its 16 bits, named bfloat16 (kernels match the name)
+        return tp.DType(scalar=_SCALAR_ENUM["uint16"], elem_shape=list(dtype._shape_),
+                        type_name=type_str(dtype))
     if types.is_dtype(dtype):
         return tp.DType(scalar=_SCALAR_ENUM[dtype._wp_scalar_type_._type_str],
                         elem_shape=list(dtype._shape_), type_name=type_str(dtype))
@@ -510,7 +543,8 @@ class array:
         if np_dtype.fields is not None:
             data = _struct_numpy(dtype, data)
         try:
-            arr = np.asarray(data, dtype=np_dtype)
+            arr = _to_bf16_bits(_bf16_source(data)) if _is_bf16(dtype) else \
+                np.asarray(data, dtype=np_dtype)
         except (TypeError, ValueError) as err:
             raise RuntimeError(f"Failed to convert input data to an array of dtype "
                                f"{type_str(dtype)}: {err}") from None
@@ -772,7 +806,16 @@ class array:
 
     def numpy(self) -> np.ndarray:
         """The array as NumPy: a zero-copy view of shared memory for CPU arrays of local
-        sessions (writes through it are seen by the daemon), else a copy."""
+        sessions (writes through it are seen by the daemon), else a copy. bfloat16 arrays
+        come as ml_dtypes.bfloat16 when that package is installed, else as their uint16 bits
+        (as Warp's)."""
+        values = self._numpy_storage()
+        if _is_bf16(self.dtype):
+            bf16 = _ml_bfloat16()
+            return values.view(bf16) if bf16 is not None else values
+        return values
+
+    def _numpy_storage(self) -> np.ndarray:
         np_dtype, inner = _elem_layout(self.dtype)
         full_shape = tuple(self.shape) + inner
         if self._info is None:
@@ -801,6 +844,8 @@ class array:
     def list(self):
         """The elements as a flat Python list (scalars, or dtype instances for vectors etc.)."""
         values = self.numpy()
+        if _is_struct(self.dtype):
+            return [self.dtype.from_record(r) for r in values.reshape(-1)]
         if types.is_dtype(self.dtype) and self.dtype._shape_:
             flat = values.reshape((-1,) + tuple(self.dtype._shape_))
             return [self.dtype(v) for v in flat]
@@ -904,7 +949,8 @@ class array:
             copy(self, src)
             return self
         np_dtype, inner = _elem_layout(self.dtype)
-        values = np.asarray(src, dtype=np_dtype)
+        values = _to_bf16_bits(_bf16_source(src)) if _is_bf16(self.dtype) else \
+            np.asarray(src, dtype=np_dtype)
         target_shape = tuple(self.shape) + inner
         if values.shape != target_shape:
             if values.size == math.prod(target_shape):

@@ -21,7 +21,8 @@ class WeftError(RuntimeError):
 
 
 def error_from_rpc(err) -> WeftError:
-    """A WeftError for a grpc.RpcError, carrying the daemon's message and status name."""
+    """A WeftError for a grpc.RpcError, carrying the daemon's message and status name, and
+    `.diagnostics` when the daemon sent a failed compile's diagnostics in its trailer."""
     try:
         code = err.code()
         code_name = code.name if code is not None else None
@@ -30,4 +31,24 @@ def error_from_rpc(err) -> WeftError:
         return WeftError(str(err))
     if code_name == "UNAVAILABLE":
         details = f"weftd is not reachable: {details}"
-    return WeftError(details, code_name)
+    error = WeftError(details, code_name)
+    error.diagnostics = _trailer_diagnostics(err)
+    return error
+
+
+def _trailer_diagnostics(err) -> list:
+    """The Diagnostic messages of the `weft-compile-diagnostics-bin` trailer (a serialized
+    CompileResponse), or [] when there is none or it does not parse."""
+    trailing = getattr(err, "trailing_metadata", None)
+    trailer = dict(trailing() or ()).get("weft-compile-diagnostics-bin") if trailing else None
+    if not trailer:
+        return []
+    from google.protobuf.message import DecodeError  # noqa: PLC0415
+
+    from .v1 import module_pb2  # noqa: PLC0415 - generated stubs load with the runtime
+    response = module_pb2.CompileResponse()
+    try:
+        response.ParseFromString(trailer)
+    except DecodeError:
+        return []
+    return list(response.diagnostics)

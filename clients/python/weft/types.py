@@ -17,7 +17,7 @@ import numpy as np
 
 __all__ = [
     "Any", "bool", "float16", "float32", "float64", "int8", "int16", "int32", "int64",
-    "uint8", "uint16", "uint32", "uint64",
+    "uint8", "uint16", "uint32", "uint64", "bfloat16",
     "scalar_types", "float_types", "int_types", "vector_types",
     "vector", "matrix", "quaternion", "transformation",
     "vec2", "vec3", "vec4", "mat22", "mat33", "mat44", "quat", "transform",
@@ -121,7 +121,8 @@ def _make_scalar(name: str, np_dtype, py_type):
 _CTYPES = {"bool": ctypes.c_bool, "int8": ctypes.c_int8, "int16": ctypes.c_int16,
            "int32": ctypes.c_int32, "int64": ctypes.c_int64, "uint8": ctypes.c_uint8,
            "uint16": ctypes.c_uint16, "uint32": ctypes.c_uint32, "uint64": ctypes.c_uint64,
-           "float16": ctypes.c_uint16, "float32": ctypes.c_float, "float64": ctypes.c_double}
+           "float16": ctypes.c_uint16, "float32": ctypes.c_float, "float64": ctypes.c_double,
+           "bfloat16": ctypes.c_uint16}
 
 
 bool = _make_scalar("bool", np.bool_, _py_bool)  # noqa: A001 - Warp's name
@@ -137,6 +138,21 @@ float16 = _make_scalar("float16", np.float16, _py_float)
 float32 = _make_scalar("float32", np.float32, _py_float)
 float64 = _make_scalar("float64", np.float64, _py_float)
 half = float16
+# bfloat16 (Warp's wp.bfloat16): float32's upper 16 bits, stored as those bits (its NumPy dtype is
+# uint16; arrays' numpy() is ml_dtypes.bfloat16 when that package is installed). A value keeps
+# bfloat16 precision (rounded to nearest even). Scalars and arrays of scalars only: there are no
+# bfloat16 vectors or matrices (as in Warp 1.19, which names none), and it is not in float_types.
+bfloat16 = _make_scalar("bfloat16", np.uint16, _py_float)
+
+
+def _bfloat16_init(self, x=0.0):
+    if isinstance(x, _Scalar):
+        x = x.value
+    from ._kernel.typestr import bfloat16_bits_to_float32, float32_to_bfloat16_bits
+    self.value = _py_float(bfloat16_bits_to_float32(float32_to_bfloat16_bits(_py_float(x))))
+
+
+bfloat16.__init__ = _bfloat16_init
 float = float32  # noqa: A001 - Warp's alias for annotations
 int = int32  # noqa: A001
 
@@ -152,6 +168,11 @@ _SHORT_NAMES = {float16: "h", float32: "f", float64: "d", int8: "b", uint8: "ub"
 def scalar_short_name(t) -> str:
     """Warp's suffix of a scalar type in typed names: float32 -> "f", uint8 -> "ub"."""
     return _SHORT_NAMES[t]
+
+
+def _composite_scalar(dtype):
+    """The scalar of a vector/matrix/quaternion/transform type."""
+    return _canonical_scalar(dtype)
 
 
 def _canonical_scalar(dtype):
@@ -190,6 +211,7 @@ class _Composite(metaclass=_CompositeMeta):
     _type_str = ""
     _wp_scalar_type_ = None
     _np_dtype_ = None
+    _value_dtype_ = None
     __slots__ = ("_data",)
 
     # -- construction helpers
@@ -198,11 +220,14 @@ class _Composite(metaclass=_CompositeMeta):
         if flat.size != self._length_:
             raise ValueError(f"Invalid number of values for {type(self).__name__}: expected "
                              f"{self._length_}, got {flat.size}")
-        self._data = flat.reshape(self._shape_).astype(self._np_dtype_)
+        if self._wp_scalar_type_ is bfloat16:   # keep bfloat16 precision (float32 storage)
+            from ._kernel.typestr import bfloat16_bits_to_float32, float32_to_bfloat16_bits
+            flat = bfloat16_bits_to_float32(float32_to_bfloat16_bits(flat))
+        self._data = flat.reshape(self._shape_).astype(self._value_dtype_)
 
     @classmethod
     def _is_float(cls):
-        return cls._wp_scalar_type_ in float_types
+        return cls._wp_scalar_type_ in float_types or cls._wp_scalar_type_ is bfloat16
 
     @classmethod
     def _py(cls, x):
@@ -248,7 +273,7 @@ class _Composite(metaclass=_CompositeMeta):
     # -- arithmetic (component-wise; `*` with a scalar scales; `@` is the matrix product)
     def _wrap(self, data):
         out = type(self).__new__(type(self))
-        out._data = np.asarray(data).astype(self._np_dtype_)
+        out._data = np.asarray(data).astype(self._value_dtype_)
         return out
 
     def _coerce(self, other):
@@ -341,14 +366,14 @@ class _Vector(_Composite):
     def __init__(self, *args):
         n = len(args)
         if n == 0:
-            self._data = np.zeros(self._shape_, dtype=self._np_dtype_)
+            self._data = np.zeros(self._shape_, dtype=self._value_dtype_)
         elif n == 1:
             (arg,) = args
             if hasattr(arg, "__len__") or isinstance(arg, np.ndarray):
                 self._set_from_flat(np.asarray(arg).reshape(-1))
             else:
                 self._data = np.full(self._shape_, self._py(_scalar_value(arg)),
-                                     dtype=self._np_dtype_)
+                                     dtype=self._value_dtype_)
         elif n == self._length_:
             self._set_from_flat([_scalar_value(a) for a in args])
         else:
@@ -387,14 +412,14 @@ class _Matrix(_Composite):
         rows, cols = self._shape_
         n = len(args)
         if n == 0:
-            self._data = np.zeros(self._shape_, dtype=self._np_dtype_)
+            self._data = np.zeros(self._shape_, dtype=self._value_dtype_)
         elif n == 1:
             (arg,) = args
             if hasattr(arg, "__len__") or isinstance(arg, np.ndarray):
                 self._set_from_flat(np.asarray(arg).reshape(-1))
             else:
                 self._data = np.full(self._shape_, self._py(_scalar_value(arg)),
-                                     dtype=self._np_dtype_)
+                                     dtype=self._value_dtype_)
         elif n == self._length_:
             self._set_from_flat([_scalar_value(a) for a in args])
         elif n == rows and all(hasattr(a, "__len__") for a in args):
@@ -502,10 +527,12 @@ def _composite_class(base, name, shape, dtype, type_string, extra=None):
         "_type_str": type_string,
         "_wp_scalar_type_": dtype,
         "_np_dtype_": dtype._np_dtype_,
+        # Python values keep their components in _value_dtype_: the storage dtype, except
+        # bfloat16 (stored as bits), whose values are float32 rounded to bfloat16.
+        "_value_dtype_": np.dtype(np.float32) if dtype is bfloat16 else dtype._np_dtype_,
         "_wp_type_params_": list(shape) + [dtype],
         "__module__": __name__,
         "__qualname__": name,
-        "__slots__": (),
     }
     namespace.update(extra or {})
     return _CompositeMeta(name, (base,), namespace)
@@ -513,7 +540,7 @@ def _composite_class(base, name, shape, dtype, type_string, extra=None):
 
 def vector(length, dtype):
     """The vector type of `length` elements of `dtype` (Warp's wp.types.vector)."""
-    dtype = _canonical_scalar(dtype)
+    dtype = _composite_scalar(dtype)
     length = _py_int(length)
     if length <= 0:
         raise ValueError(f"Vector length must be positive, got {length}")
@@ -535,7 +562,7 @@ def matrix(shape, dtype):
     rows, cols = _py_int(shape[0]), _py_int(shape[1])
     if rows <= 0 or cols <= 0:
         raise ValueError(f"Matrix dimensions must be positive, got {shape}")
-    dtype = _canonical_scalar(dtype)
+    dtype = _composite_scalar(dtype)
     key = (rows, cols, dtype)
     cls = _matrix_cache.get(key)
     if cls is None:
@@ -554,14 +581,14 @@ class _Quaternion(_Vector):
 
     def __init__(self, *args):
         if not args:
-            self._data = np.array([0, 0, 0, 1], dtype=self._np_dtype_)
+            self._data = np.array([0, 0, 0, 1], dtype=self._value_dtype_)
         else:
             super().__init__(*args)
 
 
 def quaternion(dtype=float32):
     """The quaternion type of `dtype` (Warp's wp.types.quaternion)."""
-    dtype = _canonical_scalar(dtype)
+    dtype = _composite_scalar(dtype)
     cls = _quat_cache.get(dtype)
     if cls is None:
         cls = _composite_class(_Quaternion, f"quat{_SHORT_NAMES[dtype]}", (4,), dtype,
@@ -579,7 +606,7 @@ class _Transformation(_Vector):
         if p is not None or q is not None:
             args = (p if p is not None else (0, 0, 0), q if q is not None else (0, 0, 0, 1))
         if not args:
-            self._data = np.array([0, 0, 0, 0, 0, 0, 1], dtype=self._np_dtype_)
+            self._data = np.array([0, 0, 0, 0, 0, 0, 1], dtype=self._value_dtype_)
         elif len(args) == 2:
             flat = np.concatenate([np.asarray(args[0], dtype=np.float64).reshape(-1),
                                    np.asarray(args[1], dtype=np.float64).reshape(-1)])
@@ -598,7 +625,7 @@ class _Transformation(_Vector):
 
 def transformation(dtype=float32):
     """The transform type of `dtype` (Warp's wp.types.transformation)."""
-    dtype = _canonical_scalar(dtype)
+    dtype = _composite_scalar(dtype)
     cls = _transform_cache.get(dtype)
     if cls is None:
         cls = _composite_class(_Transformation, f"transform{_SHORT_NAMES[dtype]}", (7,), dtype,
@@ -658,6 +685,8 @@ def is_transformation(t) -> _py_bool:
 
 
 def is_float(t) -> _py_bool:
+    if t is bfloat16:
+        return True
     return t in float_types or t is _py_float
 
 
@@ -796,15 +825,30 @@ def dtype_to_numpy(warp_dtype):
 
 
 def dtype_from_numpy(numpy_dtype):
-    """The weft scalar dtype of a NumPy dtype (Warp's wp.dtype_from_numpy)."""
+    """The weft scalar dtype of a NumPy dtype (Warp's wp.dtype_from_numpy;
+    ml_dtypes.bfloat16 -> bfloat16)."""
     try:
         key = np.dtype(numpy_dtype).newbyteorder("=")
     except TypeError:
         raise TypeError(f"Cannot convert {numpy_dtype} to a Warp type") from None
+    if key.name == "bfloat16":
+        return bfloat16
     result = _NP_TO_WP.get(key)
     if result is None:
         raise TypeError(f"Cannot convert {numpy_dtype} to a Warp type")
     return result
+
+
+def _np_float32_to_bfloat16_bits(arr_f32) -> np.ndarray:
+    """bfloat16 bits (uint16) of float values, rounded to nearest even (Warp's helper name)."""
+    from ._kernel.typestr import float32_to_bfloat16_bits
+    return float32_to_bfloat16_bits(arr_f32)
+
+
+def _np_bfloat16_bits_to_float32(arr_u16) -> np.ndarray:
+    """float32 values of bfloat16 bits (Warp's helper name)."""
+    from ._kernel.typestr import bfloat16_bits_to_float32
+    return bfloat16_bits_to_float32(arr_u16)
 
 
 def np_scalar_dtype(t) -> np.dtype:
@@ -824,6 +868,11 @@ def value_to_bytes(dtype, value) -> bytes:
     arr = np.asarray(value)
     if arr.dtype == object:
         raise TypeError(f"Cannot convert {value!r} to {type_str(dtype)}")
+    if dtype is bfloat16:
+        from ._kernel.typestr import to_bfloat16_bits
+        return to_bfloat16_bits(arr).reshape(()).astype("<u2").tobytes()
+    if getattr(dtype, "_wp_scalar_type_", None) is bfloat16 and arr.dtype != np.uint16:
+        arr = arr.astype(np.float32)
     shape = dtype._shape_
     if arr.shape != shape:
         if arr.size == dtype._length_:
@@ -833,6 +882,9 @@ def value_to_bytes(dtype, value) -> bytes:
         else:
             raise ValueError(f"Cannot convert a value of shape {arr.shape} to "
                              f"{type_str(dtype)} (element shape {shape})")
+    if getattr(dtype, "_wp_scalar_type_", None) is bfloat16:
+        from ._kernel.typestr import to_bfloat16_bits
+        return np.ascontiguousarray(to_bfloat16_bits(arr), dtype="<u2").tobytes()
     return np.ascontiguousarray(arr, dtype=dtype._np_dtype_).tobytes()
 
 

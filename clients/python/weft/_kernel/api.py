@@ -11,7 +11,16 @@ import typing
 from . import cuda_compile
 from . import module as module_mod
 from . import typestr
-from .errors import WarpCodegenError, WeftCompileError, WeftLaunchError
+from .errors import (
+    WarpCodegenAttributeError,
+    WarpCodegenError,
+    WarpCodegenIndexError,
+    WarpCodegenKeyError,
+    WarpCodegenTypeError,
+    WarpCodegenValueError,
+    WeftCompileError,
+    WeftLaunchError,
+)
 from .functions import Function, FunctionDefinition, Kernel, attach_gradient, static
 from .launch import Launch, launch
 from .structs import StructInstance, StructType, struct
@@ -22,7 +31,12 @@ __all__ = [
     "Kernel",
     "Launch",
     "Tape",
+    "WarpCodegenAttributeError",
     "WarpCodegenError",
+    "WarpCodegenIndexError",
+    "WarpCodegenKeyError",
+    "WarpCodegenTypeError",
+    "WarpCodegenValueError",
     "WeftCompileError",
     "WeftLaunchError",
     "compile",

@@ -22,5 +22,38 @@ class WeftCompileError(WarpCodegenError):
         return self._text
 
 
+class WarpCodegenTypeError(WeftCompileError, TypeError):
+    """A compile error about a value of the wrong type (also a TypeError, as Warp's)."""
+
+
+class WarpCodegenValueError(WeftCompileError, ValueError):
+    """A compile error about a value outside the allowed set (also a ValueError, as Warp's)."""
+
+
+class WarpCodegenAttributeError(WeftCompileError, AttributeError):
+    """A compile error about a missing attribute (also an AttributeError, as Warp's)."""
+
+
+class WarpCodegenIndexError(WeftCompileError, IndexError):
+    """A compile error about an index out of range (also an IndexError, as Warp's)."""
+
+
+class WarpCodegenKeyError(WeftCompileError, KeyError):
+    """A compile error about an unknown key (also a KeyError, as Warp's)."""
+
+
+_BY_KIND = {"type": WarpCodegenTypeError, "value": WarpCodegenValueError,
+            "attribute": WarpCodegenAttributeError, "index": WarpCodegenIndexError,
+            "key": WarpCodegenKeyError}
+
+
+def compile_error(message: str, diagnostics=()) -> WeftCompileError:
+    """The exception for a failed compile: the class named by the last error diagnostic's
+    `kind` (the one whose message ends the text), WeftCompileError when it names none."""
+    errors = [d for d in diagnostics if getattr(d, "severity", 0) == 0]
+    kind = getattr(errors[-1], "kind", "") if errors else ""
+    return _BY_KIND.get(kind, WeftCompileError)(message, diagnostics)
+
+
 class WeftLaunchError(TypeError):
     """Wrong arguments to wp.launch (count, type, dtype, ndim), found before sending."""

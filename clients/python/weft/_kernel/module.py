@@ -11,7 +11,7 @@ import typing
 
 from .. import config as _config
 from . import symbols as symbols_mod
-from .errors import WeftCompileError
+from .errors import WeftCompileError, compile_error
 from .functions import Function, FunctionDefinition, Kernel
 from .structs import StructType
 
@@ -348,16 +348,19 @@ def content_hash(module_source) -> str:
 
 
 def format_diagnostics(diagnostics) -> str:
+    """Each diagnostic as its source line, a caret under the column, then
+    `file:line:col: error: message`: the last diagnostic's message ends the text (as Warp's
+    codegen errors end with their message)."""
     severities = {0: "error", 1: "warning", 2: "note"}
     lines = []
     for d in diagnostics:
         loc = d.location
-        where = f"{loc.file}:{loc.line}:{loc.column}: " if loc.file else ""
-        lines.append(f"{where}{severities.get(d.severity, 'error')}: {d.message}")
         if d.source_line:
             lines.append("    " + d.source_line.rstrip())
             if loc.column:
                 lines.append("    " + " " * max(loc.column - 1, 0) + "^")
+        where = f"{loc.file}:{loc.line}:{loc.column}: " if loc.file else ""
+        lines.append(f"{where}{severities.get(d.severity, 'error')}: {d.message}")
     return "\n".join(lines)
 
 
@@ -457,13 +460,13 @@ def _compile_source(source, device: str) -> CompiledModule:
     except Exception as err:  # noqa: BLE001 - a WeftError from the runtime: add context
         diags = list(getattr(err, "diagnostics", []) or [])
         text = format_diagnostics(diags) if diags else str(err)
-        raise WeftCompileError(f"module {source.name} failed to compile on {device}:\n{text}",
-                               diags) from None
+        raise compile_error(f"module {source.name} failed to compile on {device}:\n{text}",
+                            diags) from None
     errors = [d for d in response.diagnostics if d.severity == 0]
     if errors or not response.module_id:
         text = format_diagnostics(response.diagnostics) or "no diagnostics"
-        raise WeftCompileError(f"module {source.name} failed to compile on {device}:\n{text}",
-                               list(response.diagnostics))
+        raise compile_error(f"module {source.name} failed to compile on {device}:\n{text}",
+                            list(response.diagnostics))
     return CompiledModule(response.module_id, {k.name: k for k in response.kernels},
                           response.cache_hit, response.compile_ms)
 

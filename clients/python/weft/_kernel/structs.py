@@ -114,6 +114,21 @@ class StructType:
         typestr.pack_value(desc, value)
         return value
 
+    def from_record(self, record) -> StructInstance:
+        """The instance one element of numpy_dtype() holds (arrays of structs: list(), [i]):
+        scalars as Python numbers, vectors/matrices as their dtype, nested structs likewise."""
+        inst = StructInstance(self)
+        for field in self.fields:
+            desc, value = field.desc, record[field.name]
+            if desc.kind == "struct":
+                value = field.annotation.from_record(value)
+            elif desc.shape:
+                value = field.annotation(np.asarray(value).reshape(-1).tolist())
+            else:
+                value = value.item() if hasattr(value, "item") else value
+            inst._values[field.name] = value
+        return inst
+
     # --- wire forms ---------------------------------------------------------------------
     def referenced_structs(self) -> list:
         """Struct types of nested fields (and array members' element structs), depth first."""

@@ -21,8 +21,35 @@ SCALAR_NUMPY = {
     "float16": np.dtype(np.float16),
     "float32": np.dtype(np.float32),
     "float64": np.dtype(np.float64),
+    "bfloat16": np.dtype(np.uint16),   # stored as its 16 bits (float32's upper half)
 }
-FLOAT_SCALARS = ("float16", "float32", "float64")
+FLOAT_SCALARS = ("float16", "float32", "float64", "bfloat16")
+
+
+def float32_to_bfloat16_bits(values) -> np.ndarray:
+    """bfloat16 bit patterns (uint16) of float values: round to nearest even, NaN stays a quiet
+    NaN (Warp's conversion)."""
+    f = np.asarray(values, dtype=np.float32)
+    bits = f.view(np.uint32).astype(np.uint64)
+    nan = np.isnan(f)
+    rounded = (bits + 0x7FFF + ((bits >> 16) & 1)) >> 16
+    out = np.where(nan, (bits >> 16) | 0x40, rounded)
+    return out.astype(np.uint16)
+
+
+def bfloat16_bits_to_float32(bits) -> np.ndarray:
+    """float32 values of bfloat16 bit patterns."""
+    return (np.asarray(bits, dtype=np.uint16).astype(np.uint32) << 16).view(np.float32)
+
+
+def to_bfloat16_bits(values) -> np.ndarray:
+    """bfloat16 storage of values: uint16 arrays are taken as bit patterns already (Warp),
+    ml_dtypes.bfloat16 arrays as their bits, anything else converted from float."""
+    if isinstance(values, np.ndarray) and values.dtype == np.uint16:
+        return values
+    if isinstance(values, np.ndarray) and values.dtype.name == "bfloat16":
+        return values.view(np.uint16)
+    return float32_to_bfloat16_bits(values)
 INT_SCALARS = ("int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64")
 
 
@@ -124,7 +151,7 @@ def array_str(elem: str, ndim: int) -> str:
 # Naming Python objects as type strings
 # --------------------------------------------------------------------------------------------
 
-_NUMPY_TO_SCALAR = {v: k for k, v in SCALAR_NUMPY.items()}
+_NUMPY_TO_SCALAR = {v: k for k, v in SCALAR_NUMPY.items() if k != "bfloat16"}
 
 
 def _scalar_name_of(obj) -> typing.Optional[str]:
@@ -279,12 +306,16 @@ def pack_value(desc: TypeDesc, value) -> bytes:
             # wrap like a C cast, as Warp's ctypes conversion does
             iv = (iv - info.min) % (int(info.max) - int(info.min) + 1) + info.min
             return np.array(iv, dtype=dt).tobytes()
+        if desc.scalar == "bfloat16":
+            return float32_to_bfloat16_bits(float(value)).astype(dt).tobytes()
         return np.array(value, dtype=dt).tobytes()
     comps = value_components(value)
     if comps is None:
         raise TypeError(f"expected a value of type {desc.text}, got {type(value).__name__} {value!r}")
     if comps.size != desc.count:
         raise ValueError(f"expected {desc.count} components for {desc.text}, got {comps.size}")
+    if desc.scalar == "bfloat16":
+        return float32_to_bfloat16_bits(np.asarray(comps, dtype=np.float64)).astype(dt).tobytes()
     return np.asarray(comps, dtype=np.float64 if desc.scalar in FLOAT_SCALARS else None) \
         .astype(dt).tobytes()
 
