@@ -365,7 +365,12 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
         {"pi", "3.14159265358979323846"}, {"tau", "6.28318530717958647692"},  {"e", "2.71828182845904523536"},
         {"half_pi", "1.57079632679489661923"}, {"inf", "inf"}, {"nan", "nan"}, {"INF", "inf"}, {"NAN", "nan"},
         {"phi", "1.61803398874989484820"}, {"sqrt_two", "1.41421356237309504880"}, {"log2e", "1.44269504088896340736"},
-        {"ln_two", "0.69314718055994530942"}, {"ln_ten", "2.30258509299404568402"}, {"log10e", "0.43429448190325182765"}};
+        {"ln_two", "0.69314718055994530942"}, {"ln_ten", "2.30258509299404568402"}, {"log10e", "0.43429448190325182765"},
+        // Warp's names (warp/_src/constants.py), upper and lower case
+        {"PI", "3.14159265358979323846"}, {"TAU", "6.28318530717958647692"}, {"E", "2.71828182845904523536"},
+        {"HALF_PI", "1.57079632679489661923"}, {"PHI", "1.61803398874989484820"}, {"LOG2E", "1.44269504088896340736"},
+        {"LOG10E", "0.43429448190325182765"}, {"LN2", "0.69314718055994530942"}, {"ln2", "0.69314718055994530942"},
+        {"LN10", "2.30258509299404568402"}, {"ln10", "2.30258509299404568402"}};
     if (auto c = kConstants.find(n); c != kConstants.end()) {
       WEFT_ASSIGN_OR_RETURN(std::string cpp, CppLiteral(Type::Float32(), c->second));
       v = Value::OfVar(EmitConst(Type::Float32(), cpp));
@@ -942,11 +947,14 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
         if (v.kind == Value::Kind::kVar) len += TypeOf(v.var).is_composite() ? TypeOf(v.var).component_count() : 1;
       if (const ast::Expr* l = kwarg("length")) {
         const auto* lc = ast::As<ast::Constant>(l);
+        const bool one_vector = vals.size() == 1 && vals[0].kind == Value::Kind::kVar && TypeOf(vals[0].var).is_vector();
         if (lc && lc->type == ast::Constant::Type::kInt && lc->int_fits_u64 && len > 0 &&
             lc->int_value != static_cast<uint64_t>(len) &&
             !(vals.size() == 1 && vals[0].kind == Value::Kind::kVar && TypeOf(vals[0].var).is_scalar()))
-          return Error(loc, "incompatible number of values given (" + std::to_string(len) +
-                                ") when constructing a vector of length " + lc->int_decimal);
+          return Error(loc, one_vector ? "incompatible vector of length " + lc->int_decimal +
+                                             " given when copy constructing a vector of length " + std::to_string(len)
+                                       : "incompatible number of values given (" + std::to_string(len) +
+                                             ") when constructing a vector of length " + lc->int_decimal);
         WEFT_ASSIGN_OR_RETURN(len, const_int(l, "length"));
       }
       if (len <= 0) return Error(loc, "the `length` argument must be specified when zero-initializing a vector");

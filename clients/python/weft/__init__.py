@@ -19,6 +19,7 @@ from .errors import WeftError  # noqa: F401
 from .streams import (Event, ScopedStream, Stream, get_event_elapsed_time,  # noqa: F401
                       get_stream, record_event, set_stream, synchronize_event,
                       synchronize_stream, wait_event, wait_stream)
+from .constants import *  # noqa: F401,F403
 from .types import *  # noqa: F401,F403
 from .types import (Any, dtype_from_numpy, dtype_to_numpy, matrix, quaternion,  # noqa: F401
                     transformation, type_size_in_bytes, type_str, vector)

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from . import _cuda_ipc, _runtime, types
+from . import config as _config
 from .device import Device, get_device
 from .errors import WeftError
 from .interop import memory as _interop_memory
@@ -596,6 +597,40 @@ class array:
         out._adopt(_runtime.get_runtime(), info, dtype if dtype is not None
                    else _dtype_from_proto(info.dtype), owned)
         return out
+
+    # -- read flags (wp.config.verify_autograd_array_access, Warp's names)
+    _is_read = False
+    _view_of = None
+
+    def mark_init(self):
+        """Resets this array's read flag."""
+        self._is_read = False
+
+    def mark_read(self):
+        """Marks this array, and the arrays it is a view of, as read by a recorded launch."""
+        self._is_read = True
+        parent = self._view_of
+        while parent is not None:
+            parent._is_read = True
+            parent = parent._view_of
+
+    def mark_write(self, **kwargs):
+        """Warns (stderr) when this array is written after a recorded launch read it; kwargs
+        name the writer: arg_name/kernel_name/filename/lineno, or operation/filename/lineno."""
+        if not self._is_read:
+            return
+        from ._kernel.array_access import warn  # noqa: PLC0415
+        tail = ("has already been read from in a previous launch. This may corrupt gradient "
+                "computation in the backward pass.")
+        if all(k in kwargs for k in ("arg_name", "kernel_name", "filename", "lineno")):
+            warn(f"Array {self} passed to argument {kwargs['arg_name']} in kernel "
+                 f"{kwargs['kernel_name']} at {kwargs['filename']}:{kwargs['lineno']} is being "
+                 f"written to but {tail}")
+        elif all(k in kwargs for k in ("operation", "filename", "lineno")):
+            warn(f"Array {self} is being written to by {kwargs['operation']} at "
+                 f"{kwargs['filename']}:{kwargs['lineno']} but {tail}")
+        else:
+            warn(f"Array {self} is being written to but {tail}")
 
     def _make_view(self, byte_offset, shape, strides, dtype=None):
         out = array.__new__(array)
@@ -1261,6 +1296,12 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
     if d.device == s.device and _on_tape(d, s):
         from ._kernel.copy_kernels import launch_copy  # noqa: PLC0415
 
+        if _config.verify_autograd_array_access:
+            from ._kernel.array_access import caller_location  # noqa: PLC0415
+            if dest._is_read:
+                filename, lineno = caller_location()
+                dest.mark_write(operation="an array copy", filename=filename, lineno=lineno)
+            src.mark_read()
         launch_copy(d, s)
         return
     cmd = _runtime.exec_pb2.Command(copy=_runtime.exec_pb2.CopyCommand(dst=d._ref(),

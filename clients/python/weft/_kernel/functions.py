@@ -332,6 +332,16 @@ class Kernel:
         return instance
 
     @property
+    def adj(self):
+        """Warp's kernel.adj, as far as parameter access goes: fun_name, filename,
+        fun_lineno and args[i].label / .is_read / .is_write (weft._kernel.array_access)."""
+        adj = self.__dict__.get("_weft_adj")
+        if adj is None:
+            from .array_access import Adjoint  # noqa: PLC0415
+            adj = self.__dict__["_weft_adj"] = Adjoint(self.definition).analyze()
+        return adj
+
+    @property
     def name(self) -> str:
         return self.definition.name
 

@@ -577,6 +577,10 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     tape_mod, _runtime = _modules()
     rt = _runtime.get_runtime()
     pb = _pb()
+    if _config.verify_autograd_array_access and not adjoint and record_tape and \
+            tape_mod.active_tape() is not None and not kernel.__dict__.get("_weft_internal"):
+        from . import array_access  # noqa: PLC0415
+        array_access.check_launch(kernel, args)
     generic = kernel.__dict__.get("_weft_is_generic")
     if generic is None:
         generic = kernel.__dict__["_weft_is_generic"] = bool(kernel.is_generic)

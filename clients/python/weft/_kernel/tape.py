@@ -223,8 +223,11 @@ class Tape:
         for array, grad in (grads or {}).items():
             target = getattr(array, "grad", None)
             if target is None:
-                raise RuntimeError("backward(grads=...): an array in grads has no gradient; "
-                                   "create it with requires_grad=True")
+                # Warp: the incoming gradient becomes the array's .grad (the daemon's too)
+                if not is_weft_array(grad):
+                    grad = _as_array_like(array, grad)
+                array.grad = grad
+                target = array.grad
             if not is_weft_array(grad):
                 grad = _as_array_like(target, grad)
             seeds.append((array, grad))
@@ -237,6 +240,7 @@ class Tape:
             if recording:
                 self._tape_command(exec_pb2.TapeCommand.BEGIN)
             self._note_gradients()
+            self._reset_read_flags()
             _finish_for_frameworks()
             return
         if loss is not None:
@@ -260,6 +264,7 @@ class Tape:
                     device=entry.device),
                 origin=caller_origin()))
         self._note_gradients()
+        self._reset_read_flags()
         _finish_for_frameworks()
 
     def _note_gradients(self):
@@ -312,8 +317,23 @@ class Tape:
         if self.loss is not None and getattr(self.loss, "grad", None) is not None:
             self.loss.grad.zero_()
 
+    def _reset_read_flags(self):
+        """wp.config.verify_autograd_array_access: a backward pass (or reset) consumes the
+        reads recorded on this tape; the arrays (and those they view) are unmarked."""
+        from .. import config as _config  # noqa: PLC0415
+
+        if not _config.verify_autograd_array_access:
+            return
+        arrays = [a for entry in self.launches
+                  for a in (entry.args if isinstance(entry, _RecordedLaunch) else entry.arrays)]
+        for a in arrays + list(self.gradients):
+            while is_weft_array(a):
+                a.mark_init()
+                a = a._view_of
+
     def reset(self):
         """Zeroes the gradients and forgets the recorded launches."""
+        self._reset_read_flags()
         if self._mode == "daemon":
             from weft.v1 import exec_pb2  # noqa: PLC0415
 
