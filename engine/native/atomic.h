@@ -254,6 +254,9 @@ WP_ATOMIC_COMPOSITE(add)
 WP_ATOMIC_COMPOSITE(sub)
 WP_ATOMIC_COMPOSITE(min)
 WP_ATOMIC_COMPOSITE(max)
+WP_ATOMIC_COMPOSITE(and)
+WP_ATOMIC_COMPOSITE(or)
+WP_ATOMIC_COMPOSITE(xor)
 #undef WP_ATOMIC_COMPOSITE
 
 // Array forms: wp::atomic_add(arr, i[, j, k, l], value) -> old value.

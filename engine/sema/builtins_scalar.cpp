@@ -102,6 +102,15 @@ void AddScalarBuiltins(std::vector<BuiltinOverload>* rows) {
   op("bit_and(a: vec(N,Int), b: vec(N,Int)) -> vec(N,Int)", "Componentwise `&`.", kBuiltinNotDiff);
   op("bit_or(a: vec(N,Int), b: vec(N,Int)) -> vec(N,Int)", "Componentwise `|`.", kBuiltinNotDiff);
   op("bit_xor(a: vec(N,Int), b: vec(N,Int)) -> vec(N,Int)", "Componentwise `^`.", kBuiltinNotDiff);
+  op("lshift(a: vec(N,Int), b: vec(N,Int)) -> vec(N,Int)", "Componentwise `<<`.", kBuiltinNotDiff);
+  op("rshift(a: vec(N,Int), b: vec(N,Int)) -> vec(N,Int)", "Componentwise `>>`.", kBuiltinNotDiff);
+  op("invert(a: vec(N,Int)) -> vec(N,Int)", "Componentwise `~`.", kBuiltinNotDiff);
+  op("bit_and(a: mat(N,M,Int), b: mat(N,M,Int)) -> mat(N,M,Int)", "Componentwise `&`.", kBuiltinNotDiff);
+  op("bit_or(a: mat(N,M,Int), b: mat(N,M,Int)) -> mat(N,M,Int)", "Componentwise `|`.", kBuiltinNotDiff);
+  op("bit_xor(a: mat(N,M,Int), b: mat(N,M,Int)) -> mat(N,M,Int)", "Componentwise `^`.", kBuiltinNotDiff);
+  op("lshift(a: mat(N,M,Int), b: mat(N,M,Int)) -> mat(N,M,Int)", "Componentwise `<<`.", kBuiltinNotDiff);
+  op("rshift(a: mat(N,M,Int), b: mat(N,M,Int)) -> mat(N,M,Int)", "Componentwise `>>`.", kBuiltinNotDiff);
+  op("invert(a: mat(N,M,Int)) -> mat(N,M,Int)", "Componentwise `~`.", kBuiltinNotDiff);
 }
 
 }  // namespace weft::sema

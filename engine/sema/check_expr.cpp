@@ -871,6 +871,8 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
   if (name == "printf") {
     if (args.empty() || args[0].kind != Value::Kind::kString)
       return Error(loc, "wp.printf takes a format string literal first");
+    if (args.size() - 1 > 32)
+      return ErrorOf("value", loc, "the maximum number of variadic arguments that can be passed to `printf` is 32");
     Stmt s;
     s.op.kind = OpKind::kPrintf;
     std::vector<Type> types;

@@ -35,6 +35,8 @@ def constant(x):
 
 
 from ._kernel.api import *  # noqa: F401,F403,E402
+from ._kernel.transform_funcs import (transform_compose, transform_decompose,  # noqa: F401,E402
+                                      transform_from_matrix, transform_to_matrix)
 
 from .interop.dlpack import from_dlpack, to_dlpack  # noqa: F401,E402
 from .interop.jax import (device_from_jax, device_to_jax, dtype_from_jax,  # noqa: F401,E402

@@ -59,6 +59,12 @@ def test_constructor_errors_end_with_warps_message(wp):
     def overload(x: wp.float32, out: wp.array(dtype=int)):
         out[0] = wp.bit_count(x)
 
+    @wp.kernel(module="unique")
+    def printf_33():
+        wp.printf("%d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d "
+                  "%d %d %d\n", 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21,
+                  22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32)
+
     cases = [
         (vec_copy_size, [], r"incompatible vector of length 3 given when copy constructing a vector of length 2$"),
         (vec_count, [], r"incompatible number of values given \(2\) when constructing a vector of length 12345$"),
@@ -70,6 +76,7 @@ def test_constructor_errors_end_with_warps_message(wp):
         (mat_count, [], r"incompatible number of values given \(3\) when constructing a matrix of shape \(2, 2\)$"),
         (mat_copy_size, [], r"incompatible matrix of shape \(3, 3\) given when copy constructing a matrix of shape \(2, 2\)$"),
         (overload, [wp.float32(45.0), wp.zeros(1, dtype=int)], r"Couldn't find function overload for 'bit_count'"),
+        (printf_33, [], r"the maximum number of variadic arguments that can be passed to `printf` is 32$"),
     ]
     for kernel, inputs, pattern in cases:
         err = _compile_error(wp, kernel, inputs)

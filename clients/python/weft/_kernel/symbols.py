@@ -127,6 +127,11 @@ def resolve(definition: FunctionDefinition) -> Resolution:
         if value is _MISSING:
             continue            # a Python builtin name (range, len, float, ...) or unknown
         if is_warp_module(value):
+            # wp.transform_compose & co are @wp.func in weft's client (as in Warp): a function
+            member = getattr(value, chain[1], None) if len(chain) > 1 else None
+            if isinstance(member, Function):
+                classify(".".join(chain[:2]), member, add, functions, structs)
+                continue
             add(ResolvedSymbol(chain[0], "builtin_module", "warp"))
             continue
         used = 1
