@@ -322,6 +322,13 @@ def _check_count(count) -> int:
     return count
 
 
+def _strides_contiguous(arr) -> bool:
+    """Warp's rule for the sorts: the strides are exactly the packed ones (a one-element view
+    with a step, a[::2] of two elements, counts as strided)."""
+    itemsize = _types().type_size_in_bytes(arr.dtype)
+    return arr.is_contiguous and (not arr.ndim or arr.strides[-1] == itemsize)
+
+
 def segmented_sort_pairs(keys, values, count: int, segment_start_indices,
                          segment_end_indices=None) -> None:
     """Sorts each segment [start[i], end[i]) of the first `count` keys (stable; int32 or
@@ -336,7 +343,7 @@ def segmented_sort_pairs(keys, values, count: int, segment_start_indices,
     count = _check_count(count)
     for name, arr in (("keys", keys), ("values", values), ("segment_start_indices", starts),
                       ("segment_end_indices", ends)):
-        if arr is not None and not arr.is_contiguous:
+        if arr is not None and not _strides_contiguous(arr):
             raise RuntimeError(f"segmented_sort_pairs() requires a contiguous {name} array")
     if starts.ndim != 1:
         raise RuntimeError("segment_start_indices must be one-dimensional")

@@ -175,3 +175,18 @@ def test_vectors_take_other_attributes(wp):
     assert m.tag == "a"
     with pytest.raises(AttributeError, match=r"'vec3f' object has no attribute 'bar'"):
         v.bar  # noqa: B018
+
+
+def test_segmented_sort_rejects_strided_views(wp, rng):
+    contiguous = wp.zeros(2, dtype=int)
+    starts = wp.array((0,), dtype=int)
+    with pytest.raises(RuntimeError, match="requires a contiguous segment_end_indices array"):
+        wp.utils.segmented_sort_pairs(contiguous, contiguous, 1, starts, wp.array((1, 1), dtype=int)[::2])
+    with pytest.raises(RuntimeError, match="requires a contiguous keys array"):
+        wp.utils.segmented_sort_pairs(wp.zeros(4, dtype=int)[::2], contiguous, 1, starts)
+    keys = rng.integers(-100, 100, 8).astype(np.int32)      # still sorts contiguous input
+    k = wp.array(np.concatenate([keys, np.zeros(8, np.int32)]), dtype=int)
+    v = wp.array(np.arange(16, dtype=np.int32), dtype=int)
+    wp.utils.segmented_sort_pairs(k, v, 8, wp.array((0, 4), dtype=int), wp.array((4, 8), dtype=int))
+    ref = np.concatenate([np.sort(keys[:4], kind="stable"), np.sort(keys[4:], kind="stable")])
+    np.testing.assert_array_equal(k.numpy()[:8], ref)
