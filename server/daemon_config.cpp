@@ -210,8 +210,8 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   app.add_option("--launch-time-limit", c.launch_time_limit_s,
                  "Seconds a kernel launch may run before it is stopped; 0 = no limit (default 300)");
   app.add_option("--compile-time-limit", c.compile_time_limit_s,
-                 "Seconds clang may spend on one module for the CPU before the compile is stopped; it then runs "
-                 "in a child process (weft-cc); 0 = no limit, in process (default 30)");
+                 "Seconds clang (CPU) or NVRTC (CUDA) may spend on one module before the compile is stopped; "
+                 "compiles then run in a child process (weft-cc); 0 = no limit, in process (default 30)");
   app.add_option("--max-launch-threads", c.max_launch_threads,
                  "Most threads in one launch, and elements in one fill or copy (default 2^32)");
   app.add_option("--max-sessions-per-principal", c.max_sessions_per_principal,

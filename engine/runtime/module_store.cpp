@@ -27,6 +27,10 @@
 #if WEFT_WITH_CUDA
 #include "engine/device/cuda_driver.h"
 #include "engine/jit/cuda/cubin_info.h"
+#include "engine/jit/cuda/nvrtc_child.h"
+#if WEFT_WITH_CPU_JIT
+#include "engine/jit/cpu/compile_process.h"
+#endif
 #include "engine/jit/cuda/nvrtc_compiler.h"
 #endif
 
@@ -215,6 +219,7 @@ class ModuleStoreImpl final : public ModuleStore {
       if (!cpu_jit.ok()) return cpu_jit.status();
     }
     cpu_jit_ = std::move(*cpu_jit);
+    compiler_child_ = jit::DefaultCompilerChild();
     context_.target_id = cpu_jit_->target_id();
 #endif
     return Status::Ok();
@@ -459,6 +464,27 @@ class ModuleStoreImpl final : public ModuleStore {
   }
 
  private:
+  // NVRTC under the compile time limit: in a child process (weft-cc --nvrtc) killed when the
+  // limit passes, as clang's compiles; in process when there is no limit (or no CPU JIT, whose
+  // weft-cc it is).
+  Expected<jit::NvrtcOutput> NvrtcBounded(const std::string& source, const std::string& name,
+                                          const jit::NvrtcOptions& nvrtc) const {
+#if WEFT_WITH_CPU_JIT
+    const double limit = options_.compile_time_limit_s;
+    if (limit > 0) {
+      const std::string target = std::string("CUDA ") + (nvrtc.cubin ? "sm_" : "compute_") + std::to_string(nvrtc.sm);
+      auto image = jit::CompileInChild(compiler_child_, jit::NvrtcChildArgs(nvrtc, name, limit), source, name, limit,
+                                       target + " (NVRTC)");
+      if (!image.ok()) return image.status();
+      jit::NvrtcOutput out;
+      out.image = std::move(*image);
+      out.is_cubin = nvrtc.cubin;
+      return out;
+    }
+#endif
+    return jit::NvrtcCompile(source, name, nvrtc);
+  }
+
   // NVRTC for `sm`; a rejection is a weft bug (Internal) with the log as diagnostics too.
   Expected<std::string> CompileCuda(const ModuleSource& source, const std::string& cuda_source,
                                     int sm, std::vector<Diagnostic>* diags) const {
@@ -475,7 +501,11 @@ class ModuleStoreImpl final : public ModuleStore {
     if (auto mode = source.options.find("mode"); mode != source.options.end() && mode->second == "debug")
       nvrtc.extra_flags.push_back("-G");
     const std::string main_file = SafeName(source.name) + ".cu";
-    auto compiled = jit::NvrtcCompile(cuda_source, main_file, nvrtc);
+    auto compiled = NvrtcBounded(cuda_source, main_file, nvrtc);
+    // The compile time limit (the client's module) or the daemon stopping: not a weft bug.
+    if (!compiled.ok() && (compiled.status().code() == StatusCode::kResourceExhausted ||
+                           compiled.status().code() == StatusCode::kUnavailable))
+      return compiled.status();
     if (!compiled.ok()) {
       AppendCompilerDiagnostics(compiled.status().message(), main_file, source, diags);
       return GeneratedCodeRejected(source.name, "CUDA sm_" + std::to_string(sm) + " (NVRTC)", compiled.status());
@@ -599,6 +629,7 @@ class ModuleStoreImpl final : public ModuleStore {
   std::unique_ptr<ModuleCache> cache_;
 #if WEFT_WITH_CPU_JIT
   std::unique_ptr<jit::CpuJit> cpu_jit_;
+  std::string compiler_child_;   // weft-cc: clang's and NVRTC's compiles under the time limit
 #endif
   mutable std::mutex registry_mutex_;
   mutable std::unordered_map<std::string, Registered> registry_;

@@ -147,3 +147,50 @@ def test_sigterm_stops_the_daemon_during_a_long_compile(start_weftd, spawn_clien
             f"compiler process {pid} outlived the daemon"
     out, _ = child.communicate(timeout=30)
     assert "COMPILED" not in out, out
+
+
+def test_nvrtc_compile_time_limit_stops_a_slow_cuda_compile(needs_nvrtc, start_weftd, run_client, client_env,
+                                                          tmp_path, wait_for, monkeypatch):
+    """NVRTC runs in the compiler child too (weft-cc --nvrtc): a compile for sm_90 of a kernel
+    NVRTC takes minutes over (120 chained vec3 statements, forward and adjoint) is stopped at
+    the limit with an error naming the architecture and the flag, on a machine without a GPU;
+    no compiler process is left, and a small CUDA compile and the daemon go on."""
+    limit_s = 5.0   # a small CUDA compile (NVRTC, forward and adjoint) fits on a loaded machine
+    no_verify_cuda(monkeypatch)
+    daemon = start_weftd(["--compile-time-limit", str(limit_s)])
+    (tmp_path / "slow_cuda.py").write_text(pathological_kernel(120))
+    (tmp_path / "small_cuda.py").write_text('''
+import weft as wp
+
+@wp.kernel
+def double(a: wp.array(dtype=float)):
+    i = wp.tid()
+    a[i] = a[i] * 2.0
+''')
+    env = {"WEFT_ADDRESS": daemon.address, "PYTHONPATH": f"{tmp_path}:" + client_env(None)["PYTHONPATH"]}
+    start = time.monotonic()
+    out = run_client('''
+        import weft as wp
+        import slow_cuda
+        wp.init()
+        try:
+            wp.compile(slow_cuda.heavy, device="cuda", arch=90)
+            print("COMPILED")
+        except Exception as error:   # the error the user sees
+            print("ERROR", type(error).__name__, error)
+    ''', env=env, timeout=300).stdout
+    took = time.monotonic() - start
+    assert "COMPILED" not in out, "NVRTC compiled the slow kernel within the limit: make it heavier"
+    assert "ERROR" in out and "CUDA sm_90 (NVRTC)" in out and "--compile-time-limit" in out, out
+    assert took < limit_s + 30, took
+    assert wait_for(lambda: not children(daemon.pid), 5.0), f"compiler processes left: {children(daemon.pid)}"
+    out = run_client('''
+        import weft as wp
+        import small_cuda
+        wp.init()
+        report = wp.compile(small_cuda.double, device="cuda", arch=90)
+        print("REGISTERS", report.kernel("double").registers)
+    ''', env=env, timeout=120).stdout
+    assert "REGISTERS" in out, out
+    with daemon.raw_session("after") as after:   # still serving
+        assert after.session_id

@@ -78,7 +78,8 @@ void StopCompilerChildren() {
 }
 
 Expected<std::string> CompileInChild(const std::string& executable, const std::vector<std::string>& args,
-                                     std::string_view source, std::string_view name, double time_limit_s) {
+                                     std::string_view source, std::string_view name, double time_limit_s,
+                                     std::string_view target) {
   auto stopping = [&] {
     return Unavailable("weftd is stopping: the compile of " + std::string(name) + " was stopped");
   };
@@ -182,7 +183,8 @@ Expected<std::string> CompileInChild(const std::string& executable, const std::v
   }
   if (stopped && !(WIFEXITED(status) && WEXITSTATUS(status) == 0)) return stopping();
   if (timed_out)
-    return ResourceExhausted("compiling " + std::string(name) + " for the CPU took longer than the compile time limit (" +
+    return ResourceExhausted("compiling " + std::string(name) + " for " + std::string(target) +
+                             " took longer than the compile time limit (" +
                              FormatSeconds(time_limit_s) +
                              " s, --compile-time-limit) and was stopped; make the module smaller (fewer or "
                              "shorter kernels, less unrolling) or ask the operator to raise the limit");

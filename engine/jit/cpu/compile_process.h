@@ -1,4 +1,4 @@
-// CompileProcess: a CPU compile in a child process that can be killed, so that a compile is
+// CompileProcess: a CPU (or NVRTC) compile in a child process that can be killed, so that a compile is
 // bounded in time (clang in-process cannot be interrupted). The parent side (CompileInChild)
 // spawns the weft-cc executable with the compile's settings as arguments, writes the source to
 // its stdin, collects the object file (stdout) and clang's diagnostics (stderr), and kills the
@@ -22,10 +22,12 @@ std::vector<std::string> CompilerChildArgs(const CpuJitOptions& options, const s
 
 // Runs `executable args...` with `source` on stdin. The object file on success; Internal("clang
 // rejected <name>:\n<diagnostics>") when the child reports a compile error (as CpuJit::Compile
-// in process); ResourceExhausted naming the limit when it ran longer than `time_limit_s` (it is
-// killed); Internal when it could not start or died.
+// in process); ResourceExhausted naming the limit and `target` ("the CPU", "CUDA sm_90") when
+// it ran longer than `time_limit_s` (it is killed); Internal when it could not start or died.
+// Also the parent side of NVRTC compiles (`weft-cc --nvrtc`, engine/jit/cuda/nvrtc_child.h).
 Expected<std::string> CompileInChild(const std::string& executable, const std::vector<std::string>& args,
-                                     std::string_view source, std::string_view name, double time_limit_s);
+                                     std::string_view source, std::string_view name, double time_limit_s,
+                                     std::string_view target = "the CPU");
 
 // Daemon shutdown: kills every running compiler process (their compiles fail with Unavailable)
 // and refuses new ones, so that no compile holds the daemon past its stop bound.
