@@ -486,8 +486,10 @@ class ModuleStoreImpl final : public ModuleStore {
   }
 
   // NVRTC for `sm`; a rejection is a weft bug (Internal) with the log as diagnostics too.
+  // `bounded`: under the compile time limit (a module a client compiles for a GPU or an
+  // architecture); verify_cuda's checks run in process, unbounded, as a development check.
   Expected<std::string> CompileCuda(const ModuleSource& source, const std::string& cuda_source,
-                                    int sm, std::vector<Diagnostic>* diags) const {
+                                    int sm, std::vector<Diagnostic>* diags, bool bounded = true) const {
     jit::NvrtcOptions nvrtc = NvrtcFor(sm);
     // Warp's module options: fast_math, lineinfo, mode="debug".
     auto flag = [&](const char* option) {
@@ -501,7 +503,7 @@ class ModuleStoreImpl final : public ModuleStore {
     if (auto mode = source.options.find("mode"); mode != source.options.end() && mode->second == "debug")
       nvrtc.extra_flags.push_back("-G");
     const std::string main_file = SafeName(source.name) + ".cu";
-    auto compiled = NvrtcBounded(cuda_source, main_file, nvrtc);
+    auto compiled = bounded ? NvrtcBounded(cuda_source, main_file, nvrtc) : jit::NvrtcCompile(cuda_source, main_file, nvrtc);
     // The compile time limit (the client's module) or the daemon stopping: not a weft bug.
     if (!compiled.ok() && (compiled.status().code() == StatusCode::kResourceExhausted ||
                            compiled.status().code() == StatusCode::kUnavailable))
@@ -525,7 +527,7 @@ class ModuleStoreImpl final : public ModuleStore {
     std::vector<Status> results(archs.size());
     std::vector<std::vector<Diagnostic>> found(archs.size());
     auto check = [&](size_t i) {
-      results[i] = CompileCuda(variant.source, cuda_module.source, archs[i], &found[i]).status();
+      results[i] = CompileCuda(variant.source, cuda_module.source, archs[i], &found[i], /*bounded=*/false).status();
     };
     std::vector<std::thread> threads;
     for (size_t i = 1; i < archs.size(); ++i) threads.emplace_back(check, i);
