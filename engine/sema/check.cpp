@@ -417,11 +417,18 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
     }
     case ast::StmtKind::kAugAssign: {
       const auto& a = static_cast<const ast::AugAssign&>(s);
-      // arr[i] += v / -= v are atomic adds (Warp's rule), so parallel threads may accumulate.
+      // arr[i] += v / -= v are atomic adds (Warp's rule), so parallel threads may accumulate;
+      // &=, |=, ^= on integer elements (scalars, integer vectors/matrices) are atomic and/or/xor.
       if (const auto* sub = ast::As<ast::Subscript>(a.target.get())) {
         WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
+        const bool bitwise = a.op == ast::BinaryOperator::kBitAnd || a.op == ast::BinaryOperator::kBitOr ||
+                             a.op == ast::BinaryOperator::kBitXor;
+        const bool integer_elem = base.kind == Value::Kind::kVar && TypeOf(base.var).is_array() &&
+                                  (TypeOf(base.var).elem().is_scalar() || TypeOf(base.var).elem().is_vector() ||
+                                   TypeOf(base.var).elem().is_matrix()) &&
+                                  IsInt(TypeOf(base.var).elem().scalar);
         if (base.kind == Value::Kind::kVar && TypeOf(base.var).is_array() &&
-            (a.op == ast::BinaryOperator::kAdd || a.op == ast::BinaryOperator::kSub)) {
+            (a.op == ast::BinaryOperator::kAdd || a.op == ast::BinaryOperator::kSub || (bitwise && integer_elem))) {
           const Type at = TypeOf(base.var);
           if (static_cast<int>(sub->indices.size()) != at.ndim)
             return Error(a.loc, "array '" + ExprText(*sub->value) + "' has " + std::to_string(at.ndim) +
@@ -432,9 +439,15 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
             args.push_back(iv);
           }
           WEFT_ASSIGN_OR_RETURN(Value val, Eval(*a.value));
-          WEFT_ASSIGN_OR_RETURN(int cv, Coerce(val, at.elem(), a.value->loc, "the value added to the array"));
+          WEFT_ASSIGN_OR_RETURN(int cv, Coerce(val, at.elem(), a.value->loc,
+                                               bitwise ? "the value combined with the array element"
+                                                       : "the value added to the array"));
           args.push_back(Value::OfVar(cv));
-          std::string fn = a.op == ast::BinaryOperator::kAdd ? "atomic_add" : "atomic_sub";
+          std::string fn = a.op == ast::BinaryOperator::kAdd      ? "atomic_add"
+                           : a.op == ast::BinaryOperator::kSub    ? "atomic_sub"
+                           : a.op == ast::BinaryOperator::kBitAnd ? "atomic_and"
+                           : a.op == ast::BinaryOperator::kBitOr  ? "atomic_or"
+                                                                  : "atomic_xor";
           WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(fn, std::move(args), a.loc, ArrayParamOf(base.var),
                                                                  ExprText(*sub->value)));
           (void)r;

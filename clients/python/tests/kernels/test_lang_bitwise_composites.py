@@ -58,3 +58,29 @@ def test_matrix_bitwise(wp, rng):
     wp.launch(mat_bits, dim=n, inputs=[wp.array(a, dtype=mat22ui), wp.array(b, dtype=mat22ui), out])
     ref = np.stack([a & b, (a | b) ^ ~a, a << np.uint32(3), a >> np.uint32(5)], axis=1)
     np.testing.assert_array_equal(out.numpy(), ref)
+
+
+@wp.kernel
+def reduce_bits(a: wp.array(dtype=wp.uint32), v: wp.array(dtype=wp.vec2ui), acc: wp.array(dtype=wp.uint32),
+                vacc: wp.array(dtype=wp.vec2ui)):
+    i = wp.tid()
+    acc[0] ^= a[i]
+    acc[1] |= a[i] & wp.uint32(0x0F0F0F0F)
+    acc[2] &= a[i] | wp.uint32(0x80000001)
+    vacc[0] ^= v[i]
+
+
+def test_bitwise_augmented_assignment_on_array_elements_is_atomic(wp, rng):
+    """`arr[i] ^= x` from many threads onto one element: atomic (Warp's rule for &=, |=, ^=),
+    so the result is the NumPy reduction whatever the thread interleaving."""
+    n = 200_003
+    a = rng.integers(0, 2**32, size=n, dtype=np.uint32)
+    v = rng.integers(0, 2**32, size=(n, 2), dtype=np.uint32)
+    acc = wp.array(np.array([0, 0, 2**32 - 1], dtype=np.uint32), dtype=wp.uint32)
+    vacc = wp.zeros(1, dtype=wp.vec2ui)
+    wp.launch(reduce_bits, dim=n, inputs=[wp.array(a, dtype=wp.uint32), wp.array(v, dtype=wp.vec2ui), acc, vacc])
+    got = acc.numpy()
+    assert got[0] == np.bitwise_xor.reduce(a)
+    assert got[1] == np.bitwise_or.reduce(a & np.uint32(0x0F0F0F0F))
+    assert got[2] == np.bitwise_and.reduce(a | np.uint32(0x80000001))
+    np.testing.assert_array_equal(vacc.numpy()[0], np.bitwise_xor.reduce(v, axis=0))
