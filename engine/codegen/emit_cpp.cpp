@@ -195,12 +195,30 @@ class FnEmitter {
     }
   }
 
+  // Every variable is declared at the top of the function (the adjoint code reads them after
+  // the forward replay). Adjoints and mutable variables (loop-carried slots, flags, return
+  // slots) start at zero. A single-assignment (SSA) temporary is assigned before any read, so
+  // scalars and vec/mat/quat/transform values are declared without an initialiser
+  // (wp::cg_uninit): zero stores at function entry make every temporary live from the entry
+  // block, and clang's SROA then takes time quadratic in the kernel's size (docs/security.md,
+  // Compile time; bench/bench_compile_size.py).
   void Decls(bool adj) {
     std::set<int> params(f_.params.begin(), f_.params.end());
     for (const auto& v : f_.vars) {
       if (params.count(v.id) || v.type.is_void() || v.type.is_tuple() || v.type.kind == TypeKind::kString) continue;
       std::string ct = CppType(v.type);
-      Line(ct + " " + V(v.id) + "{};" + (v.hint.empty() ? "" : "  // " + CommentText(v.hint)));
+      std::string init = "{}";
+      if (!Mut(v.id)) {
+        switch (v.type.kind) {
+          case TypeKind::kScalar: init = ""; break;
+          case TypeKind::kVector:
+          case TypeKind::kMatrix:
+          case TypeKind::kQuat:
+          case TypeKind::kTransform: init = "{wp::cg_uninit}"; break;
+          default: break;
+        }
+      }
+      Line(ct + " " + V(v.id) + init + ";" + (v.hint.empty() ? "" : "  // " + CommentText(v.hint)));
       if (adj) Line(ct + " " + A(v.id) + "{};");
     }
   }

@@ -13,6 +13,7 @@ struct mat_t {
   T data[R][C];
 
   WP_CALLABLE mat_t() : data() {}
+  WP_CALLABLE explicit mat_t(cg_uninit_t) {}   // entries left uninitialised (scalar.h)
   // Fill: every entry = s.
   WP_CALLABLE explicit mat_t(T s) {
     for (unsigned i = 0; i < R; ++i)

@@ -13,6 +13,7 @@ struct quat_t {
   T x, y, z, w;
 
   WP_CALLABLE quat_t() : x(0), y(0), z(0), w(0) {}
+  WP_CALLABLE explicit quat_t(cg_uninit_t) {}   // components left uninitialised (scalar.h)
   WP_CALLABLE quat_t(T x_, T y_, T z_, T w_) : x(x_), y(y_), z(z_), w(w_) {}
   WP_CALLABLE quat_t(const vec_t<3, T>& ijk, T real) : x(ijk.c[0]), y(ijk.c[1]), z(ijk.c[2]), w(real) {}
   template <typename U>

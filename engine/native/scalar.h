@@ -17,6 +17,12 @@
 
 namespace wp {
 
+// The tag of the constructors that leave a vec/mat/quat/transform uninitialised: generated code
+// declares its single-assignment temporaries with it (engine/codegen/emit_cpp.cpp Decls), so the
+// compiler sees no zero stores at function entry (clang's SROA grows with their live ranges).
+struct cg_uninit_t {};
+constexpr cg_uninit_t cg_uninit{};
+
 constexpr float32 kPi = 3.14159265358979323846f;
 constexpr float64 kPiD = 3.14159265358979323846;
 

@@ -14,6 +14,7 @@ struct transform_t {
   quat_t<T> q;
 
   WP_CALLABLE transform_t() : p(), q() {}
+  WP_CALLABLE explicit transform_t(cg_uninit_t u) : p(u), q(u) {}   // left uninitialised (scalar.h)
   WP_CALLABLE transform_t(const vec_t<3, T>& p_, const quat_t<T>& q_) : p(p_), q(q_) {}
   WP_CALLABLE transform_t(T px, T py, T pz, T qx, T qy, T qz, T qw) : p(px, py, pz), q(qx, qy, qz, qw) {}
   template <typename U>

@@ -12,6 +12,7 @@ struct vec_t {
   T c[N];
 
   WP_CALLABLE vec_t() : c() {}
+  WP_CALLABLE explicit vec_t(cg_uninit_t) {}   // components left uninitialised (scalar.h)
   // Fill: vec_t<3,float32>(s).
   WP_CALLABLE explicit vec_t(T s) {
     for (unsigned i = 0; i < N; ++i) c[i] = s;
