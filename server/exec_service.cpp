@@ -39,6 +39,13 @@ grpc::Status ExecServiceImpl::Submit(grpc::ServerContext* ctx, const v1::SubmitR
     FillSync(*r, resp->mutable_sync());
     return grpc::Status::OK;
   }
+  if (req->run()) {
+    auto r = auth_.engine().SubmitAndRun(**s, std::move(commands));
+    if (!r.ok()) return ToGrpc(r.status());
+    resp->set_queued(n);
+    if (r->has_value()) FillSync(**r, resp->mutable_sync());
+    return grpc::Status::OK;
+  }
   auto r = auth_.engine().Submit(**s, std::move(commands));
   if (!r.ok()) return ToGrpc(r.status());
   resp->set_queued(*r);

@@ -199,8 +199,21 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
     case v1::Command::kSetGrad:
       c.kind = SetGradCommand{FromProto(p.set_grad().array()), FromProto(p.set_grad().grad())};
       break;
+    case v1::Command::kCudaEvent: {
+      const auto& e = p.cuda_event();
+      if (e.op() != v1::CudaEventCommand::WAIT && e.op() != v1::CudaEventCommand::RECORD)
+        return InvalidArgument("command " + std::to_string(index) + ": unknown cuda_event op " + std::to_string(e.op()));
+      if (e.ipc_handle().size() != 64)
+        return InvalidArgument("command " + std::to_string(index) + ": a CUDA IPC event handle has 64 bytes, got " +
+                               std::to_string(e.ipc_handle().size()));
+      c.kind = CudaEventCommand{e.op() == v1::CudaEventCommand::RECORD ? CudaEventCommand::Op::kRecord
+                                                                      : CudaEventCommand::Op::kWait,
+                                e.device(), e.ipc_handle()};
+      break;
+    }
     default:
-      return InvalidArgument("command " + std::to_string(index) + " is empty (no copy/fill/launch/tape/set_grad)");
+      return InvalidArgument("command " + std::to_string(index) +
+                             " is empty (no copy/fill/launch/tape/set_grad/cuda_event)");
   }
   return c;
 }

@@ -88,6 +88,16 @@ class CudaDevice final : public Device {
   size_t ImportCount() const;
   uint64_t ImportOpens() const { return import_opens_.load(); }
 
+  // Cross-process ordering (cuda_device_events.cpp): `handle` (64 bytes) is an interprocess
+  // event of the session's client process, opened once per session (the session's 16 most
+  // recently used events stay open; all close with the session). record=false: the session's
+  // stream waits for the event's latest record (cuStreamWaitEvent); record=true: the event is
+  // recorded on the session's stream. Errors: a handle of the wrong size, one another session
+  // uses, one the driver cannot open (forged, of a process that is gone, not interprocess),
+  // an event the driver refuses to wait on or record here (another GPU's event).
+  Status IpcEvent(Session& s, const std::string& handle, bool record);
+  size_t IpcEventCount() const;      // open events of every session (tests)
+
   CudaDeviceStats stats() const;
   // True once a fault left the device unusable for the rest of this process (the driver kept
   // the sticky error through the context reset); every operation then fails with the reason.
@@ -197,6 +207,19 @@ class CudaDevice final : public Device {
   std::atomic<uint64_t> import_opens_{0};
   // Drops the session's recent imports (session close).
   void ForgetImports(const std::string& session_id);
+  // Interprocess events opened for sessions: per session, least recently used first.
+  struct OpenedEvent {
+    std::string handle;
+    jit::CuEvent event = nullptr;
+    uint64_t generation = 0;
+  };
+  static constexpr size_t kEventsPerSession = 16;
+  mutable std::mutex events_mu_;
+  std::unordered_map<std::string, std::vector<OpenedEvent>> ipc_events_;   // by session id
+  std::unordered_map<std::string, std::string> event_owner_;               // handle -> session id
+  Expected<jit::CuEvent> OpenEventLocked(const std::string& session_id, const std::string& handle);
+  // Destroys the session's events (session close).
+  void ForgetEvents(const std::string& session_id);
   std::map<std::string, uint64_t> reset_sessions_;   // session id -> generation it lost arrays in
   uint64_t resets_ = 0;
   double last_reset_ms_ = 0;

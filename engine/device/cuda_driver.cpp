@@ -53,6 +53,10 @@ Expected<const CudaDriver*> Load() {
   Resolve(library, "cuIpcGetMemHandle", &driver.IpcGetMemHandle, &missing);
   Resolve(library, "cuIpcOpenMemHandle_v2", &driver.IpcOpenMemHandle, &missing);
   Resolve(library, "cuIpcCloseMemHandle", &driver.IpcCloseMemHandle, &missing);
+  Resolve(library, "cuIpcOpenEventHandle", &driver.IpcOpenEventHandle, &missing);
+  Resolve(library, "cuEventRecord", &driver.EventRecord, &missing);
+  Resolve(library, "cuStreamWaitEvent", &driver.StreamWaitEvent, &missing);
+  Resolve(library, "cuEventDestroy_v2", &driver.EventDestroy, &missing);
   Resolve(library, "cuMemGetAddressRange_v2", &driver.MemGetAddressRange, &missing);
   Resolve(library, "cuPointerGetAttribute", &driver.PointerGetAttribute, &missing);
   Resolve(library, "cuCtxSetCurrent", &driver.CtxSetCurrent, &missing);

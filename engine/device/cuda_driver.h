@@ -26,6 +26,11 @@ struct CuIpcMemHandle {
   char reserved[64];
 };
 
+// CUipcEventHandle: 64 opaque bytes.
+struct CuIpcEventHandle {
+  char reserved[64];
+};
+
 struct CudaDriver {
   // The loaded driver, initialised (cuInit(0) done). Unavailable when libcuda is absent or
   // cuInit fails (no GPU, no permission); the answer is computed once.
@@ -76,6 +81,11 @@ struct CudaDriver {
   // Importing another process's allocation (engine/device/cuda_import.h).
   CuResult (*IpcOpenMemHandle)(CuDevicePtr* pointer, CuIpcMemHandle handle, unsigned flags) = nullptr;
   CuResult (*IpcCloseMemHandle)(CuDevicePtr pointer) = nullptr;
+  // Interprocess events of a client process (engine/device/cuda_device_events.cpp).
+  CuResult (*IpcOpenEventHandle)(CuEvent* event, CuIpcEventHandle handle) = nullptr;
+  CuResult (*EventRecord)(CuEvent event, CuStream stream) = nullptr;
+  CuResult (*StreamWaitEvent)(CuStream stream, CuEvent event, unsigned flags) = nullptr;
+  CuResult (*EventDestroy)(CuEvent event) = nullptr;
   CuResult (*MemGetAddressRange)(CuDevicePtr* base, size_t* size, CuDevicePtr pointer) = nullptr;
   CuResult (*PointerGetAttribute)(void* data, int attribute, CuDevicePtr pointer) = nullptr;
   CuResult (*GetErrorName)(CuResult result, const char** name) = nullptr;

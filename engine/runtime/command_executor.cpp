@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstring>
 
+#include "engine/device/cuda_device.h"
 #include "engine/runtime/array_validation.h"
 #include "engine/runtime/array_view.h"
 #include "engine/runtime/cpu_launch.h"
@@ -134,7 +135,17 @@ Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapsh
   if (auto* l = std::get_if<LaunchCommand>(&c.kind)) return Launch(s, *l, h, c.origin);
   if (auto* t = std::get_if<TapeCommand>(&c.kind)) return TapeOp(s, *t, h);
   if (auto* sg = std::get_if<SetGradCommand>(&c.kind)) return SetGrad(s, *sg, h);
+  if (auto* e = std::get_if<CudaEventCommand>(&c.kind)) return CudaEvent(s, *e);
   return InvalidArgument("empty command");
+}
+
+Status CommandExecutor::CudaEvent(Session& s, const CudaEventCommand& c) {
+  if (c.op != CudaEventCommand::Op::kWait && c.op != CudaEventCommand::Op::kRecord)
+    return InvalidArgument("cuda_event: unknown op " + std::to_string(static_cast<int>(c.op)));
+  WEFT_ASSIGN_OR_RETURN(Device * device, devices_.Resolve(s.id(), c.device));
+  auto* gpu = dynamic_cast<CudaDevice*>(device);
+  if (gpu == nullptr) return InvalidArgument("cuda_event: '" + c.device + "' is not a GPU (CUDA events order GPU work)");
+  return gpu->IpcEvent(s, c.handle, c.op == CudaEventCommand::Op::kRecord);
 }
 
 namespace {

@@ -39,6 +39,7 @@ class CommandExecutor {
   Status TapeOp(Session& s, const TapeCommand& c, const HandleSnapshot& h);
   Status Backward(Session& s, Tape& tape, const TapeCommand& c, const HandleSnapshot& h);
   Status SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h);
+  Status CudaEvent(Session& s, const CudaEventCommand& c);
 
   DeviceSet& devices_;
   ModuleStore* store_;

@@ -59,11 +59,22 @@ struct SetGradCommand {
   ArrayRef grad;
 };
 
+// Ordering with a CUDA stream of the client process (docs/interop.md, "Ordering"): an
+// interprocess event of the client (its cuIpcGetEventHandle bytes, 64), opened by the daemon
+// once per session. kWait: the session's stream on `device` waits for the event's latest
+// record; kRecord: the event is recorded on that stream (after the work queued before it).
+struct CudaEventCommand {
+  enum class Op { kWait = 0, kRecord = 1 };
+  Op op = Op::kWait;
+  std::string device;   // "cuda:N" or "cuda"
+  std::string handle;   // the event's IPC handle bytes
+};
+
 // INVALID_ARGUMENT for an op value outside TapeCommand::Op (a client may send any number).
 Status CheckTapeOp(TapeCommand::Op op);
 
 struct Command {
-  std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand, SetGradCommand> kind;
+  std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand, SetGradCommand, CudaEventCommand> kind;
   SourceLocation origin;   // where the client issued it
 };
 

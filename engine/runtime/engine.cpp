@@ -616,6 +616,18 @@ Expected<Session::SyncResult> Engine::SubmitAndSynchronize(Session& s, std::vect
   return s.TakeResult();
 }
 
+Expected<std::optional<Session::SyncResult>> Engine::SubmitAndRun(Session& s, std::vector<Command> commands) {
+  if (commands.empty()) {
+    s.queue().WaitIdle();
+  } else {
+    WEFT_RETURN_IF_ERROR(AdmitBatch(s, commands));
+    s.queue().RunAndWait(BatchTask(s, std::move(commands)));
+  }
+  if (!s.failed()) return std::optional<Session::SyncResult>();
+  SynchronizeDevices(s);
+  return std::optional<Session::SyncResult>(s.TakeResult());
+}
+
 Session::SyncResult Engine::Synchronize(Session& s) {
   s.queue().WaitIdle();
   SynchronizeDevices(s);

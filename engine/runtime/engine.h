@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -160,6 +161,9 @@ class Engine {
   // Submit + Synchronize in one step (the fused sync point): when the session's executor is
   // idle the batch runs on the calling thread, saving two thread hand-offs.
   Expected<Session::SyncResult> SubmitAndSynchronize(Session& s, std::vector<Command> commands);
+  // Submit, then wait until the executor has run the batch (GPU work queued, not finished).
+  // Returns the synchronized result when the session has failed (its error), else nullopt.
+  Expected<std::optional<Session::SyncResult>> SubmitAndRun(Session& s, std::vector<Command> commands);
 
   // Modules.
   Expected<std::shared_ptr<const LoadedModule>> Compile(Session& s, ModuleSource source,

@@ -82,7 +82,10 @@ def test_cuda_array_interface(wp, cuda, ipc):
     a = wp.array(values, dtype=wp.vec3, device=cuda)
     cai = a.__cuda_array_interface__
     assert cai["version"] == 3 and cai["typestr"] == "<f4" and cai["shape"] == (64, 3)
-    assert cai["strides"] is None and cai["stream"] is None
+    assert cai["strides"] is None
+    # a stream of this process that waits for weft's queued work (interprocess events), or
+    # None where weft finished its work first (docs/interop.md, "Ordering")
+    assert cai["stream"] is None or cai["stream"] == ipc.proxy_stream(a.device.ordinal)
     assert cai["data"] == (a.ptr, False)
     view = a[1::2]
     vcai = view.__cuda_array_interface__

@@ -32,6 +32,9 @@ CU_POINTER_ATTRIBUTE_DEVICE_ORDINAL = 9
 CU_MEMORYTYPE_DEVICE = 2
 CU_EVENT_DEFAULT = 0
 CU_EVENT_DISABLE_TIMING = 2
+CU_EVENT_INTERPROCESS = 4
+CU_STREAM_NON_BLOCKING = 1
+EVENT_POOL = 4                   # interprocess events per device, used in turn
 IDLE_MAPPINGS_KEPT = 16          # regular slabs with no live array kept open (reopening costs)
 REGULAR_SLAB_BYTES = 64 << 20    # the daemon keeps a session's regular slabs for reuse
 
@@ -92,6 +95,10 @@ def _load():
         "cuEventSynchronize": [vp],
         "cuEventElapsedTime": [p(ctypes.c_float), vp, vp],
         "cuGetErrorName": [ctypes.c_int, p(ctypes.c_char_p)],
+        "cuIpcGetEventHandle": [p(_IpcHandle), vp],
+        "cuStreamWaitEvent": [vp, vp, u],
+        "cuStreamCreate": [p(vp), u],
+        "cuStreamSynchronize": [vp],
     }
     try:
         for name, args in signatures.items():
@@ -363,6 +370,83 @@ def export_allocation(ordinal: int, address: int):
             else:
                 _exported.move_to_end(key)
         return int(base.value), int(size.value), int(buffer_id.value), handle
+
+
+class IpcEvent:
+    """An interprocess event of this process (cudaEventInterprocess | DisableTiming) on one
+    device and its IPC handle bytes (taken once: weftd opens each handle once per session)."""
+    __slots__ = ("ordinal", "event", "handle")
+
+    def __init__(self, ordinal, event, handle):
+        self.ordinal = ordinal
+        self.event = event
+        self.handle = handle
+
+
+_events: dict = {}               # ordinal -> [IpcEvent], EVENT_POOL of them
+_event_turn: dict = {}           # ordinal -> index of the next event to use
+_proxy_streams: dict = {}        # ordinal -> this process's stream that stands for weft's
+
+
+def next_event(ordinal: int) -> IpcEvent:
+    """The next event of the device's small pool (created on first use, kept for the life of
+    the process: weftd may hold them open until the session ends). Each use records it again;
+    a use never overlaps the previous use of the same event because every ordering round
+    ends with a Submit that returns after weftd ran it (docs/interop.md, "Ordering")."""
+    with _lock:
+        if _load() is None:
+            raise CudaError(f"no CUDA driver ({_reason})")
+        pool = _events.get(ordinal)
+        if pool is None:
+            pool = []
+            with _Scope(ordinal):
+                for _ in range(EVENT_POOL):
+                    ev = ctypes.c_void_p()
+                    _check(_lib.cuEventCreate(ctypes.byref(ev), CU_EVENT_INTERPROCESS |
+                                              CU_EVENT_DISABLE_TIMING), "cuEventCreate")
+                    h = _IpcHandle()
+                    _check(_lib.cuIpcGetEventHandle(ctypes.byref(h), ev), "cuIpcGetEventHandle")
+                    pool.append(IpcEvent(ordinal, ev, ctypes.string_at(ctypes.addressof(h), 64)))
+            _events[ordinal] = pool
+        turn = _event_turn.get(ordinal, 0)
+        _event_turn[ordinal] = (turn + 1) % len(pool)
+        return pool[turn]
+
+
+def record_event(event: IpcEvent, stream: int) -> None:
+    """Records `event` on this process's CUDA stream `stream` (0: the legacy default stream)."""
+    with _lock, _Scope(event.ordinal):
+        _check(_lib.cuEventRecord(event.event, ctypes.c_void_p(stream or None)), "cuEventRecord")
+
+
+def wait_event(stream: int, event: IpcEvent) -> None:
+    """Makes this process's CUDA stream `stream` wait (on the GPU) for the latest record of
+    `event`, made by weftd: no host wait."""
+    with _lock, _Scope(event.ordinal):
+        _check(_lib.cuStreamWaitEvent(ctypes.c_void_p(stream or None), event.event, 0),
+               "cuStreamWaitEvent")
+
+
+def proxy_stream(ordinal: int) -> int:
+    """A non-blocking stream of this process on the device that stands for weft's session
+    stream (it is made to wait for weft's work before it is handed out, e.g. as the
+    `__cuda_array_interface__` "stream")."""
+    with _lock:
+        s = _proxy_streams.get(ordinal)
+        if s is None:
+            if _load() is None:
+                raise CudaError(f"no CUDA driver ({_reason})")
+            h = ctypes.c_void_p()
+            with _Scope(ordinal):
+                _check(_lib.cuStreamCreate(ctypes.byref(h), CU_STREAM_NON_BLOCKING),
+                       "cuStreamCreate")
+            s = _proxy_streams[ordinal] = int(h.value)
+        return s
+
+
+def synchronize_stream(ordinal: int, stream: int) -> None:
+    with _lock, _Scope(ordinal):
+        _check(_lib.cuStreamSynchronize(ctypes.c_void_p(stream or None)), "cuStreamSynchronize")
 
 
 @atexit.register

@@ -314,6 +314,11 @@ class Runtime:
         self._deferred_error: WeftError | None = None
         self._inflight = None   # the asynchronous Submit in flight (at most one), see _pump
         self.pipelined = _PIPELINED
+        # Commands (and GPU array creations) queued so far: weft.interop.cuda_order knows
+        # from it whether a framework stream already waits for everything queued.
+        self.work_queued = 0
+        # > 0 while an ordered launch is being queued (WAIT, launch, RECORD go in one Submit).
+        self.pump_held = 0
         self._pump_at = PUMP_FIRST
         self._batch_since = 0.0   # when the oldest command of the batch was queued
         self._slabs = weakref.WeakValueDictionary()   # name -> _SlabMapping in use
@@ -361,6 +366,7 @@ class Runtime:
             cmd.origin.CopyFrom(caller_location())
         with self._lock:
             self._unsynchronized = True
+            self.work_queued += 1
             if not self._batch:
                 self._batch_since = time.perf_counter()
             self._batch.append(cmd)
@@ -383,7 +389,7 @@ class Runtime:
         a sync) stays one fused Submit: an early Submit there would add a round trip. A failed
         asynchronous Submit (nothing of it was queued) is raised by the next synchronize, and
         nothing more is sent before that."""
-        if not self.pipelined or self._deferred_error is not None:
+        if not self.pipelined or self._deferred_error is not None or self.pump_held:
             return
         if self._inflight is not None:
             if not self._inflight.done():
@@ -427,6 +433,7 @@ class Runtime:
         with self._lock:
             self._collect_inflight()
             self._pump_at = PUMP_FIRST
+            self.pump_held = 0
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch and _FUSED_SYNC:
                 response = self.call(self.exec_stub.Submit,
@@ -444,6 +451,35 @@ class Runtime:
             self._drain_frees()
             self._unsynchronized = False
             deferred, self._deferred_error = self._deferred_error, None
+        if response.output:
+            sys.stdout.write(response.output)
+            sys.stdout.flush()
+        if deferred is not None:
+            raise deferred
+        if response.error:
+            raise WeftError(response.error, _CODE_NAMES.get(response.error_code),
+                            format_location(response.error_origin))
+
+    def run(self) -> None:
+        """Sends the batched commands and returns once weftd has run them (GPU work queued on
+        the session's streams, not finished): one round trip, no wait for the GPU. An error
+        of the session is raised here (the daemon then synchronized)."""
+        with self._lock:
+            self._collect_inflight()
+            batch, self._batch, self._batch_bytes = self._batch, [], 0
+            self.pump_held = 0
+            response = self.call(self.exec_stub.Submit,
+                                 exec_pb2.SubmitRequest(commands=batch, run=True))
+            deferred, self._deferred_error = self._deferred_error, None
+            if not response.HasField("sync"):
+                self._drain_frees()
+                if deferred is not None:
+                    raise deferred
+                return
+            self._pump_at = PUMP_FIRST
+            self._drain_frees()
+            self._unsynchronized = False
+            response = response.sync
         if response.output:
             sys.stdout.write(response.output)
             sys.stdout.flush()

@@ -414,6 +414,7 @@ def _create(dtype, shape, device, requires_grad, init, value=b""):
     info = rt.call(rt.array_stub.Create, request).info
     if not device.is_cpu:
         rt._unsynchronized = True   # its zeroing/fill is queued on the session's GPU stream
+        rt.work_queued += 1
     return rt, info
 
 
@@ -900,8 +901,11 @@ class array:
     @property
     def __cuda_array_interface__(self):
         """CUDA Array Interface v3 of a GPU array, over this process's IPC mapping of the
-        daemon's memory (zero-copy). Weft's queued work is finished before it is returned, so
-        "stream" is None: the consumer may use the data on any stream at once. Absent
+        daemon's memory (zero-copy). Where the session orders work with interprocess events
+        (weft.interop.cuda_order), "stream" is a stream of this process that stands for
+        weft's session stream: it (and the framework's current stream) waits on the GPU for
+        weft's queued work, and a consumer orders its stream after it (the protocol's rule).
+        Elsewhere weft's queued work is finished first and "stream" is None. Absent
         (AttributeError) where IPC is not available: consumers then fall back to __array__,
         a copy."""
         if self._info is None or self.device is None or not self.device.is_cuda:
@@ -911,7 +915,15 @@ class array:
             raise AttributeError(f"__cuda_array_interface__: no CUDA IPC mapping in this client "
                                  f"({_cuda_ipc.reason() or 'not a local session'}); use "
                                  f".numpy() for a copy")
-        self._alloc.runtime.synchronize_if_needed()
+        from .interop import cuda_order  # noqa: PLC0415
+
+        proxy = None
+        if cuda_order.enabled(self._alloc.runtime, {int(self.device.ordinal)}):
+            proxy = _cuda_ipc.proxy_stream(int(self.device.ordinal))
+            # the proxy stream and the framework stream wait for weft's queued work on the GPU
+            cuda_order.ready(self, [proxy, cuda_order.framework_stream(int(self.device.ordinal))])
+        else:
+            self._alloc.runtime.synchronize_if_needed()
         _interop_memory.mark_shared(self._alloc)
         np_dtype, inner = _elem_layout(self.dtype)
         if np_dtype.fields is not None:
@@ -921,7 +933,7 @@ class array:
         contiguous = strides == _contiguous_strides(shape, np_dtype.itemsize)
         return {"shape": shape, "typestr": np_dtype.str, "descr": [("", np_dtype.str)],
                 "data": (ptr if self.size else 0, False),
-                "strides": None if contiguous else strides, "version": 3, "stream": None}
+                "strides": None if contiguous else strides, "version": 3, "stream": proxy}
 
     @property
     def __dlpack__(self):

@@ -604,9 +604,10 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     for d in dims:
         if d == 0:
             return None
-    if device.startswith("cuda") and _interop_memory.any_shared() and \
-            _interop_memory.touches_shared(resolved):
-        _sync_framework_gpu(resolved)  # framework work on shared GPU memory is done first
+    shared = _interop_memory.any_shared() and _interop_memory.touches_shared(resolved)
+    gpu_order = None                   # GPU ordinals ordered with framework streams by events
+    if shared and device.startswith("cuda"):
+        gpu_order = _order_framework_gpu(rt, resolved)  # framework work before: seen first
     tape = tape_mod.active_tape()
     pause = tape is not None and (adjoint or not record_tape)
     if pause:
@@ -638,25 +639,33 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         rt.synchronize()
         for pending in packer.copy_backs:
             pending.apply()
-    elif _interop_memory.any_shared() and _interop_memory.touches_shared(resolved):
+    elif gpu_order:
+        # memory a framework holds: its stream waits for the launch on the GPU
+        from weft.interop import cuda_order  # noqa: PLC0415
+        cuda_order.after(rt, gpu_order)
+    elif shared:
         rt.synchronize()       # memory a framework holds: done before the framework reads it
     if _config.verify_fp:
         verify_finite(kernel, resolved, command.origin)
     return None
 
 
-def _sync_framework_gpu(values) -> None:
-    """Waits for this process's own GPU work (Torch, CuPy, ... streams) on the devices of
-    the shared weft GPU arrays among `values`, so a launch in the daemon sees its writes."""
+def _order_framework_gpu(rt, values):
+    """Makes a launch in the daemon see this process's GPU work (Torch, CuPy, ... streams) on
+    the devices of the shared weft GPU arrays among `values`. With interprocess events
+    (weft.interop.cuda_order): the session's stream waits for the framework stream, and the
+    GPU ordinals are returned (the caller orders the framework stream after the launch).
+    Without: a host wait for this process's work on those devices; returns None."""
     from weft import _cuda_ipc  # noqa: PLC0415
+    from weft.interop import cuda_order  # noqa: PLC0415
 
-    ordinals = set()
-    for value in values:
-        device = getattr(value, "device", None)
-        if device is not None and getattr(device, "is_cuda", False):
-            ordinals.add(int(device.ordinal))
+    ordinals = cuda_order.gpu_ordinals(values)
+    if cuda_order.enabled(rt, ordinals):
+        cuda_order.before(rt, ordinals)
+        return ordinals
     for ordinal in ordinals:
         _cuda_ipc.synchronize(ordinal)
+    return None
 
 
 def verify_finite(kernel: Kernel, args, origin) -> None:

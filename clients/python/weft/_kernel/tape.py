@@ -30,14 +30,26 @@ def _stack() -> list:
     return stack
 
 
-def _finish_for_frameworks():
-    """Gradients may live in memory Torch/JAX hold (weft.interop): finish the backward pass
-    before returning, as a framework reading them has no way to wait for the daemon."""
+def _begin_for_frameworks():
+    """Gradients may live in memory Torch/JAX hold (weft.interop): the backward pass waits
+    for the frameworks' GPU work on it. Returns what _finish_for_frameworks needs."""
     from weft import _runtime  # noqa: PLC0415
-    from weft.interop import memory  # noqa: PLC0415
+    from weft.interop import cuda_order, memory  # noqa: PLC0415
 
-    if memory.any_shared():
-        _runtime.get_runtime().synchronize()
+    if not memory.any_shared():
+        return False
+    return cuda_order.begin_for_frameworks(_runtime.get_runtime())
+
+
+def _finish_for_frameworks(begun):
+    """Then the frameworks see the pass's results: their streams wait for it on the GPU
+    (interprocess events), or it finishes before returning (CPU memory, no events)."""
+    from weft import _runtime  # noqa: PLC0415
+    from weft.interop import cuda_order, memory  # noqa: PLC0415
+
+    if begun is False and not memory.any_shared():
+        return
+    cuda_order.finish_for_frameworks(_runtime.get_runtime(), begun or None)
 
 
 def active_tape():
@@ -233,6 +245,7 @@ class Tape:
             seeds.append((array, grad))
             self.gradients[array] = target
         recording = self in _stack()      # backward() inside `with tape:` pauses recording
+        begun = _begin_for_frameworks()
         if self._mode == "daemon":
             if recording:
                 self._tape_command(exec_pb2.TapeCommand.END)
@@ -241,7 +254,7 @@ class Tape:
                 self._tape_command(exec_pb2.TapeCommand.BEGIN)
             self._note_gradients()
             self._reset_read_flags()
-            _finish_for_frameworks()
+            _finish_for_frameworks(begun)
             return
         if loss is not None:
             loss.grad.fill_(1.0)
@@ -265,7 +278,7 @@ class Tape:
                 origin=caller_origin()))
         self._note_gradients()
         self._reset_read_flags()
-        _finish_for_frameworks()
+        _finish_for_frameworks(begun)
 
     def _note_gradients(self):
         for entry in self.launches:

@@ -81,14 +81,21 @@ def _numpy_capsule(view: np.ndarray, max_version, a):
 
 def _export_cuda(a, stream, max_version):
     """GPU arrays: a capsule over the CUDA IPC mapping of the array (the array layer's
-    producer, weft._dlpack). Weft's pending work is finished first, so the consumer's stream
-    may read at once whatever `stream` it names."""
+    producer, weft._dlpack). `stream` (the consumer's stream of this process, array API
+    rules: 1 = the legacy default stream, 2 = per-thread default) waits on the GPU for weft's
+    queued work (an interprocess event, weft.interop.cuda_order) where the session can;
+    otherwise (and for None or -1) weft's pending work is finished first."""
     try:
         from .. import _dlpack as producer  # noqa: PLC0415
     except ImportError:
         raise BufferError(f"DLPack export of {a.device} arrays needs CUDA IPC in this "
                           f"client") from None
-    a._alloc.runtime.synchronize_if_needed()
+    from . import cuda_order  # noqa: PLC0415
+
+    if stream is None or stream == -1 or not isinstance(stream, int) or \
+            not cuda_order.ready(a, [0 if stream == 1 else stream]):
+        # -1 (the consumer does not want ordering) and odd values: finished on the host
+        a._alloc.runtime.synchronize_if_needed()
     capsule = producer.to_capsule(a)
     ptr = a.ptr
     if ptr is not None:

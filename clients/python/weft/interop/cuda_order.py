@@ -1,0 +1,217 @@
+"""Ordering on the GPU between this process's CUDA streams (Torch's current stream, CuPy's,
+the stream of a `wp.ScopedStream(wp.stream_from_torch(s))`) and the daemon's session stream,
+with interprocess CUDA events instead of host synchronization (docs/interop.md, "Ordering").
+
+- before(rt, ordinals): an event of this process is recorded on the framework stream and the
+  daemon's session stream waits for it (ExecService CudaEventCommand WAIT) before the commands
+  queued next: framework work issued before a weft launch is visible to it.
+- after(rt, ordinals): the daemon records an event on its session stream after the commands
+  queued so far (RECORD, in a Submit that returns once weftd ran it, GPU work not finished),
+  then the framework stream waits for it (cuStreamWaitEvent): framework work issued after is
+  ordered after weft's.
+
+Events come from a small pool per device (weft._cuda_ipc.next_event); weftd opens each handle
+once per session. Where events cannot be used (remote session, no CUDA driver here, a daemon
+that cannot open this process's handles, WEFT_CUDA_EVENTS=0) `enabled()` is False and callers
+synchronize on the host as before.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import threading
+
+from .. import _cuda_ipc
+
+_state = threading.local()       # .foreign: {ordinal: stream handle} of a ScopedStream
+_refused: dict = {}              # id(runtime) -> why weftd cannot use this process's events
+_probed: set = set()             # (id(runtime), ordinal) that passed the probe
+# (id(runtime), ordinal, stream) -> runtime.work_queued when that stream was last made to wait
+# for everything queued: a later hand-out with nothing new queued needs no round trip
+_ordered: dict = {}
+
+
+def refused() -> str:
+    """'' while weftd orders this process's streams with events, else why it cannot."""
+    return next(iter(_refused.values()), "")
+
+
+def set_scoped_stream(ordinal: int, handle):
+    """Makes `handle` (a CUDA stream of this process) the framework stream of device `ordinal`
+    for this thread (None: back to the default); returns the previous value."""
+    foreign = getattr(_state, "foreign", None)
+    if foreign is None:
+        foreign = _state.foreign = {}
+    previous = foreign.get(ordinal)
+    if handle is None:
+        foreign.pop(ordinal, None)
+    else:
+        foreign[ordinal] = int(handle)
+    return previous
+
+
+def framework_stream(ordinal: int) -> int:
+    """The CUDA stream of this process that weft work on device `ordinal` is ordered with: the
+    stream of the active wp.ScopedStream when it names one of this process, else Torch's
+    current stream of that device (when Torch is in use), else the legacy default stream (0),
+    which every blocking stream of the context (CuPy's default included) synchronizes with."""
+    foreign = getattr(_state, "foreign", None)
+    if foreign:
+        handle = foreign.get(ordinal)
+        if handle is not None:
+            return handle
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        try:
+            if torch.cuda.is_initialized():
+                raw = getattr(torch._C, "_cuda_getCurrentRawStream", None)
+                if raw is not None:              # ~1 us; current_stream() costs tens
+                    return int(raw(ordinal))
+                return int(torch.cuda.current_stream(ordinal).cuda_stream)
+        except (RuntimeError, AttributeError, AssertionError):
+            pass
+    return 0
+
+
+def _pb():
+    from ..v1 import exec_pb2  # noqa: PLC0415
+
+    return exec_pb2
+
+
+def _command(op, ordinal, event):
+    pb = _pb()
+    return pb.Command(cuda_event=pb.CudaEventCommand(op=op, device=f"cuda:{ordinal}",
+                                                     ipc_handle=event.handle))
+
+
+def enabled(rt, ordinals) -> bool:
+    """Whether this session orders GPU work with the framework streams by events (probed once
+    per device: weftd must open this process's event handles)."""
+    key = id(rt)
+    if ordinals and all((key, o) in _probed for o in ordinals):
+        return True                      # probed already (WEFT_CUDA_EVENTS is read once)
+    if not ordinals or not rt.local or os.environ.get("WEFT_CUDA_EVENTS", "1") == "0":
+        return False
+    if id(rt) in _refused or not _cuda_ipc.available():
+        return False
+    if not hasattr(_pb(), "CudaEventCommand"):
+        return False
+    for ordinal in ordinals:
+        if (id(rt), ordinal) not in _probed and not _probe(rt, ordinal):
+            return False
+    return True
+
+
+def _probe(rt, ordinal) -> bool:
+    from ..errors import WeftError  # noqa: PLC0415
+
+    pb = _pb()
+    rt.synchronize()            # errors of earlier commands surface here, not in the probe
+    try:
+        event = _cuda_ipc.next_event(ordinal)
+        _cuda_ipc.record_event(event, 0)
+        rt.submit(_command(pb.CudaEventCommand.WAIT, ordinal, event))
+        rt.submit(_command(pb.CudaEventCommand.RECORD, ordinal, event))
+        rt.synchronize()
+    except _cuda_ipc.CudaError as err:
+        _refused[id(rt)] = f"this process cannot make interprocess events ({err})"
+        return False
+    except WeftError as err:
+        _refused[id(rt)] = f"weftd cannot use this process's events ({err})"
+        return False
+    _probed.add((id(rt), ordinal))
+    return True
+
+
+def before(rt, ordinals, stream=None) -> None:
+    """Queues, for each device: the session stream waits for the framework stream's work so
+    far (`stream`: that stream of this process instead; an event recorded on it now)."""
+    pb = _pb()
+    rt.pump_held += 1                 # WAIT, the launch and RECORD go out in one Submit (run)
+    for ordinal in ordinals:
+        event = _cuda_ipc.next_event(ordinal)
+        _cuda_ipc.record_event(event, framework_stream(ordinal) if stream is None else stream)
+        rt.submit(_command(pb.CudaEventCommand.WAIT, ordinal, event))
+
+
+def after(rt, ordinals, streams=None) -> None:
+    """Weft's work queued so far on each device is made to come before later work on the
+    framework stream (`streams`: those streams instead, handles of this process): one Submit
+    that returns once weftd queued it, then GPU-side waits; no host wait for the GPU."""
+    pb = _pb()
+    events = []
+    for ordinal in ordinals:
+        event = _cuda_ipc.next_event(ordinal)
+        rt.submit(_command(pb.CudaEventCommand.RECORD, ordinal, event))
+        events.append((ordinal, event))
+    rt.run()
+    for ordinal, event in events:
+        for stream in ([framework_stream(ordinal)] if streams is None else streams):
+            _cuda_ipc.wait_event(stream, event)
+            _ordered[(id(rt), ordinal, stream)] = rt.work_queued
+
+
+def ready(a, streams=None) -> bool:
+    """Weft's queued work is ordered before later work on `streams` (default: the framework
+    stream) of GPU array `a`'s device: by an event where this session can (True), else by
+    finishing it on the host (False)."""
+    rt = a._alloc.runtime
+    if not (rt._unsynchronized or rt._batch or rt._deferred_error is not None):
+        return True                      # nothing queued since the last synchronize
+    ordinal = int(a.device.ordinal)
+    targets = [framework_stream(ordinal)] if streams is None else streams
+    if all(_ordered.get((id(rt), ordinal, s)) == rt.work_queued for s in targets):
+        return True                      # these streams already wait for all queued work
+    if enabled(rt, {ordinal}):
+        after(rt, (ordinal,), streams)
+        return True
+    rt.synchronize_if_needed()
+    return False
+
+
+def gpu_ordinals(values) -> set:
+    """The GPU ordinals of the weft arrays among `values`."""
+    ordinals = set()
+    for value in values:
+        device = getattr(value, "device", None)
+        if device is not None and getattr(device, "is_cuda", False):
+            ordinals.add(int(device.ordinal))
+    return ordinals
+
+
+def shared_devices():
+    """(GPU ordinals of the allocations frameworks hold, whether any of them is CPU memory)."""
+    from . import memory  # noqa: PLC0415
+
+    ordinals, cpu = set(), False
+    for alloc in list(memory._shared):
+        info = getattr(alloc, "info", None)
+        device = getattr(info, "device", "") or ""
+        if device.startswith("cuda"):
+            ordinals.add(int(device.split(":")[1]) if ":" in device else 0)
+        else:
+            cpu = True
+    return ordinals, cpu
+
+
+def begin_for_frameworks(rt):
+    """Before a tape's backward pass: the session's streams wait for the framework streams
+    on the devices of shared GPU memory. Returns those ordinals when the pass is ordered by
+    events (finish_for_frameworks then orders the framework streams after it), else None."""
+    ordinals, cpu = shared_devices()
+    if cpu or not ordinals or not enabled(rt, ordinals):
+        for ordinal in ordinals:
+            _cuda_ipc.synchronize(ordinal)
+        return None
+    before(rt, ordinals)
+    return ordinals
+
+
+def finish_for_frameworks(rt, ordinals) -> None:
+    """After a tape's backward pass: framework streams ordered after it (events), or the pass
+    finished on the host."""
+    if ordinals:
+        after(rt, ordinals)
+    else:
+        rt.synchronize()
