@@ -77,16 +77,35 @@ class Event:
 
 
 class Stream:
-    """The session's stream on a CUDA device in the daemon (Warp's wp.Stream)."""
+    """The session's stream on a CUDA device in the daemon (Warp's wp.Stream), optionally
+    bound to a CUDA stream of this process (`cuda_stream=` a handle, as Warp's external
+    streams; wp.stream_from_torch): weft work on memory a framework holds, launched while
+    the bound stream is current (wp.ScopedStream, wp.set_stream), is ordered with that stream
+    by interprocess events (docs/interop.md, "Ordering")."""
 
-    def __init__(self, device=None, priority=0, **_kwargs):
+    def __init__(self, device=None, priority=0, cuda_stream=None, **_kwargs):
         self.device = _cuda_device(device)
         self.priority = int(priority)
         self._torch_stream = None
+        self._foreign = None if cuda_stream is None else int(cuda_stream)
 
     @property
     def cuda_stream(self):
-        return None
+        """The bound stream of this process; for the session's own stream, a stream of this
+        process that weft makes wait for the session's queued work each time this is read
+        (None where the session cannot order with events: CUDA IPC off, remote session)."""
+        if self._foreign is not None:
+            return self._foreign
+        from . import _cuda_ipc  # noqa: PLC0415
+        from .interop import cuda_order  # noqa: PLC0415
+
+        rt = _runtime.get_runtime()
+        ordinal = int(self.device.ordinal)
+        if not cuda_order.enabled(rt, {ordinal}):
+            return None
+        proxy = _cuda_ipc.proxy_stream(ordinal)
+        cuda_order.after(rt, (ordinal,), [proxy])
+        return proxy
 
     @property
     def is_capturing(self) -> bool:
@@ -108,20 +127,57 @@ class Stream:
             raise TypeError("wait_event expects a wp.Event")
 
     def wait_stream(self, other, event=None) -> None:
+        """Work queued on this stream after the call waits for `other`'s work so far. Between
+        the session's stream and a bound stream of this process: an interprocess event (on
+        the GPU; a host wait where events are not available)."""
         if not isinstance(other, Stream):
             raise TypeError("wait_stream expects a wp.Stream")
+        if (self._foreign is None) == (other._foreign is None):
+            if self._foreign is not None and self._foreign != other._foreign:
+                from . import _cuda_ipc  # noqa: PLC0415
+                _cuda_ipc.synchronize_stream(int(other.device.ordinal), other._foreign)
+            return                       # one session stream: in order already
+        from . import _cuda_ipc  # noqa: PLC0415
+        from .interop import cuda_order  # noqa: PLC0415
+
+        rt = _runtime.get_runtime()
+        ordinal = int(self.device.ordinal)
+        ordered = cuda_order.enabled(rt, {ordinal})
+        if self._foreign is not None:     # a stream of this process waits for weft's work
+            if ordered:
+                cuda_order.after(rt, (ordinal,), [self._foreign])
+            else:
+                rt.synchronize()
+        elif ordered:                     # the session's stream waits for a stream here
+            cuda_order.before(rt, (ordinal,), other._foreign)
+        else:
+            _cuda_ipc.synchronize_stream(ordinal, other._foreign)
 
     def synchronize(self) -> None:
+        if self._foreign is not None:
+            from . import _cuda_ipc  # noqa: PLC0415
+            _cuda_ipc.synchronize_stream(int(self.device.ordinal), self._foreign)
         _runtime.get_runtime().synchronize()
 
     def __eq__(self, other):
-        return isinstance(other, Stream) and other.device == self.device
+        return isinstance(other, Stream) and other.device == self.device and \
+            other._foreign == self._foreign
 
     def __hash__(self):
-        return hash(("weft-stream", self.device.alias))
+        return hash(("weft-stream", self.device.alias, self._foreign))
 
     def __repr__(self):
+        if self._foreign is not None:
+            return f"<weft Stream on {self.device} bound to CUDA stream {self._foreign:#x}>"
         return f"<weft Stream of the session on {self.device}>"
+
+
+def _bind(stream):
+    """Makes `stream`'s bound stream (or none) the one weft orders with on its device;
+    returns the previous binding."""
+    from .interop import cuda_order  # noqa: PLC0415
+
+    return cuda_order.set_scoped_stream(int(stream.device.ordinal), stream._foreign)
 
 
 _current: dict = {}
@@ -141,6 +197,7 @@ def set_stream(stream, device=None, sync=False) -> None:
     if sync:
         stream.synchronize()
     _current[stream.device.alias] = stream
+    _bind(stream)
 
 
 class ScopedStream:
@@ -151,6 +208,7 @@ class ScopedStream:
         self.sync_exit = sync_exit
         self._device_scope = None
         self._saved = None
+        self._saved_binding = None
 
     def __enter__(self):
         if self.stream is None:
@@ -161,6 +219,7 @@ class ScopedStream:
         self._device_scope.__enter__()
         self._saved = _current.get(self.stream.device.alias)
         _current[self.stream.device.alias] = self.stream
+        self._saved_binding = _bind(self.stream)
         return self.stream
 
     def __exit__(self, *exc):
@@ -172,6 +231,8 @@ class ScopedStream:
             _current.pop(self.stream.device.alias, None)
         else:
             _current[self.stream.device.alias] = self._saved
+        from .interop import cuda_order  # noqa: PLC0415
+        cuda_order.set_scoped_stream(int(self.stream.device.ordinal), self._saved_binding)
         self._device_scope.__exit__(*exc)
 
 

@@ -1,8 +1,10 @@
 """Ordering across the process boundary with interprocess CUDA events (ExecService
 CudaEventCommand, weft.interop.cuda_order; docs/interop.md, "Ordering"): Torch work queued
 before a weft launch on imported memory is seen by it and Torch work queued after sees its
-writes, without the launch waiting for the GPU on the host; `__dlpack__(stream=...)` and
-`__cuda_array_interface__["stream"]` hand out streams that wait for weft's work. Hostile requests (a handle of the wrong size, an unknown op, forged handle bytes,
+writes, without the launch waiting for the GPU on the host; wp.stream_from_torch /
+wp.ScopedStream order with a Torch side stream, `__dlpack__(stream=...)`,
+`__cuda_array_interface__["stream"]` and wp.stream_to_torch hand out streams that wait for
+weft's work. Hostile requests (a handle of the wrong size, an unknown op, forged handle bytes,
 a handle another session uses, a CPU device) get clear errors and the daemon keeps serving.
 The CPU-side validation runs everywhere; the GPU tests skip with the reason without a GPU,
 Torch on CUDA or CUDA IPC in the client."""
@@ -145,6 +147,24 @@ def test_launch_writes_are_seen_by_torch_work_queued_after(wp, tcuda, torch):
         assert s == pytest.approx(2.0 * value * n)
 
 
+def test_scoped_stream_from_a_torch_side_stream(wp, tcuda, torch):
+    n = 1 << 15
+    side = torch.cuda.Stream()
+    t = torch.zeros(n, device="cuda")
+    torch.cuda.synchronize()
+    a = wp.from_torch(t)
+    ws = wp.stream_from_torch(side)
+    assert ws.cuda_stream == side.cuda_stream and wp.stream_to_torch(ws) is side
+    with torch.cuda.stream(side):
+        torch.cuda._sleep(100_000_000)
+        t.fill_(5.0)
+        with wp.ScopedStream(ws):
+            wp.launch(add_one, dim=n, inputs=[a], device=tcuda)
+        u = t * 10.0                                         # on the side stream, after weft
+    side.synchronize()
+    np.testing.assert_array_equal(u.cpu().numpy(), np.full(n, 60.0, dtype=np.float32))
+
+
 def test_dlpack_stream_and_cuda_array_interface_stream(wp, tcuda, torch, rng):
     from weft import _cuda_ipc
 
@@ -165,6 +185,18 @@ def test_dlpack_stream_and_cuda_array_interface_stream(wp, tcuda, torch, rng):
         total = torch.as_tensor(a, device="cuda").sum()
     proxy.synchronize()
     assert total.item() == pytest.approx(4.0 * n)
+
+
+def test_stream_to_torch_of_the_session_stream(wp, tcuda, torch):
+    n = 4096
+    a = wp.zeros(n, dtype=float, device=tcuda)
+    t = wp.to_torch(a)
+    wp.launch(slow_fill, dim=n, inputs=[a, 1.5, SPINS], device=tcuda)
+    ts = wp.stream_to_torch(wp.get_stream(tcuda))
+    with torch.cuda.stream(ts):
+        total = t.sum()
+    ts.synchronize()
+    assert total.item() == pytest.approx(1.5 * n)
 
 
 def test_forged_event_handle_is_a_clear_error(wp, tcuda, rng):

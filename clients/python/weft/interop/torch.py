@@ -270,8 +270,12 @@ def to_torch(a, requires_grad=None):
 
 
 def stream_from_torch(stream_or_device=None):
-    """The weft stream that orders work with a Torch CUDA stream (see docs/interop.md,
-    "Streams"): weft's work runs on the daemon's session stream of that device."""
+    """A weft stream bound to a Torch CUDA stream (Warp's wp.stream_from_torch; default:
+    Torch's current stream of the device). Weft work runs on the daemon's session stream, in
+    another process; while the returned stream is current (wp.ScopedStream, wp.set_stream),
+    launches touching memory Torch holds are ordered with the Torch stream by interprocess
+    events: the session's stream waits for the Torch stream's work before the launch, and the
+    Torch stream waits for the launch (docs/interop.md, "Ordering")."""
     torch = _torch()
     if isinstance(stream_or_device, getattr(torch.cuda, "Stream", ())):
         device = device_from_torch(stream_or_device.device)
@@ -283,23 +287,42 @@ def stream_from_torch(stream_or_device=None):
     if not device.is_cuda:
         raise RuntimeError("streams are CUDA objects; CPU work is ordered by synchronization "
                            "(docs/interop.md)")
+    if torch_stream is None:
+        torch_stream = torch.cuda.current_stream(device_to_torch(device))
     from .. import streams  # noqa: PLC0415
 
-    stream = streams.Stream(device)
+    stream = streams.Stream(device, cuda_stream=int(torch_stream.cuda_stream))
     stream._torch_stream = torch_stream
     return stream
 
 
 def stream_to_torch(stream_or_device=None):
-    """The Torch stream to use with a weft stream or device: Torch's current stream of that
-    device. Weft's work runs in the daemon, so ordering is by synchronization: weft finishes
-    its pending work before Torch gets its memory (to_torch, __dlpack__)."""
+    """The Torch stream of a weft stream or device (Warp's wp.stream_to_torch). A weft stream
+    bound to a Torch stream gives that stream; the session's stream (or a device) gives a
+    Torch ExternalStream over a stream of this process that waits (on the GPU) for weft's
+    work queued so far, or, where events are not available, Torch's current stream after
+    weft's work finished."""
     torch = _torch()
+    from .. import streams  # noqa: PLC0415
     from ..device import get_device  # noqa: PLC0415
 
-    device = getattr(stream_or_device, "device", None) or get_device(stream_or_device)
-    device = get_device(device)
+    if isinstance(stream_or_device, streams.Stream):
+        if stream_or_device._torch_stream is not None:
+            return stream_or_device._torch_stream
+        device = stream_or_device.device
+        stream = stream_or_device
+    else:
+        device = get_device(stream_or_device)
+        stream = None
     if not device.is_cuda:
         raise RuntimeError("streams are CUDA objects; CPU work is ordered by synchronization "
                            "(docs/interop.md)")
-    return torch.cuda.current_stream(device_to_torch(device))
+    if stream is None:
+        stream = streams.Stream(device)
+    handle = stream.cuda_stream
+    if handle is None:
+        from .. import _runtime  # noqa: PLC0415
+
+        _runtime.get_runtime().synchronize()
+        return torch.cuda.current_stream(device_to_torch(device))
+    return torch.cuda.ExternalStream(handle, device=device_to_torch(device))
