@@ -9,8 +9,10 @@ float64 NumPy reference (max relative error). Ratio = warp time / weft time.
 weft notes (docs/interop.md): from_torch of a CPU tensor moves its storage into a weft slab on
 the first call, so later conversions are zero-copy look-ups; a CUDA tensor is imported by CUDA
 IPC on the first conversion (one round trip) and remembered on the tensor, so later conversions
-and direct launch arguments cost no round trip. A launch that touches memory Torch holds waits
-for this process's GPU work first and finishes before it returns (one round trip to weftd)."""
+and direct launch arguments cost no round trip. A launch that touches memory Torch holds is
+ordered with Torch's stream by interprocess events (docs/interop.md, "Ordering"): no host wait
+for the GPU, but one round trip to weftd (the Submit that returns once weftd queued the launch
+and recorded the event); WEFT_CUDA_EVENTS=0 measures the host synchronization instead."""
 from __future__ import annotations
 
 import argparse
