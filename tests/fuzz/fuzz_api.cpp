@@ -311,7 +311,14 @@ struct Run {
   }
 
   void Command(v1::Command* c) {
-    switch (fdp.ConsumeIntegralInRange<int>(0, 5)) {
+    switch (fdp.ConsumeIntegralInRange<int>(0, 6)) {
+      case 6: {   // cross-process ordering: forged event handles, odd sizes, ops and devices
+        auto* e = c->mutable_cuda_event();
+        e->set_op(static_cast<v1::CudaEventCommand::Op>(fdp.ConsumeIntegralInRange<int>(0, 3)));
+        e->set_device(fdp.ConsumeBool() ? "cuda:0" : (fdp.ConsumeBool() ? "cpu" : Bytes(8)));
+        e->set_ipc_handle(fdp.ConsumeBool() ? fdp.ConsumeBytesAsString(64) : Bytes(80));
+        break;
+      }
       case 0: Ref(c->mutable_copy()->mutable_dst()); Ref(c->mutable_copy()->mutable_src()); break;
       case 1: Ref(c->mutable_fill()->mutable_dst()); c->mutable_fill()->set_value(Bytes(16)); break;
       case 2:
@@ -365,6 +372,11 @@ struct Run {
       auto sr = w.engine->SubmitAndSynchronize(*s, std::move(commands));
       if (!sr.ok()) return CheckStatus(sr.status());
       r = std::move(*sr);
+    } else if (req.run()) {   // as ExecService: the session's error when it failed, then a sync
+      auto rr = w.engine->SubmitAndRun(*s, std::move(commands));
+      if (!rr.ok()) return CheckStatus(rr.status());
+      if (rr->has_value()) CheckStatus((*rr)->error);
+      r = w.engine->Synchronize(*s);
     } else {
       auto q = w.engine->Submit(*s, std::move(commands));
       if (!q.ok()) return CheckStatus(q.status());
@@ -471,6 +483,7 @@ struct Run {
         int n = fdp.ConsumeIntegralInRange<int>(1, 6);
         for (int i = 0; i < n; ++i) Command(req.add_commands());
         req.set_synchronize(fdp.ConsumeBool());
+        if (!req.synchronize()) req.set_run(fdp.ConsumeBool());
         if (Reparse(&req)) Submit(req);
       }
     }
