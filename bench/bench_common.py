@@ -178,3 +178,36 @@ class BenchDaemon:
         if not keep:
             shutil.rmtree(self.workdir, ignore_errors=True)
         return self.proc.returncode, sorted(glob.glob(f"/dev/shm/weft-{self.proc.pid}-*"))
+
+
+class WeftSession:
+    """`with WeftSession(extra_args) as (weft, rt):` — the setup client benchmarks share: a
+    BenchDaemon (`daemon`), WEFT_ADDRESS pointing at it, `weft` imported and initialised, and
+    the session's runtime (weft._runtime); on exit the session is closed (weft._runtime.shutdown
+    where the client has it) and the daemon stopped."""
+
+    def __init__(self, extra_args=(), **daemon_kwargs):
+        self.daemon = BenchDaemon(extra_args, **daemon_kwargs)
+        os.environ["WEFT_ADDRESS"] = self.daemon.address
+
+    def __enter__(self):
+        try:
+            import weft  # noqa: PLC0415
+            from weft import _runtime  # noqa: PLC0415
+
+            weft.init()
+            return weft, _runtime.get_runtime()
+        except BaseException:
+            self.daemon.stop()
+            raise
+
+    def __exit__(self, *exc):
+        try:
+            import weft._runtime as runtime  # noqa: PLC0415
+
+            shutdown = getattr(runtime, "shutdown", None)
+            if shutdown is not None:
+                shutdown()
+        finally:
+            self.daemon.stop()
+        return False

@@ -14,7 +14,6 @@ The table is printed last. Usage: python3 bench/bench_cuda_sync.py [--device cud
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import sys
 import time
@@ -118,17 +117,11 @@ def main():
     parser.add_argument("--calls", type=int, default=400)
     args = parser.parse_args()
     sizes = [int(float(s)) for s in args.sizes.split(",")]
-    daemon = bc.BenchDaemon()
-    os.environ["WEFT_ADDRESS"] = daemon.address
     rows = []
     notes = []
-    try:
-        import weft  # noqa: PLC0415
-        from weft import _runtime  # noqa: PLC0415
+    with bc.WeftSession() as (weft, rt):
         from weft.v1 import exec_pb2, session_pb2  # noqa: PLC0415
 
-        weft.init()
-        rt = _runtime.get_runtime()
         mod = bc.load_kernels(SOURCE, "weft", "sync")
         devices = ["cpu"] + ([args.device] if args.device != "cpu" else [])
         if args.device != "cpu" and not weft.is_cuda_available():
@@ -165,8 +158,6 @@ def main():
                 rows += saxpy_rows(warp, wmod, args.device, sizes, f"warp {warp.config.version}")
             except Exception as err:  # noqa: BLE001
                 notes.append(f"warp-lang rows left out: {type(err).__name__}: {str(err)[:200]}")
-    finally:
-        daemon.stop()
     for note in notes:
         print(note)
     bc.print_table("launch + synchronize breakdown (median per call; saxpy: per launch from R=4 "

@@ -72,14 +72,7 @@ def main():
     except ImportError as err:
         print(f"torch is not installed ({err}): nothing to measure")
         return 0
-    daemon = bc.BenchDaemon()
-    import os
-
-    os.environ["WEFT_ADDRESS"] = daemon.address
-    try:
-        import weft
-
-        weft.init()
+    with bc.WeftSession() as (weft, _rt):
         weft_mod = bc.load_kernels(SOURCE, "weft", "interop")
         warp = bc.import_warp()
         warp_mod = bc.load_kernels(SOURCE, "warp", "interop") if warp is not None else None
@@ -102,11 +95,6 @@ def main():
         bc.print_table(f"Torch interop, {args.device}: 5 conversions + 1 launch per iteration "
                        f"(n={args.n}, {args.iters} iterations x {args.repeat})",
                        ["mode", "weft", "weft err", "warp-lang", "warp err", "ratio"], rows)
-    finally:
-        weft_shutdown = getattr(__import__("weft")._runtime, "shutdown", None)
-        if weft_shutdown is not None:
-            weft_shutdown()
-        daemon.stop()
     return 0
 
 

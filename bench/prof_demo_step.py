@@ -7,7 +7,6 @@ Usage: python3 bench/prof_demo_step.py [--device cuda:0] [--steps 100]"""
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import sys
 import time
@@ -61,15 +60,8 @@ def main():
     parser.add_argument("--steps", type=int, default=100)
     parser.add_argument("-n", type=int, default=200_000)
     args = parser.parse_args()
-    daemon = bc.BenchDaemon(extra_args=("--allow-unchecked",))
-    os.environ["WEFT_ADDRESS"] = daemon.address
     rows = []
-    try:
-        import weft as wp  # noqa: PLC0415
-        from weft import _runtime  # noqa: PLC0415
-
-        wp.init()
-        rt = _runtime.get_runtime()
+    with bc.WeftSession(("--allow-unchecked",)) as (wp, rt):
         dev = args.device if (args.device == "cpu" or wp.is_cuda_available()) else "cpu"
         n = args.n
         rng = np.random.default_rng(7)
@@ -111,8 +103,6 @@ def main():
                 per = (time.perf_counter() - t) / 50
                 rows.append([f"{dev} {name} x50 / 50, poll {'on' if poll else 'off'}", "", "", "",
                              bc.fmt_time(per), ""])
-    finally:
-        daemon.stop()
     bc.print_table(f"demo step profile ({args.n} particles, median of {args.steps} steps)",
                    ["case", "launch 1", "launch 2", "synchronize", "step", "particles/s"], rows)
 
