@@ -86,6 +86,7 @@ size_t CudaDevice::IpcEventCount() const {
 }
 
 void CudaDevice::ForgetEvents(const std::string& session_id) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);   // not during a device reset
   std::lock_guard<std::mutex> lock(events_mu_);
   auto it = ipc_events_.find(session_id);
   if (it == ipc_events_.end()) return;
