@@ -171,9 +171,13 @@ Status CommandExecutor::SetGrad(Session& s, const SetGradCommand& c, const Handl
     WEFT_RETURN_IF_ERROR(CheckWhole(*g, c.grad, "set_grad gradient"));
     if (g == a) return InvalidArgument("set_grad: an array cannot be its own gradient");
     if (g == a->grad) return Status::Ok();
-    if (g->grad)
-      return InvalidArgument("set_grad: the gradient array " + std::to_string(g->handle) +
-                             " has a gradient of its own");
+    // The gradient may have a gradient of its own (Warp: `a.grad = wp.ones_like(a)` where `a`
+    // requires grad); only its data is a's gradient. Refused when a is on g's gradient chain:
+    // the arrays would own each other. Chains are acyclic, so the walk ends.
+    for (const Allocation* x = g->grad.get(); x != nullptr; x = x->grad.get())
+      if (x == a.get())
+        return InvalidArgument("set_grad: array " + std::to_string(a->handle) + " is on the gradient chain of array " +
+                               std::to_string(g->handle) + " (a gradient cycle)");
     if (g->device != a->device)
       return InvalidArgument("set_grad: the gradient lives on " + g->device + ", the array on " + a->device);
     if (g->dtype.ElementSize() != a->dtype.ElementSize() || g->dtype.Name() != a->dtype.Name() ||

@@ -193,6 +193,8 @@ TEST(Tape, SetGradRejectsViewsSelfCyclesAndMismatches) {
   view.array.byte_offset = 4;
   view.array.shape = {3};
   view.grad.handle = short_a->handle;
+  // with_grad's gradient chain now reaches xa: making it xa's gradient would be a cycle.
+  ASSERT_TRUE(t.Run({SetGrad(with_grad->handle, xa->handle)}).ok());
   const std::vector<Command> bad = {SetGradCmd(view), SetGrad(xa->handle, xa->handle),
                                     SetGrad(xa->handle, short_a->handle), SetGrad(xa->handle, with_grad->handle)};
   for (const Command& c : bad) {
@@ -200,8 +202,14 @@ TEST(Tape, SetGradRejectsViewsSelfCyclesAndMismatches) {
     EXPECT_EQ(st.code(), StatusCode::kInvalidArgument) << st.ToString();
     EXPECT_EQ(t.e->DescribeArray(*t.s, xa->handle)->grad_handle, xa->grad_handle);
   }
+  Status cycle = t.Run({SetGrad(xa->handle, with_grad->handle)});
+  EXPECT_NE(cycle.message().find("gradient cycle"), std::string::npos) << cycle.ToString();
   Status unknown = t.Run({SetGrad(xa->handle, 999999)});
   EXPECT_EQ(unknown.code(), StatusCode::kNotFound) << unknown.ToString();
+  // A gradient with a gradient of its own is accepted (Warp's y.grad = wp.ones_like(y)).
+  auto other = t.e->CreateArray(*t.s, FromFloats({0, 0, 0, 0}, true));
+  ASSERT_TRUE(t.Run({SetGrad(xa->handle, other->handle)}).ok());
+  EXPECT_EQ(t.e->DescribeArray(*t.s, xa->handle)->grad_handle, other->handle);
 }
 
 TEST(Tape, ExplicitAdjointLaunchWithoutTape) {
