@@ -86,8 +86,10 @@ void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows) {
   rnd("sample_unit_square(state: uint32) -> vec(2,float32)", "Uniform point in [-0.5, 0.5]^2.");
   rnd("sample_unit_cube(state: uint32) -> vec(3,float32)", "Uniform point in [-0.5, 0.5]^3.");
   rnd("poisson(state: uint32, lam: float32) -> uint32", "Poisson sample with mean lam.");
-  auto noise = [rows](const char* sig, const char* doc) {
-    rows->push_back(Builtin("Noise", sig, doc, kBuiltinNotDiff));
+  // Noise is differentiable in the point (adj_noise/adj_pnoise/adj_curlnoise, noise.h);
+  // curlnoise's octaves, lacunarity and gain are optional (1, 2.0, 0.5), as in Warp.
+  auto noise = [rows](const std::string& sig, const char* doc) {
+    rows->push_back(Builtin("Noise", sig.c_str(), doc, kBuiltinNone));
   };
   noise("noise(state: uint32, x: float32) -> float32", "Perlin noise in 1D.");
   noise("noise(state: uint32, xy: vec(2,float32)) -> float32", "Perlin noise in 2D.");
@@ -97,10 +99,17 @@ void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows) {
   noise("pnoise(state: uint32, xy: vec(2,float32), px: int32, py: int32) -> float32", "Periodic Perlin noise in 2D.");
   noise("pnoise(state: uint32, xyz: vec(3,float32), px: int32, py: int32, pz: int32) -> float32",
         "Periodic Perlin noise in 3D.");
-  noise("curlnoise(state: uint32, xy: vec(2,float32), octaves: uint32, lacunarity: float32, gain: float32) -> vec(2,float32)",
-        "Divergence-free noise in 2D.");
-  noise("curlnoise(state: uint32, xyz: vec(3,float32), octaves: uint32, lacunarity: float32, gain: float32) -> vec(3,float32)",
-        "Divergence-free noise in 3D.");
+  noise("pnoise(state: uint32, xyzt: vec(4,float32), px: int32, py: int32, pz: int32, pt: int32) -> float32",
+        "Periodic Perlin noise in 4D.");
+  const char* curl_in[] = {"xy: vec(2,float32)", "xyz: vec(3,float32)", "xyzt: vec(4,float32)"};
+  const char* curl_out[] = {"vec(2,float32)", "vec(3,float32)", "vec(3,float32)"};
+  const char* curl_doc[] = {"Divergence-free noise in 2D.", "Divergence-free noise in 3D.",
+                            "Divergence-free noise in 3D at the time slice t of a 4D point."};
+  const char* optional[] = {"", ", octaves: uint32", ", octaves: uint32, lacunarity: float32",
+                            ", octaves: uint32, lacunarity: float32, gain: float32"};
+  for (int d = 0; d < 3; ++d)
+    for (const char* tail : optional)
+      noise(std::string("curlnoise(state: uint32, ") + curl_in[d] + tail + ") -> " + curl_out[d], curl_doc[d]);
 }
 
 }  // namespace weft::sema

@@ -408,9 +408,12 @@ TEST(NativeNoise, ValuesGradientsAndPeriods) {
     ASSERT_LE(std::fabs(wp::noise(seed, x)), 1.0f);
     ASSERT_LE(std::fabs(wp::noise(seed, p2)), 1.5f);
     ASSERT_LE(std::fabs(wp::noise(seed, wp::vec_t<4, float>(x, 1.0f, 2.0f, 3.0f))), 2.0f);
-    // Periodic in each dimension.
-    EXPECT_NEAR(wp::pnoise(seed, x, 8), wp::pnoise(seed, x + 8.0f, 8), 2e-4f);
-    EXPECT_NEAR(wp::pnoise(seed, p2, 4, 6), wp::pnoise(seed, wp::add(p2, wp::vec_t<2, float>(4.0f, 6.0f)), 4, 6), 2e-4f);
+    // Periodic in each dimension on non-negative coordinates (Warp wraps the lattice index with
+    // C's remainder, which keeps negative indices negative).
+    float ax = std::fabs(x);
+    wp::vec_t<2, float> ap2(ax, 0.61f * i);
+    EXPECT_NEAR(wp::pnoise(seed, ax, 8), wp::pnoise(seed, ax + 8.0f, 8), 2e-4f);
+    EXPECT_NEAR(wp::pnoise(seed, ap2, 4, 6), wp::pnoise(seed, wp::add(ap2, wp::vec_t<2, float>(4.0f, 6.0f)), 4, 6), 2e-4f);
   }
   EXPECT_LT(mn, -0.2);
   EXPECT_GT(mx, 0.2);
@@ -424,13 +427,24 @@ TEST(NativeNoise, ValuesGradientsAndPeriods) {
   EXPECT_NE(wp::noise(seed, 2.5f), wp::noise(wp::rand_init(6), 2.5f));
   // The analytic gradient used by curlnoise matches finite differences.
   float p[3] = {0.3f, 1.7f, -2.2f}, g[3];
-  wp::perlin<3>(seed, p, nullptr, g);
+  wp::noise_gradient<3>(seed, wp::noise_cell<3>(p, nullptr), g);
   for (int k = 0; k < 3; ++k) {
-    float pp[3] = {p[0], p[1], p[2]}, pm[3] = {p[0], p[1], p[2]};
+    wp::vec_t<3, float> pp(p[0], p[1], p[2]), pm(p[0], p[1], p[2]);
+    pp.c[k] += 1e-3f;
+    pm.c[k] -= 1e-3f;
+    float num = (wp::noise(seed, pp) - wp::noise(seed, pm)) / 2e-3f;
+    EXPECT_NEAR(g[k], num, 2e-3f) << k;
+  }
+  // The Hessian (used by curlnoise's adjoint) matches finite differences of the gradient.
+  float h[3][3];
+  wp::noise_hessian<3>(seed, wp::noise_cell<3>(p, nullptr), h);
+  for (int k = 0; k < 3; ++k) {
+    float pp[3] = {p[0], p[1], p[2]}, pm[3] = {p[0], p[1], p[2]}, gp[3], gm[3];
     pp[k] += 1e-3f;
     pm[k] -= 1e-3f;
-    float num = (wp::perlin<3>(seed, pp, nullptr, nullptr) - wp::perlin<3>(seed, pm, nullptr, nullptr)) / 2e-3f;
-    EXPECT_NEAR(g[k], num, 2e-3f) << k;
+    wp::noise_gradient<3>(seed, wp::noise_cell<3>(pp, nullptr), gp);
+    wp::noise_gradient<3>(seed, wp::noise_cell<3>(pm, nullptr), gm);
+    for (int j = 0; j < 3; ++j) EXPECT_NEAR(h[j][k], (gp[j] - gm[j]) / 2e-3f, 2e-2f) << j << k;
   }
   // Curl noise is divergence-free: the trace of its (central-difference) Jacobian is tiny
   // compared with the Jacobian itself.
