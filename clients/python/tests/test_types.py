@@ -252,3 +252,19 @@ def test_log_levels_and_deterministic_mode_like_warp():
     assert (wp.LOG_DEBUG, wp.LOG_INFO, wp.LOG_WARNING, wp.LOG_ERROR) == (10, 20, 30, 40)
     assert wp.DeterministicMode.NOT_GUARANTEED == 0
     assert wp.config.DeterministicMode is wp.DeterministicMode
+
+
+def test_type_size_counts_scalars_like_warp():
+    """wp.types.type_size: scalars in one value (1 for scalars, Python int/float and structs)."""
+    @wp.struct
+    class Pair:
+        a: float
+        b: wp.vec3
+
+    assert types.type_size(float) == 1 and types.type_size(int) == 1
+    assert types.type_size(wp.float16) == 1 and types.type_size(wp.uint64) == 1
+    assert types.type_size(wp.vec3) == 3 and types.type_size(wp.vec4h) == 4
+    assert types.type_size(wp.mat33) == 9 and types.type_size(wp.types.matrix((2, 3), wp.float64)) == 6
+    assert types.type_size(wp.quat) == 4 and types.type_size(wp.transform) == 7
+    assert types.type_size(wp.spatial_vector) == 6
+    assert types.type_size(Pair) == 1

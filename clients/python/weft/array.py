@@ -1145,14 +1145,21 @@ def _new_array(shape, dtype, device, requires_grad, init, value=b""):
     return out
 
 
-def empty(shape=0, dtype=float, device=None, requires_grad=False, pinned=False):
+def _legacy_length(shape, n):
+    """Warp's legacy `n=length` keyword of the array factories: shape (n,)."""
+    return shape if n is None else (n,)
+
+
+def empty(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None):
     """An uninitialised array (Warp's wp.empty)."""
+    shape = _legacy_length(shape, n)
     return _new_array(shape, dtype, device, requires_grad,
                       _runtime.array_pb2.CreateArrayRequest.EMPTY)
 
 
-def zeros(shape=0, dtype=float, device=None, requires_grad=False, pinned=False):
+def zeros(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None):
     """An array of zeros (Warp's wp.zeros)."""
+    shape = _legacy_length(shape, n)
     return _new_array(shape, dtype, device, requires_grad,
                       _runtime.array_pb2.CreateArrayRequest.ZEROS)
 
@@ -1191,8 +1198,9 @@ def _infer_value_dtype(value):
     raise ValueError("Values with more than two dimensions are not supported")
 
 
-def full(shape=0, value=0, dtype=None, device=None, requires_grad=False, pinned=False):
+def full(shape=0, value=0, dtype=None, device=None, requires_grad=False, pinned=False, *, n=None):
     """An array with every element set to `value` (Warp's wp.full); dtype None infers it."""
+    shape = _legacy_length(shape, n)
     dtype = _canonical_dtype(Any if dtype is None else dtype)
     if dtype is Any:
         dtype = _infer_value_dtype(value)
@@ -1202,9 +1210,9 @@ def full(shape=0, value=0, dtype=None, device=None, requires_grad=False, pinned=
                       _runtime.array_pb2.CreateArrayRequest.FILL, payload)
 
 
-def ones(shape=0, dtype=float, device=None, requires_grad=False, pinned=False):
+def ones(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None):
     """An array of ones (Warp's wp.ones)."""
-    return full(shape, 1, dtype, device, requires_grad, pinned)
+    return full(_legacy_length(shape, n), 1, dtype, device, requires_grad, pinned)
 
 
 def _like_grad(src, requires_grad):

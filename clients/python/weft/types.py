@@ -22,7 +22,7 @@ __all__ = [
     "vector", "matrix", "quaternion", "transformation",
     "vec2", "vec3", "vec4", "mat22", "mat33", "mat44", "quat", "transform",
     "spatial_vector", "spatial_matrix",
-    "type_str", "type_size_in_bytes", "type_scalar_type", "type_length", "types_equal",
+    "type_str", "type_size", "type_size_in_bytes", "type_scalar_type", "type_length", "types_equal",
     "dtype_to_numpy", "dtype_from_numpy", "value_to_bytes", "is_array", "is_value",
     "is_vector", "is_matrix", "is_quaternion", "is_transformation", "is_float", "is_int",
     "scalar_short_name", "matrix_from_rows", "matrix_from_cols",
@@ -721,6 +721,16 @@ def type_length(t) -> _py_int:
     if is_dtype(t):
         return t._length_
     return 1
+
+
+def type_size(t) -> _py_int:
+    """Scalars in one value of dtype `t` (Warp's wp.types.type_size): 1 for a scalar, Python
+    int/float and a struct; the length of a vector, matrix, quaternion or transform."""
+    if t is _py_int or t is _py_float or str(getattr(t, "_type_str", "")).startswith("struct("):
+        return 1
+    if is_dtype(t):
+        return t._length_
+    return _canonical_scalar(t)._length_
 
 
 def type_size_in_bytes(t) -> _py_int:

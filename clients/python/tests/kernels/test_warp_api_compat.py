@@ -509,3 +509,15 @@ def test_utils_array_cast(wp, rng):
     np.testing.assert_array_equal(flat.numpy(), [1.0, 2.0, 0.0, 0.0])
     with pytest.raises(RuntimeError, match=r"Array shapes do not match"):
         wp.utils.array_cast(x, wp.zeros((4, 3), dtype=wp.int32))
+
+
+def test_array_factories_take_the_legacy_length_keyword(wp, rng):
+    """Warp's wp.zeros(n=...), wp.empty(n=...), wp.ones/full(n=...): a 1-D array of length n."""
+    n = int(rng.integers(1, 50))
+    value = float(rng.uniform(1.0, 2.0))
+    assert wp.empty(n=n, dtype=float).shape == (n,)
+    z = wp.zeros(n=n, dtype=wp.vec3, requires_grad=True)
+    assert z.shape == (n,) and z.grad is not None
+    np.testing.assert_array_equal(z.numpy(), 0.0)
+    np.testing.assert_array_equal(wp.ones(n=n, dtype=float).numpy(), 1.0)
+    np.testing.assert_allclose(wp.full(n=n, value=value, dtype=float).numpy(), value, rtol=1e-6)
