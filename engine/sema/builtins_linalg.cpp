@@ -86,6 +86,8 @@ void AddLinalgBuiltins(std::vector<BuiltinOverload>* rows) {
   vec("lerp(a: vec(N,Float), b: vec(N,Float), t: Float) -> vec(N,Float)", "a * (1 - t) + b * t.");
   vec("lerp(a: mat(N,M,Float), b: mat(N,M,Float), t: Float) -> mat(N,M,Float)", "a * (1 - t) + b * t.");
   vec("lerp(a: quat(Float), b: quat(Float), t: Float) -> quat(Float)", "a * (1 - t) + b * t.");
+  vec("lerp(a: transform(Float), b: transform(Float), t: Float) -> transform(Float)",
+      "a * (1 - t) + b * t (componentwise).");
   vec("matrix_from_rows(a: vec(N,Scalar), b: vec(N,Scalar), c: vec(N,Scalar)) -> mat(3,N,Scalar)",
       "Matrix whose rows are a, b, c.");
   vec("matrix_from_cols(a: vec(N,Scalar), b: vec(N,Scalar), c: vec(N,Scalar)) -> mat(N,3,Scalar)",

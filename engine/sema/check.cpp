@@ -223,6 +223,7 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
     Push(std::move(init));
   }
 
+  CountAssignedNames(pf.def->body, &state.assign_counts);
   Status s = LowerBlock(pf.def->body);
   if (!s.ok()) return finish_error(s);
   if (fn.is_kernel && !fn.return_slots.empty())
@@ -529,8 +530,14 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
                             " (only runtime values can be assigned)");
     }
     if (TypeOf(value.var).is_void()) return Error(loc, "cannot assign the result of a function that returns nothing");
-    // An assigned literal takes its default type (int32 / float32); keep the var.
-    return BindLocal(n->id, value.var, loc);
+    // An assigned literal takes its default type (int32 / float32); keep the var. A name
+    // assigned only once, from a numeric literal, stays usable as that literal where Warp
+    // takes constants (typed constructors, constant integer indices and slice bounds).
+    WEFT_RETURN_IF_ERROR(BindLocal(n->id, value.var, loc));
+    auto count = st_->assign_counts.find(n->id);
+    if (value.literal && count != st_->assign_counts.end() && count->second == 1)
+      st_->literal_locals[n->id] = {st_->scope[n->id], value.literal_text};
+    return Status::Ok();
   }
   if (const auto* t = ast::As<ast::Tuple>(&target)) {
     if (value.kind == Value::Kind::kVar && value.name == "__tid") {  // i, j = wp.tid()
@@ -641,6 +648,21 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
       int updated = EmitOp(OpKind::kInsert, bt, {base.var, ki, v});
       return LowerAssignTo(*at->value, Value::OfVar(updated));
     }
+    if (bt.kind == TypeKind::kTransform && (at->attr == "p" || at->attr == "q")) {
+      // t.p = v / t.q = r: the translation's 3 or the rotation's 4 components, one by one
+      // (component writes, with their adjoints).
+      bool p = at->attr == "p";
+      Type part = p ? Type::Vector(3, bt.scalar) : Type::Quat(bt.scalar);
+      WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, part, loc, p ? "the translation" : "the rotation"));
+      int updated = base.var;
+      for (int k = 0; k < (p ? 3 : 4); ++k) {
+        int src = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")");
+        int x = EmitOp(OpKind::kExtract, Type::Scalar(bt.scalar), {v, src});
+        int dst = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(p ? k : 3 + k) + ")");
+        updated = EmitOp(OpKind::kInsert, bt, {updated, dst, x});
+      }
+      return LowerAssignTo(*at->value, Value::OfVar(updated));
+    }
     return Error(loc, "cannot assign to attribute '" + at->attr + "' of a value of type " + TypeString(bt));
   }
   return Error(loc, "cannot assign to this expression");
@@ -702,8 +724,14 @@ Status Checker::LowerIf(int cond, const std::function<Status()>& then_fn, const 
 }
 
 void CollectAssignedNames(const ast::StmtList& stmts, std::set<std::string>* out) {
+  std::map<std::string, int> counts;
+  CountAssignedNames(stmts, &counts);
+  for (const auto& [name, n] : counts) out->insert(name);
+}
+
+void CountAssignedNames(const ast::StmtList& stmts, std::map<std::string, int>* out) {
   std::function<void(const ast::Expr&)> target = [&](const ast::Expr& t) {
-    if (const auto* n = ast::As<ast::Name>(&t)) out->insert(n->id);
+    if (const auto* n = ast::As<ast::Name>(&t)) ++(*out)[n->id];
     else if (const auto* tu = ast::As<ast::Tuple>(&t)) {
       for (const auto& e : tu->elts) target(*e);
     } else if (const auto* s = ast::As<ast::Subscript>(&t)) target(*s->value);
@@ -718,14 +746,14 @@ void CollectAssignedNames(const ast::StmtList& stmts, std::set<std::string>* out
       case ast::StmtKind::kAnnAssign: target(*static_cast<const ast::AnnAssign&>(s).target); break;
       case ast::StmtKind::kAugAssign: target(*static_cast<const ast::AugAssign&>(s).target); break;
       case ast::StmtKind::kIf:
-        CollectAssignedNames(static_cast<const ast::If&>(s).body, out);
-        CollectAssignedNames(static_cast<const ast::If&>(s).orelse, out);
+        CountAssignedNames(static_cast<const ast::If&>(s).body, out);
+        CountAssignedNames(static_cast<const ast::If&>(s).orelse, out);
         break;
       case ast::StmtKind::kFor:
         target(*static_cast<const ast::For&>(s).target);
-        CollectAssignedNames(static_cast<const ast::For&>(s).body, out);
+        CountAssignedNames(static_cast<const ast::For&>(s).body, out);
         break;
-      case ast::StmtKind::kWhile: CollectAssignedNames(static_cast<const ast::While&>(s).body, out); break;
+      case ast::StmtKind::kWhile: CountAssignedNames(static_cast<const ast::While&>(s).body, out); break;
       default: break;
     }
   }

@@ -310,6 +310,11 @@ Expected<Value> Checker::EvalName(const ast::Name& n) {
   if (it != st_->scope.end()) {
     Value v = Value::OfVar(it->second);
     v.source = n.id;
+    auto lit = st_->literal_locals.find(n.id);
+    if (lit != st_->literal_locals.end() && lit->second.first == it->second) {
+      v.const_local = true;
+      v.literal_text = lit->second.second;
+    }
     return v;
   }
   bool found = false;
@@ -439,7 +444,7 @@ Expected<std::vector<int>> Checker::SliceComponents(const ast::Slice& sl, int n)
     *out = def;
     if (!e) return Status::Ok();
     WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
-    if (v.kind != Value::Kind::kVar || !v.literal || v.literal_text.empty() ||
+    if (v.kind != Value::Kind::kVar || !(v.literal || v.const_local) || v.literal_text.empty() ||
         v.literal_text.find_first_not_of("-0123456789") != std::string::npos || v.literal_text.size() > 9)
       return ErrorOf("value", e->loc, "Slice component must be a compile-time constant (an integer literal)");
     *out = std::stol(v.literal_text);
@@ -647,7 +652,7 @@ Status Checker::ExpandStarred(const ast::Starred& s, std::vector<Value>* out) {
         *v = def;
         if (!e) return Status::Ok();
         WEFT_ASSIGN_OR_RETURN(Value x, Eval(*e));
-        if (x.kind != Value::Kind::kVar || !x.literal || x.literal_text.empty() ||
+        if (x.kind != Value::Kind::kVar || !(x.literal || x.const_local) || x.literal_text.empty() ||
             x.literal_text.find_first_not_of("-0123456789") != std::string::npos || x.literal_text.size() > 9)
           return ErrorOf("value", e->loc, "Slice component must be a compile-time constant (an integer literal)");
         *v = std::stol(x.literal_text);
@@ -1018,6 +1023,9 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
 
 Expected<Value> Checker::CallConstructor(const Type& t, std::vector<Value> args, const SourceLocation& loc,
                                          const ast::Call& call) {
+  // A local assigned once from a literal converts as that literal (Warp's constant Vars).
+  for (auto& a : args)
+    if (a.kind == Value::Kind::kVar && a.const_local) a.literal = true;
   Stmt s;
   s.op.kind = OpKind::kConstruct;
   int d = -1;

@@ -23,6 +23,9 @@ struct Value {
   bool literal = false;      // kVar holding a numeric literal that may adapt its type
   std::string literal_text;  // its Python text
   std::string source;        // source text of the expression (array names in errors)
+  // kVar of a local assigned once from a numeric literal: literal_text is that literal, used
+  // where Warp takes constants (constructors, constant indices), without adapting elsewhere.
+  bool const_local = false;
 
   static Value OfVar(int v) { Value x; x.kind = Kind::kVar; x.var = v; return x; }
 };
@@ -50,6 +53,8 @@ class Checker {
     // In a gradient function (wp.func_grad): parameter name -> its wp.adjoint[...] slot.
     std::map<std::string, int> adjoint_slots;
     std::vector<std::string> source_lines;
+    std::map<std::string, int> assign_counts;   // name -> assignments in the whole body
+    std::map<std::string, std::pair<int, std::string>> literal_locals;   // name -> (var, literal text)
   };
 
   // check.cpp
@@ -128,6 +133,8 @@ class Checker {
 Expected<std::string> CppLiteral(const Type& t, const std::string& python_text);
 // Names assigned anywhere in `stmts` (targets' base names), for loop-carried analysis.
 void CollectAssignedNames(const ast::StmtList& stmts, std::set<std::string>* out);
+// How often each name is assigned in `stmts` (targets, loop variables, augmented assignments).
+void CountAssignedNames(const ast::StmtList& stmts, std::map<std::string, int>* out);
 // Source text of an expression (for messages and array names).
 std::string ExprText(const ast::Expr& e);
 

@@ -1,5 +1,6 @@
 """Language: vector/matrix/quaternion component reads and writes (v[0], v.x, m[i, j], m[i]),
-component assignment, and vectors/matrices of other lengths and dtypes (vec5 via
+component assignment (also a transform's .p and .q, on a local and on an array element, with
+their adjoints), and vectors/matrices of other lengths and dtypes (vec5 via
 wp.types.vector, mat22d) as kernel arguments and array elements."""
 import numpy as np
 
@@ -76,3 +77,36 @@ def test_custom_vector_and_matrix_types(wp, rng):
     ref = np.stack([(a.astype(np.float64) + s).sum(1), np.full(n, m[1, 2] + m[0, 0]),
                     np.full(n, d[0, 1] + d[1, 0])], axis=1)
     np.testing.assert_allclose(out.numpy(), ref, rtol=1e-5, atol=1e-5)
+
+
+@wp.kernel
+def set_transform_parts(p: wp.array(dtype=wp.vec3), q: wp.array(dtype=wp.quat),
+                        y: wp.array(dtype=wp.transform), z: wp.array(dtype=wp.transform)):
+    i = wp.tid()
+    t = wp.transform_identity()
+    t.p = p[i] * 2.0
+    t.q = q[i]
+    z[i] = t
+    y[i].p = p[i]
+
+
+def test_transform_translation_and_rotation_assignment(wp, rng):
+    n = 8
+    p_np = rng.standard_normal((n, 3))
+    q_np = rng.standard_normal((n, 4))
+    y_np = rng.standard_normal((n, 7))
+    p = wp.array(p_np, dtype=wp.vec3, requires_grad=True)
+    q = wp.array(q_np, dtype=wp.quat, requires_grad=True)
+    y = wp.array(y_np, dtype=wp.transform, requires_grad=True)
+    z = wp.zeros(n, dtype=wp.transform, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(set_transform_parts, dim=n, inputs=[p, q, y, z])
+    want_y = y_np.copy()
+    want_y[:, :3] = p_np
+    np.testing.assert_allclose(y.numpy(), want_y, rtol=1e-6)
+    np.testing.assert_allclose(z.numpy(), np.concatenate([2.0 * p_np, q_np], axis=1), rtol=1e-6)
+    seed_y, seed_z = rng.standard_normal((n, 7)), rng.standard_normal((n, 7))
+    tape.backward(grads={y: wp.array(seed_y, dtype=wp.transform), z: wp.array(seed_z, dtype=wp.transform)})
+    np.testing.assert_allclose(p.grad.numpy(), seed_y[:, :3] + 2.0 * seed_z[:, :3], rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(q.grad.numpy(), seed_z[:, 3:], rtol=1e-5, atol=1e-6)

@@ -145,6 +145,13 @@ def resolve(definition: FunctionDefinition) -> Resolution:
                 break
         if value is _MISSING:
             continue
+        # descend through plain Python objects and classes: foo.compute where foo is an
+        # instance holding a @wp.func, Config.N on a class (Warp resolves them the same way)
+        while used < len(chain) and _opaque(value):
+            value = getattr(value, chain[used], _MISSING)
+            used += 1
+        if value is _MISSING:
+            continue
         # Python enums: MyEnum.A and MyEnum.A.value are the member's value (an int constant)
         if isinstance(value, enum.EnumMeta) and used < len(chain):
             value = value.__members__.get(chain[used], _MISSING)
@@ -166,6 +173,26 @@ def resolve(definition: FunctionDefinition) -> Resolution:
         gradient.definition.key = definition.key + "__custom_grad"
         functions.append(gradient)
     return Resolution(list(symbols.values()), functions, structs)
+
+
+def _opaque(value) -> bool:
+    """True for a Python object or class that means nothing in kernel code itself (an instance
+    of a user class, a user class), whose attributes may (a @wp.func, a constant, a type)."""
+    if isinstance(value, (Function, StructType, enum.Enum, enum.EnumMeta, types.ModuleType)):
+        return False
+    if value is None or value is typing.Any or is_warp_module(value):
+        return False
+    if getattr(value, "__origin__", None) is not None:
+        return False
+    if isinstance(value, type):
+        try:
+            typestr.type_string(value)
+            return False
+        except TypeError:
+            return True
+    if typestr.constant_type_of(value) is not None or typestr.array_type_string(value) is not None:
+        return False
+    return hasattr(value, "__dict__") and not callable(value)
 
 
 def classify(name: str, value, add, functions: list, structs: list) -> None:
