@@ -437,6 +437,9 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
           std::vector<Value> args{base};
           for (const auto& ix : sub->indices) {
             WEFT_ASSIGN_OR_RETURN(Value iv, Eval(*ix));
+            if (iv.kind == Value::Kind::kVar && TypeOf(iv.var).is_scalar() && !IsInt(TypeOf(iv.var).scalar))
+              return ErrorOf("type", ix->loc, "Array slot write indices must be integers, got `" +
+                                                  TypeString(TypeOf(iv.var)) + "`");
             args.push_back(iv);
           }
           WEFT_ASSIGN_OR_RETURN(Value val, Eval(*a.value));
@@ -459,7 +462,10 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
       synthetic.loc = a.loc;
       synthetic.op = a.op;
       // Evaluate `target op value` without re-parsing: borrow the nodes through a non-owning view.
-      WEFT_ASSIGN_OR_RETURN(Value lhs, Eval(*a.target));
+      store_target_ = true;   // the target's array subscripts are element writes
+      Expected<Value> lhs_or = Eval(*a.target);
+      store_target_ = false;
+      WEFT_ASSIGN_OR_RETURN(Value lhs, std::move(lhs_or));
       WEFT_ASSIGN_OR_RETURN(Value rhs, Eval(*a.value));
       static const std::map<ast::BinaryOperator, std::string> kNames = {
           {ast::BinaryOperator::kAdd, "add"},        {ast::BinaryOperator::kSub, "sub"},
@@ -557,6 +563,12 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
     return Status::Ok();
   }
   if (value.kind != Value::Kind::kVar) return Error(loc, "only runtime values can be stored");
+  struct StoreTarget {   // the target's own subscripts are element writes (index reads reset it)
+    bool* flag;
+    bool saved;
+    ~StoreTarget() { *flag = saved; }
+  } store_guard{&store_target_, store_target_};
+  store_target_ = true;
   if (const auto* sub = ast::As<ast::Subscript>(&target)) {
     WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
     if (base.kind == Value::Kind::kBuiltin && base.name == "adjoint") {  // wp.adjoint[x] = ...
@@ -586,7 +598,7 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
       }
       return LowerAssignTo(*sub->value, Value::OfVar(updated));
     }
-    WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(sub->indices));
+    WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(sub->indices, bt.is_array()));
     if (bt.is_array()) {
       if (static_cast<int>(idx.size()) != bt.ndim)
         return Error(loc, "array '" + ExprText(*sub->value) + "' has " + std::to_string(bt.ndim) +

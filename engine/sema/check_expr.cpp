@@ -424,11 +424,17 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
   return Error(a.attr_loc, "a value of type " + TypeString(bt) + " has no attribute '" + a.attr + "'");
 }
 
-Expected<std::vector<int>> Checker::EvalIndices(const ast::ExprList& idx) {
+Expected<std::vector<int>> Checker::EvalIndices(const ast::ExprList& idx, bool array_base) {
   std::vector<int> out;
   for (const auto& e : idx) {
     if (ast::As<ast::Slice>(e.get())) return Error(e->loc, "slices are not supported in kernels");
-    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
+    bool store = store_target_;
+    store_target_ = false;   // an index expression is a read
+    Expected<Value> ev = Eval(*e);
+    store_target_ = store;
+    WEFT_ASSIGN_OR_RETURN(Value v, std::move(ev));
+    if (array_base && store && v.kind == Value::Kind::kVar && TypeOf(v.var).is_scalar() && !IsInt(TypeOf(v.var).scalar))
+      return ErrorOf("type", e->loc, "Array slot write indices must be integers, got `" + TypeString(TypeOf(v.var)) + "`");
     if (v.kind != Value::Kind::kVar || !TypeOf(v.var).is_scalar() || !IsInt(TypeOf(v.var).scalar))
       return Error(e->loc, "index '" + ExprText(*e) + "' must be an integer" +
                                (v.kind == Value::Kind::kVar ? ", got " + TypeString(TypeOf(v.var)) : std::string()));
@@ -518,7 +524,7 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
   }
   if (base.kind != Value::Kind::kVar) return Error(s.loc, "'" + ExprText(*s.value) + "' cannot be indexed");
   const Type bt = TypeOf(base.var);
-  WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(s.indices));
+  WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(s.indices, bt.is_array()));
   if (bt.is_array()) {
     if (static_cast<int>(idx.size()) < bt.ndim) {
       // a[i] on a 2-D array: the sub-array with the leading indices fixed (a view; its

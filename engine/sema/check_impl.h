@@ -101,7 +101,9 @@ class Checker {
   Expected<int> Coerce(const Value& v, const Type& want, const SourceLocation& loc, const std::string& what);
   Expected<Value> EvalConstantSymbol(const weft::ConstantValue& c, const SourceLocation& loc);
   Expected<Type> EvalTypeExpr(const ast::Expr& e);
-  Expected<std::vector<int>> EvalIndices(const ast::ExprList& idx);
+  // `array_base`: the indices of an array element (a non-integer index of an element being
+  // written, store_target_, is Warp's TypeError "Array slot write indices must be integers").
+  Expected<std::vector<int>> EvalIndices(const ast::ExprList& idx, bool array_base = false);
   Expected<std::vector<int>> SliceComponents(const ast::Slice& slice, int n);
 
   // emission helpers
@@ -127,6 +129,7 @@ class Checker {
   std::map<std::string, int> instances_;   // instantiation key -> function index
   std::set<std::string> in_progress_;
   FnState* st_ = nullptr;
+  bool store_target_ = false;   // evaluating the target of an assignment (arr[i].x = v, arr[i] += v)
 };
 
 // C++ text of a Python literal in type t ("1.5" as float32 -> "wp::float32(1.5)").

@@ -115,3 +115,22 @@ def test_load_module_compiles_ahead_of_time(wp, kernel_module):
     line = next(k for k, text in enumerate(open(bad.__file__).read().splitlines(), 1)
                 if "missing_name_q" in text)
     assert f"{bad.__file__}:{line}" in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize("body", [
+    "dst[0.0].x = 1.0",
+    "dst[idx[0]].x += 1.0",
+    "dst[idx[0]] += wp.vec3(1.0)",
+    "dst[idx[0]] = wp.vec3(1.0)",
+])
+def test_float_index_of_an_element_write_is_a_type_error(wp, kernel_module, body):
+    """Warp's TypeError for a non-integer index of an array element being written (a slot
+    write); an integer index read inside the target (idx[0]) is fine."""
+    m = kernel_module(f"""
+        @wp.kernel
+        def k(dst: wp.array(dtype=wp.vec3), idx: wp.array(dtype=wp.float32), ok: wp.array(dtype=int)):
+            dst[ok[0]].y = 2.0
+            {body}
+    """)
+    with pytest.raises(TypeError, match="Array slot write indices must be integers, got `float32`"):
+        wp.load_module(m, device="cpu")

@@ -521,3 +521,26 @@ def test_array_factories_take_the_legacy_length_keyword(wp, rng):
     np.testing.assert_array_equal(z.numpy(), 0.0)
     np.testing.assert_array_equal(wp.ones(n=n, dtype=float).numpy(), 1.0)
     np.testing.assert_allclose(wp.full(n=n, value=value, dtype=float).numpy(), value, rtol=1e-6)
+
+
+def test_unique_kernel_module_load_raises_its_compile_error(wp, kernel_module):
+    """A module="unique" kernel has a module of its own (Warp): kernel.module.load() compiles
+    that kernel alone and raises its error; the file's module still loads its other kernels."""
+    m = kernel_module("""
+        @wp.kernel
+        def fine(a: wp.array(dtype=float)):
+            a[wp.tid()] = 1.0
+
+        @wp.kernel(module="unique")
+        def broken(dst: wp.array(dtype=wp.vec3)):
+            dst[0.5].x = 1.0
+
+        @wp.kernel(module="unique")
+        def alone(a: wp.array(dtype=float)):
+            a[wp.tid()] = 2.0
+    """)
+    with pytest.raises(TypeError, match="Array slot write indices must be integers"):
+        m.broken.module.load(device="cpu")
+    assert m.alone.module.load(device="cpu") is not None
+    assert m.alone.module.name == m.fine.module.name
+    assert wp.get_module(m.__name__).load(device="cpu") is not None

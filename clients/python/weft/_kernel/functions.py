@@ -298,9 +298,12 @@ class Kernel:
 
     @property
     def module(self):
-        """The Module this kernel belongs to (Warp's kernel.module)."""
+        """The Module this kernel belongs to (Warp's kernel.module); a module="unique" kernel's
+        is a module of its own (module.UniqueModule), as in Warp."""
         from . import module as module_mod  # noqa: PLC0415
 
+        if self.options.get("module") == "unique":
+            return module_mod.UniqueModule(self, module_mod.get_module(self.module_name))
         return module_mod.get_module(self.module_name)
 
     @property

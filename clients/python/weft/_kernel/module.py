@@ -409,6 +409,33 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
     return compiled, info
 
 
+class UniqueModule:
+    """kernel.module of a module="unique" kernel: Warp gives such a kernel a module of its own,
+    so load() compiles that kernel alone and raises its compile error; everything else is the
+    Python module's Module (options, unload, hash_module)."""
+
+    def __init__(self, kernel: Kernel, module: Module):
+        self._kernel = kernel
+        self._module = module
+
+    def __getattr__(self, name):
+        return getattr(self._module, name)
+
+    def __repr__(self):
+        return f"<weft module of the unique kernel {self._kernel.key}>"
+
+    def load(self, device=None, block_dim=None, binary_path=None):
+        from .launch import device_name  # noqa: PLC0415
+
+        if binary_path is not None:
+            raise NotImplementedError("Module.load(binary_path=...): weft compiles modules in "
+                                      "the daemon and loads no binaries from the client")
+        k = self._kernel
+        instances = list(k._specializations.values()) if k.is_generic else [k]
+        built = [compile_kernel(instance, device_name(device))[0] for instance in instances]
+        return built[-1] if built else None
+
+
 def compile_module(module_name: str, device: str, backward: bool = False,
                    leave_out_failing: bool = False) -> list:
     """Compiles every kernel of a module (a generic kernel: its instances, from wp.overload or
