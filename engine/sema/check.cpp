@@ -628,6 +628,9 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
     }
     for (int i : idx)
       if (!TypeOf(i).is_scalar() || !IsInt(TypeOf(i).scalar)) return Error(loc, "component indices must be integers");
+    if (TypeOf(value.var).kind != comp.kind)   // Warp's TypeError for a composite slot write
+      return ErrorOf("type", loc, "Composite slot assignment expects value of type `" + TypeString(comp) + "`, got `" +
+                                      TypeString(TypeOf(value.var)) + "`");
     WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, comp, loc, "the component value"));
     std::vector<int> args{base.var};
     for (int i : idx) args.push_back(i);
@@ -655,6 +658,9 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
       size_t k = at->attr.size() == 1 ? kXYZW.find(at->attr[0]) : std::string::npos;
       if (k == std::string::npos || static_cast<int>(k) >= bt.component_count())
         return Error(at->attr_loc, TypeString(bt) + " has no component '" + at->attr + "'");
+      if (!TypeOf(value.var).is_scalar())   // Warp's TypeError for a composite slot write
+        return ErrorOf("type", loc, "Composite slot assignment expects value of type `" +
+                                        TypeString(Type::Scalar(bt.scalar)) + "`, got `" + TypeString(TypeOf(value.var)) + "`");
       WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, Type::Scalar(bt.scalar), loc, "the component value"));
       int ki = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")");
       int updated = EmitOp(OpKind::kInsert, bt, {base.var, ki, v});

@@ -3,6 +3,7 @@ offending statement (as the daemon's diagnostics give it); wp.compile/load_modul
 errors without launching; the daemon keeps serving; a broken kernel does not block the
 other kernels of its module."""
 import inspect
+import re
 
 import numpy as np
 import pytest
@@ -133,4 +134,23 @@ def test_float_index_of_an_element_write_is_a_type_error(wp, kernel_module, body
             {body}
     """)
     with pytest.raises(TypeError, match="Array slot write indices must be integers, got `float32`"):
+        wp.load_module(m, device="cpu")
+
+
+@pytest.mark.parametrize("body,want,got", [
+    ("y[i].y = src[i]", "float32", "vec(3,float32)"),
+    ("v = y[i]\n            v[1] = src[i]\n            y[i] = v", "float32", "vec(3,float32)"),
+    ("m = wp.mat33()\n            m[0] = 1.0\n            y[i] = m[0]", "vec(3,float32)", "float32"),
+])
+def test_composite_slot_value_of_another_kind_is_a_type_error(wp, kernel_module, body, want, got):
+    """Warp's TypeError for a composite slot written with a value of another kind (a vector
+    into a component, a scalar into a matrix row)."""
+    m = kernel_module(f"""
+        @wp.kernel
+        def k(y: wp.array(dtype=wp.vec3), src: wp.array(dtype=wp.vec3)):
+            i = wp.tid()
+            {body}
+    """)
+    with pytest.raises(TypeError, match=f"Composite slot assignment expects value of type `{re.escape(want)}`, "
+                                        f"got `{re.escape(got)}`"):
         wp.load_module(m, device="cpu")
