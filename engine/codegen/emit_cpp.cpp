@@ -10,7 +10,9 @@
 // slots jump straight to iteration k (O(n)).
 #include "engine/codegen/emit_cpp.h"
 
+#include <algorithm>
 #include <functional>
+#include <map>
 #include <set>
 
 #include "engine/codegen/emit_text.h"
@@ -182,11 +184,13 @@ class FnEmitter {
 
   // Every line carries a #line directive naming the user's file and line, so a C++ compiler
   // error in generated code (a weft bug) still points at the user's statement.
-  void Line(const std::string& s) {
-    out_ += UserLine(f_, last_line_ > 0 ? last_line_ : f_.def_line);
-    out_.append(static_cast<size_t>(indent_) * 2, ' ');
-    out_ += s;
-    out_ += '\n';
+  void Line(const std::string& s) { out_ += LineText(s); }
+  std::string LineText(const std::string& s) const {
+    std::string t = UserLine(f_, last_line_ > 0 ? last_line_ : f_.def_line);
+    t.append(static_cast<size_t>(indent_) * 2, ' ');
+    t += s;
+    t += '\n';
+    return t;
   }
   void Loc(int line) {
     if (line > 0 && line != last_line_) {
@@ -240,14 +244,80 @@ class FnEmitter {
                     (adjoint ? A(array) : V(array));
     for (int k = 0; k < 4; ++k) s += ", " + (k < static_cast<int>(idx.size()) ? V(idx[k]) : std::string("0"));
     s += ", " + std::to_string(idx.size()) + ")) " + fail_;
-    Line(s);
+    if (adjoint || !Hoist(array, idx, LineText(s))) Line(s);
+  }
+
+  // Bounds checks of loads and views move up to just after the definition of their operands,
+  // within a run of statements without side effects (a "region": no store, atomic, call of a
+  // func, print, branch or loop inside). The loads of a statement like y[i] = a*x[i] + y[i] then
+  // follow each other with no branch between them, so the GPU has them in flight together; with
+  // a check between two loads, the second one waited for the first. Checks keep their order
+  // (the first failing access of a thread is still the one reported), and a thread whose check
+  // fails stops before any side effect, as before.
+  struct Region {
+    std::vector<size_t> marks;    // marks[k]: where a check placed before region statement k goes
+    std::map<int, int> last_def;  // variable -> index of the region statement that last set it
+    int floor = 0;                // checks may not move above this statement (their order)
+    bool open = false;
+  };
+  void RegionReset() { region_ = Region{}; }
+  void RegionBegin(const Stmt& s) {
+    if (!region_.open) {
+      region_ = Region{};
+      region_.open = true;
+    }
+    region_.marks.push_back(out_.size());
+    (void)s;
+  }
+  void RegionEnd(const Stmt& s) {
+    const int k = static_cast<int>(region_.marks.size()) - 1;
+    if (s.kind == Stmt::Kind::kOp && Pure(s.op)) {
+      for (int d : s.op.dst) region_.last_def[d] = k;
+    } else {
+      RegionReset();
+    }
+  }
+  bool Pure(const Op& op) const {
+    switch (op.kind) {
+      case OpKind::kStore:
+      case OpKind::kFuncCall:
+      case OpKind::kPrintf: return false;
+      case OpKind::kCall: return !(op.builtin->side_effect() || op.builtin->needs_ctx() || (op.builtin->flags & kBuiltinArrayAccess));
+      default: return true;
+    }
+  }
+  // Inserts `text` (a whole check line) at the earliest allowed place; false: not a hoistable
+  // check (the caller emits it here).
+  bool Hoist(int array, const std::vector<int>& idx, const std::string& text) {
+    if (!region_.open || region_.marks.empty() || !hoisting_) return false;
+    const int cur = static_cast<int>(region_.marks.size()) - 1;
+    int t = region_.floor;
+    auto after_def = [&](int v) {
+      auto it = region_.last_def.find(v);
+      if (it != region_.last_def.end()) t = std::max(t, it->second + 1);
+    };
+    after_def(array);
+    for (int v : idx) after_def(v);
+    if (t > cur) t = cur;
+    // Also at t == cur (no move): inserted at the mark, which then moves past it, so a later
+    // check placed at the same statement comes after this one.
+    out_.insert(region_.marks[t], text);
+    for (int k = t; k <= cur; ++k) region_.marks[k] += text.size();
+    region_.floor = t;
+    return true;
   }
 
   void Fwd(const std::vector<Stmt>& stmts, bool replay) {
+    RegionReset();
     for (const auto& s : stmts) {
+      RegionBegin(s);
       Loc(s.line);
       switch (s.kind) {
-        case Stmt::Kind::kOp: FwdOp(s.op, s.line, replay); break;
+        case Stmt::Kind::kOp:
+          hoisting_ = s.op.kind == OpKind::kLoad || s.op.kind == OpKind::kView;
+          FwdOp(s.op, s.line, replay);
+          hoisting_ = false;
+          break;
         case Stmt::Kind::kIf:
           Line("if (" + V(s.cond) + ") {");
           ++indent_;
@@ -263,7 +333,9 @@ class FnEmitter {
           break;
         case Stmt::Kind::kLoop: FwdLoop(s, replay); break;
       }
+      RegionEnd(s);
     }
+    RegionReset();
   }
 
   void LoopBack(const Stmt& s) {
@@ -627,6 +699,8 @@ class FnEmitter {
   std::string fail_ = "return;";
   int indent_ = 0;
   int last_line_ = -1;
+  Region region_;
+  bool hoisting_ = false;  // the op being emitted is a load or view (its check may move up)
 };
 
 void EmitStructs(const Module& m, std::string* out) {

@@ -145,6 +145,54 @@ TEST(CodegenKernels, SaxpyCompilesAndReportsLayout) {
 }
 
 
+// The bounds checks of a statement's loads come before its first load (they move up past pure
+// code), so the loads follow each other with no branch between them and the GPU has them in
+// flight together; a check never moves above a store (a thread whose access fails still stops
+// before any side effect it would not have had).
+TEST(CodegenKernels, LoadChecksMoveUpButNotPastStores) {
+  ModuleSource m;
+  m.name = "hoist_mod";
+  m.symbols.push_back(Wp());
+  m.functions.push_back(Fn("saxpy",
+                           "def saxpy(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):\n"
+                           "    i = wp.tid()\n"
+                           "    y[i] = a * x[i] + y[i]\n",
+                           {"array(float32,1)", "array(float32,1)", "float32"}, {"x", "y", "a"}));
+  m.functions.push_back(Fn("after_store",
+                           "def after_store(x: wp.array(dtype=float), y: wp.array(dtype=float), j: int):\n"
+                           "    i = wp.tid()\n"
+                           "    y[i] = 1.0\n"
+                           "    y[i] = x[j] * 2.0\n",
+                           {"array(float32,1)", "array(float32,1)", "int32"}, {"x", "y", "j"}));
+  for (Target t : {Target::kCpu, Target::kCuda}) {
+    CodegenOptions o;
+    o.target = t;
+    std::vector<Diagnostic> diags;
+    auto gm = GenerateModule(m, o, &diags);
+    ASSERT_TRUE(gm.ok()) << gm.status().message();
+    const std::string& src = gm->source;
+    auto body = [&](const std::string& kernel) {
+      size_t b = src.find("weft_kernel_" + kernel);
+      b = src.find("_forward_body(", b);
+      return src.substr(b, src.find("\n}\n", b) - b);
+    };
+    const std::string saxpy = body("saxpy");
+    const size_t first_load = saxpy.find("wp::load(");
+    ASSERT_NE(first_load, std::string::npos) << saxpy;
+    EXPECT_LT(saxpy.find("\"x\", var_"), first_load) << saxpy;
+    EXPECT_LT(saxpy.find("\"y\", var_"), first_load) << saxpy;
+    const size_t second_load = saxpy.find("wp::load(", first_load + 1);
+    ASSERT_NE(second_load, std::string::npos) << saxpy;
+    EXPECT_EQ(saxpy.substr(first_load, second_load - first_load).find("cg_check"), std::string::npos)
+        << "no check between the two loads:\n" << saxpy;
+    const std::string after = body("after_store");
+    const size_t store = after.find("wp::store(");
+    ASSERT_NE(store, std::string::npos) << after;
+    EXPECT_GT(after.find("\"x\", var_"), store) << "the check of x[j] stays after the store:\n" << after;
+  }
+  ExpectCompiles(m, true);
+}
+
 ModuleSource OneKernel(const std::string& name, const std::string& src, std::vector<std::string> types,
                        std::vector<std::string> names) {
   ModuleSource m;
