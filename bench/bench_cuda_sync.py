@@ -4,7 +4,9 @@ Rows (median of many, one client, weft's own daemon on a Unix socket):
 - the transport floor: a no-op RPC (SessionService.Stats) and Synchronize with nothing
   queued, wall time and this process's CPU time per call;
 - empty launch + wp.synchronize() and 3-argument launch + sync, on `cpu` and on `cuda:0`
-  (the difference between the two devices is the GPU's part: stream wait, error read-back);
+  (the difference between the two devices is the GPU's part: stream wait, error read-back),
+  each through gRPC and through the fast lane (weft._fast_lane: Submit/Synchronize over a Unix
+  SOCK_SEQPACKET socket; rows "fast lane"; absent when the daemon offers none);
 - saxpy at 1e7 and 1e8 elements, R launches then one sync, with the early (pipelined)
   submit on and off (weft._runtime: WEFT_PIPELINE): time per launch, and the fixed cost of a
   round (intercept of time against R from R=4 and R=32); warp-lang beside it when importable.
@@ -133,16 +135,26 @@ def main():
         wall, cpu = per_call(lambda: rt.exec_stub.Synchronize(exec_pb2.SynchronizeRequest(),
                                                               metadata=rt.metadata), args.calls)
         rows.append(["Synchronize, nothing queued", bc.fmt_time(wall), bc.fmt_time(cpu), "", "", ""])
+        lane = rt.fast_lane
+        if lane is None:
+            notes.append("no fast lane (WEFT_FAST_LANE=0, or the daemon offers none): its rows left out")
+        else:
+            wall, cpu = per_call(lambda: rt.synchronize(), args.calls)
+            rows.append(["Synchronize, nothing queued, fast lane", bc.fmt_time(wall), bc.fmt_time(cpu), "", "", ""])
+        transports = [("gRPC", None)] + ([("fast lane", lane)] if lane is not None else [])
         for dev in devices:
             a = weft.zeros(1, dtype=float, device=dev)
             b = weft.zeros(1, dtype=float, device=dev)
             c = weft.zeros(1, dtype=float, device=dev)
-            wall, cpu = per_call(lambda: (weft.launch(mod.empty_kernel, dim=1, inputs=[], device=dev),
-                                          weft.synchronize()), args.calls)
-            rows.append([f"empty launch + sync, {dev}", bc.fmt_time(wall), bc.fmt_time(cpu), "", "", ""])
-            wall, cpu = per_call(lambda: (weft.launch(mod.three_args, dim=1, inputs=[a, b, c], device=dev),
-                                          weft.synchronize()), args.calls)
-            rows.append([f"3-arg launch + sync, {dev}", bc.fmt_time(wall), bc.fmt_time(cpu), "", "", ""])
+            for tname, tlane in transports:
+                rt.fast_lane = tlane
+                wall, cpu = per_call(lambda: (weft.launch(mod.empty_kernel, dim=1, inputs=[], device=dev),
+                                              weft.synchronize()), args.calls)
+                rows.append([f"empty launch + sync, {dev}, {tname}", bc.fmt_time(wall), bc.fmt_time(cpu), "", "", ""])
+                wall, cpu = per_call(lambda: (weft.launch(mod.three_args, dim=1, inputs=[a, b, c], device=dev),
+                                              weft.synchronize()), args.calls)
+                rows.append([f"3-arg launch + sync, {dev}, {tname}", bc.fmt_time(wall), bc.fmt_time(cpu), "", "", ""])
+            rt.fast_lane = lane
         if args.device != "cpu" and "cpu" not in devices[1:] and len(devices) > 1:
 
             def set_pipelined(on):

@@ -21,43 +21,51 @@ void FillSync(Session::SyncResult& r, v1::SynchronizeResponse* resp) {
 
 }  // namespace
 
-grpc::Status ExecServiceImpl::Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitResponse* resp) {
-  auto s = auth_.SessionOf(*ctx);
-  if (!s.ok()) return ToGrpc(s.status());
+Status ExecSubmit(Engine& engine, Session& s, const v1::SubmitRequest& req, v1::SubmitResponse* resp) {
   std::vector<Command> commands;
-  commands.reserve(req->commands_size());
-  for (int i = 0; i < req->commands_size(); ++i) {
-    auto c = FromProto(req->commands(i), static_cast<size_t>(i));
-    if (!c.ok()) return ToGrpc(c.status());   // nothing queued
+  commands.reserve(req.commands_size());
+  for (int i = 0; i < req.commands_size(); ++i) {
+    auto c = FromProto(req.commands(i), static_cast<size_t>(i));
+    if (!c.ok()) return c.status();   // nothing queued
     commands.push_back(std::move(c).value());
   }
   const uint64_t n = commands.size();
-  if (req->synchronize()) {
-    auto r = auth_.engine().SubmitAndSynchronize(**s, std::move(commands));
-    if (!r.ok()) return ToGrpc(r.status());
+  if (req.synchronize()) {
+    auto r = engine.SubmitAndSynchronize(s, std::move(commands));
+    if (!r.ok()) return r.status();
     resp->set_queued(n);
     FillSync(*r, resp->mutable_sync());
-    return grpc::Status::OK;
+    return Status::Ok();
   }
-  if (req->run()) {
-    auto r = auth_.engine().SubmitAndRun(**s, std::move(commands));
-    if (!r.ok()) return ToGrpc(r.status());
+  if (req.run()) {
+    auto r = engine.SubmitAndRun(s, std::move(commands));
+    if (!r.ok()) return r.status();
     resp->set_queued(n);
     if (r->has_value()) FillSync(**r, resp->mutable_sync());
-    return grpc::Status::OK;
+    return Status::Ok();
   }
-  auto r = auth_.engine().Submit(**s, std::move(commands));
-  if (!r.ok()) return ToGrpc(r.status());
+  auto r = engine.Submit(s, std::move(commands));
+  if (!r.ok()) return r.status();
   resp->set_queued(*r);
-  return grpc::Status::OK;
+  return Status::Ok();
+}
+
+void ExecSynchronize(Engine& engine, Session& s, v1::SynchronizeResponse* resp) {
+  Session::SyncResult r = engine.Synchronize(s);
+  FillSync(r, resp);
+}
+
+grpc::Status ExecServiceImpl::Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitResponse* resp) {
+  auto s = auth_.SessionOf(*ctx);
+  if (!s.ok()) return ToGrpc(s.status());
+  return ToGrpc(ExecSubmit(auth_.engine(), **s, *req, resp));
 }
 
 grpc::Status ExecServiceImpl::Synchronize(grpc::ServerContext* ctx, const v1::SynchronizeRequest*,
                                           v1::SynchronizeResponse* resp) {
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
-  Session::SyncResult r = auth_.engine().Synchronize(**s);
-  FillSync(r, resp);
+  ExecSynchronize(auth_.engine(), **s, resp);
   return grpc::Status::OK;
 }
 

@@ -148,8 +148,21 @@ int main(int argc, char** argv) {
     return 1;
   }
   CallAuth auth(**engine, token, unix_listener->get());
+  // The fast lane (server/fast_lane.h) beside the first Unix socket: <path>.fast. Its stale
+  // file goes (the daemon that owned it is gone: the gRPC socket beside it was stale too).
+  std::unique_ptr<FastLane> fast_lane;
+  if (!unix_paths.empty()) {
+    const std::string fast_path = unix_paths.front() + ".fast";
+    unlink(fast_path.c_str());
+    auto lane = FastLane::Listen(**engine, fast_path);
+    if (lane.ok()) {
+      fast_lane = std::move(lane).value();
+    } else {
+      spdlog::warn("{}; local clients use gRPC only", lane.status().message());
+    }
+  }
   SessionReaper reaper(**engine, cfg->attach_timeout_s);   // before the services: Attach queues reaps to it
-  SessionServiceImpl session_service(auth, reaper);
+  SessionServiceImpl session_service(auth, reaper, fast_lane.get());
   ArrayServiceImpl array_service(auth);
   ExecServiceImpl exec_service(auth);
   ModuleServiceImpl module_service(auth);
@@ -178,7 +191,9 @@ int main(int argc, char** argv) {
     return 1;
   }
   (*unix_listener)->Start(server.get());
+  if (fast_lane) fast_lane->Start();
   for (const auto& l : cfg->listen) spdlog::info("listening on {}", l);
+  if (fast_lane) spdlog::info("fast lane on {}", fast_lane->path());
   spdlog::info("weftd {} ready (pid {}, {} CPU threads{})", WEFT_VERSION, getpid(), (*engine)->pool().size(),
                cfg->allow_unchecked ? ", unchecked kernels allowed" : "");
 
@@ -187,6 +202,7 @@ int main(int argc, char** argv) {
     sigwait(&stop_signals, &sig);
     spdlog::info("signal {} received: shutting down", sig);
     (*unix_listener)->Stop();
+    if (fast_lane) fast_lane->Stop();
     (*engine)->CancelAllSessions();   // running kernels stop at their next poll
 #if WEFT_WITH_CPU_JIT
     jit::StopCompilerChildren();      // running compiles end now (Unavailable)
@@ -196,6 +212,11 @@ int main(int argc, char** argv) {
   server->Wait();
   waiter.join();
   reaper.Stop();
+  if (fast_lane) {
+    fast_lane->Join();
+    unlink(fast_lane->path().c_str());
+    fast_lane.reset();
+  }
   server.reset();
   (*engine).reset();   // closes sessions, unlinks every slab
   for (const auto& p : unix_paths) unlink(p.c_str());

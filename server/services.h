@@ -4,6 +4,7 @@
 #pragma once
 
 #include "server/call_auth.h"
+#include "server/fast_lane.h"
 #include "server/session_reaper.h"
 #include "weft/v1/array.grpc.pb.h"
 #include "weft/v1/device.grpc.pb.h"
@@ -18,7 +19,8 @@ namespace weft::server {
 // life); the other methods are synchronous.
 class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_Attach<v1::SessionService::Service> {
  public:
-  SessionServiceImpl(const CallAuth& auth, SessionReaper& reaper) : auth_(auth), reaper_(reaper) {}
+  SessionServiceImpl(const CallAuth& auth, SessionReaper& reaper, FastLane* fast_lane = nullptr)
+      : auth_(auth), reaper_(reaper), fast_lane_(fast_lane) {}
   grpc::Status Open(grpc::ServerContext* ctx, const v1::OpenSessionRequest* req, v1::OpenSessionResponse* resp) override;
   grpc::ServerBidiReactor<v1::AttachRequest, v1::AttachEvent>* Attach(grpc::CallbackServerContext* ctx) override;
   grpc::Status Close(grpc::ServerContext* ctx, const v1::CloseSessionRequest* req, v1::CloseSessionResponse* resp) override;
@@ -26,6 +28,7 @@ class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_A
  private:
   const CallAuth& auth_;
   SessionReaper& reaper_;
+  FastLane* fast_lane_;   // null: no fast lane (the Open response then names none)
 };
 
 class ArrayServiceImpl final : public v1::ArrayService::Service {
@@ -45,6 +48,12 @@ class ArrayServiceImpl final : public v1::ArrayService::Service {
  private:
   const CallAuth& auth_;
 };
+
+// The bodies of ExecService.Submit and Synchronize for a session already resolved and
+// authorized: the gRPC methods and the fast lane (fast_lane.h) both call these, so a frame is
+// checked exactly as a call is.
+Status ExecSubmit(Engine& engine, Session& s, const v1::SubmitRequest& req, v1::SubmitResponse* resp);
+void ExecSynchronize(Engine& engine, Session& s, v1::SynchronizeResponse* resp);
 
 class ExecServiceImpl final : public v1::ExecService::Service {
  public:

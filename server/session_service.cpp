@@ -38,6 +38,10 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
   resp->set_daemon_version(WEFT_VERSION);
   resp->set_local(o.local);
   resp->set_daemon_pid(getpid());
+  if (fast_lane_ && o.local) {
+    resp->set_fast_lane_path(fast_lane_->path());
+    resp->set_fast_lane_secret(fast_lane_->NewSecret((*s)->id(), o.principal));
+  }
   return grpc::Status::OK;
 }
 

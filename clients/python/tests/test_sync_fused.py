@@ -48,6 +48,8 @@ class _CallLog:
         # The calls of the fused path only: batches wait for the sync point (no asynchronous
         # Submit while launches are queued; test_submit_pipeline.py checks that path).
         self._pipelined, self.runtime.pipelined = self.runtime.pipelined, False
+        # The gRPC calls: the fast lane (test_fast_lane.py) is off while they are logged.
+        self._lane, self.runtime.fast_lane = self.runtime.fast_lane, None
         for name in ("Submit", "Synchronize"):
             original = getattr(self.runtime.exec_stub, name)
             self._saved[name] = original
@@ -63,6 +65,7 @@ class _CallLog:
         for name, original in self._saved.items():
             setattr(self.runtime.exec_stub, name, original)
         self.runtime.pipelined = self._pipelined
+        self.runtime.fast_lane = self._lane
 
     def names(self):
         return [name for name, _ in self.calls]

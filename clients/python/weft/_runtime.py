@@ -25,6 +25,7 @@ from pathlib import Path
 
 import grpc
 
+from . import _fast_lane
 from .errors import WeftError, error_from_rpc
 
 MAX_MESSAGE_BYTES = 64 << 20
@@ -305,6 +306,7 @@ class Runtime:
         self.daemon_pid = opened.daemon_pid
         self.local = bool(opened.local) and self.address.startswith("unix:")
         self.metadata = self._base_metadata + (("weft-session", self.session_id),)
+        self.fast_lane = self._open_fast_lane(opened)
 
         self._lock = threading.RLock()
         self._batch: list = []
@@ -334,6 +336,28 @@ class Runtime:
         self._attach_thread = threading.Thread(target=self._attach_loop, name="weft-attach",
                                                daemon=True)
         self._attach_thread.start()
+
+    def _open_fast_lane(self, opened):
+        """The fast lane (_fast_lane.py) when the daemon offers one to this local client and
+        WEFT_FAST_LANE is not 0; None (gRPC only) otherwise or when it cannot be opened."""
+        path = getattr(opened, "fast_lane_path", "")
+        if not (path and self.local and _fast_lane.enabled() and hasattr(session_pb2, "FastLaneHello")):
+            return None
+        try:
+            return _fast_lane.FastLane.connect(path, self.session_id, opened.fast_lane_secret,
+                                               session_pb2.FastLaneHello)
+        except (WeftError, OSError):
+            return None
+
+    def _exec(self, method: str, request):
+        """ExecService.Submit / Synchronize: through the fast lane when it is open and the
+        request fits a frame, else through gRPC. Same responses and errors either way."""
+        lane = self.fast_lane
+        if lane is not None and lane.fits(request):
+            if method == "Submit":
+                return lane.call(_fast_lane.SUBMIT, request, exec_pb2.SubmitResponse)
+            return lane.call(_fast_lane.SYNCHRONIZE, request, exec_pb2.SynchronizeResponse)
+        return self.call(getattr(self.exec_stub, method), request)
 
     # -- Attach: held open until this process ends
     def _attach_requests(self):
@@ -402,6 +426,13 @@ class Runtime:
             return
         batch, self._batch, self._batch_bytes = self._batch, [], 0
         self._pump_at = min(2 * self._pump_at, BATCH_MAX_COMMANDS)
+        request = exec_pb2.SubmitRequest(commands=batch)
+        if self.fast_lane is not None and self.fast_lane.fits(request):
+            try:   # a few tens of microseconds: sent and answered here
+                self._exec("Submit", request)
+            except WeftError as err:
+                self._deferred_error = err
+            return
         self._inflight = self.exec_stub.Submit.future(exec_pb2.SubmitRequest(commands=batch),
                                                       metadata=self.metadata)
 
@@ -423,7 +454,7 @@ class Runtime:
             self._collect_inflight()
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch:
-                self.call(self.exec_stub.Submit, exec_pb2.SubmitRequest(commands=batch))
+                self._exec("Submit", exec_pb2.SubmitRequest(commands=batch))
             self._drain_frees()
 
     def synchronize(self) -> None:
@@ -436,18 +467,17 @@ class Runtime:
             self.pump_held = 0
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch and _FUSED_SYNC:
-                response = self.call(self.exec_stub.Submit,
-                                     exec_pb2.SubmitRequest(commands=batch, synchronize=True))
+                response = self._exec("Submit",
+                                      exec_pb2.SubmitRequest(commands=batch, synchronize=True))
                 if not response.HasField("sync"):
                     # A daemon from before the fused path ignores `synchronize`.
-                    response = self.call(self.exec_stub.Synchronize,
-                                         exec_pb2.SynchronizeRequest())
+                    response = self._exec("Synchronize", exec_pb2.SynchronizeRequest())
                 else:
                     response = response.sync
             else:
                 if batch:   # message modules generated before SubmitRequest.synchronize
                     self.call(self.exec_stub.Submit, exec_pb2.SubmitRequest(commands=batch))
-                response = self.call(self.exec_stub.Synchronize, exec_pb2.SynchronizeRequest())
+                response = self._exec("Synchronize", exec_pb2.SynchronizeRequest())
             self._drain_frees()
             self._unsynchronized = False
             deferred, self._deferred_error = self._deferred_error, None
@@ -559,6 +589,8 @@ class Runtime:
                 sys.stderr.write(f"weft: while closing the session: {err}\n")
         self.closed = True
         self._pending_frees.clear()
+        if self.fast_lane is not None:
+            self.fast_lane.close()
         try:
             self.session_stub.Close(session_pb2.CloseSessionRequest(session_id=self.session_id),
                                     metadata=self.metadata, timeout=10)

@@ -1,0 +1,297 @@
+"""The fast lane (docs/protocol.md "Fast lane"): a local client's Submit and Synchronize go over
+a Unix SOCK_SEQPACKET socket bound to its session, not gRPC. Checks that the client uses it,
+that results and errors are the same as through gRPC, and attacks on it: a wrong secret, a
+wrong session, a secret used twice, garbage, a short frame, an oversized frame, an unknown
+method, a frame after the session closed, a peer that sends no hello. After each, the daemon
+keeps serving (the module's last test launches through the lane again)."""
+import os
+import socket
+import struct
+
+import numpy as np
+import pytest
+
+import weft as wp
+from weft import _fast_lane, _runtime
+from weft.v1 import exec_pb2, session_pb2
+
+HELLO, SUBMIT, SYNCHRONIZE = 1, 2, 3
+MAX_REQUEST_BYTES = 160 << 10   # server/fast_lane.h kMaxRequestBytes
+
+
+@wp.kernel
+def lane_saxpy(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):
+    i = wp.tid()
+    y[i] = a * x[i] + y[i]
+
+
+@wp.kernel
+def lane_oob(data: wp.array(dtype=float), n: int):
+    i = wp.tid()
+    data[i + n] = 1.0
+
+
+def _runtime_with_lane(wp_module):
+    rt = _runtime.get_runtime()
+    if os.environ.get("WEFT_FAST_LANE", "1") == "0":
+        pytest.skip("WEFT_FAST_LANE=0 in this environment")
+    assert rt.local, "the test daemon is on a Unix socket"
+    assert rt.fast_lane is not None and not rt.fast_lane.broken, "the daemon offers a fast lane to a local client"
+    return rt
+
+
+def _open_session(rt):
+    """A second session of this process (gRPC Open), with its fast-lane path and secret."""
+    opened = rt.session_stub.Open(session_pb2.OpenSessionRequest(client_name="lane attack"),
+                                  metadata=rt._base_metadata, timeout=30)
+    assert opened.fast_lane_path and len(opened.fast_lane_secret) >= 32
+    return opened
+
+
+def _close_session(rt, session_id):
+    rt.session_stub.Close(session_pb2.CloseSessionRequest(session_id=session_id),
+                          metadata=rt._base_metadata, timeout=30)
+
+
+def _connect(path):
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    s.settimeout(10)
+    s.connect(path)
+    return s
+
+
+def _send(s, method, body=b""):
+    s.send(struct.pack("<I", method) + body)
+
+
+def _reply(s):
+    """(code, flags, payload) of one reply frame; None when the daemon closed the connection."""
+    frame = s.recv(1 << 20)
+    if not frame:
+        return None
+    code, flags = struct.unpack_from("<II", frame)
+    return code, flags, frame[8:]
+
+
+def _hello(session_id, secret):
+    return session_pb2.FastLaneHello(session_id=session_id, secret=secret).SerializeToString()
+
+
+def _assert_refused_and_closed(s, code_name):
+    reply = _reply(s)
+    assert reply is not None, "an error reply comes before the daemon closes"
+    code, flags, payload = reply
+    assert _fast_lane._CODE_NAMES[code] == code_name, payload
+    assert flags & 2, "the reply says the connection ends"
+    assert _reply(s) is None, "the daemon closed the connection"
+
+
+def test_fast_lane_is_used_and_computes_like_grpc(wp, monkeypatch):
+    rt = _runtime_with_lane(wp)
+    calls = []
+    real = rt.fast_lane.call
+
+    def counting(method, request, response_type):
+        calls.append(method)
+        return real(method, request, response_type)
+
+    monkeypatch.setattr(rt.fast_lane, "call", counting)
+    rng = np.random.default_rng(5)
+    n = 10_001
+    x0 = rng.uniform(-1, 1, n).astype(np.float32)
+    y0 = rng.uniform(-1, 1, n).astype(np.float32)
+    results = []
+    for lane in (rt.fast_lane, None):   # fast lane, then gRPC only
+        rt.fast_lane = lane
+        try:
+            x = wp.array(x0, dtype=float, device="cpu")
+            y = wp.array(y0, dtype=float, device="cpu")
+            wp.launch(lane_saxpy, dim=n, inputs=[x, y, 1.5], device="cpu")
+            wp.synchronize()
+            results.append(y.numpy().copy())
+        finally:
+            rt.fast_lane = real.__self__
+    assert SUBMIT in calls or SYNCHRONIZE in calls, "the launch and sync went through the fast lane"
+    ref = 1.5 * x0.astype(np.float64) + y0.astype(np.float64)
+    # float32 result of a*x + y: a few ulp of the largest term
+    bound = 4 * np.finfo(np.float32).eps * (np.abs(1.5 * x0) + np.abs(y0) + 1e-30)
+    assert np.all(np.abs(results[0] - ref) <= bound)
+    np.testing.assert_array_equal(results[0], results[1])
+
+
+def test_fast_lane_errors_are_the_grpc_errors(wp):
+    rt = _runtime_with_lane(wp)
+    lane = rt.fast_lane
+    messages = []
+    for use in (lane, None):
+        rt.fast_lane = use
+        try:
+            data = wp.zeros(8, dtype=float, device="cpu")
+            wp.launch(lane_oob, dim=4, inputs=[data, 6], device="cpu")
+            with pytest.raises(wp.WeftError) as err:
+                wp.synchronize()
+            messages.append((str(err.value), getattr(err.value, "code", None)))
+        finally:
+            rt.fast_lane = lane
+    assert messages[0] == messages[1]
+    assert "lane_oob" in messages[0][0]
+    # A Submit the daemon refuses (an empty command: nothing of the batch is queued): same
+    # status and message through both transports, and the lane stays open.
+    bad = exec_pb2.SubmitRequest()
+    bad.commands.add().origin.line = 3
+    errors = []
+    with pytest.raises(Exception) as via_lane:
+        lane.call(SUBMIT, bad, exec_pb2.SubmitResponse)
+    with pytest.raises(Exception) as via_grpc:
+        rt.call(rt.exec_stub.Submit, bad)
+    for e in (via_lane.value, via_grpc.value):
+        errors.append((str(e), getattr(e, "code", None)))
+    assert errors[0] == errors[1]
+    assert not lane.broken
+    wp.synchronize()
+
+
+@pytest.mark.parametrize("case", ["wrong secret", "wrong session", "secret used twice", "other session's secret"])
+def test_fast_lane_hello_refused(wp, case):
+    rt = _runtime_with_lane(wp)
+    a = _open_session(rt)
+    b = _open_session(rt)
+    try:
+        if case == "secret used twice":
+            first = _connect(a.fast_lane_path)
+            _send(first, HELLO, _hello(a.session_id, a.fast_lane_secret))
+            code, _, _ = _reply(first)
+            assert code == 0
+            first.close()
+        s = _connect(a.fast_lane_path)
+        hello = {
+            "wrong secret": _hello(a.session_id, bytes(len(a.fast_lane_secret))),
+            "wrong session": _hello("f" * 64, a.fast_lane_secret),
+            "secret used twice": _hello(a.session_id, a.fast_lane_secret),
+            "other session's secret": _hello(a.session_id, b.fast_lane_secret),
+        }[case]
+        _send(s, HELLO, hello)
+        _assert_refused_and_closed(s, "PERMISSION_DENIED")
+        s.close()
+    finally:
+        _close_session(rt, a.session_id)
+        _close_session(rt, b.session_id)
+
+
+@pytest.mark.parametrize("case", ["garbage hello", "short frame", "Submit before hello"])
+def test_fast_lane_bad_first_frame(wp, case):
+    rt = _runtime_with_lane(wp)
+    a = _open_session(rt)
+    try:
+        s = _connect(a.fast_lane_path)
+        if case == "garbage hello":
+            _send(s, HELLO, b"\xff\xfe\x00garbage" * 10)
+        elif case == "short frame":
+            s.send(b"\x01\x00")
+        else:
+            _send(s, SUBMIT, exec_pb2.SubmitRequest().SerializeToString())
+        _assert_refused_and_closed(s, "INVALID_ARGUMENT")
+        s.close()
+        # the refused hello did not use up the secret
+        s = _connect(a.fast_lane_path)
+        _send(s, HELLO, _hello(a.session_id, a.fast_lane_secret))
+        assert _reply(s)[0] == 0
+        s.close()
+    finally:
+        _close_session(rt, a.session_id)
+
+
+def _bound_lane(rt):
+    a = _open_session(rt)
+    s = _connect(a.fast_lane_path)
+    _send(s, HELLO, _hello(a.session_id, a.fast_lane_secret))
+    assert _reply(s)[0] == 0
+    return a, s
+
+
+@pytest.mark.parametrize("case", ["garbage Submit", "unknown method", "oversized frame", "after close"])
+def test_fast_lane_bad_frame_after_hello(wp, case):
+    rt = _runtime_with_lane(wp)
+    a, s = _bound_lane(rt)
+    try:
+        _send(s, SYNCHRONIZE, exec_pb2.SynchronizeRequest().SerializeToString())
+        code, flags, payload = _reply(s)
+        assert code == 0 and not flags & 2
+        exec_pb2.SynchronizeResponse.FromString(payload)
+        expected = "INVALID_ARGUMENT"
+        if case == "garbage Submit":
+            _send(s, SUBMIT, b"\x0a\xff\xff\xff\xff\x0f" + b"\x00" * 20)
+        elif case == "unknown method":
+            _send(s, 77, b"")
+        elif case == "oversized frame":
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 20)
+            size = MAX_REQUEST_BYTES + 4096
+            if s.getsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF) < size + 1024:
+                pytest.skip("the socket send buffer cannot hold a frame over the daemon's limit")
+            _send(s, SUBMIT, b"\x00" * size)
+        else:
+            _close_session(rt, a.session_id)
+            _send(s, SYNCHRONIZE, exec_pb2.SynchronizeRequest().SerializeToString())
+            expected = "FAILED_PRECONDITION"
+        _assert_refused_and_closed(s, expected)
+    finally:
+        s.close()
+        try:
+            _close_session(rt, a.session_id)
+        except Exception:  # noqa: BLE001 - closed above
+            pass
+
+
+@wp.kernel
+def lane_add(data: wp.array(dtype=float), x: float):
+    i = wp.tid()
+    data[i] = data[i] + x
+
+
+def test_fast_lane_keeps_order_of_early_submits(wp, monkeypatch):
+    """300 dependent launches, sent in early (pipelined) batches through the lane, then one
+    sync: every launch ran, in order."""
+    rt = _runtime_with_lane(wp)
+    sent = []
+    real = rt.fast_lane.call
+
+    def counting(method, request, response_type):
+        sent.append((method, len(getattr(request, "commands", ()))))
+        return real(method, request, response_type)
+
+    monkeypatch.setattr(rt.fast_lane, "call", counting)
+    monkeypatch.setattr(rt, "pipelined", True)
+    data = wp.zeros(64, dtype=float, device="cpu")
+    wp.synchronize()
+    total = 0.0
+    for k in range(300):
+        wp.launch(lane_add, dim=64, inputs=[data, float(k + 1)], device="cpu")
+        total += k + 1
+    got = data.numpy()
+    np.testing.assert_array_equal(got, np.full(64, total, dtype=np.float32))
+    assert sum(1 for m, _ in sent if m == SUBMIT) >= 2, f"early Submits went through the lane: {sent}"
+
+
+def test_fast_lane_keeps_serving(wp):
+    """After the attacks above, this process's own lane still launches and syncs."""
+    rt = _runtime_with_lane(wp)
+    rng = np.random.default_rng(9)
+    x0 = rng.uniform(-1, 1, 1000).astype(np.float32)
+    y0 = rng.uniform(-1, 1, 1000).astype(np.float32)
+    x = wp.array(x0, dtype=float, device="cpu")
+    y = wp.array(y0, dtype=float, device="cpu")
+    wp.launch(lane_saxpy, dim=1000, inputs=[x, y, -0.5], device="cpu")
+    wp.synchronize()
+    assert rt.fast_lane is not None and not rt.fast_lane.broken
+    ref = -0.5 * x0.astype(np.float64) + y0.astype(np.float64)
+    assert np.max(np.abs(y.numpy() - ref)) <= 4 * np.finfo(np.float32).eps * 2.0
+
+
+def test_fast_lane_off_by_environment(run_client):
+    out = run_client("""
+        import weft as wp
+        from weft import _runtime
+        wp.init()
+        print("lane", _runtime.get_runtime().fast_lane is None)
+    """, env={"WEFT_FAST_LANE": "0"})
+    assert "lane True" in out.stdout

@@ -1,0 +1,108 @@
+"""The fast lane: ExecService.Submit and Synchronize of this process's session over a Unix
+SOCK_SEQPACKET socket, without gRPC (docs/protocol.md "Fast lane"; the daemon's side is
+server/fast_lane.h).
+
+The daemon names the socket and a one-time secret in the OpenSessionResponse of a local
+client; `FastLane.connect` binds one connection to the session with them. Frames are one
+datagram each: a request is a little-endian u32 method then the serialized request message;
+a reply is a u32 status code (gRPC numbering), u32 flags (bit 0: more frames follow; bit 1:
+the daemon ends the connection after it), then a piece of the payload (the serialized response, or the error message). Calls on one FastLane
+must not overlap (the Runtime's lock orders them). WEFT_FAST_LANE=0 turns it off.
+"""
+from __future__ import annotations
+
+import os
+import socket
+import struct
+
+import grpc
+
+from .errors import WeftError
+
+HELLO, SUBMIT, SYNCHRONIZE = 1, 2, 3
+# Requests larger than this go through gRPC (the daemon refuses frames over 160 KiB; a datagram
+# must also fit the socket's send buffer).
+MAX_REQUEST_BYTES = 128 << 10
+# The largest reply accepted (the gRPC path's limit on a message).
+MAX_REPLY_BYTES = 64 << 20
+_RECV_BYTES = (64 << 10) + 8
+
+_CODE_NAMES = {code.value[0]: code.name for code in grpc.StatusCode}
+
+
+def enabled() -> bool:
+    return os.environ.get("WEFT_FAST_LANE", "1") != "0"
+
+
+class FastLaneError(WeftError):
+    """The connection failed (not a daemon error about the request): the caller may fall back
+    to gRPC for calls not yet sent."""
+
+
+class FastLane:
+    def __init__(self, sock: socket.socket):
+        self._sock = sock
+        self.broken = False
+
+    @classmethod
+    def connect(cls, path: str, session_id: str, secret: bytes, hello_pb) -> "FastLane":
+        """Connects and sends the hello; raises WeftError when the daemon refuses it."""
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        try:
+            sock.settimeout(10.0)
+            sock.connect(path)
+            sock.settimeout(None)
+            lane = cls(sock)
+            lane._call(HELLO, hello_pb(session_id=session_id, secret=secret).SerializeToString())
+            return lane
+        except BaseException:
+            sock.close()
+            raise
+
+    def close(self) -> None:
+        self.broken = True
+        try:
+            self._sock.close()
+        except OSError:
+            pass
+
+    def fits(self, request) -> bool:
+        return not self.broken and request.ByteSize() + 4 <= MAX_REQUEST_BYTES
+
+    def call(self, method: int, request, response_type):
+        """Sends `request` and returns the parsed response; a daemon error becomes WeftError
+        with the same message and status name as through gRPC."""
+        return response_type.FromString(self._call(method, request.SerializeToString()))
+
+    def _call(self, method: int, body: bytes) -> bytes:
+        try:
+            frame = struct.pack("<I", method) + body
+            if self._sock.send(frame) != len(frame):
+                raise FastLaneError("fast lane: short send", "UNAVAILABLE")
+            parts = []
+            size = 0
+            closing = False
+            while True:
+                frame = self._sock.recv(_RECV_BYTES)
+                if len(frame) < 8:
+                    raise FastLaneError("weftd closed the fast lane", "UNAVAILABLE")
+                code, flags = struct.unpack_from("<II", frame)
+                size += len(frame) - 8
+                if size > MAX_REPLY_BYTES:
+                    raise FastLaneError("fast lane: reply too large", "RESOURCE_EXHAUSTED")
+                parts.append(frame[8:])
+                closing = closing or bool(flags & 2)
+                if not flags & 1:
+                    break
+        except OSError as err:
+            self.close()
+            raise FastLaneError(f"weftd is not reachable: fast lane: {err}", "UNAVAILABLE") from None
+        except FastLaneError:
+            self.close()
+            raise
+        payload = b"".join(parts)
+        if closing:
+            self.close()
+        if code != 0:
+            raise WeftError(payload.decode("utf-8", "replace"), _CODE_NAMES.get(code))
+        return payload

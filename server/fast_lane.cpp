@@ -1,0 +1,266 @@
+// FastLane: listening, the hello (peer uid + one-time secret), serving Submit/Synchronize
+// frames through the gRPC methods' handler functions, replies in chunks.
+#include "server/fast_lane.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <vector>
+
+#include <spdlog/spdlog.h>
+
+#include "engine/runtime/ipc_token.h"
+#include "server/services.h"
+#include "weft/v1/exec.pb.h"
+#include "weft/v1/session.pb.h"
+
+namespace weft::server {
+
+namespace {
+
+void PutU32(std::string* out, uint32_t v) {
+  for (int i = 0; i < 4; ++i) out->push_back(static_cast<char>((v >> (8 * i)) & 0xff));
+}
+uint32_t GetU32(const char* p) {
+  uint32_t v = 0;
+  for (int i = 0; i < 4; ++i) v |= static_cast<uint32_t>(static_cast<unsigned char>(p[i])) << (8 * i);
+  return v;
+}
+
+// Sends `payload` as one reply (several frames when it is larger than a chunk). False when
+// the peer is gone.
+bool SendReply(int fd, StatusCode code, const std::string& payload, bool closing = false) {
+  size_t off = 0;
+  do {
+    const size_t n = std::min(FastLane::kReplyChunkBytes, payload.size() - off);
+    const bool more = off + n < payload.size();
+    std::string frame;
+    frame.reserve(8 + n);
+    PutU32(&frame, static_cast<uint32_t>(code));
+    PutU32(&frame, (more ? 1u : 0u) | (closing ? 2u : 0u));
+    frame.append(payload, off, n);
+    ssize_t w;
+    do {
+      w = send(fd, frame.data(), frame.size(), MSG_NOSIGNAL);
+    } while (w < 0 && errno == EINTR);
+    if (w != static_cast<ssize_t>(frame.size())) return false;
+    off += n;
+  } while (off < payload.size());
+  return true;
+}
+// An error reply; `closing`: the daemon ends the connection after it (a frame it cannot go on
+// from), else (the request's own error, as gRPC would return it) the lane stays usable.
+bool SendError(int fd, const Status& st, bool closing = true) { return SendReply(fd, st.code(), st.message(), closing); }
+
+}  // namespace
+
+Expected<std::unique_ptr<FastLane>> FastLane::Listen(Engine& engine, const std::string& path) {
+  sockaddr_un addr{};
+  if (path.size() >= sizeof(addr.sun_path)) return InvalidArgument("fast-lane socket path too long: " + path);
+  int fd = socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0);
+  if (fd < 0) return Unavailable(std::string("fast lane: socket: ") + std::strerror(errno));
+  addr.sun_family = AF_UNIX;
+  std::strncpy(addr.sun_path, path.c_str(), sizeof(addr.sun_path) - 1);
+  if (bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0 || listen(fd, 128) != 0) {
+    std::string err = std::strerror(errno);
+    close(fd);
+    return Unavailable("fast lane: cannot listen on " + path + ": " + err);
+  }
+  auto lane = std::unique_ptr<FastLane>(new FastLane(engine, path, fd));
+  if (pipe2(lane->wake_fds_, O_CLOEXEC) != 0) return Unavailable("fast lane: pipe failed");
+  return lane;
+}
+
+FastLane::~FastLane() {
+  Stop();
+  Join();
+  if (listen_fd_ >= 0) close(listen_fd_);
+  for (int f : wake_fds_)
+    if (f >= 0) close(f);
+}
+
+std::string FastLane::NewSecret(const std::string& id, const std::string& principal) {
+  std::string secret = NewIpcSecret() + NewIpcSecret();   // 256 random bits, hex
+  std::lock_guard<std::mutex> lock(mu_);
+  // Secrets of sessions that closed without connecting go; the map stays as large as the
+  // number of open sessions.
+  for (auto it = secrets_.begin(); it != secrets_.end();)
+    it = engine_.FindSession(it->first) ? std::next(it) : secrets_.erase(it);
+  secrets_[id] = Pending{secret, principal};
+  return secret;
+}
+
+void FastLane::Start() { accept_thread_ = std::thread([this] { AcceptLoop(); }); }
+
+void FastLane::Stop() {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (stopped_) return;
+  stopped_ = true;
+  if (wake_fds_[1] >= 0) {
+    char b = 1;
+    (void)!write(wake_fds_[1], &b, 1);
+  }
+  for (auto& c : conns_)
+    if (c.fd >= 0) shutdown(c.fd, SHUT_RDWR);
+}
+
+void FastLane::Join() {
+  if (accept_thread_.joinable()) accept_thread_.join();
+  std::list<Conn> conns;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    conns.splice(conns.end(), conns_);
+  }
+  for (auto& c : conns) {
+    if (c.thread.joinable()) c.thread.join();
+    if (c.fd >= 0) close(c.fd);
+  }
+}
+
+void FastLane::ReapFinished() {
+  for (auto it = conns_.begin(); it != conns_.end();) {
+    if (it->done.load()) {
+      it->thread.join();
+      it = conns_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+void FastLane::AcceptLoop() {
+  for (;;) {
+    pollfd fds[2] = {{listen_fd_, POLLIN, 0}, {wake_fds_[0], POLLIN, 0}};
+    int r = poll(fds, 2, -1);
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0 || (fds[1].revents & POLLIN)) return;
+    if (!(fds[0].revents & POLLIN)) continue;
+    int fd = accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
+    if (fd < 0) continue;
+    std::lock_guard<std::mutex> lock(mu_);
+    ReapFinished();
+    if (stopped_ || conns_.size() >= kMaxConnections) {
+      if (!stopped_) spdlog::warn("fast lane: {} connections open, one refused", conns_.size());
+      close(fd);
+      continue;
+    }
+    conns_.emplace_back();
+    Conn* c = &conns_.back();
+    c->fd = fd;
+    c->thread = std::thread([this, c] {
+      Serve(c);
+      std::lock_guard<std::mutex> lock(mu_);   // the fd goes as soon as its peer does
+      close(c->fd);
+      c->fd = -1;
+      c->done.store(true);
+    });
+  }
+}
+
+void FastLane::Serve(Conn* c) {
+  const int fd = c->fd;
+  ucred cred{};
+  socklen_t len = sizeof(cred);
+  if (getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &cred, &len) != 0) return;
+  const std::string principal = "unix-uid:" + std::to_string(cred.uid);
+  timeval hello_timeout{kHelloTimeoutS, 0};
+  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &hello_timeout, sizeof(hello_timeout));
+
+  std::vector<char> buf(kMaxRequestBytes + 1);
+  std::string session_id;
+  for (;;) {
+    iovec iov{buf.data(), buf.size()};
+    msghdr msg{};
+    msg.msg_iov = &iov;
+    msg.msg_iovlen = 1;
+    ssize_t n;
+    do {
+      n = recvmsg(fd, &msg, 0);
+    } while (n < 0 && errno == EINTR);
+    if (n <= 0) return;   // peer gone, shut down, or no hello in time
+    if ((msg.msg_flags & MSG_TRUNC) || static_cast<size_t>(n) > kMaxRequestBytes) {
+      SendError(fd, InvalidArgument("fast lane: frame larger than " + std::to_string(kMaxRequestBytes) + " bytes"));
+      return;
+    }
+    if (n < 4) {
+      SendError(fd, InvalidArgument("fast lane: frame shorter than its header"));
+      return;
+    }
+    const uint32_t method = GetU32(buf.data());
+    const char* body = buf.data() + 4;
+    const int body_len = static_cast<int>(n - 4);
+
+    if (session_id.empty()) {   // the hello
+      v1::FastLaneHello hello;
+      if (method != kHello || !hello.ParseFromArray(body, body_len)) {
+        SendError(fd, InvalidArgument("fast lane: the first frame must be a hello"));
+        return;
+      }
+      Status st = Status::Ok();
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        auto it = secrets_.find(hello.session_id());
+        if (it == secrets_.end() || it->second.principal != principal || !SecretsEqual(hello.secret(), it->second.secret)) {
+          st = PermissionDenied("fast lane: unknown session, wrong secret, or a secret already used");
+        } else {
+          secrets_.erase(it);   // one connection per secret
+        }
+      }
+      if (st.ok() && !engine_.FindSession(hello.session_id()))
+        st = FailedPrecondition("fast lane: the session is closed");
+      if (!st.ok()) {
+        spdlog::warn("fast lane: hello refused from {}: {}", principal, st.message());
+        SendError(fd, st);
+        return;
+      }
+      session_id = hello.session_id();
+      timeval none{0, 0};
+      setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &none, sizeof(none));
+      if (!SendReply(fd, StatusCode::kOk, "")) return;
+      continue;
+    }
+
+    std::shared_ptr<Session> s = engine_.FindSession(session_id);
+    if (!s || s->options().principal != principal) {
+      SendError(fd, FailedPrecondition("no session: the fast lane's session is closed"));
+      return;
+    }
+    std::string out;
+    if (method == kSubmit) {
+      v1::SubmitRequest req;
+      if (!req.ParseFromArray(body, body_len)) {
+        SendError(fd, InvalidArgument("fast lane: a Submit frame that does not parse"));
+        return;
+      }
+      v1::SubmitResponse resp;
+      Status st = ExecSubmit(engine_, *s, req, &resp);
+      s.reset();
+      if (!st.ok()) {
+        if (!SendError(fd, st, /*closing=*/false)) return;
+        continue;
+      }
+      resp.SerializeToString(&out);
+    } else if (method == kSynchronize) {
+      v1::SynchronizeRequest req;
+      if (!req.ParseFromArray(body, body_len)) {
+        SendError(fd, InvalidArgument("fast lane: a Synchronize frame that does not parse"));
+        return;
+      }
+      v1::SynchronizeResponse resp;
+      ExecSynchronize(engine_, *s, &resp);
+      s.reset();
+      resp.SerializeToString(&out);
+    } else {
+      SendError(fd, InvalidArgument("fast lane: unknown method " + std::to_string(method)));
+      return;
+    }
+    if (!SendReply(fd, StatusCode::kOk, out)) return;
+  }
+}
+
+}  // namespace weft::server

@@ -1,0 +1,88 @@
+// The fast lane: a second transport for local clients, carrying the hot calls of one session
+// (ExecService.Submit and Synchronize) over a Unix SOCK_SEQPACKET socket without gRPC.
+// Owns: the listening socket (<first unix path>.fast, mode 0600), the one-time secrets that
+// bind a connection to a session (handed out by SessionService.Open to local peers), the
+// per-connection threads and the frame format. Every frame is parsed and served by the same
+// handler functions as the gRPC methods (ExecSubmit, ExecSynchronize in services.h).
+//
+// Frames (one datagram each; docs/protocol.md "Fast lane"):
+//   request: u32 method (little endian; 1 hello, 2 Submit, 3 Synchronize), then the request
+//            message serialized (FastLaneHello, SubmitRequest, SynchronizeRequest); at most
+//            kMaxRequestBytes in all.
+//   reply:   u32 status code (gRPC numbering), u32 flags (bit 0: more frames of this reply
+//            follow; bit 1: the daemon ends the connection after this reply), then a piece of the payload: the response message serialized on OK, the
+//            error message (UTF-8) otherwise. Pieces are at most kReplyChunkBytes.
+// The first frame must be a hello naming the session and its secret, from a peer whose uid
+// (SO_PEERCRED) is the session's principal; anything else ends the connection after an error
+// reply. A secret binds one connection; a wrong frame later (unknown method, garbage,
+// oversized) gets an error reply and ends that connection; the daemon keeps serving.
+#pragma once
+
+#include <sys/types.h>
+
+#include <atomic>
+#include <cstdint>
+#include <list>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "engine/core/status.h"
+#include "engine/runtime/engine.h"
+
+namespace weft::server {
+
+class FastLane {
+ public:
+  static constexpr uint32_t kHello = 1;
+  static constexpr uint32_t kSubmit = 2;
+  static constexpr uint32_t kSynchronize = 3;
+  static constexpr size_t kMaxRequestBytes = 160u << 10;   // fits a default socket send buffer
+  static constexpr size_t kReplyChunkBytes = 64u << 10;
+  static constexpr size_t kMaxConnections = 4096;
+  static constexpr int kHelloTimeoutS = 5;
+
+  // Binds and listens on `path` (already prepared: no stale file).
+  static Expected<std::unique_ptr<FastLane>> Listen(Engine& engine, const std::string& path);
+  ~FastLane();   // Stop() + Join()
+
+  const std::string& path() const { return path_; }
+  // A new secret for session `id` of `principal` ("unix-uid:<uid>"); replaces an unused one.
+  std::string NewSecret(const std::string& id, const std::string& principal);
+
+  void Start();
+  // Stops accepting and ends every connection's reads (their threads finish their frame).
+  void Stop();
+  // Waits for the connection threads (after Stop).
+  void Join();
+
+ private:
+  struct Conn {
+    int fd = -1;   // closed (-1) by its thread when it ends, under mu_
+    std::thread thread;
+    std::atomic<bool> done{false};
+  };
+  struct Pending {
+    std::string secret;
+    std::string principal;
+  };
+
+  FastLane(Engine& engine, std::string path, int fd) : engine_(engine), path_(std::move(path)), listen_fd_(fd) {}
+  void AcceptLoop();
+  void Serve(Conn* c);
+  void ReapFinished();   // joins ended threads; caller holds mu_
+
+  Engine& engine_;
+  std::string path_;
+  int listen_fd_ = -1;
+  int wake_fds_[2] = {-1, -1};
+  std::thread accept_thread_;
+  std::mutex mu_;
+  std::list<Conn> conns_;
+  std::map<std::string, Pending> secrets_;   // session id -> its unused secret
+  bool stopped_ = false;
+};
+
+}  // namespace weft::server
