@@ -238,6 +238,7 @@ class FnEmitter {
   // gradient array, which has its own data and shape) in reverse code.
   void Check(const Op& op, int line, int array, const std::vector<int>& idx, bool adjoint = false) {
     if (!opt_.bounds_checks) return;
+    if (!adjoint && CheckedBefore(array, idx)) return;
     std::string s = std::string(adjoint ? "if (!wp::cg_check_adj(__ctx, " : "if (!wp::cg_check(__ctx, ") +
                     std::to_string(f_.function_id) + ", " + std::to_string(line) + ", " +
                     std::to_string(f_.is_kernel ? op.array_param : -1) + ", " + CppStringLiteral(op.array_name) + ", " +
@@ -259,7 +260,22 @@ class FnEmitter {
     std::map<int, int> last_def;  // variable -> index of the region statement that last set it
     int floor = 0;                // checks may not move above this statement (their order)
     bool open = false;
+    std::map<std::vector<int>, int> checked;   // {array, indices...} -> statement its check precedes
   };
+  // True when the same array variable was checked with the same index variables earlier in
+  // the region and none of them was set since: y[i] = ... y[i] checks y[i] once.
+  bool CheckedBefore(int array, const std::vector<int>& idx) const {
+    if (!region_.open) return false;
+    std::vector<int> key{array};
+    key.insert(key.end(), idx.begin(), idx.end());
+    auto it = region_.checked.find(key);
+    if (it == region_.checked.end()) return false;
+    for (int v : key) {
+      auto d = region_.last_def.find(v);
+      if (d != region_.last_def.end() && d->second >= it->second) return false;
+    }
+    return true;
+  }
   void RegionReset() { region_ = Region{}; }
   void RegionBegin(const Stmt& s) {
     if (!region_.open) {
@@ -304,6 +320,9 @@ class FnEmitter {
     out_.insert(region_.marks[t], text);
     for (int k = t; k <= cur; ++k) region_.marks[k] += text.size();
     region_.floor = t;
+    std::vector<int> key{array};
+    key.insert(key.end(), idx.begin(), idx.end());
+    region_.checked[key] = t;
     return true;
   }
 

@@ -185,6 +185,8 @@ TEST(CodegenKernels, LoadChecksMoveUpButNotPastStores) {
     ASSERT_NE(second_load, std::string::npos) << saxpy;
     EXPECT_EQ(saxpy.substr(first_load, second_load - first_load).find("cg_check"), std::string::npos)
         << "no check between the two loads:\n" << saxpy;
+    EXPECT_EQ(saxpy.find("\"y\", var_", saxpy.find("\"y\", var_") + 1), std::string::npos)
+        << "y[i] is checked once (the store's check repeats the load's):\n" << saxpy;
     const std::string after = body("after_store");
     const size_t store = after.find("wp::store(");
     ASSERT_NE(store, std::string::npos) << after;
