@@ -249,17 +249,22 @@ def lane_add(data: wp.array(dtype=float), x: float):
 
 
 def test_fast_lane_keeps_order_of_early_submits(wp, monkeypatch):
-    """300 dependent launches, sent in early (pipelined) batches through the lane, then one
-    sync: every launch ran, in order."""
+    """300 dependent launches, sent in early (pipelined) batches through the lane without
+    waiting for their replies, then one sync: every launch ran, in order."""
     rt = _runtime_with_lane(wp)
     sent = []
-    real = rt.fast_lane.call
+    real_call, real_send = rt.fast_lane.call, rt.fast_lane.send
 
-    def counting(method, request, response_type):
-        sent.append((method, len(getattr(request, "commands", ()))))
-        return real(method, request, response_type)
+    def counting_call(method, request, response_type):
+        sent.append((method, "call"))
+        return real_call(method, request, response_type)
 
-    monkeypatch.setattr(rt.fast_lane, "call", counting)
+    def counting_send(method, request, response_type):
+        sent.append((method, "send"))
+        return real_send(method, request, response_type)
+
+    monkeypatch.setattr(rt.fast_lane, "call", counting_call)
+    monkeypatch.setattr(rt.fast_lane, "send", counting_send)
     monkeypatch.setattr(rt, "pipelined", True)
     data = wp.zeros(64, dtype=float, device="cpu")
     wp.synchronize()
@@ -269,7 +274,32 @@ def test_fast_lane_keeps_order_of_early_submits(wp, monkeypatch):
         total += k + 1
     got = data.numpy()
     np.testing.assert_array_equal(got, np.full(64, total, dtype=np.float32))
-    assert sum(1 for m, _ in sent if m == SUBMIT) >= 2, f"early Submits went through the lane: {sent}"
+    assert (SUBMIT, "send") in sent, f"early Submits went through the lane without waiting: {sent}"
+
+
+def test_fast_lane_rejected_early_submit_raises_at_the_next_sync(wp, monkeypatch):
+    """An early Submit the daemon refuses (sent through the lane without waiting) is raised by
+    the next synchronize, as through gRPC, and the lane stays usable."""
+    import time
+
+    rt = _runtime_with_lane(wp)
+    monkeypatch.setattr(rt, "pipelined", True)
+    data = wp.zeros(4, dtype=float, device="cpu")
+    wp.synchronize()
+    with rt._lock:
+        rt._batch_since = time.perf_counter()
+        rt._batch.append(exec_pb2.Command())   # empty: the daemon refuses the whole batch
+    rt._unsynchronized = True
+    for _ in range(_runtime.PUMP_FIRST - 1):
+        wp.launch(lane_add, dim=4, inputs=[data, 1.0], device="cpu")
+    with pytest.raises(wp.WeftError) as err:
+        wp.synchronize()
+    assert err.value.code == "INVALID_ARGUMENT"
+    wp.synchronize()
+    np.testing.assert_array_equal(data.numpy(), 0.0)
+    wp.launch(lane_add, dim=4, inputs=[data, 2.0], device="cpu")
+    np.testing.assert_array_equal(data.numpy(), 2.0)
+    assert not rt.fast_lane.broken
 
 
 def test_fast_lane_keeps_serving(wp):

@@ -12,6 +12,7 @@ must not overlap (the Runtime's lock orders them). WEFT_FAST_LANE=0 turns it off
 from __future__ import annotations
 
 import os
+import select
 import socket
 import struct
 
@@ -74,11 +75,27 @@ class FastLane:
         with the same message and status name as through gRPC."""
         return response_type.FromString(self._call(method, request.SerializeToString()))
 
+    def send(self, method: int, request, response_type) -> "PendingReply":
+        """Sends `request` without waiting: the daemon works on it while this process goes on.
+        The reply must be collected (PendingReply.result) before the next call on this lane."""
+        self._send(method, request.SerializeToString())
+        return PendingReply(self, response_type)
+
     def _call(self, method: int, body: bytes) -> bytes:
+        self._send(method, body)
+        return self._receive()
+
+    def _send(self, method: int, body: bytes) -> None:
         try:
             frame = struct.pack("<I", method) + body
             if self._sock.send(frame) != len(frame):
                 raise FastLaneError("fast lane: short send", "UNAVAILABLE")
+        except OSError as err:
+            self.close()
+            raise FastLaneError(f"weftd is not reachable: fast lane: {err}", "UNAVAILABLE") from None
+
+    def _receive(self) -> bytes:
+        try:
             parts = []
             size = 0
             closing = False
@@ -106,3 +123,27 @@ class FastLane:
         if code != 0:
             raise WeftError(payload.decode("utf-8", "replace"), _CODE_NAMES.get(code))
         return payload
+
+
+class PendingReply:
+    """The reply of a request sent with FastLane.send, shaped like the grpc future the
+    Runtime keeps for an asynchronous Submit: done() and result()."""
+
+    def __init__(self, lane: FastLane, response_type):
+        self._lane = lane
+        self._type = response_type
+        self._response = None
+
+    def done(self) -> bool:
+        if self._response is not None or self._lane.broken:
+            return True
+        try:
+            readable, _, _ = select.select([self._lane._sock], [], [], 0)
+        except (OSError, ValueError):
+            return True
+        return bool(readable)
+
+    def result(self):
+        if self._response is None:
+            self._response = self._type.FromString(self._lane._receive())
+        return self._response

@@ -428,8 +428,8 @@ class Runtime:
         self._pump_at = min(2 * self._pump_at, BATCH_MAX_COMMANDS)
         request = exec_pb2.SubmitRequest(commands=batch)
         if self.fast_lane is not None and self.fast_lane.fits(request):
-            try:   # a few tens of microseconds: sent and answered here
-                self._exec("Submit", request)
+            try:   # sent without waiting; the reply is collected like the grpc future's
+                self._inflight = self.fast_lane.send(_fast_lane.SUBMIT, request, exec_pb2.SubmitResponse)
             except WeftError as err:
                 self._deferred_error = err
             return
@@ -447,6 +447,9 @@ class Runtime:
         except grpc.RpcError as err:
             if self._deferred_error is None:
                 self._deferred_error = error_from_rpc(err)
+        except WeftError as err:   # a fast-lane Submit's error
+            if self._deferred_error is None:
+                self._deferred_error = err
 
     def flush(self) -> None:
         """Sends the batched commands (ExecService.Submit), then the deferred frees."""
