@@ -201,6 +201,28 @@ def test_fast_lane_bad_first_frame(wp, case):
         _close_session(rt, a.session_id)
 
 
+def test_fast_lane_peer_without_hello_is_dropped(wp):
+    """A connection that sends nothing is closed by the daemon after its hello timeout (5 s),
+    and does not use up the session's secret."""
+    import time
+
+    rt = _runtime_with_lane(wp)
+    a = _open_session(rt)
+    try:
+        s = _connect(a.fast_lane_path)
+        s.settimeout(20)
+        t0 = time.monotonic()
+        assert s.recv(1 << 16) == b"", "the daemon closes a silent connection"
+        assert 3.0 <= time.monotonic() - t0 <= 15.0
+        s.close()
+        s = _connect(a.fast_lane_path)
+        _send(s, HELLO, _hello(a.session_id, a.fast_lane_secret))
+        assert _reply(s)[0] == 0
+        s.close()
+    finally:
+        _close_session(rt, a.session_id)
+
+
 def _bound_lane(rt):
     a = _open_session(rt)
     s = _connect(a.fast_lane_path)
