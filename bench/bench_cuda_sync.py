@@ -9,7 +9,9 @@ Rows (median of many, one client, weft's own daemon on a Unix socket):
   SOCK_SEQPACKET socket; rows "fast lane"; absent when the daemon offers none);
 - saxpy at 1e7 and 1e8 elements, R launches then one sync, with the early (pipelined)
   submit on and off (weft._runtime: WEFT_PIPELINE): time per launch, and the fixed cost of a
-  round (intercept of time against R from R=4 and R=32); warp-lang beside it when importable.
+  round (intercept of time against R from R=4 and R=32); the same with bounds checks off (the
+  daemon runs with --allow-unchecked; the module option bounds_checks=False), to show what the
+  checks cost; warp-lang beside it when importable.
 Error column: the saxpy result against a float64 reference (first 1e6 elements).
 The table is printed last. Usage: python3 bench/bench_cuda_sync.py [--device cuda:0]
 (WEFT_DAEMON: the weftd to start)."""
@@ -121,7 +123,7 @@ def main():
     sizes = [int(float(s)) for s in args.sizes.split(",")]
     rows = []
     notes = []
-    with bc.WeftSession() as (weft, rt):
+    with bc.WeftSession(["--allow-unchecked"]) as (weft, rt):
         from weft.v1 import exec_pb2, session_pb2  # noqa: PLC0415
 
         mod = bc.load_kernels(SOURCE, "weft", "sync")
@@ -161,6 +163,9 @@ def main():
                 rt.pipelined = on
 
             rows += saxpy_rows(weft, mod, args.device, sizes, "weft", set_pipelined)
+            umod = bc.load_kernels(SOURCE, "weft", "sync_unchecked")
+            weft.set_module_options({"bounds_checks": False}, module=umod)
+            rows += saxpy_rows(weft, umod, args.device, sizes, "weft, bounds checks off")
             try:
                 import warp  # noqa: PLC0415
 
