@@ -2,7 +2,8 @@
 a Unix SOCK_SEQPACKET socket bound to its session, not gRPC. Checks that the client uses it,
 that results and errors are the same as through gRPC, and attacks on it: a wrong secret, a
 wrong session, a secret used twice, garbage, a short frame, an oversized frame, an unknown
-method, a frame after the session closed, a peer that sends no hello. After each, the daemon
+method, a frame after the session closed, a peer that sends no hello, another Unix user holding
+the secret (when the suite runs as root). After each, the daemon
 keeps serving (the module's last test launches through the lane again)."""
 import os
 import socket
@@ -221,6 +222,52 @@ def test_fast_lane_peer_without_hello_is_dropped(wp):
         s.close()
     finally:
         _close_session(rt, a.session_id)
+
+
+def test_fast_lane_another_unix_user_is_refused(start_weftd):
+    """A process of another uid (`nobody`; the sockets opened up deliberately) that holds a
+    session's id and lane secret is refused: the lane checks the peer uid of its own
+    connection. The secret stays usable by its owner."""
+    import subprocess
+    import sys
+    import textwrap
+    from pathlib import Path
+
+    import grpc
+
+    if os.getuid() != 0:
+        pytest.skip("needs root to run a client as another user")
+    daemon = start_weftd()
+    os.chmod(daemon.workdir, 0o755)
+    os.chmod(daemon.socket_path, 0o666)
+    lane_path = str(daemon.socket_path) + ".fast"
+    os.chmod(lane_path, 0o666)
+    channel = grpc.insecure_channel(daemon.address)
+    try:
+        stub = _runtime.SessionServiceStub(channel)
+        opened = stub.Open(session_pb2.OpenSessionRequest(client_name="root owner"), timeout=10)
+        assert opened.fast_lane_path == lane_path
+        hello = struct.pack("<I", HELLO) + _hello(opened.session_id, opened.fast_lane_secret)
+        code = textwrap.dedent(f"""
+            import os, socket, struct
+            os.setgid(65534); os.setuid(65534)
+            s = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+            s.connect({lane_path!r})
+            s.send({hello!r})
+            frame = s.recv(1 << 16)
+            print("reply", struct.unpack_from("<I", frame)[0], frame[8:].decode(), flush=True)
+        """)
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+        assert "reply 7 " in out.stdout, out.stdout + out.stderr   # PERMISSION_DENIED
+        s = _connect(lane_path)
+        _send(s, HELLO, _hello(opened.session_id, opened.fast_lane_secret))
+        assert _reply(s)[0] == 0
+        s.close()
+        stub.Close(session_pb2.CloseSessionRequest(session_id=opened.session_id),
+                   metadata=(("weft-session", opened.session_id),), timeout=10)
+    finally:
+        channel.close()
+    assert "hello refused from unix-uid:65534" in daemon.log()
 
 
 def _bound_lane(rt):
