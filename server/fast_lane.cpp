@@ -171,7 +171,8 @@ void FastLane::Serve(Conn* c) {
   timeval hello_timeout{kHelloTimeoutS, 0};
   setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &hello_timeout, sizeof(hello_timeout));
 
-  std::vector<char> buf(kMaxRequestBytes + 1);
+  // Small until the hello is accepted: connections that never bind cost little memory.
+  std::vector<char> buf(kMaxHelloBytes + 1);
   std::string session_id;
   for (;;) {
     iovec iov{buf.data(), buf.size()};
@@ -183,8 +184,9 @@ void FastLane::Serve(Conn* c) {
       n = recvmsg(fd, &msg, 0);
     } while (n < 0 && errno == EINTR);
     if (n <= 0) return;   // peer gone, shut down, or no hello in time
-    if ((msg.msg_flags & MSG_TRUNC) || static_cast<size_t>(n) > kMaxRequestBytes) {
-      SendError(fd, InvalidArgument("fast lane: frame larger than " + std::to_string(kMaxRequestBytes) + " bytes"));
+    const size_t limit = session_id.empty() ? kMaxHelloBytes : kMaxRequestBytes;
+    if ((msg.msg_flags & MSG_TRUNC) || static_cast<size_t>(n) > limit) {
+      SendError(fd, InvalidArgument("fast lane: frame larger than " + std::to_string(limit) + " bytes"));
       return;
     }
     if (n < 4) {
@@ -219,6 +221,7 @@ void FastLane::Serve(Conn* c) {
         return;
       }
       session_id = hello.session_id();
+      buf.resize(kMaxRequestBytes + 1);
       timeval none{0, 0};
       setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &none, sizeof(none));
       if (!SendReply(fd, StatusCode::kOk, "")) return;

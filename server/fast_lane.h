@@ -40,6 +40,7 @@ class FastLane {
   static constexpr uint32_t kSubmit = 2;
   static constexpr uint32_t kSynchronize = 3;
   static constexpr size_t kMaxRequestBytes = 160u << 10;   // fits a default socket send buffer
+  static constexpr size_t kMaxHelloBytes = 1024;           // before the hello is accepted
   static constexpr size_t kReplyChunkBytes = 64u << 10;
   static constexpr size_t kMaxConnections = 4096;
   static constexpr int kHelloTimeoutS = 5;

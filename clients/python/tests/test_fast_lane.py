@@ -179,7 +179,7 @@ def test_fast_lane_hello_refused(wp, case):
         _close_session(rt, b.session_id)
 
 
-@pytest.mark.parametrize("case", ["garbage hello", "short frame", "Submit before hello"])
+@pytest.mark.parametrize("case", ["garbage hello", "short frame", "Submit before hello", "oversized hello"])
 def test_fast_lane_bad_first_frame(wp, case):
     rt = _runtime_with_lane(wp)
     a = _open_session(rt)
@@ -189,6 +189,8 @@ def test_fast_lane_bad_first_frame(wp, case):
             _send(s, HELLO, b"\xff\xfe\x00garbage" * 10)
         elif case == "short frame":
             s.send(b"\x01\x00")
+        elif case == "oversized hello":   # over the 1 KiB a connection may send before its hello
+            _send(s, HELLO, _hello(a.session_id, a.fast_lane_secret) + b"\x00" * 2048)
         else:
             _send(s, SUBMIT, exec_pb2.SubmitRequest().SerializeToString())
         _assert_refused_and_closed(s, "INVALID_ARGUMENT")
