@@ -26,6 +26,7 @@
 #endif
 #include "server/call_auth.h"
 #include "server/daemon_config.h"
+#include "server/fast_lane.h"
 #include "server/services.h"
 #include "server/session_reaper.h"
 #include "server/unix_listener.h"

@@ -4,7 +4,6 @@
 #pragma once
 
 #include "server/call_auth.h"
-#include "server/fast_lane.h"
 #include "server/session_reaper.h"
 #include "weft/v1/array.grpc.pb.h"
 #include "weft/v1/device.grpc.pb.h"
@@ -13,6 +12,8 @@
 #include "weft/v1/session.grpc.pb.h"
 
 namespace weft::server {
+
+class FastLane;   // server/fast_lane.h
 
 // Attach is served on gRPC's callback API: an attached session's stream waits without holding
 // a thread (a sync-API stream would hold one of gRPC's server threads for the session's whole

@@ -9,6 +9,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "server/fast_lane.h"
 #include "server/grpc_status.h"
 #include "server/services.h"
 
