@@ -501,8 +501,7 @@ class Runtime:
             self._collect_inflight()
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             self.pump_held = 0
-            response = self.call(self.exec_stub.Submit,
-                                 exec_pb2.SubmitRequest(commands=batch, run=True))
+            response = self._exec("Submit", exec_pb2.SubmitRequest(commands=batch, run=True))
             deferred, self._deferred_error = self._deferred_error, None
             if not response.HasField("sync"):
                 self._drain_frees()
