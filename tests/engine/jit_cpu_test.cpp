@@ -282,7 +282,12 @@ size_t ResidentBytes() {
 // DisableFree=false: compiling and dropping modules does not grow the process (clang's default
 // leaks ~0.5-0.9 MB per compile on purpose, which a daemon cannot afford).
 TEST_F(JitCpu, RepeatedCompilesDoNotLeak) {
-#if defined(__SANITIZE_ADDRESS__) || (defined(__has_feature) && __has_feature(address_sanitizer))
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define WEFT_TEST_UNDER_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__) || defined(WEFT_TEST_UNDER_ASAN)
   GTEST_SKIP() << "ASan keeps freed memory in quarantine, so resident size says nothing here; "
                   "LeakSanitizer checks this build for leaks at exit";
 #endif
