@@ -31,6 +31,9 @@
 
 namespace weft {
 
+// The first 8 bytes of a client's CUDA IPC handle (memory or event) in hex, for error messages.
+std::string IpcHandlePrefix(const std::string& handle);
+
 struct wp_launch_error;   // wp::launch_error_t (engine/native/launch_abi.h), kept opaque here
 
 struct CudaDeviceOptions {

@@ -10,22 +10,10 @@
 
 namespace weft {
 
-namespace {
-std::string EventPrefix(const std::string& handle) {   // for messages: the first 8 bytes, hex
-  static const char* hex = "0123456789abcdef";
-  std::string s;
-  for (size_t i = 0; i < std::min<size_t>(8, handle.size()); ++i) {
-    s += hex[static_cast<unsigned char>(handle[i]) >> 4];
-    s += hex[static_cast<unsigned char>(handle[i]) & 15];
-  }
-  return s;
-}
-}  // namespace
-
 Expected<jit::CuEvent> CudaDevice::OpenEventLocked(const std::string& session_id, const std::string& handle) {
   auto owner = event_owner_.find(handle);
   if (owner != event_owner_.end() && owner->second != session_id)
-    return PermissionDenied("this CUDA IPC event handle (" + EventPrefix(handle) +
+    return PermissionDenied("this CUDA IPC event handle (" + IpcHandlePrefix(handle) +
                             "...) is used by another session; a session orders work with events of its own "
                             "client process only");
   const uint64_t gen = generation_.load();
@@ -45,7 +33,7 @@ Expected<jit::CuEvent> CudaDevice::OpenEventLocked(const std::string& session_id
   jit::CuEvent ev = nullptr;
   jit::CuResult r = driver_->IpcOpenEventHandle(&ev, h);
   if (r != 0 || ev == nullptr)
-    return InvalidArgument("the CUDA IPC event handle (" + EventPrefix(handle) + "...) could not be opened on " + name_ +
+    return InvalidArgument("the CUDA IPC event handle (" + IpcHandlePrefix(handle) + "...) could not be opened on " + name_ +
                            " (" + driver_->ErrorName(r) +
                            "): not the handle of a live interprocess event (cudaEventInterprocess | "
                            "cudaEventDisableTiming) of a process on this machine");
@@ -73,7 +61,7 @@ Status CudaDevice::IpcEvent(Session& s, const std::string& handle, bool record) 
   jit::CuResult r = record ? driver_->EventRecord(ev, st->stream) : driver_->StreamWaitEvent(st->stream, ev, 0);
   if (r == 0) return Status::Ok();
   if (jit::IsStickyCudaError(r)) return driver_->Check(r, record ? "cuEventRecord" : "cuStreamWaitEvent");
-  return InvalidArgument(std::string("the CUDA IPC event (") + EventPrefix(handle) + "...) could not be " +
+  return InvalidArgument(std::string("the CUDA IPC event (") + IpcHandlePrefix(handle) + "...) could not be " +
                          (record ? "recorded on " : "waited on by ") + "the session's stream on " + name_ + " (" +
                          driver_->ErrorName(r) + "): an event of another GPU's context?");
 }

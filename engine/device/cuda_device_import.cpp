@@ -8,8 +8,7 @@
 
 namespace weft {
 
-namespace {
-std::string HandlePrefix(const std::string& handle) {   // for messages: the first 8 bytes, hex
+std::string IpcHandlePrefix(const std::string& handle) {
   static const char* hex = "0123456789abcdef";
   std::string s;
   for (size_t i = 0; i < std::min<size_t>(8, handle.size()); ++i) {
@@ -18,7 +17,6 @@ std::string HandlePrefix(const std::string& handle) {   // for messages: the fir
   }
   return s;
 }
-}  // namespace
 
 Expected<std::shared_ptr<ImportedMemory>> CudaDevice::OpenImport(const std::string& session_id,
                                                                  const std::string& handle, uint64_t identity) {
@@ -46,7 +44,7 @@ Expected<std::shared_ptr<ImportedMemory>> CudaDevice::OpenImport(const std::stri
     if (live && live->generation != gen) live = nullptr;   // went with a device reset
     if (live) {
       if (live->session != session_id)
-        return PermissionDenied("this CUDA IPC handle (" + HandlePrefix(handle) +
+        return PermissionDenied("this CUDA IPC handle (" + IpcHandlePrefix(handle) +
                                 "...) is imported by another session; a session imports memory of its own "
                                 "client process only");
       auto& recent = recent_imports_[session_id];
@@ -88,7 +86,7 @@ Expected<std::shared_ptr<ImportedMemory>> CudaDevice::OpenImport(const std::stri
   // refuses it only where the driver reports the other GPU).
   jit::CuResult r = driver_->IpcOpenMemHandle(&p, h, jit::kCuIpcMemLazyEnablePeerAccess);
   if (r != 0)
-    return InvalidArgument("the CUDA IPC handle (" + HandlePrefix(handle) + "...) could not be opened on " + name_ +
+    return InvalidArgument("the CUDA IPC handle (" + IpcHandlePrefix(handle) + "...) could not be opened on " + name_ +
                            " (" + driver_->ErrorName(r) +
                            "): not the handle of a live cudaMalloc allocation of a process on this machine and GPU");
   int ordinal = -1;

@@ -253,6 +253,19 @@ def format_location(location) -> str | None:
     return f"{location.file}:{location.line}" if location.line else location.file
 
 
+def _report_sync(response, deferred) -> None:
+    """What a SynchronizeResponse brings back: kernel print output to stdout, then the error
+    held back from an earlier asynchronous call, then the session's error."""
+    if response.output:
+        sys.stdout.write(response.output)
+        sys.stdout.flush()
+    if deferred is not None:
+        raise deferred
+    if response.error:
+        raise WeftError(response.error, _CODE_NAMES.get(response.error_code),
+                        format_location(response.error_origin))
+
+
 # ------------------------------------------------------------------------------------------
 # The session
 
@@ -484,14 +497,7 @@ class Runtime:
             self._drain_frees()
             self._unsynchronized = False
             deferred, self._deferred_error = self._deferred_error, None
-        if response.output:
-            sys.stdout.write(response.output)
-            sys.stdout.flush()
-        if deferred is not None:
-            raise deferred
-        if response.error:
-            raise WeftError(response.error, _CODE_NAMES.get(response.error_code),
-                            format_location(response.error_origin))
+        _report_sync(response, deferred)
 
     def run(self) -> None:
         """Sends the batched commands and returns once weftd has run them (GPU work queued on
@@ -512,14 +518,7 @@ class Runtime:
             self._drain_frees()
             self._unsynchronized = False
             response = response.sync
-        if response.output:
-            sys.stdout.write(response.output)
-            sys.stdout.flush()
-        if deferred is not None:
-            raise deferred
-        if response.error:
-            raise WeftError(response.error, _CODE_NAMES.get(response.error_code),
-                            format_location(response.error_origin))
+        _report_sync(response, deferred)
 
     def synchronize_if_needed(self) -> None:
         """synchronize() when commands were queued since the last one (data access)."""
