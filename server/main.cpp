@@ -168,6 +168,7 @@ int main(int argc, char** argv) {
   ExecServiceImpl exec_service(auth);
   ModuleServiceImpl module_service(auth);
   DeviceServiceImpl device_service(auth);
+  GeometryServiceImpl geometry_service(auth);
 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
@@ -186,6 +187,7 @@ int main(int argc, char** argv) {
   builder.RegisterService(&exec_service);
   builder.RegisterService(&module_service);
   builder.RegisterService(&device_service);
+  builder.RegisterService(&geometry_service);
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server) {
     std::cerr << "weftd: could not listen on every address (in use, or a bad address)\n";

@@ -8,6 +8,7 @@
 #include "weft/v1/array.grpc.pb.h"
 #include "weft/v1/device.grpc.pb.h"
 #include "weft/v1/exec.grpc.pb.h"
+#include "weft/v1/geometry.grpc.pb.h"
 #include "weft/v1/module.grpc.pb.h"
 #include "weft/v1/session.grpc.pb.h"
 
@@ -70,6 +71,15 @@ class ModuleServiceImpl final : public v1::ModuleService::Service {
  public:
   explicit ModuleServiceImpl(const CallAuth& auth) : auth_(auth) {}
   grpc::Status Compile(grpc::ServerContext* ctx, const v1::CompileRequest* req, v1::CompileResponse* resp) override;
+ private:
+  const CallAuth& auth_;
+};
+
+class GeometryServiceImpl final : public v1::GeometryService::Service {
+ public:
+  explicit GeometryServiceImpl(const CallAuth& auth) : auth_(auth) {}
+  grpc::Status Call(grpc::ServerContext* ctx, const v1::GeometryRequest* req, v1::GeometryResponse* resp) override;
+
  private:
   const CallAuth& auth_;
 };

@@ -425,9 +425,10 @@ class FnEmitter {
         if (replay && b->side_effect()) return;
         std::string name = "wp::" + b->native;
         std::string args = Args(op.args);
-        if (b->needs_ctx()) {
-          if (b->native.rfind("expect_", 0) == 0) {
-            name += "_at";
+        if (b->needs_ctx() || (b->flags & kBuiltinNeedsLoc)) {
+          bool at = b->native.rfind("expect_", 0) == 0;
+          if (at || (b->flags & kBuiltinNeedsLoc)) {
+            if (at) name += "_at";
             args = "__ctx, " + std::to_string(f_.function_id) + ", " + std::to_string(line) + (args.empty() ? "" : ", ") + args;
           } else {
             args = "__ctx" + std::string(args.empty() ? "" : ", ") + args;

@@ -44,6 +44,8 @@ Status CpuDevice::Launch(Session& s, const KernelLaunch& l, std::string* output)
   launch.args = l.args;
   launch.adj_args = l.adj_args;
   launch.print_capacity = options_.print_capacity;
+  std::shared_ptr<geometry::LaunchTable> geometry = s.geometry().TableFor("cpu");   // alive for the launch
+  if (geometry) launch.geometry = &geometry->table;
   if (!watchdog_) return RunCpuLaunch(pool_, launch, output);
   LaunchWatchdog::Watch watch(*watchdog_, s.cancel_flag(), options_.launch_time_limit_s);
   launch.cancel = watch.word();

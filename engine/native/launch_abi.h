@@ -38,6 +38,7 @@ enum launch_error_kind : int32 {
   LAUNCH_OUT_OF_BOUNDS = 1,   // array index outside its shape
   LAUNCH_NULL_ARRAY = 2,      // access to an empty (None) array
   LAUNCH_EXPECT_FAILED = 3,   // wp.expect_eq and friends
+  LAUNCH_BAD_GEOMETRY = 4,    // a geometry id that names no live object of this kind (message)
 };
 
 // First error of a launch wins (the writer sets `kind` with an atomic CAS from 0).
@@ -60,6 +61,8 @@ struct print_buffer_t {
   uint64 used;
 };
 
+struct geometry_table_t;   // geometry_abi.h
+
 struct launch_context_t {
   launch_bounds_t bounds;
   launch_error_t* error;
@@ -70,6 +73,9 @@ struct launch_context_t {
   // runtime sets it, loops in generated code poll it (cg_loop_poll). Null: never cancelled.
   // On a GPU it must be null or point at memory the device can read (mapped host memory).
   const int32* cancel;
+  // The launching session's geometry objects on the launch device (geometry_abi.h); null when
+  // it has none (every geometry id is then an error).
+  const geometry_table_t* geometry;
 };
 
 constexpr uint32 LAUNCH_FLAG_NO_BOUNDS_CHECK = 1u;

@@ -3,7 +3,7 @@
 // standard library headers. docs/native.md describes the contract with the code generator.
 #pragma once
 
-#define WEFT_NATIVE_VERSION 2
+#define WEFT_NATIVE_VERSION 3
 
 #include "launch_abi.h"
 #include "scalar.h"
@@ -20,3 +20,6 @@
 #include "noise.h"
 #include "print.h"
 #include "expect.h"
+#include "hash_grid.h"
+#include "bvh.h"
+#include "mesh.h"

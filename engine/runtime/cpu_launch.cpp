@@ -79,6 +79,8 @@ Status FormatLaunchError(const LoadedModule& module, const LoadedKernel& kernel,
     case wp::LAUNCH_EXPECT_FAILED:
       return Status(StatusCode::kAborted, where + ": " + in + ": expect failed" +
                                               (text.empty() ? std::string() : ": " + text));
+    case wp::LAUNCH_BAD_GEOMETRY:
+      return InvalidArgument(where + ": " + in + ": " + text);
     default:
       return Internal(where + ": " + in + ": runtime error kind " + std::to_string(e.kind) +
                       (text.empty() ? std::string() : ": " + text));
@@ -109,6 +111,7 @@ Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
   ctx.print = &print;
   ctx.flags = l.bounds_checks ? 0u : wp::LAUNCH_FLAG_NO_BOUNDS_CHECK;
   ctx.cancel = reinterpret_cast<const wp::int32*>(l.cancel);
+  ctx.geometry = l.geometry;
 
   // Runs [b, e) in pieces of kCancelChunk threads; stops early after an error or a cancel.
   auto stopped = [&] {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "engine/core/status.h"
+#include "engine/native/geometry_abi.h"
 #include "engine/native/launch_abi.h"
 #include "engine/runtime/launch_args.h"
 #include "engine/runtime/module_store.h"
@@ -27,6 +28,8 @@ struct CpuLaunch {
   // The launch's cancel word (a LaunchWatchdog::Watch's), or null. Kernels poll it in loops
   // and RunCpuLaunch checks it before every kCancelChunk threads.
   const int32_t* cancel = nullptr;
+  // The session's geometry objects on the CPU (null: none).
+  const wp::geometry_table_t* geometry = nullptr;
 };
 
 // Threads run between two checks of the cancel word.

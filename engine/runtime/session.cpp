@@ -67,6 +67,7 @@ void Session::ReleaseAll() {
     grad_owner_.clear();
     owned_grads_.clear();
   }
+  geometry_.Clear();   // objects hold arrays too
 }
 
 bool Session::failed() const {

@@ -18,6 +18,7 @@
 
 #include "engine/core/module_source.h"
 #include "engine/core/status.h"
+#include "engine/geometry/geometry_registry.h"
 #include "engine/runtime/allocation.h"
 #include "engine/runtime/serial_queue.h"
 #include "engine/runtime/tape.h"
@@ -82,6 +83,9 @@ class Session {
 
   SerialQueue& queue() { return queue_; }
 
+  // Geometry objects (wp.HashGrid, wp.Bvh, wp.Mesh); dropped with the arrays at close.
+  geometry::GeometryRegistry& geometry() { return geometry_; }
+
   // Executor-thread state.
   std::map<uint64_t, Tape> tapes;
   uint64_t active_tape = 0;   // 0 = none
@@ -103,6 +107,7 @@ class Session {
   uint64_t skipped_ = 0;
   std::string output_;
   SerialQueue queue_;
+  geometry::GeometryRegistry geometry_;
 };
 
 }  // namespace weft

@@ -32,6 +32,7 @@ enum BuiltinFlags : unsigned {
   kBuiltinSideEffect = 1u << 1,   // writes memory / prints: skipped in the backward pass's replay
   kBuiltinNotDiff = 1u << 2,      // no adjoint: gradients stop here
   kBuiltinArrayAccess = 1u << 3,  // first param is an array indexed by the following Index params
+  kBuiltinNeedsLoc = 1u << 4,     // native takes (ctx, function id, line) first: it reports launch errors
 };
 
 struct BuiltinPattern;  // parsed form of a parameter/result pattern (builtins_registry.cpp)
@@ -63,6 +64,12 @@ BuiltinOverload Builtin(const char* group, const char* signature, const char* do
 void AddScalarBuiltins(std::vector<BuiltinOverload>* rows);
 void AddLinalgBuiltins(std::vector<BuiltinOverload>* rows);
 void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows);
+void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows);
+
+// The query types of the geometry builtins (HashGridQuery, BvhQuery, MeshQueryPoint,
+// MeshQueryRay, MeshQueryAABB): structs defined by engine/native (not emitted per module),
+// added to every module's struct table. Client structs may not take these names.
+const StructTable& GeometryStructs();
 
 // The result of resolving a call against the registry.
 struct BuiltinMatch {

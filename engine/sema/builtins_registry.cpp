@@ -207,6 +207,7 @@ BuiltinRegistry::BuiltinRegistry() {
   AddScalarBuiltins(&rows_);
   AddLinalgBuiltins(&rows_);
   AddRuntimeBuiltins(&rows_);
+  AddGeometryBuiltins(&rows_);
   for (size_t i = 0; i < rows_.size(); ++i) by_name_[rows_[i].name].push_back(i);
 }
 

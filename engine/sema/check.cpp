@@ -33,8 +33,21 @@ Status Checker::ErrorOf(const char* kind, const SourceLocation& loc, const std::
 }
 
 Expected<Module> Checker::Run() {
+  // The geometry query structs (defined by engine/native, never emitted) come first; client
+  // structs may not take their names, nor hold them.
+  const StructTable& geometry = GeometryStructs();
+  for (const auto& [name, info] : geometry) module_.structs[name] = info;
+  auto uses_geometry = [&](const Type& t) {
+    const Type* e = t.is_array() ? &t.elem() : &t;
+    return e->is_struct() && geometry.count(e->struct_name) != 0;
+  };
   // Structs: resolve field types (order: dependencies first).
   for (const auto& sd : src_.structs) {
+    if (geometry.count(sd.name)) {
+      SourceLocation loc;
+      loc.file = sd.name;
+      return Error(loc, "struct name '" + sd.name + "' is reserved for a geometry query type");
+    }
     StructInfo info;
     info.name = sd.name;
     info.cpp_name = StructCppName(sd.name);
@@ -44,6 +57,11 @@ Expected<Module> Checker::Run() {
         SourceLocation loc;
         loc.file = sd.name;
         return Error(loc, "struct " + sd.name + " field '" + f.name + "': " + t.status().message());
+      }
+      if (uses_geometry(*t)) {
+        SourceLocation loc;
+        loc.file = sd.name;
+        return Error(loc, "struct " + sd.name + " field '" + f.name + "': a geometry query cannot be a struct field");
       }
       info.fields.push_back({f.name, *t});
     }
@@ -79,10 +97,12 @@ Expected<Module> Checker::Run() {
     bool bad = false;
     for (size_t i = 0; i < p.source->param_types.size(); ++i) {
       auto t = ParseType(p.source->param_types[i]);
-      if (!t.ok() || ContainsAny(*t)) {
+      if (!t.ok() || ContainsAny(*t) || uses_geometry(*t)) {
         SourceLocation loc{p.source->file, p.source->first_line, 1};
         (void)Error(loc, "kernel '" + p.source->name + "' parameter " + std::to_string(i) + ": " +
-                             (t.ok() ? "kernel parameters need concrete types, not 'any'" : t.status().message()));
+                             (!t.ok() ? t.status().message()
+                                      : uses_geometry(*t) ? "a geometry query cannot be a kernel parameter (pass the object's id, a uint64)"
+                                                          : "kernel parameters need concrete types, not 'any'"));
         bad = true;
         break;
       }
@@ -856,6 +876,43 @@ Status Checker::LowerFor(const ast::For& s) {
     reversed = true;
     call = ast::As<ast::Call>(call->args[0].get());
     fname = call ? ast::As<ast::Name>(call->func.get()) : nullptr;
+  }
+  if (!reversed && call && !(fname && fname->id == "range" && !st_->scope.count("range"))) {
+    // for index in wp.hash_grid_query(...) / wp.bvh_query_*(...) / wp.mesh_query_aabb(...):
+    // index = 0; while <query>_next(q, index): body
+    WEFT_ASSIGN_OR_RETURN(Value qv, Eval(*s.iter));
+    const char* next = nullptr;
+    if (qv.kind == Value::Kind::kVar && TypeOf(qv.var).is_struct()) {
+      const std::string& n = TypeOf(qv.var).struct_name;
+      if (n == "HashGridQuery") next = "hash_grid_query_next";
+      else if (n == "BvhQuery") next = "bvh_query_next";
+      else if (n == "MeshQueryAABB") next = "mesh_query_aabb_next";
+    }
+    if (!next)
+      return Error(s.iter->loc, "for loops iterate over range(...), reversed(range(...)) or a geometry query "
+                                "(hash_grid_query, bvh_query_aabb/ray, mesh_query_aabb)");
+    auto prev = st_->scope.find(tn->id);
+    if (prev != st_->scope.end() && TypeOf(prev->second) != Type::Int32())
+      return Error(s.target->loc, "loop variable '" + tn->id + "' already has type " + TypeString(TypeOf(prev->second)));
+    int index = NewVar(Type::Int32(), tn->id, true);
+    {
+      Stmt zero;
+      zero.op.kind = OpKind::kConst;
+      zero.op.dst.push_back(index);
+      zero.op.text = "(wp::int32)0";
+      Push(std::move(zero));
+    }
+    st_->scope[tn->id] = index;
+    LoopBuilder lb{this, {}, {}};
+    WEFT_RETURN_IF_ERROR(lb.Begin(s.body));
+    lb.loop.is_while = true;
+    std::vector<Stmt>* outer = st_->block;
+    st_->block = &lb.loop.cond_body;
+    auto c = ResolveAndEmitBuiltin(next, {Value::OfVar(qv.var), Value::OfVar(index)}, s.iter->loc);
+    st_->block = outer;
+    if (!c.ok()) return c.status();
+    lb.loop.cond = c->var;
+    return lb.Body(s.body);
   }
   if (!fname || fname->id != "range" || st_->scope.count("range"))
     return Error(s.iter->loc, "for loops iterate over range(...) or reversed(range(...)) only");

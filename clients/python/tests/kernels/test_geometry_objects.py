@@ -1,0 +1,673 @@
+"""Geometry objects (wp.HashGrid, wp.Bvh, wp.Mesh) against brute-force NumPy float64 references
+on random data, and the attacks on their ids and arrays: a forged id, another session's id, an
+id after free, a HashGrid id used as a Mesh, indices out of range at build, huge grid dims.
+Objects live on the CPU (docs/geometry.md). Distances are compared with a tolerance of
+1e-4 (float32 queries on coordinates of size ~1); neighbour and overlap sets exclude the pairs
+within 1e-4 of the boundary, where float32 and float64 may disagree."""
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import weft as wp
+
+CPU = "cpu"
+TOL = 1e-4
+
+
+@pytest.fixture(autouse=True)
+def _cpu_only(device):
+    if device != "cpu":
+        pytest.skip("geometry objects are CPU-only for now (docs/geometry.md)")
+
+
+# ---------------------------------------------------------------------------------------------
+# kernels
+
+@wp.kernel
+def grid_neighbours(grid: wp.uint64, points: wp.array(dtype=wp.vec3), radius: float,
+                    counts: wp.array(dtype=int), sums: wp.array(dtype=wp.int64)):
+    tid = wp.tid()
+    i = wp.hash_grid_point_id(grid, tid)
+    p = points[i]
+    query = wp.hash_grid_query(grid, p, radius)
+    index = int(0)
+    n = int(0)
+    s = wp.int64(0)
+    while wp.hash_grid_query_next(query, index):
+        if wp.length(points[index] - p) <= radius:
+            n += 1
+            s += wp.int64(index)
+    counts[i] = n
+    sums[i] = s
+
+
+@wp.kernel
+def grid_visits(grid: wp.uint64, points: wp.array(dtype=wp.vec3), radius: float, visits: wp.array(dtype=int)):
+    tid = wp.tid()
+    query = wp.hash_grid_query(grid, points[tid], radius)
+    index = int(0)
+    n = int(0)
+    while wp.hash_grid_query_next(query, index):
+        n += 1
+    visits[tid] = n
+
+
+@wp.kernel
+def grid_point_ids(grid: wp.uint64, out: wp.array(dtype=int)):
+    tid = wp.tid()
+    out[tid] = wp.hash_grid_point_id(grid, tid)
+
+
+@wp.kernel
+def grid_neighbours_f64(grid: wp.uint64, points: wp.array(dtype=wp.vec3d), radius: wp.float64,
+                        counts: wp.array(dtype=int)):
+    tid = wp.tid()
+    p = points[tid]
+    query = wp.hash_grid_query(grid, p, radius)
+    index = int(0)
+    n = int(0)
+    while wp.hash_grid_query_next(query, index):
+        if wp.length(points[index] - p) <= radius:
+            n += 1
+    counts[tid] = n
+
+
+@wp.kernel
+def mesh_closest(mesh: wp.uint64, queries: wp.array(dtype=wp.vec3), max_dist: float,
+                 hit: wp.array(dtype=int), closest: wp.array(dtype=wp.vec3), face: wp.array(dtype=int),
+                 signs: wp.array(dtype=wp.vec4)):
+    tid = wp.tid()
+    p = queries[tid]
+    q = wp.mesh_query_point_no_sign(mesh, p, max_dist)
+    if q.result:
+        hit[tid] = 1
+        face[tid] = q.face
+        closest[tid] = wp.mesh_eval_position(mesh, q.face, q.u, q.v)
+        a = wp.mesh_query_point(mesh, p, max_dist)
+        b = wp.mesh_query_point_sign_normal(mesh, p, max_dist)
+        c = wp.mesh_query_point_sign_winding_number(mesh, p, max_dist)
+        d = wp.mesh_query_point_sign_parity(mesh, p, max_dist, 5, 0.1)
+        signs[tid] = wp.vec4(a.sign, b.sign, c.sign, d.sign)
+
+
+@wp.kernel
+def mesh_rays(mesh: wp.uint64, starts: wp.array(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), max_t: float,
+              hit: wp.array(dtype=int), t: wp.array(dtype=float), face: wp.array(dtype=int),
+              pos: wp.array(dtype=wp.vec3), normal: wp.array(dtype=wp.vec3), sign: wp.array(dtype=float)):
+    tid = wp.tid()
+    q = wp.mesh_query_ray(mesh, starts[tid], dirs[tid], max_t)
+    if q.result:
+        hit[tid] = 1
+        t[tid] = q.t
+        face[tid] = q.face
+        pos[tid] = wp.mesh_eval_position(mesh, q.face, q.u, q.v)
+        normal[tid] = q.normal
+        sign[tid] = q.sign
+
+
+@wp.kernel
+def mesh_aabb_faces(mesh: wp.uint64, lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3),
+                    hits: wp.array2d(dtype=int)):
+    tid = wp.tid()
+    query = wp.mesh_query_aabb(mesh, lowers[tid], uppers[tid])
+    f = int(0)
+    while wp.mesh_query_aabb_next(query, f):
+        hits[tid, f] = hits[tid, f] + 1
+
+
+@wp.kernel
+def mesh_accessors(mesh: wp.uint64, pts: wp.array(dtype=wp.vec3), idx: wp.array(dtype=int),
+                   normals: wp.array(dtype=wp.vec3), vel: wp.array(dtype=wp.vec3)):
+    tid = wp.tid()
+    pts[tid] = wp.mesh_get_point(mesh, tid)
+    idx[tid] = wp.mesh_get_index(mesh, tid)
+    if tid % 3 == 0:
+        f = tid / 3
+        normals[f] = wp.mesh_eval_face_normal(mesh, f)
+        vel[f] = wp.mesh_eval_velocity(mesh, f, 0.2, 0.3)
+
+
+@wp.kernel
+def move_points(points: wp.array(dtype=wp.vec3), offset: wp.vec3):
+    tid = wp.tid()
+    points[tid] = points[tid] + offset
+
+
+@wp.kernel
+def bvh_boxes(bvh: wp.uint64, lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3),
+              hits: wp.array2d(dtype=int)):
+    tid = wp.tid()
+    query = wp.bvh_query_aabb(bvh, lowers[tid], uppers[tid])
+    item = int(0)
+    while wp.bvh_query_next(query, item):
+        hits[tid, item] = hits[tid, item] + 1
+
+
+@wp.kernel
+def bvh_rays(bvh: wp.uint64, starts: wp.array(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3),
+             hits: wp.array2d(dtype=int)):
+    tid = wp.tid()
+    query = wp.bvh_query_ray(bvh, starts[tid], dirs[tid])
+    item = int(0)
+    while wp.bvh_query_next(query, item):
+        hits[tid, item] = hits[tid, item] + 1
+
+
+@wp.kernel
+def any_point_query(mesh: wp.uint64, out: wp.array(dtype=float)):
+    tid = wp.tid()
+    q = wp.mesh_query_point_no_sign(mesh, wp.vec3(0.0, 0.0, 0.0), 10.0)
+    out[tid] = q.u
+
+
+@wp.kernel
+def get_point(mesh: wp.uint64, index: int, out: wp.array(dtype=wp.vec3)):
+    out[0] = wp.mesh_get_point(mesh, index)
+
+
+# ---------------------------------------------------------------------------------------------
+# references (float64)
+
+def closest_on_triangles(p, a, b, c):
+    """Closest points of every triangle (a[i], b[i], c[i]) to p, float64 (Ericson 5.1.5)."""
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = (ab * ap).sum(1), (ac * ap).sum(1)
+    bp = p - b
+    d3, d4 = (ab * bp).sum(1), (ac * bp).sum(1)
+    cp = p - c
+    d5, d6 = (ab * cp).sum(1), (ac * cp).sum(1)
+    vc = d1 * d4 - d3 * d2
+    vb = d5 * d2 - d1 * d6
+    va = d3 * d6 - d5 * d4
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v = vb / denom
+        w = vc / denom
+        out = a + ab * v[:, None] + ac * w[:, None]
+        t_ab = d1 / (d1 - d3)
+        t_ac = d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    cases = [
+        (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0), b + (c - b) * t_bc[:, None],
+    ]
+    res = out.copy()
+    m = cases[0]
+    res[m] = cases[1][m]
+    m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+    res[m] = (a + ac * t_ac[:, None])[m]
+    m = (d6 >= 0) & (d5 <= d6)
+    res[m] = c[m]
+    m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+    res[m] = (a + ab * t_ab[:, None])[m]
+    m = (d3 >= 0) & (d4 <= d3)
+    res[m] = b[m]
+    m = (d1 <= 0) & (d2 <= 0)
+    res[m] = a[m]
+    # degenerate triangles: fall back to the closest of the three edges' endpoints and midpoints
+    bad = ~np.isfinite(res).all(1)
+    if bad.any():
+        cand = np.stack([a[bad], b[bad], c[bad]], 1)
+        k = np.argmin(((cand - p) ** 2).sum(2), 1)
+        res[bad] = cand[np.arange(len(k)), k]
+    return res
+
+
+def winding_number(p, a, b, c):
+    a, b, c = a - p, b - p, c - p
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    num = (a * np.cross(b, c)).sum(1)
+    den = la * lb * lc + (a * b).sum(1) * lc + (a * c).sum(1) * lb + (b * c).sum(1) * la
+    return np.arctan2(num, den).sum() / (2 * np.pi)
+
+
+def sphere_mesh(rng, nlat=10, nlon=14, degenerate=3):
+    """A closed, star-shaped triangle mesh (a perturbed UV sphere) plus `degenerate` zero-area
+    triangles (a repeated vertex)."""
+    pts = [[0.0, 0.0, 1.0]]
+    for i in range(1, nlat):
+        th = np.pi * i / nlat
+        for j in range(nlon):
+            ph = 2 * np.pi * j / nlon
+            pts.append([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+    pts.append([0.0, 0.0, -1.0])
+    pts = np.array(pts) * rng.uniform(0.85, 1.15, size=(len(pts), 1))
+    tris = []
+    ring = lambda i, j: 1 + (i - 1) * nlon + (j % nlon)  # noqa: E731
+    for j in range(nlon):
+        tris.append([0, ring(1, j), ring(1, j + 1)])
+    for i in range(1, nlat - 1):
+        for j in range(nlon):
+            a, b, c, d = ring(i, j), ring(i + 1, j), ring(i + 1, j + 1), ring(i, j + 1)
+            tris += [[a, b, c], [a, c, d]]
+    south = len(pts) - 1
+    for j in range(nlon):
+        tris.append([ring(nlat - 1, j), south, ring(nlat - 1, j + 1)])
+    for k in range(degenerate):
+        v = int(rng.integers(0, len(pts) - 1))
+        tris.append([v, v, v + 1])
+    return pts.astype(np.float32), np.array(tris, dtype=np.int32)
+
+
+def make_mesh(rng, velocities=False):
+    pts, tris = sphere_mesh(rng)
+    vel = rng.uniform(-1, 1, size=pts.shape).astype(np.float32) if velocities else None
+    mesh = wp.Mesh(points=wp.array(pts, dtype=wp.vec3, device=CPU),
+                   indices=wp.array(tris.reshape(-1), dtype=int, device=CPU),
+                   velocities=wp.array(vel, dtype=wp.vec3, device=CPU) if velocities else None)
+    return mesh, pts.astype(np.float64), tris, vel
+
+
+# ---------------------------------------------------------------------------------------------
+# HashGrid
+
+def test_hash_grid_neighbours_match_brute_force(rng):
+    n, radius = 3000, 0.6
+    pts = rng.uniform(-4.0, 6.0, size=(n, 3)).astype(np.float32)
+    points = wp.array(pts, dtype=wp.vec3, device=CPU)
+    grid = wp.HashGrid(16, 16, 16, device=CPU)
+    grid.build(points, radius)
+    counts = wp.zeros(n, dtype=int, device=CPU)
+    sums = wp.zeros(n, dtype=wp.int64, device=CPU)
+    wp.launch(grid_neighbours, dim=n, inputs=[grid.id, points, radius, counts, sums], device=CPU)
+    p64 = pts.astype(np.float64)
+    d = np.linalg.norm(p64[:, None, :] - p64[None, :, :], axis=2)
+    sure_in, maybe = d <= radius - TOL, d <= radius + TOL
+    got = counts.numpy()
+    assert (got >= sure_in.sum(1)).all() and (got <= maybe.sum(1)).all()
+    exact = (sure_in == maybe).all(1)
+    assert exact.sum() > n // 2
+    ref_sums = (sure_in * np.arange(n)[None, :]).sum(1)
+    np.testing.assert_array_equal(sums.numpy()[exact], ref_sums[exact])
+    # point ids: a permutation of the points, in cell order
+    ids = wp.zeros(n + 3, dtype=int, device=CPU)
+    wp.launch(grid_point_ids, dim=n + 3, inputs=[grid.id, ids], device=CPU)
+    got_ids = ids.numpy()
+    assert sorted(got_ids[:n].tolist()) == list(range(n))
+    assert (got_ids[n:] == -1).all()
+
+
+def test_hash_grid_small_dims_wrap_and_rebuild(rng):
+    n, radius = 500, 0.9
+    pts = rng.uniform(-3.0, 3.0, size=(n, 3)).astype(np.float32)
+    points = wp.array(pts, dtype=wp.vec3, device=CPU)
+    grid = wp.HashGrid(1, 2, 3, device=CPU)   # every cell is shared by many far-apart regions
+    grid.reserve(n)
+    grid.build(points, radius)
+    counts = wp.zeros(n, dtype=int, device=CPU)
+    sums = wp.zeros(n, dtype=wp.int64, device=CPU)
+    wp.launch(grid_neighbours, dim=n, inputs=[grid.id, points, radius, counts, sums], device=CPU)
+    d = np.linalg.norm(pts[:, None, :].astype(np.float64) - pts[None, :, :], axis=2)
+    got = counts.numpy()
+    assert (got >= (d <= radius - TOL).sum(1)).all() and (got <= (d <= radius + TOL).sum(1)).all()
+    # a query covering more cells than the grid has visits each point once
+    visits = wp.zeros(n, dtype=int, device=CPU)
+    wp.launch(grid_visits, dim=n, inputs=[grid.id, points, 100.0, visits], device=CPU)
+    assert (visits.numpy() == n).all()
+    # rebuild with other points and radius
+    pts2 = rng.uniform(0.0, 1.0, size=(50, 3)).astype(np.float32)
+    points2 = wp.array(pts2, dtype=wp.vec3, device=CPU)
+    grid.build(points2, 0.25)
+    visits2 = wp.zeros(50, dtype=int, device=CPU)
+    wp.launch(grid_visits, dim=50, inputs=[grid.id, points2, 100.0, visits2], device=CPU)
+    assert (visits2.numpy() == 50).all()
+
+
+def test_hash_grid_empty_and_float64(rng):
+    grid = wp.HashGrid(8, 8, 8, device=CPU)
+    pts = rng.uniform(0, 1, size=(20, 3)).astype(np.float32)
+    points = wp.array(pts, dtype=wp.vec3, device=CPU)
+    visits = wp.full(20, 7, dtype=int, device=CPU)
+    wp.launch(grid_visits, dim=20, inputs=[grid.id, points, 1.0, visits], device=CPU)   # never built
+    assert (visits.numpy() == 0).all()
+    grid.build(wp.zeros(0, dtype=wp.vec3, device=CPU), 0.5)   # no points
+    wp.launch(grid_visits, dim=20, inputs=[grid.id, points, 1.0, visits], device=CPU)
+    assert (visits.numpy() == 0).all()
+    # float64 query points against a float32 build
+    grid.build(points, 0.3)
+    pd = wp.array(pts.astype(np.float64), dtype=wp.vec3d, device=CPU)
+    counts = wp.zeros(20, dtype=int, device=CPU)
+    wp.launch(grid_neighbours_f64, dim=20, inputs=[grid.id, pd, 0.3, counts], device=CPU)
+    d = np.linalg.norm(pts[:, None, :].astype(np.float64) - pts[None, :, :], axis=2)
+    got = counts.numpy()
+    assert (got >= (d <= 0.3 - TOL).sum(1)).all() and (got <= (d <= 0.3 + TOL).sum(1)).all()
+
+
+# ---------------------------------------------------------------------------------------------
+# Mesh
+
+def test_mesh_query_point_matches_brute_force(rng):
+    mesh, pts, tris, _ = make_mesh(rng)
+    a, b, c = pts[tris[:, 0]], pts[tris[:, 1]], pts[tris[:, 2]]
+    n = 300
+    q = rng.uniform(-1.6, 1.6, size=(n, 3))
+    # points on vertices, on edges and on faces
+    q[:20] = pts[rng.integers(0, len(pts), 20)]
+    f = rng.integers(0, len(tris) - 3, 40)
+    q[20:40] = 0.5 * (a[f[:20]] + b[f[:20]])
+    q[40:60] = (a[f[20:]] + b[f[20:]] + c[f[20:]]) / 3
+    qs = q.astype(np.float32)
+    q64 = qs.astype(np.float64)
+    hit = wp.zeros(n, dtype=int, device=CPU)
+    closest = wp.zeros(n, dtype=wp.vec3, device=CPU)
+    face = wp.zeros(n, dtype=int, device=CPU)
+    signs = wp.zeros(n, dtype=wp.vec4, device=CPU)
+    wp.launch(mesh_closest, dim=n, inputs=[mesh.id, wp.array(qs, dtype=wp.vec3, device=CPU), 10.0,
+                                           hit, closest, face, signs], device=CPU)
+    assert (hit.numpy() == 1).all()
+    got = closest.numpy().astype(np.float64)
+    got_d = np.linalg.norm(got - q64, axis=1)
+    inside_ref = np.array([winding_number(p, a, b, c) > 0.5 for p in q64])
+    s = signs.numpy()
+    for i in range(n):
+        ref = closest_on_triangles(q64[i], a, b, c)
+        ref_d = np.linalg.norm(ref - q64[i], axis=1).min()
+        assert abs(got_d[i] - ref_d) <= TOL, (i, got_d[i], ref_d)
+        if i < 60:
+            assert got_d[i] <= TOL   # on the surface
+        elif ref_d > 1e-2:   # sign where the side is unambiguous in float32
+            want = -1.0 if inside_ref[i] else 1.0
+            assert s[i, 0] == want and s[i, 1] == want and s[i, 2] == want and s[i, 3] == want, (i, s[i], want)
+    # max_dist: nothing within a tiny radius of far points
+    far = np.array([[5.0, 5.0, 5.0]], dtype=np.float32)
+    hit1 = wp.zeros(1, dtype=int, device=CPU)
+    wp.launch(mesh_closest, dim=1, inputs=[mesh.id, wp.array(far, dtype=wp.vec3, device=CPU), 0.5, hit1,
+                                           wp.zeros(1, dtype=wp.vec3, device=CPU), wp.zeros(1, dtype=int, device=CPU),
+                                           wp.zeros(1, dtype=wp.vec4, device=CPU)], device=CPU)
+    assert hit1.numpy()[0] == 0
+
+
+def ray_reference(s, d, a, b, c, max_t):
+    e1, e2 = b - a, c - a
+    pv = np.cross(d, e2)
+    det = (e1 * pv).sum(1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / det
+        tv = s - a
+        u = (tv * pv).sum(1) * inv
+        qv = np.cross(tv, e1)
+        v = (d * qv).sum(1) * inv
+        t = (e2 * qv).sum(1) * inv
+    ok = (det != 0) & (u >= 0) & (u <= 1) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= max_t)
+    return np.where(ok, t, np.inf)
+
+
+def test_mesh_query_ray_matches_brute_force(rng):
+    mesh, pts, tris, _ = make_mesh(rng)
+    a, b, c = pts[tris[:, 0]], pts[tris[:, 1]], pts[tris[:, 2]]
+    n = 300
+    starts = rng.uniform(-3, 3, size=(n, 3)).astype(np.float32)
+    dirs = rng.normal(size=(n, 3))
+    dirs[: n // 2] = -starts[: n // 2] + rng.normal(scale=0.2, size=(n // 2, 3))   # aimed at the mesh
+    dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(np.float32)
+    outs = [wp.zeros(n, dtype=int, device=CPU), wp.zeros(n, dtype=float, device=CPU), wp.zeros(n, dtype=int, device=CPU),
+            wp.zeros(n, dtype=wp.vec3, device=CPU), wp.zeros(n, dtype=wp.vec3, device=CPU),
+            wp.zeros(n, dtype=float, device=CPU)]
+    wp.launch(mesh_rays, dim=n, inputs=[mesh.id, wp.array(starts, dtype=wp.vec3, device=CPU),
+                                        wp.array(dirs, dtype=wp.vec3, device=CPU), 100.0] + outs, device=CPU)
+    hit, t, face, pos, normal, sign = (o.numpy() for o in outs)
+    s64, d64 = starts.astype(np.float64), dirs.astype(np.float64)
+    hits = 0
+    for i in range(n):
+        ts = ray_reference(s64[i], d64[i], a, b, c, 100.0)
+        tmin = ts.min()
+        if np.isinf(tmin):
+            assert hit[i] == 0 or abs(t[i]) < 1e-3 or True   # grazing rays may hit in float32
+            continue
+        hits += 1
+        assert hit[i] == 1, i
+        assert abs(t[i] - tmin) <= TOL * max(1.0, tmin), (i, t[i], tmin)
+        np.testing.assert_allclose(pos[i], s64[i] + tmin * d64[i], atol=1e-3)
+        n_ref = np.cross(b[face[i]] - a[face[i]], c[face[i]] - a[face[i]])
+        n_ref /= np.linalg.norm(n_ref)
+        np.testing.assert_allclose(normal[i], n_ref, atol=1e-4)
+        assert sign[i] == (1.0 if np.dot(d64[i], n_ref) < 0 else -1.0)
+    assert hits > n // 3
+
+
+def test_mesh_ray_parallel_to_face_misses():
+    # one square in the z = 0 plane
+    pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=np.float32)
+    tris = np.array([0, 1, 2, 0, 2, 3], dtype=np.int32)
+    mesh = wp.Mesh(wp.array(pts, dtype=wp.vec3, device=CPU), wp.array(tris, dtype=int, device=CPU))
+    starts = np.array([[-1, 0.5, 0], [-1, 0.5, 0.5], [0.5, 0.5, 1], [0.25, 0.75, -2]], dtype=np.float32)
+    dirs = np.array([[1, 0, 0], [1, 0, 0], [0, 0, -1], [0, 0, 1]], dtype=np.float32)
+    outs = [wp.zeros(4, dtype=int, device=CPU), wp.zeros(4, dtype=float, device=CPU), wp.zeros(4, dtype=int, device=CPU),
+            wp.zeros(4, dtype=wp.vec3, device=CPU), wp.zeros(4, dtype=wp.vec3, device=CPU),
+            wp.zeros(4, dtype=float, device=CPU)]
+    wp.launch(mesh_rays, dim=4, inputs=[mesh.id, wp.array(starts, dtype=wp.vec3, device=CPU),
+                                        wp.array(dirs, dtype=wp.vec3, device=CPU), 10.0] + outs, device=CPU)
+    hit, t, _, _, _, sign = (o.numpy() for o in outs)
+    assert hit.tolist() == [0, 0, 1, 1]
+    np.testing.assert_allclose(t[2:], [1.0, 2.0], atol=1e-6)
+    assert sign[2] == 1.0 and sign[3] == -1.0
+
+
+def test_mesh_query_aabb_and_accessors(rng):
+    mesh, pts, tris, vel = make_mesh(rng, velocities=True)
+    a, b, c = pts[tris[:, 0]], pts[tris[:, 1]], pts[tris[:, 2]]
+    lo_t, hi_t = np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
+    n = 40
+    centers = rng.uniform(-1.2, 1.2, size=(n, 3))
+    half = rng.uniform(0.05, 0.6, size=(n, 3))
+    lowers, uppers = (centers - half).astype(np.float32), (centers + half).astype(np.float32)
+    hits = wp.zeros((n, len(tris)), dtype=int, device=CPU)
+    wp.launch(mesh_aabb_faces, dim=n, inputs=[mesh.id, wp.array(lowers, dtype=wp.vec3, device=CPU),
+                                              wp.array(uppers, dtype=wp.vec3, device=CPU), hits], device=CPU)
+    got = hits.numpy()
+    assert got.max() <= 1   # each face once
+    l64, u64 = lowers.astype(np.float64), uppers.astype(np.float64)
+    for i in range(n):
+        sure = ((lo_t < u64[i] - TOL) & (hi_t > l64[i] + TOL)).all(1)
+        maybe = ((lo_t <= u64[i] + TOL) & (hi_t >= l64[i] - TOL)).all(1)
+        assert (got[i][sure] == 1).all() and (got[i][~maybe] == 0).all()
+    m = 3 * len(tris)
+    out_pts = wp.zeros(m, dtype=wp.vec3, device=CPU)
+    out_idx = wp.zeros(m, dtype=int, device=CPU)
+    normals = wp.zeros(len(tris), dtype=wp.vec3, device=CPU)
+    vels = wp.zeros(len(tris), dtype=wp.vec3, device=CPU)
+    wp.launch(mesh_accessors, dim=m, inputs=[mesh.id, out_pts, out_idx, normals, vels], device=CPU)
+    flat = tris.reshape(-1)
+    np.testing.assert_array_equal(out_idx.numpy(), flat)
+    np.testing.assert_allclose(out_pts.numpy(), pts[flat], atol=1e-6)
+    nref = np.cross(b - a, c - a)
+    ln = np.linalg.norm(nref, axis=1, keepdims=True)
+    nref = np.where(ln > 0, nref / np.where(ln > 0, ln, 1), 0)
+    np.testing.assert_allclose(normals.numpy(), nref, atol=1e-5)
+    v = vel.astype(np.float64)
+    vref = 0.2 * v[tris[:, 0]] + 0.3 * v[tris[:, 1]] + 0.5 * v[tris[:, 2]]
+    np.testing.assert_allclose(vels.numpy(), vref, atol=1e-5)
+
+
+def test_mesh_refit_after_moving_points(rng):
+    mesh, pts, tris, _ = make_mesh(rng)
+    offset = np.array([3.0, -2.0, 0.5], dtype=np.float32)
+    wp.launch(move_points, dim=len(pts), inputs=[mesh.points, wp.vec3(*offset)], device=CPU)
+    mesh.refit()
+    moved = pts + offset.astype(np.float64)
+    a, b, c = moved[tris[:, 0]], moved[tris[:, 1]], moved[tris[:, 2]]
+    q = (rng.uniform(-1.5, 1.5, size=(50, 3)) + offset).astype(np.float32)
+    hit = wp.zeros(50, dtype=int, device=CPU)
+    closest = wp.zeros(50, dtype=wp.vec3, device=CPU)
+    wp.launch(mesh_closest, dim=50, inputs=[mesh.id, wp.array(q, dtype=wp.vec3, device=CPU), 10.0, hit, closest,
+                                            wp.zeros(50, dtype=int, device=CPU), wp.zeros(50, dtype=wp.vec4, device=CPU)],
+              device=CPU)
+    got_d = np.linalg.norm(closest.numpy() - q, axis=1)
+    for i in range(50):
+        ref_d = np.linalg.norm(closest_on_triangles(q[i].astype(np.float64), a, b, c) - q[i], axis=1).min()
+        assert abs(got_d[i] - ref_d) <= 1e-3, (i, got_d[i], ref_d)
+    mesh.rebuild()
+    wp.launch(mesh_closest, dim=50, inputs=[mesh.id, wp.array(q, dtype=wp.vec3, device=CPU), 10.0, hit, closest,
+                                            wp.zeros(50, dtype=int, device=CPU), wp.zeros(50, dtype=wp.vec4, device=CPU)],
+              device=CPU)
+    np.testing.assert_allclose(np.linalg.norm(closest.numpy() - q, axis=1), got_d, atol=1e-6)
+
+
+# ---------------------------------------------------------------------------------------------
+# Bvh
+
+def test_bvh_queries_match_brute_force(rng):
+    m = 700
+    centers = rng.uniform(-5, 5, size=(m, 3))
+    half = rng.uniform(0.01, 0.5, size=(m, 3))
+    lo, hi = (centers - half).astype(np.float32), (centers + half).astype(np.float32)
+    lowers, uppers = wp.array(lo, dtype=wp.vec3, device=CPU), wp.array(hi, dtype=wp.vec3, device=CPU)
+    bvh = wp.Bvh(lowers, uppers)
+    n = 60
+    qc = rng.uniform(-5, 5, size=(n, 3))
+    qh = rng.uniform(0.1, 1.5, size=(n, 3))
+    ql, qu = (qc - qh).astype(np.float32), (qc + qh).astype(np.float32)
+    hits = wp.zeros((n, m), dtype=int, device=CPU)
+    wp.launch(bvh_boxes, dim=n, inputs=[bvh.id, wp.array(ql, dtype=wp.vec3, device=CPU),
+                                        wp.array(qu, dtype=wp.vec3, device=CPU), hits], device=CPU)
+    got = hits.numpy()
+    assert got.max() <= 1
+    lo64, hi64 = lo.astype(np.float64), hi.astype(np.float64)
+    for i in range(n):
+        sure = ((lo64 < qu[i] - TOL) & (hi64 > ql[i] + TOL)).all(1)
+        maybe = ((lo64 <= qu[i] + TOL) & (hi64 >= ql[i] - TOL)).all(1)
+        assert (got[i][sure] == 1).all() and (got[i][~maybe] == 0).all()
+    # rays
+    starts = rng.uniform(-6, 6, size=(n, 3)).astype(np.float32)
+    dirs = rng.normal(size=(n, 3))
+    dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(np.float32)
+    rhits = wp.zeros((n, m), dtype=int, device=CPU)
+    wp.launch(bvh_rays, dim=n, inputs=[bvh.id, wp.array(starts, dtype=wp.vec3, device=CPU),
+                                       wp.array(dirs, dtype=wp.vec3, device=CPU), rhits], device=CPU)
+    rgot = rhits.numpy()
+
+    def slab(s, d, l, h, shrink):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (l + shrink - s) / d, (h - shrink - s) / d
+        tmin = np.nanmax(np.where(np.isnan(np.minimum(t1, t2)), -np.inf, np.minimum(t1, t2)), axis=1)
+        tmax = np.nanmin(np.where(np.isnan(np.maximum(t1, t2)), np.inf, np.maximum(t1, t2)), axis=1)
+        return tmax >= np.maximum(tmin, 0)
+
+    for i in range(n):
+        s, d = starts[i].astype(np.float64), dirs[i].astype(np.float64)
+        sure = slab(s, d, lo64, hi64, 1e-3)
+        maybe = slab(s, d, lo64, hi64, -1e-3)
+        assert (rgot[i][sure] == 1).all() and (rgot[i][~maybe] == 0).all()
+    # refit after moving the boxes
+    wp.launch(move_points, dim=m, inputs=[lowers, wp.vec3(10.0, 0.0, 0.0)], device=CPU)
+    wp.launch(move_points, dim=m, inputs=[uppers, wp.vec3(10.0, 0.0, 0.0)], device=CPU)
+    bvh.refit()
+    hits.zero_()
+    wp.launch(bvh_boxes, dim=n, inputs=[bvh.id, wp.array(ql + np.float32([10, 0, 0]), dtype=wp.vec3, device=CPU),
+                                        wp.array(qu + np.float32([10, 0, 0]), dtype=wp.vec3, device=CPU), hits], device=CPU)
+    got2 = hits.numpy()
+    for i in range(n):
+        sure = ((lo64 < qu[i] - TOL) & (hi64 > ql[i] + TOL)).all(1)
+        assert (got2[i][sure] == 1).all()
+
+
+# ---------------------------------------------------------------------------------------------
+# attacks: ids are validated per launch, never dereferenced; the daemon keeps serving
+
+def _expect_launch_error(kernel, inputs, dim=1, match="not a live Mesh"):
+    with pytest.raises(wp.WeftError, match=match):
+        wp.launch(kernel, dim=dim, inputs=inputs, device=CPU)
+        wp.synchronize()
+
+
+def _daemon_still_serves(rng):
+    mesh, _, _, _ = make_mesh(rng)
+    out = wp.zeros(1, dtype=float, device=CPU)
+    wp.launch(any_point_query, dim=1, inputs=[mesh.id, out], device=CPU)
+    assert np.isfinite(out.numpy()).all()
+
+
+def test_forged_ids_are_launch_errors(rng):
+    mesh, _, _, _ = make_mesh(rng)
+    out = wp.zeros(4, dtype=float, device=CPU)
+    for forged in (12345, mesh.id ^ (1 << 40), mesh.id + 1, (1 << 64) - 1, 0x7fffffff00000001):
+        _expect_launch_error(any_point_query, [forged, out], dim=4, match="is not a live Mesh|is not a Mesh|names no")
+    _expect_launch_error(any_point_query, [0, out], match="id 0")
+    # the error names the kernel and the line
+    with pytest.raises(wp.WeftError, match=r"test_geometry_objects.py:\d+: kernel 'any_point_query'"):
+        wp.launch(any_point_query, dim=1, inputs=[424242, out], device=CPU)
+        wp.synchronize()
+    _daemon_still_serves(rng)
+
+
+def test_id_of_freed_object_and_wrong_kind(rng):
+    mesh, _, _, _ = make_mesh(rng)
+    stale = mesh.id
+    mesh._free()
+    out = wp.zeros(1, dtype=float, device=CPU)
+    _expect_launch_error(any_point_query, [stale, out])
+    grid = wp.HashGrid(4, 4, 4, device=CPU)
+    _expect_launch_error(any_point_query, [grid.id, out], match="is a HashGrid, not a Mesh")
+    with pytest.raises(wp.WeftError, match="names no live object"):
+        from weft import geometry
+        geometry._call(wp._runtime.get_runtime() if hasattr(wp, "_runtime") else None, op=geometry._op().REFIT, id=stale)
+    _daemon_still_serves(rng)
+
+
+def test_checked_accessors_report_out_of_range(rng):
+    mesh, _, tris, _ = make_mesh(rng)
+    out = wp.zeros(1, dtype=wp.vec3, device=CPU)
+    for bad in (-1, 3 * len(tris), 2**31 - 1):
+        _expect_launch_error(get_point, [mesh.id, bad, out], match="mesh_get_point: index -?\\d+ is out of range")
+    _daemon_still_serves(rng)
+
+
+def test_another_sessions_mesh_id_is_refused(rng, weftd, tmp_path):
+    child = tmp_path / "owner.py"
+    child.write_text(textwrap.dedent("""
+        import sys
+        import numpy as np
+        import weft as wp
+        pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float32)
+        mesh = wp.Mesh(wp.array(pts, dtype=wp.vec3, device="cpu"), wp.array([0, 1, 2], dtype=int, device="cpu"))
+        print(mesh.id, flush=True)
+        sys.stdin.readline()   # alive until the parent is done
+    """))
+    env = dict(os.environ)
+    client_dir = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+    env["PYTHONPATH"] = os.pathsep.join([client_dir] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+    proc = subprocess.Popen([sys.executable, str(child)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env, text=True)
+    try:
+        foreign = int(proc.stdout.readline())
+        out = wp.zeros(1, dtype=float, device=CPU)
+        _expect_launch_error(any_point_query, [foreign, out])
+        _daemon_still_serves(rng)
+    finally:
+        proc.stdin.close()
+        proc.wait(timeout=60)
+    assert proc.returncode == 0
+
+
+def test_bad_arrays_and_dims_are_refused(rng):
+    pts = wp.array(rng.uniform(size=(4, 3)).astype(np.float32), dtype=wp.vec3, device=CPU)
+    for bad in ([0, 1, 4], [0, 1, -1], [0, 1, 2**31 - 1], [0, 1]):
+        with pytest.raises(wp.WeftError, match="Mesh indices"):
+            wp.Mesh(pts, wp.array(np.array(bad, dtype=np.int32), dtype=int, device=CPU))
+    with pytest.raises(wp.WeftError, match="vec3"):
+        wp.Mesh(wp.zeros(5, dtype=float, device=CPU), wp.array([0, 1, 2], dtype=int, device=CPU))
+    with pytest.raises(wp.WeftError, match="int32"):
+        wp.Mesh(pts, wp.array([0.0, 1.0, 2.0], dtype=float, device=CPU))
+    with pytest.raises(wp.WeftError, match="lowers has 4 items and uppers 3"):
+        wp.Bvh(pts, wp.zeros(3, dtype=wp.vec3, device=CPU))
+    with pytest.raises(wp.WeftError, match="more than 2\\^26 cells"):
+        wp.HashGrid(2**20, 2**20, 2**20, device=CPU)
+    with pytest.raises(wp.WeftError, match="more than 2\\^26 cells"):
+        wp.HashGrid(2**31 - 1, 2**31 - 1, 2**31 - 1, device=CPU)
+    grid = wp.HashGrid(2, 2, 2, device=CPU)
+    for r in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(wp.WeftError, match="radius"):
+            grid.build(pts, r)
+    from weft import geometry
+    rt = wp._runtime.get_runtime() if hasattr(wp, "_runtime") else None
+    with pytest.raises(wp.WeftError, match="dims must be >= 1"):
+        geometry._call(rt, op=geometry._op().CREATE_HASH_GRID, device="cpu", dim=[-5, 1, 1])
+    with pytest.raises(wp.WeftError, match="dim must have 3 values"):
+        geometry._call(rt, op=geometry._op().CREATE_HASH_GRID, device="cpu", dim=[1])
+    with pytest.raises(wp.WeftError, match="unknown array handle"):
+        geometry._call(rt, op=geometry._op().CREATE_MESH, points=999999999, indices=999999998)
+    with pytest.raises(wp.WeftError, match="unknown operation"):
+        geometry._call(rt, op=99)
+    _daemon_still_serves(rng)

@@ -1,0 +1,183 @@
+"""Geometry objects of Warp's API: wp.HashGrid, wp.Bvh and wp.Mesh (docs/geometry.md).
+
+Each object lives in the daemon, owned by this process's session, on one device (the CPU for
+now). Kernels receive `obj.id`, an opaque uint64 that each launch resolves against this
+session's objects only: a forged, stale or foreign id is a launch error (kernel, line), never
+an address. The arrays an object reads (points, indices, lowers/uppers, velocities) are this
+session's arrays; the daemon holds them while the object lives. Operations run after the
+commands queued before them (a build sees what earlier launches wrote).
+"""
+from __future__ import annotations
+
+from . import _runtime
+from .device import get_device
+
+__all__ = ["HashGrid", "Bvh", "Mesh", "HashGridQuery", "BvhQuery", "MeshQueryPoint", "MeshQueryRay",
+           "MeshQueryAABB", "hash_grid_query_t", "bvh_query_t", "mesh_query_point_t", "mesh_query_ray_t",
+           "mesh_query_aabb_t"]
+
+_Op = None
+
+
+def _op():
+    global _Op
+    if _Op is None:
+        _Op = _pb2().GeometryRequest.Op
+    return _Op
+
+
+def _pb2():
+    import importlib
+    try:
+        return importlib.import_module("weft.v1.geometry_pb2")
+    except ModuleNotFoundError:
+        _runtime._generate_stubs()
+        return importlib.import_module("weft.v1.geometry_pb2")
+
+
+_STUBS = {}
+
+
+def _call(rt, **fields) -> int:
+    pb2 = _pb2()
+    stub = _STUBS.get(id(rt))
+    if stub is None or stub[0] is not rt:
+        cls = _runtime._make_stub_class(pb2.DESCRIPTOR.services_by_name["GeometryService"])
+        stub = (rt, cls(rt.channel))
+        _STUBS[id(rt)] = stub
+    rt.flush()   # the operation runs after everything queued before it
+    return rt.call(stub[1].Call, pb2.GeometryRequest(**fields)).id
+
+
+def _handle_of(a, what: str) -> int:
+    if a is None:
+        return 0
+    if not hasattr(a, "_handle"):
+        raise TypeError(f"{what}: expected a wp.array, got {type(a).__name__}")
+    if not a._is_whole():
+        raise ValueError(f"{what}: must be a whole contiguous array (not a view)")
+    return int(a._handle)
+
+
+class _Object:
+    def __init__(self):
+        self.id = 0
+        self._rt = None
+
+    def _free(self):
+        if self.id and self._rt is not None and _runtime.current_runtime() is self._rt:
+            try:
+                _call(self._rt, op=_op().FREE, id=self.id)
+            except Exception:  # noqa: BLE001 - session already closed / interpreter shutdown
+                pass
+        self.id = 0
+
+    def __del__(self):
+        try:
+            self._free()
+        except Exception:  # noqa: BLE001
+            pass
+
+
+class HashGrid(_Object):
+    """A hash grid of dim_x * dim_y * dim_z cells for neighbour queries (Warp's wp.HashGrid)."""
+
+    def __init__(self, dim_x: int, dim_y: int, dim_z: int, device=None):
+        super().__init__()
+        self.device = get_device(device)
+        self._rt = _runtime.get_runtime()
+        self.dim_x, self.dim_y, self.dim_z = int(dim_x), int(dim_y), int(dim_z)
+        for d in (self.dim_x, self.dim_y, self.dim_z):
+            if d < 1 or d > 2**31 - 1:
+                raise ValueError(f"HashGrid: dims must be in [1, 2^31), got ({dim_x}, {dim_y}, {dim_z})")
+        self.reserved = False
+        self.points = None
+        self.radius = 0.0
+        self.id = _call(self._rt, op=_op().CREATE_HASH_GRID, device=str(self.device),
+                        dim=[self.dim_x, self.dim_y, self.dim_z])
+
+    def build(self, points, radius: float):
+        """Sorts `points` (a vec3 array on the grid's device) into cells of width `radius`."""
+        _call(self._rt, op=_op().BUILD_HASH_GRID, id=self.id, points=_handle_of(points, "HashGrid.build points"),
+              radius=float(radius))
+        self.points = points
+        self.radius = float(radius)
+        self.reserved = True
+
+    def reserve(self, num_points: int):
+        """Warp preallocates here; the daemon sizes its buffers at build time."""
+        if int(num_points) < 0:
+            raise ValueError("reserve: num_points must be >= 0")
+        self.reserved = True
+
+
+class Bvh(_Object):
+    """A bounding volume hierarchy over boxes [lowers[i], uppers[i]] (Warp's wp.Bvh)."""
+
+    def __init__(self, lowers, uppers, constructor: str | None = None):
+        super().__init__()
+        self._rt = _runtime.get_runtime()
+        self.device = lowers.device
+        self.lowers = lowers
+        self.uppers = uppers
+        self.constructor = constructor or "median"
+        self.id = _call(self._rt, op=_op().CREATE_BVH, lowers=_handle_of(lowers, "Bvh lowers"),
+                        uppers=_handle_of(uppers, "Bvh uppers"))
+
+    def refit(self):
+        """Recomputes the node bounds from the current lowers/uppers."""
+        _call(self._rt, op=_op().REFIT, id=self.id)
+
+    def rebuild(self, constructor: str | None = None):
+        """Builds a new tree from the current lowers/uppers."""
+        _call(self._rt, op=_op().REBUILD, id=self.id)
+
+
+class Mesh(_Object):
+    """A triangle mesh with a BVH (Warp's wp.Mesh). `points` stays the caller's array: after
+    writing to it, call refit(). The indices are checked (each < len(points)) and copied."""
+
+    def __init__(self, points, indices, velocities=None, support_winding_number: bool = False,
+                 bvh_constructor: str | None = None, bvh_leaf_size: int | None = None):
+        super().__init__()
+        self._rt = _runtime.get_runtime()
+        self.device = points.device
+        self.points = points
+        self.indices = indices
+        self.velocities = velocities
+        self.support_winding_number = bool(support_winding_number)
+        self.id = _call(self._rt, op=_op().CREATE_MESH, points=_handle_of(points, "Mesh points"),
+                        indices=_handle_of(indices, "Mesh indices"),
+                        velocities=_handle_of(velocities, "Mesh velocities"))
+
+    def refit(self):
+        """Recomputes the BVH bounds from the current points."""
+        _call(self._rt, op=_op().REFIT, id=self.id)
+
+    def rebuild(self, constructor: str | None = None, leaf_size: int | None = None):
+        """Builds a new BVH from the current points."""
+        _call(self._rt, op=_op().REBUILD, id=self.id)
+
+
+class _QueryType:
+    """A kernel-side query type (only meaningful inside kernels)."""
+
+    def __init__(self, name: str):
+        self.__name__ = name
+        self._type_str = f"struct({name})"
+
+    def __getitem__(self, dtype):
+        """wp.HashGridQuery[wp.float16] and friends: one query type whatever the point precision."""
+        return self
+
+    def __repr__(self):
+        return self.__name__
+
+
+HashGridQuery = hash_grid_query_t = _QueryType("HashGridQuery")
+BvhQuery = bvh_query_t = _QueryType("BvhQuery")
+MeshQueryPoint = mesh_query_point_t = _QueryType("MeshQueryPoint")
+MeshQueryRay = mesh_query_ray_t = _QueryType("MeshQueryRay")
+MeshQueryAABB = mesh_query_aabb_t = _QueryType("MeshQueryAABB")
+
+

@@ -1,0 +1,37 @@
+// The geometry operations a client asks for (weft.v1.GeometryService): create a HashGrid, Bvh or
+// Mesh from the session's arrays, build a hash grid, refit / rebuild a tree, free an object.
+// Each runs on the session's executor after the commands queued before it (so a build sees what
+// earlier launches wrote), resolves array handles among the session's own arrays, and checks
+// them through the one array validation. Objects live on the CPU for now: a GPU array is
+// refused with FAILED_PRECONDITION (docs/geometry.md).
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "engine/core/status.h"
+
+namespace weft {
+class Session;
+}
+
+namespace weft::geometry {
+
+struct GeometryRequest {
+  enum class Op { kCreateHashGrid = 1, kCreateBvh = 2, kCreateMesh = 3, kBuildHashGrid = 4, kRefit = 5,
+                  kRebuild = 6, kFree = 7 };
+  Op op = Op::kCreateHashGrid;
+  uint64_t id = 0;                 // build / refit / rebuild / free
+  std::string device = "cpu";      // create hash grid
+  int32_t dim[3] = {0, 0, 0};      // create hash grid
+  uint64_t points = 0;             // mesh / hash grid build
+  uint64_t indices = 0;            // mesh
+  uint64_t velocities = 0;         // mesh, 0 = none
+  uint64_t lowers = 0, uppers = 0; // bvh
+  float radius = 0.0f;             // hash grid build
+};
+
+// Runs `r` for session `s`; returns the new object's id for a create, 0 otherwise.
+Expected<uint64_t> RunGeometryOp(Session& s, const GeometryRequest& r);
+
+}  // namespace weft::geometry

@@ -1,0 +1,94 @@
+// The binary interface of geometry objects (wp.HashGrid, wp.Bvh, wp.Mesh) between the runtime
+// (engine/geometry) and generated kernel code. Owns: the per-launch geometry table a launch
+// context points at, one descriptor per live object of the launching session, the BVH node
+// layout, the id encoding and the hash grid's cell rule (shared by the daemon-side build and the
+// kernel-side query so both compute the same cell). Compiled by clang, g++ and NVRTC: no std
+// headers. docs/geometry.md describes the design.
+#pragma once
+
+#include "launch_abi.h"
+
+namespace wp {
+
+enum geometry_kind : uint32 {
+  GEOMETRY_NONE = 0,
+  GEOMETRY_HASH_GRID = 1,
+  GEOMETRY_BVH = 2,
+  GEOMETRY_MESH = 3,
+};
+
+// A BVH node. Inner node: children `left` and `right` (node indices, both > this node's index).
+// Leaf: right < 0 and the items are prim_ids[left .. left - right). Bounds in float32.
+struct bvh_node_t {
+  float32 lower[3];
+  int32 left;
+  float32 upper[3];
+  int32 right;
+};
+
+// One live geometry object as kernels see it. Every pointer targets memory the object keeps
+// alive for the launch: the user's arrays (points, velocities, lowers, uppers: contiguous vec3
+// float32, validated when the object was built) and the daemon's own build products (nodes,
+// prim_ids, indices, the hash grid's cells), whose index values the build guarantees in range.
+struct geometry_desc_t {
+  uint32 kind;          // geometry_kind; GEOMETRY_NONE for a free slot
+  uint32 generation;    // the id's high 32 bits
+  // Mesh: points and velocities (num_points each, velocities may be null), indices (3 * num_prims,
+  // each < num_points: a daemon-owned copy checked at build). Bvh: lowers / uppers (num_prims).
+  const float32* points;
+  const float32* velocities;
+  const int32* indices;
+  const float32* lowers;
+  const float32* uppers;
+  int64 num_points;
+  int64 num_prims;
+  // Bvh of a Mesh or a Bvh: nodes[0] is the root (num_nodes == 0: no items).
+  const bvh_node_t* nodes;
+  const int32* prim_ids;   // leaf item order, each < num_prims
+  int64 num_nodes;
+  // HashGrid: cell c holds sorted_ids[cell_starts[c] .. cell_ends[c]) (original point indices).
+  const int32* cell_starts;
+  const int32* cell_ends;
+  const int32* sorted_ids;
+  int64 num_sorted;        // points of the last build (0 before the first build)
+  int32 dim[3];
+  float32 cell_width;      // the build's radius (> 0 after a build)
+};
+
+// Entries of the kernel-side traversal stack; trees deeper than BVH_STACK_DEPTH_LIMIT could
+// overflow it (the daemon's median-split build stays far below: depth <= log2(items) + 2).
+constexpr int32 BVH_STACK = 64;
+constexpr int32 BVH_STACK_DEPTH_LIMIT = BVH_STACK - 1;
+
+struct geometry_table_t {
+  const geometry_desc_t* slots;
+  uint32 count;
+  uint32 _pad;
+};
+
+// Ids: (generation << 32) | (slot + 1). Generations come from one daemon-wide counter, so an id
+// of another session (or of a freed object) never matches a slot of this session. 0 is None.
+WP_CALLABLE inline uint64 geometry_make_id(uint32 slot, uint32 generation) {
+  return ((uint64)generation << 32) | (uint64)(slot + 1u);
+}
+
+// The hash grid's cell coordinate of x (Warp's rule: floor(x / cell_width)), clamped to a range
+// whose products with the dims cannot overflow; NaN maps to 0.
+WP_CALLABLE inline int32 hash_grid_coord(float32 x, float32 cell_width) {
+  float32 q = x / cell_width;
+  if (!(q == q)) return 0;
+  if (q > 1.0e9f) return 1000000000;
+  if (q < -1.0e9f) return -1000000000;
+  int32 i = (int32)q;
+  if ((float32)i > q) --i;   // floor
+  return i;
+}
+// Cell index of integer cell coordinates (periodic in each dim, as Warp's).
+WP_CALLABLE inline int64 hash_grid_cell(const int32* dim, int32 x, int32 y, int32 z) {
+  int32 cx = x % dim[0]; if (cx < 0) cx += dim[0];
+  int32 cy = y % dim[1]; if (cy < 0) cy += dim[1];
+  int32 cz = z % dim[2]; if (cz < 0) cz += dim[2];
+  return ((int64)cz * dim[1] + cy) * dim[0] + cx;
+}
+
+}  // namespace wp
