@@ -671,3 +671,93 @@ def test_bad_arrays_and_dims_are_refused(rng):
     with pytest.raises(wp.WeftError, match="unknown operation"):
         geometry._call(rt, op=99)
     _daemon_still_serves(rng)
+
+
+# ---------------------------------------------------------------------------------------------
+# Warp's other spellings: for-loops over queries, out-parameter forms, any-hit and counts
+
+@wp.kernel
+def grid_for_loop(grid: wp.uint64, points: wp.array(dtype=wp.vec3), radius: float, counts: wp.array(dtype=int)):
+    tid = wp.tid()
+    p = points[tid]
+    n = int(0)
+    for index in wp.hash_grid_query(grid, p, radius):
+        if wp.length(points[index] - p) <= radius:
+            n += 1
+    counts[tid] = n
+
+
+@wp.kernel
+def mesh_out_params(mesh: wp.uint64, queries: wp.array(dtype=wp.vec3), dist: wp.array(dtype=float),
+                    signs: wp.array(dtype=float), faces: wp.array(dtype=int)):
+    tid = wp.tid()
+    p = queries[tid]
+    sign = float(0.0)
+    face = int(0)
+    u = float(0.0)
+    v = float(0.0)
+    if wp.mesh_query_point(mesh, p, 10.0, sign, face, u, v):
+        dist[tid] = wp.length(wp.mesh_eval_position(mesh, face, u, v) - p)
+        signs[tid] = sign
+        faces[tid] = face
+
+
+@wp.kernel
+def mesh_ray_counts(mesh: wp.uint64, starts: wp.array(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3),
+                    anyhit: wp.array(dtype=int), counts: wp.array(dtype=int), t_out: wp.array(dtype=float)):
+    tid = wp.tid()
+    if wp.mesh_query_ray_anyhit(mesh, starts[tid], dirs[tid], 100.0):
+        anyhit[tid] = 1
+    counts[tid] = wp.mesh_query_ray_count_intersections(mesh, starts[tid], dirs[tid])
+    t = float(0.0)
+    u = float(0.0)
+    v = float(0.0)
+    sign = float(0.0)
+    n = wp.vec3()
+    f = int(0)
+    if wp.mesh_query_ray(mesh, starts[tid], dirs[tid], 100.0, t, u, v, sign, n, f):
+        t_out[tid] = t
+
+
+def test_warp_spellings(rng):
+    n, radius = 400, 0.5
+    pts = rng.uniform(0.0, 3.0, size=(n, 3)).astype(np.float32)
+    points = wp.array(pts, dtype=wp.vec3, device=CPU)
+    grid = wp.HashGrid(8, 8, 8, device=CPU)
+    grid.build(points, radius)
+    counts = wp.zeros(n, dtype=int, device=CPU)
+    wp.launch(grid_for_loop, dim=n, inputs=[grid.id, points, radius, counts], device=CPU)
+    d = np.linalg.norm(pts[:, None, :].astype(np.float64) - pts[None, :, :], axis=2)
+    got = counts.numpy()
+    assert (got >= (d <= radius - TOL).sum(1)).all() and (got <= (d <= radius + TOL).sum(1)).all()
+
+    mesh, mpts, tris, _ = make_mesh(rng)
+    a, b, c = mpts[tris[:, 0]], mpts[tris[:, 1]], mpts[tris[:, 2]]
+    m = 60
+    q = rng.uniform(-1.5, 1.5, size=(m, 3)).astype(np.float32)
+    dist, signs, faces = wp.zeros(m, dtype=float, device=CPU), wp.zeros(m, dtype=float, device=CPU), \
+        wp.zeros(m, dtype=int, device=CPU)
+    wp.launch(mesh_out_params, dim=m, inputs=[mesh.id, wp.array(q, dtype=wp.vec3, device=CPU), dist, signs, faces],
+              device=CPU)
+    got_d, got_s = dist.numpy(), signs.numpy()
+    for i in range(m):
+        p = q[i].astype(np.float64)
+        ref_d = np.linalg.norm(closest_on_triangles(p, a, b, c) - p, axis=1).min()
+        assert abs(got_d[i] - ref_d) <= TOL
+        if ref_d > 1e-2:
+            assert got_s[i] == (-1.0 if winding_number(p, a, b, c) > 0.5 else 1.0)
+
+    starts = rng.uniform(-3, 3, size=(m, 3)).astype(np.float32)
+    dirs = -starts + rng.normal(scale=0.5, size=(m, 3))
+    dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(np.float32)
+    anyhit, cnt, tt = wp.zeros(m, dtype=int, device=CPU), wp.zeros(m, dtype=int, device=CPU), \
+        wp.zeros(m, dtype=float, device=CPU)
+    wp.launch(mesh_ray_counts, dim=m, inputs=[mesh.id, wp.array(starts, dtype=wp.vec3, device=CPU),
+                                              wp.array(dirs, dtype=wp.vec3, device=CPU), anyhit, cnt, tt], device=CPU)
+    for i in range(m):
+        ts = ray_reference(starts[i].astype(np.float64), dirs[i].astype(np.float64), a, b, c, np.inf)
+        hits = np.isfinite(ts)
+        if hits.any():
+            assert anyhit.numpy()[i] == 1 and abs(tt.numpy()[i] - ts[hits].min()) <= TOL * max(1, ts[hits].min())
+        # a ray from outside a closed surface crosses it an even number of times
+        assert cnt.numpy()[i] == hits.sum() or abs(cnt.numpy()[i] - hits.sum()) <= 1
