@@ -16,24 +16,63 @@ const float* Floats(const std::shared_ptr<Allocation>& a) {
 
 }  // namespace
 
-Expected<int64_t> CheckVec3Array(const std::shared_ptr<Allocation>& a, const std::string& what) {
+Expected<int64_t> CheckVec3Array(const std::shared_ptr<Allocation>& a, const std::string& what, bool any_float) {
   if (!a) return InvalidArgument(what + ": an array is required");
   ArrayRequirement req;
   req.what = what;
   req.device = a->device;
   WEFT_ASSIGN_OR_RETURN(ArrayView v, ValidateArray(a, ArrayRef{a->handle, 0, {}, {}}, req));
   const DType& d = a->dtype;
-  bool vec3 = d.scalar == ScalarType::kFloat32 && !d.is_struct() && d.elem_shape == std::vector<uint32_t>{3} &&
-              v.shape.size() == 1;
-  bool rows3 = d.scalar == ScalarType::kFloat32 && !d.is_struct() && d.elem_shape.empty() && v.shape.size() == 2 &&
-               v.shape[1] == 3;
+  bool scalar_ok = d.scalar == ScalarType::kFloat32 ||
+                   (any_float && (d.scalar == ScalarType::kFloat64 || d.scalar == ScalarType::kFloat16));
+  bool vec3 = scalar_ok && !d.is_struct() && d.elem_shape == std::vector<uint32_t>{3};
+  bool rows3 = scalar_ok && !d.is_struct() && d.elem_shape.empty() && v.shape.size() == 2 && v.shape[1] == 3;
   if (!vec3 && !rows3)
-    return InvalidArgument(what + ": expected a 1-D array of vec3 (float32), got " + d.Name() + " " +
-                           ShapeString(v.shape));
+    return InvalidArgument(what + ": expected an array of vec3 (" +
+                           std::string(any_float ? "float16, float32 or float64" : "float32") + "), got " + d.Name() +
+                           " " + ShapeString(v.shape));
   if (!v.contiguous()) return InvalidArgument(what + ": the array must be contiguous");
-  if (v.shape[0] > kMaxGeometryItems) return InvalidArgument(what + ": too many points (at most 2^31 - 1)");
-  return v.shape[0];
+  uint64_t count = vec3 ? v.element_count() : static_cast<uint64_t>(v.shape[0]);
+  if (count > static_cast<uint64_t>(kMaxGeometryItems)) return InvalidArgument(what + ": too many points (at most 2^31 - 1)");
+  return static_cast<int64_t>(count);
 }
+
+namespace {
+
+float HalfToFloat(uint16_t h) {
+  uint32_t sign = static_cast<uint32_t>(h & 0x8000u) << 16, exp = (h >> 10) & 0x1fu, mant = h & 0x3ffu, bits;
+  if (exp == 0) {
+    if (mant == 0) {
+      bits = sign;
+    } else {   // subnormal
+      exp = 127 - 15 + 1;
+      while (!(mant & 0x400u)) {
+        mant <<= 1;
+        --exp;
+      }
+      bits = sign | (exp << 23) | ((mant & 0x3ffu) << 13);
+    }
+  } else if (exp == 31) {
+    bits = sign | 0x7f800000u | (mant << 13);
+  } else {
+    bits = sign | ((exp + 127 - 15) << 23) | (mant << 13);
+  }
+  float f;
+  std::memcpy(&f, &bits, 4);
+  return f;
+}
+
+// Coordinate k of point i of a vec3 array of float16/32/64, as float32.
+float Coord(const Allocation& a, int64_t i, int k) {
+  const char* p = a.data();
+  switch (a.dtype.scalar) {
+    case ScalarType::kFloat64: { double d; std::memcpy(&d, p + 8 * (3 * i + k), 8); return static_cast<float>(d); }
+    case ScalarType::kFloat16: { uint16_t h; std::memcpy(&h, p + 2 * (3 * i + k), 2); return HalfToFloat(h); }
+    default: { float f; std::memcpy(&f, p + 4 * (3 * i + k), 4); return f; }
+  }
+}
+
+}  // namespace
 
 Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewHashGrid(const std::string& device, int32_t dim_x,
                                                                       int32_t dim_y, int32_t dim_z) {
@@ -42,8 +81,8 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewHashGrid(const std:
                            ", " + std::to_string(dim_z) + ")");
   __int128 cells = static_cast<__int128>(dim_x) * dim_y * dim_z;
   if (cells > kMaxHashGridCells)
-    return InvalidArgument("HashGrid: dims (" + std::to_string(dim_x) + ", " + std::to_string(dim_y) + ", " +
-                           std::to_string(dim_z) + ") give more than 2^26 cells");
+    return InvalidArgument("HashGrid: cell count exceeds supported limit: dims (" + std::to_string(dim_x) + ", " +
+                           std::to_string(dim_y) + ", " + std::to_string(dim_z) + ") give more than 2^26 cells");
   std::shared_ptr<GeometryObject> g(new GeometryObject());
   g->kind_ = wp::GEOMETRY_HASH_GRID;
   g->device_ = device;
@@ -164,19 +203,19 @@ Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float r
   if (kind_ != wp::GEOMETRY_HASH_GRID) return InvalidArgument("build(points, radius) is a HashGrid operation");
   if (!(radius > 0.0f) || radius > 3.0e38f)
     return InvalidArgument("HashGrid.build: radius must be a positive finite number, got " + std::to_string(radius));
-  WEFT_ASSIGN_OR_RETURN(int64_t n, CheckVec3Array(points, "HashGrid.build points"));
+  WEFT_ASSIGN_OR_RETURN(int64_t n, CheckVec3Array(points, "HashGrid.build points", true));
   if (points->device != device_)
     return InvalidArgument("HashGrid.build: the points live on " + points->device + ", the grid on " + device_);
   const int64_t cells = static_cast<int64_t>(dim_[0]) * dim_[1] * dim_[2];
-  const float* p = Floats(points);
+  const Allocation& pa = *points;
   try {
     std::vector<int32_t> cell_of(static_cast<size_t>(n));
     cell_starts_.assign(static_cast<size_t>(cells), 0);
     cell_ends_.assign(static_cast<size_t>(cells), 0);
     sorted_ids_.resize(static_cast<size_t>(n));
     for (int64_t i = 0; i < n; ++i) {
-      int64_t c = wp::hash_grid_cell(dim_, wp::hash_grid_coord(p[3 * i], radius), wp::hash_grid_coord(p[3 * i + 1], radius),
-                                     wp::hash_grid_coord(p[3 * i + 2], radius));
+      int64_t c = wp::hash_grid_cell(dim_, wp::hash_grid_coord(Coord(pa, i, 0), radius),
+                                     wp::hash_grid_coord(Coord(pa, i, 1), radius), wp::hash_grid_coord(Coord(pa, i, 2), radius));
       cell_of[i] = static_cast<int32_t>(c);
       ++cell_ends_[c];   // counts first
     }

@@ -41,7 +41,7 @@ class GeometryObject {
   uint32_t kind() const { return kind_; }
   const std::string& device() const { return device_; }
 
-  // HashGrid: sorts `points` (contiguous vec3 float32) into cells of width `radius` (> 0).
+  // HashGrid: sorts `points` (contiguous vec3 of float16/32/64) into cells of width `radius` (> 0).
   Status BuildHashGrid(std::shared_ptr<Allocation> points, float radius);
   // HashGrid: nothing to reserve ahead (cells are sized by the dims, sorted ids by the build).
   // Bvh / Mesh: recompute the node bounds from the arrays' current values.
@@ -68,8 +68,9 @@ class GeometryObject {
   std::vector<int32_t> cell_starts_, cell_ends_, sorted_ids_;
 };
 
-// Checks that `a` is a contiguous array of vec3 float32 (or float32 of shape (n, 3)) on its own
-// device through the one array validation; returns the number of points.
-Expected<int64_t> CheckVec3Array(const std::shared_ptr<Allocation>& a, const std::string& what);
+// Checks that `a` is a whole contiguous array of vec3 float32 (any number of dimensions, or
+// float32 of shape (n, 3)) through the one array validation; `any_float` also takes float16 and
+// float64 (hash grid builds convert to float32). Returns the number of points.
+Expected<int64_t> CheckVec3Array(const std::shared_ptr<Allocation>& a, const std::string& what, bool any_float = false);
 
 }  // namespace weft::geometry

@@ -145,9 +145,24 @@ WP_FUNC void bvh_walk_begin(bvh_walk_t& w, const geometry_desc_t* g, int32 mode,
   }
 }
 
+// Squared distance from point c to the box [lo, hi] (0 inside).
+WP_FUNC float32 bvh_box_dist_sq(const float32* lo, const float32* hi, const float32* c) {
+  float32 d = 0.0f;
+  for (int k = 0; k < 3; ++k) {
+    float32 e = c[k] < lo[k] ? lo[k] - c[k] : (c[k] > hi[k] ? c[k] - hi[k] : 0.0f);
+    d += e * e;
+  }
+  return d;
+}
+
+// mode 0: box overlap; 1: ray; 2: sphere (a = center, b[0] = radius).
 WP_FUNC bool bvh_walk_test(const bvh_walk_t& w, const float32* lo, const float32* hi) {
+  if (w.mode == 2) return bvh_box_dist_sq(lo, hi, w.a) <= w.b[0] * w.b[0];
   return w.mode == 0 ? bvh_box_overlap(lo, hi, w.a, w.b) : bvh_ray_box(lo, hi, w.a, w.b, w.max_t);
 }
+
+// Sphere narrow phase of a mesh face (mesh.h): the face's closest point lies within the radius.
+WP_FUNC bool mesh_face_in_sphere(const geometry_desc_t* g, int32 face, const float32* center, float32 radius);
 
 WP_FUNC bool bvh_walk_next(bvh_walk_t& w, int32& index) {
   const geometry_desc_t* g = w.g;
@@ -157,7 +172,8 @@ WP_FUNC bool bvh_walk_next(bvh_walk_t& w, int32& index) {
       int32 item = g->prim_ids[w.leaf_cur++];
       float32 lo[3], hi[3];
       bvh_item_bounds(g, item, lo, hi);
-      if (bvh_walk_test(w, lo, hi)) {
+      if (bvh_walk_test(w, lo, hi) &&
+          (w.mode != 2 || g->kind != GEOMETRY_MESH || mesh_face_in_sphere(g, item, w.a, w.b[0]))) {
         index = item;
         return true;
       }
@@ -197,6 +213,14 @@ WP_FUNC weft_struct_BvhQuery bvh_query_ray(const launch_context_t* ctx, int32 fi
   weft_struct_BvhQuery q;
   const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "bvh_query_ray", id, GEOMETRY_BVH);
   bvh_walk_begin(q.walk, g, 1, start, dir, 3.0e38f, root);
+  return q;
+}
+
+WP_FUNC weft_struct_BvhQuery bvh_query_sphere(const launch_context_t* ctx, int32 fid, int32 line, uint64 id,
+                                              const vec3& center, float32 radius, int32 root = -1) {
+  weft_struct_BvhQuery q;
+  const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "bvh_query_sphere", id, GEOMETRY_BVH);
+  bvh_walk_begin(q.walk, g, 2, center, vec3(radius, 0.0f, 0.0f), 0.0f, root);
   return q;
 }
 

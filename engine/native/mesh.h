@@ -365,6 +365,22 @@ WP_FUNC weft_struct_MeshQueryAABB mesh_query_aabb(const launch_context_t* ctx, i
   bvh_walk_begin(q.walk, g, 0, lower, upper, 0.0f, -1);
   return q;
 }
+WP_FUNC bool mesh_face_in_sphere(const geometry_desc_t* g, int32 face, const float32* center, float32 radius) {
+  vec3 a, b, c, p(center[0], center[1], center[2]);
+  mesh_face(g, face, a, b, c);
+  float32 u, v;
+  return length_sq(mesh_closest_on_triangle(p, a, b, c, u, v) - p) <= radius * radius;
+}
+
+// Faces within `radius` of center (exact distance), iterated like mesh_query_aabb.
+WP_FUNC weft_struct_MeshQueryAABB mesh_query_sphere(const launch_context_t* ctx, int32 fid, int32 line, uint64 id,
+                                                    const vec3& center, float32 radius) {
+  weft_struct_MeshQueryAABB q;
+  const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "mesh_query_sphere", id, GEOMETRY_MESH);
+  bvh_walk_begin(q.walk, g, 2, center, vec3(radius, 0.0f, 0.0f), 0.0f, -1);
+  return q;
+}
+
 WP_FUNC bool mesh_query_aabb_next(weft_struct_MeshQueryAABB& q, int32& index) { return bvh_walk_next(q.walk, index); }
 WP_FUNC bool mesh_query_next(weft_struct_MeshQueryAABB& q, int32& index) { return bvh_walk_next(q.walk, index); }
 

@@ -57,6 +57,10 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
       "Start a query of the items whose bounds the ray start + t dir (t >= 0) meets.", q);
   bvh("bvh_query_ray(id: uint64, start: vec(3,float32), dir: vec(3,float32), root: int32) -> struct(BvhQuery)",
       "bvh_query_ray from node `root` (-1: the root).", q);
+  bvh("bvh_query_sphere(id: uint64, center: vec(3,float32), radius: float32) -> struct(BvhQuery)",
+      "Start a query of the items whose bounds come within radius of center.", q);
+  bvh("bvh_query_sphere(id: uint64, center: vec(3,float32), radius: float32, root: int32) -> struct(BvhQuery)",
+      "bvh_query_sphere from node `root` (-1: the root).", q);
   bvh("bvh_query_next(query: struct(BvhQuery), index: int32) -> bool",
       "Next item index of the query into `index`; false when done.", kBuiltinNotDiff);
   bvh("bvh_query_next(query: struct(BvhQuery), index: int32, max_dist: float32) -> bool",
@@ -83,6 +87,8 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
        "Closest hit of the ray within t in [0, max_t] (rays parallel to a face miss it).", q);
   mesh("mesh_query_aabb(id: uint64, low: vec(3,float32), high: vec(3,float32)) -> struct(MeshQueryAABB)",
        "Start a query of the faces whose bounds overlap [low, high].", q);
+  mesh("mesh_query_sphere(id: uint64, center: vec(3,float32), radius: float32) -> struct(MeshQueryAABB)",
+       "Start a query of the faces within radius of center (exact distance), iterated like mesh_query_aabb.", q);
   mesh("mesh_query_aabb_next(query: struct(MeshQueryAABB), index: int32) -> bool",
        "Next face index of the query into `index`; false when done.", kBuiltinNotDiff);
   mesh("mesh_query_next(query: struct(MeshQueryAABB), index: int32) -> bool",

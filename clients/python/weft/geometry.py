@@ -12,8 +12,8 @@ from __future__ import annotations
 from . import _runtime
 from .device import get_device
 
-__all__ = ["HashGrid", "Bvh", "Mesh", "HashGridQuery", "BvhQuery", "MeshQueryPoint", "MeshQueryRay",
-           "MeshQueryAABB", "hash_grid_query_t", "bvh_query_t", "mesh_query_point_t", "mesh_query_ray_t",
+__all__ = ["is_cubql_available", "HashGrid", "Bvh", "Mesh", "HashGridQuery", "BvhQuery", "MeshQueryPoint", "MeshQueryRay",
+           "MeshQueryAABB", "MeshQuery", "hash_grid_query_t", "bvh_query_t", "mesh_query_point_t", "mesh_query_ray_t",
            "mesh_query_aabb_t"]
 
 _Op = None
@@ -82,8 +82,14 @@ class _Object:
 class HashGrid(_Object):
     """A hash grid of dim_x * dim_y * dim_z cells for neighbour queries (Warp's wp.HashGrid)."""
 
-    def __init__(self, dim_x: int, dim_y: int, dim_z: int, device=None):
+    def __init__(self, dim_x: int, dim_y: int, dim_z: int, device=None, dtype=None):
         super().__init__()
+        from . import types as _types
+        self.dtype = dtype if dtype is not None else _types.float32
+        vec = {_types.float16: _types.vec3h, _types.float32: _types.vec3, _types.float64: _types.vec3d}
+        if self.dtype not in vec:
+            raise TypeError(f"HashGrid: dtype must be float16, float32 or float64, got {dtype!r}")
+        self._point_dtype = vec[self.dtype]
         self.device = get_device(device)
         self._rt = _runtime.get_runtime()
         self.dim_x, self.dim_y, self.dim_z = int(dim_x), int(dim_y), int(dim_z)
@@ -97,14 +103,23 @@ class HashGrid(_Object):
                         dim=[self.dim_x, self.dim_y, self.dim_z])
 
     def build(self, points, radius: float):
-        """Sorts `points` (a vec3 array on the grid's device) into cells of width `radius`."""
+        """Sorts `points` (a vec3 array of the grid's dtype, on its device) into cells of width
+        `radius` (positive, finite)."""
+        radius = float(radius)
+        if not (0.0 < radius < float("inf")):
+            raise ValueError(f"HashGrid.build: radius must be a positive finite number, got {radius}")
+        from ._kernel.typestr import type_string
+        if type_string(getattr(points, "dtype", None)) != type_string(self._point_dtype):
+            raise TypeError(f"HashGrid.build: a grid of dtype {getattr(self.dtype, '__name__', self.dtype)} "
+                            f"needs points of {getattr(self._point_dtype, '__name__', self._point_dtype)}, "
+                            f"got {getattr(points, 'dtype', type(points).__name__)}")
         _call(self._rt, op=_op().BUILD_HASH_GRID, id=self.id, points=_handle_of(points, "HashGrid.build points"),
               radius=float(radius))
         self.points = points
         self.radius = float(radius)
         self.reserved = True
 
-    def reserve(self, num_points: int):
+    def reserve(self, num_points: int, with_groups: bool = False):
         """Warp preallocates here; the daemon sizes its buffers at build time."""
         if int(num_points) < 0:
             raise ValueError("reserve: num_points must be >= 0")
@@ -114,7 +129,7 @@ class HashGrid(_Object):
 class Bvh(_Object):
     """A bounding volume hierarchy over boxes [lowers[i], uppers[i]] (Warp's wp.Bvh)."""
 
-    def __init__(self, lowers, uppers, constructor: str | None = None):
+    def __init__(self, lowers, uppers, constructor: str | None = None, leaf_size: int | None = None):
         super().__init__()
         self._rt = _runtime.get_runtime()
         self.device = lowers.device
@@ -159,6 +174,11 @@ class Mesh(_Object):
         _call(self._rt, op=_op().REBUILD, id=self.id)
 
 
+def is_cubql_available() -> bool:
+    """Warp's optional cuBQL BVH builder: not part of weft (builds use a median split)."""
+    return False
+
+
 class _QueryType:
     """A kernel-side query type (only meaningful inside kernels)."""
 
@@ -179,5 +199,6 @@ BvhQuery = bvh_query_t = _QueryType("BvhQuery")
 MeshQueryPoint = mesh_query_point_t = _QueryType("MeshQueryPoint")
 MeshQueryRay = mesh_query_ray_t = _QueryType("MeshQueryRay")
 MeshQueryAABB = mesh_query_aabb_t = _QueryType("MeshQueryAABB")
+MeshQuery = MeshQueryAABB   # Warp's erased sphere / AABB query type: one iterator type here
 
 
