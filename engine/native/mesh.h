@@ -342,7 +342,8 @@ WP_FUNC weft_struct_MeshQueryPoint mesh_query_point_sign_winding_number(const la
 }
 
 WP_FUNC weft_struct_MeshQueryRay mesh_query_ray(const launch_context_t* ctx, int32 fid, int32 line, uint64 id,
-                                                const vec3& start, const vec3& dir, float32 max_t) {
+                                                const vec3& start, const vec3& dir, float32 max_t, int32 root = -1) {
+  (void)root;   // groups are not supported: every query starts at the root
   const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "mesh_query_ray", id, GEOMETRY_MESH);
   weft_struct_MeshQueryRay r;
   int32 face;
@@ -532,7 +533,8 @@ WP_FUNC bool mesh_query_point_sign_winding_number(const launch_context_t* ctx, i
 }
 WP_FUNC bool mesh_query_ray(const launch_context_t* ctx, int32 fid, int32 line, uint64 id, const vec3& start,
                             const vec3& dir, float32 max_t, float32& t, float32& u, float32& v, float32& sign, vec3& normal,
-                            int32& face) {
+                            int32& face, int32 root = -1) {
+  (void)root;   // groups are not supported: every query starts at the root
   weft_struct_MeshQueryRay r = mesh_query_ray(ctx, fid, line, id, start, dir, max_t);
   t = r.f_t;
   u = r.f_u;

@@ -85,6 +85,8 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
        "Closest point; sign -1 where the exact winding number exceeds threshold (accuracy is ignored: exact).", q);
   mesh("mesh_query_ray(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32) -> struct(MeshQueryRay)",
        "Closest hit of the ray within t in [0, max_t] (rays parallel to a face miss it).", q);
+  mesh("mesh_query_ray(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32, root: int32) -> struct(MeshQueryRay)",
+       "mesh_query_ray; root is accepted and ignored (no groups: the whole mesh).", q);
   mesh("mesh_query_aabb(id: uint64, low: vec(3,float32), high: vec(3,float32)) -> struct(MeshQueryAABB)",
        "Start a query of the faces whose bounds overlap [low, high].", q);
   mesh("mesh_query_sphere(id: uint64, center: vec(3,float32), radius: float32) -> struct(MeshQueryAABB)",
@@ -97,6 +99,10 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
        "Whether the ray hits any face within t in [0, max_t].", q);
   mesh("mesh_query_ray_count_intersections(id: uint64, start: vec(3,float32), dir: vec(3,float32)) -> int32",
        "Number of faces the ray (t >= 0) crosses.", q);
+  mesh("mesh_query_ray_anyhit(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32, root: int32) -> bool",
+       "mesh_query_ray_anyhit; root is accepted and ignored.", q);
+  mesh("mesh_query_ray_count_intersections(id: uint64, start: vec(3,float32), dir: vec(3,float32), root: int32) -> int32",
+       "mesh_query_ray_count_intersections; root is accepted and ignored.", q);
   mesh("mesh_query_furthest_point_no_sign(id: uint64, point: vec(3,float32), min_dist: float32) -> struct(MeshQueryPoint)",
        "The furthest mesh point (a vertex) at distance >= min_dist.", q);
   // Warp's older forms with out-parameters (local variables written by the call).
@@ -114,6 +120,8 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
        "Out-parameter form of mesh_query_point_sign_winding_number with accuracy and threshold.", q);
   mesh("mesh_query_ray(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32, t: float32, bary_u: float32, bary_v: float32, sign: float32, normal: vec(3,float32), face: int32) -> bool",
        "Out-parameter form of mesh_query_ray.", q);
+  mesh("mesh_query_ray(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32, t: float32, bary_u: float32, bary_v: float32, sign: float32, normal: vec(3,float32), face: int32, root: int32) -> bool",
+       "Out-parameter form of mesh_query_ray; root is accepted and ignored.", q);
   mesh("mesh_eval_position(id: uint64, face: int32, bary_u: float32, bary_v: float32) -> vec(3,float32)",
        "u * p0 + v * p1 + (1 - u - v) * p2 of face.", q);
   mesh("mesh_eval_velocity(id: uint64, face: int32, bary_u: float32, bary_v: float32) -> vec(3,float32)",

@@ -727,8 +727,10 @@ def mesh_ray_counts(mesh: wp.uint64, starts: wp.array(dtype=wp.vec3), dirs: wp.a
     sign = float(0.0)
     n = wp.vec3()
     f = int(0)
-    if wp.mesh_query_ray(mesh, starts[tid], dirs[tid], 100.0, t, u, v, sign, n, f):
+    if wp.mesh_query_ray(mesh, starts[tid], dirs[tid], 100.0, t, u, v, sign, n, f, -1):
         t_out[tid] = t
+    if wp.mesh_query_ray(mesh, starts[tid], dirs[tid], 100.0).result != wp.mesh_query_ray_anyhit(mesh, starts[tid], dirs[tid], 100.0, -1):
+        t_out[tid] = -1.0
 
 
 def test_warp_spellings(rng):
