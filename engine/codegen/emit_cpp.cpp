@@ -298,7 +298,9 @@ class FnEmitter {
       case OpKind::kStore:
       case OpKind::kFuncCall:
       case OpKind::kPrintf: return false;
-      case OpKind::kCall: return !(op.builtin->side_effect() || op.builtin->needs_ctx() || (op.builtin->flags & kBuiltinArrayAccess));
+      case OpKind::kCall:
+        return !(op.builtin->side_effect() || op.builtin->needs_ctx() ||
+                 (op.builtin->flags & (kBuiltinArrayAccess | kBuiltinNeedsLoc | kBuiltinWritesArgs)));
       default: return true;
     }
   }

@@ -33,6 +33,7 @@ enum BuiltinFlags : unsigned {
   kBuiltinNotDiff = 1u << 2,      // no adjoint: gradients stop here
   kBuiltinArrayAccess = 1u << 3,  // first param is an array indexed by the following Index params
   kBuiltinNeedsLoc = 1u << 4,     // native takes (ctx, function id, line) first: it reports launch errors
+  kBuiltinWritesArgs = 1u << 5,   // writes local variables passed as arguments (query iterators, out-parameters)
 };
 
 struct BuiltinPattern;  // parsed form of a parameter/result pattern (builtins_registry.cpp)

@@ -42,7 +42,7 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
   hg("hash_grid_query(id: uint64, point: vec(3,float16), max_dist: float16) -> struct(HashGridQuery)",
      "hash_grid_query with a float16 point (converted to float32, the grid's precision).", q);
   hg("hash_grid_query_next(query: struct(HashGridQuery), index: int32) -> bool",
-     "Next point index of the query into `index`; false when done.", kBuiltinNotDiff);
+     "Next point index of the query into `index`; false when done.", kBuiltinNotDiff | kBuiltinWritesArgs);
   hg("hash_grid_point_id(id: uint64, index: int32) -> int32",
      "The point at position index of the grid's cell order (-1 outside [0, points)).", q);
 
@@ -62,9 +62,9 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
   bvh("bvh_query_sphere(id: uint64, center: vec(3,float32), radius: float32, root: int32) -> struct(BvhQuery)",
       "bvh_query_sphere from node `root` (-1: the root).", q);
   bvh("bvh_query_next(query: struct(BvhQuery), index: int32) -> bool",
-      "Next item index of the query into `index`; false when done.", kBuiltinNotDiff);
+      "Next item index of the query into `index`; false when done.", kBuiltinNotDiff | kBuiltinWritesArgs);
   bvh("bvh_query_next(query: struct(BvhQuery), index: int32, max_dist: float32) -> bool",
-      "bvh_query_next; ray queries skip items whose bounds start beyond max_dist.", kBuiltinNotDiff);
+      "bvh_query_next; ray queries skip items whose bounds start beyond max_dist.", kBuiltinNotDiff | kBuiltinWritesArgs);
 
   auto mesh = [rows](const char* sig, const char* doc, unsigned flags) {
     rows->push_back(Builtin("Meshes", sig, doc, flags));
@@ -92,9 +92,9 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
   mesh("mesh_query_sphere(id: uint64, center: vec(3,float32), radius: float32) -> struct(MeshQueryAABB)",
        "Start a query of the faces within radius of center (exact distance), iterated like mesh_query_aabb.", q);
   mesh("mesh_query_aabb_next(query: struct(MeshQueryAABB), index: int32) -> bool",
-       "Next face index of the query into `index`; false when done.", kBuiltinNotDiff);
+       "Next face index of the query into `index`; false when done.", kBuiltinNotDiff | kBuiltinWritesArgs);
   mesh("mesh_query_next(query: struct(MeshQueryAABB), index: int32) -> bool",
-       "Same as mesh_query_aabb_next.", kBuiltinNotDiff);
+       "Same as mesh_query_aabb_next.", kBuiltinNotDiff | kBuiltinWritesArgs);
   mesh("mesh_query_ray_anyhit(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32) -> bool",
        "Whether the ray hits any face within t in [0, max_t].", q);
   mesh("mesh_query_ray_count_intersections(id: uint64, start: vec(3,float32), dir: vec(3,float32)) -> int32",
