@@ -767,6 +767,27 @@ void CollectAssignedNames(const ast::StmtList& stmts, std::set<std::string>* out
   for (const auto& [name, n] : counts) out->insert(name);
 }
 
+namespace {
+// A name passed as an argument to a builtin that writes its arguments (query iterators,
+// out-parameter forms: `while wp.hash_grid_query_next(q, index)`, `if wp.mesh_query_point(m,
+// p, d, inside, face, u, v)`, or the call as a statement or assigned value) is assigned by that
+// call: it is never a literal-valued local, even where it is read before the call in a loop.
+void CountNamesWrittenByCall(const ast::Expr* e, std::map<std::string, int>* out) {
+  if (e == nullptr) return;
+  if (const auto* u = ast::As<ast::UnaryOp>(e)) return CountNamesWrittenByCall(u->operand.get(), out);
+  const auto* call = ast::As<ast::Call>(e);
+  if (call == nullptr) return;
+  std::string name;
+  if (const auto* n = ast::As<ast::Name>(call->func.get())) name = n->id;
+  else if (const auto* a = ast::As<ast::Attribute>(call->func.get())) name = a->attr;
+  bool writes = false;
+  for (const auto* o : BuiltinRegistry::Get().Overloads(name)) writes = writes || (o->flags & kBuiltinWritesArgs);
+  if (!writes) return;
+  for (const auto& arg : call->args)
+    if (const auto* n = ast::As<ast::Name>(arg.get())) ++(*out)[n->id];
+}
+}  // namespace
+
 void CountAssignedNames(const ast::StmtList& stmts, std::map<std::string, int>* out) {
   std::function<void(const ast::Expr&)> target = [&](const ast::Expr& t) {
     if (const auto* n = ast::As<ast::Name>(&t)) ++(*out)[n->id];
@@ -780,10 +801,13 @@ void CountAssignedNames(const ast::StmtList& stmts, std::map<std::string, int>* 
     switch (s.kind) {
       case ast::StmtKind::kAssign:
         for (const auto& t : static_cast<const ast::Assign&>(s).targets) target(*t);
+        CountNamesWrittenByCall(static_cast<const ast::Assign&>(s).value.get(), out);
         break;
+      case ast::StmtKind::kExprStmt: CountNamesWrittenByCall(static_cast<const ast::ExprStmt&>(s).value.get(), out); break;
       case ast::StmtKind::kAnnAssign: target(*static_cast<const ast::AnnAssign&>(s).target); break;
       case ast::StmtKind::kAugAssign: target(*static_cast<const ast::AugAssign&>(s).target); break;
       case ast::StmtKind::kIf:
+        CountNamesWrittenByCall(static_cast<const ast::If&>(s).test.get(), out);
         CountAssignedNames(static_cast<const ast::If&>(s).body, out);
         CountAssignedNames(static_cast<const ast::If&>(s).orelse, out);
         break;
@@ -791,7 +815,10 @@ void CountAssignedNames(const ast::StmtList& stmts, std::map<std::string, int>* 
         target(*static_cast<const ast::For&>(s).target);
         CountAssignedNames(static_cast<const ast::For&>(s).body, out);
         break;
-      case ast::StmtKind::kWhile: CountAssignedNames(static_cast<const ast::While&>(s).body, out); break;
+      case ast::StmtKind::kWhile:
+        CountNamesWrittenByCall(static_cast<const ast::While&>(s).test.get(), out);
+        CountAssignedNames(static_cast<const ast::While&>(s).body, out);
+        break;
       default: break;
     }
   }
