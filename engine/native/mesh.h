@@ -42,9 +42,30 @@ WP_FUNC void mesh_face(const geometry_desc_t* g, int64 f, vec3& a, vec3& b, vec3
   c = geometry_load3(g->points, g->indices[3 * f + 2]);
 }
 
+// Closest point of segment xy to p, with t its weight of y.
+WP_FUNC vec3 mesh_closest_on_segment(const vec3& p, const vec3& x, const vec3& y, float32& t) {
+  vec3 xy = y - x;
+  float32 len_sq = dot(xy, xy);
+  t = len_sq > 0.0f ? dot(p - x, xy) / len_sq : 0.0f;
+  t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+  return x + xy * t;
+}
+
 // Closest point of triangle abc to p (Ericson 5.1.5): returns it, with u, v the weights of a, b.
+// A zero-area triangle (a repeated vertex, collinear corners) is its three edges: Ericson's
+// regions assume a nonzero area and would stop at a corner of the degenerate edge.
 WP_FUNC vec3 mesh_closest_on_triangle(const vec3& p, const vec3& a, const vec3& b, const vec3& c, float32& u, float32& v) {
   vec3 ab = b - a, ac = c - a, ap = p - a;
+  if (length_sq(cross(ab, ac)) == 0.0f) {
+    float32 t_ab, t_ac, t_bc;
+    vec3 q_ab = mesh_closest_on_segment(p, a, b, t_ab), q_ac = mesh_closest_on_segment(p, a, c, t_ac),
+         q_bc = mesh_closest_on_segment(p, b, c, t_bc);
+    float32 d_ab = length_sq(q_ab - p), d_ac = length_sq(q_ac - p), d_bc = length_sq(q_bc - p);
+    if (d_ab <= d_ac && d_ab <= d_bc) { u = 1.0f - t_ab; v = t_ab; return q_ab; }
+    if (d_ac <= d_bc) { u = 1.0f - t_ac; v = 0.0f; return q_ac; }
+    u = 0.0f; v = 1.0f - t_bc;
+    return q_bc;
+  }
   float32 d1 = dot(ab, ap), d2 = dot(ac, ap);
   if (d1 <= 0.0f && d2 <= 0.0f) { u = 1.0f; v = 0.0f; return a; }
   vec3 bp = p - b;

@@ -73,6 +73,10 @@ Expected<std::shared_ptr<ClientCore>> ClientCore::Open(const ConnectOptions& opt
   core->local_ = response.local() && address.unix_socket && options.map_shared_memory;
   core->keeper_ = std::make_unique<SessionKeeper>(core->session_stub_.get(), core->NewContext(),
                                                   core->session_.session_id);
+  // Connect returns once the daemon holds the Attach stream: a process killed right after
+  // Connect is then reaped at once, not after the unattached-session timeout.
+  WEFT_CLIENT_RETURN_IF_ERROR(core->keeper_->WaitAttached(
+      std::chrono::duration_cast<std::chrono::milliseconds>(options.connect_timeout)));
   return core;
 }
 

@@ -5,10 +5,13 @@
 #include <grpcpp/grpcpp.h>
 
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <memory>
 #include <string>
 #include <thread>
 
+#include "weft/client/status.h"
 #include "weft/v1/session.grpc.pb.h"
 
 namespace weft::inline client_v1::detail {
@@ -22,6 +25,10 @@ class SessionKeeper {
   SessionKeeper(const SessionKeeper&) = delete;
   SessionKeeper& operator=(const SessionKeeper&) = delete;
 
+  // Waits until the daemon has claimed the stream for the session (its first event, "attached
+  // <id>"): from then on this process's death reaps the session at once. An error when the
+  // stream ended first (the daemon refused it or is gone) or nothing came within `timeout`.
+  Status WaitAttached(std::chrono::milliseconds timeout);
   // Cancels the stream and joins the thread. Idempotent.
   void Stop();
   // False once the stream has ended (daemon gone, session closed or Stop()).
@@ -36,6 +43,10 @@ class SessionKeeper {
   std::atomic<bool> attached_{true};
   mutable std::mutex mu_;
   std::string last_event_;
+  bool hello_seen_ = false;   // under mu_
+  bool ended_ = false;        // under mu_
+  std::string end_message_;   // under mu_: the stream's final status when it ended
+  std::condition_variable cv_;
   std::thread thread_;
 };
 

@@ -36,6 +36,7 @@ PUMP_FIRST = 8         # commands queued before the first early Submit after a s
 PUMP_AFTER_S = 0.002   # or: two commands, the oldest queued this long ago
 DAEMON_START_TIMEOUT_S = 30.0
 RPC_TIMEOUT_S = None  # unary calls wait as long as the daemon needs (compiles can be slow)
+ATTACH_CONFIRM_S = 30.0   # how long a new session waits for the daemon to claim its Attach stream
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 _REPO_DIR = _PACKAGE_DIR.parents[1].parent  # clients/python/weft -> repo root
@@ -344,11 +345,20 @@ class Runtime:
         self.attach_message = ""
 
         self._closing = threading.Event()
+        self._attach_answered = threading.Event()   # the daemon's first event, or the stream's end
         self._attach_call = self.session_stub.Attach(self._attach_requests(),
                                                      metadata=self.metadata)
         self._attach_thread = threading.Thread(target=self._attach_loop, name="weft-attach",
                                                daemon=True)
         self._attach_thread.start()
+        # The session is returned once the daemon holds its Attach stream: a process killed
+        # right after connecting is then reaped at once, not after the unattached timeout.
+        if not self._attach_answered.wait(ATTACH_CONFIRM_S) or not self.attach_message:
+            reason = ("did not confirm the session's stream within "
+                      f"{ATTACH_CONFIRM_S:g} s" if not self._attach_answered.is_set()
+                      else "ended the session's stream before claiming it")
+            self.close()
+            raise WeftError(f"SessionService.Attach: the daemon at {self.address} {reason}")
 
     def _open_fast_lane(self, opened):
         """The fast lane (_fast_lane.py) when the daemon offers one to this local client and
@@ -380,9 +390,11 @@ class Runtime:
     def _attach_loop(self):
         try:
             for event in self._attach_call:
-                self.attach_message = event.message   # "attached <id>"; informational
+                self.attach_message = event.message   # "attached <id>"
+                self._attach_answered.set()
         except grpc.RpcError:
             pass
+        self._attach_answered.set()
         if not self._closing.is_set():
             self.attach_lost = True
 

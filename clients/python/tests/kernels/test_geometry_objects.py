@@ -207,12 +207,22 @@ def closest_on_triangles(p, a, b, c):
     res[m] = b[m]
     m = (d1 <= 0) & (d2 <= 0)
     res[m] = a[m]
-    # degenerate triangles: fall back to the closest of the three edges' endpoints and midpoints
-    bad = ~np.isfinite(res).all(1)
+    # zero-area triangles (a repeated vertex, collinear corners): the closest of their three
+    # edges, exactly (Ericson's regions assume a nonzero area)
+    bad = (np.linalg.norm(np.cross(ab, ac), axis=1) == 0.0) | ~np.isfinite(res).all(1)
     if bad.any():
-        cand = np.stack([a[bad], b[bad], c[bad]], 1)
-        k = np.argmin(((cand - p) ** 2).sum(2), 1)
-        res[bad] = cand[np.arange(len(k)), k]
+        best = np.full((bad.sum(), 3), np.nan)
+        best_d = np.full(bad.sum(), np.inf)
+        for x, y in ((a[bad], b[bad]), (a[bad], c[bad]), (b[bad], c[bad])):
+            xy = y - x
+            ll = (xy * xy).sum(1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = np.where(ll > 0, ((p - x) * xy).sum(1) / ll, 0.0)
+            q = x + xy * np.clip(t, 0.0, 1.0)[:, None]
+            dq = ((q - p) ** 2).sum(1)
+            take = dq < best_d
+            best[take], best_d[take] = q[take], dq[take]
+        res[bad] = best
     return res
 
 
