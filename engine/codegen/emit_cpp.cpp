@@ -165,6 +165,7 @@ class FnEmitter {
       int p = f_.params[i];
       Line(CppType(T(p)) + " " + V(p) + " = __args.p" + std::to_string(i) + ";  // " + CommentText(f_.param_names[i]));
       if (backward) Line(CppType(T(p)) + " " + A(p) + " = __adj_args.p" + std::to_string(i) + ";");
+      if (backward && T(p).is_indexed_array()) Line("wp::cg_indexed_adjoint(" + A(p) + ", " + V(p) + ");");
     }
     Decls(backward);
     Fwd(f_.body, backward);
@@ -754,6 +755,19 @@ Expected<ParamLayout> LayoutParam(const std::string& name, const Type& type, con
   WEFT_ASSIGN_OR_RETURN(TypeLayout l, LayoutOf(type, structs));
   p.size = l.size;
   p.align = l.align;
+  if (type.is_indexed_array()) {
+    // Packed as its fields (wp::indexedarray_t): the data array, then one int32 index array per
+    // dimension (None where a dimension is not indexed), each validated as an array.
+    WEFT_ASSIGN_OR_RETURN(ParamLayout data, LayoutParam("data", Type::Array(type.elem(), type.ndim), structs));
+    p.fields.push_back(std::move(data));
+    for (int d = 0; d < 4; ++d) {
+      WEFT_ASSIGN_OR_RETURN(ParamLayout ix, LayoutParam("indices" + std::to_string(d),
+                                                        Type::Array(Type::Int32(), 1), structs));
+      ix.offset = 88u * static_cast<uint32_t>(d + 1);
+      p.fields.push_back(std::move(ix));
+    }
+    return p;
+  }
   if (type.is_array()) {
     p.is_array = true;
     p.array_dtype = TypeString(type.elem());

@@ -392,7 +392,10 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
       Value v;
       v.kind = Value::Kind::kTuple;
       for (int k = 0; k < bt.ndim; ++k)
-        v.elems.push_back(Value::OfVar(EmitRaw(Type::Int32(), "wp::int32($0.shape[" + std::to_string(k) + "])", {base.var})));
+        v.elems.push_back(Value::OfVar(EmitRaw(Type::Int32(),
+                                               bt.indexed ? "wp::int32(wp::array_dim($0, " + std::to_string(k) + "))"
+                                                          : "wp::int32($0.shape[" + std::to_string(k) + "])",
+                                               {base.var})));
       return v;
     }
     if (a.attr == "ndim") return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(bt.ndim) + ")"));
@@ -531,7 +534,9 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
       // gradient is the same view of the gradient array).
       std::vector<int> args{base.var};
       args.insert(args.end(), idx.begin(), idx.end());
-      int v = EmitOp(OpKind::kView, Type::Array(bt.elem(), bt.ndim - static_cast<int>(idx.size())), args);
+      Type vt = Type::Array(bt.elem(), bt.ndim - static_cast<int>(idx.size()));
+      vt.indexed = bt.indexed;
+      int v = EmitOp(OpKind::kView, vt, args);
       st_->block->back().op.array_param = ArrayParamOf(base.var);
       st_->block->back().op.array_name = ExprText(*s.value);
       if (ArrayParamOf(base.var) >= 0) st_->array_param[v] = ArrayParamOf(base.var);

@@ -111,7 +111,7 @@ class TypeReader {
       if (id == "spatial_vector") return Type::Vector(6, s);
       return Type::Matrix(6, 6, s);
     }
-    if (id == "array") {
+    if (id == "array" || id == "indexedarray") {
       if (!Eat('(')) return Error("expected '('");
       WEFT_ASSIGN_OR_RETURN(Type elem, Read());
       int ndim = 1;
@@ -121,6 +121,7 @@ class TypeReader {
       if (!Eat(')')) return Error("expected ')'");
       if (ndim < 1 || ndim > 4) return Error("arrays have 1 to 4 dimensions");
       if (elem.is_array() || elem.is_void() || elem.is_tuple()) return Error("bad array element type");
+      if (id == "indexedarray") return Type::IndexedArray(std::move(elem), ndim);
       return Type::Array(std::move(elem), ndim);
     }
     if (id == "struct") {
@@ -222,7 +223,7 @@ bool Type::operator==(const Type& o) const {
     case TypeKind::kTransform: return scalar == o.scalar;
     case TypeKind::kVector: return scalar == o.scalar && rows == o.rows;
     case TypeKind::kMatrix: return scalar == o.scalar && rows == o.rows && cols == o.cols;
-    case TypeKind::kArray: return ndim == o.ndim && sub == o.sub;
+    case TypeKind::kArray: return ndim == o.ndim && indexed == o.indexed && sub == o.sub;
     case TypeKind::kStruct: return struct_name == o.struct_name;
     case TypeKind::kTuple: return sub == o.sub;
   }
@@ -294,7 +295,8 @@ std::string TypeString(const Type& t) {
       return "mat(" + std::to_string(t.rows) + "," + std::to_string(t.cols) + "," + ScalarName(t.scalar) + ")";
     case TypeKind::kQuat: return std::string("quat(") + ScalarName(t.scalar) + ")";
     case TypeKind::kTransform: return std::string("transform(") + ScalarName(t.scalar) + ")";
-    case TypeKind::kArray: return "array(" + TypeString(t.elem()) + "," + std::to_string(t.ndim) + ")";
+    case TypeKind::kArray:
+      return (t.indexed ? "indexedarray(" : "array(") + TypeString(t.elem()) + "," + std::to_string(t.ndim) + ")";
     case TypeKind::kStruct: return "struct(" + t.struct_name + ")";
     case TypeKind::kTuple: {
       std::string s = "tuple(";
@@ -335,7 +337,7 @@ std::string CppType(const Type& t) {
       return "wp::mat_t<" + std::to_string(t.rows) + "," + std::to_string(t.cols) + "," + elem() + ">";
     case TypeKind::kQuat: return "wp::quat_t<" + elem() + ">";
     case TypeKind::kTransform: return "wp::transform_t<" + elem() + ">";
-    case TypeKind::kArray: return "wp::array_t<" + CppType(t.elem()) + ">";
+    case TypeKind::kArray: return (t.indexed ? "wp::indexedarray_t<" : "wp::array_t<") + CppType(t.elem()) + ">";
     case TypeKind::kStruct: return "wp::" + StructCppName(t.struct_name);
     case TypeKind::kTuple: return "/*tuple*/void";
   }
@@ -355,7 +357,7 @@ Expected<TypeLayout> LayoutOf(const Type& t, const StructTable& structs) {
       uint32_t s = static_cast<uint32_t>(ScalarSize(t.scalar));
       return TypeLayout{s * static_cast<uint32_t>(t.component_count()), s};
     }
-    case TypeKind::kArray: return TypeLayout{88, 8};
+    case TypeKind::kArray: return t.indexed ? TypeLayout{88 * 5, 8} : TypeLayout{88, 8};
     case TypeKind::kStruct: {
       auto it = structs.find(t.struct_name);
       if (it == structs.end()) return InvalidArgument("unknown struct '" + t.struct_name + "'");

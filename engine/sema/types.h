@@ -37,7 +37,7 @@ enum class TypeKind : uint8_t {
   kMatrix,     // rows x cols
   kQuat,
   kTransform,
-  kArray,      // sub[0] = element type, ndim
+  kArray,      // sub[0] = element type, ndim; `indexed`: Warp's indexedarray (data + index arrays)
   kStruct,     // struct_name (canonical)
   kAny,        // typing.Any in generic funcs; never reaches codegen
   kTuple,      // sub = element types (multiple return values)
@@ -50,6 +50,7 @@ struct Type {
   int rows = 0;
   int cols = 0;
   int ndim = 0;
+  bool indexed = false;  // kArray: an indexed array (wp::indexedarray_t: data + int32 index arrays)
   std::vector<Type> sub;
   std::string struct_name;
 
@@ -69,12 +70,14 @@ struct Type {
   static Type Array(Type elem, int ndim) {
     Type t; t.kind = TypeKind::kArray; t.ndim = ndim; t.sub.push_back(std::move(elem)); return t;
   }
+  static Type IndexedArray(Type elem, int ndim) { Type t = Array(std::move(elem), ndim); t.indexed = true; return t; }
   static Type Struct(std::string name) { Type t; t.kind = TypeKind::kStruct; t.struct_name = std::move(name); return t; }
   static Type Tuple(std::vector<Type> elems) { Type t; t.kind = TypeKind::kTuple; t.sub = std::move(elems); return t; }
 
   bool is_void() const { return kind == TypeKind::kVoid; }
   bool is_scalar() const { return kind == TypeKind::kScalar; }
-  bool is_array() const { return kind == TypeKind::kArray; }
+  bool is_array() const { return kind == TypeKind::kArray; }  // plain or indexed
+  bool is_indexed_array() const { return kind == TypeKind::kArray && indexed; }
   bool is_struct() const { return kind == TypeKind::kStruct; }
   bool is_vector() const { return kind == TypeKind::kVector; }
   bool is_matrix() const { return kind == TypeKind::kMatrix; }
@@ -139,7 +142,7 @@ struct TypeLayout {
   uint32_t align = 1;
 };
 // Size and alignment as the generated C++ lays the value out (arrays = wp::array_abi_t:
-// 88 bytes, 8-aligned; structs: fields in declaration order at their natural alignment).
+// 88 bytes, 8-aligned; indexed arrays: the data array and 4 index arrays, 440 bytes; structs: fields in declaration order at their natural alignment).
 Expected<TypeLayout> LayoutOf(const Type& t, const StructTable& structs);
 
 }  // namespace weft::sema
