@@ -1043,6 +1043,12 @@ Status Checker::LowerReturn(const ast::Return& s) {
       return Error(s.loc, "'" + fn.name + "' returns " + std::to_string(fn.returns.size()) + " value(s) elsewhere, " +
                               std::to_string(vals.size()) + " here");
     for (size_t i = 0; i < vals.size(); ++i) {
+      const Type have = TypeOf(vals[i].var);
+      if (have.is_fixed_array() && fn.returns[i].is_array() && !fn.returns[i].is_fixed_array()) {
+        std::string elem = TypeString(fn.returns[i].elem());
+        return Error(s.loc, "The function `" + fn.name + "` returns a fixed-size array whereas it has its return type "
+                            "annotated as `Array[" + elem + "]`.");
+      }
       WEFT_ASSIGN_OR_RETURN(int v, Coerce(vals[i], fn.returns[i], s.value->loc, "the return value"));
       EmitCopy(fn.return_slots[i], v);
     }

@@ -391,6 +391,15 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
     if (a.attr == "shape") {
       Value v;
       v.kind = Value::Kind::kTuple;
+      if (bt.is_fixed_array()) {
+        for (int n : bt.fixed_shape) {
+          Value e = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(n) + ")"));
+          e.literal = true;
+          e.literal_text = std::to_string(n);
+          v.elems.push_back(e);
+        }
+        return v;
+      }
       for (int k = 0; k < bt.ndim; ++k)
         v.elems.push_back(Value::OfVar(EmitRaw(Type::Int32(),
                                                bt.indexed ? "wp::int32(wp::array_dim($0, " + std::to_string(k) + "))"
@@ -878,6 +887,9 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
   if (name == "len") {
     if (args.size() != 1 || args[0].kind != Value::Kind::kVar) return Error(loc, "len() takes one value");
     const Type& t = TypeOf(args[0].var);
+    if (t.is_fixed_array())
+      return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.fixed_shape[0]) + ")"));
+    if (t.is_indexed_array()) return Value::OfVar(EmitRaw(Type::Int32(), "wp::len($0)", {args[0].var}));
     if (t.is_array()) return Value::OfVar(EmitRaw(Type::Int32(), "wp::int32($0.shape[0])", {args[0].var}));
     if (t.is_vector() || t.kind == TypeKind::kQuat || t.kind == TypeKind::kTransform)
       return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.component_count()) + ")"));
@@ -1000,7 +1012,50 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     ast::Call empty;
     return CallConstructor(t, std::move(vals), loc, call ? *call : empty);
   }
-  if (name == "zeros" || name == "cast" || name == "static")
+  if (name == "zeros") {
+    // wp.zeros(shape=..., dtype=...) in a kernel or func: a fixed-size array value, zeroed.
+    const ast::Expr* sh = kwarg("shape");
+    const ast::Expr* dt = kwarg("dtype");
+    if (call && !call->args.empty()) sh = call->args[0].get();
+    if (call && call->args.size() > 1) dt = call->args[1].get();
+    const std::string kNotConst = "the `shape` argument must be specified as a constant when zero-initializing an array";
+    if (!sh) return Error(loc, kNotConst);
+    std::vector<const ast::Expr*> dims;
+    if (const auto* tu = ast::As<ast::Tuple>(sh)) {
+      for (const auto& e : tu->elts) dims.push_back(e.get());
+    } else {
+      dims.push_back(sh);
+    }
+    if (dims.empty() || dims.size() > 4) return Error(sh->loc, "a fixed-size array has 1 to 4 dimensions");
+    std::vector<int> shape;
+    int64_t total = 1;
+    for (const ast::Expr* d : dims) {
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*d));
+      if (v.kind != Value::Kind::kVar || !v.literal || !IsIntLiteralText(v.literal_text) || v.literal_text[0] == '-' ||
+          v.literal_text.size() > 5)
+        return Error(d->loc, kNotConst);
+      const int n = std::stoi(v.literal_text);
+      total *= n;
+      if (n < 1 || total > kMaxFixedArrayElements)
+        return Error(d->loc, "a fixed-size array holds 1 to " + std::to_string(kMaxFixedArrayElements) + " elements");
+      shape.push_back(n);
+    }
+    Type elem = Type::Float32();
+    if (dt) {
+      WEFT_ASSIGN_OR_RETURN(elem, EvalTypeExpr(*dt));
+    }
+    if (elem.is_array() || elem.is_void() || elem.is_tuple() || elem.is_any() || elem.kind == TypeKind::kString)
+      return Error(loc, "wp.zeros: bad dtype " + TypeString(elem));
+    Type t = Type::FixedArray(elem, shape);
+    Stmt st;
+    st.op.kind = OpKind::kConstruct;
+    st.op.mode = ConstructMode::kZero;
+    int d = NewVar(t);
+    st.op.dst.push_back(d);
+    Push(std::move(st));
+    return Value::OfVar(d);
+  }
+  if (name == "cast" || name == "static")
     return Error(loc, "wp." + name + "() is not supported in weft kernels yet");
   if (call && !call->keywords.empty()) {
     // Map keywords onto the parameter names of each overload in turn.
@@ -1227,7 +1282,11 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
           ok = false;
           break;
         }
-        const Type at = TypeOf(a.var);
+        Type at = TypeOf(a.var);
+        // A fixed-size array passed for an array parameter: the callee gets an array view of
+        // the caller's elements (writes reach them, as in Warp).
+        if (at.is_fixed_array() && c.types[i].is_array() && !c.types[i].is_fixed_array() && !c.types[i].indexed)
+          at = Type::Array(at.elem(), at.ndim);
         if (c.types[i] == at) continue;
         if (ContainsAny(c.types[i])) {
           ok = GenericAccepts(c.types[i], at);
@@ -1240,6 +1299,11 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
       if (!ok) continue;
       std::vector<int> argv;
       for (size_t i = 0; i < slots.size(); ++i) {
+        if (slots[i] && slots[i]->kind == Value::Kind::kVar && TypeOf(slots[i]->var).is_fixed_array() &&
+            inst[i].is_array() && !inst[i].is_fixed_array()) {
+          argv.push_back(EmitRaw(inst[i], "wp::as_array($0)", {slots[i]->var}));
+          continue;
+        }
         if (slots[i]) {
           WEFT_ASSIGN_OR_RETURN(int v, Coerce(*slots[i], inst[i], loc, "argument '" + params[i].name + "'"));
           argv.push_back(v);

@@ -124,6 +124,23 @@ class TypeReader {
       if (id == "indexedarray") return Type::IndexedArray(std::move(elem), ndim);
       return Type::Array(std::move(elem), ndim);
     }
+    if (id == "fixedarray") {
+      if (!Eat('(')) return Error("expected '('");
+      WEFT_ASSIGN_OR_RETURN(Type elem, Read());
+      std::vector<int> shape;
+      int64_t total = 1;
+      while (Eat(',')) {
+        WEFT_ASSIGN_OR_RETURN(int n, Int());
+        if (n < 1 || n > kMaxFixedArrayElements) return Error("fixed array extent out of range");
+        total *= n;
+        if (total > kMaxFixedArrayElements) return Error("fixed array too large");
+        shape.push_back(n);
+      }
+      if (!Eat(')')) return Error("expected ')'");
+      if (shape.empty() || shape.size() > 4) return Error("fixed arrays have 1 to 4 dimensions");
+      if (elem.is_array() || elem.is_void() || elem.is_tuple() || elem.is_any()) return Error("bad array element type");
+      return Type::FixedArray(std::move(elem), std::move(shape));
+    }
     if (id == "struct") {
       if (!Eat('(')) return Error("expected '('");
       std::string name = Ident();
@@ -223,7 +240,7 @@ bool Type::operator==(const Type& o) const {
     case TypeKind::kTransform: return scalar == o.scalar;
     case TypeKind::kVector: return scalar == o.scalar && rows == o.rows;
     case TypeKind::kMatrix: return scalar == o.scalar && rows == o.rows && cols == o.cols;
-    case TypeKind::kArray: return ndim == o.ndim && indexed == o.indexed && sub == o.sub;
+    case TypeKind::kArray: return ndim == o.ndim && indexed == o.indexed && fixed_shape == o.fixed_shape && sub == o.sub;
     case TypeKind::kStruct: return struct_name == o.struct_name;
     case TypeKind::kTuple: return sub == o.sub;
   }
@@ -295,8 +312,14 @@ std::string TypeString(const Type& t) {
       return "mat(" + std::to_string(t.rows) + "," + std::to_string(t.cols) + "," + ScalarName(t.scalar) + ")";
     case TypeKind::kQuat: return std::string("quat(") + ScalarName(t.scalar) + ")";
     case TypeKind::kTransform: return std::string("transform(") + ScalarName(t.scalar) + ")";
-    case TypeKind::kArray:
+    case TypeKind::kArray: {
+      if (t.is_fixed_array()) {
+        std::string r = "fixedarray(" + TypeString(t.elem());
+        for (int n : t.fixed_shape) r += "," + std::to_string(n);
+        return r + ")";
+      }
       return (t.indexed ? "indexedarray(" : "array(") + TypeString(t.elem()) + "," + std::to_string(t.ndim) + ")";
+    }
     case TypeKind::kStruct: return "struct(" + t.struct_name + ")";
     case TypeKind::kTuple: {
       std::string s = "tuple(";
@@ -337,7 +360,14 @@ std::string CppType(const Type& t) {
       return "wp::mat_t<" + std::to_string(t.rows) + "," + std::to_string(t.cols) + "," + elem() + ">";
     case TypeKind::kQuat: return "wp::quat_t<" + elem() + ">";
     case TypeKind::kTransform: return "wp::transform_t<" + elem() + ">";
-    case TypeKind::kArray: return (t.indexed ? "wp::indexedarray_t<" : "wp::array_t<") + CppType(t.elem()) + ">";
+    case TypeKind::kArray: {
+      if (t.is_fixed_array()) {
+        std::string r = "wp::fixedarray_t<" + CppType(t.elem());
+        for (int d = 0; d < 4; ++d) r += "," + std::to_string(d < static_cast<int>(t.fixed_shape.size()) ? t.fixed_shape[d] : 0);
+        return r + ">";
+      }
+      return (t.indexed ? "wp::indexedarray_t<" : "wp::array_t<") + CppType(t.elem()) + ">";
+    }
     case TypeKind::kStruct: return "wp::" + StructCppName(t.struct_name);
     case TypeKind::kTuple: return "/*tuple*/void";
   }
@@ -357,7 +387,9 @@ Expected<TypeLayout> LayoutOf(const Type& t, const StructTable& structs) {
       uint32_t s = static_cast<uint32_t>(ScalarSize(t.scalar));
       return TypeLayout{s * static_cast<uint32_t>(t.component_count()), s};
     }
-    case TypeKind::kArray: return t.indexed ? TypeLayout{88 * 5, 8} : TypeLayout{88, 8};
+    case TypeKind::kArray:
+      if (t.is_fixed_array()) return InvalidArgument("fixed-size arrays cannot be kernel arguments or struct fields");
+      return t.indexed ? TypeLayout{88 * 5, 8} : TypeLayout{88, 8};
     case TypeKind::kStruct: {
       auto it = structs.find(t.struct_name);
       if (it == structs.end()) return InvalidArgument("unknown struct '" + t.struct_name + "'");

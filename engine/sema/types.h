@@ -44,6 +44,9 @@ enum class TypeKind : uint8_t {
   kString,     // a string literal (printf format); not a storable value
 };
 
+// Elements of one fixed-size array (a kernel-local value on the thread's stack).
+constexpr int kMaxFixedArrayElements = 4096;
+
 struct Type {
   TypeKind kind = TypeKind::kVoid;
   ScalarKind scalar = ScalarKind::kFloat32;  // scalar, or the element scalar of vec/mat/quat/transform
@@ -51,6 +54,9 @@ struct Type {
   int cols = 0;
   int ndim = 0;
   bool indexed = false;  // kArray: an indexed array (wp::indexedarray_t: data + int32 index arrays)
+  // kArray: a fixed-size array (wp.zeros(shape=..., dtype=...) in a kernel): a value holding its
+  // elements (wp::fixedarray_t), one extent per dimension (ndim = size()); empty otherwise.
+  std::vector<int> fixed_shape;
   std::vector<Type> sub;
   std::string struct_name;
 
@@ -71,6 +77,11 @@ struct Type {
     Type t; t.kind = TypeKind::kArray; t.ndim = ndim; t.sub.push_back(std::move(elem)); return t;
   }
   static Type IndexedArray(Type elem, int ndim) { Type t = Array(std::move(elem), ndim); t.indexed = true; return t; }
+  static Type FixedArray(Type elem, std::vector<int> shape) {
+    Type t = Array(std::move(elem), static_cast<int>(shape.size()));
+    t.fixed_shape = std::move(shape);
+    return t;
+  }
   static Type Struct(std::string name) { Type t; t.kind = TypeKind::kStruct; t.struct_name = std::move(name); return t; }
   static Type Tuple(std::vector<Type> elems) { Type t; t.kind = TypeKind::kTuple; t.sub = std::move(elems); return t; }
 
@@ -78,6 +89,7 @@ struct Type {
   bool is_scalar() const { return kind == TypeKind::kScalar; }
   bool is_array() const { return kind == TypeKind::kArray; }  // plain or indexed
   bool is_indexed_array() const { return kind == TypeKind::kArray && indexed; }
+  bool is_fixed_array() const { return kind == TypeKind::kArray && !fixed_shape.empty(); }
   bool is_struct() const { return kind == TypeKind::kStruct; }
   bool is_vector() const { return kind == TypeKind::kVector; }
   bool is_matrix() const { return kind == TypeKind::kMatrix; }

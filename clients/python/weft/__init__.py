@@ -10,6 +10,7 @@ from .config import (LOG_DEBUG, LOG_ERROR, LOG_INFO, LOG_WARNING,  # noqa: F401
 from .array import (ARRAY_MAX_DIMS, array, array1d, array2d, array3d, array4d, clone,  # noqa: F401
                     copy, empty, empty_like, from_ipc_handle, from_numpy, full, full_like, ones,
                     ones_like, zeros, zeros_like)
+from .fixedarray import fixedarray  # noqa: F401
 from .indexedarray import (indexedarray, indexedarray1d, indexedarray2d,  # noqa: F401
                            indexedarray3d, indexedarray4d)
 from .device import (Device, ScopedDevice, get_cuda_device, get_cuda_device_count,  # noqa: F401

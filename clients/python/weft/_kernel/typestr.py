@@ -130,6 +130,9 @@ def _parse(text: str) -> TypeDesc:
         return TypeDesc("transform", text, scalar=args[0], shape=(7,))
     if head == "array" and len(args) == 2:
         return TypeDesc("array", text, elem=parse(args[0]), ndim=int(args[1]))
+    if head == "fixedarray" and 2 <= len(args) <= 5:
+        return TypeDesc("fixedarray", text, elem=parse(args[0]), ndim=len(args) - 1,
+                        shape=tuple(int(a) for a in args[1:]))
     if head == "indexedarray" and len(args) == 2:
         return TypeDesc("indexedarray", text, elem=parse(args[0]), ndim=int(args[1]))
     if head == "struct" and len(args) == 1:
