@@ -203,6 +203,31 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
     const Type& base = t.is_array() ? t.elem() : t;
     if (base.is_struct() && !module_.structs.count(base.struct_name))
       return finish_error(Error(params[i].loc, "unknown struct type '" + base.struct_name + "'"));
+    if (t.is_function()) {
+      // A wp.Function parameter: each target is its own instantiation; no runtime parameter.
+      Value fv;
+      const std::string& target = t.struct_name;
+      if (target.rfind("func:", 0) == 0) fv.kind = Value::Kind::kFunc, fv.name = target.substr(5);
+      else if (target.rfind("builtin:", 0) == 0) fv.kind = Value::Kind::kBuiltin, fv.name = target.substr(8);
+      else return finish_error(Error(params[i].loc, "'" + params[i].name + "' needs a function argument"));
+      state.func_scope[params[i].name] = fv;
+      continue;
+    }
+    if (t.is_tuple()) {
+      // A tuple parameter: one parameter per element; the name stands for the tuple.
+      if (fs.is_kernel) return finish_error(Error(params[i].loc, "kernel parameters cannot be tuples"));
+      Value tv;
+      tv.kind = Value::Kind::kTuple;
+      for (size_t k = 0; k < t.sub.size(); ++k) {
+        int v = NewVar(t.sub[k], params[i].name + "_" + std::to_string(k));
+        fn.vars[v].is_param = true;
+        fn.params.push_back(v);
+        fn.param_names.push_back(params[i].name + "_" + std::to_string(k));
+        tv.elems.push_back(Value::OfVar(v));
+      }
+      state.tuple_scope[params[i].name] = std::move(tv);
+      continue;
+    }
     int v = NewVar(t, params[i].name);
     fn.vars[v].is_param = true;
     fn.params.push_back(v);
@@ -547,10 +572,33 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
 Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
   const SourceLocation& loc = target.loc;
   if (const auto* n = ast::As<ast::Name>(&target)) {
+    if (value.kind == Value::Kind::kTuple) {
+      // A tuple value (Warp's tuples): the name stands for its elements (len(), t[i], unpacking,
+      // passing to a func's tuple or Any parameter).
+      if (st_->scope.count(n->id))
+        return Error(loc, "'" + n->id + "' holds a single value; it cannot be rebound to a tuple");
+      Value t;
+      t.kind = Value::Kind::kTuple;
+      for (const Value& e : value.elems) {
+        if (e.kind != Value::Kind::kVar || TypeOf(e.var).is_void())
+          return Error(loc, "a tuple assigned to '" + n->id + "' must hold runtime values");
+        Value x = e;
+        if (st_->fn.vars[e.var].is_mutable) {
+          int copy = NewVar(TypeOf(e.var), n->id);
+          EmitCopy(copy, e.var);
+          x = Value::OfVar(copy);
+        }
+        t.elems.push_back(x);
+      }
+      st_->tuple_scope[n->id] = std::move(t);
+      return Status::Ok();
+    }
+    if (value.kind == Value::Kind::kFunc || value.kind == Value::Kind::kBuiltin) {
+      if (st_->scope.count(n->id)) return Error(loc, "'" + n->id + "' holds a value; it cannot be rebound to a function");
+      st_->func_scope[n->id] = value;
+      return Status::Ok();
+    }
     if (value.kind != Value::Kind::kVar) {
-      if (value.kind == Value::Kind::kTuple)
-        return Error(loc, "cannot assign " + std::to_string(value.elems.size()) + " values to one name '" + n->id +
-                              "'; unpack them: a, b = ...");
       return Error(loc, "'" + n->id + "' cannot hold " +
                             (value.kind == Value::Kind::kType ? "a type" : std::string("this value")) +
                             " (only runtime values can be assigned)");

@@ -317,6 +317,10 @@ Expected<Value> Checker::EvalName(const ast::Name& n) {
     }
     return v;
   }
+  auto tu = st_->tuple_scope.find(n.id);
+  if (tu != st_->tuple_scope.end()) return tu->second;
+  auto fu = st_->func_scope.find(n.id);
+  if (fu != st_->func_scope.end()) return fu->second;
   bool found = false;
   WEFT_ASSIGN_OR_RETURN(Value v, LookupGlobal(n.id, n.loc, &found));
   if (!found) return Error(n.loc, "unknown name '" + n.id + "'");
@@ -527,6 +531,31 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
   }
   if (base.kind == Value::Kind::kTuple) {
     const auto* c = s.indices.size() == 1 ? ast::As<ast::Constant>(s.indices[0].get()) : nullptr;
+    if (!c && s.indices.size() == 1 && !base.elems.empty()) {
+      // t[i] with i known only at run time: elements of one type, selected by i (an index
+      // outside the tuple reads the last element).
+      WEFT_ASSIGN_OR_RETURN(Value iv, Eval(*s.indices[0]));
+      if (iv.kind == Value::Kind::kVar && iv.literal && IsIntLiteralText(iv.literal_text)) {
+        const long long k = std::stoll(iv.literal_text);
+        if (k < 0 || k >= static_cast<long long>(base.elems.size()))
+          return Error(s.indices[0]->loc, "index " + iv.literal_text + " out of range for a tuple of " +
+                                              std::to_string(base.elems.size()));
+        return base.elems[static_cast<size_t>(k)];
+      }
+      if (iv.kind != Value::Kind::kVar || !TypeOf(iv.var).is_scalar() || !IsInt(TypeOf(iv.var).scalar))
+        return Error(s.loc, "a tuple takes one integer index");
+      const Type et = base.elems[0].kind == Value::Kind::kVar ? TypeOf(base.elems[0].var) : Type::Void();
+      std::vector<int> vars{iv.var};
+      for (const Value& e : base.elems) {
+        if (e.kind != Value::Kind::kVar || TypeOf(e.var) != et)
+          return Error(s.loc, "a tuple indexed with a value known only at run time must hold elements of one type");
+        vars.push_back(e.var);
+      }
+      std::string text = "$" + std::to_string(vars.size() - 1);
+      for (size_t k = base.elems.size() - 1; k-- > 0;)
+        text = "($0 == " + std::to_string(k) + " ? $" + std::to_string(k + 1) + " : " + text + ")";
+      return Value::OfVar(EmitRaw(et, text, vars));
+    }
     if (!c || c->type != ast::Constant::Type::kInt)
       return Error(s.loc, "a tuple (such as .shape) takes one constant integer index");
     if (c->int_value >= base.elems.size())
@@ -884,6 +913,13 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     return Value::OfVar(d);
   }
   if (name == "range") return Error(loc, "range() is only allowed as the iterable of a for loop");
+  if (name == "len" && args.size() == 1 && args[0].kind == Value::Kind::kTuple) {
+    const std::string n = std::to_string(args[0].elems.size());
+    Value v = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + n + ")"));
+    v.literal = true;
+    v.literal_text = n;
+    return v;
+  }
   if (name == "len") {
     if (args.size() != 1 || args[0].kind != Value::Kind::kVar) return Error(loc, "len() takes one value");
     const Type& t = TypeOf(args[0].var);
@@ -1055,6 +1091,10 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     Push(std::move(st));
     return Value::OfVar(d);
   }
+  if (name == "static" && args.size() == 1 && (!call || call->keywords.empty()) &&
+      ((args[0].kind == Value::Kind::kVar && args[0].literal) || args[0].kind == Value::Kind::kType ||
+       args[0].kind == Value::Kind::kFunc))
+    return args[0];   // a value known while compiling (len() of a tuple, a constant)
   if (name == "cast" || name == "static")
     return Error(loc, "wp." + name + "() is not supported in weft kernels yet");
   if (call && !call->keywords.empty()) {
@@ -1278,6 +1318,28 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
       for (size_t i = 0; i < slots.size() && ok; ++i) {
         if (!slots[i]) continue;
         const Value& a = *slots[i];
+        if (c.types[i].is_function() || a.kind == Value::Kind::kFunc || a.kind == Value::Kind::kBuiltin) {
+          ok = c.types[i].is_function() && (a.kind == Value::Kind::kFunc || a.kind == Value::Kind::kBuiltin);
+          if (!ok) break;
+          inst[i] = Type::Function((a.kind == Value::Kind::kFunc ? "func:" : "builtin:") + a.name);
+          continue;
+        }
+        if (a.kind == Value::Kind::kTuple) {
+          // a tuple for a tuple parameter of the same element types, or for an Any parameter
+          std::vector<Type> elems;
+          for (const Value& e : a.elems) {
+            if (e.kind != Value::Kind::kVar) break;
+            elems.push_back(TypeOf(e.var));
+          }
+          const Type& p = c.types[i];
+          ok = elems.size() == a.elems.size() &&
+               (p.is_any() || (p.is_tuple() && p.sub.size() == elems.size()));
+          for (size_t k = 0; ok && p.is_tuple() && k < elems.size(); ++k)
+            ok = p.sub[k] == elems[k] || (ContainsAny(p.sub[k]) && GenericAccepts(p.sub[k], elems[k]));
+          if (!ok) break;
+          inst[i] = Type::Tuple(elems);
+          continue;
+        }
         if (a.kind != Value::Kind::kVar) {
           ok = false;
           break;
@@ -1299,6 +1361,11 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
       if (!ok) continue;
       std::vector<int> argv;
       for (size_t i = 0; i < slots.size(); ++i) {
+        if (slots[i] && inst[i].is_function()) continue;   // compile-time: no argument
+        if (slots[i] && slots[i]->kind == Value::Kind::kTuple) {
+          for (const Value& e : slots[i]->elems) argv.push_back(e.var);
+          continue;
+        }
         if (slots[i] && slots[i]->kind == Value::Kind::kVar && TypeOf(slots[i]->var).is_fixed_array() &&
             inst[i].is_array() && !inst[i].is_fixed_array()) {
           argv.push_back(EmitRaw(inst[i], "wp::as_array($0)", {slots[i]->var}));
@@ -1310,6 +1377,12 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
           continue;
         }
         WEFT_ASSIGN_OR_RETURN(Value dv, Eval(*params[i].default_value));
+        if (inst[i].is_function()) {
+          if (dv.kind != Value::Kind::kFunc && dv.kind != Value::Kind::kBuiltin)
+            return Error(params[i].loc, "the default of '" + params[i].name + "' is not a function");
+          inst[i] = Type::Function((dv.kind == Value::Kind::kFunc ? "func:" : "builtin:") + dv.name);
+          continue;
+        }
         if (dv.kind != Value::Kind::kVar)
           return Error(params[i].loc, "the default of '" + params[i].name + "' is not a value");
         if (ContainsAny(inst[i])) inst[i] = TypeOf(dv.var);

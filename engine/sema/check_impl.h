@@ -55,6 +55,10 @@ class Checker {
     std::vector<std::string> source_lines;
     std::map<std::string, int> assign_counts;   // name -> assignments in the whole body
     std::map<std::string, std::pair<int, std::string>> literal_locals;   // name -> (var, literal text)
+    // Names bound to tuples (t = (a, b), a tuple parameter): their element values, each a var.
+    std::map<std::string, Value> tuple_scope;
+    // Names bound to functions (a wp.Function parameter, f = some_func): kFunc / kBuiltin values.
+    std::map<std::string, Value> func_scope;
   };
 
   // check.cpp

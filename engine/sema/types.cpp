@@ -80,6 +80,7 @@ class TypeReader {
     if (ParseScalarName(id, &sk)) return Type::Scalar(sk);
     if (id == "any") return Type::Any();
     if (id == "void" || id == "None") return Type::Void();
+    if (id == "function") return Type::Function();
     if (id == "vec") {
       if (!Eat('(')) return Error("expected '('");
       WEFT_ASSIGN_OR_RETURN(int n, Int());
@@ -235,6 +236,7 @@ bool Type::operator==(const Type& o) const {
     case TypeKind::kVoid:
     case TypeKind::kAny:
     case TypeKind::kString: return true;
+    case TypeKind::kFunction: return struct_name == o.struct_name;
     case TypeKind::kScalar:
     case TypeKind::kQuat:
     case TypeKind::kTransform: return scalar == o.scalar;
@@ -279,7 +281,7 @@ bool ParseScalarName(std::string_view name, ScalarKind* out) {
 }
 
 bool ContainsAny(const Type& t) {
-  if (t.is_any()) return true;
+  if (t.is_any() || (t.is_function() && t.struct_name.empty())) return true;
   for (const auto& s : t.sub)
     if (ContainsAny(s)) return true;
   return false;
@@ -306,6 +308,7 @@ std::string TypeString(const Type& t) {
     case TypeKind::kVoid: return "void";
     case TypeKind::kAny: return "any";
     case TypeKind::kString: return "str";
+    case TypeKind::kFunction: return t.struct_name.empty() ? "function" : "function(" + t.struct_name + ")";
     case TypeKind::kScalar: return ScalarName(t.scalar);
     case TypeKind::kVector: return "vec(" + std::to_string(t.rows) + "," + ScalarName(t.scalar) + ")";
     case TypeKind::kMatrix:
@@ -353,6 +356,7 @@ std::string CppType(const Type& t) {
     case TypeKind::kVoid: return "void";
     case TypeKind::kAny: return "/*any*/void";
     case TypeKind::kString: return "const char*";
+    case TypeKind::kFunction: return "/*function*/void";
     case TypeKind::kScalar:
       return t.scalar == ScalarKind::kBool ? "bool" : std::string("wp::") + ScalarName(t.scalar);
     case TypeKind::kVector: return "wp::vec_t<" + std::to_string(t.rows) + "," + elem() + ">";

@@ -42,6 +42,8 @@ enum class TypeKind : uint8_t {
   kAny,        // typing.Any in generic funcs; never reaches codegen
   kTuple,      // sub = element types (multiple return values)
   kString,     // a string literal (printf format); not a storable value
+  kFunction,   // a wp.Function parameter: struct_name = its target ("func:<name>" / "builtin:<name>"),
+               // empty in a declaration (any function); a compile-time value, never stored
 };
 
 // Elements of one fixed-size array (a kernel-local value on the thread's stack).
@@ -83,6 +85,12 @@ struct Type {
     return t;
   }
   static Type Struct(std::string name) { Type t; t.kind = TypeKind::kStruct; t.struct_name = std::move(name); return t; }
+  static Type Function(std::string target = "") {
+    Type t;
+    t.kind = TypeKind::kFunction;
+    t.struct_name = std::move(target);
+    return t;
+  }
   static Type Tuple(std::vector<Type> elems) { Type t; t.kind = TypeKind::kTuple; t.sub = std::move(elems); return t; }
 
   bool is_void() const { return kind == TypeKind::kVoid; }
@@ -95,6 +103,7 @@ struct Type {
   bool is_matrix() const { return kind == TypeKind::kMatrix; }
   bool is_tuple() const { return kind == TypeKind::kTuple; }
   bool is_any() const { return kind == TypeKind::kAny; }
+  bool is_function() const { return kind == TypeKind::kFunction; }
   // vec, mat, quat, transform: fixed-size aggregates of one scalar type
   bool is_composite() const {
     return kind == TypeKind::kVector || kind == TypeKind::kMatrix || kind == TypeKind::kQuat ||

@@ -181,6 +181,14 @@ def type_string(obj) -> str:
     constructor or an array dtype. Raises TypeError when obj is not a type weft knows."""
     if obj is typing.Any:
         return "any"
+    if getattr(obj, "_weft_function_type_", False) and isinstance(obj, type):
+        return "function"      # wp.Function: a parameter taking a @wp.func or builtin
+    if typing.get_origin(obj) is tuple:
+        # tuple[int, float] parameters and returns; tuple[int, ...] takes any tuple
+        args = typing.get_args(obj)
+        if not args or Ellipsis in args:
+            return "any"
+        return "tuple(" + ",".join(type_string(a) for a in args) + ")"
     scalar = _scalar_name_of(obj)
     if scalar is not None:
         return scalar
