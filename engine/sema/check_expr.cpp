@@ -25,6 +25,10 @@ const std::map<ast::BinaryOperator, std::string>& BinaryBuiltins() {
   return kNames;
 }
 
+// Function symbol target of a global bound to a builtin: "__weft_builtin__.<name>" (a dotted
+// name, as every function target; no module of a Python program is named so).
+constexpr const char* kBuiltinTargetPrefix = "__weft_builtin__.";
+
 bool IsIntLiteralText(const std::string& t) {
   if (t.empty()) return false;
   size_t i = (t[0] == '-' || t[0] == '+') ? 1 : 0;
@@ -277,7 +281,19 @@ Expected<Value> Checker::LookupGlobal(const std::string& name, const SourceLocat
     switch (s.kind) {
       case Symbol::Kind::kBuiltinModule: v.kind = Value::Kind::kModule; return v;
       case Symbol::Kind::kConstant: return EvalConstantSymbol(s.constant, loc);
-      case Symbol::Kind::kFunction: v.kind = Value::Kind::kFunc; v.name = name; return v;
+      case Symbol::Kind::kFunction:
+        if (s.target.rfind(kBuiltinTargetPrefix, 0) == 0) {
+          // A global bound to a builtin (TARGET = wp.sin): the builtin itself.
+          const std::string b = s.target.substr(std::string(kBuiltinTargetPrefix).size());
+          if (BuiltinRegistry::Get().Overloads(b).empty() && !IsSpecialBuiltin(b))
+            return Error(loc, "'" + name + "' names no weft builtin ('" + b + "')");
+          v.kind = Value::Kind::kBuiltin;
+          v.name = b;
+          return v;
+        }
+        v.kind = Value::Kind::kFunc;
+        v.name = name;
+        return v;
       case Symbol::Kind::kType: {
         auto t = ParseType(s.target);
         if (!t.ok()) return Error(loc, "'" + name + "': " + t.status().message());

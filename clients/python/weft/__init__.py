@@ -41,6 +41,8 @@ def constant(x):
     return x
 
 
+from ._builtin_refs import *  # noqa: F401,F403,E402
+from ._kernel.annotations import ref  # noqa: F401,E402
 from ._kernel.api import *  # noqa: F401,F403,E402
 from ._kernel.transform_funcs import (transform_compose, transform_decompose,  # noqa: F401,E402
                                       transform_from_matrix, transform_to_matrix)

@@ -183,6 +183,9 @@ def type_string(obj) -> str:
         return "any"
     if getattr(obj, "_weft_function_type_", False) and isinstance(obj, type):
         return "function"      # wp.Function: a parameter taking a @wp.func or builtin
+    if getattr(typing.get_origin(obj), "__name__", "") == "ref" and \
+            getattr(typing.get_origin(obj), "__module__", "").startswith("weft."):
+        return f"ref({type_string(typing.get_args(obj)[0])})"
     if typing.get_origin(obj) is tuple:
         # tuple[int, float] parameters and returns; tuple[int, ...] takes any tuple
         args = typing.get_args(obj)
