@@ -421,6 +421,24 @@ class FnEmitter {
           }
         }
         Line(d() + " = " + text + ";");
+        if (Links(T(op.dst[0]))) {
+          // an array-valued expression (a slice, a fixed array's view): its adjoint is the same
+          // expression of the arguments' adjoint arrays
+          std::string adj;
+          for (size_t i = 0; i < op.text.size(); ++i) {
+            if (op.text[i] == '$' && i + 1 < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[i + 1]))) {
+              size_t j = i + 1;
+              int k = 0;
+              while (j < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[j]))) k = k * 10 + (op.text[j++] - '0');
+              const int a = op.args.at(k);
+              adj += HasArrays(T(a), m_.structs) ? A(a) : V(a);
+              i = j - 1;
+            } else {
+              adj += op.text[i];
+            }
+          }
+          Line(A(op.dst[0]) + " = " + adj + ";");
+        }
         return;
       }
       case OpKind::kCall: {

@@ -411,6 +411,7 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
     if (a.attr == "shape") {
       Value v;
       v.kind = Value::Kind::kTuple;
+      v.name = "__shape";   // a.shape[k] past the dimensions reads 0 (Warp's shape_t)
       if (bt.is_fixed_array()) {
         for (int n : bt.fixed_shape) {
           Value e = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(n) + ")"));
@@ -454,6 +455,57 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
     return ResolveAndEmitBuiltin(a.attr == "p" ? "transform_get_translation" : "transform_get_rotation", {base}, a.loc);
   }
   return Error(a.attr_loc, "a value of type " + TypeString(bt) + " has no attribute '" + a.attr + "'");
+}
+
+// a[1:3], a[:2, 1:], a[i, ::2] on an array or fixed-size array: a view (Python's slice rules:
+// negative bounds count from the end, bounds clamp to the extent, a step must be positive; an
+// integer index drops its dimension). Its gradient is the same view of the gradient array.
+Expected<Value> Checker::EvalArraySlice(const ast::Subscript& s, const Value& base) {
+  const Type bt = TypeOf(base.var);
+  if (static_cast<int>(s.indices.size()) > bt.ndim)
+    return Error(s.loc, "array '" + ExprText(*s.value) + "' has " + std::to_string(bt.ndim) + " dimensions but " +
+                            std::to_string(s.indices.size()) + " indices were given");
+  std::vector<int> vars{base.var};
+  auto int_var = [&](const ast::Expr* e, const char* dflt) -> Expected<int> {
+    if (!e) return EmitConst(Type::Scalar(ScalarKind::kInt64), dflt);
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
+    if (v.kind != Value::Kind::kVar || !TypeOf(v.var).is_scalar() || !IsInt(TypeOf(v.var).scalar))
+      return Error(e->loc, "slice bound '" + ExprText(*e) + "' must be an integer");
+    return v.var;
+  };
+  std::string kinds, vals;
+  int out_ndim = 0;
+  for (size_t d = 0; d < s.indices.size(); ++d) {
+    const ast::Expr* e = s.indices[d].get();
+    if (const auto* sl = ast::As<ast::Slice>(e)) {
+      WEFT_ASSIGN_OR_RETURN(int lo, int_var(sl->lower.get(), "wp::cg_slice_none"));
+      WEFT_ASSIGN_OR_RETURN(int hi, int_var(sl->upper.get(), "wp::cg_slice_none"));
+      WEFT_ASSIGN_OR_RETURN(int st, int_var(sl->step.get(), "wp::int64(1)"));
+      for (int v : {lo, hi, st}) vars.push_back(v);
+      kinds += "1, ";
+      ++out_ndim;
+    } else {
+      WEFT_ASSIGN_OR_RETURN(int iv, int_var(e, "0"));
+      vars.push_back(iv);
+      vars.push_back(iv);
+      vars.push_back(iv);
+      kinds += "0, ";
+    }
+    const size_t b = vars.size() - 3;
+    vals += (d ? ", " : "") + std::string("{wp::int64($") + std::to_string(b) + "), wp::int64($" + std::to_string(b + 1) +
+            "), wp::int64($" + std::to_string(b + 2) + ")}";
+  }
+  out_ndim += bt.ndim - static_cast<int>(s.indices.size());
+  if (out_ndim < 1) return Error(s.loc, "a slice of '" + ExprText(*s.value) + "' keeps no dimension");
+  for (size_t d = s.indices.size(); d < 4; ++d) kinds += "0, ";
+  kinds.resize(kinds.size() - 2);
+  const std::string text = "wp::cg_slice(wp::as_array($0), " + std::to_string(s.indices.size()) + ", wp::cg_slice_kinds_t{{" +
+                           kinds + "}}, wp::cg_slice_bounds_t{{" + vals + "}})";
+  int v = EmitRaw(Type::Array(bt.elem(), out_ndim), text, vars);
+  if (ArrayParamOf(base.var) >= 0) st_->array_param[v] = ArrayParamOf(base.var);
+  Value r = Value::OfVar(v);
+  r.source = ExprText(s);
+  return r;
 }
 
 Expected<std::vector<int>> Checker::EvalIndices(const ast::ExprList& idx, bool array_base) {
@@ -574,6 +626,12 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
     }
     if (!c || c->type != ast::Constant::Type::kInt)
       return Error(s.loc, "a tuple (such as .shape) takes one constant integer index");
+    if (base.name == "__shape" && c->int_value >= base.elems.size() && c->int_value < 4) {
+      Value z = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(0)"));
+      z.literal = true;
+      z.literal_text = "0";
+      return z;
+    }
     if (c->int_value >= base.elems.size())
       return Error(s.indices[0]->loc, "index " + std::to_string(c->int_value) + " out of range for a tuple of " +
                                           std::to_string(base.elems.size()));
@@ -581,6 +639,9 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
   }
   if (base.kind != Value::Kind::kVar) return Error(s.loc, "'" + ExprText(*s.value) + "' cannot be indexed");
   const Type bt = TypeOf(base.var);
+  bool has_slice = false;
+  for (const auto& e : s.indices) has_slice |= ast::As<ast::Slice>(e.get()) != nullptr;
+  if (has_slice && bt.is_array() && !bt.indexed) return EvalArraySlice(s, base);
   WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(s.indices, bt.is_array()));
   if (bt.is_array()) {
     if (static_cast<int>(idx.size()) < bt.ndim) {

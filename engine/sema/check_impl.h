@@ -82,6 +82,7 @@ class Checker {
   // check_expr.cpp
   Expected<Value> Eval(const ast::Expr& e);
   Expected<int> EvalVar(const ast::Expr& e);          // must be a runtime value
+  Expected<Value> EvalArraySlice(const ast::Subscript& s, const Value& base);
   Expected<int> EvalCond(const ast::Expr& e);         // bool var (ints compared with 0)
   Expected<Value> EvalName(const ast::Name& n);
   Expected<Value> EvalAttribute(const ast::Attribute& a);

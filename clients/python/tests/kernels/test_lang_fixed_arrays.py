@@ -127,3 +127,49 @@ def test_fixed_index_out_of_bounds(wp):
     with pytest.raises(wp.WeftError, match="out of bounds"):
         wp.synchronize()
     np.testing.assert_array_equal(neighbour.numpy(), 2.0)
+
+
+@wp.kernel
+def slice_kernel(a: wp.array2d(dtype=wp.float64), out: wp.array(dtype=wp.float64), lo: int):
+    s = a[lo:, ::2]
+    t = a[1, -3:]
+    f = wp.zeros(shape=(3, 4), dtype=wp.float64)
+    for r in range(3):
+        for c in range(4):
+            f[r, c] = a[r, c]
+    g = f[:2, 1:]
+    out[0] = s[0, 0] + s[1, 2]
+    out[1] = wp.float64(s.shape[0] * 10 + s.shape[1])
+    out[2] = t[0] + t[2]
+    out[3] = g[1, 2] + wp.float64(g.shape[0] * 10 + g.shape[1] + g.shape[2] * 100)
+
+
+def test_slices(wp, rng):
+    x = rng.standard_normal((5, 7))
+    out = wp.zeros(4, dtype=wp.float64)
+    wp.launch(slice_kernel, dim=1, inputs=[wp.array(x, dtype=wp.float64), out, 2])
+    s = x[2:, ::2]
+    t = x[1, -3:]
+    g = x[:3, :4][:2, 1:]
+    expect = [s[0, 0] + s[1, 2], s.shape[0] * 10 + s.shape[1], t[0] + t[2], g[1, 2] + 23.0]
+    np.testing.assert_allclose(out.numpy(), expect, rtol=1e-15)
+
+
+@wp.kernel
+def slice_grad(a: wp.array(dtype=float), y: wp.array(dtype=float)):
+    s = a[1::2]
+    i = wp.tid()
+    y[i] = s[i] * s[i]
+
+
+def test_slice_gradient(wp, rng):
+    x = rng.standard_normal(10).astype(np.float32)
+    a = wp.array(x, dtype=float, requires_grad=True)
+    y = wp.zeros(5, dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(slice_grad, dim=5, inputs=[a, y])
+    tape.backward(grads={y: wp.ones(5, dtype=float)})
+    expect = np.zeros(10, dtype=np.float32)
+    expect[1::2] = 2.0 * x[1::2]
+    np.testing.assert_allclose(a.grad.numpy(), expect, rtol=1e-6)

@@ -95,3 +95,28 @@ def k(out: wp.array(dtype=float)):
 ''')
     with pytest.raises(wp.WarpCodegenError):
         wp.launch(mod.k, dim=1, inputs=[wp.zeros(1, dtype=float)])
+
+
+TARGET = wp.max      # a global bound to a builtin
+
+
+@wp.kernel
+def global_target_kernel(x: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    out[i] = apply2(TARGET, x[i], wp.float64(0.5))
+
+
+def test_global_bound_to_builtin(wp, rng):
+    x = rng.standard_normal(13)
+    out = wp.zeros(13, dtype=wp.float64)
+    wp.launch(global_target_kernel, dim=13, inputs=[wp.array(x, dtype=wp.float64), out])
+    np.testing.assert_array_equal(out.numpy(), np.maximum(x, 0.5))
+
+
+def test_builtins_callable_from_python():
+    import math
+
+    assert wp.sin(0.5) == pytest.approx(math.sin(0.5), rel=1e-15)
+    assert wp.max(2.0, 3.5) == 3.5
+    with pytest.raises(RuntimeError, match="inside a kernel"):
+        wp.length(1.0)
