@@ -42,6 +42,17 @@ bool HasArrays(const Type& t, const StructTable& structs) {
   return false;
 }
 
+// Indexed arrays in t (directly or in struct fields): their adjoints take the primal's indices.
+bool HasIndexedArrays(const Type& t, const StructTable& structs) {
+  if (t.is_indexed_array()) return true;
+  if (!t.is_struct()) return false;
+  auto it = structs.find(t.struct_name);
+  if (it == structs.end()) return false;
+  for (const auto& f : it->second.fields)
+    if (HasIndexedArrays(f.type, structs)) return true;
+  return false;
+}
+
 // `#line N "file"` (emit_text.h) for generated code that belongs to user line N of f's file.
 std::string UserLine(const Function& f, int line) {
   return codegen::LineDirective(static_cast<uint32_t>(line > 0 ? line : 1), f.file) + "\n";
@@ -165,7 +176,7 @@ class FnEmitter {
       int p = f_.params[i];
       Line(CppType(T(p)) + " " + V(p) + " = __args.p" + std::to_string(i) + ";  // " + CommentText(f_.param_names[i]));
       if (backward) Line(CppType(T(p)) + " " + A(p) + " = __adj_args.p" + std::to_string(i) + ";");
-      if (backward && T(p).is_indexed_array()) Line("wp::cg_indexed_adjoint(" + A(p) + ", " + V(p) + ");");
+      if (backward && HasIndexedArrays(T(p), m_.structs)) Line("wp::cg_indexed_adjoint(" + A(p) + ", " + V(p) + ");");
     }
     Decls(backward);
     Fwd(f_.body, backward);
@@ -756,6 +767,13 @@ void EmitStructs(const Module& m, std::string* out) {
     o += "WP_FUNC void cg_accum(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
     for (const auto& f : si.fields) o += " cg_accum(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";
     o += " }\n";
+    if (HasIndexedArrays(Type::Struct(name), m.structs)) {
+      o += "WP_FUNC void cg_indexed_adjoint(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
+      for (const auto& f : si.fields)
+        if (HasIndexedArrays(f.type, m.structs))
+          o += " cg_indexed_adjoint(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";
+      o += " }\n";
+    }
     o += "WP_FUNC void cg_link(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
     for (const auto& f : si.fields)
       if (HasArrays(f.type, m.structs)) o += " cg_link(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";

@@ -257,3 +257,41 @@ def test_daemon_validates_index_arrays(wp, bad_index):
         wp.synchronize()
     assert "indices0" in str(info_err.value), str(info_err.value)
     np.testing.assert_array_equal(data.numpy(), 0.0)
+
+
+@wp.struct
+class Holder:
+    values: wp.indexedarray(dtype=float)
+    scale: float
+
+
+@wp.struct
+class Outer:
+    inner: Holder
+
+
+@wp.kernel
+def struct_square(o: Outer, y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = o.inner.values[i] * o.inner.values[i] * o.inner.scale
+
+
+def test_indexed_array_in_nested_struct_with_gradient(wp, rng):
+    x = rng.standard_normal(9).astype(np.float32)
+    idx = np.array([8, 2, 2, 5], dtype=np.int32)
+    data = wp.array(x, dtype=float, requires_grad=True)
+    h = Holder()
+    h.values = wp.indexedarray(data, [wp.array(idx, dtype=wp.int32)])
+    h.scale = 1.5
+    o = Outer()
+    o.inner = h
+    y = wp.zeros(len(idx), dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(struct_square, dim=len(idx), inputs=[o, y])
+    np.testing.assert_allclose(y.numpy(), 1.5 * x[idx] ** 2, rtol=1e-6)
+    seed = rng.standard_normal(len(idx)).astype(np.float32)
+    tape.backward(grads={y: wp.array(seed, dtype=float)})
+    expect = np.zeros(9, dtype=np.float64)
+    np.add.at(expect, idx, 3.0 * x[idx].astype(np.float64) * seed)
+    np.testing.assert_allclose(data.grad.numpy(), expect, rtol=1e-5, atol=1e-6)
