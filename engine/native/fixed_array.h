@@ -34,6 +34,25 @@ WP_FUNC array_t<T> as_array(const fixedarray_t<T, D0, D1, D2, D3>& a) {
   return r;
 }
 
+// wp.array(ptr=f.ptr, shape=..., dtype=U) over a fixed-size array's elements (the compiler checks
+// that the view fits and that U's alignment is at most the elements'): contiguous, row-major.
+template <typename U, typename T>
+WP_FUNC array_t<U> cg_reinterpret(const array_t<T>& a, int64 n0, int64 n1 = 0, int64 n2 = 0, int64 n3 = 0) {
+  array_t<U> r;
+  r.data = (U*)a.data;
+  r.grad = nullptr;
+  const int64 ext[ARRAY_MAX_DIMS] = {n0, n1, n2, n3};
+  r.ndim = n1 == 0 ? 1 : (n2 == 0 ? 2 : (n3 == 0 ? 3 : 4));
+  r._pad = 0;
+  int64 stride = (int64)sizeof(U);
+  for (int d = ARRAY_MAX_DIMS - 1; d >= 0; --d) {
+    r.shape[d] = d < r.ndim ? ext[d] : 0;
+    r.strides[d] = d < r.ndim ? stride : 0;
+    if (d < r.ndim) stride *= ext[d];
+  }
+  return r;
+}
+
 #define WP_FIXED_TEMPLATE template <typename T, int D0, int D1, int D2, int D3, typename... A>
 #define WP_FIXED fixedarray_t<T, D0, D1, D2, D3>
 WP_FIXED_TEMPLATE WP_FUNC T* address(const WP_FIXED& a, A... i) { return address(as_array(a), i...); }

@@ -824,7 +824,73 @@ Status Checker::ExpandStarred(const ast::Starred& s, std::vector<Value>* out) {
                      (v.kind == Value::Kind::kVar ? "a " + TypeString(TypeOf(v.var)) : std::string("not a value")));
 }
 
+// wp.array(ptr=f.ptr, shape=(n, ...), dtype=T) in a kernel, f a fixed-size array: an array of
+// T over f's elements (Warp reinterprets the memory). weft kernels have no pointers, so `ptr`
+// must be a fixed-size array's .ptr, the shape constant, and the view must fit in f's elements
+// with T's alignment at most its element's (checked here, at compile time).
+Expected<Value> Checker::EvalArrayOverFixed(const ast::Call& c) {
+  const ast::Expr* ptr = nullptr;
+  const ast::Expr* shape = nullptr;
+  const ast::Expr* dtype = nullptr;
+  for (const auto& kw : c.keywords) {
+    if (kw.name == "ptr") ptr = kw.value.get();
+    else if (kw.name == "shape") shape = kw.value.get();
+    else if (kw.name == "dtype") dtype = kw.value.get();
+    else return Error(kw.value->loc, "wp.array() in a kernel takes ptr=, shape= and dtype=");
+  }
+  const auto* pa = ptr ? ast::As<ast::Attribute>(ptr) : nullptr;
+  if (!c.args.empty() || !pa || pa->attr != "ptr" || !shape || !dtype)
+    return Error(c.loc, "wp.array() in a kernel takes ptr=<fixed-size array>.ptr, a constant shape= and dtype= "
+                        "(weft kernels have no pointers)");
+  WEFT_ASSIGN_OR_RETURN(Value base, Eval(*pa->value));
+  if (base.kind != Value::Kind::kVar || !TypeOf(base.var).is_fixed_array())
+    return Error(pa->value->loc, "'" + ExprText(*pa->value) + "' is not a fixed-size array (wp.zeros(shape=..., dtype=...)): "
+                                 "weft kernels have no pointers");
+  const Type ft = TypeOf(base.var);
+  WEFT_ASSIGN_OR_RETURN(Type elem, EvalTypeExpr(*dtype));
+  std::vector<const ast::Expr*> dims;
+  if (const auto* tu = ast::As<ast::Tuple>(shape)) {
+    for (const auto& e : tu->elts) dims.push_back(e.get());
+  } else {
+    dims.push_back(shape);
+  }
+  if (dims.empty() || dims.size() > 4) return Error(shape->loc, "an array has 1 to 4 dimensions");
+  std::vector<int64_t> ext;
+  int64_t count = 1;
+  for (const ast::Expr* d : dims) {
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*d));
+    if (v.kind != Value::Kind::kVar || !v.literal || !IsIntLiteralText(v.literal_text) || v.literal_text[0] == '-' ||
+        v.literal_text.size() > 6)
+      return Error(d->loc, "the shape of wp.array(ptr=...) in a kernel must be constant");
+    ext.push_back(std::stoll(v.literal_text));
+    if (ext.back() < 1) return Error(d->loc, "the shape of wp.array(ptr=...) in a kernel has extents of at least 1");
+    count *= ext.back();
+    if (count > (int64_t{1} << 24)) return Error(c.loc, "wp.array(ptr=...): the view is larger than its fixed-size array");
+  }
+  auto el = LayoutOf(elem, module_.structs);
+  auto fl = LayoutOf(ft.elem(), module_.structs);
+  if (!el.ok() || !fl.ok() || elem.is_array()) return Error(dtype->loc, "wp.array(ptr=...): bad dtype " + TypeString(elem));
+  int64_t have = fl->size;
+  for (int n : ft.fixed_shape) have *= n;
+  if (count * static_cast<int64_t>(el->size) > have)
+    return Error(c.loc, "wp.array(ptr=...): " + std::to_string(count) + " elements of " + TypeString(elem) + " (" +
+                            std::to_string(count * el->size) + " bytes) do not fit in '" + ExprText(*pa->value) + "' (" +
+                            std::to_string(have) + " bytes)");
+  if (el->align > fl->align)
+    return Error(c.loc, "wp.array(ptr=...): " + TypeString(elem) + " needs a stricter alignment than the elements of '" +
+                            ExprText(*pa->value) + "'");
+  std::string text = "wp::cg_reinterpret<" + CppType(elem) + ">(wp::as_array($0)";
+  for (int64_t n : ext) text += ", wp::int64(" + std::to_string(n) + ")";
+  text += ")";
+  int v = EmitRaw(Type::Array(elem, static_cast<int>(ext.size())), text, {base.var});
+  return Value::OfVar(v);
+}
+
 Expected<Value> Checker::EvalCall(const ast::Call& c) {
+  if (const auto* fa = ast::As<ast::Attribute>(c.func.get()); fa && fa->attr == "array") {
+    auto owner = Eval(*fa->value);
+    if (owner.ok() && owner->kind == Value::Kind::kModule) return EvalArrayOverFixed(c);
+  }
   WEFT_ASSIGN_OR_RETURN(Value callee, Eval(*c.func));
   std::vector<Value> args;
   for (const auto& a : c.args) {

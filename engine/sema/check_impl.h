@@ -83,6 +83,7 @@ class Checker {
   Expected<Value> Eval(const ast::Expr& e);
   Expected<int> EvalVar(const ast::Expr& e);          // must be a runtime value
   Expected<Value> EvalArraySlice(const ast::Subscript& s, const Value& base);
+  Expected<Value> EvalArrayOverFixed(const ast::Call& c);
   Expected<int> EvalCond(const ast::Expr& e);         // bool var (ints compared with 0)
   Expected<Value> EvalName(const ast::Name& n);
   Expected<Value> EvalAttribute(const ast::Attribute& a);

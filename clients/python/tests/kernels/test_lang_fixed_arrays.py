@@ -173,3 +173,40 @@ def test_slice_gradient(wp, rng):
     expect = np.zeros(10, dtype=np.float32)
     expect[1::2] = 2.0 * x[1::2]
     np.testing.assert_allclose(a.grad.numpy(), expect, rtol=1e-6)
+
+
+@wp.kernel
+def reinterpret_kernel(x: wp.array(dtype=float), out: wp.array(dtype=wp.vec2)):
+    buf = wp.zeros(shape=(8,), dtype=float)
+    for k in range(8):
+        buf[k] = x[k]
+    pairs = wp.array(ptr=buf.ptr, shape=(4,), dtype=wp.vec2)
+    for k in range(4):
+        out[k] = pairs[k]
+
+
+def test_array_over_fixed_array(wp, rng):
+    x = rng.standard_normal(8).astype(np.float32)
+    out = wp.zeros(4, dtype=wp.vec2)
+    wp.launch(reinterpret_kernel, dim=1, inputs=[wp.array(x, dtype=float), out])
+    np.testing.assert_array_equal(out.numpy(), x.reshape(4, 2))
+
+
+@pytest.mark.parametrize("body,message", [
+    ("v = wp.array(ptr=buf.ptr, shape=(5,), dtype=wp.vec2)", "do not fit"),
+    ("v = wp.array(ptr=buf.ptr, shape=(1,), dtype=wp.vec2d)", "alignment"),
+    ("v = wp.array(ptr=out.ptr, shape=(1,), dtype=float)", "not a fixed-size array"),
+    ("v = wp.array(ptr=buf.ptr, shape=(n,), dtype=float)", "must be constant"),
+])
+def test_array_over_fixed_array_errors(kernel_module, body, message):
+    mod = kernel_module(f'''
+import weft as wp
+
+@wp.kernel
+def k(out: wp.array(dtype=float), n: int):
+    buf = wp.zeros(shape=(8,), dtype=float)
+    {body}
+    out[0] = 1.0
+''')
+    with pytest.raises(wp.WarpCodegenError, match=message):
+        wp.launch(mod.k, dim=1, inputs=[wp.zeros(1, dtype=float), 1])
