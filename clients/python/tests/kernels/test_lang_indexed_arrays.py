@@ -295,3 +295,16 @@ def test_indexed_array_in_nested_struct_with_gradient(wp, rng):
     expect = np.zeros(9, dtype=np.float64)
     np.add.at(expect, idx, 3.0 * x[idx].astype(np.float64) * seed)
     np.testing.assert_allclose(data.grad.numpy(), expect, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.usefixtures("needs_nvrtc")
+def test_kernels_compile_for_cuda_without_a_gpu(wp):
+    """The native forms of indexed arrays, fixed-size arrays and slices compile under NVRTC
+    (forward and adjoint), also on a machine without a GPU."""
+    from test_lang_fixed_arrays import reinterpret_kernel, slice_grad, slice_kernel, struct_kernel
+
+    for k in (scale_add_2d, read_4d, square, atomic_at, struct_square, reinterpret_kernel, slice_grad,
+              slice_kernel, struct_kernel):
+        report = wp.compile(k, device="cuda", arch=90)
+        assert report.kernel(k.name).registers > 0
+        assert report.kernel(k.name, adjoint=True).registers > 0
