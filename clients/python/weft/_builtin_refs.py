@@ -5,6 +5,7 @@ with target "__weft_builtin__.<name>"; the daemon checks that the builtin exists
 math ones compute with NumPy in float64 (others raise: call them inside a kernel)."""
 from __future__ import annotations
 
+import builtins
 import math
 
 import numpy as np
@@ -38,6 +39,8 @@ class BuiltinFunction:
     def __call__(self, *args):
         name = self.key
         fn = _UNARY.get(name) if len(args) == 1 else _BINARY.get(name) if len(args) == 2 else None
+        if fn is None and name in ("min", "max", "round", "abs", "pow"):
+            return getattr(builtins, name)(*args)    # min([..]), round(x, n): Python's
         if fn is None:
             raise RuntimeError(f"wp.{name}() with {len(args)} argument(s) can only be called "
                                f"inside a kernel or @wp.func in weft")
