@@ -150,6 +150,36 @@ std::vector<std::string> SplitLines(const std::string& s) {
 
 // grad_of_params >= 0: pf is the gradient function (wp.func_grad) of a func with that many
 // parameters; its first parameters are the func's, the rest its return values' adjoints.
+bool ContainsArrays(const Type& t, const StructTable& structs) {
+  if (t.is_array()) return true;
+  if (t.is_tuple()) {
+    for (const auto& e : t.sub)
+      if (ContainsArrays(e, structs)) return true;
+    return false;
+  }
+  if (!t.is_struct()) return false;
+  auto it = structs.find(t.struct_name);
+  if (it == structs.end()) return false;
+  for (const auto& f : it->second.fields)
+    if (ContainsArrays(f.type, structs)) return true;
+  return false;
+}
+
+bool ArrayOfArrays(const Type& t, const StructTable& structs) {
+  if (t.is_array()) return !t.is_fixed_array() && ContainsArrays(t.elem(), structs);
+  if (t.is_tuple()) {
+    for (const auto& e : t.sub)
+      if (ArrayOfArrays(e, structs)) return true;
+    return false;
+  }
+  if (!t.is_struct()) return false;
+  auto it = structs.find(t.struct_name);
+  if (it == structs.end()) return false;
+  for (const auto& f : it->second.fields)
+    if (ArrayOfArrays(f.type, structs)) return true;
+  return false;
+}
+
 Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::vector<Type>& param_types,
                                            const SourceLocation& call_loc, int grad_of_params) {
   const FunctionSource& fs = *pf.source;
@@ -203,6 +233,10 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
     const Type& base = t.is_array() ? t.elem() : t;
     if (base.is_struct() && !module_.structs.count(base.struct_name))
       return finish_error(Error(params[i].loc, "unknown struct type '" + base.struct_name + "'"));
+    if (ArrayOfArrays(t, module_.structs))
+      return finish_error(Error(params[i].loc, "'" + params[i].name + "': arrays whose elements hold arrays (structs with "
+                                               "array or indexed-array members) cannot be kernel or func parameters: an "
+                                               "array inside array memory would be an address written by the client"));
     if (t.is_function()) {
       // A wp.Function parameter: each target is its own instantiation; no runtime parameter.
       Value fv;

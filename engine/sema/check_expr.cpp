@@ -870,6 +870,8 @@ Expected<Value> Checker::EvalArrayOverFixed(const ast::Call& c) {
   auto el = LayoutOf(elem, module_.structs);
   auto fl = LayoutOf(ft.elem(), module_.structs);
   if (!el.ok() || !fl.ok() || elem.is_array()) return Error(dtype->loc, "wp.array(ptr=...): bad dtype " + TypeString(elem));
+  if (ContainsArrays(elem, module_.structs) || ContainsArrays(ft.elem(), module_.structs))
+    return Error(c.loc, "wp.array(ptr=...): the elements may not hold arrays (their addresses would be reinterpreted)");
   int64_t have = fl->size;
   for (int n : ft.fixed_shape) have *= n;
   if (count * static_cast<int64_t>(el->size) > have)

@@ -35,6 +35,12 @@ struct LoopContext {
   int continue_flag = -1;
 };
 
+// Arrays (plain, indexed or fixed-size) in t, directly or in struct fields / tuple elements.
+bool ContainsArrays(const Type& t, const StructTable& structs);
+// An array (not fixed-size) whose element holds arrays, anywhere in t: refused as a parameter,
+// since its elements' arrays would be read from array memory the client writes.
+bool ArrayOfArrays(const Type& t, const StructTable& structs);
+
 class Checker {
  public:
   Checker(const ModuleSource& module, const std::vector<ParsedFunction>& parsed, std::vector<Diagnostic>* diags);

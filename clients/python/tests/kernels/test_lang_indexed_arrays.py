@@ -308,3 +308,31 @@ def test_kernels_compile_for_cuda_without_a_gpu(wp):
         report = wp.compile(k, device="cuda", arch=90)
         assert report.kernel(k.name).registers > 0
         assert report.kernel(k.name, adjoint=True).registers > 0
+
+
+@pytest.mark.parametrize("member", ["wp.indexedarray(dtype=float)", "wp.array(dtype=float)"])
+def test_arrays_of_structs_holding_arrays_are_refused(kernel_module, member):
+    """An array whose elements hold arrays would make the kernel read array descriptors (addresses)
+    from memory the client writes: the compiler refuses such parameters, also nested in structs."""
+    mod = kernel_module(f'''
+import weft as wp
+
+@wp.struct
+class Holder:
+    values: {member}
+
+@wp.struct
+class Outer:
+    many: wp.array(dtype=Holder)
+
+@wp.kernel
+def direct(a: wp.array(dtype=Holder), out: wp.array(dtype=float)):
+    out[0] = a[0].values[0]
+
+@wp.kernel
+def nested(o: Outer, out: wp.array(dtype=float)):
+    out[0] = o.many[0].values[0]
+''')
+    for k in (mod.direct, mod.nested):
+        with pytest.raises(wp.WarpCodegenError, match="array inside array memory"):
+            wp.compile(k, device="cpu")
