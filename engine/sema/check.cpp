@@ -460,8 +460,44 @@ Status Checker::BindLocal(const std::string& name, int var, const SourceLocation
 
 // A bug of the checker (an exception: std::out_of_range, bad_alloc, ...) must never reach
 // the user without a location: it becomes an error at the statement being lowered.
+namespace {
+// Tuple / function bindings changed by a compound statement: same elements / target, or not.
+bool SameBinding(const Value& a, const Value& b) {
+  if (a.kind != b.kind || a.name != b.name || a.elems.size() != b.elems.size()) return false;
+  for (size_t i = 0; i < a.elems.size(); ++i)
+    if (a.elems[i].var != b.elems[i].var) return false;
+  return true;
+}
+void MarkPathBound(const std::map<std::string, Value>& before, std::map<std::string, Value>* after,
+                   std::set<std::string>* path_bound) {
+  for (auto it = after->begin(); it != after->end();) {
+    auto b = before.find(it->first);
+    if (b == before.end() || !SameBinding(b->second, it->second)) {
+      path_bound->insert(it->first);
+      it = after->erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+}  // namespace
+
 Status Checker::LowerStmt(const ast::Stmt& s) {
   st_->line = static_cast<int>(s.loc.line);
+  if (s.kind == ast::StmtKind::kIf || s.kind == ast::StmtKind::kFor || s.kind == ast::StmtKind::kWhile) {
+    const auto tuples = st_->tuple_scope;
+    const auto funcs = st_->func_scope;
+    Status r = LowerStmt2(s);
+    if (st_) {
+      MarkPathBound(tuples, &st_->tuple_scope, &st_->path_bound);
+      MarkPathBound(funcs, &st_->func_scope, &st_->path_bound);
+    }
+    return r;
+  }
+  return LowerStmt2(s);
+}
+
+Status Checker::LowerStmt2(const ast::Stmt& s) {
   try {
     return LowerStmtUnguarded(s);
   } catch (const std::exception& e) {
@@ -625,11 +661,13 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
         t.elems.push_back(x);
       }
       st_->tuple_scope[n->id] = std::move(t);
+      st_->path_bound.erase(n->id);
       return Status::Ok();
     }
     if (value.kind == Value::Kind::kFunc || value.kind == Value::Kind::kBuiltin) {
       if (st_->scope.count(n->id)) return Error(loc, "'" + n->id + "' holds a value; it cannot be rebound to a function");
       st_->func_scope[n->id] = value;
+      st_->path_bound.erase(n->id);
       return Status::Ok();
     }
     if (value.kind != Value::Kind::kVar) {

@@ -335,6 +335,9 @@ Expected<Value> Checker::EvalName(const ast::Name& n) {
   }
   auto tu = st_->tuple_scope.find(n.id);
   if (tu != st_->tuple_scope.end()) return tu->second;
+  if (st_->path_bound.count(n.id))
+    return Error(n.loc, "'" + n.id + "' holds a tuple or function bound inside an if, for or while; which one "
+                        "depends on the path taken: bind it before the statement, or use it inside");
   auto fu = st_->func_scope.find(n.id);
   if (fu != st_->func_scope.end()) return fu->second;
   bool found = false;

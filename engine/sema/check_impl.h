@@ -65,6 +65,9 @@ class Checker {
     std::map<std::string, Value> tuple_scope;
     // Names bound to functions (a wp.Function parameter, f = some_func): kFunc / kBuiltin values.
     std::map<std::string, Value> func_scope;
+    // Tuple / function names (re)bound inside an if, for or while: which binding holds after it
+    // depends on the path taken, so using them after the statement is an error.
+    std::set<std::string> path_bound;
   };
 
   // check.cpp
@@ -76,6 +79,7 @@ class Checker {
   Status LowerBlock(const ast::StmtList& stmts, size_t from = 0);
   Status LowerStmt(const ast::Stmt& s);
   Status LowerStmtUnguarded(const ast::Stmt& s);
+  Status LowerStmt2(const ast::Stmt& s);   // LowerStmt less the tracking of path-bound names
   Status LowerAssignTo(const ast::Expr& target, Value value);
   Status LowerIf(int cond, const std::function<Status()>& then_fn, const std::function<Status()>& else_fn);
   Status LowerFor(const ast::For& s);

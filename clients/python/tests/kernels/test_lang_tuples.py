@@ -103,3 +103,33 @@ def k(out: wp.array(dtype=float)):
 ''')
     with pytest.raises(wp.WarpCodegenError):
         wp.launch(mod.k, dim=1, inputs=[wp.zeros(1, dtype=float)])
+
+
+def test_tuple_bound_in_a_branch_is_not_used_after_it(kernel_module):
+    mod = kernel_module('''
+import weft as wp
+
+@wp.kernel
+def k(out: wp.array(dtype=float), c: int):
+    t = (1.0, 2.0)
+    if c > 0:
+        t = (3.0, 4.0)
+    out[0] = t[0]
+''')
+    with pytest.raises(wp.WarpCodegenError, match="depends on the path taken"):
+        wp.launch(mod.k, dim=1, inputs=[wp.zeros(1, dtype=float), 1])
+
+
+@wp.kernel
+def tuple_in_loop(out: wp.array(dtype=float)):
+    acc = float(0.0)
+    for i in range(3):
+        t = (float(i), float(i) * 2.0)
+        acc += t[0] + t[1]
+    out[0] = acc
+
+
+def test_tuple_bound_inside_a_loop(wp):
+    out = wp.zeros(1, dtype=float)
+    wp.launch(tuple_in_loop, dim=1, inputs=[out])
+    assert out.numpy()[0] == 9.0
