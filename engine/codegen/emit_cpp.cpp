@@ -42,6 +42,17 @@ bool HasArrays(const Type& t, const StructTable& structs) {
   return false;
 }
 
+// Indexed arrays in t (directly or in struct fields): their adjoints take the primal's indices.
+bool HasIndexedArrays(const Type& t, const StructTable& structs) {
+  if (t.is_indexed_array()) return true;
+  if (!t.is_struct()) return false;
+  auto it = structs.find(t.struct_name);
+  if (it == structs.end()) return false;
+  for (const auto& f : it->second.fields)
+    if (HasIndexedArrays(f.type, structs)) return true;
+  return false;
+}
+
 // `#line N "file"` (emit_text.h) for generated code that belongs to user line N of f's file.
 std::string UserLine(const Function& f, int line) {
   return codegen::LineDirective(static_cast<uint32_t>(line > 0 ? line : 1), f.file) + "\n";
@@ -165,6 +176,7 @@ class FnEmitter {
       int p = f_.params[i];
       Line(CppType(T(p)) + " " + V(p) + " = __args.p" + std::to_string(i) + ";  // " + CommentText(f_.param_names[i]));
       if (backward) Line(CppType(T(p)) + " " + A(p) + " = __adj_args.p" + std::to_string(i) + ";");
+      if (backward && HasIndexedArrays(T(p), m_.structs)) Line("wp::cg_indexed_adjoint(" + A(p) + ", " + V(p) + ");");
     }
     Decls(backward);
     Fwd(f_.body, backward);
@@ -420,6 +432,24 @@ class FnEmitter {
           }
         }
         Line(d() + " = " + text + ";");
+        if (Links(T(op.dst[0]))) {
+          // an array-valued expression (a slice, a fixed array's view): its adjoint is the same
+          // expression of the arguments' adjoint arrays
+          std::string adj;
+          for (size_t i = 0; i < op.text.size(); ++i) {
+            if (op.text[i] == '$' && i + 1 < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[i + 1]))) {
+              size_t j = i + 1;
+              int k = 0;
+              while (j < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[j]))) k = k * 10 + (op.text[j++] - '0');
+              const int a = op.args.at(k);
+              adj += HasArrays(T(a), m_.structs) ? A(a) : V(a);
+              i = j - 1;
+            } else {
+              adj += op.text[i];
+            }
+          }
+          Line(A(op.dst[0]) + " = " + adj + ";");
+        }
         return;
       }
       case OpKind::kCall: {
@@ -737,6 +767,13 @@ void EmitStructs(const Module& m, std::string* out) {
     o += "WP_FUNC void cg_accum(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
     for (const auto& f : si.fields) o += " cg_accum(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";
     o += " }\n";
+    if (HasIndexedArrays(Type::Struct(name), m.structs)) {
+      o += "WP_FUNC void cg_indexed_adjoint(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
+      for (const auto& f : si.fields)
+        if (HasIndexedArrays(f.type, m.structs))
+          o += " cg_indexed_adjoint(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";
+      o += " }\n";
+    }
     o += "WP_FUNC void cg_link(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
     for (const auto& f : si.fields)
       if (HasArrays(f.type, m.structs)) o += " cg_link(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";
@@ -754,6 +791,19 @@ Expected<ParamLayout> LayoutParam(const std::string& name, const Type& type, con
   WEFT_ASSIGN_OR_RETURN(TypeLayout l, LayoutOf(type, structs));
   p.size = l.size;
   p.align = l.align;
+  if (type.is_indexed_array()) {
+    // Packed as its fields (wp::indexedarray_t): the data array, then one int32 index array per
+    // dimension (None where a dimension is not indexed), each validated as an array.
+    WEFT_ASSIGN_OR_RETURN(ParamLayout data, LayoutParam("data", Type::Array(type.elem(), type.ndim), structs));
+    p.fields.push_back(std::move(data));
+    for (int d = 0; d < 4; ++d) {
+      WEFT_ASSIGN_OR_RETURN(ParamLayout ix, LayoutParam("indices" + std::to_string(d),
+                                                        Type::Array(Type::Int32(), 1), structs));
+      ix.offset = 88u * static_cast<uint32_t>(d + 1);
+      p.fields.push_back(std::move(ix));
+    }
+    return p;
+  }
   if (type.is_array()) {
     p.is_array = true;
     p.array_dtype = TypeString(type.elem());

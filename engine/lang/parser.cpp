@@ -68,7 +68,9 @@ class Parser {
     if (!ParseParams(fn.get())) return nullptr;
     if (!ExpectOp(")", "')' after the parameters")) return nullptr;
     if (AcceptOp("->")) {
+      in_annotation_ = true;
       fn->returns = ParseExpression();
+      in_annotation_ = false;
       if (!fn->returns) return nullptr;
     }
     if (!ExpectColon("function definition")) return nullptr;
@@ -81,6 +83,7 @@ class Parser {
   }
 
  private:
+  bool in_annotation_ = false;   // parsing a parameter or return annotation
   // ---- token access ----------------------------------------------------------------------
   const Token& Peek(size_t ahead = 0) const {
     const size_t i = pos_ + ahead;
@@ -254,7 +257,9 @@ class Parser {
         return false;
       }
       if (AcceptOp(":")) {
+        in_annotation_ = true;   // tuple[int, ...]: the Ellipsis is a name there
         p.annotation = ParseExpression();
+        in_annotation_ = false;
         if (!p.annotation) return false;
       }
       if (AcceptOp("=")) {
@@ -1063,6 +1068,11 @@ class Parser {
         if (t.text == "(") return ParseParenthesized();
         if (t.text == "[") return ParseList();
         if (t.text == "{") return Fail(t, "dict and set literals are not supported in kernels");
+        if (t.text == "..." && in_annotation_) {
+          auto n = Make<ast::Name>(Next());
+          n->id = "Ellipsis";
+          return n;
+        }
         if (t.text == "...") return Fail(t, "'...' (Ellipsis) is not supported in kernels");
         return Unexpected(t, "an expression");
       }

@@ -182,4 +182,59 @@ WP_FUNC T* checked_address(const launch_context_t* ctx, int32 function_id, int32
   return nullptr;
 }
 
+// ---------------------------------------------------------------------------------------------
+// Slices (a[1:3], a[:2, 1:], a[i, ::2]): a view with Python's slice rules. kinds[d]: 1 a slice
+// (bounds[d] = start, stop, step; cg_slice_none for a missing bound), 0 an integer index
+// (bounds[d][0]; negative counts from the end). An index outside its dimension or a step <= 0
+// gives a None view (its accesses report a None array); bounds clamp to the extent.
+constexpr int64 cg_slice_none = (int64)(-9223372036854775807LL - 1);
+struct cg_slice_kinds_t {
+  int32 k[ARRAY_MAX_DIMS];
+};
+struct cg_slice_bounds_t {
+  int64 b[ARRAY_MAX_DIMS][3];
+};
+template <typename T> WP_FUNC array_t<T> as_array(const array_t<T>& a) { return a; }
+WP_FUNC int64 cg_slice_bound(int64 v, int64 ext, int64 dflt) {
+  if (v == cg_slice_none) return dflt;
+  if (v < 0) v += ext;
+  return v < 0 ? 0 : (v > ext ? ext : v);
+}
+template <typename T>
+WP_FUNC array_t<T> cg_slice(const array_t<T>& a, int32 n, cg_slice_kinds_t kinds, cg_slice_bounds_t b) {
+  array_t<T> r;
+  int64 offset = 0;
+  int out = 0;
+  bool valid = a.data != nullptr && n <= a.ndim;
+  for (int d = 0; d < n && d < ARRAY_MAX_DIMS; ++d) {
+    const int64 ext = a.shape[d];
+    if (kinds.k[d] == 0) {
+      int64 i = b.b[d][0];
+      if (i < 0) i += ext;
+      if (!in_range(i, ext)) valid = false;
+      else offset += i * a.strides[d];
+      continue;
+    }
+    const int64 step = b.b[d][2];
+    if (step <= 0) valid = false;
+    const int64 lo = cg_slice_bound(b.b[d][0], ext, 0);
+    const int64 hi = cg_slice_bound(b.b[d][1], ext, ext);
+    const int64 count = (step > 0 && hi > lo) ? (hi - lo - 1) / step + 1 : 0;
+    if (count > 0) offset += lo * a.strides[d];
+    r.shape[out] = count;
+    r.strides[out] = step > 0 ? a.strides[d] * step : 0;
+    ++out;
+  }
+  for (int d = n; d < a.ndim && d < ARRAY_MAX_DIMS; ++d, ++out) {
+    r.shape[out] = a.shape[d];
+    r.strides[out] = a.strides[d];
+  }
+  r.ndim = out;
+  for (; out < ARRAY_MAX_DIMS; ++out) r.shape[out] = r.strides[out] = 0;
+  r.data = valid ? (T*)((char*)a.data + offset) : nullptr;
+  r.grad = (valid && a.grad) ? (T*)((char*)a.grad + offset) : nullptr;
+  r._pad = 0;
+  return r;
+}
+
 }  // namespace wp

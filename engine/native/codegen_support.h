@@ -306,3 +306,6 @@ WP_FUNC bool cg_check_adj(const launch_context_t* ctx, int32 function_id, int32 
 }
 
 }  // namespace wp
+
+#include "indexed_array.h"
+#include "fixed_array.h"

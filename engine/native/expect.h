@@ -54,6 +54,16 @@ template <typename A, typename T>
 WP_FUNC void expect_near_at(const launch_context_t* ctx, int32 function_id, int32 line, const A& a, const A& b, T tol) {
   if (!near_ok(a, b, tol)) expect_report(ctx, function_id, line, "expect_near", a, b);
 }
+// expect_near(a, b) without a tolerance: Warp's default, 1e-6 (in the scalar type of a).
+template <typename T> WP_FUNC T near_default_tol(const T&) { return T(1.0e-6f); }
+template <unsigned N, typename T> WP_FUNC T near_default_tol(const vec_t<N, T>&) { return T(1.0e-6f); }
+template <typename A>
+WP_FUNC void expect_near_at(const launch_context_t* ctx, int32 function_id, int32 line, const A& a, const A& b) {
+  expect_near_at(ctx, function_id, line, a, b, near_default_tol(a));
+}
+template <typename A> WP_FUNC void expect_near(const launch_context_t* ctx, const A& a, const A& b) {
+  expect_near_at(ctx, -1, 0, a, b, near_default_tol(a));
+}
 template <typename A, typename B>
 WP_FUNC void expect_eq(const launch_context_t* ctx, const A& a, const B& b) { expect_eq_at(ctx, -1, 0, a, b); }
 template <typename A, typename B>

@@ -150,6 +150,36 @@ std::vector<std::string> SplitLines(const std::string& s) {
 
 // grad_of_params >= 0: pf is the gradient function (wp.func_grad) of a func with that many
 // parameters; its first parameters are the func's, the rest its return values' adjoints.
+bool ContainsArrays(const Type& t, const StructTable& structs) {
+  if (t.is_array()) return true;
+  if (t.is_tuple()) {
+    for (const auto& e : t.sub)
+      if (ContainsArrays(e, structs)) return true;
+    return false;
+  }
+  if (!t.is_struct()) return false;
+  auto it = structs.find(t.struct_name);
+  if (it == structs.end()) return false;
+  for (const auto& f : it->second.fields)
+    if (ContainsArrays(f.type, structs)) return true;
+  return false;
+}
+
+bool ArrayOfArrays(const Type& t, const StructTable& structs) {
+  if (t.is_array()) return !t.is_fixed_array() && ContainsArrays(t.elem(), structs);
+  if (t.is_tuple()) {
+    for (const auto& e : t.sub)
+      if (ArrayOfArrays(e, structs)) return true;
+    return false;
+  }
+  if (!t.is_struct()) return false;
+  auto it = structs.find(t.struct_name);
+  if (it == structs.end()) return false;
+  for (const auto& f : it->second.fields)
+    if (ArrayOfArrays(f.type, structs)) return true;
+  return false;
+}
+
 Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::vector<Type>& param_types,
                                            const SourceLocation& call_loc, int grad_of_params) {
   const FunctionSource& fs = *pf.source;
@@ -203,6 +233,35 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
     const Type& base = t.is_array() ? t.elem() : t;
     if (base.is_struct() && !module_.structs.count(base.struct_name))
       return finish_error(Error(params[i].loc, "unknown struct type '" + base.struct_name + "'"));
+    if (ArrayOfArrays(t, module_.structs))
+      return finish_error(Error(params[i].loc, "'" + params[i].name + "': arrays whose elements hold arrays (structs with "
+                                               "array or indexed-array members) cannot be kernel or func parameters: an "
+                                               "array inside array memory would be an address written by the client"));
+    if (t.is_function()) {
+      // A wp.Function parameter: each target is its own instantiation; no runtime parameter.
+      Value fv;
+      const std::string& target = t.struct_name;
+      if (target.rfind("func:", 0) == 0) fv.kind = Value::Kind::kFunc, fv.name = target.substr(5);
+      else if (target.rfind("builtin:", 0) == 0) fv.kind = Value::Kind::kBuiltin, fv.name = target.substr(8);
+      else return finish_error(Error(params[i].loc, "'" + params[i].name + "' needs a function argument"));
+      state.func_scope[params[i].name] = fv;
+      continue;
+    }
+    if (t.is_tuple()) {
+      // A tuple parameter: one parameter per element; the name stands for the tuple.
+      if (fs.is_kernel) return finish_error(Error(params[i].loc, "kernel parameters cannot be tuples"));
+      Value tv;
+      tv.kind = Value::Kind::kTuple;
+      for (size_t k = 0; k < t.sub.size(); ++k) {
+        int v = NewVar(t.sub[k], params[i].name + "_" + std::to_string(k));
+        fn.vars[v].is_param = true;
+        fn.params.push_back(v);
+        fn.param_names.push_back(params[i].name + "_" + std::to_string(k));
+        tv.elems.push_back(Value::OfVar(v));
+      }
+      state.tuple_scope[params[i].name] = std::move(tv);
+      continue;
+    }
     int v = NewVar(t, params[i].name);
     fn.vars[v].is_param = true;
     fn.params.push_back(v);
@@ -401,8 +460,44 @@ Status Checker::BindLocal(const std::string& name, int var, const SourceLocation
 
 // A bug of the checker (an exception: std::out_of_range, bad_alloc, ...) must never reach
 // the user without a location: it becomes an error at the statement being lowered.
+namespace {
+// Tuple / function bindings changed by a compound statement: same elements / target, or not.
+bool SameBinding(const Value& a, const Value& b) {
+  if (a.kind != b.kind || a.name != b.name || a.elems.size() != b.elems.size()) return false;
+  for (size_t i = 0; i < a.elems.size(); ++i)
+    if (a.elems[i].var != b.elems[i].var) return false;
+  return true;
+}
+void MarkPathBound(const std::map<std::string, Value>& before, std::map<std::string, Value>* after,
+                   std::set<std::string>* path_bound) {
+  for (auto it = after->begin(); it != after->end();) {
+    auto b = before.find(it->first);
+    if (b == before.end() || !SameBinding(b->second, it->second)) {
+      path_bound->insert(it->first);
+      it = after->erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+}  // namespace
+
 Status Checker::LowerStmt(const ast::Stmt& s) {
   st_->line = static_cast<int>(s.loc.line);
+  if (s.kind == ast::StmtKind::kIf || s.kind == ast::StmtKind::kFor || s.kind == ast::StmtKind::kWhile) {
+    const auto tuples = st_->tuple_scope;
+    const auto funcs = st_->func_scope;
+    Status r = LowerStmt2(s);
+    if (st_) {
+      MarkPathBound(tuples, &st_->tuple_scope, &st_->path_bound);
+      MarkPathBound(funcs, &st_->func_scope, &st_->path_bound);
+    }
+    return r;
+  }
+  return LowerStmt2(s);
+}
+
+Status Checker::LowerStmt2(const ast::Stmt& s) {
   try {
     return LowerStmtUnguarded(s);
   } catch (const std::exception& e) {
@@ -547,10 +642,35 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
 Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
   const SourceLocation& loc = target.loc;
   if (const auto* n = ast::As<ast::Name>(&target)) {
+    if (value.kind == Value::Kind::kTuple) {
+      // A tuple value (Warp's tuples): the name stands for its elements (len(), t[i], unpacking,
+      // passing to a func's tuple or Any parameter).
+      if (st_->scope.count(n->id))
+        return Error(loc, "'" + n->id + "' holds a single value; it cannot be rebound to a tuple");
+      Value t;
+      t.kind = Value::Kind::kTuple;
+      for (const Value& e : value.elems) {
+        if (e.kind != Value::Kind::kVar || TypeOf(e.var).is_void())
+          return Error(loc, "a tuple assigned to '" + n->id + "' must hold runtime values");
+        Value x = e;
+        if (st_->fn.vars[e.var].is_mutable) {
+          int copy = NewVar(TypeOf(e.var), n->id);
+          EmitCopy(copy, e.var);
+          x = Value::OfVar(copy);
+        }
+        t.elems.push_back(x);
+      }
+      st_->tuple_scope[n->id] = std::move(t);
+      st_->path_bound.erase(n->id);
+      return Status::Ok();
+    }
+    if (value.kind == Value::Kind::kFunc || value.kind == Value::Kind::kBuiltin) {
+      if (st_->scope.count(n->id)) return Error(loc, "'" + n->id + "' holds a value; it cannot be rebound to a function");
+      st_->func_scope[n->id] = value;
+      st_->path_bound.erase(n->id);
+      return Status::Ok();
+    }
     if (value.kind != Value::Kind::kVar) {
-      if (value.kind == Value::Kind::kTuple)
-        return Error(loc, "cannot assign " + std::to_string(value.elems.size()) + " values to one name '" + n->id +
-                              "'; unpack them: a, b = ...");
       return Error(loc, "'" + n->id + "' cannot hold " +
                             (value.kind == Value::Kind::kType ? "a type" : std::string("this value")) +
                             " (only runtime values can be assigned)");
@@ -1043,6 +1163,12 @@ Status Checker::LowerReturn(const ast::Return& s) {
       return Error(s.loc, "'" + fn.name + "' returns " + std::to_string(fn.returns.size()) + " value(s) elsewhere, " +
                               std::to_string(vals.size()) + " here");
     for (size_t i = 0; i < vals.size(); ++i) {
+      const Type have = TypeOf(vals[i].var);
+      if (have.is_fixed_array() && fn.returns[i].is_array() && !fn.returns[i].is_fixed_array()) {
+        std::string elem = TypeString(fn.returns[i].elem());
+        return Error(s.loc, "The function `" + fn.name + "` returns a fixed-size array whereas it has its return type "
+                            "annotated as `Array[" + elem + "]`.");
+      }
       WEFT_ASSIGN_OR_RETURN(int v, Coerce(vals[i], fn.returns[i], s.value->loc, "the return value"));
       EmitCopy(fn.return_slots[i], v);
     }

@@ -25,6 +25,10 @@ const std::map<ast::BinaryOperator, std::string>& BinaryBuiltins() {
   return kNames;
 }
 
+// Function symbol target of a global bound to a builtin: "__weft_builtin__.<name>" (a dotted
+// name, as every function target; no module of a Python program is named so).
+constexpr const char* kBuiltinTargetPrefix = "__weft_builtin__.";
+
 bool IsIntLiteralText(const std::string& t) {
   if (t.empty()) return false;
   size_t i = (t[0] == '-' || t[0] == '+') ? 1 : 0;
@@ -277,7 +281,19 @@ Expected<Value> Checker::LookupGlobal(const std::string& name, const SourceLocat
     switch (s.kind) {
       case Symbol::Kind::kBuiltinModule: v.kind = Value::Kind::kModule; return v;
       case Symbol::Kind::kConstant: return EvalConstantSymbol(s.constant, loc);
-      case Symbol::Kind::kFunction: v.kind = Value::Kind::kFunc; v.name = name; return v;
+      case Symbol::Kind::kFunction:
+        if (s.target.rfind(kBuiltinTargetPrefix, 0) == 0) {
+          // A global bound to a builtin (TARGET = wp.sin): the builtin itself.
+          const std::string b = s.target.substr(std::string(kBuiltinTargetPrefix).size());
+          if (BuiltinRegistry::Get().Overloads(b).empty() && !IsSpecialBuiltin(b))
+            return Error(loc, "'" + name + "' names no weft builtin ('" + b + "')");
+          v.kind = Value::Kind::kBuiltin;
+          v.name = b;
+          return v;
+        }
+        v.kind = Value::Kind::kFunc;
+        v.name = name;
+        return v;
       case Symbol::Kind::kType: {
         auto t = ParseType(s.target);
         if (!t.ok()) return Error(loc, "'" + name + "': " + t.status().message());
@@ -317,6 +333,13 @@ Expected<Value> Checker::EvalName(const ast::Name& n) {
     }
     return v;
   }
+  auto tu = st_->tuple_scope.find(n.id);
+  if (tu != st_->tuple_scope.end()) return tu->second;
+  if (st_->path_bound.count(n.id))
+    return Error(n.loc, "'" + n.id + "' holds a tuple or function bound inside an if, for or while; which one "
+                        "depends on the path taken: bind it before the statement, or use it inside");
+  auto fu = st_->func_scope.find(n.id);
+  if (fu != st_->func_scope.end()) return fu->second;
   bool found = false;
   WEFT_ASSIGN_OR_RETURN(Value v, LookupGlobal(n.id, n.loc, &found));
   if (!found) return Error(n.loc, "unknown name '" + n.id + "'");
@@ -391,8 +414,21 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
     if (a.attr == "shape") {
       Value v;
       v.kind = Value::Kind::kTuple;
+      v.name = "__shape";   // a.shape[k] past the dimensions reads 0 (Warp's shape_t)
+      if (bt.is_fixed_array()) {
+        for (int n : bt.fixed_shape) {
+          Value e = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(n) + ")"));
+          e.literal = true;
+          e.literal_text = std::to_string(n);
+          v.elems.push_back(e);
+        }
+        return v;
+      }
       for (int k = 0; k < bt.ndim; ++k)
-        v.elems.push_back(Value::OfVar(EmitRaw(Type::Int32(), "wp::int32($0.shape[" + std::to_string(k) + "])", {base.var})));
+        v.elems.push_back(Value::OfVar(EmitRaw(Type::Int32(),
+                                               bt.indexed ? "wp::int32(wp::array_dim($0, " + std::to_string(k) + "))"
+                                                          : "wp::int32($0.shape[" + std::to_string(k) + "])",
+                                               {base.var})));
       return v;
     }
     if (a.attr == "ndim") return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(bt.ndim) + ")"));
@@ -422,6 +458,57 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
     return ResolveAndEmitBuiltin(a.attr == "p" ? "transform_get_translation" : "transform_get_rotation", {base}, a.loc);
   }
   return Error(a.attr_loc, "a value of type " + TypeString(bt) + " has no attribute '" + a.attr + "'");
+}
+
+// a[1:3], a[:2, 1:], a[i, ::2] on an array or fixed-size array: a view (Python's slice rules:
+// negative bounds count from the end, bounds clamp to the extent, a step must be positive; an
+// integer index drops its dimension). Its gradient is the same view of the gradient array.
+Expected<Value> Checker::EvalArraySlice(const ast::Subscript& s, const Value& base) {
+  const Type bt = TypeOf(base.var);
+  if (static_cast<int>(s.indices.size()) > bt.ndim)
+    return Error(s.loc, "array '" + ExprText(*s.value) + "' has " + std::to_string(bt.ndim) + " dimensions but " +
+                            std::to_string(s.indices.size()) + " indices were given");
+  std::vector<int> vars{base.var};
+  auto int_var = [&](const ast::Expr* e, const char* dflt) -> Expected<int> {
+    if (!e) return EmitConst(Type::Scalar(ScalarKind::kInt64), dflt);
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
+    if (v.kind != Value::Kind::kVar || !TypeOf(v.var).is_scalar() || !IsInt(TypeOf(v.var).scalar))
+      return Error(e->loc, "slice bound '" + ExprText(*e) + "' must be an integer");
+    return v.var;
+  };
+  std::string kinds, vals;
+  int out_ndim = 0;
+  for (size_t d = 0; d < s.indices.size(); ++d) {
+    const ast::Expr* e = s.indices[d].get();
+    if (const auto* sl = ast::As<ast::Slice>(e)) {
+      WEFT_ASSIGN_OR_RETURN(int lo, int_var(sl->lower.get(), "wp::cg_slice_none"));
+      WEFT_ASSIGN_OR_RETURN(int hi, int_var(sl->upper.get(), "wp::cg_slice_none"));
+      WEFT_ASSIGN_OR_RETURN(int st, int_var(sl->step.get(), "wp::int64(1)"));
+      for (int v : {lo, hi, st}) vars.push_back(v);
+      kinds += "1, ";
+      ++out_ndim;
+    } else {
+      WEFT_ASSIGN_OR_RETURN(int iv, int_var(e, "0"));
+      vars.push_back(iv);
+      vars.push_back(iv);
+      vars.push_back(iv);
+      kinds += "0, ";
+    }
+    const size_t b = vars.size() - 3;
+    vals += (d ? ", " : "") + std::string("{wp::int64($") + std::to_string(b) + "), wp::int64($" + std::to_string(b + 1) +
+            "), wp::int64($" + std::to_string(b + 2) + ")}";
+  }
+  out_ndim += bt.ndim - static_cast<int>(s.indices.size());
+  if (out_ndim < 1) return Error(s.loc, "a slice of '" + ExprText(*s.value) + "' keeps no dimension");
+  for (size_t d = s.indices.size(); d < 4; ++d) kinds += "0, ";
+  kinds.resize(kinds.size() - 2);
+  const std::string text = "wp::cg_slice(wp::as_array($0), " + std::to_string(s.indices.size()) + ", wp::cg_slice_kinds_t{{" +
+                           kinds + "}}, wp::cg_slice_bounds_t{{" + vals + "}})";
+  int v = EmitRaw(Type::Array(bt.elem(), out_ndim), text, vars);
+  if (ArrayParamOf(base.var) >= 0) st_->array_param[v] = ArrayParamOf(base.var);
+  Value r = Value::OfVar(v);
+  r.source = ExprText(s);
+  return r;
 }
 
 Expected<std::vector<int>> Checker::EvalIndices(const ast::ExprList& idx, bool array_base) {
@@ -515,8 +602,39 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
   }
   if (base.kind == Value::Kind::kTuple) {
     const auto* c = s.indices.size() == 1 ? ast::As<ast::Constant>(s.indices[0].get()) : nullptr;
+    if (!c && s.indices.size() == 1 && !base.elems.empty()) {
+      // t[i] with i known only at run time: elements of one type, selected by i (an index
+      // outside the tuple reads the last element).
+      WEFT_ASSIGN_OR_RETURN(Value iv, Eval(*s.indices[0]));
+      if (iv.kind == Value::Kind::kVar && iv.literal && IsIntLiteralText(iv.literal_text)) {
+        const long long k = std::stoll(iv.literal_text);
+        if (k < 0 || k >= static_cast<long long>(base.elems.size()))
+          return Error(s.indices[0]->loc, "index " + iv.literal_text + " out of range for a tuple of " +
+                                              std::to_string(base.elems.size()));
+        return base.elems[static_cast<size_t>(k)];
+      }
+      if (iv.kind != Value::Kind::kVar || !TypeOf(iv.var).is_scalar() || !IsInt(TypeOf(iv.var).scalar))
+        return Error(s.loc, "a tuple takes one integer index");
+      const Type et = base.elems[0].kind == Value::Kind::kVar ? TypeOf(base.elems[0].var) : Type::Void();
+      std::vector<int> vars{iv.var};
+      for (const Value& e : base.elems) {
+        if (e.kind != Value::Kind::kVar || TypeOf(e.var) != et)
+          return Error(s.loc, "a tuple indexed with a value known only at run time must hold elements of one type");
+        vars.push_back(e.var);
+      }
+      std::string text = "$" + std::to_string(vars.size() - 1);
+      for (size_t k = base.elems.size() - 1; k-- > 0;)
+        text = "($0 == " + std::to_string(k) + " ? $" + std::to_string(k + 1) + " : " + text + ")";
+      return Value::OfVar(EmitRaw(et, text, vars));
+    }
     if (!c || c->type != ast::Constant::Type::kInt)
       return Error(s.loc, "a tuple (such as .shape) takes one constant integer index");
+    if (base.name == "__shape" && c->int_value >= base.elems.size() && c->int_value < 4) {
+      Value z = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(0)"));
+      z.literal = true;
+      z.literal_text = "0";
+      return z;
+    }
     if (c->int_value >= base.elems.size())
       return Error(s.indices[0]->loc, "index " + std::to_string(c->int_value) + " out of range for a tuple of " +
                                           std::to_string(base.elems.size()));
@@ -524,6 +642,9 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
   }
   if (base.kind != Value::Kind::kVar) return Error(s.loc, "'" + ExprText(*s.value) + "' cannot be indexed");
   const Type bt = TypeOf(base.var);
+  bool has_slice = false;
+  for (const auto& e : s.indices) has_slice |= ast::As<ast::Slice>(e.get()) != nullptr;
+  if (has_slice && bt.is_array() && !bt.indexed) return EvalArraySlice(s, base);
   WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(s.indices, bt.is_array()));
   if (bt.is_array()) {
     if (static_cast<int>(idx.size()) < bt.ndim) {
@@ -531,7 +652,9 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
       // gradient is the same view of the gradient array).
       std::vector<int> args{base.var};
       args.insert(args.end(), idx.begin(), idx.end());
-      int v = EmitOp(OpKind::kView, Type::Array(bt.elem(), bt.ndim - static_cast<int>(idx.size())), args);
+      Type vt = Type::Array(bt.elem(), bt.ndim - static_cast<int>(idx.size()));
+      vt.indexed = bt.indexed;
+      int v = EmitOp(OpKind::kView, vt, args);
       st_->block->back().op.array_param = ArrayParamOf(base.var);
       st_->block->back().op.array_name = ExprText(*s.value);
       if (ArrayParamOf(base.var) >= 0) st_->array_param[v] = ArrayParamOf(base.var);
@@ -704,7 +827,75 @@ Status Checker::ExpandStarred(const ast::Starred& s, std::vector<Value>* out) {
                      (v.kind == Value::Kind::kVar ? "a " + TypeString(TypeOf(v.var)) : std::string("not a value")));
 }
 
+// wp.array(ptr=f.ptr, shape=(n, ...), dtype=T) in a kernel, f a fixed-size array: an array of
+// T over f's elements (Warp reinterprets the memory). weft kernels have no pointers, so `ptr`
+// must be a fixed-size array's .ptr, the shape constant, and the view must fit in f's elements
+// with T's alignment at most its element's (checked here, at compile time).
+Expected<Value> Checker::EvalArrayOverFixed(const ast::Call& c) {
+  const ast::Expr* ptr = nullptr;
+  const ast::Expr* shape = nullptr;
+  const ast::Expr* dtype = nullptr;
+  for (const auto& kw : c.keywords) {
+    if (kw.name == "ptr") ptr = kw.value.get();
+    else if (kw.name == "shape") shape = kw.value.get();
+    else if (kw.name == "dtype") dtype = kw.value.get();
+    else return Error(kw.value->loc, "wp.array() in a kernel takes ptr=, shape= and dtype=");
+  }
+  const auto* pa = ptr ? ast::As<ast::Attribute>(ptr) : nullptr;
+  if (!c.args.empty() || !pa || pa->attr != "ptr" || !shape || !dtype)
+    return Error(c.loc, "wp.array() in a kernel takes ptr=<fixed-size array>.ptr, a constant shape= and dtype= "
+                        "(weft kernels have no pointers)");
+  WEFT_ASSIGN_OR_RETURN(Value base, Eval(*pa->value));
+  if (base.kind != Value::Kind::kVar || !TypeOf(base.var).is_fixed_array())
+    return Error(pa->value->loc, "'" + ExprText(*pa->value) + "' is not a fixed-size array (wp.zeros(shape=..., dtype=...)): "
+                                 "weft kernels have no pointers");
+  const Type ft = TypeOf(base.var);
+  WEFT_ASSIGN_OR_RETURN(Type elem, EvalTypeExpr(*dtype));
+  std::vector<const ast::Expr*> dims;
+  if (const auto* tu = ast::As<ast::Tuple>(shape)) {
+    for (const auto& e : tu->elts) dims.push_back(e.get());
+  } else {
+    dims.push_back(shape);
+  }
+  if (dims.empty() || dims.size() > 4) return Error(shape->loc, "an array has 1 to 4 dimensions");
+  std::vector<int64_t> ext;
+  int64_t count = 1;
+  for (const ast::Expr* d : dims) {
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*d));
+    if (v.kind != Value::Kind::kVar || !v.literal || !IsIntLiteralText(v.literal_text) || v.literal_text[0] == '-' ||
+        v.literal_text.size() > 6)
+      return Error(d->loc, "the shape of wp.array(ptr=...) in a kernel must be constant");
+    ext.push_back(std::stoll(v.literal_text));
+    if (ext.back() < 1) return Error(d->loc, "the shape of wp.array(ptr=...) in a kernel has extents of at least 1");
+    count *= ext.back();
+    if (count > (int64_t{1} << 24)) return Error(c.loc, "wp.array(ptr=...): the view is larger than its fixed-size array");
+  }
+  auto el = LayoutOf(elem, module_.structs);
+  auto fl = LayoutOf(ft.elem(), module_.structs);
+  if (!el.ok() || !fl.ok() || elem.is_array()) return Error(dtype->loc, "wp.array(ptr=...): bad dtype " + TypeString(elem));
+  if (ContainsArrays(elem, module_.structs) || ContainsArrays(ft.elem(), module_.structs))
+    return Error(c.loc, "wp.array(ptr=...): the elements may not hold arrays (their addresses would be reinterpreted)");
+  int64_t have = fl->size;
+  for (int n : ft.fixed_shape) have *= n;
+  if (count * static_cast<int64_t>(el->size) > have)
+    return Error(c.loc, "wp.array(ptr=...): " + std::to_string(count) + " elements of " + TypeString(elem) + " (" +
+                            std::to_string(count * el->size) + " bytes) do not fit in '" + ExprText(*pa->value) + "' (" +
+                            std::to_string(have) + " bytes)");
+  if (el->align > fl->align)
+    return Error(c.loc, "wp.array(ptr=...): " + TypeString(elem) + " needs a stricter alignment than the elements of '" +
+                            ExprText(*pa->value) + "'");
+  std::string text = "wp::cg_reinterpret<" + CppType(elem) + ">(wp::as_array($0)";
+  for (int64_t n : ext) text += ", wp::int64(" + std::to_string(n) + ")";
+  text += ")";
+  int v = EmitRaw(Type::Array(elem, static_cast<int>(ext.size())), text, {base.var});
+  return Value::OfVar(v);
+}
+
 Expected<Value> Checker::EvalCall(const ast::Call& c) {
+  if (const auto* fa = ast::As<ast::Attribute>(c.func.get()); fa && fa->attr == "array") {
+    auto owner = Eval(*fa->value);
+    if (owner.ok() && owner->kind == Value::Kind::kModule) return EvalArrayOverFixed(c);
+  }
   WEFT_ASSIGN_OR_RETURN(Value callee, Eval(*c.func));
   std::vector<Value> args;
   for (const auto& a : c.args) {
@@ -870,9 +1061,19 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     return Value::OfVar(d);
   }
   if (name == "range") return Error(loc, "range() is only allowed as the iterable of a for loop");
+  if (name == "len" && args.size() == 1 && args[0].kind == Value::Kind::kTuple) {
+    const std::string n = std::to_string(args[0].elems.size());
+    Value v = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + n + ")"));
+    v.literal = true;
+    v.literal_text = n;
+    return v;
+  }
   if (name == "len") {
     if (args.size() != 1 || args[0].kind != Value::Kind::kVar) return Error(loc, "len() takes one value");
     const Type& t = TypeOf(args[0].var);
+    if (t.is_fixed_array())
+      return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.fixed_shape[0]) + ")"));
+    if (t.is_indexed_array()) return Value::OfVar(EmitRaw(Type::Int32(), "wp::len($0)", {args[0].var}));
     if (t.is_array()) return Value::OfVar(EmitRaw(Type::Int32(), "wp::int32($0.shape[0])", {args[0].var}));
     if (t.is_vector() || t.kind == TypeKind::kQuat || t.kind == TypeKind::kTransform)
       return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.component_count()) + ")"));
@@ -995,7 +1196,54 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     ast::Call empty;
     return CallConstructor(t, std::move(vals), loc, call ? *call : empty);
   }
-  if (name == "zeros" || name == "cast" || name == "static")
+  if (name == "zeros") {
+    // wp.zeros(shape=..., dtype=...) in a kernel or func: a fixed-size array value, zeroed.
+    const ast::Expr* sh = kwarg("shape");
+    const ast::Expr* dt = kwarg("dtype");
+    if (call && !call->args.empty()) sh = call->args[0].get();
+    if (call && call->args.size() > 1) dt = call->args[1].get();
+    const std::string kNotConst = "the `shape` argument must be specified as a constant when zero-initializing an array";
+    if (!sh) return Error(loc, kNotConst);
+    std::vector<const ast::Expr*> dims;
+    if (const auto* tu = ast::As<ast::Tuple>(sh)) {
+      for (const auto& e : tu->elts) dims.push_back(e.get());
+    } else {
+      dims.push_back(sh);
+    }
+    if (dims.empty() || dims.size() > 4) return Error(sh->loc, "a fixed-size array has 1 to 4 dimensions");
+    std::vector<int> shape;
+    int64_t total = 1;
+    for (const ast::Expr* d : dims) {
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*d));
+      if (v.kind != Value::Kind::kVar || !v.literal || !IsIntLiteralText(v.literal_text) || v.literal_text[0] == '-' ||
+          v.literal_text.size() > 5)
+        return Error(d->loc, kNotConst);
+      const int n = std::stoi(v.literal_text);
+      total *= n;
+      if (n < 1 || total > kMaxFixedArrayElements)
+        return Error(d->loc, "a fixed-size array holds 1 to " + std::to_string(kMaxFixedArrayElements) + " elements");
+      shape.push_back(n);
+    }
+    Type elem = Type::Float32();
+    if (dt) {
+      WEFT_ASSIGN_OR_RETURN(elem, EvalTypeExpr(*dt));
+    }
+    if (elem.is_array() || elem.is_void() || elem.is_tuple() || elem.is_any() || elem.kind == TypeKind::kString)
+      return Error(loc, "wp.zeros: bad dtype " + TypeString(elem));
+    Type t = Type::FixedArray(elem, shape);
+    Stmt st;
+    st.op.kind = OpKind::kConstruct;
+    st.op.mode = ConstructMode::kZero;
+    int d = NewVar(t);
+    st.op.dst.push_back(d);
+    Push(std::move(st));
+    return Value::OfVar(d);
+  }
+  if (name == "static" && args.size() == 1 && (!call || call->keywords.empty()) &&
+      ((args[0].kind == Value::Kind::kVar && args[0].literal) || args[0].kind == Value::Kind::kType ||
+       args[0].kind == Value::Kind::kFunc))
+    return args[0];   // a value known while compiling (len() of a tuple, a constant)
+  if (name == "cast" || name == "static")
     return Error(loc, "wp." + name + "() is not supported in weft kernels yet");
   if (call && !call->keywords.empty()) {
     // Map keywords onto the parameter names of each overload in turn.
@@ -1218,11 +1466,37 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
       for (size_t i = 0; i < slots.size() && ok; ++i) {
         if (!slots[i]) continue;
         const Value& a = *slots[i];
+        if (c.types[i].is_function() || a.kind == Value::Kind::kFunc || a.kind == Value::Kind::kBuiltin) {
+          ok = c.types[i].is_function() && (a.kind == Value::Kind::kFunc || a.kind == Value::Kind::kBuiltin);
+          if (!ok) break;
+          inst[i] = Type::Function((a.kind == Value::Kind::kFunc ? "func:" : "builtin:") + a.name);
+          continue;
+        }
+        if (a.kind == Value::Kind::kTuple) {
+          // a tuple for a tuple parameter of the same element types, or for an Any parameter
+          std::vector<Type> elems;
+          for (const Value& e : a.elems) {
+            if (e.kind != Value::Kind::kVar) break;
+            elems.push_back(TypeOf(e.var));
+          }
+          const Type& p = c.types[i];
+          ok = elems.size() == a.elems.size() &&
+               (p.is_any() || (p.is_tuple() && p.sub.size() == elems.size()));
+          for (size_t k = 0; ok && p.is_tuple() && k < elems.size(); ++k)
+            ok = p.sub[k] == elems[k] || (ContainsAny(p.sub[k]) && GenericAccepts(p.sub[k], elems[k]));
+          if (!ok) break;
+          inst[i] = Type::Tuple(elems);
+          continue;
+        }
         if (a.kind != Value::Kind::kVar) {
           ok = false;
           break;
         }
-        const Type at = TypeOf(a.var);
+        Type at = TypeOf(a.var);
+        // A fixed-size array passed for an array parameter: the callee gets an array view of
+        // the caller's elements (writes reach them, as in Warp).
+        if (at.is_fixed_array() && c.types[i].is_array() && !c.types[i].is_fixed_array() && !c.types[i].indexed)
+          at = Type::Array(at.elem(), at.ndim);
         if (c.types[i] == at) continue;
         if (ContainsAny(c.types[i])) {
           ok = GenericAccepts(c.types[i], at);
@@ -1235,12 +1509,28 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
       if (!ok) continue;
       std::vector<int> argv;
       for (size_t i = 0; i < slots.size(); ++i) {
+        if (slots[i] && inst[i].is_function()) continue;   // compile-time: no argument
+        if (slots[i] && slots[i]->kind == Value::Kind::kTuple) {
+          for (const Value& e : slots[i]->elems) argv.push_back(e.var);
+          continue;
+        }
+        if (slots[i] && slots[i]->kind == Value::Kind::kVar && TypeOf(slots[i]->var).is_fixed_array() &&
+            inst[i].is_array() && !inst[i].is_fixed_array()) {
+          argv.push_back(EmitRaw(inst[i], "wp::as_array($0)", {slots[i]->var}));
+          continue;
+        }
         if (slots[i]) {
           WEFT_ASSIGN_OR_RETURN(int v, Coerce(*slots[i], inst[i], loc, "argument '" + params[i].name + "'"));
           argv.push_back(v);
           continue;
         }
         WEFT_ASSIGN_OR_RETURN(Value dv, Eval(*params[i].default_value));
+        if (inst[i].is_function()) {
+          if (dv.kind != Value::Kind::kFunc && dv.kind != Value::Kind::kBuiltin)
+            return Error(params[i].loc, "the default of '" + params[i].name + "' is not a function");
+          inst[i] = Type::Function((dv.kind == Value::Kind::kFunc ? "func:" : "builtin:") + dv.name);
+          continue;
+        }
         if (dv.kind != Value::Kind::kVar)
           return Error(params[i].loc, "the default of '" + params[i].name + "' is not a value");
         if (ContainsAny(inst[i])) inst[i] = TypeOf(dv.var);

@@ -35,6 +35,12 @@ struct LoopContext {
   int continue_flag = -1;
 };
 
+// Arrays (plain, indexed or fixed-size) in t, directly or in struct fields / tuple elements.
+bool ContainsArrays(const Type& t, const StructTable& structs);
+// An array (not fixed-size) whose element holds arrays, anywhere in t: refused as a parameter,
+// since its elements' arrays would be read from array memory the client writes.
+bool ArrayOfArrays(const Type& t, const StructTable& structs);
+
 class Checker {
  public:
   Checker(const ModuleSource& module, const std::vector<ParsedFunction>& parsed, std::vector<Diagnostic>* diags);
@@ -55,6 +61,13 @@ class Checker {
     std::vector<std::string> source_lines;
     std::map<std::string, int> assign_counts;   // name -> assignments in the whole body
     std::map<std::string, std::pair<int, std::string>> literal_locals;   // name -> (var, literal text)
+    // Names bound to tuples (t = (a, b), a tuple parameter): their element values, each a var.
+    std::map<std::string, Value> tuple_scope;
+    // Names bound to functions (a wp.Function parameter, f = some_func): kFunc / kBuiltin values.
+    std::map<std::string, Value> func_scope;
+    // Tuple / function names (re)bound inside an if, for or while: which binding holds after it
+    // depends on the path taken, so using them after the statement is an error.
+    std::set<std::string> path_bound;
   };
 
   // check.cpp
@@ -66,6 +79,7 @@ class Checker {
   Status LowerBlock(const ast::StmtList& stmts, size_t from = 0);
   Status LowerStmt(const ast::Stmt& s);
   Status LowerStmtUnguarded(const ast::Stmt& s);
+  Status LowerStmt2(const ast::Stmt& s);   // LowerStmt less the tracking of path-bound names
   Status LowerAssignTo(const ast::Expr& target, Value value);
   Status LowerIf(int cond, const std::function<Status()>& then_fn, const std::function<Status()>& else_fn);
   Status LowerFor(const ast::For& s);
@@ -78,6 +92,8 @@ class Checker {
   // check_expr.cpp
   Expected<Value> Eval(const ast::Expr& e);
   Expected<int> EvalVar(const ast::Expr& e);          // must be a runtime value
+  Expected<Value> EvalArraySlice(const ast::Subscript& s, const Value& base);
+  Expected<Value> EvalArrayOverFixed(const ast::Call& c);
   Expected<int> EvalCond(const ast::Expr& e);         // bool var (ints compared with 0)
   Expected<Value> EvalName(const ast::Name& n);
   Expected<Value> EvalAttribute(const ast::Attribute& a);

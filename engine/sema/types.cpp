@@ -80,6 +80,7 @@ class TypeReader {
     if (ParseScalarName(id, &sk)) return Type::Scalar(sk);
     if (id == "any") return Type::Any();
     if (id == "void" || id == "None") return Type::Void();
+    if (id == "function") return Type::Function();
     if (id == "vec") {
       if (!Eat('(')) return Error("expected '('");
       WEFT_ASSIGN_OR_RETURN(int n, Int());
@@ -111,7 +112,7 @@ class TypeReader {
       if (id == "spatial_vector") return Type::Vector(6, s);
       return Type::Matrix(6, 6, s);
     }
-    if (id == "array") {
+    if (id == "array" || id == "indexedarray") {
       if (!Eat('(')) return Error("expected '('");
       WEFT_ASSIGN_OR_RETURN(Type elem, Read());
       int ndim = 1;
@@ -121,7 +122,25 @@ class TypeReader {
       if (!Eat(')')) return Error("expected ')'");
       if (ndim < 1 || ndim > 4) return Error("arrays have 1 to 4 dimensions");
       if (elem.is_array() || elem.is_void() || elem.is_tuple()) return Error("bad array element type");
+      if (id == "indexedarray") return Type::IndexedArray(std::move(elem), ndim);
       return Type::Array(std::move(elem), ndim);
+    }
+    if (id == "fixedarray") {
+      if (!Eat('(')) return Error("expected '('");
+      WEFT_ASSIGN_OR_RETURN(Type elem, Read());
+      std::vector<int> shape;
+      int64_t total = 1;
+      while (Eat(',')) {
+        WEFT_ASSIGN_OR_RETURN(int n, Int());
+        if (n < 1 || n > kMaxFixedArrayElements) return Error("fixed array extent out of range");
+        total *= n;
+        if (total > kMaxFixedArrayElements) return Error("fixed array too large");
+        shape.push_back(n);
+      }
+      if (!Eat(')')) return Error("expected ')'");
+      if (shape.empty() || shape.size() > 4) return Error("fixed arrays have 1 to 4 dimensions");
+      if (elem.is_array() || elem.is_void() || elem.is_tuple() || elem.is_any()) return Error("bad array element type");
+      return Type::FixedArray(std::move(elem), std::move(shape));
     }
     if (id == "struct") {
       if (!Eat('(')) return Error("expected '('");
@@ -217,12 +236,13 @@ bool Type::operator==(const Type& o) const {
     case TypeKind::kVoid:
     case TypeKind::kAny:
     case TypeKind::kString: return true;
+    case TypeKind::kFunction: return struct_name == o.struct_name;
     case TypeKind::kScalar:
     case TypeKind::kQuat:
     case TypeKind::kTransform: return scalar == o.scalar;
     case TypeKind::kVector: return scalar == o.scalar && rows == o.rows;
     case TypeKind::kMatrix: return scalar == o.scalar && rows == o.rows && cols == o.cols;
-    case TypeKind::kArray: return ndim == o.ndim && sub == o.sub;
+    case TypeKind::kArray: return ndim == o.ndim && indexed == o.indexed && fixed_shape == o.fixed_shape && sub == o.sub;
     case TypeKind::kStruct: return struct_name == o.struct_name;
     case TypeKind::kTuple: return sub == o.sub;
   }
@@ -261,7 +281,7 @@ bool ParseScalarName(std::string_view name, ScalarKind* out) {
 }
 
 bool ContainsAny(const Type& t) {
-  if (t.is_any()) return true;
+  if (t.is_any() || (t.is_function() && t.struct_name.empty())) return true;
   for (const auto& s : t.sub)
     if (ContainsAny(s)) return true;
   return false;
@@ -288,13 +308,21 @@ std::string TypeString(const Type& t) {
     case TypeKind::kVoid: return "void";
     case TypeKind::kAny: return "any";
     case TypeKind::kString: return "str";
+    case TypeKind::kFunction: return t.struct_name.empty() ? "function" : "function(" + t.struct_name + ")";
     case TypeKind::kScalar: return ScalarName(t.scalar);
     case TypeKind::kVector: return "vec(" + std::to_string(t.rows) + "," + ScalarName(t.scalar) + ")";
     case TypeKind::kMatrix:
       return "mat(" + std::to_string(t.rows) + "," + std::to_string(t.cols) + "," + ScalarName(t.scalar) + ")";
     case TypeKind::kQuat: return std::string("quat(") + ScalarName(t.scalar) + ")";
     case TypeKind::kTransform: return std::string("transform(") + ScalarName(t.scalar) + ")";
-    case TypeKind::kArray: return "array(" + TypeString(t.elem()) + "," + std::to_string(t.ndim) + ")";
+    case TypeKind::kArray: {
+      if (t.is_fixed_array()) {
+        std::string r = "fixedarray(" + TypeString(t.elem());
+        for (int n : t.fixed_shape) r += "," + std::to_string(n);
+        return r + ")";
+      }
+      return (t.indexed ? "indexedarray(" : "array(") + TypeString(t.elem()) + "," + std::to_string(t.ndim) + ")";
+    }
     case TypeKind::kStruct: return "struct(" + t.struct_name + ")";
     case TypeKind::kTuple: {
       std::string s = "tuple(";
@@ -328,6 +356,7 @@ std::string CppType(const Type& t) {
     case TypeKind::kVoid: return "void";
     case TypeKind::kAny: return "/*any*/void";
     case TypeKind::kString: return "const char*";
+    case TypeKind::kFunction: return "/*function*/void";
     case TypeKind::kScalar:
       return t.scalar == ScalarKind::kBool ? "bool" : std::string("wp::") + ScalarName(t.scalar);
     case TypeKind::kVector: return "wp::vec_t<" + std::to_string(t.rows) + "," + elem() + ">";
@@ -335,7 +364,14 @@ std::string CppType(const Type& t) {
       return "wp::mat_t<" + std::to_string(t.rows) + "," + std::to_string(t.cols) + "," + elem() + ">";
     case TypeKind::kQuat: return "wp::quat_t<" + elem() + ">";
     case TypeKind::kTransform: return "wp::transform_t<" + elem() + ">";
-    case TypeKind::kArray: return "wp::array_t<" + CppType(t.elem()) + ">";
+    case TypeKind::kArray: {
+      if (t.is_fixed_array()) {
+        std::string r = "wp::fixedarray_t<" + CppType(t.elem());
+        for (int d = 0; d < 4; ++d) r += "," + std::to_string(d < static_cast<int>(t.fixed_shape.size()) ? t.fixed_shape[d] : 0);
+        return r + ">";
+      }
+      return (t.indexed ? "wp::indexedarray_t<" : "wp::array_t<") + CppType(t.elem()) + ">";
+    }
     case TypeKind::kStruct: return "wp::" + StructCppName(t.struct_name);
     case TypeKind::kTuple: return "/*tuple*/void";
   }
@@ -355,7 +391,9 @@ Expected<TypeLayout> LayoutOf(const Type& t, const StructTable& structs) {
       uint32_t s = static_cast<uint32_t>(ScalarSize(t.scalar));
       return TypeLayout{s * static_cast<uint32_t>(t.component_count()), s};
     }
-    case TypeKind::kArray: return TypeLayout{88, 8};
+    case TypeKind::kArray:
+      if (t.is_fixed_array()) return InvalidArgument("fixed-size arrays cannot be kernel arguments or struct fields");
+      return t.indexed ? TypeLayout{88 * 5, 8} : TypeLayout{88, 8};
     case TypeKind::kStruct: {
       auto it = structs.find(t.struct_name);
       if (it == structs.end()) return InvalidArgument("unknown struct '" + t.struct_name + "'");

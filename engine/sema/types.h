@@ -37,12 +37,17 @@ enum class TypeKind : uint8_t {
   kMatrix,     // rows x cols
   kQuat,
   kTransform,
-  kArray,      // sub[0] = element type, ndim
+  kArray,      // sub[0] = element type, ndim; `indexed`: Warp's indexedarray (data + index arrays)
   kStruct,     // struct_name (canonical)
   kAny,        // typing.Any in generic funcs; never reaches codegen
   kTuple,      // sub = element types (multiple return values)
   kString,     // a string literal (printf format); not a storable value
+  kFunction,   // a wp.Function parameter: struct_name = its target ("func:<name>" / "builtin:<name>"),
+               // empty in a declaration (any function); a compile-time value, never stored
 };
+
+// Elements of one fixed-size array (a kernel-local value on the thread's stack).
+constexpr int kMaxFixedArrayElements = 4096;
 
 struct Type {
   TypeKind kind = TypeKind::kVoid;
@@ -50,6 +55,10 @@ struct Type {
   int rows = 0;
   int cols = 0;
   int ndim = 0;
+  bool indexed = false;  // kArray: an indexed array (wp::indexedarray_t: data + int32 index arrays)
+  // kArray: a fixed-size array (wp.zeros(shape=..., dtype=...) in a kernel): a value holding its
+  // elements (wp::fixedarray_t), one extent per dimension (ndim = size()); empty otherwise.
+  std::vector<int> fixed_shape;
   std::vector<Type> sub;
   std::string struct_name;
 
@@ -69,17 +78,32 @@ struct Type {
   static Type Array(Type elem, int ndim) {
     Type t; t.kind = TypeKind::kArray; t.ndim = ndim; t.sub.push_back(std::move(elem)); return t;
   }
+  static Type IndexedArray(Type elem, int ndim) { Type t = Array(std::move(elem), ndim); t.indexed = true; return t; }
+  static Type FixedArray(Type elem, std::vector<int> shape) {
+    Type t = Array(std::move(elem), static_cast<int>(shape.size()));
+    t.fixed_shape = std::move(shape);
+    return t;
+  }
   static Type Struct(std::string name) { Type t; t.kind = TypeKind::kStruct; t.struct_name = std::move(name); return t; }
+  static Type Function(std::string target = "") {
+    Type t;
+    t.kind = TypeKind::kFunction;
+    t.struct_name = std::move(target);
+    return t;
+  }
   static Type Tuple(std::vector<Type> elems) { Type t; t.kind = TypeKind::kTuple; t.sub = std::move(elems); return t; }
 
   bool is_void() const { return kind == TypeKind::kVoid; }
   bool is_scalar() const { return kind == TypeKind::kScalar; }
-  bool is_array() const { return kind == TypeKind::kArray; }
+  bool is_array() const { return kind == TypeKind::kArray; }  // plain or indexed
+  bool is_indexed_array() const { return kind == TypeKind::kArray && indexed; }
+  bool is_fixed_array() const { return kind == TypeKind::kArray && !fixed_shape.empty(); }
   bool is_struct() const { return kind == TypeKind::kStruct; }
   bool is_vector() const { return kind == TypeKind::kVector; }
   bool is_matrix() const { return kind == TypeKind::kMatrix; }
   bool is_tuple() const { return kind == TypeKind::kTuple; }
   bool is_any() const { return kind == TypeKind::kAny; }
+  bool is_function() const { return kind == TypeKind::kFunction; }
   // vec, mat, quat, transform: fixed-size aggregates of one scalar type
   bool is_composite() const {
     return kind == TypeKind::kVector || kind == TypeKind::kMatrix || kind == TypeKind::kQuat ||
@@ -139,7 +163,7 @@ struct TypeLayout {
   uint32_t align = 1;
 };
 // Size and alignment as the generated C++ lays the value out (arrays = wp::array_abi_t:
-// 88 bytes, 8-aligned; structs: fields in declaration order at their natural alignment).
+// 88 bytes, 8-aligned; indexed arrays: the data array and 4 index arrays, 440 bytes; structs: fields in declaration order at their natural alignment).
 Expected<TypeLayout> LayoutOf(const Type& t, const StructTable& structs);
 
 }  // namespace weft::sema

@@ -300,12 +300,19 @@ TEST(CodegenKernels, StructsVectorsMatricesQuatsTransforms) {
   st.kind = Symbol::Kind::kType;
   st.target = "struct(m.Particle)";
   m.symbols.push_back(st);
+  // Arrays of structs hold no arrays (an array member inside array memory is refused): the
+  // array parameter's elements are Bodies, the struct parameter holds the array.
+  Symbol body = st;
+  body.name = "Body";
+  body.target = "struct(m.Body)";
+  m.symbols.push_back(body);
   StructDef inner{"m.Inner", {{"k", "float32"}, {"q", "quat(float32)"}}};
   StructDef p{"m.Particle", {{"pos", "vec(3,float32)"}, {"mass", "float32"}, {"inner", "struct(m.Inner)"},
                              {"forces", "array(vec(3,float32),1)"}}};
-  m.structs = {p, inner};
+  StructDef b{"m.Body", {{"pos", "vec(3,float32)"}, {"inner", "struct(m.Inner)"}}};
+  m.structs = {p, inner, b};
   m.functions.push_back(Fn("k",
-                           "def k(ps: wp.array(dtype=Particle), s: Particle, out: wp.array(dtype=wp.mat33)):\n"
+                           "def k(ps: wp.array(dtype=Body), s: Particle, out: wp.array(dtype=wp.mat33)):\n"
                            "    i = wp.tid()\n"
                            "    q = Particle()\n"
                            "    q.pos = s.pos * 2.0\n"
@@ -332,7 +339,7 @@ TEST(CodegenKernels, StructsVectorsMatricesQuatsTransforms) {
                            "    sv = wp.spatial_vector(f, rv)\n"
                            "    iv[1, 1] += wp.spatial_dot(sv, sv)\n"
                            "    out[i] = iv\n",
-                           {"array(struct(m.Particle),1)", "struct(m.Particle)", "array(mat(3,3,float32),1)"},
+                           {"array(struct(m.Body),1)", "struct(m.Particle)", "array(mat(3,3,float32),1)"},
                            {"ps", "s", "out"}));
   ExpectCompiles(m, true);
   std::vector<Diagnostic> diags;

@@ -74,7 +74,8 @@ TEST(SemaErrors, WrongArgumentCount) {
   ExpectError(Compile("    y = wp.sin(x, x)\n"), 11, "Couldn't find function overload for 'sin' that accepts (float32, float32)");
 }
 
-TEST(SemaErrors, SlicesUnsupported) { ExpectError(Compile("    y = a[1:2]\n"), 11, "slices are not supported"); }
+// Slices are views in expressions (y = a[1:2]); as assignment targets they are refused.
+TEST(SemaErrors, SliceTargetsUnsupported) { ExpectError(Compile("    a[1:2] = 1.0\n"), 11, "slices are not supported"); }
 
 TEST(SemaErrors, ArrayIndexCount) {
   ExpectError(Compile("    y = a[0, 1]\n"), 11, "has 1 dimensions but 2 indices");

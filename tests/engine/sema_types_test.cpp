@@ -18,6 +18,34 @@ TEST(SemaTypes, CanonicalStringsRoundTrip) {
   }
 }
 
+// Indexed arrays, fixed-size arrays and wp.Function parameters: strings, C++ spellings, layouts.
+TEST(SemaTypes, IndexedFixedAndFunctionTypes) {
+  for (const char* s : {"indexedarray(float32,1)", "indexedarray(vec(3,float64),4)", "fixedarray(int32,2,3)",
+                        "fixedarray(struct(m.S),4)", "function", "tuple(int32,vec(3,float32))"}) {
+    auto t = ParseType(s);
+    ASSERT_TRUE(t.ok()) << s << ": " << t.status().message();
+    EXPECT_EQ(TypeString(*t), s);
+  }
+  auto ia = ParseType("indexedarray(float32,2)");
+  ASSERT_TRUE(ia.ok());
+  EXPECT_TRUE(ia->is_array() && ia->is_indexed_array() && ia->ndim == 2);
+  EXPECT_NE(*ia, *ParseType("array(float32,2)"));
+  EXPECT_EQ(CppType(*ia), "wp::indexedarray_t<wp::float32>");
+  auto il = LayoutOf(*ia, {});
+  ASSERT_TRUE(il.ok());
+  EXPECT_EQ(il->size, 440u);
+  EXPECT_EQ(il->align, 8u);
+  auto fa = ParseType("fixedarray(float64,2,3)");
+  ASSERT_TRUE(fa.ok());
+  EXPECT_TRUE(fa->is_fixed_array() && fa->ndim == 2);
+  EXPECT_EQ(CppType(*fa), "wp::fixedarray_t<wp::float64,2,3,0,0>");
+  EXPECT_FALSE(LayoutOf(*fa, {}).ok());   // never a kernel argument
+  for (const char* bad : {"fixedarray(float32)", "fixedarray(float32,0)", "fixedarray(float32,4097)",
+                          "fixedarray(float32,64,64,2)", "fixedarray(float32,1,1,1,1,1)", "indexedarray(float32,5)",
+                          "fixedarray(array(float32,1),2)"})
+    EXPECT_FALSE(ParseType(bad).ok()) << bad;
+}
+
 TEST(SemaTypes, WarpAliases) {
   struct Case {
     const char* in;

@@ -10,6 +10,9 @@ from .config import (LOG_DEBUG, LOG_ERROR, LOG_INFO, LOG_WARNING,  # noqa: F401
 from .array import (ARRAY_MAX_DIMS, array, array1d, array2d, array3d, array4d, clone,  # noqa: F401
                     copy, empty, empty_like, from_ipc_handle, from_numpy, full, full_like, ones,
                     ones_like, zeros, zeros_like)
+from .fixedarray import fixedarray  # noqa: F401
+from .indexedarray import (indexedarray, indexedarray1d, indexedarray2d,  # noqa: F401
+                           indexedarray3d, indexedarray4d)
 from .device import (Device, ScopedDevice, get_cuda_device, get_cuda_device_count,  # noqa: F401
                      get_cuda_devices, get_cuda_driver_version, get_cuda_toolkit_version,
                      get_device, get_devices, get_preferred_device, init, is_cpu_available,
@@ -38,6 +41,8 @@ def constant(x):
     return x
 
 
+from ._builtin_refs import *  # noqa: F401,F403,E402
+from ._kernel.annotations import ref  # noqa: F401,E402
 from ._kernel.api import *  # noqa: F401,F403,E402
 from ._kernel.transform_funcs import (transform_compose, transform_decompose,  # noqa: F401,E402
                                       transform_from_matrix, transform_to_matrix)

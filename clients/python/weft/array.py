@@ -790,6 +790,15 @@ class array:
         if len(key) > self.ndim:
             raise IndexError(f"Too many indices ({len(key)}) for an array with {self.ndim} "
                              f"dimension(s)")
+        if any(isinstance(k, array) for k in key):
+            # a[I], a[:, I], a[I, 1:3, I]: an indexed array over the slices of the others.
+            from .indexedarray import indexedarray  # noqa: PLC0415
+
+            if any(isinstance(k, (int, np.integer)) for k in key):
+                raise TypeError("Index arrays cannot be combined with integer indices")
+            indices = [k if isinstance(k, array) else None for k in key]
+            view = self[tuple(slice(None) if isinstance(k, array) else k for k in key)]
+            return indexedarray(view, indices + [None] * (self.ndim - len(indices)))
         offset = self._byte_offset
         shape, strides = [], []
         for dim, k in enumerate(key):
@@ -1256,6 +1265,12 @@ def from_numpy(arr, dtype=None, shape=None, device=None, requires_grad=False):
 
 def clone(src, device=None, requires_grad=None, pinned=None):
     """A new array with a copy of `src` (on `device`, default src's)."""
+    from .indexedarray import indexedarray  # noqa: PLC0415
+
+    if isinstance(src, indexedarray):
+        return array(src.numpy(), dtype=src.dtype, shape=src.shape,
+                     device=device if device is not None else src.device,
+                     requires_grad=bool(requires_grad))
     dest = empty(src.shape, src.dtype, device if device is not None else src.device,
                  _like_grad(src, requires_grad))
     copy(dest, src)
@@ -1286,6 +1301,20 @@ def _on_tape(dest, src) -> bool:
 def copy(dest, src, dest_offset=0, src_offset=0, count=0):
     """Copies `src` into `dest` (Warp's wp.copy). Offsets and count are in elements of the
     flattened arrays, which must then be contiguous; count 0 copies all of src."""
+    from .indexedarray import indexedarray  # noqa: PLC0415
+
+    if isinstance(dest, indexedarray) or isinstance(src, indexedarray):
+        if dest_offset or src_offset or count:
+            raise RuntimeError("wp.copy() of indexed arrays takes no offsets or count")
+        if type_str(src.dtype) != type_str(dest.dtype):
+            raise RuntimeError(f"Incompatible array data types: cannot copy "
+                               f"{type_str(src.dtype)} to {type_str(dest.dtype)}")
+        if tuple(src.shape) != tuple(dest.shape):
+            raise RuntimeError(f"Incompatible array shapes: cannot copy {tuple(src.shape)} to "
+                               f"{tuple(dest.shape)}")
+        if src.size:
+            dest.assign(src.numpy() if isinstance(src, indexedarray) else src)
+        return
     if not isinstance(dest, array) or not isinstance(src, array):
         raise RuntimeError("wp.copy() needs weft arrays as source and destination")
     if type_str(src.dtype) != type_str(dest.dtype):

@@ -54,3 +54,14 @@ array1d_type = _ArrayTypeFactory(1, "array1d")
 array2d_type = _ArrayTypeFactory(2, "array2d")
 array3d_type = _ArrayTypeFactory(3, "array3d")
 array4d_type = _ArrayTypeFactory(4, "array4d")
+
+
+class ref:
+    """wp.ref[T]: a @wp.func parameter passed by reference (Warp 1.19). weft does not compile
+    reference parameters yet: the annotation is accepted (type string ref(T)) and a func using
+    it is refused by the compiler at its line."""
+
+    def __class_getitem__(cls, dtype):
+        import types as _types  # noqa: PLC0415
+
+        return _types.GenericAlias(cls, (dtype,))

@@ -10,6 +10,7 @@ import typing
 
 from . import cuda_compile
 from . import module as module_mod
+from .module import Module
 from . import typestr
 from .errors import (
     WarpCodegenAttributeError,
@@ -27,6 +28,8 @@ from .structs import StructInstance, StructType, struct
 from .tape import Tape
 
 __all__ = [
+    "func_replay",
+    "Module",
     "Function",
     "Kernel",
     "Launch",
@@ -109,6 +112,21 @@ def func_grad(forward):
         gradient = attach_gradient(forward, FunctionDefinition(function, is_kernel=False))
         module_mod.bump_version()
         return gradient
+
+    return wrap
+
+
+def func_replay(forward):
+    """@wp.func_replay(f): Warp's custom replay of @wp.func `f` (what the backward pass runs
+    instead of f's forward body). weft's backward pass replays f's own body, so a kernel that
+    reaches a func with a replay function is refused when its backward pass is compiled
+    (WeftCompileError naming the func); its forward launches are unaffected."""
+
+    def wrap(function):
+        for definition in getattr(forward, "overloads", ()):
+            definition.custom_replay = function
+        module_mod.bump_version()
+        return forward
 
     return wrap
 

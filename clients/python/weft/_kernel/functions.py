@@ -191,6 +191,9 @@ def sanitize_key(text: str) -> str:
 class Function:
     """What @wp.func returns: one name with one or more overloads (by annotation types)."""
 
+    # As an annotation (g: wp.Function) a parameter taking a @wp.func or a builtin.
+    _weft_function_type_ = True
+
     def __init__(self, definition: FunctionDefinition):
         self.__name__ = definition.name
         self.__qualname__ = definition.qualname

@@ -163,6 +163,8 @@ class ArgPacker:
         if desc.kind == "array":
             ref, resolved = self._array_ref(name, desc, annotation, value)
             return exec_pb2.ArgValue(array=ref), resolved
+        if desc.kind == "indexedarray":
+            return exec_pb2.ArgValue(struct_value=self._indexed_value(name, desc, value)), value
         if desc.kind == "struct":
             if not isinstance(value, StructInstance) or value._struct_type.key != desc.struct_name:
                 self._fail(name, f"expected an instance of struct {desc.struct_name}, got "
@@ -187,6 +189,28 @@ class ArgPacker:
             value = instance._values[field.name]
             arg, _ = self.pack(f"{st.key}.{field.name}", field.type_str, field.annotation, value)
             fields.append(arg)
+        return exec_pb2.StructValue(fields=fields)
+
+    def _indexed_value(self, name: str, desc, value):
+        """An indexed array as the daemon packs it: its data array, then one int32 index
+        array per dimension (a null array where a dimension is not indexed; 4 in all)."""
+        from weft.indexedarray import indexedarray  # noqa: PLC0415
+        from weft.v1 import exec_pb2, types_pb2  # noqa: PLC0415
+
+        if value is None:
+            null = exec_pb2.ArgValue(array=types_pb2.ArrayRef(handle=0))
+            return exec_pb2.StructValue(fields=[null] * 5)
+        if not isinstance(value, indexedarray):
+            self._fail(name, f"expected an indexedarray of {desc.elem.text} with {desc.ndim} "
+                             f"dimension(s), got {type(value).__name__}")
+        data_desc = typestr.parse(typestr.array_str(desc.elem.text, desc.ndim))
+        ref, _ = self._array_ref(name, data_desc, None, value.data)
+        fields = [exec_pb2.ArgValue(array=ref)]
+        index_desc = typestr.parse("array(int32,1)")
+        for d in range(4):
+            idx = value.indices[d] if d < len(value.indices) else None
+            iref, _ = self._array_ref(f"{name}.indices[{d}]", index_desc, None, idx)
+            fields.append(exec_pb2.ArgValue(array=iref))
         return exec_pb2.StructValue(fields=fields)
 
     def _array_ref(self, name: str, desc, annotation, value):
@@ -251,8 +275,12 @@ def _element_dtype(annotation):
 
 
 def _value_type_string(value) -> str:
+    from weft.indexedarray import indexedarray  # noqa: PLC0415
+
     if isinstance(value, StructInstance):
         return value._struct_type._type_str
+    if isinstance(value, indexedarray):
+        return value._type_str()
     if is_weft_array(value):
         return typestr.array_str(typestr.type_string(value.dtype), int(value.ndim))
     if isinstance(value, np.ndarray):
@@ -316,6 +344,8 @@ def adjoint_arguments(kernel: Kernel, device: str, args: list, adj_args: list):
                 getattr(value, "grad", None) if is_weft_array(value) else None)
             packed.append(exec_pb2.ArgValue(array=target._ref() if target is not None
                                             else types_pb2.ArrayRef(handle=0)))
+        elif desc.kind == "indexedarray":
+            packed.append(exec_pb2.ArgValue(struct_value=_adjoint_indexed(value, given)))
         elif desc.kind == "struct":
             packed.append(exec_pb2.ArgValue(struct_value=_adjoint_struct(
                 value, given if isinstance(given, StructInstance) else None)))
@@ -325,6 +355,24 @@ def adjoint_arguments(kernel: Kernel, device: str, args: list, adj_args: list):
             else:
                 packed.append(exec_pb2.ArgValue(raw=typestr.pack_value(desc, given)))
     return packed
+
+
+def _adjoint_indexed(value, given):
+    """The adjoint of an indexed array: the data's gradient (or the given indexed array's
+    data); the kernel takes the indices from the primal argument."""
+    from weft.indexedarray import indexedarray  # noqa: PLC0415
+    from weft.v1 import exec_pb2, types_pb2  # noqa: PLC0415
+
+    target = None
+    if isinstance(given, indexedarray):
+        target = given.data
+    elif is_weft_array(given):
+        target = given
+    elif isinstance(value, indexedarray):
+        target = getattr(value.data, "grad", None)
+    null = exec_pb2.ArgValue(array=types_pb2.ArrayRef(handle=0))
+    data = exec_pb2.ArgValue(array=target._ref()) if target is not None else null
+    return exec_pb2.StructValue(fields=[data] + [null] * 4)
 
 
 def _adjoint_struct(value: typing.Optional[StructInstance], given: typing.Optional[StructInstance]):
@@ -341,6 +389,8 @@ def _adjoint_struct(value: typing.Optional[StructInstance], given: typing.Option
                                                  else None)
             fields.append(exec_pb2.ArgValue(array=target._ref() if target is not None
                                             else types_pb2.ArrayRef(handle=0)))
+        elif desc.kind == "indexedarray":
+            fields.append(exec_pb2.ArgValue(struct_value=_adjoint_indexed(v, g)))
         elif desc.kind == "struct":
             fields.append(exec_pb2.ArgValue(struct_value=_adjoint_struct(v, g)))
         else:

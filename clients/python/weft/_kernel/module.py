@@ -30,7 +30,12 @@ class Module:
     load(device) to compile its kernels now, unload() to drop this process's compiled state,
     hash_module() for the content hash of what it would compile now."""
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, loader=None):
+        # wp.Module(name) as Warp programs write it: registered under its name, so kernels and
+        # funcs declared with module=<this> build together.
+        if getattr(self, "_initialized", False):
+            return
+        self._initialized = True
         self.name = name
         self.kernels: dict = {}        # registry key -> Kernel, registration order
         self.functions: dict = {}      # qualname -> Function
@@ -78,6 +83,17 @@ class Module:
 
     def __repr__(self):
         return f"<weft module {self.name}: {len(self.kernels)} kernel(s)>"
+
+    def __new__(cls, name: str = "", loader=None):
+        if name:
+            with _lock:
+                existing = _modules.get(name)
+                if existing is not None:
+                    return existing
+                module = super().__new__(cls)
+                _modules[name] = module
+                return module
+        return super().__new__(cls)
 
 
 _lock = threading.RLock()
@@ -382,6 +398,13 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
     if cached is not None and cached[0] == _registry_version:
         return cached[1], cached[2]
     source, group = build_module_source(kernel, backward)
+    if backward:
+        replayed = [d.name for d in group.definitions if getattr(d, "custom_replay", None)]
+        if replayed:
+            raise WeftCompileError(
+                f"kernel '{kernel.key}': the backward pass of {', '.join(replayed)} has a custom "
+                f"replay function (@wp.func_replay), which weft does not support: its backward "
+                f"pass replays the func's own body")
     digest = content_hash(source)
     compiled = _compiled.get((runtime_id, digest, device))
     if compiled is None:

@@ -89,7 +89,7 @@ class StructType:
     # --- values -------------------------------------------------------------------------
     def _default(self, field: StructField):
         desc = field.desc
-        if desc.kind == "array":
+        if desc.kind in ("array", "indexedarray"):
             return None
         if desc.kind == "struct":
             return field.annotation()
@@ -109,6 +109,13 @@ class StructType:
                                 f"got {type(value).__name__}")
             return value
         if desc.kind == "array":
+            return value
+        if desc.kind == "indexedarray":
+            from weft.indexedarray import indexedarray  # noqa: PLC0415
+
+            if value is not None and not isinstance(value, indexedarray):
+                raise TypeError(f"field {field.name} of {self.key} expects an indexedarray, "
+                                f"got {type(value).__name__}")
             return value
         # validate eagerly so errors point at the assignment
         typestr.pack_value(desc, value)
@@ -146,7 +153,7 @@ class StructType:
             if desc.kind == "struct":
                 sub = field.annotation.numpy_dtype()
                 fmt, a = sub, max(sub.alignment, 1)
-            elif desc.kind == "array":
+            elif desc.kind in ("array", "indexedarray"):
                 raise TypeError(f"struct {self.key} has an array member and cannot be an "
                                 f"array element")
             else:

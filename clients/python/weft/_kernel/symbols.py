@@ -203,6 +203,9 @@ def classify(name: str, value, add, functions: list, structs: list) -> None:
         for overload in value.overloads:
             add(ResolvedSymbol(name, "function", overload.key))
         return
+    if getattr(value, "_weft_builtin_", False) and isinstance(getattr(value, "key", None), str):
+        add(ResolvedSymbol(name, "function", "__weft_builtin__." + value.key))   # TARGET = wp.sin
+        return
     if isinstance(value, StructType):
         if value not in structs:
             structs.append(value)

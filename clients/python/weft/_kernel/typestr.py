@@ -130,6 +130,11 @@ def _parse(text: str) -> TypeDesc:
         return TypeDesc("transform", text, scalar=args[0], shape=(7,))
     if head == "array" and len(args) == 2:
         return TypeDesc("array", text, elem=parse(args[0]), ndim=int(args[1]))
+    if head == "fixedarray" and 2 <= len(args) <= 5:
+        return TypeDesc("fixedarray", text, elem=parse(args[0]), ndim=len(args) - 1,
+                        shape=tuple(int(a) for a in args[1:]))
+    if head == "indexedarray" and len(args) == 2:
+        return TypeDesc("indexedarray", text, elem=parse(args[0]), ndim=int(args[1]))
     if head == "struct" and len(args) == 1:
         return TypeDesc("struct", text, struct_name=args[0])
     raise ValueError(f"not a weft type string: {text!r}")
@@ -176,6 +181,17 @@ def type_string(obj) -> str:
     constructor or an array dtype. Raises TypeError when obj is not a type weft knows."""
     if obj is typing.Any:
         return "any"
+    if getattr(obj, "_weft_function_type_", False) and isinstance(obj, type):
+        return "function"      # wp.Function: a parameter taking a @wp.func or builtin
+    if getattr(typing.get_origin(obj), "__name__", "") == "ref" and \
+            getattr(typing.get_origin(obj), "__module__", "").startswith("weft."):
+        return f"ref({type_string(typing.get_args(obj)[0])})"
+    if typing.get_origin(obj) is tuple:
+        # tuple[int, float] parameters and returns; tuple[int, ...] takes any tuple
+        args = typing.get_args(obj)
+        if not args or Ellipsis in args:
+            return "any"
+        return "tuple(" + ",".join(type_string(a) for a in args) + ")"
     scalar = _scalar_name_of(obj)
     if scalar is not None:
         return scalar
@@ -228,6 +244,10 @@ def array_type_string(obj) -> typing.Optional[str]:
     origin = getattr(obj, "__origin__", None)
     args = getattr(obj, "__args__", None)
     if origin is not None and args:
+        if getattr(origin, "_indexed_", False):
+            from weft.indexedarray import annotation_ndim  # noqa: PLC0415
+
+            return f"indexedarray({type_string(args[0])},{annotation_ndim(origin, args)})"
         ndim = getattr(origin, "_default_ndim_", None) or getattr(origin, "ndim", None)
         if not isinstance(ndim, int):
             ndim = _ndim_from_name(getattr(origin, "__name__", ""))
@@ -237,6 +257,8 @@ def array_type_string(obj) -> typing.Optional[str]:
     ndim = getattr(obj, "ndim", None)
     if dtype is not None and isinstance(ndim, int) and not isinstance(obj, type) \
             and not isinstance(obj, np.ndarray):
+        if getattr(obj, "_indexed_", False):
+            return f"indexedarray({type_string(dtype)},{ndim})"
         return array_str(type_string(dtype), ndim)
     return None
 

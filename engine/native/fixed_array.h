@@ -1,0 +1,89 @@
+// Native library: fixed-size arrays (Warp's wp.zeros(shape=..., dtype=...) inside a kernel or
+// func, its `fixedarray`). Owns fixedarray_t (a value holding its elements, row-major, extents
+// D0..D3 known at compile time, 0 past ndim) and the access forms generated code calls on it,
+// each through as_array: an array_t view of the value's own elements (valid while the value
+// lives), so indexing, views, bounds checks and atomics are those of arrays.
+#pragma once
+
+// Included at the end of codegen_support.h.
+#include "codegen_support.h"
+
+namespace wp {
+
+template <typename T, int D0, int D1, int D2, int D3>
+struct fixedarray_t {
+  static constexpr int NDIM = D1 == 0 ? 1 : (D2 == 0 ? 2 : (D3 == 0 ? 3 : 4));
+  static constexpr int SIZE = D0 * (D1 ? D1 : 1) * (D2 ? D2 : 1) * (D3 ? D3 : 1);
+  T data[SIZE];
+};
+
+template <typename T, int D0, int D1, int D2, int D3>
+WP_FUNC array_t<T> as_array(const fixedarray_t<T, D0, D1, D2, D3>& a) {
+  array_t<T> r;
+  r.data = (T*)a.data;
+  r.grad = nullptr;
+  const int64 ext[ARRAY_MAX_DIMS] = {D0, D1, D2, D3};
+  r.ndim = fixedarray_t<T, D0, D1, D2, D3>::NDIM;
+  r._pad = 0;
+  int64 stride = (int64)sizeof(T);
+  for (int d = ARRAY_MAX_DIMS - 1; d >= 0; --d) {
+    r.shape[d] = d < r.ndim ? ext[d] : 0;
+    r.strides[d] = d < r.ndim ? stride : 0;
+    if (d < r.ndim) stride *= ext[d];
+  }
+  return r;
+}
+
+// wp.array(ptr=f.ptr, shape=..., dtype=U) over a fixed-size array's elements (the compiler checks
+// that the view fits and that U's alignment is at most the elements'): contiguous, row-major.
+template <typename U, typename T>
+WP_FUNC array_t<U> cg_reinterpret(const array_t<T>& a, int64 n0, int64 n1 = 0, int64 n2 = 0, int64 n3 = 0) {
+  array_t<U> r;
+  r.data = (U*)a.data;
+  r.grad = nullptr;
+  const int64 ext[ARRAY_MAX_DIMS] = {n0, n1, n2, n3};
+  r.ndim = n1 == 0 ? 1 : (n2 == 0 ? 2 : (n3 == 0 ? 3 : 4));
+  r._pad = 0;
+  int64 stride = (int64)sizeof(U);
+  for (int d = ARRAY_MAX_DIMS - 1; d >= 0; --d) {
+    r.shape[d] = d < r.ndim ? ext[d] : 0;
+    r.strides[d] = d < r.ndim ? stride : 0;
+    if (d < r.ndim) stride *= ext[d];
+  }
+  return r;
+}
+
+#define WP_FIXED_TEMPLATE template <typename T, int D0, int D1, int D2, int D3, typename... A>
+#define WP_FIXED fixedarray_t<T, D0, D1, D2, D3>
+WP_FIXED_TEMPLATE WP_FUNC T* address(const WP_FIXED& a, A... i) { return address(as_array(a), i...); }
+WP_FIXED_TEMPLATE WP_FUNC T load(const WP_FIXED& a, A... i) { return load(as_array(a), i...); }
+WP_FIXED_TEMPLATE WP_FUNC void store(const WP_FIXED& a, const A&... i) { store(as_array(a), i...); }
+WP_FIXED_TEMPLATE WP_FUNC array_t<T> view(const WP_FIXED& a, A... i) { return view(as_array(a), i...); }
+WP_FIXED_TEMPLATE WP_FUNC bool cg_check(const launch_context_t* ctx, int32 function_id, int32 line, int32 array_param,
+                                        const char* name, const WP_FIXED& a, A... i) {
+  return cg_check(ctx, function_id, line, array_param, name, as_array(a), i...);
+}
+WP_FIXED_TEMPLATE WP_FUNC bool cg_check_adj(const launch_context_t* ctx, int32 function_id, int32 line, int32 array_param,
+                                            const char* name, const WP_FIXED& a, A... i) {
+  return cg_check_adj(ctx, function_id, line, array_param, name, as_array(a), i...);
+}
+WP_FIXED_TEMPLATE WP_FUNC void adj_load(const WP_FIXED& a, const A&... i) { adj_load(as_array(a), i...); }
+WP_FIXED_TEMPLATE WP_FUNC void adj_store(const WP_FIXED& a, A&... i) { adj_store(as_array(a), i...); }
+#define WP_FIXED_ATOMIC(op) \
+  WP_FIXED_TEMPLATE WP_FUNC T atomic_##op(const WP_FIXED& a, A... i) { return atomic_##op(as_array(a), i...); }
+WP_FIXED_ATOMIC(add)
+WP_FIXED_ATOMIC(sub)
+WP_FIXED_ATOMIC(min)
+WP_FIXED_ATOMIC(max)
+WP_FIXED_ATOMIC(exch)
+WP_FIXED_ATOMIC(and)
+WP_FIXED_ATOMIC(or)
+WP_FIXED_ATOMIC(xor)
+WP_FIXED_ATOMIC(cas)
+#undef WP_FIXED_ATOMIC
+template <typename T, int D0, int D1, int D2, int D3> WP_FUNC int32 len(const WP_FIXED&) { return D0; }
+template <typename T, int D0, int D1, int D2, int D3> WP_FUNC void cg_accum(WP_FIXED&, const WP_FIXED&) {}
+#undef WP_FIXED
+#undef WP_FIXED_TEMPLATE
+
+}  // namespace wp
