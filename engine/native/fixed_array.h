@@ -69,18 +69,58 @@ WP_FIXED_TEMPLATE WP_FUNC bool cg_check_adj(const launch_context_t* ctx, int32 f
 }
 WP_FIXED_TEMPLATE WP_FUNC void adj_load(const WP_FIXED& a, const A&... i) { adj_load(as_array(a), i...); }
 WP_FIXED_TEMPLATE WP_FUNC void adj_store(const WP_FIXED& a, A&... i) { adj_store(as_array(a), i...); }
-#define WP_FIXED_ATOMIC(op) \
-  WP_FIXED_TEMPLATE WP_FUNC T atomic_##op(const WP_FIXED& a, A... i) { return atomic_##op(as_array(a), i...); }
-WP_FIXED_ATOMIC(add)
-WP_FIXED_ATOMIC(sub)
-WP_FIXED_ATOMIC(min)
-WP_FIXED_ATOMIC(max)
-WP_FIXED_ATOMIC(exch)
-WP_FIXED_ATOMIC(and)
-WP_FIXED_ATOMIC(or)
-WP_FIXED_ATOMIC(xor)
-WP_FIXED_ATOMIC(cas)
-#undef WP_FIXED_ATOMIC
+// Atomics on a fixed-size array: its elements are the thread's own (a local value), so each is a
+// plain read-modify-write returning the old value. Hardware atomics would be wrong on CUDA: they
+// are undefined on local memory (the launch faults with CUDA_ERROR_LAUNCH_FAILED).
+#define WP_FIXED_RMW(op, expr)                                                                       \
+  template <typename T> WP_FUNC T fixed_rmw_##op(T* p, const T& v) { T old = *p; *p = (expr); return old; } \
+  template <typename T, int D0, int D1, int D2, int D3>                                              \
+  WP_FUNC T atomic_##op(const WP_FIXED& a, int64 i, typename type_identity_t<T>::type v) {           \
+    return fixed_rmw_##op(address(as_array(a), i), v);                                               \
+  }                                                                                                  \
+  template <typename T, int D0, int D1, int D2, int D3>                                              \
+  WP_FUNC T atomic_##op(const WP_FIXED& a, int64 i, int64 j, typename type_identity_t<T>::type v) {  \
+    return fixed_rmw_##op(address(as_array(a), i, j), v);                                            \
+  }                                                                                                  \
+  template <typename T, int D0, int D1, int D2, int D3>                                              \
+  WP_FUNC T atomic_##op(const WP_FIXED& a, int64 i, int64 j, int64 k, typename type_identity_t<T>::type v) { \
+    return fixed_rmw_##op(address(as_array(a), i, j, k), v);                                         \
+  }                                                                                                  \
+  template <typename T, int D0, int D1, int D2, int D3>                                              \
+  WP_FUNC T atomic_##op(const WP_FIXED& a, int64 i, int64 j, int64 k, int64 l, typename type_identity_t<T>::type v) { \
+    return fixed_rmw_##op(address(as_array(a), i, j, k, l), v);                                      \
+  }
+WP_FIXED_RMW(add, add(old, v))
+WP_FIXED_RMW(sub, sub(old, v))
+WP_FIXED_RMW(min, min(old, v))
+WP_FIXED_RMW(max, max(old, v))
+WP_FIXED_RMW(exch, v)
+WP_FIXED_RMW(and, bit_and(old, v))
+WP_FIXED_RMW(or, bit_or(old, v))
+WP_FIXED_RMW(xor, bit_xor(old, v))
+#undef WP_FIXED_RMW
+template <typename T> WP_FUNC T fixed_rmw_cas(T* p, const T& c, const T& v) {
+  T old = *p;
+  if (old == c) *p = v;
+  return old;
+}
+template <typename T, int D0, int D1, int D2, int D3>
+WP_FUNC T atomic_cas(const WP_FIXED& a, int64 i, typename type_identity_t<T>::type c, typename type_identity_t<T>::type v) {
+  return fixed_rmw_cas(address(as_array(a), i), c, v);
+}
+template <typename T, int D0, int D1, int D2, int D3>
+WP_FUNC T atomic_cas(const WP_FIXED& a, int64 i, int64 j, typename type_identity_t<T>::type c, typename type_identity_t<T>::type v) {
+  return fixed_rmw_cas(address(as_array(a), i, j), c, v);
+}
+template <typename T, int D0, int D1, int D2, int D3>
+WP_FUNC T atomic_cas(const WP_FIXED& a, int64 i, int64 j, int64 k, typename type_identity_t<T>::type c, typename type_identity_t<T>::type v) {
+  return fixed_rmw_cas(address(as_array(a), i, j, k), c, v);
+}
+template <typename T, int D0, int D1, int D2, int D3>
+WP_FUNC T atomic_cas(const WP_FIXED& a, int64 i, int64 j, int64 k, int64 l, typename type_identity_t<T>::type c,
+                     typename type_identity_t<T>::type v) {
+  return fixed_rmw_cas(address(as_array(a), i, j, k, l), c, v);
+}
 template <typename T, int D0, int D1, int D2, int D3> WP_FUNC int32 len(const WP_FIXED&) { return D0; }
 template <typename T, int D0, int D1, int D2, int D3> WP_FUNC void cg_accum(WP_FIXED&, const WP_FIXED&) {}
 #undef WP_FIXED

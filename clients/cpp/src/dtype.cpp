@@ -146,17 +146,18 @@ float HalfToFloat(std::uint16_t h) {
 
 namespace {
 
+// Writes trunc(v) as a T when it is representable (a conversion of an out-of-range double is
+// undefined behaviour, so nothing is converted then); false when it is not.
 template <typename T>
-void PutInt(std::byte* out, double v) {
-  T t = static_cast<T>(std::trunc(v));
-  std::memcpy(out, &t, sizeof(T));
-}
-
-template <typename T>
-bool IntFits(double v) {
+bool PutInt(std::byte* out, double v) {
   const double t = std::trunc(v);
-  return std::isfinite(t) && t >= static_cast<double>(std::numeric_limits<T>::lowest()) &&
-         t <= static_cast<double>(std::numeric_limits<T>::max());
+  // [lowest, 2^digits): both ends exact in a double, and 2^digits is the first value past max.
+  if (!(std::isfinite(t) && t >= static_cast<double>(std::numeric_limits<T>::lowest()) &&
+        t < std::ldexp(1.0, std::numeric_limits<T>::digits)))
+    return false;
+  const T x = static_cast<T>(t);
+  std::memcpy(out, &x, sizeof(T));
+  return true;
 }
 
 }  // namespace
@@ -174,14 +175,14 @@ Expected<std::vector<std::byte>> EncodeFillValue(const DType& dtype, double valu
       std::memcpy(p, &b, 1);
       break;
     }
-    case ScalarType::kInt8: fits = IntFits<std::int8_t>(value); PutInt<std::int8_t>(p, value); break;
-    case ScalarType::kInt16: fits = IntFits<std::int16_t>(value); PutInt<std::int16_t>(p, value); break;
-    case ScalarType::kInt32: fits = IntFits<std::int32_t>(value); PutInt<std::int32_t>(p, value); break;
-    case ScalarType::kInt64: fits = IntFits<std::int64_t>(value); PutInt<std::int64_t>(p, value); break;
-    case ScalarType::kUInt8: fits = IntFits<std::uint8_t>(value); PutInt<std::uint8_t>(p, value); break;
-    case ScalarType::kUInt16: fits = IntFits<std::uint16_t>(value); PutInt<std::uint16_t>(p, value); break;
-    case ScalarType::kUInt32: fits = IntFits<std::uint32_t>(value); PutInt<std::uint32_t>(p, value); break;
-    case ScalarType::kUInt64: fits = IntFits<std::uint64_t>(value); PutInt<std::uint64_t>(p, value); break;
+    case ScalarType::kInt8: fits = PutInt<std::int8_t>(p, value); break;
+    case ScalarType::kInt16: fits = PutInt<std::int16_t>(p, value); break;
+    case ScalarType::kInt32: fits = PutInt<std::int32_t>(p, value); break;
+    case ScalarType::kInt64: fits = PutInt<std::int64_t>(p, value); break;
+    case ScalarType::kUInt8: fits = PutInt<std::uint8_t>(p, value); break;
+    case ScalarType::kUInt16: fits = PutInt<std::uint16_t>(p, value); break;
+    case ScalarType::kUInt32: fits = PutInt<std::uint32_t>(p, value); break;
+    case ScalarType::kUInt64: fits = PutInt<std::uint64_t>(p, value); break;
     case ScalarType::kFloat16: {
       const std::uint16_t h = FloatToHalf(static_cast<float>(value));
       std::memcpy(p, &h, 2);

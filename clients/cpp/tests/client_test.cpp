@@ -388,6 +388,11 @@ TEST(ClientOfflineTest, EncodeFillValue) {
   EXPECT_EQ(s, -7);
   EXPECT_FALSE(weft::EncodeFillValue(weft::DType::Scalar(weft::ScalarType::kUInt8), 300).ok());
   EXPECT_FALSE(weft::EncodeFillValue(weft::DType::Scalar(weft::ScalarType::kUInt32), -1).ok());
+  // 2^63 and 2^64 are one past int64 / uint64: refused, never converted (that would be UB).
+  EXPECT_FALSE(weft::EncodeFillValue(weft::DType::Scalar(weft::ScalarType::kInt64), 0x1p63).ok());
+  EXPECT_FALSE(weft::EncodeFillValue(weft::DType::Scalar(weft::ScalarType::kUInt64), 0x1p64).ok());
+  EXPECT_TRUE(weft::EncodeFillValue(weft::DType::Scalar(weft::ScalarType::kInt64), -0x1p63).ok());
+  EXPECT_FALSE(weft::EncodeFillValue(weft::DType::Scalar(weft::ScalarType::kInt32), std::nan("")).ok());
   EXPECT_FALSE(weft::EncodeFillValue(weft::DType::Struct("m.P", 8), 1).ok());
   auto b = weft::EncodeFillValue(weft::DType::Scalar(weft::ScalarType::kBool), 3);
   ASSERT_OK_E(b);

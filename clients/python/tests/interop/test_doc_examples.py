@@ -55,6 +55,9 @@ def test_adam_optimization_examples(run_example, torch, name):
     assert losses[-1] < 0.5
 
 
+# 10,000 Adam steps of the documented example, each two launches and a few round trips to the
+# daemon (array creations, imports): minutes, past a suite's default per-test timeout.
+@pytest.mark.timeout(900)
 def test_rosenbrock_autograd_function_converges_to_1_1(run_example, torch):
     out = run_example("torch_rosenbrock", timeout=900)
     values = [float(v) for v in re.findall(r"[-+]?[0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?",
