@@ -120,3 +120,28 @@ def test_builtins_callable_from_python():
     assert wp.max(2.0, 3.5) == 3.5
     with pytest.raises(RuntimeError, match="inside a kernel"):
         wp.length(1.0)
+
+
+def test_vector_builtins_callable_from_python(rng):
+    # float64 references on random vectors; the result keeps the argument's vector type (Warp).
+    for vt, tol in ((wp.vec3, 1e-6), (wp.vec3d, 1e-14), (wp.vec4, 1e-6)):
+        a64 = rng.standard_normal(len(vt())) * 10.0 ** rng.uniform(-3, 3)
+        b64 = rng.standard_normal(len(vt()))
+        a, b = vt(*a64), vt(*b64)
+        a64, b64 = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+        assert wp.length(a) == pytest.approx(np.linalg.norm(a64), rel=1e-15)
+        assert wp.length_sq(a) == pytest.approx(a64 @ a64, rel=1e-15)
+        assert wp.dot(a, b) == pytest.approx(a64 @ b64, rel=1e-14, abs=1e-14)
+        n = wp.normalize(a)
+        assert type(n) is vt
+        np.testing.assert_allclose(np.asarray(n, dtype=np.float64), a64 / np.linalg.norm(a64), rtol=tol)
+        if len(a64) == 3:
+            c = wp.cross(a, b)
+            assert type(c) is vt
+            np.testing.assert_allclose(np.asarray(c, dtype=np.float64), np.cross(a64, b64),
+                                       rtol=tol, atol=tol * np.abs(a64).max() * np.abs(b64).max())
+    assert list(wp.normalize(wp.vec3(0.0, 0.0, 0.0))) == [0.0, 0.0, 0.0]   # zero stays zero
+    with pytest.raises(RuntimeError, match="vec3 for cross"):
+        wp.cross(wp.vec2(1.0, 2.0), wp.vec2(3.0, 4.0))
+    with pytest.raises(RuntimeError, match="one type"):
+        wp.dot(wp.vec3(1.0, 2.0, 3.0), wp.vec3d(1.0, 2.0, 3.0))
