@@ -26,7 +26,7 @@ class SessionKeeper {
   SessionKeeper& operator=(const SessionKeeper&) = delete;
 
   // Waits until the daemon has claimed the stream for the session (its first event, "attached
-  // <id>"): from then on this process's death reaps the session at once. An error when the
+  // #<label>"): from then on this process's death reaps the session at once. An error when the
   // stream ended first (the daemon refused it or is gone) or nothing came within `timeout`.
   Status WaitAttached(std::chrono::milliseconds timeout);
   // Cancels the stream and joins the thread. Idempotent.

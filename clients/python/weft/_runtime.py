@@ -390,7 +390,7 @@ class Runtime:
     def _attach_loop(self):
         try:
             for event in self._attach_call:
-                self.attach_message = event.message   # "attached <id>"
+                self.attach_message = event.message   # "attached #<label>"
                 self._attach_answered.set()
         except grpc.RpcError:
             pass
