@@ -6,6 +6,11 @@ default, or cuda:N with CUDA tensors). Time is per iteration (median
 of repeats). Error: after the timed iterations the accumulated output is compared with a
 float64 NumPy reference (max relative error). Ratio = warp time / weft time.
 
+A second table times one step of the documentation's Rosenbrock torch.autograd.Function
+(wp.from_torch of the points, wp.zeros for the output, the launch, to_torch, from_torch of the
+incoming gradient set as z.grad, the adjoint launch, to_torch of the points' gradient); error:
+the last step's gradient against the float64 analytic gradient at the same points.
+
 weft notes (docs/interop.md): from_torch of a CPU tensor moves its storage into a weft slab on
 the first call, so later conversions are zero-copy look-ups; a CUDA tensor is imported by CUDA
 IPC on the first conversion (one round trip) and remembered on the tensor, so later conversions
@@ -27,6 +32,18 @@ def inc5(a: wp.array(dtype=float), b: wp.array(dtype=float), c: wp.array(dtype=f
          d: wp.array(dtype=float), e: wp.array(dtype=float)):
     i = wp.tid()
     e[i] = e[i] + a[i] + b[i] + c[i] + d[i]
+
+
+@wp.func
+def rosenbrock(x: float, y: float):
+    return (1.0 - x) ** 2.0 + 100.0 * (y - x**2.0) ** 2.0
+
+
+@wp.kernel
+def eval_rosenbrock(xs: wp.array(dtype=wp.vec2), z: wp.array(dtype=float)):
+    i = wp.tid()
+    x = xs[i]
+    z[i] = rosenbrock(x[0], x[1])
 '''
 MODES = ["from_torch", "from_torch(return_ctype=True)", "direct tensors"]
 
@@ -60,6 +77,38 @@ def run(wp, mod, torch, mode, n, iters, repeat, seed, device="cpu"):
     return seconds, error
 
 
+def run_rosenbrock(wp, mod, torch, n, iters, repeat, seed, device="cpu"):
+    rng = np.random.default_rng(seed)
+    tdev = "cpu" if device == "cpu" else device
+    xy = torch.tensor(rng.uniform(-1.5, 1.5, size=(n, 2)), dtype=torch.float32, device=tdev,
+                      requires_grad=True)
+    last = [None]
+
+    def body():
+        for _ in range(iters):
+            xy.grad = None   # the optimizer's zero_grad()
+            wxy = wp.from_torch(xy, dtype=wp.vec2, requires_grad=True)
+            z = wp.zeros(n, requires_grad=True, device=device)
+            wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], device=device)
+            tz = wp.to_torch(z)
+            z.grad = wp.from_torch(torch.ones_like(tz))
+            wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], adj_inputs=[wxy.grad],
+                      adj_outputs=[z.grad], adjoint=True, device=device)
+            last[0] = wp.to_torch(wxy.grad)
+        wp.synchronize()
+        if device != "cpu":
+            torch.cuda.synchronize()
+
+    body()
+    seconds = bc.median_time(body, repeat=repeat) / iters
+    p = xy.detach().cpu().numpy().astype(np.float64)
+    x, y = p[:, 0], p[:, 1]
+    ref = np.stack([-2.0 * (1.0 - x) - 400.0 * x * (y - x * x), 200.0 * (y - x * x)], axis=1)
+    got = last[0].cpu().numpy().astype(np.float64)
+    error = float(np.max(np.abs(got - ref) / np.maximum(np.abs(ref), 1.0)))
+    return seconds, error
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--n", type=int, default=1024)
@@ -87,14 +136,23 @@ def main():
                 ps = pe = None
             rows.append([mode, bc.fmt_time(ws), f"{we:.1e}", bc.fmt_time(ps),
                          "n/a" if pe is None else f"{pe:.1e}", bc.fmt_ratio(ws, ps)])
+        bc.print_table(f"Torch interop, {args.device}: 5 conversions + 1 launch per iteration "
+                       f"(n={args.n}, {args.iters} iterations x {args.repeat})",
+                       ["mode", "weft", "weft err", "warp-lang", "warp err", "ratio"], rows)
+        ws, we = run_rosenbrock(weft, weft_mod, torch, 1500, args.iters, args.repeat, 7, args.device)
+        ps = pe = None
+        if warp is not None:
+            ps, pe = run_rosenbrock(warp, warp_mod, torch, 1500, args.iters, args.repeat, 7, args.device)
         if args.device != "cpu":
             from weft import _cuda_ipc
 
             print(f"weft CUDA IPC: {_cuda_ipc.reason() or 'on'}; imports opened by weftd "
                   f"are cached per session")
-        bc.print_table(f"Torch interop, {args.device}: 5 conversions + 1 launch per iteration "
-                       f"(n={args.n}, {args.iters} iterations x {args.repeat})",
-                       ["mode", "weft", "weft err", "warp-lang", "warp err", "ratio"], rows)
+        bc.print_table(f"Torch Rosenbrock autograd step, {args.device} (1500 points, "
+                       f"{args.iters} iterations x {args.repeat})",
+                       ["step", "weft", "weft err", "warp-lang", "warp err", "ratio"],
+                       [["zeros + 2 launches + 4 conversions", bc.fmt_time(ws), f"{we:.1e}",
+                         bc.fmt_time(ps), "n/a" if pe is None else f"{pe:.1e}", bc.fmt_ratio(ws, ps)]])
     return 0
 
 

@@ -15,27 +15,44 @@ grpc::Status Fail(const grpc::ServerContext* ctx, const char* what, const Status
 }
 }  // namespace
 
+Status ArrayCreate(Engine& engine, Session& s, const v1::CreateArrayRequest& req, v1::CreateArrayResponse* resp) {
+  CreateArrayParams p;
+  p.dtype = FromProto(req.dtype());
+  p.shape.assign(req.shape().begin(), req.shape().end());
+  p.device = req.device().empty() ? "cpu" : req.device();
+  p.requires_grad = req.requires_grad();
+  p.init = static_cast<CreateArrayParams::Init>(req.init());
+  p.value = req.value();
+  auto r = engine.CreateArray(s, p);
+  if (!r.ok()) return r.status();
+  ToProto(*r, resp->mutable_info());
+  return Status::Ok();
+}
+
+Status ArrayFree(Engine& engine, Session& s, const v1::FreeArrayRequest& req) {
+  return engine.FreeArray(s, req.handle());
+}
+
+Status ArrayDescribe(Engine& engine, Session& s, const v1::DescribeArrayRequest& req, v1::DescribeArrayResponse* resp) {
+  auto r = engine.DescribeArray(s, req.handle());
+  if (!r.ok()) return r.status();
+  ToProto(*r, resp->mutable_info());
+  return Status::Ok();
+}
+
 grpc::Status ArrayServiceImpl::Create(grpc::ServerContext* ctx, const v1::CreateArrayRequest* req,
                                       v1::CreateArrayResponse* resp) {
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
-  CreateArrayParams p;
-  p.dtype = FromProto(req->dtype());
-  p.shape.assign(req->shape().begin(), req->shape().end());
-  p.device = req->device().empty() ? "cpu" : req->device();
-  p.requires_grad = req->requires_grad();
-  p.init = static_cast<CreateArrayParams::Init>(req->init());
-  p.value = req->value();
-  auto r = auth_.engine().CreateArray(**s, p);
-  if (!r.ok()) return Fail(ctx, "array create", r.status());
-  ToProto(*r, resp->mutable_info());
+  Status st = ArrayCreate(auth_.engine(), **s, *req, resp);
+  if (!st.ok()) return Fail(ctx, "array create", st);
   return grpc::Status::OK;
 }
 
 grpc::Status ArrayServiceImpl::Free(grpc::ServerContext* ctx, const v1::FreeArrayRequest* req, v1::FreeArrayResponse*) {
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
-  Status st = auth_.engine().FreeArray(**s, req->handle());
+  Status st = ArrayFree(auth_.engine(), **s, *req);
   if (!st.ok()) return Fail(ctx, "array free", st);
   return grpc::Status::OK;
 }
@@ -44,9 +61,8 @@ grpc::Status ArrayServiceImpl::Describe(grpc::ServerContext* ctx, const v1::Desc
                                         v1::DescribeArrayResponse* resp) {
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
-  auto r = auth_.engine().DescribeArray(**s, req->handle());
-  if (!r.ok()) return Fail(ctx, "array describe", r.status());
-  ToProto(*r, resp->mutable_info());
+  Status st = ArrayDescribe(auth_.engine(), **s, *req, resp);
+  if (!st.ok()) return Fail(ctx, "array describe", st);
   return grpc::Status::OK;
 }
 

@@ -1,5 +1,6 @@
-// FastLane: listening, the hello (peer uid + one-time secret), serving Submit/Synchronize
-// frames through the gRPC methods' handler functions, replies in chunks.
+// FastLane: listening, the hello (peer uid + one-time secret), serving Submit/Synchronize and
+// ArrayService Create/Free/Describe frames through the gRPC methods' handler functions,
+// replies in chunks.
 #include "server/fast_lane.h"
 
 #include <fcntl.h>
@@ -16,6 +17,7 @@
 
 #include "engine/runtime/ipc_token.h"
 #include "server/services.h"
+#include "weft/v1/array.pb.h"
 #include "weft/v1/exec.pb.h"
 #include "weft/v1/session.pb.h"
 
@@ -56,6 +58,29 @@ bool SendReply(int fd, StatusCode code, const std::string& payload, bool closing
 // An error reply; `closing`: the daemon ends the connection after it (a frame it cannot go on
 // from), else (the request's own error, as gRPC would return it) the lane stays usable.
 bool SendError(int fd, const Status& st, bool closing = true) { return SendReply(fd, st.code(), st.message(), closing); }
+
+enum class FrameResult { kContinue, kEnd, kUnknownMethod };
+
+// One request frame of a bound connection: parses the body as Req, serves it with
+// `serve(session, request, &response)` (the gRPC method's handler function), and replies. A body that does not parse ends the connection; the handler's
+// error is the reply and the lane stays open. The session reference is released before the
+// reply is sent, so a slow peer never holds a closed session alive.
+template <typename Req, typename Resp, typename Fn>
+FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
+                       Fn&& serve) {
+  Req req;
+  if (!req.ParseFromArray(body, body_len)) {
+    SendError(fd, InvalidArgument(std::string("fast lane: a ") + name + " frame that does not parse"));
+    return FrameResult::kEnd;
+  }
+  Resp resp;
+  Status st = serve(*s, req, &resp);
+  s.reset();
+  if (!st.ok()) return SendError(fd, st, /*closing=*/false) ? FrameResult::kContinue : FrameResult::kEnd;
+  std::string out;
+  resp.SerializeToString(&out);
+  return SendReply(fd, StatusCode::kOk, out) ? FrameResult::kContinue : FrameResult::kEnd;
+}
 
 }  // namespace
 
@@ -233,36 +258,37 @@ void FastLane::Serve(Conn* c) {
       SendError(fd, FailedPrecondition("no session: the fast lane's session is closed"));
       return;
     }
-    std::string out;
-    if (method == kSubmit) {
-      v1::SubmitRequest req;
-      if (!req.ParseFromArray(body, body_len)) {
-        SendError(fd, InvalidArgument("fast lane: a Submit frame that does not parse"));
-        return;
-      }
-      v1::SubmitResponse resp;
-      Status st = ExecSubmit(engine_, *s, req, &resp);
-      s.reset();
-      if (!st.ok()) {
-        if (!SendError(fd, st, /*closing=*/false)) return;
-        continue;
-      }
-      resp.SerializeToString(&out);
-    } else if (method == kSynchronize) {
-      v1::SynchronizeRequest req;
-      if (!req.ParseFromArray(body, body_len)) {
-        SendError(fd, InvalidArgument("fast lane: a Synchronize frame that does not parse"));
-        return;
-      }
-      v1::SynchronizeResponse resp;
-      ExecSynchronize(engine_, *s, &resp);
-      s.reset();
-      resp.SerializeToString(&out);
-    } else {
+    Engine& engine = engine_;
+    FrameResult r = FrameResult::kUnknownMethod;
+    switch (method) {
+      case kSubmit:
+        r = ServeFrame<v1::SubmitRequest, v1::SubmitResponse>(fd, "Submit", body, body_len, s,
+            [&](Session& ss, const auto& req, auto* resp) { return ExecSubmit(engine, ss, req, resp); });
+        break;
+      case kSynchronize:
+        r = ServeFrame<v1::SynchronizeRequest, v1::SynchronizeResponse>(fd, "Synchronize", body, body_len, s,
+            [&](Session& ss, const auto&, auto* resp) { ExecSynchronize(engine, ss, resp); return Status::Ok(); });
+        break;
+      case kArrayCreate:
+        r = ServeFrame<v1::CreateArrayRequest, v1::CreateArrayResponse>(fd, "ArrayService.Create", body, body_len, s,
+            [&](Session& ss, const auto& req, auto* resp) { return ArrayCreate(engine, ss, req, resp); });
+        break;
+      case kArrayFree:
+        r = ServeFrame<v1::FreeArrayRequest, v1::FreeArrayResponse>(fd, "ArrayService.Free", body, body_len, s,
+            [&](Session& ss, const auto& req, auto*) { return ArrayFree(engine, ss, req); });
+        break;
+      case kArrayDescribe:
+        r = ServeFrame<v1::DescribeArrayRequest, v1::DescribeArrayResponse>(fd, "ArrayService.Describe", body, body_len, s,
+            [&](Session& ss, const auto& req, auto* resp) { return ArrayDescribe(engine, ss, req, resp); });
+        break;
+      default:
+        break;
+    }
+    if (r == FrameResult::kUnknownMethod) {
       SendError(fd, InvalidArgument("fast lane: unknown method " + std::to_string(method)));
       return;
     }
-    if (!SendReply(fd, StatusCode::kOk, out)) return;
+    if (r == FrameResult::kEnd) return;
   }
 }
 

@@ -57,6 +57,12 @@ class ArrayServiceImpl final : public v1::ArrayService::Service {
 Status ExecSubmit(Engine& engine, Session& s, const v1::SubmitRequest& req, v1::SubmitResponse* resp);
 void ExecSynchronize(Engine& engine, Session& s, v1::SynchronizeResponse* resp);
 
+// The bodies of ArrayService.Create, Free and Describe for a session already resolved and
+// authorized (the gRPC methods and the fast lane).
+Status ArrayCreate(Engine& engine, Session& s, const v1::CreateArrayRequest& req, v1::CreateArrayResponse* resp);
+Status ArrayFree(Engine& engine, Session& s, const v1::FreeArrayRequest& req);
+Status ArrayDescribe(Engine& engine, Session& s, const v1::DescribeArrayRequest& req, v1::DescribeArrayResponse* resp);
+
 class ExecServiceImpl final : public v1::ExecService::Service {
  public:
   explicit ExecServiceImpl(const CallAuth& auth) : auth_(auth) {}

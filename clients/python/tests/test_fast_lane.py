@@ -396,3 +396,85 @@ def test_fast_lane_off_by_environment(run_client):
         print("lane", _runtime.get_runtime().fast_lane is None)
     """, env={"WEFT_FAST_LANE": "0"})
     assert "lane True" in out.stdout
+
+
+ARRAY_CREATE, ARRAY_FREE, ARRAY_DESCRIBE = 4, 5, 6
+
+
+def test_fast_lane_carries_array_create_describe_free(wp, monkeypatch):
+    """wp.zeros / wp.array / .grad / freed arrays go over the lane (no gRPC round trip), with
+    the same arrays as through gRPC."""
+    rt = _runtime_with_lane(wp)
+    methods = []
+    real_call, real_many = rt.fast_lane.call, rt.fast_lane.call_many
+    monkeypatch.setattr(rt.fast_lane, "call", lambda m, r, t: (methods.append(m), real_call(m, r, t))[1])
+    monkeypatch.setattr(rt.fast_lane, "call_many", lambda m, rs: (methods.extend([m] * len(rs)), real_many(m, rs))[1])
+    rng = np.random.default_rng(11)
+    x0 = rng.uniform(-1e3, 1e3, 1001).astype(np.float32)
+    z = wp.zeros(1001, dtype=float, device="cpu", requires_grad=True)
+    x = wp.array(x0, dtype=float, device="cpu")
+    g = z.grad
+    assert methods.count(ARRAY_CREATE) == 2 and ARRAY_DESCRIBE in methods
+    wp.launch(lane_saxpy, dim=1001, inputs=[x, z, 2.0], device="cpu")
+    np.testing.assert_array_equal(z.numpy(), 2.0 * x0)   # exact: one float32 product each
+    assert not g.numpy().any()
+    del x, z, g
+    import gc
+    gc.collect()
+    wp.synchronize()
+    assert ARRAY_FREE in methods, "the freed arrays went over the lane"
+
+
+def test_fast_lane_array_errors_are_the_grpc_errors(wp):
+    """A bad shape, an unknown handle, another session's handle: through a bound lane the same
+    status and message as through gRPC, and the lane stays open."""
+    rt = _runtime_with_lane(wp)
+    from weft.v1 import array_pb2, types_pb2
+    mine = wp.zeros(4, dtype=float, device="cpu")
+    a, s = _bound_lane(rt)   # another session of this process, on a lane of its own
+    try:
+        cases = [
+            (ARRAY_CREATE, "Create", array_pb2.CreateArrayRequest(
+                dtype=types_pb2.DType(scalar=types_pb2.FLOAT32), shape=[1 << 40, 1 << 40], device="cpu")),
+            (ARRAY_DESCRIBE, "Describe", array_pb2.DescribeArrayRequest(handle=mine._handle)),
+            (ARRAY_FREE, "Free", array_pb2.FreeArrayRequest(handle=mine._handle)),
+            (ARRAY_DESCRIBE, "Describe", array_pb2.DescribeArrayRequest(handle=(1 << 63) + 12345)),
+        ]
+        meta = (("weft-session", a.session_id),) + tuple(m for m in rt._base_metadata if m[0] != "weft-session")
+        for method, name, request in cases:
+            _send(s, method, request.SerializeToString())
+            code, flags, payload = _reply(s)
+            assert code != 0 and not flags & 2, (name, payload)
+            with pytest.raises(Exception) as via_grpc:
+                rt.call(lambda req, metadata, timeout: getattr(rt.array_stub, name)(req, metadata=meta, timeout=timeout),
+                        request)
+            via_lane = wp.WeftError(payload.decode(), _fast_lane._CODE_NAMES[code])
+            assert str(via_lane) == str(via_grpc.value), name
+            assert via_lane.code == via_grpc.value.code, name
+        # The other session's array is untouched and still this session's.
+        assert mine.numpy().shape == (4,) and not mine.numpy().any()
+        _send(s, SYNCHRONIZE, exec_pb2.SynchronizeRequest().SerializeToString())
+        assert _reply(s)[0] == 0
+        _send(s, ARRAY_CREATE, b"\x0a\xff\xff\xff\xff\x0f" + b"\x00" * 20)   # does not parse
+        _assert_refused_and_closed(s, "INVALID_ARGUMENT")
+    finally:
+        s.close()
+        _close_session(rt, a.session_id)
+
+
+def test_array_calls_fall_back_to_grpc_when_the_lane_refuses_them(wp, monkeypatch):
+    """A daemon whose lane does not serve a method ends the lane on it (unknown method): the
+    client then serves the call, and every later one, through gRPC."""
+    rt = _runtime_with_lane(wp)
+    lane = rt.fast_lane
+    monkeypatch.setitem(_runtime.Runtime._LANE_ARRAY_METHODS, "Create",
+                        (77, _runtime.array_pb2.CreateArrayResponse))
+    try:
+        z = wp.full(17, 2.5, dtype=float, device="cpu")
+        assert lane.broken
+        np.testing.assert_array_equal(z.numpy(), np.full(17, 2.5, np.float32))
+        y = wp.zeros(5, dtype=float, device="cpu")
+        wp.launch(lane_add, dim=5, inputs=[y, 1.5], device="cpu")
+        np.testing.assert_array_equal(y.numpy(), np.full(5, 1.5, np.float32))
+    finally:
+        rt.fast_lane = None   # this runtime's lane is gone; the next test module reconnects

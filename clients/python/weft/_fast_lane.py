@@ -1,5 +1,5 @@
-"""The fast lane: ExecService.Submit and Synchronize of this process's session over a Unix
-SOCK_SEQPACKET socket, without gRPC (docs/protocol.md "Fast lane"; the daemon's side is
+"""The fast lane: ExecService.Submit and Synchronize, ArrayService.Create, Free and Describe of
+this process's session over a Unix SOCK_SEQPACKET socket, without gRPC (docs/protocol.md "Fast lane"; the daemon's side is
 server/fast_lane.h).
 
 The daemon names the socket and a one-time secret in the OpenSessionResponse of a local
@@ -21,6 +21,10 @@ import grpc
 from .errors import WeftError
 
 HELLO, SUBMIT, SYNCHRONIZE = 1, 2, 3
+ARRAY_CREATE, ARRAY_FREE, ARRAY_DESCRIBE = 4, 5, 6
+# Frames sent before their replies are read by call_many: the replies wait in this process's
+# receive buffer meanwhile, and a window this small never fills it (the daemon would block).
+PIPELINE_WINDOW = 32
 # Requests larger than this go through gRPC (the daemon refuses frames over 160 KiB; a datagram
 # must also fit the socket's send buffer).
 MAX_REQUEST_BYTES = 128 << 10
@@ -74,6 +78,25 @@ class FastLane:
         """Sends `request` and returns the parsed response; a daemon error becomes WeftError
         with the same message and status name as through gRPC."""
         return response_type.FromString(self._call(method, request.SerializeToString()))
+
+    def call_many(self, method: int, requests) -> list:
+        """Sends each request and collects the replies, PIPELINE_WINDOW frames at a time: one
+        entry per request, None for OK or the WeftError the daemon answered. A broken lane
+        raises FastLaneError (what was sent before it may or may not have been served)."""
+        results = []
+        for start in range(0, len(requests), PIPELINE_WINDOW):
+            window = requests[start:start + PIPELINE_WINDOW]
+            for request in window:
+                self._send(method, request.SerializeToString())
+            for _ in window:
+                try:
+                    self._receive()
+                    results.append(None)
+                except FastLaneError:
+                    raise
+                except WeftError as err:
+                    results.append(err)
+        return results
 
     def send(self, method: int, request, response_type) -> "PendingReply":
         """Sends `request` without waiting: the daemon works on it while this process goes on.

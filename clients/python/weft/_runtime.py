@@ -382,6 +382,41 @@ class Runtime:
             return lane.call(_fast_lane.SYNCHRONIZE, request, exec_pb2.SynchronizeResponse)
         return self.call(getattr(self.exec_stub, method), request)
 
+    _LANE_ARRAY_METHODS = {"Create": (_fast_lane.ARRAY_CREATE, array_pb2.CreateArrayResponse),
+                           "Free": (_fast_lane.ARRAY_FREE, array_pb2.FreeArrayResponse),
+                           "Describe": (_fast_lane.ARRAY_DESCRIBE, array_pb2.DescribeArrayResponse)}
+
+    def _lane_free(self):
+        """The fast lane when it is open and no asynchronous Submit's reply is outstanding on
+        it (a done one is collected first); else None (caller holds the lock)."""
+        lane = self.fast_lane
+        if lane is None or lane.broken:
+            return None
+        if isinstance(self._inflight, _fast_lane.PendingReply):
+            if not self._inflight.done():
+                return None
+            self._collect_inflight()
+        return None if lane.broken else lane
+
+    def array_call(self, method: str, request):
+        """ArrayService.Create / Free / Describe: through the fast lane when it is free and the
+        request fits a frame (a round trip without gRPC: wp.zeros in a loop), else through
+        gRPC. Same responses and errors either way."""
+        if self.fast_lane is not None and self.fast_lane.fits(request):
+            lane_method, response_type = self._LANE_ARRAY_METHODS[method]
+            with self._lock:
+                lane = self._lane_free()
+                if lane is not None:
+                    try:
+                        return lane.call(lane_method, request, response_type)
+                    except WeftError:
+                        # An error that ended the lane is about the lane, not the request (the
+                        # connection broke, or a daemon that serves fewer methods on its lane):
+                        # gRPC serves the call or says what is wrong. Else it is the answer.
+                        if not lane.broken:
+                            raise
+        return self.call(getattr(self.array_stub, method), request)
+
     # -- Attach: held open until this process ends
     def _attach_requests(self):
         yield session_pb2.AttachRequest(session_id=self.session_id)
@@ -554,9 +589,19 @@ class Runtime:
             self._drain_frees()
 
     def _drain_frees(self) -> None:
-        # Asynchronous calls: the caller does not wait for the round trips. Errors (already
-        # gone: session closed, daemon restarted) are ignored; there is nothing left to free.
+        # Through the fast lane, pipelined (a few microseconds each); else asynchronous gRPC
+        # calls: the caller does not wait for the round trips. Errors (already gone: session
+        # closed, daemon restarted) are ignored; there is nothing left to free.
         self._free_calls = [call for call in self._free_calls if not call.done()]
+        lane = self._lane_free() if self._pending_frees else None
+        if lane is not None:
+            requests = [array_pb2.FreeArrayRequest(handle=h) for h in self._pending_frees]
+            self._pending_frees.clear()
+            try:
+                lane.call_many(_fast_lane.ARRAY_FREE, requests)
+                return
+            except _fast_lane.FastLaneError:
+                self._pending_frees.extend(r.handle for r in requests)   # gRPC below
         while self._pending_frees:
             handle = self._pending_frees.popleft()
             self._free_calls.append(self.array_stub.Free.future(

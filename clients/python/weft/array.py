@@ -411,7 +411,7 @@ def _create(dtype, shape, device, requires_grad, init, value=b""):
     request = ap.CreateArrayRequest(dtype=_dtype_proto(dtype), shape=list(shape),
                                     device=device.alias, requires_grad=bool(requires_grad),
                                     init=init, value=value)
-    info = rt.call(rt.array_stub.Create, request).info
+    info = rt.array_call("Create", request).info
     if not device.is_cpu:
         rt._unsynchronized = True   # its zeroing/fill is queued on the session's GPU stream
         rt.work_queued += 1
@@ -707,8 +707,8 @@ class array:
         if not grad_handle:
             return None
         rt = self._alloc.runtime
-        ginfo = rt.call(rt.array_stub.Describe,
-                        _runtime.array_pb2.DescribeArrayRequest(handle=grad_handle)).info
+        ginfo = rt.array_call("Describe",
+                              _runtime.array_pb2.DescribeArrayRequest(handle=grad_handle)).info
         galloc = _Allocation(rt, ginfo, owned=False, parent=self._alloc)
         g = array.__new__(array)
         g._alloc = galloc
@@ -1391,7 +1391,7 @@ def from_ipc_handle(handle, dtype=None, shape=None, strides=None, device=None):
 def _follow_moved_bytes(arr, rt, ap):
     """An export may move an allocation into a slab of its own: re-describe it and drop the
     client's mapping of the old place (CPU slab or CUDA IPC mapping) when it moved."""
-    info = rt.call(rt.array_stub.Describe, ap.DescribeArrayRequest(handle=arr._handle)).info
+    info = rt.array_call("Describe", ap.DescribeArrayRequest(handle=arr._handle)).info
     old = arr._alloc.info
     if (info.shm_name, info.shm_offset, info.cuda_slab_id, info.cuda_ipc_offset) == \
             (old.shm_name, old.shm_offset, old.cuda_slab_id, old.cuda_ipc_offset):
