@@ -17,29 +17,12 @@ struct fixedarray_t {
   T data[SIZE];
 };
 
-template <typename T, int D0, int D1, int D2, int D3>
-WP_FUNC array_t<T> as_array(const fixedarray_t<T, D0, D1, D2, D3>& a) {
-  array_t<T> r;
-  r.data = (T*)a.data;
-  r.grad = nullptr;
-  const int64 ext[ARRAY_MAX_DIMS] = {D0, D1, D2, D3};
-  r.ndim = fixedarray_t<T, D0, D1, D2, D3>::NDIM;
-  r._pad = 0;
-  int64 stride = (int64)sizeof(T);
-  for (int d = ARRAY_MAX_DIMS - 1; d >= 0; --d) {
-    r.shape[d] = d < r.ndim ? ext[d] : 0;
-    r.strides[d] = d < r.ndim ? stride : 0;
-    if (d < r.ndim) stride *= ext[d];
-  }
-  return r;
-}
-
-// wp.array(ptr=f.ptr, shape=..., dtype=U) over a fixed-size array's elements (the compiler checks
-// that the view fits and that U's alignment is at most the elements'): contiguous, row-major.
-template <typename U, typename T>
-WP_FUNC array_t<U> cg_reinterpret(const array_t<T>& a, int64 n0, int64 n1 = 0, int64 n2 = 0, int64 n3 = 0) {
+// A contiguous row-major array_t of n0 x n1 x n2 x n3 elements of U at `data` (trailing zero
+// extents: fewer dimensions); no gradient.
+template <typename U>
+WP_FUNC array_t<U> contiguous_array(U* data, int64 n0, int64 n1, int64 n2, int64 n3) {
   array_t<U> r;
-  r.data = (U*)a.data;
+  r.data = data;
   r.grad = nullptr;
   const int64 ext[ARRAY_MAX_DIMS] = {n0, n1, n2, n3};
   r.ndim = n1 == 0 ? 1 : (n2 == 0 ? 2 : (n3 == 0 ? 3 : 4));
@@ -51,6 +34,18 @@ WP_FUNC array_t<U> cg_reinterpret(const array_t<T>& a, int64 n0, int64 n1 = 0, i
     if (d < r.ndim) stride *= ext[d];
   }
   return r;
+}
+
+template <typename T, int D0, int D1, int D2, int D3>
+WP_FUNC array_t<T> as_array(const fixedarray_t<T, D0, D1, D2, D3>& a) {
+  return contiguous_array((T*)a.data, D0, D1, D2, D3);
+}
+
+// wp.array(ptr=f.ptr, shape=..., dtype=U) over a fixed-size array's elements (the compiler checks
+// that the view fits and that U's alignment is at most the elements'): contiguous, row-major.
+template <typename U, typename T>
+WP_FUNC array_t<U> cg_reinterpret(const array_t<T>& a, int64 n0, int64 n1 = 0, int64 n2 = 0, int64 n3 = 0) {
+  return contiguous_array((U*)a.data, n0, n1, n2, n3);
 }
 
 #define WP_FIXED_TEMPLATE template <typename T, int D0, int D1, int D2, int D3, typename... A>
