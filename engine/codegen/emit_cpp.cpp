@@ -857,14 +857,20 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
   EmitStructs(m, &o);
   for (const auto& f : m.functions) gm.function_names.push_back(f.file + ":" + f.name);
 
+  // Every forward function first, then the replays and adjoints: a func's adjoint may call a
+  // function instantiated after it (its custom gradient, which may call the func itself).
   for (const auto& f : m.functions) {
     if (f.is_kernel) continue;
     WEFT_RETURN_IF_ERROR(Guarded(f, diags, [&]() {
       FnEmitter(m, f, options, &o).EmitFunc(FnEmitter::Mode::kForward);
-      if (options.enable_backward) {
-        FnEmitter(m, f, options, &o).EmitFunc(FnEmitter::Mode::kReplay);
-        FnEmitter(m, f, options, &o).EmitFunc(FnEmitter::Mode::kAdjoint);
-      }
+      return Status::Ok();
+    }));
+  }
+  for (const auto& f : m.functions) {
+    if (f.is_kernel || !options.enable_backward) continue;
+    WEFT_RETURN_IF_ERROR(Guarded(f, diags, [&]() {
+      FnEmitter(m, f, options, &o).EmitFunc(FnEmitter::Mode::kReplay);
+      FnEmitter(m, f, options, &o).EmitFunc(FnEmitter::Mode::kAdjoint);
       return Status::Ok();
     }));
   }

@@ -311,33 +311,34 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
       fs.return_type != "None")
     return finish_error(Error(pf.def->loc, "'" + fs.name + "' declares a return type but never returns"));
 
-  // A custom gradient (wp.func_grad) of this func: instantiated with the func's parameter
-  // types followed by its return types (the adjoints of the results).
-  if (!fs.is_kernel && grad_of_params < 0) {
-    auto g = by_key_.find(key + "__custom_grad");
-    if (g != by_key_.end()) {
-      std::vector<Type> gtypes = param_types;
-      for (const auto& t : fn.returns) gtypes.push_back(t);
-      if (g->second->def->params.size() != gtypes.size())
-        return finish_error(Error(g->second->def->loc, "the gradient of '" + fs.name + "' must take its " +
-                                                           std::to_string(param_types.size()) + " parameters and " +
-                                                           std::to_string(fn.returns.size()) +
-                                                           " adjoint(s) of its return value(s)"));
-      auto gi = InstantiateFunction(*g->second, gtypes, g->second->def->loc, static_cast<int>(param_types.size()));
-      if (!gi.ok()) return finish_error(gi.status());
-      fn.custom_grad = *gi;
-      st_ = &state;
-    }
-  }
-
   st_ = saved;
   in_progress_.erase(inst);
   fn.function_id = static_cast<int>(module_.functions.size());
   fn.cpp_name = (fn.is_kernel ? "weft_kernel_" : "weft_func_") + codegen::MangleIdentifier(fs.name) + "_" +
                 std::to_string(fn.function_id);
+  const std::vector<Type> returns = fn.returns;
   int index = static_cast<int>(module_.functions.size());
   module_.functions.push_back(std::move(fn));
   instances_[inst] = index;
+
+  // A custom gradient (wp.func_grad) of this func: instantiated with the func's parameter
+  // types followed by its return types (the adjoints of the results), after the func itself,
+  // so that the gradient may call the func (Warp's adj_sigmoid calling sigmoid). Codegen
+  // emits every forward function before any adjoint, so the func's adjoint sees it.
+  if (!fs.is_kernel && grad_of_params < 0) {
+    auto g = by_key_.find(key + "__custom_grad");
+    if (g != by_key_.end()) {
+      std::vector<Type> gtypes = param_types;
+      for (const auto& t : returns) gtypes.push_back(t);
+      if (g->second->def->params.size() != gtypes.size())
+        return Error(g->second->def->loc, "the gradient of '" + fs.name + "' must take its " +
+                                              std::to_string(param_types.size()) + " parameters and " +
+                                              std::to_string(returns.size()) + " adjoint(s) of its return value(s)");
+      auto gi = InstantiateFunction(*g->second, gtypes, g->second->def->loc, static_cast<int>(param_types.size()));
+      if (!gi.ok()) return gi.status();
+      module_.functions[index].custom_grad = *gi;
+    }
+  }
   return index;
 }
 

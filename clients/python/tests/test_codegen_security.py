@@ -248,12 +248,40 @@ def test_allowed_printf_formats_and_literal_percent_signs(wp, tmp_path, capfd):
 # Native snippets: weft compiles only the kernel language
 # --------------------------------------------------------------------------------------------
 
-def test_native_snippets_are_refused(wp):
-    with pytest.raises(WeftCompileError) as info:
+def test_native_snippets_are_refused(wp, tmp_path):
+    """A native snippet's C++ never reaches the daemon: the kernel that calls it (through a
+    @wp.func) fails to build with the reason and both places; the module's other kernel still
+    builds and runs; calling the snippet from Python raises the same refusal."""
+    mod = _load(tmp_path, """
         @wp.func_native('return system("id");')
         def snippet(x: int) -> int:
             ...
-    assert "native snippets" in str(info.value), str(info.value)
+
+        @wp.func
+        def via_func(x: int):
+            return snippet(x) + 1
+
+        @wp.kernel
+        def calls_snippet(a: wp.array(dtype=int)):
+            i = wp.tid()
+            a[i] = via_func(a[i])
+
+        @wp.kernel
+        def plain(a: wp.array(dtype=int)):
+            i = wp.tid()
+            a[i] = a[i] * 3 + 1
+    """)
+    a = wp.array(np.arange(5, dtype=np.int32), dtype=int)
+    with pytest.raises(WeftCompileError) as info:
+        wp.launch(mod.calls_snippet, dim=5, inputs=[a])
+        wp.synchronize()
+    message = str(info.value)
+    assert "native snippet" in message and "'via_func' calls 'snippet'" in message, message
+    assert "system" not in message, "the snippet's text is not echoed"
+    wp.launch(mod.plain, dim=5, inputs=[a])
+    np.testing.assert_array_equal(a.numpy(), np.arange(5) * 3 + 1)   # calls_snippet never ran
+    with pytest.raises(WeftCompileError):
+        mod.snippet(3)
 
 
 # --------------------------------------------------------------------------------------------

@@ -445,6 +445,40 @@ def test_custom_gradient_func_grad(wp, rng):
     np.testing.assert_allclose(wa.grad.numpy(), 100.0 * seed, rtol=1e-14)
 
 
+@wp.func
+def logistic(x: wp.float64):
+    return wp.float64(1.0) / (wp.float64(1.0) + wp.exp(-x))
+
+
+@wp.func_grad(logistic)
+def adj_logistic(x: wp.float64, adj: wp.float64):
+    # the gradient calls the func it is the gradient of (Warp's adj_sigmoid)
+    wp.adjoint[x] += adj * logistic(x) * (wp.float64(1.0) - logistic(x))
+
+
+@wp.kernel
+def logistic_of(x: wp.array(dtype=wp.float64), y: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    y[i] = logistic(x[i]) * x[i]
+
+
+def test_custom_gradient_may_call_its_func(wp, rng):
+    n = 64
+    x = rng.uniform(-30.0, 30.0, n)
+    x[:3] = [0.0, 1e-8, -700.0]                    # tiny and saturated arguments
+    xa = wp.array(x, dtype=wp.float64, requires_grad=True)
+    y = wp.zeros(n, dtype=wp.float64, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(logistic_of, dim=n, inputs=[xa, y])
+    s = 1.0 / (1.0 + np.exp(-x))
+    np.testing.assert_allclose(y.numpy(), s * x, rtol=1e-14, atol=1e-300)
+    seed = rng.standard_normal(n)
+    tape.backward(grads={y: seed})
+    # d/dx [s(x) x] = s'(x) x + s(x), s' = s (1 - s): float64 throughout
+    np.testing.assert_allclose(xa.grad.numpy(), seed * (s * (1.0 - s) * x + s), rtol=1e-12, atol=1e-300)
+
+
 @wp.kernel
 def rows_and_cols(v: wp.array(dtype=wp.vec3d), out: wp.array(dtype=wp.float64)):
     i = wp.tid()

@@ -22,7 +22,7 @@ from .errors import (
     WeftCompileError,
     WeftLaunchError,
 )
-from .functions import Function, FunctionDefinition, Kernel, attach_gradient, static
+from .functions import Function, FunctionDefinition, Kernel, NativeSnippet, attach_gradient, static
 from .launch import Launch, launch
 from .structs import StructInstance, StructType, struct
 from .tape import Tape
@@ -95,11 +95,14 @@ def func(f=None, **_options):
 def func_native(snippet=None, adj_snippet=None, replay_snippet=None):
     """Warp's @wp.func_native (a function body written in C++/CUDA). weft does not compile
     native snippets: the daemon compiles only the kernel language, so client C++ never reaches
-    its compiler (docs/security.md). Raises WeftCompileError."""
-    raise WeftCompileError(
-        "weft does not compile native snippets (@wp.func_native): the daemon compiles only the "
-        "kernel language, never client C++ (see docs/security.md); write the function as a "
-        "@wp.func instead")
+    its compiler (docs/security.md). The decorated function becomes a NativeSnippet: a kernel
+    that calls it (directly or through @wp.func) fails to build with WeftCompileError naming
+    both places; the module's other kernels build and run."""
+
+    def wrap(function):
+        return NativeSnippet(function)
+
+    return wrap
 
 
 def func_grad(forward):

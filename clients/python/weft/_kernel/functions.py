@@ -227,6 +227,38 @@ class Function:
         return f"<weft func {self.key} ({len(self.overloads)} overload(s))>"
 
 
+class NativeSnippet:
+    """What @wp.func_native returns in weft: a named placeholder for a function whose body is
+    client C++/CUDA. The daemon compiles only the kernel language, never client C++
+    (docs/security.md), so a kernel that reaches one fails to build (that kernel only, with the
+    reason and the places); defining one is not an error, so the other kernels of its module
+    still build and run."""
+
+    def __init__(self, func):
+        self.func = func
+        self.__name__ = func.__name__
+        self.__qualname__ = getattr(func, "__qualname__", func.__name__)
+        self.__doc__ = func.__doc__
+        self.__module__ = getattr(func, "__module__", None)
+        try:
+            self.file = inspect.getsourcefile(func) or "<unknown>"
+            self.line = inspect.getsourcelines(func)[1]
+        except (OSError, TypeError):
+            self.file, self.line = "<unknown>", 0
+
+    def refusal(self, caller: str, file: str, line: int) -> str:
+        return (f"{file}:{line}: error: '{caller}' calls '{self.__name__}', a native snippet "
+                f"(@wp.func_native, {self.file}:{self.line}): weft does not compile native "
+                "snippets: the daemon compiles only the kernel language, never client C++ "
+                "(see docs/security.md); write the function as a @wp.func instead")
+
+    def __call__(self, *args, **kwargs):
+        raise WeftCompileError(self.refusal("Python", self.file, self.line))
+
+    def __repr__(self):
+        return f"<weft native snippet {self.__qualname__} (not compiled)>"
+
+
 class GradientFunction:
     """A custom gradient (wp.func_grad) attached to one @wp.func overload. It is sent with the
     overload, under the key `<overload key>__custom_grad`, whenever a kernel reaches the

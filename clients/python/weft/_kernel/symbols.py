@@ -12,7 +12,8 @@ import types
 import typing
 
 from . import typestr
-from .functions import Function, FunctionDefinition
+from .errors import WeftCompileError
+from .functions import Function, FunctionDefinition, NativeSnippet
 from .structs import StructType
 
 _MISSING = object()
@@ -166,6 +167,8 @@ def resolve(definition: FunctionDefinition) -> Resolution:
         if is_warp_module(value):
             add(ResolvedSymbol(name, "builtin_module", "warp"))
             continue
+        if isinstance(value, NativeSnippet):
+            raise WeftCompileError(value.refusal(definition.name, definition.file, definition.first_line))
         classify(name, value, add, functions, structs)
 
     gradient = getattr(definition, "custom_grad", None)
