@@ -184,6 +184,9 @@ template <> struct is_float_t<bfloat16> { static constexpr bool value = true; };
 
 // ---------------------------------------------------------------------------------------------
 // Classification (bit tests, valid under fast-math).
+// +infinity and a quiet NaN from their bits (NVRTC has no __builtin_inf / __builtin_nan).
+WP_FUNC float64 positive_inf() { return bits_to_double(0x7ff0000000000000ull); }
+WP_FUNC float64 quiet_nan() { return bits_to_double(0x7ff8000000000000ull); }
 WP_FUNC bool isnan(float32 x) { return (float_to_bits(x) & 0x7fffffffu) > 0x7f800000u; }
 WP_FUNC bool isinf(float32 x) { return (float_to_bits(x) & 0x7fffffffu) == 0x7f800000u; }
 WP_FUNC bool isfinite(float32 x) { return (float_to_bits(x) & 0x7f800000u) != 0x7f800000u; }
@@ -307,9 +310,9 @@ WP_FUNC float64 erfinv_giles(float64 x) {
 }
 WP_FUNC float64 erfinv(float64 x) {
   if (!(x > -1.0 && x < 1.0)) {
-    if (x == 1.0) return __builtin_inf();
-    if (x == -1.0) return -__builtin_inf();
-    return __builtin_nan("");
+    if (x == 1.0) return positive_inf();
+    if (x == -1.0) return -positive_inf();
+    return quiet_nan();
   }
   float64 y = erfinv_giles(x);
   for (int it = 0; it < 2; ++it) {  // Newton on erf(y) - x
@@ -321,9 +324,9 @@ WP_FUNC float64 erfinv(float64 x) {
 WP_FUNC float32 erfinv(float32 x) { return (float32)erfinv((float64)x); }
 WP_FUNC float64 erfcinv(float64 x) {
   if (!(x > 0.0 && x < 2.0)) {
-    if (x == 0.0) return __builtin_inf();
-    if (x == 2.0) return -__builtin_inf();
-    return __builtin_nan("");
+    if (x == 0.0) return positive_inf();
+    if (x == 2.0) return -positive_inf();
+    return quiet_nan();
   }
   if (x > 1.0) return -erfcinv(2.0 - x);
   float64 y;

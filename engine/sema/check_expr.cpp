@@ -91,9 +91,9 @@ Expected<std::string> CppLiteral(const Type& t, const std::string& text) {
       if (!IsIntLiteralText(s)) return InvalidArgument("'" + s + "' is not an integer literal");
       return ct + "(" + s + (ScalarSize(t.scalar) == 8 ? (IsSigned(t.scalar) ? "ll" : "ull") : "") + ")";
     }
-    if (s == "inf" || s == "+inf") return ct + "(__builtin_inf())";
-    if (s == "-inf") return ct + "(-__builtin_inf())";
-    if (s == "nan" || s == "-nan") return ct + "(__builtin_nan(\"\"))";
+    if (s == "inf" || s == "+inf") return ct + "(wp::positive_inf())";
+    if (s == "-inf") return ct + "(-wp::positive_inf())";
+    if (s == "nan" || s == "-nan") return ct + "(wp::quiet_nan())";
     char* end = nullptr;
     double v = std::strtod(s.c_str(), &end);
     if (s.empty() || *end != '\0') {

@@ -160,3 +160,37 @@ def test_float64_math_is_double_precision(wp, rng, math_kernels):
     wp.launch(math_kernels.k_float64, dim=1000, inputs=[wp.array(x, dtype=wp.float64), y])
     ref = np.stack([np.sin(x), np.exp(x), np.sqrt(np.abs(x)), np.log(np.abs(x) + 1e-300)], 1)
     np.testing.assert_allclose(y.numpy(), ref, rtol=1e-13)
+
+
+@wp.kernel
+def special_constants(x: wp.array(dtype=wp.float64), h: wp.array(dtype=wp.float16),
+                      f: wp.array(dtype=wp.float32), d: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    # wp.inf / wp.nan are constants of the module: every float type converts them, on the CPU
+    # and on the GPU (NVRTC has no __builtin_inf)
+    h[i * 3 + 0] = wp.float16(wp.inf) * wp.float16(x[i])
+    h[i * 3 + 1] = wp.float16(-wp.inf)
+    h[i * 3 + 2] = wp.float16(wp.nan)
+    f[i * 3 + 0] = wp.float32(wp.inf) * wp.float32(x[i])
+    f[i * 3 + 1] = wp.float32(-wp.inf)
+    f[i * 3 + 2] = wp.float32(wp.nan)
+    d[i * 3 + 0] = wp.float64(wp.inf) * x[i]
+    d[i * 3 + 1] = wp.erfinv(wp.float64(1.0)) + wp.erfcinv(wp.float64(0.0))
+    d[i * 3 + 2] = wp.float64(wp.nan) + x[i]
+
+
+def test_inf_and_nan_constants_on_every_float_type(wp, rng, device):
+    n = 17
+    x = rng.uniform(0.5, 1e300, n) * rng.choice([-1.0, 1.0], n)
+    xa = wp.array(x, dtype=wp.float64)
+    outs = [wp.zeros(3 * n, dtype=t) for t in (wp.float16, wp.float32, wp.float64)]
+    wp.launch(special_constants, dim=n, inputs=[xa] + outs)
+    h, f, d = (o.numpy().astype(np.float64).reshape(n, 3) for o in outs)
+    signed_inf = np.where(x > 0, np.inf, -np.inf)
+    for got in (h, f):
+        np.testing.assert_array_equal(got[:, 0], signed_inf)
+        np.testing.assert_array_equal(got[:, 1], -np.inf)
+        assert np.isnan(got[:, 2]).all()
+    np.testing.assert_array_equal(d[:, 0], signed_inf)
+    np.testing.assert_array_equal(d[:, 1], np.inf)      # erfinv(1) = erfcinv(0) = +inf
+    assert np.isnan(d[:, 2]).all()
