@@ -11,6 +11,7 @@
 #if WEFT_WITH_CUDA
 #include "engine/jit/cuda/cubin_info.h"
 #include "engine/jit/cuda/nvrtc_compiler.h"
+#include "saxpy_source.h"
 #endif
 
 namespace weft {
@@ -18,29 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-ModuleSource Saxpy() {
-  ModuleSource m;
-  m.name = "tests.arch_saxpy";
-  FunctionSource f;
-  f.name = "saxpy";
-  f.key = "saxpy";
-  f.file = "saxpy.py";
-  f.first_line = 5;
-  f.is_kernel = true;
-  f.source =
-      "def saxpy(a: float, x: wp.array(dtype=float), y: wp.array(dtype=float)):\n"
-      "    i = wp.tid()\n"
-      "    y[i] = a * wp.sin(x[i]) + y[i]\n";
-  f.param_types = {"float32", "array(float32,1)", "array(float32,1)"};
-  f.param_names = {"a", "x", "y"};
-  m.functions.push_back(f);
-  Symbol wp_symbol;
-  wp_symbol.name = "wp";
-  wp_symbol.kind = Symbol::Kind::kBuiltinModule;
-  wp_symbol.target = "warp";
-  m.symbols.push_back(wp_symbol);
-  return m;
-}
+ModuleSource Saxpy() { return testing::SaxpySource("tests.arch_saxpy", "a * wp.sin(x[i]) + y[i]", 5); }
 
 class CacheCudaArch : public ::testing::Test {
  protected:

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "engine/runtime/module_cache.h"
+#include "saxpy_source.h"
 
 namespace weft {
 namespace {
@@ -417,26 +418,7 @@ TEST_F(CacheModule, RealCompilerSaxpyThroughTheStore) {
 #endif
   auto store = ModuleStore::Create(options);
   ASSERT_TRUE(store.ok()) << store.status().ToString();
-  ModuleSource m;
-  m.name = "tests.real_saxpy";
-  FunctionSource f;
-  f.name = "saxpy";
-  f.key = "saxpy";
-  f.file = "saxpy.py";
-  f.first_line = 5;
-  f.is_kernel = true;
-  f.source =
-      "def saxpy(a: float, x: wp.array(dtype=float), y: wp.array(dtype=float)):\n"
-      "    i = wp.tid()\n"
-      "    y[i] = a * x[i] + y[i]\n";
-  f.param_types = {"float32", "array(float32,1)", "array(float32,1)"};
-  f.param_names = {"a", "x", "y"};
-  m.functions.push_back(f);
-  Symbol wp_symbol;
-  wp_symbol.name = "wp";
-  wp_symbol.kind = Symbol::Kind::kBuiltinModule;
-  wp_symbol.target = "warp";
-  m.symbols.push_back(wp_symbol);
+  ModuleSource m = testing::SaxpySource("tests.real_saxpy", "a * x[i] + y[i]", 5);
 
   CompileReport report;
   auto module = (*store)->Compile(m, "cpu", &report);

@@ -15,6 +15,7 @@
 #include "engine/codegen/generate_module.h"
 #include "engine/jit/cuda/nvrtc_compiler.h"
 #include "engine/native/launch_abi.h"
+#include "saxpy_source.h"
 
 namespace weft::jit {
 namespace {
@@ -123,26 +124,7 @@ extern "C" __global__ void weft_saxpy_cuda_forward(wp::launch_context_t ctx, sax
 }
 
 TEST_F(JitCudaDriver, GeneratedSaxpyRuns) {
-  ModuleSource m;
-  m.name = "tests.cuda_saxpy";
-  FunctionSource f;
-  f.name = "saxpy";
-  f.key = "saxpy";
-  f.file = "saxpy.py";
-  f.first_line = 3;
-  f.is_kernel = true;
-  f.source =
-      "def saxpy(a: float, x: wp.array(dtype=float), y: wp.array(dtype=float)):\n"
-      "    i = wp.tid()\n"
-      "    y[i] = a * x[i] + y[i]\n";
-  f.param_types = {"float32", "array(float32,1)", "array(float32,1)"};
-  f.param_names = {"a", "x", "y"};
-  m.functions.push_back(f);
-  Symbol wp_symbol;
-  wp_symbol.name = "wp";
-  wp_symbol.kind = Symbol::Kind::kBuiltinModule;
-  wp_symbol.target = "warp";
-  m.symbols.push_back(wp_symbol);
+  ModuleSource m = testing::SaxpySource("tests.cuda_saxpy", "a * x[i] + y[i]", 3);
   CodegenOptions options;
   options.target = Target::kCuda;
   std::vector<Diagnostic> diags;
