@@ -62,9 +62,10 @@ bool SendError(int fd, const Status& st, bool closing = true) { return SendReply
 enum class FrameResult { kContinue, kEnd, kUnknownMethod };
 
 // One request frame of a bound connection: parses the body as Req, serves it with
-// `serve(session, request, &response)` (the gRPC method's handler function), and replies. A body that does not parse ends the connection; the handler's
-// error is the reply and the lane stays open. The session reference is released before the
-// reply is sent, so a slow peer never holds a closed session alive.
+// `serve(session, request, &response)` (the gRPC method's handler function), and replies. A
+// body that does not parse ends the connection; the handler's error is the reply and the lane
+// stays open. The session reference is released before the reply is sent, so a slow peer
+// never holds a closed session alive.
 template <typename Req, typename Resp, typename Fn>
 FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
                        Fn&& serve) {

@@ -1,13 +1,15 @@
 """The fast lane: ExecService.Submit and Synchronize, ArrayService.Create, Free and Describe of
-this process's session over a Unix SOCK_SEQPACKET socket, without gRPC (docs/protocol.md "Fast lane"; the daemon's side is
-server/fast_lane.h).
+this process's session over a Unix SOCK_SEQPACKET socket, without gRPC (docs/protocol.md
+"Fast lane"; the daemon's side is server/fast_lane.h).
 
 The daemon names the socket and a one-time secret in the OpenSessionResponse of a local
 client; `FastLane.connect` binds one connection to the session with them. Frames are one
-datagram each: a request is a little-endian u32 method then the serialized request message;
-a reply is a u32 status code (gRPC numbering), u32 flags (bit 0: more frames follow; bit 1:
-the daemon ends the connection after it), then a piece of the payload (the serialized response, or the error message). Calls on one FastLane
-must not overlap (the Runtime's lock orders them). WEFT_FAST_LANE=0 turns it off.
+datagram each: a request is a little-endian u32 method (1 hello, 2 Submit, 3 Synchronize,
+4 Create, 5 Free, 6 Describe) then the serialized request message; a reply is a u32 status
+code (gRPC numbering), u32 flags (bit 0: more frames follow; bit 1: the daemon ends the
+connection after it), then a piece of the payload (the serialized response, or the error
+message). Calls on one FastLane must not overlap (the Runtime's lock orders them).
+WEFT_FAST_LANE=0 turns it off.
 """
 from __future__ import annotations
 
