@@ -143,6 +143,11 @@ def main():
         ps = pe = None
         if warp is not None:
             ps, pe = run_rosenbrock(warp, warp_mod, torch, 1500, args.iters, args.repeat, 7, args.device)
+        # The same step with ArrayService calls through gRPC (WEFT_FAST_LANE_ARRAYS=0): what the
+        # fast lane's array calls save.
+        lane_arrays, _rt.lane_arrays = _rt.lane_arrays, False
+        gs, ge = run_rosenbrock(weft, weft_mod, torch, 1500, args.iters, args.repeat, 7, args.device)
+        _rt.lane_arrays = lane_arrays
         if args.device != "cpu":
             from weft import _cuda_ipc
 
@@ -152,7 +157,9 @@ def main():
                        f"{args.iters} iterations x {args.repeat})",
                        ["step", "weft", "weft err", "warp-lang", "warp err", "ratio"],
                        [["zeros + 2 launches + 4 conversions", bc.fmt_time(ws), f"{we:.1e}",
-                         bc.fmt_time(ps), "n/a" if pe is None else f"{pe:.1e}", bc.fmt_ratio(ws, ps)]])
+                         bc.fmt_time(ps), "n/a" if pe is None else f"{pe:.1e}", bc.fmt_ratio(ws, ps)],
+                        ["the same, array calls over gRPC", bc.fmt_time(gs), f"{ge:.1e}",
+                         bc.fmt_time(ps), "n/a" if pe is None else f"{pe:.1e}", bc.fmt_ratio(gs, ps)]])
     return 0
 
 

@@ -462,19 +462,40 @@ def test_fast_lane_array_errors_are_the_grpc_errors(wp):
         _close_session(rt, a.session_id)
 
 
-def test_array_calls_fall_back_to_grpc_when_the_lane_refuses_them(wp, monkeypatch):
+def test_array_calls_fall_back_to_grpc_when_the_lane_refuses_them(wp, run_client):
     """A daemon whose lane does not serve a method ends the lane on it (unknown method): the
-    client then serves the call, and every later one, through gRPC."""
-    rt = _runtime_with_lane(wp)
-    lane = rt.fast_lane
-    monkeypatch.setitem(_runtime.Runtime._LANE_ARRAY_METHODS, "Create",
-                        (77, _runtime.array_pb2.CreateArrayResponse))
-    try:
+    client then serves the call, and every later one, through gRPC. Run in a child client, so
+    this process keeps its lane."""
+    out = run_client('''
+        import numpy as np
+        import weft as wp
+        from weft import _runtime
+        wp.init()
+        rt = _runtime.get_runtime()
+        assert rt.fast_lane is not None and not rt.fast_lane.broken
+        _runtime.Runtime._LANE_ARRAY_METHODS["Create"] = (77, _runtime.array_pb2.CreateArrayResponse)
         z = wp.full(17, 2.5, dtype=float, device="cpu")
-        assert lane.broken
-        np.testing.assert_array_equal(z.numpy(), np.full(17, 2.5, np.float32))
-        y = wp.zeros(5, dtype=float, device="cpu")
-        wp.launch(lane_add, dim=5, inputs=[y, 1.5], device="cpu")
-        np.testing.assert_array_equal(y.numpy(), np.full(5, 1.5, np.float32))
-    finally:
-        rt.fast_lane = None   # this runtime's lane is gone; the next test module reconnects
+        assert rt.fast_lane.broken, "the daemon ended the lane on the unknown method"
+        y = wp.zeros(17, dtype=float, device="cpu")
+        wp.copy(y, z)
+        wp.synchronize()
+        assert (y.numpy() == np.float32(2.5)).all() and (z.numpy() == np.float32(2.5)).all()
+        del z
+        wp.synchronize()
+        print("FELL BACK")
+    ''').stdout
+    assert "FELL BACK" in out, out
+
+
+def test_array_calls_over_grpc_when_turned_off(wp, monkeypatch):
+    """Runtime.lane_arrays False (WEFT_FAST_LANE_ARRAYS=0): array calls go through gRPC while
+    Submit still uses the lane."""
+    rt = _runtime_with_lane(wp)
+    methods = []
+    real_call = rt.fast_lane.call
+    monkeypatch.setattr(rt.fast_lane, "call", lambda m, r, t: (methods.append(m), real_call(m, r, t))[1])
+    monkeypatch.setattr(rt, "lane_arrays", False)
+    z = wp.full(9, 1.25, dtype=float, device="cpu")
+    wp.launch(lane_add, dim=9, inputs=[z, 0.5], device="cpu")
+    np.testing.assert_array_equal(z.numpy(), np.full(9, 1.75, np.float32))
+    assert ARRAY_CREATE not in methods and (SUBMIT in methods or SYNCHRONIZE in methods)

@@ -321,6 +321,9 @@ class Runtime:
         self.local = bool(opened.local) and self.address.startswith("unix:")
         self.metadata = self._base_metadata + (("weft-session", self.session_id),)
         self.fast_lane = self._open_fast_lane(opened)
+        # ArrayService.Create/Free/Describe over the lane too (WEFT_FAST_LANE_ARRAYS=0: through
+        # gRPC, as before the lane carried them; bench/bench_interop.py compares the two).
+        self.lane_arrays = os.environ.get("WEFT_FAST_LANE_ARRAYS", "1") != "0"
 
         self._lock = threading.RLock()
         self._batch: list = []
@@ -402,7 +405,7 @@ class Runtime:
         """ArrayService.Create / Free / Describe: through the fast lane when it is free and the
         request fits a frame (a round trip without gRPC: wp.zeros in a loop), else through
         gRPC. Same responses and errors either way."""
-        if self.fast_lane is not None and self.fast_lane.fits(request):
+        if self.lane_arrays and self.fast_lane is not None and self.fast_lane.fits(request):
             lane_method, response_type = self._LANE_ARRAY_METHODS[method]
             with self._lock:
                 lane = self._lane_free()
@@ -593,7 +596,7 @@ class Runtime:
         # calls: the caller does not wait for the round trips. Errors (already gone: session
         # closed, daemon restarted) are ignored; there is nothing left to free.
         self._free_calls = [call for call in self._free_calls if not call.done()]
-        lane = self._lane_free() if self._pending_frees else None
+        lane = self._lane_free() if self._pending_frees and self.lane_arrays else None
         if lane is not None:
             requests = [array_pb2.FreeArrayRequest(handle=h) for h in self._pending_frees]
             self._pending_frees.clear()
