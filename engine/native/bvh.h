@@ -78,10 +78,11 @@ WP_FUNC vec3 geometry_load3(const float32* p, int64 i) { return vec3(p[3 * i], p
 
 struct bvh_walk_t {
   const geometry_desc_t* g;
-  int32 mode;         // 0 aabb, 1 ray
-  float32 a[3];       // aabb lower | ray start
-  float32 b[3];       // aabb upper | ray direction
-  float32 max_t;      // ray: items hit beyond it are skipped
+  int32 mode;         // 0 aabb, 1 ray, 2 sphere, 3 capsule
+  float32 a[3];       // aabb lower | ray/capsule start | sphere center
+  float32 b[3];       // aabb upper | ray/capsule direction | sphere radius in b[0]
+  float32 max_t;      // ray/capsule: items hit beyond it are skipped
+  float32 radius;     // capsule: the ray's bounds are inflated by it
   int32 stack[BVH_STACK];
   int32 count;
   int32 leaf_cur;
@@ -136,6 +137,7 @@ WP_FUNC void bvh_walk_begin(bvh_walk_t& w, const geometry_desc_t* g, int32 mode,
   w.mode = mode;
   for (int k = 0; k < 3; ++k) { w.a[k] = a[k]; w.b[k] = b[k]; }
   w.max_t = max_t;
+  w.radius = 0.0f;
   w.count = 0;
   w.leaf_cur = 0;
   w.leaf_end = 0;
@@ -155,9 +157,15 @@ WP_FUNC float32 bvh_box_dist_sq(const float32* lo, const float32* hi, const floa
   return d;
 }
 
-// mode 0: box overlap; 1: ray; 2: sphere (a = center, b[0] = radius).
+// mode 0: box overlap; 1: ray; 2: sphere (a = center, b[0] = radius); 3: capsule (the ray
+// against the box inflated by the radius: conservative near the box's edges, as Warp's).
 WP_FUNC bool bvh_walk_test(const bvh_walk_t& w, const float32* lo, const float32* hi) {
   if (w.mode == 2) return bvh_box_dist_sq(lo, hi, w.a) <= w.b[0] * w.b[0];
+  if (w.mode == 3) {
+    float32 elo[3], ehi[3];
+    for (int k = 0; k < 3; ++k) { elo[k] = lo[k] - w.radius; ehi[k] = hi[k] + w.radius; }
+    return bvh_ray_box(elo, ehi, w.a, w.b, w.max_t);
+  }
   return w.mode == 0 ? bvh_box_overlap(lo, hi, w.a, w.b) : bvh_ray_box(lo, hi, w.a, w.b, w.max_t);
 }
 
@@ -221,6 +229,18 @@ WP_FUNC weft_struct_BvhQuery bvh_query_sphere(const launch_context_t* ctx, int32
   weft_struct_BvhQuery q;
   const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "bvh_query_sphere", id, GEOMETRY_BVH);
   bvh_walk_begin(q.walk, g, 2, center, vec3(radius, 0.0f, 0.0f), 0.0f, root);
+  return q;
+}
+
+// The capsule swept by start + t dir, t in [0, max_dist] (bvh_query_next's; unbounded without
+// it), with the given radius.
+WP_FUNC weft_struct_BvhQuery bvh_query_capsule(const launch_context_t* ctx, int32 fid, int32 line, uint64 id,
+                                               const vec3& start, const vec3& dir, float32 radius,
+                                               int32 root = -1) {
+  weft_struct_BvhQuery q;
+  const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "bvh_query_capsule", id, GEOMETRY_BVH);
+  bvh_walk_begin(q.walk, g, 3, start, dir, 3.0e38f, root);
+  q.walk.radius = radius > 0.0f ? radius : 0.0f;
   return q;
 }
 

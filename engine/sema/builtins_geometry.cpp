@@ -61,10 +61,15 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
       "Start a query of the items whose bounds come within radius of center.", q);
   bvh("bvh_query_sphere(id: uint64, center: vec(3,float32), radius: float32, root: int32) -> struct(BvhQuery)",
       "bvh_query_sphere from node `root` (-1: the root).", q);
+  bvh("bvh_query_capsule(id: uint64, start: vec(3,float32), dir: vec(3,float32), radius: float32) -> struct(BvhQuery)",
+      "Start a query of the items whose bounds, inflated by radius, the ray start + t dir meets "
+      "(t in [0, max_dist] of bvh_query_next: max_dist 1 bounds it to the segment start..start+dir).", q);
+  bvh("bvh_query_capsule(id: uint64, start: vec(3,float32), dir: vec(3,float32), radius: float32, root: int32) -> struct(BvhQuery)",
+      "bvh_query_capsule from node `root` (-1: the root).", q);
   bvh("bvh_query_next(query: struct(BvhQuery), index: int32) -> bool",
       "Next item index of the query into `index`; false when done.", kBuiltinNotDiff | kBuiltinWritesArgs);
   bvh("bvh_query_next(query: struct(BvhQuery), index: int32, max_dist: float32) -> bool",
-      "bvh_query_next; ray queries skip items whose bounds start beyond max_dist.", kBuiltinNotDiff | kBuiltinWritesArgs);
+      "bvh_query_next; ray and capsule queries skip items whose bounds start beyond max_dist.", kBuiltinNotDiff | kBuiltinWritesArgs);
 
   auto mesh = [rows](const char* sig, const char* doc, unsigned flags) {
     rows->push_back(Builtin("Meshes", sig, doc, flags));

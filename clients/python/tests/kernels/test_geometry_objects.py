@@ -830,3 +830,51 @@ def test_sphere_queries_match_brute_force(rng):
         p = centers[i].astype(np.float64)
         d = np.linalg.norm(np.maximum(np.maximum(lo - p, p - hi), 0.0), axis=1)
         assert (got[i][d < 1.0 - TOL] == 1).all() and (got[i][d > 1.0 + TOL] == 0).all()
+
+
+@wp.kernel
+def bvh_capsule_items(bvh: wp.uint64, p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3), radius: float,
+                      hits: wp.array2d(dtype=int)):
+    tid = wp.tid()
+    query = wp.bvh_query_capsule(bvh, p0[tid], p1[tid] - p0[tid], radius)
+    item = int(0)
+    while wp.bvh_query_next(query, item, 1.0):
+        hits[tid, item] = hits[tid, item] + 1
+
+
+def segment_meets_inflated_boxes(p0, p1, r, lo, hi):
+    """float64 slab test of the segment p0..p1 against every box inflated by r: (hit, margin),
+    margin = how far inside the segment's t range the overlap is (small: a near miss either way)."""
+    lo, hi = lo - r, hi + r
+    d = p1 - p0
+    t0, t1 = np.zeros(len(lo)), np.ones(len(lo))
+    for k in range(3):
+        if abs(d[k]) < 1e-12:
+            inside = (p0[k] >= lo[:, k]) & (p0[k] <= hi[:, k])
+            t1 = np.where(inside, t1, -1.0)
+            continue
+        a, b = (lo[:, k] - p0[k]) / d[k], (hi[:, k] - p0[k]) / d[k]
+        t0, t1 = np.maximum(t0, np.minimum(a, b)), np.minimum(t1, np.maximum(a, b))
+    return t0 <= t1, np.abs(t1 - t0)
+
+
+def test_capsule_queries_match_float64(rng):
+    m, n, r = 400, 40, 0.25
+    cb = rng.uniform(-3, 3, size=(m, 3))
+    hb = rng.uniform(0.01, 0.4, size=(m, 3))
+    lo, hi = (cb - hb).astype(np.float32), (cb + hb).astype(np.float32)
+    p0 = rng.uniform(-4, 4, size=(n, 3)).astype(np.float32)
+    p1 = (p0 + rng.uniform(-3, 3, size=(n, 3))).astype(np.float32)
+    p1[::5, 1] = p0[::5, 1]          # segments parallel to a slab: the degenerate axis
+    p1[1::7] = p0[1::7]              # zero-length segments: a sphere of radius r
+    bvh = wp.Bvh(wp.array(lo, dtype=wp.vec3, device=CPU), wp.array(hi, dtype=wp.vec3, device=CPU))
+    hits = wp.zeros((n, m), dtype=int, device=CPU)
+    wp.launch(bvh_capsule_items, dim=n, inputs=[bvh.id, wp.array(p0, dtype=wp.vec3, device=CPU),
+                                              wp.array(p1, dtype=wp.vec3, device=CPU), r, hits], device=CPU)
+    got = hits.numpy()
+    assert got.max() <= 1 and got.sum() > 0
+    for i in range(n):
+        want, margin = segment_meets_inflated_boxes(p0[i].astype(np.float64), p1[i].astype(np.float64), r,
+                                                    lo.astype(np.float64), hi.astype(np.float64))
+        clear = margin > 1e-4
+        assert (got[i][clear & want] == 1).all() and (got[i][clear & ~want] == 0).all()
