@@ -2,6 +2,7 @@
 #include <spdlog/spdlog.h>
 
 #include "engine/geometry/geometry_ops.h"
+#include "engine/runtime/engine.h"
 #include "server/grpc_status.h"
 #include "server/services.h"
 
@@ -27,7 +28,7 @@ grpc::Status GeometryServiceImpl::Call(grpc::ServerContext* ctx, const v1::Geome
   r.lowers = req->lowers();
   r.uppers = req->uppers();
   r.radius = req->radius();
-  auto id = geometry::RunGeometryOp(**s, r);
+  auto id = auth_.engine().RunGeometry(**s, r);
   if (!id.ok()) {
     spdlog::info("geometry op {} from {} failed: {}", op, ctx->peer(), id.status().ToString());
     return ToGrpc(id.status());

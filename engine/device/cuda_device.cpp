@@ -358,6 +358,8 @@ Expected<CudaDevice::Stream*> CudaDevice::StreamOf(const std::string& session_id
 }
 
 void CudaDevice::DestroyStream(Stream& st) {
+  if (st.stream) driver_->StreamSynchronize(st.stream);
+  ReleaseGeometry(st, true);
   if (st.stream) driver_->StreamDestroy(st.stream);
   if (st.errors_base) driver_->MemFree(st.errors_base);
   if (st.print_data) driver_->MemFree(st.print_data);
@@ -467,6 +469,7 @@ DeviceSyncResult CudaDevice::Drain(Stream& st) {
     std::memset(static_cast<void*>(st.errors_host), 0, n * sizeof(wp::launch_error_t));
   }
   st.pending.clear();
+  ReleaseGeometry(st, false);
   // Kernel print output: the records the launches appended (the stream is idle here).
   wp::print_buffer_t header;
   std::memcpy(&header, st.readback, sizeof(header));
@@ -949,6 +952,8 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   ctx.print = reinterpret_cast<wp::print_buffer_t*>(static_cast<uintptr_t>(st->errors_base));
   ctx.flags = 0;
   ctx.cancel = reinterpret_cast<const wp::int32*>(static_cast<uintptr_t>(st->errors_base + kCancelOffset));
+  WEFT_ASSIGN_OR_RETURN(uint64_t geometry, GeometryTable(s, *st));
+  ctx.geometry = reinterpret_cast<const wp::geometry_table_t*>(static_cast<uintptr_t>(geometry));
   const unsigned block = l.block_dim ? l.block_dim : 256;
   const unsigned grid = GridFor(static_cast<uint64_t>(ctx.bounds.size), block, l.max_blocks);
   void* args = const_cast<char*>(l.args->block.data());

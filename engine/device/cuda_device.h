@@ -142,6 +142,15 @@ class CudaDevice final : public Device {
     jit::CuStream cancel_stream = nullptr;
     bool cancel_set = false;
     std::string first_error_text;
+    // The session's geometry table in device memory (cuda_device_geometry.cpp): reused while
+    // its objects do not change; a replaced one is retired and freed once the stream is idle.
+    struct GeometryUpload {
+      jit::CuDevicePtr memory = 0;
+      std::string image;                   // header + descriptors, alive until freed
+      std::shared_ptr<const void> keep;    // the objects the descriptors point into
+    };
+    GeometryUpload geometry;
+    std::vector<GeometryUpload> geometry_retired;
   };
   struct CuModuleEntry {
     jit::CuModule module = nullptr;
@@ -181,6 +190,12 @@ class CudaDevice final : public Device {
   // back; a sticky error here resets (and, failing that, marks lost) this GPU too.
   void ProbeAfterFaultOn(const std::string& faulted);
   Status StridedCopyOnDevice(Stream& st, const ArrayView& dst, const ArrayView& src);
+  // The device address of the session's geometry table for a launch on `st` (0: the session
+  // holds no geometry objects); uploaded on the stream when the objects changed.
+  Expected<uint64_t> GeometryTable(Session& s, Stream& st);
+  // Frees the retired geometry tables (the stream is idle), or every table (`all`: the stream
+  // is being destroyed).
+  void ReleaseGeometry(Stream& st, bool all);
 
   CudaDeviceOptions options_;
   std::string name_;

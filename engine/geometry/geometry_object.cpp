@@ -62,14 +62,18 @@ float HalfToFloat(uint16_t h) {
   return f;
 }
 
-// Coordinate k of point i of a vec3 array of float16/32/64, as float32.
-float Coord(const Allocation& a, int64_t i, int k) {
-  const char* p = a.data();
-  switch (a.dtype.scalar) {
+// Coordinate k of point i of a vec3 array of float16/32/64 (bytes p), as float32.
+float Coord(const char* p, ScalarType scalar, int64_t i, int k) {
+  switch (scalar) {
     case ScalarType::kFloat64: { double d; std::memcpy(&d, p + 8 * (3 * i + k), 8); return static_cast<float>(d); }
     case ScalarType::kFloat16: { uint16_t h; std::memcpy(&h, p + 2 * (3 * i + k), 2); return HalfToFloat(h); }
     default: { float f; std::memcpy(&f, p + 4 * (3 * i + k), 4); return f; }
   }
+}
+
+Status NeedAccess(const std::string& device, const DeviceAccess* dev, const char* what) {
+  if (device != "cpu" && !dev) return FailedPrecondition(std::string(what) + " on " + device + ": no device access");
+  return Status::Ok();
 }
 
 }  // namespace
@@ -93,25 +97,28 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewHashGrid(const std:
 }
 
 Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewBvh(std::shared_ptr<Allocation> lowers,
-                                                                 std::shared_ptr<Allocation> uppers) {
+                                                                 std::shared_ptr<Allocation> uppers,
+                                                                 const DeviceAccess* dev) {
   WEFT_ASSIGN_OR_RETURN(int64_t nl, CheckVec3Array(lowers, "Bvh lowers"));
   WEFT_ASSIGN_OR_RETURN(int64_t nu, CheckVec3Array(uppers, "Bvh uppers"));
   if (nl != nu)
     return InvalidArgument("Bvh: lowers has " + std::to_string(nl) + " items and uppers " + std::to_string(nu));
   if (lowers->device != uppers->device) return InvalidArgument("Bvh: lowers and uppers live on different devices");
+  WEFT_RETURN_IF_ERROR(NeedAccess(lowers->device, dev, "Bvh"));
   std::shared_ptr<GeometryObject> g(new GeometryObject());
   g->kind_ = wp::GEOMETRY_BVH;
   g->device_ = lowers->device;
   g->lowers_ = std::move(lowers);
   g->uppers_ = std::move(uppers);
   g->num_prims_ = nl;
-  WEFT_RETURN_IF_ERROR(g->Rebuild());
+  WEFT_RETURN_IF_ERROR(g->Rebuild(dev));
   return g;
 }
 
 Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_ptr<Allocation> points,
                                                                   std::shared_ptr<Allocation> indices,
-                                                                  std::shared_ptr<Allocation> velocities) {
+                                                                  std::shared_ptr<Allocation> velocities,
+                                                                  const DeviceAccess* dev) {
   WEFT_ASSIGN_OR_RETURN(int64_t np, CheckVec3Array(points, "Mesh points"));
   if (velocities) {
     WEFT_ASSIGN_OR_RETURN(int64_t nv, CheckVec3Array(velocities, "Mesh velocities"));
@@ -120,6 +127,7 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_pt
     if (velocities->device != points->device) return InvalidArgument("Mesh: velocities and points live on different devices");
   }
   if (!indices) return InvalidArgument("Mesh indices: an array is required");
+  WEFT_RETURN_IF_ERROR(NeedAccess(points->device, dev, "Mesh"));
   ArrayRequirement req;
   req.what = "Mesh indices";
   req.device = points->device;
@@ -138,7 +146,11 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_pt
   } catch (const std::bad_alloc&) {
     return ResourceExhausted("Mesh: out of memory for the indices");
   }
-  if (count) std::memcpy(g->indices_.data(), iv.data(), count * sizeof(int32_t));
+  if (count && points->device != "cpu") {
+    WEFT_RETURN_IF_ERROR(dev->download(*indices, g->indices_.data(), count * sizeof(int32_t)));
+  } else if (count) {
+    std::memcpy(g->indices_.data(), iv.data(), count * sizeof(int32_t));
+  }
   for (uint64_t i = 0; i < count; ++i) {
     int32_t v = g->indices_[i];
     if (v < 0 || v >= np)
@@ -151,14 +163,12 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_pt
   g->velocities_ = std::move(velocities);
   g->num_points_ = np;
   g->num_prims_ = static_cast<int64_t>(count / 3);
-  WEFT_RETURN_IF_ERROR(g->Rebuild());
+  WEFT_RETURN_IF_ERROR(g->Rebuild(dev));
   return g;
 }
 
-ItemBounds GeometryObject::Bounds() const {
+ItemBounds GeometryObject::Bounds(const float* lo, const float* hi, const float* p) const {
   if (kind_ == wp::GEOMETRY_BVH) {
-    const float* lo = Floats(lowers_);
-    const float* hi = Floats(uppers_);
     return [lo, hi](int64_t i, float* l, float* h) {
       for (int k = 0; k < 3; ++k) {
         l[k] = lo[3 * i + k];
@@ -166,7 +176,6 @@ ItemBounds GeometryObject::Bounds() const {
       }
     };
   }
-  const float* p = Floats(points_);
   const int32_t* idx = indices_.data();
   return [p, idx](int64_t f, float* l, float* h) {
     for (int k = 0; k < 3; ++k) {
@@ -183,23 +192,81 @@ ItemBounds GeometryObject::Bounds() const {
   };
 }
 
-Status GeometryObject::Rebuild() {
-  if (kind_ == wp::GEOMETRY_HASH_GRID) return Status::Ok();
+Status GeometryObject::HostArrays(const DeviceAccess* dev, std::vector<float>* storage, const float** lo,
+                                  const float** hi, const float** p) const {
+  *lo = *hi = *p = nullptr;
+  if (!on_gpu()) {
+    *lo = Floats(lowers_);
+    *hi = Floats(uppers_);
+    *p = Floats(points_);
+    return Status::Ok();
+  }
+  WEFT_RETURN_IF_ERROR(NeedAccess(device_, dev, "geometry object"));
+  const int64_t items = kind_ == wp::GEOMETRY_BVH ? num_prims_ : num_points_;
+  const uint64_t bytes = static_cast<uint64_t>(items) * 3 * sizeof(float);
   try {
-    BuildBvh(num_prims_, Bounds(), &bvh_);
+    storage->resize(static_cast<size_t>(items) * (kind_ == wp::GEOMETRY_BVH ? 6 : 3));
   } catch (const std::bad_alloc&) {
-    return ResourceExhausted("out of memory building the BVH");
+    return ResourceExhausted("out of host memory for a copy of the geometry's arrays");
+  }
+  if (kind_ == wp::GEOMETRY_BVH) {
+    WEFT_RETURN_IF_ERROR(dev->download(*lowers_, storage->data(), bytes));
+    WEFT_RETURN_IF_ERROR(dev->download(*uppers_, storage->data() + 3 * items, bytes));
+    *lo = storage->data();
+    *hi = storage->data() + 3 * items;
+  } else {
+    WEFT_RETURN_IF_ERROR(dev->download(*points_, storage->data(), bytes));
+    *p = storage->data();
   }
   return Status::Ok();
 }
 
-Status GeometryObject::Refit() {
-  if (kind_ == wp::GEOMETRY_HASH_GRID) return Status::Ok();
-  RefitBvh(Bounds(), &bvh_);
-  return Status::Ok();
+Status GeometryObject::MirrorOne(const DeviceAccess* dev, const void* src, uint64_t bytes, DeviceCopy* copy) {
+  copy->bytes = bytes;
+  if (bytes == 0) return Status::Ok();
+  if (!copy->memory || copy->memory->byte_size < bytes) {
+    copy->memory.reset();
+    WEFT_ASSIGN_OR_RETURN(copy->memory, dev->allocate(device_, bytes));
+  }
+  return dev->upload(*copy->memory, src, bytes);
 }
 
-Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float radius) {
+Status GeometryObject::Mirror(const DeviceAccess* dev) {
+  if (!on_gpu()) return Status::Ok();
+  WEFT_RETURN_IF_ERROR(NeedAccess(device_, dev, "geometry object"));
+  WEFT_RETURN_IF_ERROR(MirrorOne(dev, indices_.data(), indices_.size() * sizeof(int32_t), &gpu_indices_));
+  WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.nodes.data(), bvh_.nodes.size() * sizeof(wp::bvh_node_t), &gpu_nodes_));
+  WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.prim_ids.data(), bvh_.prim_ids.size() * sizeof(int32_t), &gpu_prim_ids_));
+  WEFT_RETURN_IF_ERROR(
+      MirrorOne(dev, cell_starts_.data(), cell_starts_.size() * sizeof(int32_t), &gpu_cell_starts_));
+  WEFT_RETURN_IF_ERROR(MirrorOne(dev, cell_ends_.data(), cell_ends_.size() * sizeof(int32_t), &gpu_cell_ends_));
+  return MirrorOne(dev, sorted_ids_.data(), sorted_ids_.size() * sizeof(int32_t), &gpu_sorted_ids_);
+}
+
+Status GeometryObject::Rebuild(const DeviceAccess* dev) {
+  if (kind_ == wp::GEOMETRY_HASH_GRID) return Status::Ok();
+  std::vector<float> host;
+  const float *lo, *hi, *p;
+  WEFT_RETURN_IF_ERROR(HostArrays(dev, &host, &lo, &hi, &p));
+  try {
+    BuildBvh(num_prims_, Bounds(lo, hi, p), &bvh_);
+  } catch (const std::bad_alloc&) {
+    return ResourceExhausted("out of memory building the BVH");
+  }
+  return Mirror(dev);
+}
+
+Status GeometryObject::Refit(const DeviceAccess* dev) {
+  if (kind_ == wp::GEOMETRY_HASH_GRID) return Status::Ok();
+  std::vector<float> host;
+  const float *lo, *hi, *p;
+  WEFT_RETURN_IF_ERROR(HostArrays(dev, &host, &lo, &hi, &p));
+  RefitBvh(Bounds(lo, hi, p), &bvh_);
+  if (!on_gpu()) return Status::Ok();
+  return MirrorOne(dev, bvh_.nodes.data(), bvh_.nodes.size() * sizeof(wp::bvh_node_t), &gpu_nodes_);
+}
+
+Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float radius, const DeviceAccess* dev) {
   if (kind_ != wp::GEOMETRY_HASH_GRID) return InvalidArgument("build(points, radius) is a HashGrid operation");
   if (!(radius > 0.0f) || radius > 3.0e38f)
     return InvalidArgument("HashGrid.build: radius must be a positive finite number, got " + std::to_string(radius));
@@ -207,15 +274,29 @@ Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float r
   if (points->device != device_)
     return InvalidArgument("HashGrid.build: the points live on " + points->device + ", the grid on " + device_);
   const int64_t cells = static_cast<int64_t>(dim_[0]) * dim_[1] * dim_[2];
-  const Allocation& pa = *points;
+  const ScalarType scalar = points->dtype.scalar;
+  const char* bytes = points->data();
+  std::vector<char> host;
+  if (on_gpu()) {
+    WEFT_RETURN_IF_ERROR(NeedAccess(device_, dev, "HashGrid.build"));
+    const uint64_t n_bytes = static_cast<uint64_t>(n) * 3 * ScalarSize(scalar);
+    try {
+      host.resize(n_bytes);
+    } catch (const std::bad_alloc&) {
+      return ResourceExhausted("HashGrid.build: out of host memory for a copy of the points");
+    }
+    WEFT_RETURN_IF_ERROR(dev->download(*points, host.data(), n_bytes));
+    bytes = host.data();
+  }
   try {
     std::vector<int32_t> cell_of(static_cast<size_t>(n));
     cell_starts_.assign(static_cast<size_t>(cells), 0);
     cell_ends_.assign(static_cast<size_t>(cells), 0);
     sorted_ids_.resize(static_cast<size_t>(n));
     for (int64_t i = 0; i < n; ++i) {
-      int64_t c = wp::hash_grid_cell(dim_, wp::hash_grid_coord(Coord(pa, i, 0), radius),
-                                     wp::hash_grid_coord(Coord(pa, i, 1), radius), wp::hash_grid_coord(Coord(pa, i, 2), radius));
+      int64_t c = wp::hash_grid_cell(dim_, wp::hash_grid_coord(Coord(bytes, scalar, i, 0), radius),
+                                     wp::hash_grid_coord(Coord(bytes, scalar, i, 1), radius),
+                                     wp::hash_grid_coord(Coord(bytes, scalar, i, 2), radius));
       cell_of[i] = static_cast<int32_t>(c);
       ++cell_ends_[c];   // counts first
     }
@@ -233,8 +314,17 @@ Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float r
   points_ = std::move(points);
   num_points_ = n;
   cell_width_ = radius;
-  return Status::Ok();
+  return Mirror(dev);
 }
+
+namespace {
+
+template <typename T>
+const T* DevicePtr(const std::shared_ptr<Allocation>& memory, uint64_t bytes) {
+  return memory && bytes ? reinterpret_cast<const T*>(memory->data()) : nullptr;
+}
+
+}  // namespace
 
 void GeometryObject::Describe(wp::geometry_desc_t* d) const {
   std::memset(d, 0, sizeof(*d));
@@ -256,6 +346,14 @@ void GeometryObject::Describe(wp::geometry_desc_t* d) const {
     d->num_sorted = cell_width_ > 0.0f ? static_cast<int64_t>(sorted_ids_.size()) : 0;
     for (int k = 0; k < 3; ++k) d->dim[k] = dim_[k];
     d->cell_width = cell_width_;
+  }
+  if (on_gpu()) {   // the same layout, with the device copies of the build products
+    d->indices = DevicePtr<int32_t>(gpu_indices_.memory, gpu_indices_.bytes);
+    d->nodes = DevicePtr<wp::bvh_node_t>(gpu_nodes_.memory, gpu_nodes_.bytes);
+    d->prim_ids = DevicePtr<int32_t>(gpu_prim_ids_.memory, gpu_prim_ids_.bytes);
+    d->cell_starts = DevicePtr<int32_t>(gpu_cell_starts_.memory, gpu_cell_starts_.bytes);
+    d->cell_ends = DevicePtr<int32_t>(gpu_cell_ends_.memory, gpu_cell_ends_.bytes);
+    d->sorted_ids = DevicePtr<int32_t>(gpu_sorted_ids_.memory, gpu_sorted_ids_.bytes);
   }
 }
 

@@ -3,9 +3,14 @@
 // the daemon's own build products (BVH nodes, the checked copy of a mesh's indices, the hash
 // grid's cells). Describe() writes the kernel-side descriptor (geometry_abi.h). Builds and refits
 // run on the session's executor, ordered with its launches.
+// On a GPU the builds run on the host too: the arrays are downloaded (after the session's queued
+// work on the device), the tree or cells are built as on the CPU, and the products are uploaded
+// into device memory the object owns (counted in the session's quota); kernels read the user's
+// arrays in place.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -23,37 +28,63 @@ constexpr int64_t kMaxHashGridCells = int64_t{1} << 26;
 // Items of one Bvh or Mesh (faces, boxes, points): int32 indices in kernels.
 constexpr int64_t kMaxGeometryItems = (int64_t{1} << 31) - 1;
 
+// What an object on a GPU needs of the engine, bound to the calling session: host copies of
+// device arrays and device memory for its build products. Null for CPU objects.
+struct DeviceAccess {
+  // Copies the first n bytes of `a` to dst, after the session's queued work on a's device.
+  std::function<Status(const Allocation& a, void* dst, uint64_t n)> download;
+  // A new allocation of `bytes` on `device`, owned by the session (quota), contents undefined.
+  std::function<Expected<std::shared_ptr<Allocation>>(const std::string& device, uint64_t bytes)> allocate;
+  // Copies n bytes from src to the start of `a`, ordered with the session's work on a's device.
+  std::function<Status(const Allocation& a, const void* src, uint64_t n)> upload;
+};
+
 class GeometryObject {
  public:
   // A hash grid with no points yet (Build gives it some). dims each >= 1, product checked.
   static Expected<std::shared_ptr<GeometryObject>> NewHashGrid(const std::string& device, int32_t dim_x,
                                                                int32_t dim_y, int32_t dim_z);
   // A Bvh over lowers/uppers (contiguous vec3 float32 arrays of one length), built now.
+  // `dev` is required for arrays on a GPU (each method below takes it the same way).
   static Expected<std::shared_ptr<GeometryObject>> NewBvh(std::shared_ptr<Allocation> lowers,
-                                                          std::shared_ptr<Allocation> uppers);
+                                                          std::shared_ptr<Allocation> uppers,
+                                                          const DeviceAccess* dev = nullptr);
   // A Mesh over points (contiguous vec3 float32), indices (int32, length a multiple of 3, each
   // value < points: checked here and copied, so later writes to the array cannot reach a query)
   // and optional velocities (as points); its BVH built now.
   static Expected<std::shared_ptr<GeometryObject>> NewMesh(std::shared_ptr<Allocation> points,
                                                            std::shared_ptr<Allocation> indices,
-                                                           std::shared_ptr<Allocation> velocities);
+                                                           std::shared_ptr<Allocation> velocities,
+                                                           const DeviceAccess* dev = nullptr);
 
   uint32_t kind() const { return kind_; }
   const std::string& device() const { return device_; }
 
   // HashGrid: sorts `points` (contiguous vec3 of float16/32/64) into cells of width `radius` (> 0).
-  Status BuildHashGrid(std::shared_ptr<Allocation> points, float radius);
+  Status BuildHashGrid(std::shared_ptr<Allocation> points, float radius, const DeviceAccess* dev = nullptr);
   // HashGrid: nothing to reserve ahead (cells are sized by the dims, sorted ids by the build).
   // Bvh / Mesh: recompute the node bounds from the arrays' current values.
-  Status Refit();
+  Status Refit(const DeviceAccess* dev = nullptr);
   // Bvh / Mesh: a new tree from the arrays' current values.
-  Status Rebuild();
+  Status Rebuild(const DeviceAccess* dev = nullptr);
 
   void Describe(wp::geometry_desc_t* d) const;
 
  private:
   GeometryObject() = default;
-  ItemBounds Bounds() const;
+  bool on_gpu() const { return device_ != "cpu"; }
+  // Item bounds from host copies of the arrays (lowers/uppers of a Bvh, points of a Mesh).
+  ItemBounds Bounds(const float* lowers, const float* uppers, const float* points) const;
+  // Host copies of the tree's arrays (a GPU object's downloaded; a CPU object's in place).
+  Status HostArrays(const DeviceAccess* dev, std::vector<float>* storage, const float** lowers,
+                    const float** uppers, const float** points) const;
+  // GPU: uploads the build products into the object's device memory (grown when too small).
+  Status Mirror(const DeviceAccess* dev);
+  struct DeviceCopy {
+    std::shared_ptr<Allocation> memory;
+    uint64_t bytes = 0;   // in use
+  };
+  Status MirrorOne(const DeviceAccess* dev, const void* src, uint64_t bytes, DeviceCopy* copy);
 
   uint32_t kind_ = wp::GEOMETRY_NONE;
   std::string device_;
@@ -66,6 +97,8 @@ class GeometryObject {
   int32_t dim_[3] = {1, 1, 1};
   float cell_width_ = 0.0f;
   std::vector<int32_t> cell_starts_, cell_ends_, sorted_ids_;
+  // GPU: device copies of indices_, the nodes, the prim ids and the cells.
+  DeviceCopy gpu_indices_, gpu_nodes_, gpu_prim_ids_, gpu_cell_starts_, gpu_cell_ends_, gpu_sorted_ids_;
 };
 
 // Checks that `a` is a whole contiguous array of vec3 float32 (any number of dimensions, or

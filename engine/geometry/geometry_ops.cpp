@@ -17,48 +17,45 @@ Expected<std::shared_ptr<Allocation>> Array(Session& s, uint64_t handle, const s
   if (!a)
     return NotFound(what + ": unknown array handle " + std::to_string(handle) +
                     " (never created, already freed, or not held by this session)");
-  if (a->device != "cpu")
-    return FailedPrecondition(what + ": the array lives on " + a->device +
-                              "; geometry objects are CPU-only for now (docs/geometry.md)");
   return a;
 }
 
-Expected<uint64_t> Run(Session& s, const GeometryRequest& r) {
+Expected<uint64_t> Run(Session& s, const GeometryRequest& r, const DeviceAccess* dev) {
   GeometryRegistry& reg = s.geometry();
   switch (r.op) {
     case GeometryRequest::Op::kCreateHashGrid: {
-      if (r.device != "cpu")
-        return FailedPrecondition("HashGrid on " + r.device + ": geometry objects are CPU-only for now (docs/geometry.md)");
+      if (r.device != "cpu" && !dev)
+        return FailedPrecondition("HashGrid on " + r.device + ": this daemon has no such device");
       WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewHashGrid(r.device, r.dim[0], r.dim[1], r.dim[2]));
       return reg.Add(std::move(g));
     }
     case GeometryRequest::Op::kCreateBvh: {
       WEFT_ASSIGN_OR_RETURN(auto lo, Array(s, r.lowers, "Bvh lowers"));
       WEFT_ASSIGN_OR_RETURN(auto hi, Array(s, r.uppers, "Bvh uppers"));
-      WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewBvh(std::move(lo), std::move(hi)));
+      WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewBvh(std::move(lo), std::move(hi), dev));
       return reg.Add(std::move(g));
     }
     case GeometryRequest::Op::kCreateMesh: {
       WEFT_ASSIGN_OR_RETURN(auto p, Array(s, r.points, "Mesh points"));
       WEFT_ASSIGN_OR_RETURN(auto i, Array(s, r.indices, "Mesh indices"));
       WEFT_ASSIGN_OR_RETURN(auto v, Array(s, r.velocities, "Mesh velocities", true));
-      WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewMesh(std::move(p), std::move(i), std::move(v)));
+      WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewMesh(std::move(p), std::move(i), std::move(v), dev));
       return reg.Add(std::move(g));
     }
     case GeometryRequest::Op::kBuildHashGrid: {
       WEFT_ASSIGN_OR_RETURN(auto g, reg.Find(r.id));
       WEFT_ASSIGN_OR_RETURN(auto p, Array(s, r.points, "HashGrid.build points"));
-      WEFT_RETURN_IF_ERROR(g->BuildHashGrid(std::move(p), r.radius));
+      WEFT_RETURN_IF_ERROR(g->BuildHashGrid(std::move(p), r.radius, dev));
       return uint64_t{0};
     }
     case GeometryRequest::Op::kRefit: {
       WEFT_ASSIGN_OR_RETURN(auto g, reg.Find(r.id));
-      WEFT_RETURN_IF_ERROR(g->Refit());
+      WEFT_RETURN_IF_ERROR(g->Refit(dev));
       return uint64_t{0};
     }
     case GeometryRequest::Op::kRebuild: {
       WEFT_ASSIGN_OR_RETURN(auto g, reg.Find(r.id));
-      WEFT_RETURN_IF_ERROR(g->Rebuild());
+      WEFT_RETURN_IF_ERROR(g->Rebuild(dev));
       return uint64_t{0};
     }
     case GeometryRequest::Op::kFree:
@@ -70,9 +67,9 @@ Expected<uint64_t> Run(Session& s, const GeometryRequest& r) {
 
 }  // namespace
 
-Expected<uint64_t> RunGeometryOp(Session& s, const GeometryRequest& r) {
+Expected<uint64_t> RunGeometryOp(Session& s, const GeometryRequest& r, const DeviceAccess* dev) {
   Expected<uint64_t> result = Internal("geometry operation did not run");
-  s.queue().RunAndWait([&] { result = Run(s, r); });
+  s.queue().RunAndWait([&] { result = Run(s, r, dev); });
   return result;
 }
 

@@ -2,14 +2,15 @@
 // Mesh from the session's arrays, build a hash grid, refit / rebuild a tree, free an object.
 // Each runs on the session's executor after the commands queued before it (so a build sees what
 // earlier launches wrote), resolves array handles among the session's own arrays, and checks
-// them through the one array validation. Objects live on the CPU for now: a GPU array is
-// refused with FAILED_PRECONDITION (docs/geometry.md).
+// them through the one array validation. Objects on a GPU need `dev` (Engine::RunGeometry
+// binds it to the session): without it a GPU array or device is refused.
 #pragma once
 
 #include <cstdint>
 #include <string>
 
 #include "engine/core/status.h"
+#include "engine/geometry/geometry_object.h"
 
 namespace weft {
 class Session;
@@ -31,7 +32,8 @@ struct GeometryRequest {
   float radius = 0.0f;             // hash grid build
 };
 
-// Runs `r` for session `s`; returns the new object's id for a create, 0 otherwise.
-Expected<uint64_t> RunGeometryOp(Session& s, const GeometryRequest& r);
+// Runs `r` for session `s`; returns the new object's id for a create, 0 otherwise. `r.device`
+// of a hash grid must name a device of the daemon (the caller checks it).
+Expected<uint64_t> RunGeometryOp(Session& s, const GeometryRequest& r, const DeviceAccess* dev = nullptr);
 
 }  // namespace weft::geometry

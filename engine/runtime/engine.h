@@ -16,6 +16,7 @@
 
 #include "engine/core/status.h"
 #include "engine/device/device_set.h"
+#include "engine/geometry/geometry_ops.h"
 #include "engine/runtime/command_executor.h"
 #include "engine/runtime/command_limits.h"
 #include "engine/runtime/launch_watchdog.h"
@@ -144,6 +145,9 @@ class Engine {
   // Streams [offset, offset+count) (count 0 = to the end) in chunks of at most `chunk` bytes
   // (0 = 1 MiB) to sink(offset, data, size); a false return from sink stops early.
   // Waits for the session's queued commands first.
+  // A geometry operation of the session (create / build / refit / rebuild / free a HashGrid,
+  // Bvh or Mesh) on the device of its arrays; engine_geometry.cpp.
+  Expected<uint64_t> RunGeometry(Session& s, const geometry::GeometryRequest& r);
   Status ReadArray(Session& s, uint64_t handle, uint64_t offset, uint64_t count, uint32_t chunk,
                    const std::function<bool(uint64_t, const char*, size_t)>& sink);
   // Writes bytes at offset of the allocation (range-checked; nothing written on error).

@@ -1,7 +1,7 @@
 """Geometry objects of Warp's API: wp.HashGrid, wp.Bvh and wp.Mesh (docs/geometry.md).
 
-Each object lives in the daemon, owned by this process's session, on one device (the CPU for
-now). Kernels receive `obj.id`, an opaque uint64 that each launch resolves against this
+Each object lives in the daemon, owned by this process's session, on the device of its arrays
+(the CPU or a GPU; on a GPU the daemon builds on the host and uploads the tree). Kernels receive `obj.id`, an opaque uint64 that each launch resolves against this
 session's objects only: a forged, stale or foreign id is a launch error (kernel, line), never
 an address. The arrays an object reads (points, indices, lowers/uppers, velocities) are this
 session's arrays; the daemon holds them while the object lives. Operations run after the

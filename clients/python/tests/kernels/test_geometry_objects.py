@@ -1,7 +1,7 @@
 """Geometry objects (wp.HashGrid, wp.Bvh, wp.Mesh) against brute-force NumPy float64 references
 on random data, and the attacks on their ids and arrays: a forged id, another session's id, an
 id after free, a HashGrid id used as a Mesh, indices out of range at build, huge grid dims.
-Objects live on the CPU (docs/geometry.md). Distances are compared with a tolerance of
+Objects live on the test's device (cpu, and cuda:0 where there is one; docs/geometry.md). Distances are compared with a tolerance of
 1e-4 (float32 queries on coordinates of size ~1); neighbour and overlap sets exclude the pairs
 within 1e-4 of the boundary, where float32 and float64 may disagree."""
 import os
@@ -14,14 +14,16 @@ import pytest
 
 import weft as wp
 
-CPU = "cpu"
+DEV = "cpu"     # the device of the running test (set by _on_device)
 TOL = 1e-4
 
 
 @pytest.fixture(autouse=True)
-def _cpu_only(device):
-    if device != "cpu":
-        pytest.skip("geometry objects are CPU-only for now (docs/geometry.md)")
+def _on_device(device):
+    """Every test runs on the `device` fixture's device: cpu, and cuda:0 where there is one (the
+    objects then live on the GPU, built on the host and uploaded by the daemon)."""
+    global DEV
+    DEV = device
 
 
 # ---------------------------------------------------------------------------------------------
@@ -265,9 +267,9 @@ def sphere_mesh(rng, nlat=10, nlon=14, degenerate=3):
 def make_mesh(rng, velocities=False):
     pts, tris = sphere_mesh(rng)
     vel = rng.uniform(-1, 1, size=pts.shape).astype(np.float32) if velocities else None
-    mesh = wp.Mesh(points=wp.array(pts, dtype=wp.vec3, device=CPU),
-                   indices=wp.array(tris.reshape(-1), dtype=int, device=CPU),
-                   velocities=wp.array(vel, dtype=wp.vec3, device=CPU) if velocities else None)
+    mesh = wp.Mesh(points=wp.array(pts, dtype=wp.vec3, device=DEV),
+                   indices=wp.array(tris.reshape(-1), dtype=int, device=DEV),
+                   velocities=wp.array(vel, dtype=wp.vec3, device=DEV) if velocities else None)
     return mesh, pts.astype(np.float64), tris, vel
 
 
@@ -277,12 +279,12 @@ def make_mesh(rng, velocities=False):
 def test_hash_grid_neighbours_match_brute_force(rng):
     n, radius = 3000, 0.6
     pts = rng.uniform(-4.0, 6.0, size=(n, 3)).astype(np.float32)
-    points = wp.array(pts, dtype=wp.vec3, device=CPU)
-    grid = wp.HashGrid(16, 16, 16, device=CPU)
+    points = wp.array(pts, dtype=wp.vec3, device=DEV)
+    grid = wp.HashGrid(16, 16, 16, device=DEV)
     grid.build(points, radius)
-    counts = wp.zeros(n, dtype=int, device=CPU)
-    sums = wp.zeros(n, dtype=wp.int64, device=CPU)
-    wp.launch(grid_neighbours, dim=n, inputs=[grid.id, points, radius, counts, sums], device=CPU)
+    counts = wp.zeros(n, dtype=int, device=DEV)
+    sums = wp.zeros(n, dtype=wp.int64, device=DEV)
+    wp.launch(grid_neighbours, dim=n, inputs=[grid.id, points, radius, counts, sums], device=DEV)
     p64 = pts.astype(np.float64)
     d = np.linalg.norm(p64[:, None, :] - p64[None, :, :], axis=2)
     sure_in, maybe = d <= radius - TOL, d <= radius + TOL
@@ -293,8 +295,8 @@ def test_hash_grid_neighbours_match_brute_force(rng):
     ref_sums = (sure_in * np.arange(n)[None, :]).sum(1)
     np.testing.assert_array_equal(sums.numpy()[exact], ref_sums[exact])
     # point ids: a permutation of the points, in cell order
-    ids = wp.zeros(n + 3, dtype=int, device=CPU)
-    wp.launch(grid_point_ids, dim=n + 3, inputs=[grid.id, ids], device=CPU)
+    ids = wp.zeros(n + 3, dtype=int, device=DEV)
+    wp.launch(grid_point_ids, dim=n + 3, inputs=[grid.id, ids], device=DEV)
     got_ids = ids.numpy()
     assert sorted(got_ids[:n].tolist()) == list(range(n))
     assert (got_ids[n:] == -1).all()
@@ -303,52 +305,52 @@ def test_hash_grid_neighbours_match_brute_force(rng):
 def test_hash_grid_small_dims_wrap_and_rebuild(rng):
     n, radius = 500, 0.9
     pts = rng.uniform(-3.0, 3.0, size=(n, 3)).astype(np.float32)
-    points = wp.array(pts, dtype=wp.vec3, device=CPU)
-    grid = wp.HashGrid(1, 2, 3, device=CPU)   # every cell is shared by many far-apart regions
+    points = wp.array(pts, dtype=wp.vec3, device=DEV)
+    grid = wp.HashGrid(1, 2, 3, device=DEV)   # every cell is shared by many far-apart regions
     grid.reserve(n)
     grid.build(points, radius)
-    counts = wp.zeros(n, dtype=int, device=CPU)
-    sums = wp.zeros(n, dtype=wp.int64, device=CPU)
-    wp.launch(grid_neighbours, dim=n, inputs=[grid.id, points, radius, counts, sums], device=CPU)
+    counts = wp.zeros(n, dtype=int, device=DEV)
+    sums = wp.zeros(n, dtype=wp.int64, device=DEV)
+    wp.launch(grid_neighbours, dim=n, inputs=[grid.id, points, radius, counts, sums], device=DEV)
     d = np.linalg.norm(pts[:, None, :].astype(np.float64) - pts[None, :, :], axis=2)
     got = counts.numpy()
     assert (got >= (d <= radius - TOL).sum(1)).all() and (got <= (d <= radius + TOL).sum(1)).all()
     # a query covering more cells than the grid has visits each point once
-    visits = wp.zeros(n, dtype=int, device=CPU)
-    wp.launch(grid_visits, dim=n, inputs=[grid.id, points, 100.0, visits], device=CPU)
+    visits = wp.zeros(n, dtype=int, device=DEV)
+    wp.launch(grid_visits, dim=n, inputs=[grid.id, points, 100.0, visits], device=DEV)
     assert (visits.numpy() == n).all()
     # rebuild with other points and radius
     pts2 = rng.uniform(0.0, 1.0, size=(50, 3)).astype(np.float32)
-    points2 = wp.array(pts2, dtype=wp.vec3, device=CPU)
+    points2 = wp.array(pts2, dtype=wp.vec3, device=DEV)
     grid.build(points2, 0.25)
-    visits2 = wp.zeros(50, dtype=int, device=CPU)
-    wp.launch(grid_visits, dim=50, inputs=[grid.id, points2, 100.0, visits2], device=CPU)
+    visits2 = wp.zeros(50, dtype=int, device=DEV)
+    wp.launch(grid_visits, dim=50, inputs=[grid.id, points2, 100.0, visits2], device=DEV)
     assert (visits2.numpy() == 50).all()
 
 
 def test_hash_grid_empty_and_float64(rng):
-    grid = wp.HashGrid(8, 8, 8, device=CPU)
+    grid = wp.HashGrid(8, 8, 8, device=DEV)
     pts = rng.uniform(0, 1, size=(20, 3)).astype(np.float32)
-    points = wp.array(pts, dtype=wp.vec3, device=CPU)
-    visits = wp.full(20, 7, dtype=int, device=CPU)
-    wp.launch(grid_visits, dim=20, inputs=[grid.id, points, 1.0, visits], device=CPU)   # never built
+    points = wp.array(pts, dtype=wp.vec3, device=DEV)
+    visits = wp.full(20, 7, dtype=int, device=DEV)
+    wp.launch(grid_visits, dim=20, inputs=[grid.id, points, 1.0, visits], device=DEV)   # never built
     assert (visits.numpy() == 0).all()
-    grid.build(wp.zeros(0, dtype=wp.vec3, device=CPU), 0.5)   # no points
-    wp.launch(grid_visits, dim=20, inputs=[grid.id, points, 1.0, visits], device=CPU)
+    grid.build(wp.zeros(0, dtype=wp.vec3, device=DEV), 0.5)   # no points
+    wp.launch(grid_visits, dim=20, inputs=[grid.id, points, 1.0, visits], device=DEV)
     assert (visits.numpy() == 0).all()
     # float64 query points against a float32 build
     grid.build(points, 0.3)
-    pd = wp.array(pts.astype(np.float64), dtype=wp.vec3d, device=CPU)
-    counts = wp.zeros(20, dtype=int, device=CPU)
-    wp.launch(grid_neighbours_f64, dim=20, inputs=[grid.id, pd, 0.3, counts], device=CPU)
+    pd = wp.array(pts.astype(np.float64), dtype=wp.vec3d, device=DEV)
+    counts = wp.zeros(20, dtype=int, device=DEV)
+    wp.launch(grid_neighbours_f64, dim=20, inputs=[grid.id, pd, 0.3, counts], device=DEV)
     d = np.linalg.norm(pts[:, None, :].astype(np.float64) - pts[None, :, :], axis=2)
     got = counts.numpy()
     assert (got >= (d <= 0.3 - TOL).sum(1)).all() and (got <= (d <= 0.3 + TOL).sum(1)).all()
     # a float64 grid built from float64 points (the daemon converts them to float32 cells)
-    grid64 = wp.HashGrid(8, 8, 8, device=CPU, dtype=wp.float64)
+    grid64 = wp.HashGrid(8, 8, 8, device=DEV, dtype=wp.float64)
     grid64.build(pd, 0.3)
     counts.zero_()
-    wp.launch(grid_neighbours_f64, dim=20, inputs=[grid64.id, pd, 0.3, counts], device=CPU)
+    wp.launch(grid_neighbours_f64, dim=20, inputs=[grid64.id, pd, 0.3, counts], device=DEV)
     got = counts.numpy()
     assert (got >= (d <= 0.3 - TOL).sum(1)).all() and (got <= (d <= 0.3 + TOL).sum(1)).all()
 
@@ -368,12 +370,12 @@ def test_mesh_query_point_matches_brute_force(rng):
     q[40:60] = (a[f[20:]] + b[f[20:]] + c[f[20:]]) / 3
     qs = q.astype(np.float32)
     q64 = qs.astype(np.float64)
-    hit = wp.zeros(n, dtype=int, device=CPU)
-    closest = wp.zeros(n, dtype=wp.vec3, device=CPU)
-    face = wp.zeros(n, dtype=int, device=CPU)
-    signs = wp.zeros(n, dtype=wp.vec4, device=CPU)
-    wp.launch(mesh_closest, dim=n, inputs=[mesh.id, wp.array(qs, dtype=wp.vec3, device=CPU), 10.0,
-                                           hit, closest, face, signs], device=CPU)
+    hit = wp.zeros(n, dtype=int, device=DEV)
+    closest = wp.zeros(n, dtype=wp.vec3, device=DEV)
+    face = wp.zeros(n, dtype=int, device=DEV)
+    signs = wp.zeros(n, dtype=wp.vec4, device=DEV)
+    wp.launch(mesh_closest, dim=n, inputs=[mesh.id, wp.array(qs, dtype=wp.vec3, device=DEV), 10.0,
+                                           hit, closest, face, signs], device=DEV)
     assert (hit.numpy() == 1).all()
     got = closest.numpy().astype(np.float64)
     got_d = np.linalg.norm(got - q64, axis=1)
@@ -390,10 +392,10 @@ def test_mesh_query_point_matches_brute_force(rng):
             assert s[i, 0] == want and s[i, 1] == want and s[i, 2] == want and s[i, 3] == want, (i, s[i], want)
     # max_dist: nothing within a tiny radius of far points
     far = np.array([[5.0, 5.0, 5.0]], dtype=np.float32)
-    hit1 = wp.zeros(1, dtype=int, device=CPU)
-    wp.launch(mesh_closest, dim=1, inputs=[mesh.id, wp.array(far, dtype=wp.vec3, device=CPU), 0.5, hit1,
-                                           wp.zeros(1, dtype=wp.vec3, device=CPU), wp.zeros(1, dtype=int, device=CPU),
-                                           wp.zeros(1, dtype=wp.vec4, device=CPU)], device=CPU)
+    hit1 = wp.zeros(1, dtype=int, device=DEV)
+    wp.launch(mesh_closest, dim=1, inputs=[mesh.id, wp.array(far, dtype=wp.vec3, device=DEV), 0.5, hit1,
+                                           wp.zeros(1, dtype=wp.vec3, device=DEV), wp.zeros(1, dtype=int, device=DEV),
+                                           wp.zeros(1, dtype=wp.vec4, device=DEV)], device=DEV)
     assert hit1.numpy()[0] == 0
 
 
@@ -420,11 +422,11 @@ def test_mesh_query_ray_matches_brute_force(rng):
     dirs = rng.normal(size=(n, 3))
     dirs[: n // 2] = -starts[: n // 2] + rng.normal(scale=0.2, size=(n // 2, 3))   # aimed at the mesh
     dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(np.float32)
-    outs = [wp.zeros(n, dtype=int, device=CPU), wp.zeros(n, dtype=float, device=CPU), wp.zeros(n, dtype=int, device=CPU),
-            wp.zeros(n, dtype=wp.vec3, device=CPU), wp.zeros(n, dtype=wp.vec3, device=CPU),
-            wp.zeros(n, dtype=float, device=CPU)]
-    wp.launch(mesh_rays, dim=n, inputs=[mesh.id, wp.array(starts, dtype=wp.vec3, device=CPU),
-                                        wp.array(dirs, dtype=wp.vec3, device=CPU), 100.0] + outs, device=CPU)
+    outs = [wp.zeros(n, dtype=int, device=DEV), wp.zeros(n, dtype=float, device=DEV), wp.zeros(n, dtype=int, device=DEV),
+            wp.zeros(n, dtype=wp.vec3, device=DEV), wp.zeros(n, dtype=wp.vec3, device=DEV),
+            wp.zeros(n, dtype=float, device=DEV)]
+    wp.launch(mesh_rays, dim=n, inputs=[mesh.id, wp.array(starts, dtype=wp.vec3, device=DEV),
+                                        wp.array(dirs, dtype=wp.vec3, device=DEV), 100.0] + outs, device=DEV)
     hit, t, face, pos, normal, sign = (o.numpy() for o in outs)
     s64, d64 = starts.astype(np.float64), dirs.astype(np.float64)
     hits = 0
@@ -449,14 +451,14 @@ def test_mesh_ray_parallel_to_face_misses():
     # one square in the z = 0 plane
     pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=np.float32)
     tris = np.array([0, 1, 2, 0, 2, 3], dtype=np.int32)
-    mesh = wp.Mesh(wp.array(pts, dtype=wp.vec3, device=CPU), wp.array(tris, dtype=int, device=CPU))
+    mesh = wp.Mesh(wp.array(pts, dtype=wp.vec3, device=DEV), wp.array(tris, dtype=int, device=DEV))
     starts = np.array([[-1, 0.5, 0], [-1, 0.5, 0.5], [0.5, 0.5, 1], [0.25, 0.75, -2]], dtype=np.float32)
     dirs = np.array([[1, 0, 0], [1, 0, 0], [0, 0, -1], [0, 0, 1]], dtype=np.float32)
-    outs = [wp.zeros(4, dtype=int, device=CPU), wp.zeros(4, dtype=float, device=CPU), wp.zeros(4, dtype=int, device=CPU),
-            wp.zeros(4, dtype=wp.vec3, device=CPU), wp.zeros(4, dtype=wp.vec3, device=CPU),
-            wp.zeros(4, dtype=float, device=CPU)]
-    wp.launch(mesh_rays, dim=4, inputs=[mesh.id, wp.array(starts, dtype=wp.vec3, device=CPU),
-                                        wp.array(dirs, dtype=wp.vec3, device=CPU), 10.0] + outs, device=CPU)
+    outs = [wp.zeros(4, dtype=int, device=DEV), wp.zeros(4, dtype=float, device=DEV), wp.zeros(4, dtype=int, device=DEV),
+            wp.zeros(4, dtype=wp.vec3, device=DEV), wp.zeros(4, dtype=wp.vec3, device=DEV),
+            wp.zeros(4, dtype=float, device=DEV)]
+    wp.launch(mesh_rays, dim=4, inputs=[mesh.id, wp.array(starts, dtype=wp.vec3, device=DEV),
+                                        wp.array(dirs, dtype=wp.vec3, device=DEV), 10.0] + outs, device=DEV)
     hit, t, _, _, _, sign = (o.numpy() for o in outs)
     assert hit.tolist() == [0, 0, 1, 1]
     np.testing.assert_allclose(t[2:], [1.0, 2.0], atol=1e-6)
@@ -471,9 +473,9 @@ def test_mesh_query_aabb_and_accessors(rng):
     centers = rng.uniform(-1.2, 1.2, size=(n, 3))
     half = rng.uniform(0.05, 0.6, size=(n, 3))
     lowers, uppers = (centers - half).astype(np.float32), (centers + half).astype(np.float32)
-    hits = wp.zeros((n, len(tris)), dtype=int, device=CPU)
-    wp.launch(mesh_aabb_faces, dim=n, inputs=[mesh.id, wp.array(lowers, dtype=wp.vec3, device=CPU),
-                                              wp.array(uppers, dtype=wp.vec3, device=CPU), hits], device=CPU)
+    hits = wp.zeros((n, len(tris)), dtype=int, device=DEV)
+    wp.launch(mesh_aabb_faces, dim=n, inputs=[mesh.id, wp.array(lowers, dtype=wp.vec3, device=DEV),
+                                              wp.array(uppers, dtype=wp.vec3, device=DEV), hits], device=DEV)
     got = hits.numpy()
     assert got.max() <= 1   # each face once
     l64, u64 = lowers.astype(np.float64), uppers.astype(np.float64)
@@ -482,11 +484,11 @@ def test_mesh_query_aabb_and_accessors(rng):
         maybe = ((lo_t <= u64[i] + TOL) & (hi_t >= l64[i] - TOL)).all(1)
         assert (got[i][sure] == 1).all() and (got[i][~maybe] == 0).all()
     m = 3 * len(tris)
-    out_pts = wp.zeros(m, dtype=wp.vec3, device=CPU)
-    out_idx = wp.zeros(m, dtype=int, device=CPU)
-    normals = wp.zeros(len(tris), dtype=wp.vec3, device=CPU)
-    vels = wp.zeros(len(tris), dtype=wp.vec3, device=CPU)
-    wp.launch(mesh_accessors, dim=m, inputs=[mesh.id, out_pts, out_idx, normals, vels], device=CPU)
+    out_pts = wp.zeros(m, dtype=wp.vec3, device=DEV)
+    out_idx = wp.zeros(m, dtype=int, device=DEV)
+    normals = wp.zeros(len(tris), dtype=wp.vec3, device=DEV)
+    vels = wp.zeros(len(tris), dtype=wp.vec3, device=DEV)
+    wp.launch(mesh_accessors, dim=m, inputs=[mesh.id, out_pts, out_idx, normals, vels], device=DEV)
     flat = tris.reshape(-1)
     np.testing.assert_array_equal(out_idx.numpy(), flat)
     np.testing.assert_allclose(out_pts.numpy(), pts[flat], atol=1e-6)
@@ -502,24 +504,24 @@ def test_mesh_query_aabb_and_accessors(rng):
 def test_mesh_refit_after_moving_points(rng):
     mesh, pts, tris, _ = make_mesh(rng)
     offset = np.array([3.0, -2.0, 0.5], dtype=np.float32)
-    wp.launch(move_points, dim=len(pts), inputs=[mesh.points, wp.vec3(*offset)], device=CPU)
+    wp.launch(move_points, dim=len(pts), inputs=[mesh.points, wp.vec3(*offset)], device=DEV)
     mesh.refit()
     moved = pts + offset.astype(np.float64)
     a, b, c = moved[tris[:, 0]], moved[tris[:, 1]], moved[tris[:, 2]]
     q = (rng.uniform(-1.5, 1.5, size=(50, 3)) + offset).astype(np.float32)
-    hit = wp.zeros(50, dtype=int, device=CPU)
-    closest = wp.zeros(50, dtype=wp.vec3, device=CPU)
-    wp.launch(mesh_closest, dim=50, inputs=[mesh.id, wp.array(q, dtype=wp.vec3, device=CPU), 10.0, hit, closest,
-                                            wp.zeros(50, dtype=int, device=CPU), wp.zeros(50, dtype=wp.vec4, device=CPU)],
-              device=CPU)
+    hit = wp.zeros(50, dtype=int, device=DEV)
+    closest = wp.zeros(50, dtype=wp.vec3, device=DEV)
+    wp.launch(mesh_closest, dim=50, inputs=[mesh.id, wp.array(q, dtype=wp.vec3, device=DEV), 10.0, hit, closest,
+                                            wp.zeros(50, dtype=int, device=DEV), wp.zeros(50, dtype=wp.vec4, device=DEV)],
+              device=DEV)
     got_d = np.linalg.norm(closest.numpy() - q, axis=1)
     for i in range(50):
         ref_d = np.linalg.norm(closest_on_triangles(q[i].astype(np.float64), a, b, c) - q[i], axis=1).min()
         assert abs(got_d[i] - ref_d) <= 1e-3, (i, got_d[i], ref_d)
     mesh.rebuild()
-    wp.launch(mesh_closest, dim=50, inputs=[mesh.id, wp.array(q, dtype=wp.vec3, device=CPU), 10.0, hit, closest,
-                                            wp.zeros(50, dtype=int, device=CPU), wp.zeros(50, dtype=wp.vec4, device=CPU)],
-              device=CPU)
+    wp.launch(mesh_closest, dim=50, inputs=[mesh.id, wp.array(q, dtype=wp.vec3, device=DEV), 10.0, hit, closest,
+                                            wp.zeros(50, dtype=int, device=DEV), wp.zeros(50, dtype=wp.vec4, device=DEV)],
+              device=DEV)
     np.testing.assert_allclose(np.linalg.norm(closest.numpy() - q, axis=1), got_d, atol=1e-6)
 
 
@@ -531,15 +533,15 @@ def test_bvh_queries_match_brute_force(rng):
     centers = rng.uniform(-5, 5, size=(m, 3))
     half = rng.uniform(0.01, 0.5, size=(m, 3))
     lo, hi = (centers - half).astype(np.float32), (centers + half).astype(np.float32)
-    lowers, uppers = wp.array(lo, dtype=wp.vec3, device=CPU), wp.array(hi, dtype=wp.vec3, device=CPU)
+    lowers, uppers = wp.array(lo, dtype=wp.vec3, device=DEV), wp.array(hi, dtype=wp.vec3, device=DEV)
     bvh = wp.Bvh(lowers, uppers)
     n = 60
     qc = rng.uniform(-5, 5, size=(n, 3))
     qh = rng.uniform(0.1, 1.5, size=(n, 3))
     ql, qu = (qc - qh).astype(np.float32), (qc + qh).astype(np.float32)
-    hits = wp.zeros((n, m), dtype=int, device=CPU)
-    wp.launch(bvh_boxes, dim=n, inputs=[bvh.id, wp.array(ql, dtype=wp.vec3, device=CPU),
-                                        wp.array(qu, dtype=wp.vec3, device=CPU), hits], device=CPU)
+    hits = wp.zeros((n, m), dtype=int, device=DEV)
+    wp.launch(bvh_boxes, dim=n, inputs=[bvh.id, wp.array(ql, dtype=wp.vec3, device=DEV),
+                                        wp.array(qu, dtype=wp.vec3, device=DEV), hits], device=DEV)
     got = hits.numpy()
     assert got.max() <= 1
     lo64, hi64 = lo.astype(np.float64), hi.astype(np.float64)
@@ -551,9 +553,9 @@ def test_bvh_queries_match_brute_force(rng):
     starts = rng.uniform(-6, 6, size=(n, 3)).astype(np.float32)
     dirs = rng.normal(size=(n, 3))
     dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(np.float32)
-    rhits = wp.zeros((n, m), dtype=int, device=CPU)
-    wp.launch(bvh_rays, dim=n, inputs=[bvh.id, wp.array(starts, dtype=wp.vec3, device=CPU),
-                                       wp.array(dirs, dtype=wp.vec3, device=CPU), rhits], device=CPU)
+    rhits = wp.zeros((n, m), dtype=int, device=DEV)
+    wp.launch(bvh_rays, dim=n, inputs=[bvh.id, wp.array(starts, dtype=wp.vec3, device=DEV),
+                                       wp.array(dirs, dtype=wp.vec3, device=DEV), rhits], device=DEV)
     rgot = rhits.numpy()
 
     def slab(s, d, l, h, shrink):
@@ -569,12 +571,12 @@ def test_bvh_queries_match_brute_force(rng):
         maybe = slab(s, d, lo64, hi64, -1e-3)
         assert (rgot[i][sure] == 1).all() and (rgot[i][~maybe] == 0).all()
     # refit after moving the boxes
-    wp.launch(move_points, dim=m, inputs=[lowers, wp.vec3(10.0, 0.0, 0.0)], device=CPU)
-    wp.launch(move_points, dim=m, inputs=[uppers, wp.vec3(10.0, 0.0, 0.0)], device=CPU)
+    wp.launch(move_points, dim=m, inputs=[lowers, wp.vec3(10.0, 0.0, 0.0)], device=DEV)
+    wp.launch(move_points, dim=m, inputs=[uppers, wp.vec3(10.0, 0.0, 0.0)], device=DEV)
     bvh.refit()
     hits.zero_()
-    wp.launch(bvh_boxes, dim=n, inputs=[bvh.id, wp.array(ql + np.float32([10, 0, 0]), dtype=wp.vec3, device=CPU),
-                                        wp.array(qu + np.float32([10, 0, 0]), dtype=wp.vec3, device=CPU), hits], device=CPU)
+    wp.launch(bvh_boxes, dim=n, inputs=[bvh.id, wp.array(ql + np.float32([10, 0, 0]), dtype=wp.vec3, device=DEV),
+                                        wp.array(qu + np.float32([10, 0, 0]), dtype=wp.vec3, device=DEV), hits], device=DEV)
     got2 = hits.numpy()
     for i in range(n):
         sure = ((lo64 < qu[i] - TOL) & (hi64 > ql[i] + TOL)).all(1)
@@ -586,26 +588,26 @@ def test_bvh_queries_match_brute_force(rng):
 
 def _expect_launch_error(kernel, inputs, dim=1, match="not a live Mesh"):
     with pytest.raises(wp.WeftError, match=match):
-        wp.launch(kernel, dim=dim, inputs=inputs, device=CPU)
+        wp.launch(kernel, dim=dim, inputs=inputs, device=DEV)
         wp.synchronize()
 
 
 def _daemon_still_serves(rng):
     mesh, _, _, _ = make_mesh(rng)
-    out = wp.zeros(1, dtype=float, device=CPU)
-    wp.launch(any_point_query, dim=1, inputs=[mesh.id, out], device=CPU)
+    out = wp.zeros(1, dtype=float, device=DEV)
+    wp.launch(any_point_query, dim=1, inputs=[mesh.id, out], device=DEV)
     assert np.isfinite(out.numpy()).all()
 
 
 def test_forged_ids_are_launch_errors(rng):
     mesh, _, _, _ = make_mesh(rng)
-    out = wp.zeros(4, dtype=float, device=CPU)
+    out = wp.zeros(4, dtype=float, device=DEV)
     for forged in (12345, mesh.id ^ (1 << 40), mesh.id + 1, (1 << 64) - 1, 0x7fffffff00000001):
         _expect_launch_error(any_point_query, [forged, out], dim=4, match="is not a live Mesh|is not a Mesh|names no")
     _expect_launch_error(any_point_query, [0, out], match="id 0")
     # the error names the kernel and the line
     with pytest.raises(wp.WeftError, match=r"test_geometry_objects.py:\d+: kernel 'any_point_query'"):
-        wp.launch(any_point_query, dim=1, inputs=[424242, out], device=CPU)
+        wp.launch(any_point_query, dim=1, inputs=[424242, out], device=DEV)
         wp.synchronize()
     _daemon_still_serves(rng)
 
@@ -614,9 +616,9 @@ def test_id_of_freed_object_and_wrong_kind(rng):
     mesh, _, _, _ = make_mesh(rng)
     stale = mesh.id
     mesh._free()
-    out = wp.zeros(1, dtype=float, device=CPU)
+    out = wp.zeros(1, dtype=float, device=DEV)
     _expect_launch_error(any_point_query, [stale, out])
-    grid = wp.HashGrid(4, 4, 4, device=CPU)
+    grid = wp.HashGrid(4, 4, 4, device=DEV)
     _expect_launch_error(any_point_query, [grid.id, out], match="is a HashGrid, not a Mesh")
     with pytest.raises(wp.WeftError, match="names no live object"):
         from weft import geometry
@@ -626,7 +628,7 @@ def test_id_of_freed_object_and_wrong_kind(rng):
 
 def test_checked_accessors_report_out_of_range(rng):
     mesh, _, tris, _ = make_mesh(rng)
-    out = wp.zeros(1, dtype=wp.vec3, device=CPU)
+    out = wp.zeros(1, dtype=wp.vec3, device=DEV)
     for bad in (-1, 3 * len(tris), 2**31 - 1):
         _expect_launch_error(get_point, [mesh.id, bad, out], match="mesh_get_point: index -?\\d+ is out of range")
     _daemon_still_serves(rng)
@@ -639,17 +641,18 @@ def test_another_sessions_mesh_id_is_refused(rng, weftd, tmp_path):
         import numpy as np
         import weft as wp
         pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float32)
-        mesh = wp.Mesh(wp.array(pts, dtype=wp.vec3, device="cpu"), wp.array([0, 1, 2], dtype=int, device="cpu"))
+        dev = sys.argv[1]
+        mesh = wp.Mesh(wp.array(pts, dtype=wp.vec3, device=dev), wp.array([0, 1, 2], dtype=int, device=dev))
         print(mesh.id, flush=True)
         sys.stdin.readline()   # alive until the parent is done
     """))
     env = dict(os.environ)
     client_dir = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
     env["PYTHONPATH"] = os.pathsep.join([client_dir] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
-    proc = subprocess.Popen([sys.executable, str(child)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env, text=True)
+    proc = subprocess.Popen([sys.executable, str(child), DEV], stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env, text=True)
     try:
         foreign = int(proc.stdout.readline())
-        out = wp.zeros(1, dtype=float, device=CPU)
+        out = wp.zeros(1, dtype=float, device=DEV)
         _expect_launch_error(any_point_query, [foreign, out])
         _daemon_still_serves(rng)
     finally:
@@ -659,32 +662,32 @@ def test_another_sessions_mesh_id_is_refused(rng, weftd, tmp_path):
 
 
 def test_bad_arrays_and_dims_are_refused(rng):
-    pts = wp.array(rng.uniform(size=(4, 3)).astype(np.float32), dtype=wp.vec3, device=CPU)
+    pts = wp.array(rng.uniform(size=(4, 3)).astype(np.float32), dtype=wp.vec3, device=DEV)
     for bad in ([0, 1, 4], [0, 1, -1], [0, 1, 2**31 - 1], [0, 1]):
         with pytest.raises(wp.WeftError, match="Mesh indices"):
-            wp.Mesh(pts, wp.array(np.array(bad, dtype=np.int32), dtype=int, device=CPU))
+            wp.Mesh(pts, wp.array(np.array(bad, dtype=np.int32), dtype=int, device=DEV))
     with pytest.raises(wp.WeftError, match="vec3"):
-        wp.Mesh(wp.zeros(5, dtype=float, device=CPU), wp.array([0, 1, 2], dtype=int, device=CPU))
+        wp.Mesh(wp.zeros(5, dtype=float, device=DEV), wp.array([0, 1, 2], dtype=int, device=DEV))
     with pytest.raises(wp.WeftError, match="int32"):
-        wp.Mesh(pts, wp.array([0.0, 1.0, 2.0], dtype=float, device=CPU))
+        wp.Mesh(pts, wp.array([0.0, 1.0, 2.0], dtype=float, device=DEV))
     with pytest.raises(wp.WeftError, match="lowers has 4 items and uppers 3"):
-        wp.Bvh(pts, wp.zeros(3, dtype=wp.vec3, device=CPU))
+        wp.Bvh(pts, wp.zeros(3, dtype=wp.vec3, device=DEV))
     with pytest.raises(wp.WeftError, match="cell count exceeds supported limit"):
-        wp.HashGrid(2**20, 2**20, 2**20, device=CPU)
+        wp.HashGrid(2**20, 2**20, 2**20, device=DEV)
     with pytest.raises(wp.WeftError, match="cell count exceeds supported limit"):
-        wp.HashGrid(2**31 - 1, 2**31 - 1, 2**31 - 1, device=CPU)
-    grid = wp.HashGrid(2, 2, 2, device=CPU)
+        wp.HashGrid(2**31 - 1, 2**31 - 1, 2**31 - 1, device=DEV)
+    grid = wp.HashGrid(2, 2, 2, device=DEV)
     for r in (0.0, -1.0, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="radius"):
             grid.build(pts, r)
     with pytest.raises(TypeError, match="needs points of"):
-        grid.build(wp.zeros(3, dtype=wp.vec3d, device=CPU), 1.0)
+        grid.build(wp.zeros(3, dtype=wp.vec3d, device=DEV), 1.0)
     from weft import geometry
     rt = wp._runtime.get_runtime() if hasattr(wp, "_runtime") else None
     with pytest.raises(wp.WeftError, match="dims must be >= 1"):
-        geometry._call(rt, op=geometry._op().CREATE_HASH_GRID, device="cpu", dim=[-5, 1, 1])
+        geometry._call(rt, op=geometry._op().CREATE_HASH_GRID, device=DEV, dim=[-5, 1, 1])
     with pytest.raises(wp.WeftError, match="dim must have 3 values"):
-        geometry._call(rt, op=geometry._op().CREATE_HASH_GRID, device="cpu", dim=[1])
+        geometry._call(rt, op=geometry._op().CREATE_HASH_GRID, device=DEV, dim=[1])
     with pytest.raises(wp.WeftError, match="unknown array handle"):
         geometry._call(rt, op=geometry._op().CREATE_MESH, points=999999999, indices=999999998)
     for r in (0.0, -1.0, float("nan"), float("inf")):   # the daemon checks what the client skipped
@@ -746,11 +749,11 @@ def mesh_ray_counts(mesh: wp.uint64, starts: wp.array(dtype=wp.vec3), dirs: wp.a
 def test_warp_spellings(rng):
     n, radius = 400, 0.5
     pts = rng.uniform(0.0, 3.0, size=(n, 3)).astype(np.float32)
-    points = wp.array(pts, dtype=wp.vec3, device=CPU)
-    grid = wp.HashGrid(8, 8, 8, device=CPU)
+    points = wp.array(pts, dtype=wp.vec3, device=DEV)
+    grid = wp.HashGrid(8, 8, 8, device=DEV)
     grid.build(points, radius)
-    counts = wp.zeros(n, dtype=int, device=CPU)
-    wp.launch(grid_for_loop, dim=n, inputs=[grid.id, points, radius, counts], device=CPU)
+    counts = wp.zeros(n, dtype=int, device=DEV)
+    wp.launch(grid_for_loop, dim=n, inputs=[grid.id, points, radius, counts], device=DEV)
     d = np.linalg.norm(pts[:, None, :].astype(np.float64) - pts[None, :, :], axis=2)
     got = counts.numpy()
     assert (got >= (d <= radius - TOL).sum(1)).all() and (got <= (d <= radius + TOL).sum(1)).all()
@@ -759,10 +762,10 @@ def test_warp_spellings(rng):
     a, b, c = mpts[tris[:, 0]], mpts[tris[:, 1]], mpts[tris[:, 2]]
     m = 60
     q = rng.uniform(-1.5, 1.5, size=(m, 3)).astype(np.float32)
-    dist, signs, faces = wp.zeros(m, dtype=float, device=CPU), wp.zeros(m, dtype=float, device=CPU), \
-        wp.zeros(m, dtype=int, device=CPU)
-    wp.launch(mesh_out_params, dim=m, inputs=[mesh.id, wp.array(q, dtype=wp.vec3, device=CPU), dist, signs, faces],
-              device=CPU)
+    dist, signs, faces = wp.zeros(m, dtype=float, device=DEV), wp.zeros(m, dtype=float, device=DEV), \
+        wp.zeros(m, dtype=int, device=DEV)
+    wp.launch(mesh_out_params, dim=m, inputs=[mesh.id, wp.array(q, dtype=wp.vec3, device=DEV), dist, signs, faces],
+              device=DEV)
     got_d, got_s = dist.numpy(), signs.numpy()
     for i in range(m):
         p = q[i].astype(np.float64)
@@ -774,10 +777,10 @@ def test_warp_spellings(rng):
     starts = rng.uniform(-3, 3, size=(m, 3)).astype(np.float32)
     dirs = -starts + rng.normal(scale=0.5, size=(m, 3))
     dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(np.float32)
-    anyhit, cnt, tt = wp.zeros(m, dtype=int, device=CPU), wp.zeros(m, dtype=int, device=CPU), \
-        wp.zeros(m, dtype=float, device=CPU)
-    wp.launch(mesh_ray_counts, dim=m, inputs=[mesh.id, wp.array(starts, dtype=wp.vec3, device=CPU),
-                                              wp.array(dirs, dtype=wp.vec3, device=CPU), anyhit, cnt, tt], device=CPU)
+    anyhit, cnt, tt = wp.zeros(m, dtype=int, device=DEV), wp.zeros(m, dtype=int, device=DEV), \
+        wp.zeros(m, dtype=float, device=DEV)
+    wp.launch(mesh_ray_counts, dim=m, inputs=[mesh.id, wp.array(starts, dtype=wp.vec3, device=DEV),
+                                              wp.array(dirs, dtype=wp.vec3, device=DEV), anyhit, cnt, tt], device=DEV)
     for i in range(m):
         ts = ray_reference(starts[i].astype(np.float64), dirs[i].astype(np.float64), a, b, c, np.inf)
         hits = np.isfinite(ts)
@@ -808,9 +811,9 @@ def test_sphere_queries_match_brute_force(rng):
     a, b, c = pts[tris[:, 0]], pts[tris[:, 1]], pts[tris[:, 2]]
     n, r = 30, 0.4
     centers = rng.uniform(-1.3, 1.3, size=(n, 3)).astype(np.float32)
-    hits = wp.zeros((n, len(tris)), dtype=int, device=CPU)
-    wp.launch(mesh_sphere_faces, dim=n, inputs=[mesh.id, wp.array(centers, dtype=wp.vec3, device=CPU), r, hits],
-              device=CPU)
+    hits = wp.zeros((n, len(tris)), dtype=int, device=DEV)
+    wp.launch(mesh_sphere_faces, dim=n, inputs=[mesh.id, wp.array(centers, dtype=wp.vec3, device=DEV), r, hits],
+              device=DEV)
     got = hits.numpy()
     assert got.max() <= 1
     for i in range(n):
@@ -821,10 +824,10 @@ def test_sphere_queries_match_brute_force(rng):
     cb = rng.uniform(-3, 3, size=(m, 3))
     hb = rng.uniform(0.01, 0.4, size=(m, 3))
     lo, hi = (cb - hb).astype(np.float32), (cb + hb).astype(np.float32)
-    bvh = wp.Bvh(wp.array(lo, dtype=wp.vec3, device=CPU), wp.array(hi, dtype=wp.vec3, device=CPU))
-    bhits = wp.zeros((n, m), dtype=int, device=CPU)
-    wp.launch(bvh_sphere_items, dim=n, inputs=[bvh.id, wp.array(centers, dtype=wp.vec3, device=CPU), 1.0, bhits],
-              device=CPU)
+    bvh = wp.Bvh(wp.array(lo, dtype=wp.vec3, device=DEV), wp.array(hi, dtype=wp.vec3, device=DEV))
+    bhits = wp.zeros((n, m), dtype=int, device=DEV)
+    wp.launch(bvh_sphere_items, dim=n, inputs=[bvh.id, wp.array(centers, dtype=wp.vec3, device=DEV), 1.0, bhits],
+              device=DEV)
     got = bhits.numpy()
     for i in range(n):
         p = centers[i].astype(np.float64)
@@ -867,10 +870,10 @@ def test_capsule_queries_match_float64(rng):
     p1 = (p0 + rng.uniform(-3, 3, size=(n, 3))).astype(np.float32)
     p1[::5, 1] = p0[::5, 1]          # segments parallel to a slab: the degenerate axis
     p1[1::7] = p0[1::7]              # zero-length segments: a sphere of radius r
-    bvh = wp.Bvh(wp.array(lo, dtype=wp.vec3, device=CPU), wp.array(hi, dtype=wp.vec3, device=CPU))
-    hits = wp.zeros((n, m), dtype=int, device=CPU)
-    wp.launch(bvh_capsule_items, dim=n, inputs=[bvh.id, wp.array(p0, dtype=wp.vec3, device=CPU),
-                                              wp.array(p1, dtype=wp.vec3, device=CPU), r, hits], device=CPU)
+    bvh = wp.Bvh(wp.array(lo, dtype=wp.vec3, device=DEV), wp.array(hi, dtype=wp.vec3, device=DEV))
+    hits = wp.zeros((n, m), dtype=int, device=DEV)
+    wp.launch(bvh_capsule_items, dim=n, inputs=[bvh.id, wp.array(p0, dtype=wp.vec3, device=DEV),
+                                              wp.array(p1, dtype=wp.vec3, device=DEV), r, hits], device=DEV)
     got = hits.numpy()
     assert got.max() <= 1 and got.sum() > 0
     for i in range(n):
