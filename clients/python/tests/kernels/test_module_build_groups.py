@@ -119,3 +119,33 @@ def test_module_load_leaves_out_a_kernel_that_does_not_compile(wp, kernel_module
     # launching the broken kernel raises its own error, with its line
     with pytest.raises(WeftCompileError, match="no_such_builtin"):
         wp.launch(mod.broken_kernel, dim=11, inputs=[a], device=device)
+
+
+UNIQUE_SOURCE = '''
+@wp.kernel
+def triple(a: wp.array(dtype=float), out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = 3.0 * a[i]
+
+
+@wp.kernel(module="unique")
+def unique_broken(a: wp.array(dtype=float)):
+    wp.printf("%d %d\\n", 1)          # a format that does not match its arguments
+'''
+
+
+def test_load_module_leaves_out_unique_kernels(wp, kernel_module, rng, device):
+    """A module="unique" kernel has a module of its own (as in Warp): loading the file's module
+    neither builds it nor fails on it; its own module's load raises its error."""
+    import pytest
+    from weft._kernel.errors import WeftCompileError
+
+    mod = kernel_module(UNIQUE_SOURCE)
+    wp.load_module(mod, device=device)
+    x = rng.uniform(-2.0, 2.0, size=7)
+    a = wp.array(x, dtype=float, device=device)
+    out = wp.zeros(7, dtype=float, device=device)
+    wp.launch(mod.triple, dim=7, inputs=[a, out], device=device)
+    np.testing.assert_allclose(out.numpy(), 3.0 * x.astype(np.float32), rtol=1e-6)
+    with pytest.raises(WeftCompileError, match="printf"):
+        mod.unique_broken.module.load(device)

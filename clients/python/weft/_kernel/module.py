@@ -462,11 +462,14 @@ class UniqueModule:
 def compile_module(module_name: str, device: str, backward: bool = False,
                    leave_out_failing: bool = False) -> list:
     """Compiles every kernel of a module (a generic kernel: its instances, from wp.overload or
-    launches) and returns the CompiledModule of each, in order. A kernel whose own code fails
-    raises its error, or with leave_out_failing is left out of its group's build (the others
-    load) and raises when launched; any other error raises."""
+    launches) and returns the CompiledModule of each, in order. A module="unique" kernel is
+    not part of it (as in Warp, it has a module of its own: kernel.module.load() builds it).
+    A kernel whose own code fails raises its error, or with leave_out_failing is left out of
+    its group's build (the others load) and raises when launched; any other error raises."""
     built = []
     for k in kernels_of(module_name):
+        if k.options.get("module") == "unique":
+            continue
         for instance in list(k._specializations.values()) if k.is_generic else [k]:
             try:
                 built.append(compile_kernel(instance, device, backward)[0])
