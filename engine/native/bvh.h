@@ -13,16 +13,17 @@ namespace wp {
 
 // ---------------------------------------------------------------------------------------------
 // Error text without a C library: "<what> <decimal>" pieces appended to a 128-byte buffer.
+// Out of line (WP_NOINLINE), as every error path.
 struct geometry_msg_t {
   char text[128];
   int32 n;
   WP_CALLABLE geometry_msg_t() : text(), n(0) {}
-  WP_CALLABLE geometry_msg_t& str(const char* s) {
+  WP_NOINLINE WP_CALLABLE geometry_msg_t& str(const char* s) {
     for (; s && *s && n < 127; ++s) text[n++] = *s;
     text[n] = '\0';
     return *this;
   }
-  WP_CALLABLE geometry_msg_t& num(int64 v) {
+  WP_NOINLINE WP_CALLABLE geometry_msg_t& num(int64 v) {
     char buf[24];
     int32 k = 0;
     uint64 u = v < 0 ? (uint64)0 - (uint64)v : (uint64)v;
@@ -34,12 +35,31 @@ struct geometry_msg_t {
   }
 };
 
-WP_FUNC void geometry_report(const launch_context_t* ctx, int32 function_id, int32 line, const geometry_msg_t& m) {
+inline WP_NOINLINE WP_CALLABLE void geometry_report(const launch_context_t* ctx, int32 function_id, int32 line,
+                                                    const geometry_msg_t& m) {
   report_error(ctx, LAUNCH_BAD_GEOMETRY, function_id, line, -1, 0, nullptr, nullptr, m.text);
 }
 
 WP_FUNC const char* geometry_kind_name(uint32 kind) {
   return kind == GEOMETRY_HASH_GRID ? "HashGrid" : (kind == GEOMETRY_BVH ? "Bvh" : "Mesh");
+}
+
+// Reports why `id` names no live object of kind `kind` for `fn` (out of line: the cold path).
+inline WP_NOINLINE WP_CALLABLE void geometry_resolve_failed(const launch_context_t* ctx, int32 function_id, int32 line,
+                                                            const char* fn, uint64 id, uint32 kind,
+                                                            const geometry_table_t* t, const geometry_desc_t* d) {
+  geometry_msg_t m;
+  m.str(fn).str(": ");
+  if (id == 0) {
+    m.str("id 0 (None) is not a ").str(geometry_kind_name(kind));
+  } else if (!t) {
+    m.str("id ").num((int64)id).str(" is not a live ").str(geometry_kind_name(kind)).str(" of this session (it has none on this device)");
+  } else if (!d) {
+    m.str("id ").num((int64)id).str(" is not a live ").str(geometry_kind_name(kind)).str(" of this session");
+  } else {
+    m.str("id ").num((int64)id).str(" is a ").str(geometry_kind_name(d->kind)).str(", not a ").str(geometry_kind_name(kind));
+  }
+  geometry_report(ctx, function_id, line, m);
 }
 
 // The live object `id` of kind `kind` (a Mesh also serves BVH queries when kind is GEOMETRY_BVH
@@ -56,18 +76,7 @@ WP_FUNC const geometry_desc_t* geometry_resolve(const launch_context_t* ctx, int
     if (d->kind == GEOMETRY_NONE || d->generation != gen) d = nullptr;
   }
   if (d && d->kind == kind) return d;
-  geometry_msg_t m;
-  m.str(fn).str(": ");
-  if (id == 0) {
-    m.str("id 0 (None) is not a ").str(geometry_kind_name(kind));
-  } else if (!t) {
-    m.str("id ").num((int64)id).str(" is not a live ").str(geometry_kind_name(kind)).str(" of this session (it has none on this device)");
-  } else if (!d) {
-    m.str("id ").num((int64)id).str(" is not a live ").str(geometry_kind_name(kind)).str(" of this session");
-  } else {
-    m.str("id ").num((int64)id).str(" is a ").str(geometry_kind_name(d->kind)).str(", not a ").str(geometry_kind_name(kind));
-  }
-  geometry_report(ctx, function_id, line, m);
+  geometry_resolve_failed(ctx, function_id, line, fn, id, kind, t, d);
   return nullptr;
 }
 
@@ -172,7 +181,7 @@ WP_FUNC bool bvh_walk_test(const bvh_walk_t& w, const float32* lo, const float32
 // Sphere narrow phase of a mesh face (mesh.h): the face's closest point lies within the radius.
 WP_FUNC bool mesh_face_in_sphere(const geometry_desc_t* g, int32 face, const float32* center, float32 radius);
 
-WP_FUNC bool bvh_walk_next(bvh_walk_t& w, int32& index) {
+inline WP_NOINLINE WP_CALLABLE bool bvh_walk_next(bvh_walk_t& w, int32& index) {
   const geometry_desc_t* g = w.g;
   if (!g) return false;
   for (;;) {

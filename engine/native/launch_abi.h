@@ -5,8 +5,12 @@
 
 #if defined(__CUDACC__) || defined(__CUDACC_RTC__)
 #define WP_CALLABLE __host__ __device__
+// Cold paths (error reports) kept out of line: inlined at every call site they multiply the
+// code NVRTC optimizes (a geometry query's failure message cost ~10 s of NVRTC per kernel).
+#define WP_NOINLINE __noinline__
 #else
 #define WP_CALLABLE
+#define WP_NOINLINE __attribute__((noinline))
 #endif
 
 namespace wp {
