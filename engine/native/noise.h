@@ -91,9 +91,11 @@ WP_FUNC float32 noise_dot(const float32* a, const float32* b) {
   return s;
 }
 
-// The noise value of a cell.
+// The noise value of a cell. The cell functions are out of line (WP_NOINLINE): one copy per
+// dimension instead of one per call site (inlined, a 4-D curl noise adjoint alone kept NVRTC
+// busy for minutes).
 template <int D>
-WP_FUNC float32 noise_value(uint32 state, const noise_cell_t<D>& c) {
+inline WP_NOINLINE WP_CALLABLE float32 noise_value(uint32 state, const noise_cell_t<D>& c) {
   float32 v[1 << D];
   for (int corner = 0; corner < (1 << D); ++corner) {
     float32 g[D], off[D];
@@ -109,7 +111,7 @@ WP_FUNC float32 noise_value(uint32 state, const noise_cell_t<D>& c) {
 
 // The gradient d noise / d p of a cell, into grad[0..D).
 template <int D>
-WP_FUNC void noise_gradient(uint32 state, const noise_cell_t<D>& c, float32* grad) {
+inline WP_NOINLINE WP_CALLABLE void noise_gradient(uint32 state, const noise_cell_t<D>& c, float32* grad) {
   float32 v[1 << D], gr[1 << D][D];
   for (int corner = 0; corner < (1 << D); ++corner) {
     float32 off[D];
@@ -134,7 +136,7 @@ WP_FUNC void noise_gradient(uint32 state, const noise_cell_t<D>& c, float32* gra
 // The Hessian d^2 noise / d p^2 of a cell, into hess[D][D]. Each interpolation step
 // F = A + (B - A) S(u) along axis k composes value, gradient and Hessian by the product rule.
 template <int D>
-WP_FUNC void noise_hessian(uint32 state, const noise_cell_t<D>& c, float32 (*hess)[D]) {
+inline WP_NOINLINE WP_CALLABLE void noise_hessian(uint32 state, const noise_cell_t<D>& c, float32 (*hess)[D]) {
   struct level_t {
     float32 val;
     float32 grad[D];
