@@ -305,6 +305,27 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
   CountAssignedNames(pf.def->body, &state.assign_counts);
   Status s = LowerBlock(pf.def->body);
   if (!s.ok()) return finish_error(s);
+  // wp.ref[T] parameters: their final values are returned after the function's own (the
+  // binding at the end of the body is the value on every path: statements after a return
+  // are guarded by its flag), and the caller writes them back to its arguments.
+  for (size_t i = 0; i < params.size() && i < fs.param_types.size(); ++i) {
+    std::string inner;
+    if (!RefTypeInner(fs.param_types[i], &inner)) continue;
+    if (fs.is_kernel) return finish_error(Error(params[i].loc, "kernel parameters cannot be wp.ref[T]"));
+    if (grad_of_params >= 0)
+      return finish_error(Error(params[i].loc, "a gradient function (wp.func_grad) cannot take wp.ref[T] parameters"));
+    auto cur = state.scope.find(params[i].name);
+    if (cur == state.scope.end() || param_types[i].is_function() || param_types[i].is_tuple())
+      return finish_error(Error(params[i].loc, "wp.ref parameter '" + params[i].name + "' must hold a single value"));
+    if (TypeOf(cur->second) != param_types[i])
+      return finish_error(Error(params[i].loc, "wp.ref parameter '" + params[i].name + "' changes type from " +
+                                                   TypeString(param_types[i]) + " to " + TypeString(TypeOf(cur->second))));
+    int slot = NewVar(param_types[i], "ref_" + params[i].name, true);
+    EmitCopy(slot, cur->second);
+    fn.returns.push_back(param_types[i]);
+    fn.return_slots.push_back(slot);
+    fn.ref_params.push_back(static_cast<int>(i));
+  }
   if (fn.is_kernel && !fn.return_slots.empty())
     return finish_error(Error(pf.def->loc, "kernels cannot return a value"));
   if (!fn.is_kernel && fn.returns.empty() && !fs.return_type.empty() && fs.return_type != "void" &&
@@ -514,6 +535,16 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
       const auto& a = static_cast<const ast::Assign&>(s);
       WEFT_ASSIGN_OR_RETURN(Value v, Eval(*a.value));
       for (const auto& t : a.targets) WEFT_RETURN_IF_ERROR(LowerAssignTo(*t, v));
+      // `x = 0` (an untyped literal; Warp's constant local, not a place wp.ref can take)
+      const ast::Expr* lit = a.value.get();
+      if (const auto* u = ast::As<ast::UnaryOp>(lit); u && u->op == ast::UnaryOperator::kMinus) lit = u->operand.get();
+      const auto* c = ast::As<ast::Constant>(lit);
+      const bool untyped = c && (c->type == ast::Constant::Type::kInt || c->type == ast::Constant::Type::kFloat);
+      for (const auto& t : a.targets)
+        if (const auto* n = ast::As<ast::Name>(t.get())) {
+          if (untyped) st_->untyped_literal_names[n->id] = ExprText(*a.value);
+          else st_->untyped_literal_names.erase(n->id);
+        }
       return Status::Ok();
     }
     case ast::StmtKind::kAnnAssign: {
@@ -534,6 +565,7 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
     }
     case ast::StmtKind::kAugAssign: {
       const auto& a = static_cast<const ast::AugAssign&>(s);
+      if (const auto* n = ast::As<ast::Name>(a.target.get())) st_->untyped_literal_names.erase(n->id);
       // arr[i] += v / -= v are atomic adds (Warp's rule), so parallel threads may accumulate;
       // &=, |=, ^= on integer elements (scalars, integer vectors/matrices) are atomic and/or/xor.
       if (const auto* sub = ast::As<ast::Subscript>(a.target.get())) {
@@ -720,24 +752,34 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
     }
     if (base.kind != Value::Kind::kVar) return Error(loc, "cannot assign to an element of '" + ExprText(*sub->value) + "'");
     const Type bt = TypeOf(base.var);
-    const auto* slice = sub->indices.size() == 1 ? ast::As<ast::Slice>(sub->indices[0].get()) : nullptr;
-    if (slice && (bt.is_vector() || bt.kind == TypeKind::kQuat)) {
-      // v[a:b] = w: component by component
-      WEFT_ASSIGN_OR_RETURN(std::vector<int> comps, SliceComponents(*slice, bt.component_count()));
-      const Type vt = TypeOf(value.var);
-      Type want = Type::Vector(static_cast<int>(comps.size()), bt.scalar);
-      if (vt != want)
-        return Error(loc, "cannot assign a value of type " + TypeString(vt) + " to a slice of " +
-                              std::to_string(comps.size()) + " components of " + TypeString(bt) + " (expected " +
-                              TypeString(want) + ")");
-      int updated = base.var;
-      for (size_t k = 0; k < comps.size(); ++k) {
-        int src = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")");
-        int x = EmitOp(OpKind::kExtract, Type::Scalar(bt.scalar), {value.var, src});
-        int dst = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(comps[k]) + ")");
-        updated = EmitOp(OpKind::kInsert, bt, {updated, dst, x});
+    SliceRegion region;
+    if (!bt.is_array()) {
+      WEFT_ASSIGN_OR_RETURN(bool sliced, SliceRegionOf(*sub, bt, &region));
+      if (sliced) {
+        // v[a:b] = w, m[i, a:b] = w, m[a:b, c:d] = n: component by component (Extract + Insert,
+        // so the adjoint flows through each component)
+        const Type vt = TypeOf(value.var);
+        if (vt != region.shape)
+          return ErrorOf("type", loc, "cannot assign a value of type " + TypeString(vt) + " to a slice of " +
+                                          TypeString(bt) + " of shape " + TypeString(region.shape));
+        const bool matrix_value = region.shape.is_matrix();
+        int updated = base.var;
+        for (size_t k = 0; k < region.components.size(); ++k) {
+          std::vector<int> src{value.var};
+          if (matrix_value) {
+            src.push_back(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k / region.shape.cols) + ")"));
+            src.push_back(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k % region.shape.cols) + ")"));
+          } else {
+            src.push_back(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")"));
+          }
+          int x = EmitOp(OpKind::kExtract, Type::Scalar(bt.scalar), src);
+          std::vector<int> args{updated};
+          args.insert(args.end(), region.components[k].begin(), region.components[k].end());
+          args.push_back(x);
+          updated = EmitOp(OpKind::kInsert, bt, args);
+        }
+        return LowerAssignTo(*sub->value, Value::OfVar(updated));
       }
-      return LowerAssignTo(*sub->value, Value::OfVar(updated));
     }
     WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(sub->indices, bt.is_array()));
     if (bt.is_array()) {
@@ -1116,8 +1158,26 @@ Status Checker::LowerFor(const ast::For& s) {
   auto prev = st_->scope.find(tn->id);
   if (prev != st_->scope.end() && TypeOf(prev->second) != it)
     return Error(s.target->loc, "loop variable '" + tn->id + "' already has type " + TypeString(TypeOf(prev->second)));
+  const int before = prev != st_->scope.end() ? prev->second : start;
   st_->scope[tn->id] = lb.loop.iter;
-  return lb.Body(s.body);
+  // A loop over constant bounds: its variable may appear in wp.static(...) (Warp unrolls such
+  // a loop and evaluates the expression per iteration; weft evaluates it per iteration at
+  // run time, to the same value).
+  bool constant_range = true;
+  for (const auto& v : vals) constant_range = constant_range && v.literal;
+  const bool was_static = st_->static_loop_vars.count(tn->id) != 0;
+  if (constant_range) st_->static_loop_vars.insert(tn->id);
+  else st_->static_loop_vars.erase(tn->id);
+  const int iter = lb.loop.iter, brk = lb.loop.break_flag;
+  Status body = lb.Body(s.body);
+  if (was_static) st_->static_loop_vars.insert(tn->id);
+  else st_->static_loop_vars.erase(tn->id);
+  WEFT_RETURN_IF_ERROR(body);
+  // After the loop the name holds the last value it took (Python's rule): the value at a
+  // break, else the last one iterated (the counter has gone one step past it), or its value
+  // before the loop when the loop did not run.
+  st_->scope[tn->id] = EmitRaw(it, "($0 ? $1 : ($1 != $2 ? ($1 - $3) : $4))", {brk, iter, start, step, before});
+  return Status::Ok();
 }
 
 Status Checker::LowerWhile(const ast::While& s) {

@@ -561,6 +561,71 @@ Expected<std::vector<int>> Checker::SliceComponents(const ast::Slice& sl, int n)
   return out;
 }
 
+Expected<bool> Checker::SliceRegionOf(const ast::Subscript& s, const Type& bt, SliceRegion* out) {
+  bool has_slice = false;
+  for (const auto& e : s.indices) has_slice |= ast::As<ast::Slice>(e.get()) != nullptr;
+  if (!has_slice) return false;
+  auto konst = [&](int c) { return EmitConst(Type::Int32(), "wp::int32(" + std::to_string(c) + ")"); };
+  if (bt.is_vector() || bt.kind == TypeKind::kQuat || bt.kind == TypeKind::kTransform) {
+    if (s.indices.size() != 1) return Error(s.loc, TypeString(bt) + " takes one index");
+    WEFT_ASSIGN_OR_RETURN(std::vector<int> comps,
+                          SliceComponents(*ast::As<ast::Slice>(s.indices[0].get()), bt.component_count()));
+    out->components.clear();
+    for (int c : comps) out->components.push_back({konst(c)});
+    out->shape = Type::Vector(static_cast<int>(comps.size()), bt.scalar);
+    return true;
+  }
+  if (!bt.is_matrix()) return Error(s.loc, "a value of type " + TypeString(bt) + " cannot be sliced");
+  if (s.indices.size() > 2) return Error(s.loc, "a matrix takes one (row) or two indices");
+  // Per dimension: the index vars it selects, and whether it is a slice (keeps the dimension).
+  std::vector<int> dim_vars[2];
+  bool dim_sliced[2] = {true, true};
+  for (int d = 0; d < 2; ++d) {
+    const int extent = d == 0 ? bt.rows : bt.cols;
+    const ast::Expr* e = d < static_cast<int>(s.indices.size()) ? s.indices[d].get() : nullptr;
+    if (const auto* sl = e ? ast::As<ast::Slice>(e) : nullptr) {
+      WEFT_ASSIGN_OR_RETURN(std::vector<int> comps, SliceComponents(*sl, extent));
+      for (int c : comps) dim_vars[d].push_back(konst(c));
+    } else if (e) {
+      const bool store = store_target_;
+      store_target_ = false;   // an index expression is a read
+      Expected<Value> ev = Eval(*e);
+      store_target_ = store;
+      WEFT_ASSIGN_OR_RETURN(Value iv, std::move(ev));
+      if (iv.kind != Value::Kind::kVar || !TypeOf(iv.var).is_scalar() || !IsInt(TypeOf(iv.var).scalar))
+        return Error(e->loc, "index '" + ExprText(*e) + "' must be an integer");
+      dim_vars[d].push_back(iv.var);
+      dim_sliced[d] = false;
+    } else {
+      for (int c = 0; c < extent; ++c) dim_vars[d].push_back(konst(c));   // m[a:b]: every column
+    }
+  }
+  out->components.clear();
+  for (int r : dim_vars[0])
+    for (int c : dim_vars[1]) out->components.push_back({r, c});
+  const int nr = static_cast<int>(dim_vars[0].size()), nc = static_cast<int>(dim_vars[1].size());
+  if (dim_sliced[0] && dim_sliced[1]) out->shape = Type::Matrix(nr, nc, bt.scalar);
+  else out->shape = Type::Vector(dim_sliced[0] ? nr : nc, bt.scalar);
+  return true;
+}
+
+int Checker::ReadSliceRegion(int base, const Type& bt, const SliceRegion& r) {
+  std::vector<int> parts;
+  for (const std::vector<int>& idx : r.components) {
+    std::vector<int> args{base};
+    args.insert(args.end(), idx.begin(), idx.end());
+    parts.push_back(EmitOp(OpKind::kExtract, Type::Scalar(bt.scalar), args));
+  }
+  Stmt st;
+  st.op.kind = OpKind::kConstruct;
+  st.op.mode = ConstructMode::kConcat;
+  int d = NewVar(r.shape);
+  st.op.dst.push_back(d);
+  st.op.args = parts;
+  Push(std::move(st));
+  return d;
+}
+
 // wp.adjoint[x] in a gradient function (wp.func_grad): the adjoint slot of parameter x.
 Expected<int> Checker::AdjointSlot(const ast::Subscript& s) {
   const auto* n = s.indices.size() == 1 ? ast::As<ast::Name>(s.indices[0].get()) : nullptr;
@@ -579,26 +644,12 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
     WEFT_ASSIGN_OR_RETURN(int slot, AdjointSlot(s));
     return Value::OfVar(slot);
   }
-  if (base.kind == Value::Kind::kVar && s.indices.size() == 1 && ast::As<ast::Slice>(s.indices[0].get())) {
+  if (base.kind == Value::Kind::kVar && !TypeOf(base.var).is_array()) {
+    // v[a:b:c], m[i, a:b], m[a:b, c:d]: the selected components as a vector or matrix
     const Type bt = TypeOf(base.var);
-    if (bt.is_vector() || bt.kind == TypeKind::kQuat) {
-      // v[a:b:c]: a vector of the selected components
-      WEFT_ASSIGN_OR_RETURN(std::vector<int> comps,
-                            SliceComponents(*ast::As<ast::Slice>(s.indices[0].get()), bt.component_count()));
-      std::vector<int> parts;
-      for (int c : comps) {
-        int ci = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(c) + ")");
-        parts.push_back(EmitOp(OpKind::kExtract, Type::Scalar(bt.scalar), {base.var, ci}));
-      }
-      Stmt st;
-      st.op.kind = OpKind::kConstruct;
-      st.op.mode = ConstructMode::kConcat;
-      int d = NewVar(Type::Vector(static_cast<int>(comps.size()), bt.scalar));
-      st.op.dst.push_back(d);
-      st.op.args = parts;
-      Push(std::move(st));
-      return Value::OfVar(d);
-    }
+    SliceRegion region;
+    WEFT_ASSIGN_OR_RETURN(bool sliced, SliceRegionOf(s, bt, &region));
+    if (sliced) return Value::OfVar(ReadSliceRegion(base.var, bt, region));
   }
   if (base.kind == Value::Kind::kTuple) {
     const auto* c = s.indices.size() == 1 ? ast::As<ast::Constant>(s.indices[0].get()) : nullptr;
@@ -915,7 +966,7 @@ Expected<Value> Checker::EvalCall(const ast::Call& c) {
         WEFT_ASSIGN_OR_RETURN(Value v, Eval(*kw.value));
         kwargs.emplace_back(kw.name, v);
       }
-      return CallUserFunc(callee.name, std::move(args), c.loc, kwargs);
+      return CallUserFunc(callee.name, std::move(args), c.loc, kwargs, &c);
     }
     default: return Error(c.func->loc, "'" + ExprText(*c.func) + "' is not callable");
   }
@@ -1243,6 +1294,56 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
       ((args[0].kind == Value::Kind::kVar && args[0].literal) || args[0].kind == Value::Kind::kType ||
        args[0].kind == Value::Kind::kFunc))
     return args[0];   // a value known while compiling (len() of a tuple, a constant)
+  if (name == "static" && call && args.size() == 1 && call->keywords.empty() && args[0].kind == Value::Kind::kVar &&
+      call->args.size() == 1 && !TypeOf(args[0].var).is_array()) {
+    // wp.static(expr) the client could not evaluate: it reads kernel variables. Warp evaluates
+    // it while generating code, which it can when those are loop variables of range loops with
+    // constant bounds (it unrolls them) or literal-valued locals; weft evaluates it at run time
+    // in each iteration, to the same value.
+    std::string bad;
+    std::function<void(const ast::Expr&)> walk = [&](const ast::Expr& e) {
+      if (!bad.empty()) return;
+      if (const auto* n = ast::As<ast::Name>(&e)) {
+        const bool local = st_->scope.count(n->id) || st_->tuple_scope.count(n->id);
+        if (local && !st_->static_loop_vars.count(n->id) && !st_->literal_locals.count(n->id)) bad = n->id;
+        return;
+      }
+      if (const auto* a = ast::As<ast::Attribute>(&e)) return walk(*a->value);
+      if (const auto* sub = ast::As<ast::Subscript>(&e)) {
+        walk(*sub->value);
+        for (const auto& i : sub->indices) walk(*i);
+        return;
+      }
+      if (const auto* c = ast::As<ast::Call>(&e)) {
+        walk(*c->func);
+        for (const auto& a : c->args) walk(*a);
+        for (const auto& k : c->keywords) walk(*k.value);
+        return;
+      }
+      if (const auto* b = ast::As<ast::BinOp>(&e)) return walk(*b->left), walk(*b->right);
+      if (const auto* u = ast::As<ast::UnaryOp>(&e)) return walk(*u->operand);
+      if (const auto* b = ast::As<ast::BoolOp>(&e)) {
+        for (const auto& v : b->values) walk(*v);
+        return;
+      }
+      if (const auto* c = ast::As<ast::Compare>(&e)) {
+        walk(*c->left);
+        for (const auto& v : c->comparators) walk(*v);
+        return;
+      }
+      if (const auto* i = ast::As<ast::IfExp>(&e)) return walk(*i->test), walk(*i->body), walk(*i->orelse);
+      if (const auto* t = ast::As<ast::Tuple>(&e)) {
+        for (const auto& v : t->elts) walk(*v);
+        return;
+      }
+      if (ast::As<ast::Constant>(&e)) return;
+      bad = ExprText(e);
+    };
+    walk(*call->args[0]);
+    if (bad.empty()) return args[0];
+    return Error(loc, "wp.static(): '" + bad + "' is not known while compiling (a wp.static expression may read "
+                      "constants, literal-valued locals and the variables of range loops with constant bounds)");
+  }
   if (name == "cast" || name == "static")
     return Error(loc, "wp." + name + "() is not supported in weft kernels yet");
   if (call && !call->keywords.empty()) {
@@ -1410,13 +1511,50 @@ bool GenericAccepts(const Type& p, const Type& a) {
 }
 }  // namespace
 
+bool RefTypeInner(const std::string& ts, std::string* inner) {
+  if (ts.size() < 6 || ts.compare(0, 4, "ref(") != 0 || ts.back() != ')') return false;
+  *inner = ts.substr(4, ts.size() - 5);
+  return true;
+}
+
+Status Checker::CheckRefArgument(const ast::Expr* e, const std::string& param, const std::string& func,
+                                 const SourceLocation& loc) {
+  const std::string what = "the argument of wp.ref parameter '" + param + "' of '" + func + "'";
+  if (!e) return Error(loc, what + " must be passed by position or keyword, not unpacked with *");
+  const ast::Expr* root = e;
+  while (true) {
+    if (const auto* sub = ast::As<ast::Subscript>(root)) {
+      for (const auto& i : sub->indices)
+        if (ast::As<ast::Slice>(i.get())) return Error(e->loc, what + " cannot be a slice");
+      root = sub->value.get();
+    } else if (const auto* at = ast::As<ast::Attribute>(root)) {
+      root = at->value.get();
+    } else {
+      break;
+    }
+  }
+  const auto* n = ast::As<ast::Name>(root);
+  if (!n || !st_->scope.count(n->id))
+    return Error(e->loc, what + " must be a variable, an array element, a component or a struct field "
+                              "(a place the function can write to), got '" + ExprText(*e) + "'");
+  auto lit = st_->untyped_literal_names.find(n->id);
+  if (root == e && lit != st_->untyped_literal_names.end()) {
+    const std::string& text = lit->second;
+    const bool is_float = text.find_first_of(".eE") != std::string::npos && text.rfind("0x", 0) != 0;
+    return Error(e->loc, "'" + n->id + "' holds the constant " + text + "; to pass it to " + what +
+                             ", give it a type: " + n->id + " = wp." + (is_float ? "float32" : "int32") + "(" + text + ")");
+  }
+  return Status::Ok();
+}
+
 Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
-                                      const std::vector<std::pair<std::string, Value>>& kwargs) {
+                                      const std::vector<std::pair<std::string, Value>>& kwargs, const ast::Call* call) {
   auto range = symbols_.equal_range(name);
   struct Candidate {
     const ParsedFunction* pf;
     std::vector<Type> types;
     bool generic;
+    std::vector<bool> refs;   // wp.ref[T] parameters
   };
   std::vector<Candidate> cands;
   std::string sigs;
@@ -1424,10 +1562,13 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
     if (it->second->kind != Symbol::Kind::kFunction) continue;
     auto f = by_key_.find(it->second->target);
     if (f == by_key_.end()) return Error(loc, "function '" + name + "' (key '" + it->second->target + "') was not sent");
-    Candidate c{f->second, {}, false};
+    Candidate c{f->second, {}, false, {}};
     bool ok = true;
     for (const auto& ts : f->second->source->param_types) {
-      auto t = ParseType(ts);
+      std::string inner;
+      const bool is_ref = RefTypeInner(ts, &inner);
+      c.refs.push_back(is_ref);
+      auto t = ParseType(is_ref ? inner : ts);
       if (!t.ok()) return Error(loc, "function '" + name + "': " + t.status().message());
       c.generic |= ContainsAny(*t);
       c.types.push_back(*t);
@@ -1492,6 +1633,12 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
           ok = false;
           break;
         }
+        if (c.refs[i]) {   // a reference takes a value of its own type (no conversion)
+          ok = c.types[i] == TypeOf(a.var) || (ContainsAny(c.types[i]) && GenericAccepts(c.types[i], TypeOf(a.var)));
+          if (ok) inst[i] = TypeOf(a.var);
+          if (!ok) break;
+          continue;
+        }
         Type at = TypeOf(a.var);
         // A fixed-size array passed for an array parameter: the callee gets an array view of
         // the caller's elements (writes reach them, as in Warp).
@@ -1507,6 +1654,23 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
         }
       }
       if (!ok) continue;
+      // wp.ref[T] arguments: each must name a place the result can be written back to.
+      std::vector<const ast::Expr*> ref_targets(slots.size(), nullptr);
+      for (size_t i = 0; i < slots.size(); ++i) {
+        if (!c.refs[i]) continue;
+        if (!slots[i])
+          return Error(loc, "'" + params[i].name + "' of '" + name + "' is a wp.ref parameter: it needs an argument");
+        const ast::Expr* e = nullptr;
+        if (call) {
+          bool starred = false;
+          for (const auto& a : call->args) starred |= ast::As<ast::Starred>(a.get()) != nullptr;
+          if (!starred && i < call->args.size() && i < args.size()) e = call->args[i].get();
+          for (const auto& kw : call->keywords)
+            if (kw.name == params[i].name) e = kw.value.get();
+        }
+        WEFT_RETURN_IF_ERROR(CheckRefArgument(e, params[i].name, name, loc));
+        ref_targets[i] = e;
+      }
       std::vector<int> argv;
       for (size_t i = 0; i < slots.size(); ++i) {
         if (slots[i] && inst[i].is_function()) continue;   // compile-time: no argument
@@ -1539,25 +1703,30 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
       }
       WEFT_ASSIGN_OR_RETURN(int idx, InstantiateFunction(*c.pf, inst, loc));
       const Function& callee = module_.functions[idx];
+      const std::vector<int> ref_params = callee.ref_params;
+      const size_t own_returns = callee.returns.size() - ref_params.size();
       Stmt s;
       s.op.kind = OpKind::kFuncCall;
       s.op.callee = idx;
       s.op.args = argv;
+      std::vector<int> dsts;
+      for (const auto& t : callee.returns) dsts.push_back(NewVar(t));
+      s.op.dst = dsts;
       Value out;
-      if (callee.returns.size() == 1) {
-        int d = NewVar(callee.returns[0]);
-        s.op.dst.push_back(d);
-        out = Value::OfVar(d);
-      } else if (callee.returns.size() > 1) {
+      if (own_returns == 1) {
+        out = Value::OfVar(dsts[0]);
+      } else if (own_returns > 1) {
         out.kind = Value::Kind::kTuple;
-        for (const auto& t : callee.returns) {
-          int d = NewVar(t);
-          s.op.dst.push_back(d);
-          out.elems.push_back(Value::OfVar(d));
-        }
+        for (size_t k = 0; k < own_returns; ++k) out.elems.push_back(Value::OfVar(dsts[k]));
       }
-      st_->fn.may_fail |= callee.may_fail;
+      st_->fn.may_fail |= module_.functions[idx].may_fail;
       Push(std::move(s));
+      // the final values of the wp.ref[T] parameters, written back to the arguments' places
+      for (size_t k = 0; k < ref_params.size(); ++k) {
+        const ast::Expr* target = ref_targets.at(static_cast<size_t>(ref_params[k]));
+        if (!target) return Error(loc, "wp.ref argument of '" + name + "' has no place to write to");
+        WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, Value::OfVar(dsts[own_returns + k])));
+      }
       return out;
     }
   }

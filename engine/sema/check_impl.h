@@ -68,6 +68,11 @@ class Checker {
     // Tuple / function names (re)bound inside an if, for or while: which binding holds after it
     // depends on the path taken, so using them after the statement is an error.
     std::set<std::string> path_bound;
+    // Loop variables of the enclosing `for ... in range(...)` loops with constant bounds: the
+    // kernel variables a wp.static(...) expression may read.
+    std::set<std::string> static_loop_vars;
+    // Names whose binding is an untyped numeric literal (`x = 0`): name -> the literal's text.
+    std::map<std::string, std::string> untyped_literal_names;
   };
 
   // check.cpp
@@ -101,6 +106,10 @@ class Checker {
   Expected<int> AdjointSlot(const ast::Subscript& s);
   Expected<Value> EvalCall(const ast::Call& c);
   Status ExpandStarred(const ast::Starred& s, std::vector<Value>* out);
+  // The argument `e` of wp.ref[T] parameter `param` of `func`: a place its final value can be
+  // written back to (a local, an array element, a component, a struct field of one of those).
+  Status CheckRefArgument(const ast::Expr* e, const std::string& param, const std::string& func,
+                          const SourceLocation& loc);
   Expected<Value> EvalBinOp(const ast::BinOp& b);
   Expected<Value> EvalCompare(const ast::Compare& c);
   Expected<Value> EvalConstant(const ast::Constant& c);
@@ -110,7 +119,8 @@ class Checker {
   Expected<Value> CallConstructor(const Type& t, std::vector<Value> args, const SourceLocation& loc,
                                   const ast::Call& call);
   Expected<Value> CallUserFunc(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
-                               const std::vector<std::pair<std::string, Value>>& kwargs = {});
+                               const std::vector<std::pair<std::string, Value>>& kwargs = {},
+                               const ast::Call* call = nullptr);
   Expected<Value> ResolveAndEmitBuiltin(const std::string& name, std::vector<Value> args,
                                         const SourceLocation& loc, int array_param = -1,
                                         const std::string& array_name = "");
@@ -121,6 +131,16 @@ class Checker {
   // written, store_target_, is Warp's TypeError "Array slot write indices must be integers").
   Expected<std::vector<int>> EvalIndices(const ast::ExprList& idx, bool array_base = false);
   Expected<std::vector<int>> SliceComponents(const ast::Slice& slice, int n);
+  // The components a subscript with at least one constant slice selects from a vector,
+  // quaternion, transform or matrix value (v[1:3], m[0, :2], m[:2, 1:], m[::-1]), each as its
+  // index vars for an Extract / Insert, and the shape they form: a vector when one dimension
+  // is sliced, a matrix when both are. False when the subscript holds no slice.
+  struct SliceRegion {
+    std::vector<std::vector<int>> components;
+    Type shape;
+  };
+  Expected<bool> SliceRegionOf(const ast::Subscript& s, const Type& bt, SliceRegion* out);
+  int ReadSliceRegion(int base, const Type& bt, const SliceRegion& r);
 
   // emission helpers
   int NewVar(const Type& t, const std::string& hint = "", bool is_mutable = false);
@@ -148,6 +168,8 @@ class Checker {
   bool store_target_ = false;   // evaluating the target of an assignment (arr[i].x = v, arr[i] += v)
 };
 
+// A wp.ref[T] parameter's type string "ref(T)": true, with *inner set to "T".
+bool RefTypeInner(const std::string& type_string, std::string* inner);
 // C++ text of a Python literal in type t ("1.5" as float32 -> "wp::float32(1.5)").
 Expected<std::string> CppLiteral(const Type& t, const std::string& python_text);
 // Names assigned anywhere in `stmts` (targets' base names), for loop-carried analysis.

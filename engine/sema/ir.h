@@ -112,6 +112,11 @@ struct Function {
   // adjoint of (it returns the wp.adjoint[...] slots).
   int custom_grad = -1;
   std::vector<int> grad_of_param;
+  // wp.ref[T] parameters (indices into the user's parameter list): the function takes them by
+  // value and returns their final values after its own return values, in this order; the
+  // caller writes each back to the argument it passed (a local, an array element, a component
+  // or a struct field).
+  std::vector<int> ref_params;
   bool may_fail = false;                 // contains bounds checks (directly or through calls)
   bool uses_tid = false;
   std::vector<Var> vars;

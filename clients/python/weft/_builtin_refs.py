@@ -4,7 +4,7 @@ kernel code such a name means the builtin itself (the client sends it as a funct
 with target "__weft_builtin__.<name>"; the daemon checks that the builtin exists). Called from Python, the scalar
 math ones compute with NumPy in float64, and so do the vector ones (length, length_sq, dot,
 normalize, cross) on weft vector values, returning a value of the argument's vector type as
-Warp does; others raise: call them inside a kernel."""
+Warp does, and expect_eq prints an error to stdout when its arguments differ; others raise: call them inside a kernel."""
 from __future__ import annotations
 
 import builtins
@@ -59,6 +59,15 @@ def _vector_builtin(name: str, args):
 _VECTOR = ("length", "length_sq", "dot", "normalize", "cross")
 
 
+def _expect_eq(a, b):
+    """wp.expect_eq from Python (as Warp's): prints an error to stdout when a != b."""
+    if not np.array_equal(np.asarray(a), np.asarray(b)):
+        print(f"Error: expect_eq() failed: {a} != {b}")
+
+
+_CHECKS = {"expect_eq": _expect_eq}
+
+
 class BuiltinFunction:
     """A kernel builtin by name."""
 
@@ -70,6 +79,8 @@ class BuiltinFunction:
 
     def __call__(self, *args):
         name = self.key
+        if name in _CHECKS:
+            return _CHECKS[name](*args)
         if name in _VECTOR:
             out = _vector_builtin(name, args)
             if out is NotImplemented:
@@ -97,7 +108,7 @@ def is_builtin_ref(value) -> bool:
     return isinstance(value, BuiltinFunction)
 
 
-_NAMES = tuple(_UNARY) + tuple(_BINARY) + _VECTOR + _KERNEL_ONLY
+_NAMES = tuple(_UNARY) + tuple(_BINARY) + _VECTOR + tuple(_CHECKS) + _KERNEL_ONLY
 for _name in _NAMES:
     globals()[_name] = BuiltinFunction(_name)
 __all__ = list(_NAMES)

@@ -57,9 +57,10 @@ array4d_type = _ArrayTypeFactory(4, "array4d")
 
 
 class ref:
-    """wp.ref[T]: a @wp.func parameter passed by reference (Warp 1.19). weft does not compile
-    reference parameters yet: the annotation is accepted (type string ref(T)) and a func using
-    it is refused by the compiler at its line."""
+    """wp.ref[T]: a @wp.func parameter passed by reference (Warp 1.19), sent as the type string
+    ref(T). The compiler passes the value in and writes the parameter's final value back to the
+    caller's argument (a local, an array element, a component or a struct field) after the call
+    (docs/warp-compat.md)."""
 
     def __class_getitem__(cls, dtype):
         import types as _types  # noqa: PLC0415

@@ -160,6 +160,25 @@ class FunctionDefinition:
         return env
 
 
+def _python_value_fits(value, annotation) -> bool:
+    """Whether a Python-scope argument matches a parameter annotation closely enough to pick
+    that overload (exact class for weft value types, int / float / bool for scalars)."""
+    if annotation is None or annotation is typing.Any:
+        return True
+    if isinstance(annotation, type):
+        if isinstance(value, annotation):
+            return True
+        name = getattr(annotation, "__name__", "")
+        if name.startswith("float"):
+            return isinstance(value, float)
+        if name.startswith(("int", "uint")):
+            return isinstance(value, int) and not isinstance(value, bool)
+        if name == "bool":
+            return isinstance(value, bool)
+        return False
+    return True
+
+
 def static(expr):
     """wp.static(expr) in kernel code: the value of a Python expression, evaluated once when
     the kernel or func is defined (see FunctionDefinition._expand_static). In Python scope it
@@ -219,9 +238,28 @@ class Function:
                 d.key = sanitize_key(self.key + "__" + "_".join(d.param_types))
 
     def __call__(self, *args, **kwargs):
-        # Warp lets a few funcs run in Python scope; weft kernels run only in the daemon.
-        raise RuntimeError(f"@wp.func {self.key} can only be called from a kernel or another "
-                           f"@wp.func (weft runs kernels in the daemon)")
+        """Called from Python scope, as in Warp: the Python function itself runs, with the
+        client's Python-side values (vectors, matrices, scalars). With several overloads, the
+        first whose parameter count and annotated types accept the arguments runs."""
+        overload = self._python_overload(args, kwargs)
+        return overload.func(*args, **kwargs)
+
+    def _python_overload(self, args, kwargs):
+        if len(self.overloads) == 1:
+            return self.overloads[0]
+        candidates = []
+        for d in self.overloads:
+            try:
+                bound = inspect.signature(d.func).bind(*args, **kwargs)
+            except TypeError:
+                continue
+            candidates.append(d)
+            hints = d.annotations
+            if all(_python_value_fits(value, hints.get(name)) for name, value in bound.arguments.items()):
+                return d
+        if candidates:
+            return candidates[0]
+        raise TypeError(f"no overload of @wp.func {self.key} takes these arguments")
 
     def __repr__(self):
         return f"<weft func {self.key} ({len(self.overloads)} overload(s))>"

@@ -1,0 +1,161 @@
+"""Language: constant slices of vectors, matrices and transforms in kernels (Warp's
+`z[0, :2] = v`, `z[:2, 1:] = m`, `z[1:-1, :2] += m[::-1, :-1]`, `y[3:1:-1] -= x[0:]`): reads
+give a vector (one sliced dimension) or a matrix (two), writes and augmented writes go
+component by component, and the adjoints flow through each component (checked against a
+float64 reference and its finite differences). Slice bounds must be compile-time constants;
+a bound known only at run time is an error at its line."""
+import numpy as np
+import pytest
+
+import weft as wp
+from weft._kernel.errors import WeftCompileError
+
+mat23 = wp.types.matrix((2, 3), float)
+
+
+@wp.kernel
+def mat_slices(xs: wp.array[wp.vec2], ys: wp.array[mat23], zs: wp.array[wp.mat44], rows: wp.array[int],
+               out: wp.array[wp.mat44]):
+    i = wp.tid()
+    x = xs[i]
+    y = ys[i]
+    z = zs[i]
+    z[0, :2] = x
+    z[:2, 1:] = y * x[1]
+    z[:2, 3] += x[:2]
+    z[1:-1, :2] += y[::-1, :-1]
+    z[2:, 3] -= x[0:]
+    z[3:, -1:] -= y[:1, :1]
+    z[rows[i], 1::2] *= x[0]          # an integer index known at run time, a stepped slice
+    r = z[::-1]                       # every column of the rows, last first
+    out[i] = r + wp.outer(wp.vec4(z[1:3, 0][0], 1.0, 2.0, 3.0), wp.vec4(1.0, 0.0, 0.0, 0.0))
+
+
+def mat_slices_ref(x, y, z, rows):
+    z = z.copy()
+    z[0, :2] = x
+    z[:2, 1:] = y * x[1]
+    z[:2, 3] += x[:2]
+    z[1:-1, :2] += y[::-1, :-1]
+    z[2:, 3] -= x[0:]
+    z[3:, -1:] -= y[:1, :1]
+    z[rows, 1::2] *= x[0]
+    r = z[::-1].copy()
+    r[0, 0] += z[1, 0]
+    r[1, 0] += 1.0
+    r[2, 0] += 2.0
+    r[3, 0] += 3.0
+    return r
+
+
+@wp.kernel
+def transform_slices(xs: wp.array[wp.vec2], ts: wp.array[wp.transform], out: wp.array[wp.transform],
+                     tail: wp.array[wp.vec3]):
+    i = wp.tid()
+    x = xs[i]
+    y = ts[i]
+    y[:2] = x * x[1]
+    y[1:-4] += x[:2]
+    y[3:1:-1] -= x[0:]
+    out[i] = y
+    tail[i] = y[-3:] * y[0]
+
+
+def transform_slices_ref(x, t):
+    y = t.copy()
+    y[:2] = x * x[1]
+    y[1:-4] += x[:2]
+    y[3:1:-1] -= x[0:]
+    return y, y[-3:] * y[0]
+
+
+def _fd_grad(f, args, k, upstream, h=1e-6):
+    """d(sum(upstream * f(args)))/d(args[k]) by central differences in float64."""
+    a = [np.array(v, dtype=np.float64) for v in args]
+    g = np.zeros_like(a[k])
+    for idx in np.ndindex(a[k].shape):
+        plus = [v.copy() for v in a]
+        minus = [v.copy() for v in a]
+        plus[k][idx] += h
+        minus[k][idx] -= h
+        g[idx] = np.sum(upstream * (f(*plus) - f(*minus))) / (2 * h)
+    return g
+
+
+def test_matrix_slices_forward_and_adjoint(wp, rng):
+    n = 6
+    x = rng.uniform(0.5, 1.5, (n, 2)) * rng.choice([-1.0, 1.0], (n, 2))
+    y = rng.uniform(0.5, 1.5, (n, 2, 3)) * rng.choice([-1.0, 1.0], (n, 2, 3))
+    z = rng.uniform(0.5, 1.5, (n, 4, 4))
+    rows = rng.integers(0, 4, n)
+    up = rng.standard_normal((n, 4, 4))
+    xa = wp.array(x.astype(np.float32), dtype=wp.vec2, requires_grad=True)
+    ya = wp.array(y.astype(np.float32), dtype=mat23, requires_grad=True)
+    za = wp.array(z.astype(np.float32), dtype=wp.mat44, requires_grad=True)
+    out = wp.zeros(n, dtype=wp.mat44, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(mat_slices, n, inputs=[xa, ya, za, wp.array(rows.astype(np.int32), dtype=int)], outputs=[out])
+    tape.backward(grads={out: wp.array(up.astype(np.float32), dtype=wp.mat44)})
+    xr, yr, zr = (v.numpy().astype(np.float64) for v in (xa, ya, za))   # the float32 inputs
+    for k in range(n):
+        f = lambda a, b, c, r=rows[k]: mat_slices_ref(a, b, c, r)  # noqa: E731
+        np.testing.assert_allclose(out.numpy()[k], f(xr[k], yr[k], zr[k]), rtol=1e-5, atol=1e-5)
+        args = (xr[k], yr[k], zr[k])
+        np.testing.assert_allclose(xa.grad.numpy()[k], _fd_grad(f, args, 0, up[k]), rtol=1e-4, atol=1e-4)
+        np.testing.assert_allclose(ya.grad.numpy()[k], _fd_grad(f, args, 1, up[k]), rtol=1e-4, atol=1e-4)
+        np.testing.assert_allclose(za.grad.numpy()[k], _fd_grad(f, args, 2, up[k]), rtol=1e-4, atol=1e-4)
+
+
+def test_transform_slices_forward_and_adjoint(wp, rng):
+    n = 5
+    x = rng.uniform(0.5, 1.5, (n, 2)) * rng.choice([-1.0, 1.0], (n, 2))
+    t = rng.uniform(0.5, 1.5, (n, 7))
+    up_t = rng.standard_normal((n, 7))
+    up_v = rng.standard_normal((n, 3))
+    xa = wp.array(x.astype(np.float32), dtype=wp.vec2, requires_grad=True)
+    ta = wp.array(t.astype(np.float32), dtype=wp.transform, requires_grad=True)
+    out = wp.zeros(n, dtype=wp.transform, requires_grad=True)
+    tail = wp.zeros(n, dtype=wp.vec3, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(transform_slices, n, inputs=[xa, ta], outputs=[out, tail])
+    tape.backward(grads={out: wp.array(up_t.astype(np.float32), dtype=wp.transform),
+                         tail: wp.array(up_v.astype(np.float32), dtype=wp.vec3)})
+    xr, tr = xa.numpy().astype(np.float64), ta.numpy().astype(np.float64)
+    for k in range(n):
+        y_ref, tail_ref = transform_slices_ref(xr[k], tr[k])
+        np.testing.assert_allclose(out.numpy()[k], y_ref, rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(tail.numpy()[k], tail_ref, rtol=1e-5, atol=1e-5)
+
+        def f(a, b, ut=up_t[k], uv=up_v[k]):
+            yy, vv = transform_slices_ref(a, b)
+            return np.sum(ut * yy) + np.sum(uv * vv)
+
+        args = (xr[k], tr[k])
+        np.testing.assert_allclose(xa.grad.numpy()[k], _fd_grad(f, args, 0, 1.0), rtol=1e-4, atol=1e-4)
+        np.testing.assert_allclose(ta.grad.numpy()[k], _fd_grad(f, args, 1, 1.0), rtol=1e-4, atol=1e-4)
+
+
+def test_slice_with_runtime_bound_is_an_error(wp, kernel_module):
+    mod = kernel_module("""
+        @wp.kernel
+        def k(v: wp.vec4, n: int, out: wp.array[wp.vec2]):
+            out[0] = v[n:n + 2]
+    """)
+    with pytest.raises(WeftCompileError) as info:
+        wp.launch(mod.k, 1, inputs=[wp.vec4(), 1], outputs=[wp.zeros(1, dtype=wp.vec2)])
+    line = next(k for k, text in enumerate(open(mod.__file__).read().splitlines(), 1) if "v[n:n + 2]" in text)
+    assert f":{line}:" in str(info.value) and "compile-time constant" in str(info.value)
+
+
+def test_slice_shape_mismatch_is_an_error(wp, kernel_module):
+    mod = kernel_module("""
+        @wp.kernel
+        def k(m: wp.mat33, out: wp.array[wp.mat33]):
+            z = m
+            z[:2, 1:] = wp.vec2(1.0, 2.0)
+            out[0] = z
+    """)
+    with pytest.raises(TypeError, match=r"to a slice of .* of shape"):
+        wp.launch(mod.k, 1, inputs=[wp.mat33()], outputs=[wp.zeros(1, dtype=wp.mat33)])
