@@ -1341,8 +1341,9 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     };
     walk(*call->args[0]);
     if (bad.empty()) return args[0];
-    return Error(loc, "wp.static(): '" + bad + "' is not known while compiling (a wp.static expression may read "
-                      "constants, literal-valued locals and the variables of range loops with constant bounds)");
+    return Error(loc, "Error evaluating static expression: name '" + bad + "' is not defined. Make sure all variables "
+                      "used in the static expression are constant. (In weft it may read constants, literal-valued "
+                      "locals and the variables of range loops with constant bounds.)");
   }
   if (name == "cast" || name == "static")
     return Error(loc, "wp." + name + "() is not supported in weft kernels yet");

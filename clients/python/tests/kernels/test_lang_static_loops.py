@@ -97,4 +97,39 @@ def test_static_reading_a_runtime_variable_is_an_error(wp, kernel_module):
     with pytest.raises(WeftCompileError) as info:
         wp.launch(mod.k, 1, inputs=[4, wp.zeros(4, dtype=int)])
     line = next(k for k, text in enumerate(open(mod.__file__).read().splitlines(), 1) if "wp.static(" in text)
-    assert f":{line}:" in str(info.value) and "'i' is not known while compiling" in str(info.value)
+    assert f":{line}:" in str(info.value) and "name 'i' is not defined" in str(info.value)
+
+
+shadowed_idx = 999   # a global of the loop variable's name: wp.static reads the loop variable
+
+
+@wp.kernel
+def static_reads_loop_not_global(out: wp.array[int]):
+    for shadowed_idx in range(3):
+        out[shadowed_idx] = wp.static(shadowed_idx * 2 + 1)
+    for shadowed_idx in range(2):
+        for shadowed_idx in range(5):  # noqa: B020 - shadowing on purpose (Python's rule after it)
+            pass
+        out[3 + shadowed_idx] = wp.static(shadowed_idx)
+
+
+def test_static_reads_the_loop_variable_not_a_global(wp):
+    out = wp.zeros(8, dtype=int)
+    wp.launch(static_reads_loop_not_global, 1, outputs=[out])
+    np.testing.assert_array_equal(out.numpy(), [1, 3, 5, 0, 0, 0, 0, 4])
+
+
+@pytest.mark.parametrize("expr,needle", [
+    ("1.0 / 0.0", "Error evaluating static expression: float division by zero"),
+    ("wp.zeros(3)", "Static expression returns an unsupported value: a Warp array"),
+])
+def test_static_expression_failing_in_python_is_an_error(wp, kernel_module, expr, needle):
+    mod = kernel_module(f"""
+@wp.kernel
+def k(out: wp.array[float]):
+    out[0] = float(wp.static({expr}))
+""")
+    with pytest.raises(WeftCompileError) as info:
+        wp.launch(mod.k, 1, outputs=[wp.zeros(1, dtype=float)])
+    line = next(k for k, text in enumerate(open(mod.__file__).read().splitlines(), 1) if "wp.static(" in text)
+    assert f":{line}:" in str(info.value) and needle in str(info.value)

@@ -149,3 +149,27 @@ def test_load_module_leaves_out_unique_kernels(wp, kernel_module, rng, device):
     np.testing.assert_allclose(out.numpy(), 3.0 * x.astype(np.float32), rtol=1e-6)
     with pytest.raises(WeftCompileError, match="printf"):
         mod.unique_broken.module.load(device)
+
+def test_module_named_with_any_characters(wp, kernel_module, rng):
+    """wp.get_module(name) with a name that is no dotted Python name (Warp's tests key
+    isolated modules as "pkg.<locals>.f:150"): the daemon gets a sanitized name, and two such
+    names stay two modules."""
+    mod = kernel_module('''
+def scale_fn(a: wp.array(dtype=float), out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = a[i] * 3.0
+
+def shift_fn(a: wp.array(dtype=float), out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = a[i] + 1.0
+
+scale = wp.Kernel(func=scale_fn, module=wp.get_module("pkg.f.<locals>.scale_fn:150"))
+shift = wp.Kernel(func=shift_fn, module=wp.get_module("pkg.f.<locals>.scale_fn:151"))
+''')
+    x = rng.uniform(-2.0, 2.0, 16)
+    a = wp.array(x.astype(np.float32), dtype=float)
+    out = wp.zeros(16, dtype=float)
+    wp.launch(mod.scale, 16, inputs=[a], outputs=[out])
+    np.testing.assert_allclose(out.numpy(), x.astype(np.float32).astype(np.float64) * 3.0, rtol=1e-6)
+    wp.launch(mod.shift, 16, inputs=[a], outputs=[out])
+    np.testing.assert_allclose(out.numpy(), x.astype(np.float32).astype(np.float64) + 1.0, rtol=1e-6)

@@ -41,6 +41,7 @@ class FunctionDefinition:
         self.tree = next(n for n in ast.parse(self.source).body
                          if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)))
         self.static_values: dict = {}     # name in source -> value of a wp.static(...) call
+        self.static_error = None          # a wp.static expression that failed (see _static_error)
         self._expand_static()
         self.param_names = [a.arg for a in self.tree.args.args]
         hints = self._annotations()
@@ -96,15 +97,29 @@ class FunctionDefinition:
             return
         inner = {id(m) for c in calls for m in ast.walk(c) if m is not c}
         calls = [c for c in calls if id(c) not in inner]
+        # names local to the function (parameters, assignment and loop targets) are kernel
+        # variables, even where a global of the same name exists: an expression reading one is
+        # left to the daemon (a loop variable of a constant range, a literal-valued local)
+        local_names = {a.arg for a in self.tree.args.args}
+        local_names |= {n.id for n in ast.walk(self.tree) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
         lines = [ln.encode() for ln in self.source.splitlines(keepends=True)]
         edits = []
         for call in calls:
             if len(call.args) != 1 or call.keywords:
                 continue
+            if any(isinstance(n, ast.Name) and n.id in local_names for n in ast.walk(call.args[0])):
+                continue
             try:
                 code = compile(ast.Expression(call.args[0]), self.file, "eval")
                 value = eval(code, scope)  # noqa: S307 - the user's own wp.static expression
-            except Exception:  # noqa: BLE001 - reported by the daemon at the call's line
+            except ArithmeticError as err:   # the expression itself fails (as in Warp)
+                self._static_error(call, f"Error evaluating static expression: {err}")
+                continue
+            except Exception:  # noqa: BLE001 - kernel names, kernel-only builtins: left to the daemon
+                continue
+            if _is_runtime_array(value):
+                self._static_error(call, "Static expression returns an unsupported value: a Warp array cannot be "
+                                         "created inside Warp kernels")
                 continue
             name = f"_wp_static_{len(self.static_values)}"
             self.static_values[name] = value
@@ -121,6 +136,13 @@ class FunctionDefinition:
             self.source = b"".join(lines).decode()
             self.tree = next(n for n in ast.parse(self.source).body
                              if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)))
+
+    def _static_error(self, call, message: str) -> None:
+        """A wp.static expression that fails here: the error is raised when a module using this
+        function is built (as Warp's at code generation), at the call's line."""
+        if self.static_error is None:
+            line = self.first_line + call.lineno - 1
+            self.static_error = f"{self.file}:{line}:{call.col_offset + 1}: error: {message}"
 
     def _annotations(self) -> dict:
         """The evaluated annotations; string annotations (PEP 563) are evaluated in the
@@ -158,6 +180,14 @@ class FunctionDefinition:
                 except ValueError:       # cell not filled yet
                     pass
         return env
+
+
+def _is_runtime_array(value) -> bool:
+    """A weft array object (not an annotation): what a wp.static expression cannot return."""
+    from weft.array import array as _array  # noqa: PLC0415 - weft.array imports the kernel API
+    from weft.indexedarray import indexedarray as _indexedarray  # noqa: PLC0415
+
+    return isinstance(value, (_array, _indexedarray))
 
 
 def _python_value_fits(value, annotation) -> bool:

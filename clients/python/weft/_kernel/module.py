@@ -304,6 +304,14 @@ def _partition_groups(module: Module) -> dict:
     return member
 
 
+
+def _wire_module_name(name: str) -> str:
+    """The module name the daemon takes: a dotted name of Python identifiers. Any other name
+    (wp.get_module("pkg.<locals>.f:150")) has each other character replaced by '_' and a
+    segment that is empty or starts with a digit prefixed with '_'."""
+    parts = [re.sub(r"[^A-Za-z0-9_]", "_", p) for p in str(name).split(".")]
+    return ".".join(p if p and not p[0].isdigit() else "_" + p for p in parts)
+
 def build_module_source(kernel: Kernel, backward: bool = False):
     """The ModuleSource that compiles `kernel` together with the other kernels of its module's
     build group (see _partition_groups), as a protobuf message. A kernel outside the groups
@@ -317,7 +325,7 @@ def build_module_source(kernel: Kernel, backward: bool = False):
             group = _closure_of(kernel)
 
     options = _message_options(kernel)
-    msg = module_pb2.ModuleSource(name=kernel.module_name)
+    msg = module_pb2.ModuleSource(name=_wire_module_name(kernel.module_name))
     for key in sorted(options):
         value = options[key]
         msg.options[str(key)] = ("true" if value else "false") if isinstance(value, bool) else str(value)

@@ -93,6 +93,8 @@ class _Collector(ast.NodeVisitor):
 
 def resolve(definition: FunctionDefinition) -> Resolution:
     """Resolves the free names of one function definition (body, annotations, defaults)."""
+    if getattr(definition, "static_error", None):
+        raise WeftCompileError(definition.static_error)
     fdef = definition.tree
     collector = _Collector(_local_names(fdef))
     for arg in fdef.args.args + fdef.args.kwonlyargs:
