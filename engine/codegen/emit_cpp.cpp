@@ -143,6 +143,7 @@ class FnEmitter {
     std::string args = "__ctx, __tid_flat";
     for (int p : f_.params) args += ", " + V(p);
     for (size_t i = 0; i < f_.returns.size(); ++i) args += ", __adj_ret" + std::to_string(i);
+    for (int p : g.grad_array_of_param) args += ", " + A(f_.params.at(p));   // gradient arrays
     std::vector<std::string> results;
     for (size_t k = 0; k < g.returns.size(); ++k) {
       results.push_back("__grad" + std::to_string(k));
@@ -700,12 +701,28 @@ class FnEmitter {
         return;
       }
       case OpKind::kLoad:
-        if (!Diff(dt()) || dt().is_struct()) return;
+        if (op.slot) {   // the element a slot write updates: hand back the slots it keeps
+          if (!Diff(dt())) return;
+          Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.end()), true);
+          Line("wp::cg_adj_slot_load(" + A(op.args[0]) + ", " + A(op.dst[0]) + ", " + Args(op.args, 1) + ");");
+          return;
+        }
+        if (!Diff(dt())) return;
         Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.end()), true);
+        if (dt().is_struct()) {   // fieldwise atomic adds (cg_atomic_accum, emitted with the struct)
+          Line("wp::cg_adj_load_struct(" + A(op.args[0]) + ", " + A(op.dst[0]) + ", " + Args(op.args, 1) + ");");
+          return;
+        }
         Line("wp::adj_load(" + A(op.args[0]) + ", " + Args(op.args, 1) + ", " + A(op.dst[0]) + ");");
         return;
       case OpKind::kStore: {
         const Type& vt = T(op.args.back());
+        if ((op.slot || vt.is_struct()) && Diff(vt)) {   // see cg_adj_slot_store
+          Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.end() - 1), true);
+          Line("wp::cg_adj_slot_store(" + A(op.args[0]) + ", " + A(op.args.back()) + ", " +
+               Args(op.args, 1, op.args.size() - 1) + ");");
+          return;
+        }
         if (!Diff(vt) || vt.is_struct()) return;
         Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.end() - 1), true);
         Line("wp::adj_store(" + A(op.args[0]) + ", " + Args(op.args, 1, op.args.size() - 1) + ", " + A(op.args.back()) + ");");
@@ -774,6 +791,13 @@ void EmitStructs(const Module& m, std::string* out) {
           o += " cg_indexed_adjoint(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";
       o += " }\n";
     }
+    // the adjoint of a load of a struct element: its differentiable fields, atomically
+    o += "WP_FUNC void cg_atomic_accum(" + si.cpp_name + "* p, const " + si.cpp_name + "& v) {";
+    for (const auto& f : si.fields)
+      if (IsDifferentiable(f.type) && !HasArrays(f.type, m.structs))
+        o += std::string(f.type.is_struct() ? " cg_atomic_accum(" : " atomic_add_ptr(") + "&p->" + FieldName(f.name) +
+             ", v." + FieldName(f.name) + ");";
+    o += " (void)p; (void)v; }\n";
     o += "WP_FUNC void cg_link(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
     for (const auto& f : si.fields)
       if (HasArrays(f.type, m.structs)) o += " cg_link(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";
@@ -856,6 +880,13 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
   o += "#include \"weft.h\"\n#include \"codegen_support.h\"\n\n";
   EmitStructs(m, &o);
   for (const auto& f : m.functions) gm.function_names.push_back(f.file + ":" + f.name);
+  if (options.enable_backward) {
+    for (const auto& f : m.functions) {
+      if (f.no_adjoint.message.empty()) continue;
+      if (diags) diags->push_back(f.no_adjoint);
+      return InvalidArgument(f.no_adjoint.ToString());
+    }
+  }
 
   // Every forward function first, then the replays and adjoints: a func's adjoint may call a
   // function instantiated after it (its custom gradient, which may call the func itself).

@@ -185,8 +185,10 @@ WP_FUNC T* checked_address(const launch_context_t* ctx, int32 function_id, int32
 // ---------------------------------------------------------------------------------------------
 // Slices (a[1:3], a[:2, 1:], a[i, ::2]): a view with Python's slice rules. kinds[d]: 1 a slice
 // (bounds[d] = start, stop, step; cg_slice_none for a missing bound), 0 an integer index
-// (bounds[d][0]; negative counts from the end). An index outside its dimension or a step <= 0
-// gives a None view (its accesses report a None array); bounds clamp to the extent.
+// (bounds[d][0]; negative counts from the end). An index outside its dimension or a step of 0
+// gives a None view (its accesses report a None array); bounds clamp to the extent. A negative
+// step walks backward from start (default: the last element) down to stop, exclusive
+// (default: before the first element), with a negative stride.
 constexpr int64 cg_slice_none = (int64)(-9223372036854775807LL - 1);
 struct cg_slice_kinds_t {
   int32 k[ARRAY_MAX_DIMS];
@@ -199,6 +201,12 @@ WP_FUNC int64 cg_slice_bound(int64 v, int64 ext, int64 dflt) {
   if (v == cg_slice_none) return dflt;
   if (v < 0) v += ext;
   return v < 0 ? 0 : (v > ext ? ext : v);
+}
+// A bound of a negative-step slice: clamped to [-1, ext - 1] (-1: before the first element).
+WP_FUNC int64 cg_slice_bound_back(int64 v, int64 ext, int64 dflt) {
+  if (v == cg_slice_none) return dflt;
+  if (v < 0) v += ext;
+  return v < 0 ? -1 : (v > ext - 1 ? ext - 1 : v);
 }
 template <typename T>
 WP_FUNC array_t<T> cg_slice(const array_t<T>& a, int32 n, cg_slice_kinds_t kinds, cg_slice_bounds_t b) {
@@ -216,13 +224,20 @@ WP_FUNC array_t<T> cg_slice(const array_t<T>& a, int32 n, cg_slice_kinds_t kinds
       continue;
     }
     const int64 step = b.b[d][2];
-    if (step <= 0) valid = false;
-    const int64 lo = cg_slice_bound(b.b[d][0], ext, 0);
-    const int64 hi = cg_slice_bound(b.b[d][1], ext, ext);
-    const int64 count = (step > 0 && hi > lo) ? (hi - lo - 1) / step + 1 : 0;
+    if (step == 0) valid = false;
+    int64 lo = 0, count = 0;
+    if (step > 0) {
+      lo = cg_slice_bound(b.b[d][0], ext, 0);
+      const int64 hi = cg_slice_bound(b.b[d][1], ext, ext);
+      count = hi > lo ? (hi - lo - 1) / step + 1 : 0;
+    } else if (step < 0) {
+      lo = cg_slice_bound_back(b.b[d][0], ext, ext - 1);
+      const int64 hi = cg_slice_bound_back(b.b[d][1], ext, -1);
+      count = lo > hi ? (lo - hi - 1) / (-step) + 1 : 0;
+    }
     if (count > 0) offset += lo * a.strides[d];
     r.shape[out] = count;
-    r.strides[out] = step > 0 ? a.strides[d] * step : 0;
+    r.strides[out] = valid ? a.strides[d] * step : 0;
     ++out;
   }
   for (int d = n; d < a.ndim && d < ARRAY_MAX_DIMS; ++d, ++out) {

@@ -249,6 +249,29 @@ WP_FUNC void cg_adj_insert(mat_t<R, C, T>& adj_m, int64 i, int64 j, T& adj_x, co
   cg_accum(adj_m, t);
 }
 
+// ---- composite slot writes (a[i].x = v, a[i].f = v) ----------------------------------------
+// Sema lowers them as load a[i], replace the slot, store a[i] (ops marked `slot`). Reversed,
+// the store passes the element's gradient g = adj_a[i] to the updated element (its slot goes to
+// v, the rest back to the loaded element) and the load writes what comes back into adj_a[i]:
+// g with the written slot cleared (Warp's adj_array_store_slot: an overwrite consumes its
+// slot's gradient; the other slots keep theirs, the load is not a read).
+// cg_slot_grad: the gradient element's address, null when no gradient is wanted.
+template <typename T, typename... I> WP_FUNC T* cg_slot_grad(const array_t<T>& adj_a, I... i) {
+  return adj_a.data ? address(adj_a, int64(i)...) : nullptr;
+}
+// (cg_adj_slot_store is also the adjoint of a plain store of a struct element: adj_v += g.)
+template <typename A, typename T, typename... I> WP_FUNC void cg_adj_slot_store(const A& adj_a, T& adj_v, I... i) {
+  if (T* g = cg_slot_grad(adj_a, i...)) cg_accum(adj_v, *g);
+}
+template <typename A, typename T, typename... I> WP_FUNC void cg_adj_slot_load(const A& adj_a, const T& adj_r, I... i) {
+  if (T* g = cg_slot_grad(adj_a, i...)) *g = adj_r;
+}
+// The adjoint of a read of a struct element: its differentiable fields are added atomically
+// (cg_atomic_accum is emitted with each struct).
+template <typename A, typename T, typename... I> WP_FUNC void cg_adj_load_struct(const A& adj_a, const T& adj_r, I... i) {
+  if (T* g = cg_slot_grad(adj_a, i...)) cg_atomic_accum(g, adj_r);
+}
+
 // ---- control flow ------------------------------------------------------------------------
 template <typename T> WP_FUNC void cg_adj_phi(bool c, T& adj_a, T& adj_b, const T& adj_r) {
   if (c) cg_accum(adj_a, adj_r);

@@ -64,6 +64,7 @@ WP_FIXED_TEMPLATE WP_FUNC bool cg_check_adj(const launch_context_t* ctx, int32 f
 }
 WP_FIXED_TEMPLATE WP_FUNC void adj_load(const WP_FIXED& a, const A&... i) { adj_load(as_array(a), i...); }
 WP_FIXED_TEMPLATE WP_FUNC void adj_store(const WP_FIXED& a, A&... i) { adj_store(as_array(a), i...); }
+WP_FIXED_TEMPLATE WP_FUNC T* cg_slot_grad(const WP_FIXED& a, A... i) { return cg_slot_grad(as_array(a), i...); }
 // Atomics on a fixed-size array: its elements are the thread's own (a local value), so each is a
 // plain read-modify-write returning the old value. Hardware atomics would be wrong on CUDA: they
 // are undefined on local memory (the launch faults with CUDA_ERROR_LAUNCH_FAILED).

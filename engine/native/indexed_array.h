@@ -196,6 +196,9 @@ template <typename T> WP_FUNC void cg_indexed_adjoint(T&, const T&) {}
 template <typename T> WP_FUNC void cg_accum(indexedarray_t<T>&, const indexedarray_t<T>&) {}
 template <typename T> WP_FUNC void cg_link(indexedarray_t<T>& d, const indexedarray_t<T>& s) { d = s; }
 
+template <typename T, typename... I> WP_FUNC T* cg_slot_grad(const indexedarray_t<T>& adj_a, I... i) {
+  return address(adj_a, int64(i)...);   // null without gradient data
+}
 template <typename T> WP_FUNC void indexed_adj_load(T* g, const T& adj_ret) { if (g) atomic_add_ptr(g, adj_ret); }
 template <typename T> WP_FUNC void adj_load(const indexedarray_t<T>& adj_a, int64 i, const T& adj_ret) {
   indexed_adj_load(address(adj_a, i), adj_ret);

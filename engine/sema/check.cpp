@@ -272,9 +272,21 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
   if (grad_of_params >= 0) {
     // The gradient function returns one adjoint slot per differentiable parameter of the
     // forward func; `wp.adjoint[x] += ...` updates the slot of x.
+    // An array parameter's wp.adjoint[a] is its gradient array, which the gradient function
+    // takes as an extra parameter after its own (elements are updated in place).
     for (int i = 0; i < grad_of_params && i < static_cast<int>(params.size()); ++i) {
       const Type& t = param_types[i];
-      if (!IsDifferentiable(t) || t.is_struct()) continue;
+      if (!t.is_array() || t.is_fixed_array()) continue;
+      int v = NewVar(t, "adj_" + params[i].name);
+      fn.vars[v].is_param = true;
+      fn.params.push_back(v);
+      fn.param_names.push_back("adj_" + params[i].name);
+      fn.grad_array_of_param.push_back(i);
+      state.adjoint_slots[params[i].name] = v;
+    }
+    for (int i = 0; i < grad_of_params && i < static_cast<int>(params.size()); ++i) {
+      const Type& t = param_types[i];
+      if (!IsDifferentiable(t) || (t.is_struct() && ContainsArrays(t, module_.structs))) continue;
       int slot = NewVar(t, "adj_" + params[i].name, true);
       fn.returns.push_back(t);
       fn.return_slots.push_back(slot);
@@ -629,7 +641,25 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
         return Error(a.loc, std::string("'") + ast::Spelling(a.op) + "=' would change the type of '" +
                                 ExprText(*a.target) + "' from " + TypeString(TypeOf(lhs.var)) + " to " +
                                 TypeString(TypeOf(r.var)));
-      return LowerAssignTo(*a.target, r);
+      slot_store_emitted_ = false;
+      WEFT_RETURN_IF_ERROR(LowerAssignTo(*a.target, r));
+      // `a[i].x *= v` (any operator but + - & | ^) on a differentiable slot of an array element:
+      // its adjoint would need the slot's value before the update, which the replay no longer
+      // has. Warp refuses it when the module generates adjoints; so does weft.
+      const bool passes_gradient = a.op == ast::BinaryOperator::kAdd || a.op == ast::BinaryOperator::kSub ||
+                                   a.op == ast::BinaryOperator::kBitAnd || a.op == ast::BinaryOperator::kBitOr ||
+                                   a.op == ast::BinaryOperator::kBitXor;
+      if (slot_store_emitted_ && !passes_gradient && r.kind == Value::Kind::kVar && IsDifferentiable(TypeOf(r.var)) &&
+          st_->fn.no_adjoint.message.empty()) {
+        Diagnostic& d = st_->fn.no_adjoint;
+        d.location = a.loc;
+        d.message = "Differentiable composite slot augmented assignments with this operator are not supported with "
+                    "backward code generation enabled ('" + ExprText(*a.target) + " " + ast::Spelling(a.op) +
+                    "= ...'). Write the result to a separate array, or use enable_backward=False for forward-only code.";
+        int rel = static_cast<int>(a.loc.line) - st_->fn.def_line;
+        if (rel >= 0 && rel < static_cast<int>(st_->source_lines.size())) d.source_line = st_->source_lines[rel];
+      }
+      return Status::Ok();
     }
     case ast::StmtKind::kIf: {
       const auto& i = static_cast<const ast::If&>(s);
@@ -674,6 +704,20 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
 
 Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
   const SourceLocation& loc = target.loc;
+  const bool slot_store = slot_store_;   // `value` is an element updated by a component write
+  slot_store_ = false;
+  // The base of a component or field write: an array element loaded there is a slot load.
+  auto eval_slot_base = [&](const ast::Expr& e) {
+    slot_target_ = true;
+    Expected<Value> v = Eval(e);
+    slot_target_ = false;
+    return v;
+  };
+  // Lowers the write of `updated` (the base with one component or field replaced).
+  auto assign_updated = [&](const ast::Expr& e, int updated) {
+    slot_store_ = true;
+    return LowerAssignTo(e, Value::OfVar(updated));
+  };
   if (const auto* n = ast::As<ast::Name>(&target)) {
     if (value.kind == Value::Kind::kTuple) {
       // A tuple value (Warp's tuples): the name stands for its elements (len(), t[i], unpacking,
@@ -743,13 +787,9 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
   } store_guard{&store_target_, store_target_};
   store_target_ = true;
   if (const auto* sub = ast::As<ast::Subscript>(&target)) {
-    WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
-    if (base.kind == Value::Kind::kBuiltin && base.name == "adjoint") {  // wp.adjoint[x] = ...
-      WEFT_ASSIGN_OR_RETURN(int slot, AdjointSlot(*sub));
-      WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, TypeOf(slot), loc, "the adjoint of '" + ExprText(*sub->indices[0]) + "'"));
-      EmitCopy(slot, v);
-      return Status::Ok();
-    }
+    WEFT_ASSIGN_OR_RETURN(Value base, eval_slot_base(*sub->value));
+    if (base.kind == Value::Kind::kBuiltin && base.name == "adjoint")  // wp.adjoint[x] = ...
+      return AssignAdjoint(*sub, value);
     if (base.kind != Value::Kind::kVar) return Error(loc, "cannot assign to an element of '" + ExprText(*sub->value) + "'");
     const Type bt = TypeOf(base.var);
     SliceRegion region;
@@ -778,7 +818,7 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
           args.push_back(x);
           updated = EmitOp(OpKind::kInsert, bt, args);
         }
-        return LowerAssignTo(*sub->value, Value::OfVar(updated));
+        return assign_updated(*sub->value, updated);
       }
     }
     WEFT_ASSIGN_OR_RETURN(std::vector<int> idx, EvalIndices(sub->indices, bt.is_array()));
@@ -794,6 +834,8 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
       s.op.args.push_back(v);
       s.op.array_param = ArrayParamOf(base.var);
       s.op.array_name = ExprText(*sub->value);
+      s.op.slot = slot_store;
+      slot_store_emitted_ |= slot_store;
       Push(std::move(s));
       st_->fn.may_fail = true;
       return Status::Ok();
@@ -819,10 +861,10 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
     for (int i : idx) args.push_back(i);
     args.push_back(v);
     int updated = EmitOp(OpKind::kInsert, bt, args);
-    return LowerAssignTo(*sub->value, Value::OfVar(updated));
+    return assign_updated(*sub->value, updated);
   }
   if (const auto* at = ast::As<ast::Attribute>(&target)) {
-    WEFT_ASSIGN_OR_RETURN(Value base, Eval(*at->value));
+    WEFT_ASSIGN_OR_RETURN(Value base, eval_slot_base(*at->value));
     if (base.kind != Value::Kind::kVar) return Error(loc, "cannot assign to '" + ExprText(target) + "'");
     const Type bt = TypeOf(base.var);
     if (bt.is_struct()) {
@@ -834,7 +876,7 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
       int updated = EmitOp(OpKind::kSetField, bt, {base.var, v}, at->attr);
       st_->block->back().op.field_index = fi;
       if (ArrayParamOf(base.var) >= 0) st_->array_param[updated] = ArrayParamOf(base.var);
-      return LowerAssignTo(*at->value, Value::OfVar(updated));
+      return assign_updated(*at->value, updated);
     }
     if (bt.is_vector() || bt.kind == TypeKind::kQuat) {
       static const std::string kXYZW = "xyzw";
@@ -847,7 +889,7 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
       WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, Type::Scalar(bt.scalar), loc, "the component value"));
       int ki = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")");
       int updated = EmitOp(OpKind::kInsert, bt, {base.var, ki, v});
-      return LowerAssignTo(*at->value, Value::OfVar(updated));
+      return assign_updated(*at->value, updated);
     }
     if (bt.kind == TypeKind::kTransform && (at->attr == "p" || at->attr == "q")) {
       // t.p = v / t.q = r: the translation's 3 or the rotation's 4 components, one by one
@@ -862,7 +904,7 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
         int dst = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(p ? k : 3 + k) + ")");
         updated = EmitOp(OpKind::kInsert, bt, {updated, dst, x});
       }
-      return LowerAssignTo(*at->value, Value::OfVar(updated));
+      return assign_updated(*at->value, updated);
     }
     return Error(loc, "cannot assign to attribute '" + at->attr + "' of a value of type " + TypeString(bt));
   }

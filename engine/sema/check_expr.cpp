@@ -461,7 +461,7 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
 }
 
 // a[1:3], a[:2, 1:], a[i, ::2] on an array or fixed-size array: a view (Python's slice rules:
-// negative bounds count from the end, bounds clamp to the extent, a step must be positive; an
+// negative bounds count from the end, bounds clamp to the extent, a negative step walks backward; an
 // integer index drops its dimension). Its gradient is the same view of the gradient array.
 Expected<Value> Checker::EvalArraySlice(const ast::Subscript& s, const Value& base) {
   const Type bt = TypeOf(base.var);
@@ -515,10 +515,11 @@ Expected<std::vector<int>> Checker::EvalIndices(const ast::ExprList& idx, bool a
   std::vector<int> out;
   for (const auto& e : idx) {
     if (ast::As<ast::Slice>(e.get())) return Error(e->loc, "slices are not supported in kernels");
-    bool store = store_target_;
-    store_target_ = false;   // an index expression is a read
+    bool store = store_target_, slot = slot_target_;
+    store_target_ = slot_target_ = false;   // an index expression is a read
     Expected<Value> ev = Eval(*e);
     store_target_ = store;
+    slot_target_ = slot;
     WEFT_ASSIGN_OR_RETURN(Value v, std::move(ev));
     if (array_base && store && v.kind == Value::Kind::kVar && TypeOf(v.var).is_scalar() && !IsInt(TypeOf(v.var).scalar))
       return ErrorOf("type", e->loc, "Array slot write indices must be integers, got `" + TypeString(TypeOf(v.var)) + "`");
@@ -587,10 +588,11 @@ Expected<bool> Checker::SliceRegionOf(const ast::Subscript& s, const Type& bt, S
       WEFT_ASSIGN_OR_RETURN(std::vector<int> comps, SliceComponents(*sl, extent));
       for (int c : comps) dim_vars[d].push_back(konst(c));
     } else if (e) {
-      const bool store = store_target_;
-      store_target_ = false;   // an index expression is a read
+      const bool store = store_target_, slot = slot_target_;
+      store_target_ = slot_target_ = false;   // an index expression is a read
       Expected<Value> ev = Eval(*e);
       store_target_ = store;
+      slot_target_ = slot;
       WEFT_ASSIGN_OR_RETURN(Value iv, std::move(ev));
       if (iv.kind != Value::Kind::kVar || !TypeOf(iv.var).is_scalar() || !IsInt(TypeOf(iv.var).scalar))
         return Error(e->loc, "index '" + ExprText(*e) + "' must be an integer");
@@ -626,16 +628,69 @@ int Checker::ReadSliceRegion(int base, const Type& bt, const SliceRegion& r) {
   return d;
 }
 
-// wp.adjoint[x] in a gradient function (wp.func_grad): the adjoint slot of parameter x.
-Expected<int> Checker::AdjointSlot(const ast::Subscript& s) {
-  const auto* n = s.indices.size() == 1 ? ast::As<ast::Name>(s.indices[0].get()) : nullptr;
+// wp.adjoint[x] in a gradient function (wp.func_grad): the adjoint slot of parameter x, and
+// the struct fields of wp.adjoint[x.f.g].
+Expected<int> Checker::AdjointRoot(const ast::Subscript& s, std::vector<std::string>* fields) {
   if (st_->adjoint_slots.empty())
     return Error(s.loc, "wp.adjoint[...] is only available in a gradient function (@wp.func_grad)");
+  const ast::Expr* e = s.indices.size() == 1 ? s.indices[0].get() : nullptr;
+  std::vector<std::string> names;
+  while (const auto* at = e ? ast::As<ast::Attribute>(e) : nullptr) {
+    names.push_back(at->attr);
+    e = at->value.get();
+  }
+  const auto* n = e ? ast::As<ast::Name>(e) : nullptr;
   auto it = n ? st_->adjoint_slots.find(n->id) : st_->adjoint_slots.end();
   if (it == st_->adjoint_slots.end())
-    return Error(s.loc, "wp.adjoint[...] takes a differentiable parameter of the function, got '" +
-                            ExprText(*s.indices.at(0)) + "'");
+    return Error(s.loc, "wp.adjoint[...] takes a differentiable parameter of the function (or a field of a struct "
+                        "parameter), got '" + (s.indices.empty() ? std::string() : ExprText(*s.indices[0])) + "'");
+  fields->assign(names.rbegin(), names.rend());
+  if (!fields->empty() && TypeOf(it->second).is_array())
+    return Error(s.loc, "wp.adjoint[" + ExprText(*s.indices[0]) + "]: an array has no fields");
   return it->second;
+}
+
+Expected<int> Checker::AdjointSlot(const ast::Subscript& s) {
+  std::vector<std::string> fields;
+  WEFT_ASSIGN_OR_RETURN(int v, AdjointRoot(s, &fields));
+  for (const std::string& name : fields) {
+    const Type t = TypeOf(v);
+    const StructField* f = nullptr;
+    int fi = -1;
+    if (t.is_struct()) f = module_.structs.at(t.struct_name).Find(name, &fi);
+    if (!f) return Error(s.loc, "wp.adjoint[" + ExprText(*s.indices[0]) + "]: " + TypeString(t) + " has no field '" + name + "'");
+    v = EmitOp(OpKind::kGetField, f->type, {v}, name);
+    st_->block->back().op.field_index = fi;
+  }
+  return v;
+}
+
+// wp.adjoint[x] = value, wp.adjoint[x.f] = value (the slot with field f replaced).
+Status Checker::AssignAdjoint(const ast::Subscript& s, const Value& value) {
+  std::vector<std::string> fields;
+  WEFT_ASSIGN_OR_RETURN(int root, AdjointRoot(s, &fields));
+  const std::string text = ExprText(*s.indices[0]);
+  if (TypeOf(root).is_array())
+    return Error(s.loc, "wp.adjoint[" + text + "] is the gradient array of '" + text + "': assign its elements");
+  std::vector<int> path{root};
+  std::vector<int> field_index;
+  for (const std::string& name : fields) {
+    const Type t = TypeOf(path.back());
+    const StructField* f = nullptr;
+    int fi = -1;
+    if (t.is_struct()) f = module_.structs.at(t.struct_name).Find(name, &fi);
+    if (!f) return Error(s.loc, "wp.adjoint[" + text + "]: " + TypeString(t) + " has no field '" + name + "'");
+    path.push_back(EmitOp(OpKind::kGetField, f->type, {path.back()}, name));
+    st_->block->back().op.field_index = fi;
+    field_index.push_back(fi);
+  }
+  WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, TypeOf(path.back()), s.loc, "the adjoint of '" + text + "'"));
+  for (size_t k = fields.size(); k-- > 0;) {
+    v = EmitOp(OpKind::kSetField, TypeOf(path[k]), {path[k], v}, fields[k]);
+    st_->block->back().op.field_index = field_index[k];
+  }
+  EmitCopy(root, v);
+  return Status::Ok();
 }
 
 Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
@@ -722,6 +777,7 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
     int v = EmitOp(OpKind::kLoad, bt.elem(), args);
     st_->block->back().op.array_param = ArrayParamOf(base.var);
     st_->block->back().op.array_name = ExprText(*s.value);
+    st_->block->back().op.slot = slot_target_;
     st_->fn.may_fail = true;
     return Value::OfVar(v);
   }

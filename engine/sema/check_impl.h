@@ -56,7 +56,8 @@ class Checker {
     std::map<int, int> array_param;  // var -> kernel param index (arrays and structs)
     int line = 0;                    // current user line
     bool has_bare_return = false;
-    // In a gradient function (wp.func_grad): parameter name -> its wp.adjoint[...] slot.
+    // In a gradient function (wp.func_grad): parameter name -> its wp.adjoint[...] slot (a
+    // return slot; for an array parameter, the gradient array it takes as an extra parameter).
     std::map<std::string, int> adjoint_slots;
     std::vector<std::string> source_lines;
     std::map<std::string, int> assign_counts;   // name -> assignments in the whole body
@@ -103,7 +104,11 @@ class Checker {
   Expected<Value> EvalName(const ast::Name& n);
   Expected<Value> EvalAttribute(const ast::Attribute& a);
   Expected<Value> EvalSubscript(const ast::Subscript& s);
+  // wp.adjoint[x] / wp.adjoint[x.f.g]: AdjointRoot gives x's slot and the field names after
+  // it; AdjointSlot reads the (field of the) slot, AssignAdjoint writes it.
+  Expected<int> AdjointRoot(const ast::Subscript& s, std::vector<std::string>* fields);
   Expected<int> AdjointSlot(const ast::Subscript& s);
+  Status AssignAdjoint(const ast::Subscript& s, const Value& value);
   Expected<Value> EvalCall(const ast::Call& c);
   Status ExpandStarred(const ast::Starred& s, std::vector<Value>* out);
   // The argument `e` of wp.ref[T] parameter `param` of `func`: a place its final value can be
@@ -166,6 +171,12 @@ class Checker {
   std::set<std::string> in_progress_;
   FnState* st_ = nullptr;
   bool store_target_ = false;   // evaluating the target of an assignment (arr[i].x = v, arr[i] += v)
+  // Evaluating the base of a component or field write (`arr[i]` in `arr[i].x = v`): an array
+  // element loaded now is the element the write updates (Op::slot).
+  bool slot_target_ = false;
+  // LowerAssignTo of the updated element of a component or field write: its store is Op::slot.
+  bool slot_store_ = false;
+  bool slot_store_emitted_ = false;   // a slot store was emitted (since the flag was last cleared)
 };
 
 // A wp.ref[T] parameter's type string "ref(T)": true, with *inner set to "T".

@@ -68,6 +68,11 @@ struct Op {
   // array accesses (kLoad, kStore, kCall with kBuiltinArrayAccess): for error reports
   int array_param = -1;                      // kernel parameter the array came from, -1 if unknown
   std::string array_name;                    // source text of the array expression
+  // kLoad / kStore of a composite slot write (`a[i].x = v`, `a[i].f.y = v`, `a[i][r, c] = v`):
+  // the load reads the element the write updates and the store writes it back. Their adjoint
+  // is Warp's slot store: the written slot's gradient moves into v and is cleared, the
+  // element's other slots keep theirs (the load is not a read of the element).
+  bool slot = false;
 };
 
 struct Stmt {
@@ -117,6 +122,12 @@ struct Function {
   // caller writes each back to the argument it passed (a local, an array element, a component
   // or a struct field).
   std::vector<int> ref_params;
+  // On a gradient function: the forward func's array parameters whose gradient arrays it takes
+  // as extra parameters after its own, in this order (wp.adjoint[a] of an array a).
+  std::vector<int> grad_array_of_param;
+  // Code whose adjoint cannot be generated (a differentiable `a[i].x *= v`): generating the
+  // module's adjoints is then this error (Warp's); its forward code compiles.
+  Diagnostic no_adjoint;
   bool may_fail = false;                 // contains bounds checks (directly or through calls)
   bool uses_tid = false;
   std::vector<Var> vars;
