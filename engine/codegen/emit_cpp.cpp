@@ -111,6 +111,22 @@ class FnEmitter {
       Line("wp::cg_unravel(__ctx->bounds, __tid_flat, __tid);");
       Line("(void)__tid;");
     }
+    if (mode == Mode::kReplay && f_.custom_replay >= 0) {   // wp.func_replay
+      const Function& r = m_.functions.at(f_.custom_replay);
+      Line("// custom replay: " + CommentText(r.name));
+      std::string args = "__ctx, __tid_flat";
+      for (int p : f_.params) args += ", " + V(p);
+      if (f_.returns.size() == 1) {
+        Line("return " + r.cpp_name + "(" + args + ");");
+      } else {
+        for (size_t i = 0; i < f_.returns.size(); ++i) args += ", __ret" + std::to_string(i);
+        Line(r.cpp_name + "(" + args + ");");
+      }
+      --indent_;
+      Line("}");
+      Line("");
+      return;
+    }
     if (mode == Mode::kAdjoint && f_.custom_grad >= 0) {
       EmitCustomGradCall();
       --indent_;

@@ -371,6 +371,21 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
       if (!gi.ok()) return gi.status();
       module_.functions[index].custom_grad = *gi;
     }
+    // A custom replay (wp.func_replay): same parameters and results as the func; the func's
+    // replay twin calls it (it runs with its side effects: recomputing is its job).
+    auto r = by_key_.find(key + "__custom_replay");
+    if (r != by_key_.end()) {
+      if (r->second->def->params.size() != param_types.size())
+        return Error(r->second->def->loc, "the replay function of '" + fs.name + "' must take its " +
+                                              std::to_string(param_types.size()) + " parameters");
+      auto ri = InstantiateFunction(*r->second, param_types, r->second->def->loc);
+      if (!ri.ok()) return ri.status();
+      if (module_.functions[*ri].returns != returns)
+        return Error(r->second->def->loc, "the replay function of '" + fs.name +
+                                              "' must return what the func returns");
+      module_.functions[index].custom_replay = *ri;
+      if (module_.functions[*ri].may_fail) module_.functions[index].may_fail = true;
+    }
   }
   return index;
 }

@@ -116,6 +116,10 @@ struct Function {
   // function, which parameter of the forward func each of its return values is the
   // adjoint of (it returns the wp.adjoint[...] slots).
   int custom_grad = -1;
+  // A custom replay (wp.func_replay): on a func, the index of the function its replay twin
+  // (what a caller's backward pass runs to recompute the func's results) calls instead of
+  // replaying the body, -1 if none.
+  int custom_replay = -1;
   std::vector<int> grad_of_param;
   // wp.ref[T] parameters (indices into the user's parameter list): the function takes them by
   // value and returns their final values after its own return values, in this order; the

@@ -199,3 +199,55 @@ def test_misused_adjoint_forms_are_compile_errors():
         wp.adjoint[a][0] += 1.0
 
     assert "only available in a gradient function" in _compile_error(k_outside)
+
+
+@wp.func
+def take_slot(counter: wp.array(dtype=wp.int32), slots: wp.array(dtype=wp.int32), t: int):
+    s = wp.atomic_add(counter, 0, 1)   # which slot a thread gets depends on the schedule
+    slots[t] = s
+    return s
+
+
+@wp.func_replay(take_slot)
+def replay_take_slot(counter: wp.array(dtype=wp.int32), slots: wp.array(dtype=wp.int32), t: int):
+    return slots[t]   # the backward pass reads back the slot the forward pass took
+
+
+@wp.kernel
+def scatter_by_counter(x: wp.array(dtype=wp.float64), w: wp.array(dtype=wp.float64), counter: wp.array(dtype=wp.int32),
+                       slots: wp.array(dtype=wp.int32), out: wp.array(dtype=wp.float64)):
+    t = wp.tid()
+    s = take_slot(counter, slots, t)
+    out[s] = wp.sin(x[s]) * w[t]
+
+
+def test_func_replay_recomputes_results_in_the_backward_pass(rng):
+    """Without the replay function the backward pass would replay the atomic (which returns 0
+    in a replay, as in Warp) and route every thread's gradient to slot 0."""
+    n = 64
+    x_np, w_np = rng.uniform(-2.0, 2.0, n), rng.uniform(-2.0, 2.0, n)
+    x = wp.array(x_np, dtype=wp.float64, requires_grad=True)
+    w = wp.array(w_np, dtype=wp.float64, requires_grad=True)
+    counter = wp.zeros(1, dtype=wp.int32)
+    slots = wp.zeros(n, dtype=wp.int32)
+    out = wp.zeros(n, dtype=wp.float64, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(scatter_by_counter, n, inputs=[x, w, counter, slots, out])
+    seed = rng.uniform(-1.0, 1.0, n)
+    tape.backward(grads={out: wp.array(seed, dtype=wp.float64)})
+    s = slots.numpy()
+    assert sorted(s) == list(range(n))
+    gx, gw = np.zeros(n), np.zeros(n)
+    gx[s] = seed[s] * np.cos(x_np[s]) * w_np
+    gw[:] = seed[s] * np.sin(x_np[s])
+    np.testing.assert_allclose(x.grad.numpy(), gx, rtol=1e-12)
+    np.testing.assert_allclose(w.grad.numpy(), gw, rtol=1e-12)
+    assert counter.numpy()[0] == n   # the replay did not run the atomic again
+
+
+def test_func_replay_must_take_the_funcs_parameters():
+    with pytest.raises(TypeError, match="does not match any overload"):
+        @wp.func_replay(take_slot)
+        def bad_replay(counter: wp.array(dtype=wp.int32), t: int):
+            return t

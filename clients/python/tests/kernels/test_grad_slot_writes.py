@@ -156,10 +156,10 @@ def test_slot_write_adjoints_compile_for_cuda_without_a_gpu(wp, device):
     (forward and adjoint), also on a machine without a GPU."""
     if device != "cpu":
         return   # one NVRTC compile is enough
-    from test_grad_custom_adjoints import energies, gathers, reversed_slice_scale, struct_reads
+    from test_grad_custom_adjoints import energies, gathers, reversed_slice_scale, scatter_by_counter, struct_reads
 
     for k in (sequential_components, struct_field, nested_struct_component, matrix_element_in_view,
-              component_add_then_read, energies, gathers, struct_reads, reversed_slice_scale):
+              component_add_then_read, energies, gathers, struct_reads, reversed_slice_scale, scatter_by_counter):
         report = wp.compile(k, device="cuda", arch=90)
         assert report.kernel(k.name, adjoint=True).registers > 0
 

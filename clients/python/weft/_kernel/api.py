@@ -22,7 +22,8 @@ from .errors import (
     WeftCompileError,
     WeftLaunchError,
 )
-from .functions import Function, FunctionDefinition, Kernel, NativeSnippet, attach_gradient, static
+from .functions import (Function, FunctionDefinition, Kernel, NativeSnippet, attach_gradient, attach_replay,
+                        static)
 from .launch import Launch, launch
 from .structs import StructInstance, StructType, struct
 from .tape import Tape
@@ -120,14 +121,14 @@ def func_grad(forward):
 
 
 def func_replay(forward):
-    """@wp.func_replay(f): Warp's custom replay of @wp.func `f` (what the backward pass runs
-    instead of f's forward body). weft's backward pass replays f's own body, so a kernel that
-    reaches a func with a replay function is refused when its backward pass is compiled
-    (WeftCompileError naming the func); its forward launches are unaffected."""
+    """@wp.func_replay(f): Warp's custom replay of @wp.func `f`: a caller's backward pass runs
+    it, with f's parameters, to recompute f's results instead of replaying f's body (which skips
+    f's side effects; a func whose result depends on them, such as an atomic counter, records
+    what it needs and the replay function reads it back). It is attached to every overload of
+    `f` with its parameter types."""
 
     def wrap(function):
-        for definition in getattr(forward, "overloads", ()):
-            definition.custom_replay = function
+        attach_replay(forward, FunctionDefinition(function, is_kernel=False))
         module_mod.bump_version()
         return forward
 

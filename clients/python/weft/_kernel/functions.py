@@ -70,6 +70,7 @@ class FunctionDefinition:
                     self.return_type = ""
         self.key = canonical_name(self.module, self.qualname)
         self.custom_grad = None      # GradientFunction set by wp.func_grad
+        self.custom_replay = None    # GradientFunction (the replay function) set by wp.func_replay
 
     def _is_static_call(self, node, scope: dict) -> bool:
         chain = []
@@ -357,6 +358,26 @@ def attach_gradient(forward: Function, definition: FunctionDefinition) -> Gradie
             f"match any overload of '{forward.__name__}': its parameters must start with the "
             f"func's parameter types, then take the adjoints of its return values")
     return gradient
+
+
+def attach_replay(forward: Function, definition: FunctionDefinition) -> GradientFunction:
+    """Attaches `definition` as the custom replay (wp.func_replay) of every overload of
+    `forward` whose parameter types it has. It is sent with the overload under the key
+    `<overload key>__custom_replay`; the func's replay twin calls it. Raises TypeError when no
+    overload matches."""
+    if not isinstance(forward, Function):
+        raise TypeError(f"wp.func_replay expects a @wp.func, got {forward!r}")
+    replay = GradientFunction(definition)
+    matched = False
+    for overload in forward.overloads:
+        if definition.param_types == overload.param_types:
+            overload.custom_replay = replay
+            matched = True
+    if not matched:
+        raise TypeError(
+            f"{definition.file}:{definition.first_line}: error: replay function '{definition.name}' does not "
+            f"match any overload of '{forward.__name__}': it must take the func's parameters")
+    return replay
 
 
 class Kernel:

@@ -406,13 +406,6 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
     if cached is not None and cached[0] == _registry_version:
         return cached[1], cached[2]
     source, group = build_module_source(kernel, backward)
-    if backward:
-        replayed = [d.name for d in group.definitions if getattr(d, "custom_replay", None)]
-        if replayed:
-            raise WeftCompileError(
-                f"kernel '{kernel.key}': the backward pass of {', '.join(replayed)} has a custom "
-                f"replay function (@wp.func_replay), which weft does not support: its backward "
-                f"pass replays the func's own body")
     digest = content_hash(source)
     compiled = _compiled.get((runtime_id, digest, device))
     if compiled is None:

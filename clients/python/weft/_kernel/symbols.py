@@ -177,6 +177,10 @@ def resolve(definition: FunctionDefinition) -> Resolution:
     if gradient is not None:     # wp.func_grad: travels with the func, keyed after it
         gradient.definition.key = definition.key + "__custom_grad"
         functions.append(gradient)
+    replay = getattr(definition, "custom_replay", None)
+    if replay is not None:       # wp.func_replay: the same way
+        replay.definition.key = definition.key + "__custom_replay"
+        functions.append(replay)
     return Resolution(list(symbols.values()), functions, structs)
 
 
