@@ -74,6 +74,7 @@ grpc::Status ModuleServiceImpl::Compile(grpc::ServerContext* ctx, const v1::Comp
     auto* ki = resp->add_kernels();
     ki->set_name(k.layout.name);
     ki->set_args_size(k.layout.args_size);
+    ki->set_adjoint_refused(k.layout.adjoint_refused);
     for (const auto& p : k.layout.params) {
       auto* kp = ki->add_params();
       kp->set_name(p.name);

@@ -883,6 +883,29 @@ Status Guarded(const Function& f, std::vector<Diagnostic>* diags, const std::fun
   }
 }
 
+// The no_adjoint error of f or of a function it calls (directly or not), as text; "" if none.
+std::string AdjointRefused(const Module& m, const Function& f) {
+  std::set<int> seen;
+  std::function<std::string(const Function&)> visit = [&](const Function& fn) -> std::string {
+    if (!fn.no_adjoint.message.empty()) return fn.no_adjoint.ToString();
+    std::function<std::string(const std::vector<Stmt>&)> walk = [&](const std::vector<Stmt>& stmts) -> std::string {
+      for (const auto& s : stmts) {
+        std::string r;
+        if (s.kind == Stmt::Kind::kOp && s.op.kind == OpKind::kFuncCall && seen.insert(s.op.callee).second)
+          r = visit(m.functions.at(s.op.callee));
+        if (r.empty()) r = walk(s.then_body);
+        if (r.empty()) r = walk(s.else_body);
+        if (r.empty()) r = walk(s.cond_body);
+        if (r.empty()) r = walk(s.body);
+        if (!r.empty()) return r;
+      }
+      return "";
+    };
+    return walk(fn.body);
+  };
+  return visit(f);
+}
+
 }  // namespace
 
 Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options, std::vector<Diagnostic>* diags) {
@@ -955,6 +978,7 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
 
     const size_t entry_start = o.size();
     std::string target = options.target == Target::kCpu ? "cpu" : "cuda";
+    kl.adjoint_refused = AdjointRefused(m, f);
     kl.forward_symbol = "weft_" + MangleIdentifier(f.name) + "_" + target + "_forward";
     if (options.enable_backward) kl.backward_symbol = "weft_" + MangleIdentifier(f.name) + "_" + target + "_backward";
     if (options.target == Target::kCpu) {

@@ -38,6 +38,9 @@ struct KernelLayout {
   uint32_t args_align = 8;
   std::string forward_symbol;   // e.g. weft_saxpy_cpu_forward
   std::string backward_symbol;  // empty when backward was not generated
+  // Why the kernel has no adjoint (code it reaches whose adjoint cannot be generated, such as a
+  // differentiable `a[i].x *= v`): the located error that generating it gives; empty if none.
+  std::string adjoint_refused;
 };
 
 struct GeneratedModule {

@@ -268,7 +268,8 @@ template <typename A, typename T, typename... I> WP_FUNC void cg_adj_slot_load(c
 }
 // The adjoint of a read of a struct element: its differentiable fields are added atomically
 // (cg_atomic_accum is emitted with each struct).
-template <typename A, typename T, typename... I> WP_FUNC void cg_adj_load_struct(const A& adj_a, const T& adj_r, I... i) {
+template <typename A, typename T, typename... I>
+WP_FUNC void cg_adj_load_struct(const A& adj_a, const T& adj_r, I... i) {
   if (T* g = cg_slot_grad(adj_a, i...)) cg_atomic_accum(g, adj_r);
 }
 

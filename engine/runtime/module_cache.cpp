@@ -282,6 +282,7 @@ std::string SerializeArtifact(const ModuleArtifact& artifact) {
     w.Str(k.name);
     w.Str(k.forward_symbol);
     w.Str(k.backward_symbol);
+    w.Str(k.adjoint_refused);
     w.U32(k.args_size);
     w.U32(k.args_align);
     w.U64(k.params.size());
@@ -306,7 +307,7 @@ Expected<ModuleArtifact> DeserializeArtifact(std::string_view payload) {
   a.kernels.resize(nkernels);
   for (auto& k : a.kernels) {
     uint64_t nparams = 0;
-    if (!(r.Str(&k.name) && r.Str(&k.forward_symbol) && r.Str(&k.backward_symbol) &&
+    if (!(r.Str(&k.name) && r.Str(&k.forward_symbol) && r.Str(&k.backward_symbol) && r.Str(&k.adjoint_refused) &&
           r.U32(&k.args_size) && r.U32(&k.args_align) && r.Count(&nparams)))
       return bad();
     k.params.resize(nparams);

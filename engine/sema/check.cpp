@@ -670,7 +670,8 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
         d.location = a.loc;
         d.message = "Differentiable composite slot augmented assignments with this operator are not supported with "
                     "backward code generation enabled ('" + ExprText(*a.target) + " " + ast::Spelling(a.op) +
-                    "= ...'). Write the result to a separate array, or use enable_backward=False for forward-only code.";
+                    "= ...'). Write the result to a separate array, or use enable_backward=False for "
+                    "forward-only code.";
         int rel = static_cast<int>(a.loc.line) - st_->fn.def_line;
         if (rel >= 0 && rel < static_cast<int>(st_->source_lines.size())) d.source_line = st_->source_lines[rel];
       }

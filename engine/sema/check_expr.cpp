@@ -658,7 +658,9 @@ Expected<int> Checker::AdjointSlot(const ast::Subscript& s) {
     const StructField* f = nullptr;
     int fi = -1;
     if (t.is_struct()) f = module_.structs.at(t.struct_name).Find(name, &fi);
-    if (!f) return Error(s.loc, "wp.adjoint[" + ExprText(*s.indices[0]) + "]: " + TypeString(t) + " has no field '" + name + "'");
+    if (!f)
+      return Error(s.loc, "wp.adjoint[" + ExprText(*s.indices[0]) + "]: " + TypeString(t) + " has no field '" + name +
+                              "'");
     v = EmitOp(OpKind::kGetField, f->type, {v}, name);
     st_->block->back().op.field_index = fi;
   }

@@ -429,6 +429,9 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
     if info is None:
         raise WeftCompileError(f"the daemon compiled module {kernel.module_name} but reported "
                                f"no kernel named {kernel.name!r} (has {sorted(compiled.kernels)})")
+    if not backward and info.adjoint_refused and build_options(kernel).get("enable_backward", True):
+        # Warp refuses such a kernel at its first launch when its module generates adjoints
+        raise WeftCompileError(f"kernel '{kernel.key}' of module {kernel.module_name}:\n{info.adjoint_refused}")
     kernel._compiled[fast_key] = (_registry_version, compiled, info)
     return compiled, info
 
