@@ -61,6 +61,7 @@ ModuleArtifact SampleArtifact(std::mt19937& rng) {
   a.kernels = {k, k};
   a.kernels[1].name = "other";
   a.kernels[1].backward_symbol = "weft_other_cpu_backward";
+  a.kernels[0].adjoint_refused = "k.py:3:5: error: no adjoint here";
   a.function_names = {"sample.py:saxpy", "sample.py:other"};
   a.generated_source = "// generated\n#include \"weft.h\"\n";
   return a;
@@ -91,6 +92,7 @@ void ExpectSameArtifact(const ModuleArtifact& a, const ModuleArtifact& b) {
     EXPECT_EQ(a.kernels[i].name, b.kernels[i].name);
     EXPECT_EQ(a.kernels[i].forward_symbol, b.kernels[i].forward_symbol);
     EXPECT_EQ(a.kernels[i].backward_symbol, b.kernels[i].backward_symbol);
+    EXPECT_EQ(a.kernels[i].adjoint_refused, b.kernels[i].adjoint_refused);
     EXPECT_EQ(a.kernels[i].args_size, b.kernels[i].args_size);
     EXPECT_EQ(a.kernels[i].args_align, b.kernels[i].args_align);
     ExpectSameParams(a.kernels[i].params, b.kernels[i].params);

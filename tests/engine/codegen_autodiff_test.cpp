@@ -755,5 +755,55 @@ TEST(CodegenAutodiff, TidUnpackedInsideFuncOf2dLaunch) {
     for (int j = 0; j < 3; ++j) EXPECT_EQ(out.data[3 * i + j], 10.0 * i + j) << i << "," << j;
 }
 
+
+// A differentiable `a[i].x *= v` has no adjoint (Warp's error): the forward build compiles and
+// names the error on every kernel that reaches it, through a func too; generating adjoints fails
+// with it at its line. `+=` on a slot and `*=` on a whole element keep their adjoints.
+TEST(CodegenAutodiff, SlotMultiplyRefusesTheAdjointNotTheForwardCode) {
+  ModuleSource m;
+  m.symbols.push_back(Wp());
+  m.functions.push_back(Fn("scale_x",
+                           "def scale_x(y: wp.array(dtype=wp.vec3), s: float, i: int):\n"
+                           "    y[i].x *= s\n",
+                           {"array(vec(3,float32),1)", "float32", "int32"}, {"y", "s", "i"}, false));
+  m.functions.back().key = "grad.scale_x";
+  Symbol f;
+  f.name = "scale_x";
+  f.kind = Symbol::Kind::kFunction;
+  f.target = "grad.scale_x";
+  m.symbols.push_back(f);
+  m.functions.push_back(Fn("through_func",
+                           "def through_func(y: wp.array(dtype=wp.vec3), s: wp.array(dtype=float)):\n"
+                           "    i = wp.tid()\n"
+                           "    scale_x(y, s[i], i)\n",
+                           {"array(vec(3,float32),1)", "array(float32,1)"}, {"y", "s"}));
+  m.functions.push_back(Fn("fine",
+                           "def fine(y: wp.array(dtype=wp.vec3), s: wp.array(dtype=float)):\n"
+                           "    i = wp.tid()\n"
+                           "    y[i].x += s[i]\n"
+                           "    y[i] *= s[i]\n",
+                           {"array(vec(3,float32),1)", "array(float32,1)"}, {"y", "s"}));
+  CodegenOptions o;
+  std::vector<Diagnostic> diags;
+  auto fwd = GenerateModule(m, o, &diags);
+  ASSERT_TRUE(fwd.ok()) << fwd.status().message();
+  ASSERT_EQ(fwd->kernels.size(), 2u);
+  for (const auto& k : fwd->kernels) {
+    if (k.name == "fine") {
+      EXPECT_EQ(k.adjoint_refused, "");
+    } else {
+      EXPECT_NE(k.adjoint_refused.find("grad.py:2:"), std::string::npos) << k.adjoint_refused;
+      EXPECT_NE(k.adjoint_refused.find("Differentiable composite slot augmented assignments"), std::string::npos);
+    }
+  }
+  o.enable_backward = true;
+  diags.clear();
+  auto bwd = GenerateModule(m, o, &diags);
+  ASSERT_FALSE(bwd.ok());
+  ASSERT_EQ(diags.size(), 1u);
+  EXPECT_EQ(diags[0].location.line, 2u);
+  EXPECT_NE(diags[0].message.find("enable_backward=False"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace weft
