@@ -5,7 +5,7 @@ warp-lang on the same device in the same run.
 
 Per mesh size: the build (wp.Mesh(...), synchronized), a refit after moving every point, and a
 launch of Q closest-point queries (mesh_query_point_no_sign + mesh_eval_position, launch +
-sync), median of several runs. The error column is the largest difference, over 256 of the
+sync), median of several runs. The error column is the largest difference, over 64 of the
 queries, between the distance to the closest point found and the float64 brute-force distance
 to every triangle. Ratio = warp time / weft time (higher is better for weft). On a GPU weft
 builds and refits on the host (docs/geometry.md), Warp on the device.
@@ -111,7 +111,7 @@ def run(lib, mod, pts, idx, queries, device):
     cur = points.numpy().astype(np.float64)
     tri = cur[idx.reshape(-1, 3)]
     err = 0.0
-    for k in range(0, len(queries), max(1, len(queries) // 256)):
+    for k in range(0, len(queries), max(1, len(queries) // 64)):
         p = queries[k].astype(np.float64)
         err = max(err, abs(np.linalg.norm(got[k] - p) - closest_distance_f64(p, tri)))
     return t_build, t_refit, t_query, err
@@ -134,11 +134,13 @@ def main():
     rows = []
     for nlat, nlon in spheres:
         pts, idx = uv_sphere(nlat, nlon)
+        print(f"  sphere {nlat} x {nlon} ...", file=sys.stderr, flush=True)
         wb, wr, wq, we = run(weft, weft_mod, pts, idx, queries, device)
         xb = xr = xq = xe = None
         if warp is not None:
             xb, xr, xq, xe = run(warp, warp_mod, pts, idx, queries, device)
         faces = len(idx) // 3
+        print(f"  {faces:,} faces done", file=sys.stderr, flush=True)
         rows.append([f"{faces:,}", bc.fmt_time(wb), bc.fmt_time(xb), bc.fmt_ratio(wb, xb),
                      bc.fmt_time(wr), bc.fmt_time(xr), bc.fmt_ratio(wr, xr),
                      bc.fmt_time(wq), f"{nq / wq / 1e6:,.1f} M/s", f"{we:.1e}",
