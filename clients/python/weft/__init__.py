@@ -19,6 +19,13 @@ from .device import (Device, ScopedDevice, get_cuda_device, get_cuda_device_coun
                      is_cuda_available, is_device_available, set_device, synchronize,
                      synchronize_device)
 from .errors import WeftError  # noqa: F401
+from .mempool import (ScopedMempool, ScopedMempoolAccess, ScopedPeerAccess,  # noqa: F401
+                      get_mempool_release_threshold, get_mempool_used_mem_current,
+                      get_mempool_used_mem_high, is_mempool_access_enabled,
+                      is_mempool_access_supported, is_mempool_enabled, is_mempool_supported,
+                      is_peer_access_enabled, is_peer_access_supported,
+                      set_mempool_access_enabled, set_mempool_enabled,
+                      set_mempool_release_threshold, set_peer_access_enabled)
 from .streams import (Event, ScopedStream, Stream, get_event_elapsed_time,  # noqa: F401
                       get_stream, record_event, set_stream, synchronize_event,
                       synchronize_stream, wait_event, wait_stream)
