@@ -121,3 +121,11 @@ def test_from_ipc_handle_with_warp_arguments(wp):
         wp.from_ipc_handle(token, dtype=wp.float32, shape=(13,))
     with pytest.raises(wp.WeftError):
         wp.from_ipc_handle(b"not-a-token", dtype=wp.float32, shape=(1,))
+
+
+def test_devices_report_ipc_support(wp):
+    """Warp programs check device.is_ipc_supported before ipc_handle(): every device weft
+    computes on shares arrays between processes (the tests above, and test_cuda_sharing.py)."""
+    for d in wp.get_devices():
+        if d.is_compute_supported:
+            assert d.is_ipc_supported is True, d

@@ -33,6 +33,9 @@ class Device:
         self.sm_count = info.cores if self.is_cuda else 0
         self.is_uva = self.is_cuda
         self.is_mempool_supported = False
+        # array.ipc_handle() / wp.from_ipc_handle() share this device's arrays between client
+        # processes (daemon tokens, docs/cuda-client.md); interprocess events are not available.
+        self.is_ipc_supported = True
         self.is_primary = self.is_cuda
 
     @property
