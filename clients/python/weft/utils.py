@@ -134,41 +134,59 @@ def _reduce_checks(name, dtype, out, expected_shape):
             raise RuntimeError(f"out array should have shape {tuple(expected_shape)}")
 
 
+def _reduction_axis(name, axis, ndim):
+    """Warp 1.19's rule: an int in [-ndim, ndim), negative counting from the last dimension."""
+    if axis is None:
+        return None
+    axis = operator.index(axis)
+    if axis < -ndim or axis >= ndim:
+        raise IndexError(f"{name}() axis {axis} is out of bounds for an array with {ndim} dimensions")
+    return axis % ndim
+
+
 def _reduced_shape(shape, axis):
+    """(1,) for a whole-array reduction; else the shape with the reduced axis kept at size 1."""
     if axis is None:
         return (1,)
-    axis = operator.index(axis)
-    if not -len(shape) <= axis < len(shape):
-        raise ValueError(f"axis {axis} is out of range for an array of {len(shape)} dimensions")
-    axis %= len(shape)
-    return tuple(n for i, n in enumerate(shape) if i != axis) or (1,)
+    return tuple(1 if i == axis else n for i, n in enumerate(shape))
+
+
+def _first(comp, axis, ndim, count):
+    """The first `count` entries along `axis` (None: all) of comp (ndim leading dims)."""
+    if count is None:
+        return comp
+    count = max(0, int(count))
+    index = [slice(None)] * comp.ndim
+    index[axis] = slice(0, count)
+    return comp[tuple(index)]
 
 
 def array_sum(values, out=None, value_count=None, axis=None):
     """Sum of a float array (of scalars or vectors): over all elements (the first value_count
-    of a 1-d array) or along `axis`. Returns the sum when out is None, else writes it to out."""
+    of them) or along `axis` (its first value_count entries; the result keeps the axis with
+    size 1, as Warp 1.19). Returns the sum (a NumPy scalar or vector; an array along an axis),
+    or writes it to out and returns out."""
     if out is not None and out.device != values.device:
         raise RuntimeError(f"out array storage device ({out.device}) does not match the values "
                            f"array ({values.device})")
+    axis = _reduction_axis("array_sum", axis, values.ndim)
     shape = _reduced_shape(values.shape, axis)
     _reduce_checks("array_sum", values.dtype, out, shape)
     data = _values(values)
     n = _length(values.dtype)
     comp = data.reshape(tuple(values.shape) + ((n,) if n > 1 else ()))
     if axis is None:
-        if value_count is not None:
-            comp = comp.reshape((values.size,) + comp.shape[values.ndim:])[:int(value_count)]
-        result = comp.reshape((-1,) + comp.shape[values.ndim:] if value_count is None
-                              else comp.shape).sum(axis=0, dtype=comp.dtype)
-        result = result.reshape((1,) + result.shape)
+        flat = comp.reshape((values.size,) + comp.shape[values.ndim:])
+        flat = _first(flat, 0, 1, value_count)
+        result = flat.sum(axis=0, dtype=comp.dtype).reshape((1,) + comp.shape[values.ndim:])
     else:
-        result = comp.sum(axis=axis % values.ndim, dtype=comp.dtype)
+        part = _first(comp, axis, values.ndim, value_count)
+        result = part.sum(axis=axis, keepdims=True, dtype=comp.dtype)
     if out is not None:
         _write(out, result.reshape(_values(out).shape))
-        return None
+        return out
     if axis is None:
-        value = result[0]
-        return _types().vector(n, _scalar(values.dtype))(*value) if n > 1 else value
+        return result[0]     # as Warp's out.numpy()[0]: a NumPy scalar, or a NumPy vector
     from .array import array  # noqa: PLC0415
 
     return array(result, dtype=values.dtype, device=values.device)
@@ -176,7 +194,9 @@ def array_sum(values, out=None, value_count=None, axis=None):
 
 def array_inner(a, b, out=None, count=None, axis=None):
     """Inner product of two float arrays of one shape and dtype (vectors: the sum of the
-    componentwise products). Returns it when out is None, else writes it to out."""
+    componentwise products): over all elements (the first `count`) or along `axis` (its first
+    `count` entries; the result keeps the axis with size 1, as Warp 1.19). Returns it, or
+    writes it to out and returns out."""
     if tuple(a.shape) != tuple(b.shape):
         raise ValueError(f"array_inner() arguments must have the same shape, got "
                          f"{tuple(a.shape)} and {tuple(b.shape)}")
@@ -190,6 +210,7 @@ def array_inner(a, b, out=None, count=None, axis=None):
         raise RuntimeError(f"A and b array data types do not match ({_name(a.dtype)} vs "
                            f"{_name(b.dtype)})")
     scalar = _scalar(a.dtype)
+    axis = _reduction_axis("array_inner", axis, a.ndim)
     shape = _reduced_shape(a.shape, axis)
     _reduce_checks("array_inner", a.dtype, None, shape)
     if out is not None:
@@ -199,15 +220,13 @@ def array_inner(a, b, out=None, count=None, axis=None):
     y = _values(b).reshape(tuple(b.shape) + (n,))
     products = (x * y).sum(axis=-1, dtype=x.dtype)
     if axis is None:
-        products = products.reshape(-1)
-        if count is not None:
-            products = products[:int(count)]
+        products = _first(products.reshape(-1), 0, 1, count)
         result = products.sum(dtype=x.dtype).reshape(1)
     else:
-        result = products.sum(axis=axis % a.ndim, dtype=x.dtype)
+        result = _first(products, axis, a.ndim, count).sum(axis=axis, keepdims=True, dtype=x.dtype)
     if out is not None:
         _write(out, result.reshape(_values(out).shape))
-        return None
+        return out
     if axis is None:
         return result[0]
     from .array import array  # noqa: PLC0415

@@ -462,6 +462,29 @@ def test_utils_scan_sum_inner_against_numpy(wp, rng):
         wp.utils.array_scan(wp.zeros(3, dtype=int), wp.zeros(3, dtype=float))
     with pytest.raises(ValueError, match=r"must have the same shape, got \(2,\) and \(3,\)"):
         wp.utils.array_inner(wp.zeros(2, dtype=float), wp.zeros(3, dtype=float))
+    # Warp 1.19's axis reductions: the axis is kept with size 1, a count takes its first
+    # entries, out is returned, an axis outside [-ndim, ndim) is an IndexError.
+    m_np, n_np = rng.standard_normal((4, 5, 3)), rng.standard_normal((4, 5, 3))
+    m, n = wp.array(m_np, dtype=wp.float64), wp.array(n_np, dtype=wp.float64)
+    for axis in (0, 1, 2, -1, -3):
+        for count in (None, 2):
+            sl = [slice(None)] * 3
+            if count is not None:
+                sl[axis] = slice(0, count)
+            ref = m_np[tuple(sl)].sum(axis=axis, keepdims=True)
+            got = wp.utils.array_sum(m, axis=axis, value_count=count)
+            assert got.shape == ref.shape
+            np.testing.assert_allclose(got.numpy(), ref, rtol=1e-12)
+            ref_inner = (m_np * n_np)[tuple(sl)].sum(axis=axis, keepdims=True)
+            out = wp.empty(ref_inner.shape, dtype=wp.float64)
+            assert wp.utils.array_inner(m, n, out=out, count=count, axis=axis) is out
+            np.testing.assert_allclose(out.numpy(), ref_inner, rtol=1e-12)
+    v = wp.array(x_np, dtype=wp.vec3d)
+    np.testing.assert_allclose(wp.utils.array_sum(v), x_np.sum(axis=0), rtol=1e-12)   # a NumPy vector
+    np.testing.assert_allclose(wp.utils.array_sum(v, value_count=7), x_np[:7].sum(axis=0), rtol=1e-12)
+    for bad in (3, -4, 2**63):
+        with pytest.raises(IndexError, match="out of bounds for an array with 3 dimensions"):
+            wp.utils.array_sum(m, axis=bad)
 
 
 def test_utils_sorts_and_run_length(wp, rng):
