@@ -72,72 +72,53 @@ def _pair(target_device, peer_device, what: str, enable: bool) -> None:
                        "between GPUs itself (docs/cuda.md)")
 
 
-def is_mempool_access_supported(target_device, peer_device) -> bool:
+def _no_access(target_device, peer_device) -> bool:
+    """No device pair has client-side pool or peer access; the names are still checked."""
     get_device(target_device), get_device(peer_device)
     return False
 
 
-def is_mempool_access_enabled(target_device, peer_device) -> bool:
-    get_device(target_device), get_device(peer_device)
-    return False
+is_mempool_access_supported = is_mempool_access_enabled = _no_access
+is_peer_access_supported = is_peer_access_enabled = _no_access
 
 
 def set_mempool_access_enabled(target_device, peer_device, enable: bool) -> None:
     _pair(target_device, peer_device, "Memory pool access", enable)
 
 
-def is_peer_access_supported(target_device, peer_device) -> bool:
-    get_device(target_device), get_device(peer_device)
-    return False
-
-
-def is_peer_access_enabled(target_device, peer_device) -> bool:
-    get_device(target_device), get_device(peer_device)
-    return False
-
-
 def set_peer_access_enabled(target_device, peer_device, enable: bool) -> None:
     _pair(target_device, peer_device, "Peer access", enable)
 
 
-class ScopedMempool:
-    """Warp's context manager: the pool setting of `device` inside the block (enable=True raises
-    as set_mempool_enabled does)."""
+class _Scoped:
+    """Warp's scoped setters: `setter(*devices, enable)` inside the block, the setting read by
+    `getter(*devices)` restored after it."""
 
-    def __init__(self, device, enable: bool):
-        self.device = get_device(device)
-        self.enable = enable
+    getter = setter = None
+
+    def __init__(self, *args):
+        *devices, self.enable = args
+        self.devices = [get_device(d) for d in devices]
 
     def __enter__(self):
-        self.saved = is_mempool_enabled(self.device)
-        set_mempool_enabled(self.device, self.enable)
+        self.saved = type(self).getter(*self.devices)
+        type(self).setter(*self.devices, self.enable)
         return self
 
     def __exit__(self, *exc):
-        set_mempool_enabled(self.device, self.saved)
+        type(self).setter(*self.devices, self.saved)
 
 
-class ScopedMempoolAccess:
-    def __init__(self, target_device, peer_device, enable: bool):
-        self.target, self.peer, self.enable = get_device(target_device), get_device(peer_device), enable
-
-    def __enter__(self):
-        self.saved = is_mempool_access_enabled(self.target, self.peer)
-        set_mempool_access_enabled(self.target, self.peer, self.enable)
-        return self
-
-    def __exit__(self, *exc):
-        set_mempool_access_enabled(self.target, self.peer, self.saved)
+class ScopedMempool(_Scoped):
+    """with wp.ScopedMempool(device, enable): (enable=True raises as set_mempool_enabled)."""
+    getter, setter = staticmethod(is_mempool_enabled), staticmethod(set_mempool_enabled)
 
 
-class ScopedPeerAccess:
-    def __init__(self, target_device, peer_device, enable: bool):
-        self.target, self.peer, self.enable = get_device(target_device), get_device(peer_device), enable
+class ScopedMempoolAccess(_Scoped):
+    """with wp.ScopedMempoolAccess(target_device, peer_device, enable):"""
+    getter, setter = staticmethod(is_mempool_access_enabled), staticmethod(set_mempool_access_enabled)
 
-    def __enter__(self):
-        self.saved = is_peer_access_enabled(self.target, self.peer)
-        set_peer_access_enabled(self.target, self.peer, self.enable)
-        return self
 
-    def __exit__(self, *exc):
-        set_peer_access_enabled(self.target, self.peer, self.saved)
+class ScopedPeerAccess(_Scoped):
+    """with wp.ScopedPeerAccess(target_device, peer_device, enable):"""
+    getter, setter = staticmethod(is_peer_access_enabled), staticmethod(set_peer_access_enabled)

@@ -104,6 +104,16 @@ def broken_kernel(a: wp.array(dtype=float)):
 '''
 
 
+def _check_triples(wp, kernel, rng, device, n):
+    """Launches `kernel` (out[i] = 3 * a[i]) on random data; returns its input array."""
+    x = rng.uniform(-2.0, 2.0, size=n)
+    a = wp.array(x, dtype=float, device=device)
+    out = wp.zeros(n, dtype=float, device=device)
+    wp.launch(kernel, dim=n, inputs=[a, out], device=device)
+    np.testing.assert_allclose(out.numpy(), 3.0 * x.astype(np.float32), rtol=1e-6)
+    return a
+
+
 def test_module_load_leaves_out_a_kernel_that_does_not_compile(wp, kernel_module, rng, device):
     import pytest
     from weft._kernel.errors import WeftCompileError
@@ -111,11 +121,7 @@ def test_module_load_leaves_out_a_kernel_that_does_not_compile(wp, kernel_module
     mod = kernel_module(BROKEN_SOURCE)
     mod.fine_kernel.module.load(device)          # the broken kernel does not stop the load
     assert mod.broken_kernel.broken and not mod.fine_kernel.broken
-    x = rng.uniform(-2.0, 2.0, size=11)
-    a = wp.array(x, dtype=float, device=device)
-    out = wp.zeros(11, dtype=float, device=device)
-    wp.launch(mod.fine_kernel, dim=11, inputs=[a, out], device=device)
-    np.testing.assert_allclose(out.numpy(), 3.0 * x.astype(np.float32), rtol=1e-6)
+    a = _check_triples(wp, mod.fine_kernel, rng, device, 11)
     # launching the broken kernel raises its own error, with its line
     with pytest.raises(WeftCompileError, match="no_such_builtin"):
         wp.launch(mod.broken_kernel, dim=11, inputs=[a], device=device)
@@ -142,13 +148,10 @@ def test_load_module_leaves_out_unique_kernels(wp, kernel_module, rng, device):
 
     mod = kernel_module(UNIQUE_SOURCE)
     wp.load_module(mod, device=device)
-    x = rng.uniform(-2.0, 2.0, size=7)
-    a = wp.array(x, dtype=float, device=device)
-    out = wp.zeros(7, dtype=float, device=device)
-    wp.launch(mod.triple, dim=7, inputs=[a, out], device=device)
-    np.testing.assert_allclose(out.numpy(), 3.0 * x.astype(np.float32), rtol=1e-6)
+    _check_triples(wp, mod.triple, rng, device, 7)
     with pytest.raises(WeftCompileError, match="printf"):
         mod.unique_broken.module.load(device)
+
 
 def test_module_named_with_any_characters(wp, kernel_module, rng):
     """wp.get_module(name) with a name that is no dotted Python name (Warp's tests key
