@@ -211,9 +211,18 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
                                 e.device(), e.ipc_handle()};
       break;
     }
+    case v1::Command::kCudaValue: {
+      const auto& v = p.cuda_value();
+      if (v.op() != v1::CudaValueCommand::WAIT && v.op() != v1::CudaValueCommand::WRITE)
+        return InvalidArgument("command " + std::to_string(index) + ": unknown cuda_value op " + std::to_string(v.op()));
+      c.kind = CudaValueCommand{v.op() == v1::CudaValueCommand::WRITE ? CudaValueCommand::Op::kWrite
+                                                                      : CudaValueCommand::Op::kWait,
+                                FromProto(v.order()), v.index(), v.value()};
+      break;
+    }
     default:
       return InvalidArgument("command " + std::to_string(index) +
-                             " is empty (no copy/fill/launch/tape/set_grad/cuda_event)");
+                             " is empty (no copy/fill/launch/tape/set_grad/cuda_event/cuda_value)");
   }
   return c;
 }

@@ -144,6 +144,11 @@ Status CudaDevice::Init() {
   WEFT_ASSIGN_OR_RETURN(driver_, jit::CudaDriver::Get());
   WEFT_RETURN_IF_ERROR(driver_->Check(driver_->DeviceGet(&device_, options_.ordinal), "cuDeviceGet"));
   WEFT_ASSIGN_OR_RETURN(sm_, driver_->ComputeCapability(options_.ordinal));
+  {
+    int mem_ops = 0;
+    stream_mem_ops_ = driver_->DeviceGetAttribute(&mem_ops, jit::kCuAttributeCanUse64BitStreamMemOps, device_) == 0 &&
+                      mem_ops != 0;
+  }
   WEFT_RETURN_IF_ERROR(driver_->Check(driver_->DevicePrimaryCtxRetain(&ctx_, device_), "cuDevicePrimaryCtxRetain"));
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   // A first allocation proves the context works (a GPU that lists but cannot compute fails here).
@@ -358,6 +363,7 @@ Expected<CudaDevice::Stream*> CudaDevice::StreamOf(const std::string& session_id
 }
 
 void CudaDevice::DestroyStream(Stream& st) {
+  ReleaseValueWaits(st);
   if (st.stream) driver_->StreamSynchronize(st.stream);
   ReleaseGeometry(st, true);
   if (st.stream) driver_->StreamDestroy(st.stream);
@@ -391,6 +397,7 @@ void CudaDevice::CloseSession(Session& s) {
     streams_.erase(it);
   }
   if (st->generation == generation_.load()) {
+    ReleaseValueWaits(*st);
     driver_->StreamSynchronize(st->stream);
     DestroyStream(*st);
   }
@@ -425,6 +432,8 @@ jit::CuResult CudaDevice::WaitStream(Session& s, Stream& st, int* cancel_reason)
         // The copy engine writes the word while the session's kernels run.
         st.cancel_set = driver_->MemcpyHtoDAsync(st.errors_base + kCancelOffset, st.cancel_host, sizeof(int32_t),
                                                  st.cancel_stream) == 0;
+        // A stream-memory wait the client never satisfied would hold the stream for good.
+        ReleaseValueWaits(st);
       }
     }
     // Spin briefly (short kernels), then sleep in small steps.
@@ -513,6 +522,7 @@ DeviceSyncResult CudaDevice::Synchronize(Session& s) {
   int reason = 0;
   Status queued = QueueErrorReadback(*st);
   jit::CuResult r = WaitStream(s, *st, &reason);
+  if (r == 0) ForgetValueWaits(*st);   // the stream is idle: every wait was satisfied
   if (r == 0 && !queued.ok()) {
     st->pending.clear();
     out.error = queued;

@@ -101,6 +101,16 @@ class CudaDevice final : public Device {
   Status IpcEvent(Session& s, const std::string& handle, bool record);
   size_t IpcEventCount() const;      // open events of every session (tests)
 
+  // Cross-process ordering without a round trip (cuda_device_values.cpp): the 8-byte counter at
+  // `byte_offset` in `order` (a block of the session's on this device). write=false: the
+  // session's stream waits until it holds at least `value` (cuStreamWaitValue64 GEQ; remembered,
+  // with `keep`, until the stream is idle, so the daemon can release it); write=true: the stream
+  // writes `value` after the work queued before. FAILED_PRECONDITION where the device or driver
+  // has no 64-bit stream memory operations.
+  Status StreamValue(Session& s, const MemoryBlock& order, uint64_t byte_offset, uint64_t value, bool write,
+                     std::shared_ptr<const void> keep);
+  bool StreamMemOpsSupported() const;
+
   CudaDeviceStats stats() const;
   // True once a fault left the device unusable for the rest of this process (the driver kept
   // the sticky error through the context reset); every operation then fails with the reason.
@@ -151,6 +161,14 @@ class CudaDevice final : public Device {
     };
     GeometryUpload geometry;
     std::vector<GeometryUpload> geometry_retired;
+    // cuStreamWaitValue64 waits queued since the stream was last idle: address -> the value
+    // waited for (the largest) and the allocation it lies in, kept alive until released.
+    struct ValueWait {
+      uint64_t value = 0;
+      std::shared_ptr<const void> keep;
+    };
+    std::mutex value_waits_mu;
+    std::map<jit::CuDevicePtr, ValueWait> value_waits;
   };
   struct CuModuleEntry {
     jit::CuModule module = nullptr;
@@ -175,6 +193,11 @@ class CudaDevice final : public Device {
   // Waits for the stream (bounded steps: sets the cancel word when `s` is cancelled or the time
   // limit passes). Returns the CUDA result and why the cancel word was set (0 none, 1 session, 2 limit).
   jit::CuResult WaitStream(Session& s, Stream& st, int* cancel_reason);
+  // Writes every pending wait's value (from the cancel stream), so a wait the client never
+  // satisfies cannot hold the stream; then forgets them.
+  void ReleaseValueWaits(Stream& st);
+  // The stream went idle: its waits were satisfied.
+  void ForgetValueWaits(Stream& st);
   // After a wait that set the cancel word: clears it (ordered before the stream's next work).
   Status ClearCancel(Stream& st);
   // Queues the read-back of the pending launches' error slots (before waiting for the stream).
@@ -203,6 +226,7 @@ class CudaDevice final : public Device {
   jit::CuDevice device_ = 0;
   jit::CuContext ctx_ = nullptr;
   int sm_ = 0;
+  bool stream_mem_ops_ = false;   // CU_DEVICE_ATTRIBUTE_CAN_USE_64_BIT_STREAM_MEM_OPS
   std::vector<CudaDevice*> peers_;
 
   // Held shared by every operation, exclusively by Reset.

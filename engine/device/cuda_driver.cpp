@@ -72,6 +72,10 @@ Expected<const CudaDriver*> Load() {
   Resolve(library, "cuGetErrorName", &driver.GetErrorName, &missing);
   Resolve(library, "cuGetErrorString", &driver.GetErrorString, &missing);
   if (!missing.empty()) return Unavailable("the CUDA driver lacks " + missing);
+  // Optional (stream memory operations, CUDA 12+): without them the client orders by events.
+  std::string optional_missing;
+  Resolve(library, "cuStreamWaitValue64_v2", &driver.StreamWaitValue64, &optional_missing);
+  Resolve(library, "cuStreamWriteValue64_v2", &driver.StreamWriteValue64, &optional_missing);
   WEFT_RETURN_IF_ERROR(driver.Check(driver.Init(0), "cuInit"));
   return &driver;
 }

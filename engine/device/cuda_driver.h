@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 
 #include "engine/core/status.h"
@@ -86,6 +87,10 @@ struct CudaDriver {
   CuResult (*EventRecord)(CuEvent event, CuStream stream) = nullptr;
   CuResult (*StreamWaitEvent)(CuStream stream, CuEvent event, unsigned flags) = nullptr;
   CuResult (*EventDestroy)(CuEvent event) = nullptr;
+  // Stream memory operations (ordering without a round trip, cuda_device_values.cpp); null when
+  // the driver lacks them.
+  CuResult (*StreamWaitValue64)(CuStream stream, CuDevicePtr address, uint64_t value, unsigned flags) = nullptr;
+  CuResult (*StreamWriteValue64)(CuStream stream, CuDevicePtr address, uint64_t value, unsigned flags) = nullptr;
   CuResult (*MemGetAddressRange)(CuDevicePtr* base, size_t* size, CuDevicePtr pointer) = nullptr;
   CuResult (*PointerGetAttribute)(void* data, int attribute, CuDevicePtr pointer) = nullptr;
   CuResult (*GetErrorName)(CuResult result, const char** name) = nullptr;
@@ -103,6 +108,9 @@ struct CudaDriver {
 constexpr int kCuAttributeMultiprocessorCount = 16;
 constexpr int kCuAttributeComputeCapabilityMajor = 75;
 constexpr int kCuAttributeComputeCapabilityMinor = 76;
+constexpr int kCuAttributeCanUse64BitStreamMemOps = 122;
+// cuStreamWaitValue64 flags: wait until (int64_t)(*address - value) >= 0.
+constexpr unsigned kCuStreamWaitValueGeq = 0;
 // cuIpcOpenMemHandle flags.
 constexpr unsigned kCuIpcMemLazyEnablePeerAccess = 1;
 // CUpointer_attribute values.

@@ -126,7 +126,14 @@ void CollectHandles(const Command& c, std::vector<uint64_t>* out) {
   } else if (auto* sg = std::get_if<SetGradCommand>(&c.kind)) {
     out->push_back(sg->array.handle);
     if (sg->grad.handle) out->push_back(sg->grad.handle);
+  } else if (auto* v = std::get_if<CudaValueCommand>(&c.kind)) {
+    out->push_back(v->order.handle);
   }
+}
+
+bool RunsAfterFailure(const Command& c) {
+  auto* v = std::get_if<CudaValueCommand>(&c.kind);
+  return v != nullptr && v->op == CudaValueCommand::Op::kWrite;
 }
 
 Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapshot& h) {
@@ -136,16 +143,8 @@ Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapsh
   if (auto* t = std::get_if<TapeCommand>(&c.kind)) return TapeOp(s, *t, h);
   if (auto* sg = std::get_if<SetGradCommand>(&c.kind)) return SetGrad(s, *sg, h);
   if (auto* e = std::get_if<CudaEventCommand>(&c.kind)) return CudaEvent(s, *e);
+  if (auto* v = std::get_if<CudaValueCommand>(&c.kind)) return CudaValue(s, *v, h);
   return InvalidArgument("empty command");
-}
-
-Status CommandExecutor::CudaEvent(Session& s, const CudaEventCommand& c) {
-  if (c.op != CudaEventCommand::Op::kWait && c.op != CudaEventCommand::Op::kRecord)
-    return InvalidArgument("cuda_event: unknown op " + std::to_string(static_cast<int>(c.op)));
-  WEFT_ASSIGN_OR_RETURN(Device * device, devices_.Resolve(s.id(), c.device));
-  auto* gpu = dynamic_cast<CudaDevice*>(device);
-  if (gpu == nullptr) return InvalidArgument("cuda_event: '" + c.device + "' is not a GPU (CUDA events order GPU work)");
-  return gpu->IpcEvent(s, c.handle, c.op == CudaEventCommand::Op::kRecord);
 }
 
 namespace {
@@ -161,6 +160,37 @@ Status CheckWhole(const Allocation& a, const ArrayRef& ref, const std::string& w
 }
 
 }  // namespace
+
+Status CommandExecutor::CudaValue(Session& s, const CudaValueCommand& c, const HandleSnapshot& h) {
+  if (c.op != CudaValueCommand::Op::kWait && c.op != CudaValueCommand::Op::kWrite)
+    return InvalidArgument("cuda_value: unknown op " + std::to_string(static_cast<int>(c.op)));
+  WEFT_ASSIGN_OR_RETURN(auto a, Lookup(h, c.order.handle, "cuda_value order array"));
+  WEFT_RETURN_IF_ERROR(CheckWhole(*a, c.order, "cuda_value order array"));
+  if (a->dtype.ElementSize() != sizeof(uint64_t) || a->shape.size() != 1)
+    return InvalidArgument("cuda_value: the order array must be 1-D with 8-byte elements (uint64), got " +
+                           a->dtype.Name() + " " + ShapeString(a->shape));
+  if (a->imported)
+    return InvalidArgument("cuda_value: the order array must be memory weftd allocated, not imported memory");
+  if (c.index >= a->element_count())
+    return OutOfRange("cuda_value: index " + std::to_string(c.index) + " is out of range for the order array of " +
+                      std::to_string(a->element_count()) + " elements");
+  WEFT_ASSIGN_OR_RETURN(Device * device, DeviceOf(*a));
+  auto* gpu = dynamic_cast<CudaDevice*>(device);
+  if (gpu == nullptr)
+    return InvalidArgument("cuda_value: the order array lives on '" + a->device +
+                           "', not a GPU (stream memory operations order GPU work)");
+  return gpu->StreamValue(s, a->block, c.index * sizeof(uint64_t), c.value, c.op == CudaValueCommand::Op::kWrite, a);
+}
+
+Status CommandExecutor::CudaEvent(Session& s, const CudaEventCommand& c) {
+  if (c.op != CudaEventCommand::Op::kWait && c.op != CudaEventCommand::Op::kRecord)
+    return InvalidArgument("cuda_event: unknown op " + std::to_string(static_cast<int>(c.op)));
+  WEFT_ASSIGN_OR_RETURN(Device * device, devices_.Resolve(s.id(), c.device));
+  auto* gpu = dynamic_cast<CudaDevice*>(device);
+  if (gpu == nullptr) return InvalidArgument("cuda_event: '" + c.device + "' is not a GPU (CUDA events order GPU work)");
+  return gpu->IpcEvent(s, c.handle, c.op == CudaEventCommand::Op::kRecord);
+}
+
 
 Status CommandExecutor::SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h) {
   WEFT_ASSIGN_OR_RETURN(auto a, Lookup(h, c.array.handle, "set_grad array"));

@@ -40,6 +40,7 @@ class CommandExecutor {
   Status Backward(Session& s, Tape& tape, const TapeCommand& c, const HandleSnapshot& h);
   Status SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h);
   Status CudaEvent(Session& s, const CudaEventCommand& c);
+  Status CudaValue(Session& s, const CudaValueCommand& c, const HandleSnapshot& h);
 
   DeviceSet& devices_;
   ModuleStore* store_;
@@ -47,5 +48,9 @@ class CommandExecutor {
 
 // Every array handle a command names (for the snapshot).
 void CollectHandles(const Command& c, std::vector<uint64_t>* out);
+
+// Whether the command still runs after an earlier command of the session failed (a
+// cuda_value WRITE: it releases a client stream waiting for it).
+bool RunsAfterFailure(const Command& c);
 
 }  // namespace weft

@@ -70,11 +70,26 @@ struct CudaEventCommand {
   std::string handle;   // the event's IPC handle bytes
 };
 
+// Ordering with a CUDA stream of the client process without a round trip (docs/interop.md,
+// "Ordering by stream memory operations"): element `index` of `order`, one of the session's
+// GPU arrays of 8-byte elements, is a counter. kWait: the session's stream waits on the GPU
+// until it holds at least `value`; kWrite: the stream writes `value` after the work before it
+// (run even after an earlier command failed: it releases a waiting client stream).
+struct CudaValueCommand {
+  enum class Op { kWait = 0, kWrite = 1 };
+  Op op = Op::kWait;
+  ArrayRef order;
+  uint32_t index = 0;
+  uint64_t value = 0;
+};
+
 // INVALID_ARGUMENT for an op value outside TapeCommand::Op (a client may send any number).
 Status CheckTapeOp(TapeCommand::Op op);
 
 struct Command {
-  std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand, SetGradCommand, CudaEventCommand> kind;
+  std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand, SetGradCommand, CudaEventCommand,
+               CudaValueCommand>
+      kind;
   SourceLocation origin;   // where the client issued it
 };
 

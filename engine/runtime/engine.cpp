@@ -575,7 +575,7 @@ std::function<void()> Engine::BatchTask(Session& s, std::vector<Command> command
   return [exec, sp, batch, snapshot] {
     for (const Command& c : *batch) {
       if (sp->cancelled()) break;   // closing: the rest of the batch does not run
-      if (sp->failed()) {
+      if (sp->failed() && !RunsAfterFailure(c)) {
         sp->CountSkipped();
         continue;
       }
