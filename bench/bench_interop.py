@@ -15,9 +15,11 @@ weft notes (docs/interop.md): from_torch of a CPU tensor moves its storage into 
 the first call, so later conversions are zero-copy look-ups; a CUDA tensor is imported by CUDA
 IPC on the first conversion (one round trip) and remembered on the tensor, so later conversions
 and direct launch arguments cost no round trip. A launch that touches memory Torch holds is
-ordered with Torch's stream by interprocess events (docs/interop.md, "Ordering"): no host wait
-for the GPU, but one round trip to weftd (the Submit that returns once weftd queued the launch
-and recorded the event); WEFT_CUDA_EVENTS=0 measures the host synchronization instead."""
+ordered with Torch's stream on the GPU (docs/interop.md, "Ordering"): by stream memory
+operations where both drivers support them (no round trip: the launch is sent without waiting),
+else by interprocess events (one round trip: the Submit that returns once weftd queued the launch
+and recorded the event). On a GPU the table adds the direct-tensor mode ordered by events in the
+same run; WEFT_CUDA_EVENTS=0 measures the host synchronization instead."""
 from __future__ import annotations
 
 import argparse
@@ -136,6 +138,21 @@ def main():
                 ps = pe = None
             rows.append([mode, bc.fmt_time(ws), f"{we:.1e}", bc.fmt_time(ps),
                          "n/a" if pe is None else f"{pe:.1e}", bc.fmt_ratio(ws, ps)])
+        if args.device != "cpu":
+            from weft.interop import cuda_order
+
+            ordinal = int(args.device.split(":")[1]) if ":" in args.device else 0
+            key = (_rt.session_id, ordinal)
+            mechanism = "stream memory operations" if cuda_order.uses_values(_rt, ordinal) else \
+                ("events" if cuda_order.enabled(_rt, {ordinal}) else "host synchronization")
+            print(f"weft orders launches with Torch's stream by: {mechanism}")
+            if cuda_order.uses_values(_rt, ordinal):
+                saved, cuda_order._values[key] = cuda_order._values[key], None
+                es, ee = run(weft, weft_mod, torch, "direct tensors", args.n, args.iters,
+                             args.repeat, 102, args.device)
+                cuda_order._values[key] = saved
+                rows.append(["direct tensors (weft ordered by events)", bc.fmt_time(es), f"{ee:.1e}",
+                             rows[-1][3], rows[-1][4], bc.fmt_ratio(es, ps)])
         bc.print_table(f"Torch interop, {args.device}: 5 conversions + 1 launch per iteration "
                        f"(n={args.n}, {args.iters} iterations x {args.repeat})",
                        ["mode", "weft", "weft err", "warp-lang", "warp err", "ratio"], rows)

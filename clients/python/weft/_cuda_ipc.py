@@ -34,6 +34,8 @@ CU_EVENT_DEFAULT = 0
 CU_EVENT_DISABLE_TIMING = 2
 CU_EVENT_INTERPROCESS = 4
 CU_STREAM_NON_BLOCKING = 1
+CU_DEVICE_ATTRIBUTE_CAN_USE_64_BIT_STREAM_MEM_OPS = 122
+CU_STREAM_WAIT_VALUE_GEQ = 0
 EVENT_POOL = 4                   # interprocess events per device, used in turn
 IDLE_MAPPINGS_KEPT = 16          # regular slabs with no live array kept open (reopening costs)
 REGULAR_SLAB_BYTES = 64 << 20    # the daemon keeps a session's regular slabs for reuse
@@ -108,6 +110,15 @@ def _load():
     except AttributeError as err:
         _reason = f"libcuda lacks {err}"
         return None
+    # Stream memory operations (ordering without a round trip, weft.interop.cuda_order):
+    # optional, CUDA 12+ drivers.
+    for name, args in {"cuStreamWaitValue64_v2": [vp, ctypes.c_uint64, ctypes.c_uint64, u],
+                       "cuStreamWriteValue64_v2": [vp, ctypes.c_uint64, ctypes.c_uint64, u],
+                       "cuDeviceGetAttribute": [p(ctypes.c_int), ctypes.c_int, ctypes.c_int]}.items():
+        fn = getattr(lib, name, None)
+        if fn is not None:
+            fn.argtypes = args
+            fn.restype = ctypes.c_int
     rc = lib.cuInit(0)
     if rc != 0:
         _reason = f"cuInit failed ({_name(lib, rc)})"
@@ -442,6 +453,45 @@ def proxy_stream(ordinal: int) -> int:
                        "cuStreamCreate")
             s = _proxy_streams[ordinal] = int(h.value)
         return s
+
+
+_mem_ops: dict = {}              # ordinal -> whether stream memory operations work here
+
+
+def stream_mem_ops(ordinal: int) -> bool:
+    """Whether this process can queue 64-bit stream memory operations (cuStreamWaitValue64 /
+    cuStreamWriteValue64) on device `ordinal`."""
+    with _lock:
+        known = _mem_ops.get(ordinal)
+        if known is not None:
+            return known
+        ok = False
+        if _load() is not None and all(hasattr(_lib, name) for name in (
+                "cuStreamWaitValue64_v2", "cuStreamWriteValue64_v2", "cuDeviceGetAttribute")):
+            dev, value = ctypes.c_int(), ctypes.c_int()
+            ok = (_lib.cuDeviceGet(ctypes.byref(dev), int(ordinal)) == 0 and
+                  _lib.cuDeviceGetAttribute(ctypes.byref(value),
+                                            CU_DEVICE_ATTRIBUTE_CAN_USE_64_BIT_STREAM_MEM_OPS,
+                                            dev) == 0 and value.value != 0)
+        _mem_ops[ordinal] = ok
+        return ok
+
+
+def write_value(ordinal: int, stream: int, address: int, value: int) -> None:
+    """Queues on this process's stream `stream`: write the 64-bit `value` at device `address`
+    after the work queued before it."""
+    with _lock, _Scope(ordinal):
+        _check(_lib.cuStreamWriteValue64_v2(ctypes.c_void_p(stream or None), ctypes.c_uint64(address),
+                                            ctypes.c_uint64(value), 0), "cuStreamWriteValue64")
+
+
+def wait_value(ordinal: int, stream: int, address: int, value: int) -> None:
+    """Queues on this process's stream `stream`: wait (on the GPU) until the 64-bit word at
+    device `address` holds at least `value`."""
+    with _lock, _Scope(ordinal):
+        _check(_lib.cuStreamWaitValue64_v2(ctypes.c_void_p(stream or None), ctypes.c_uint64(address),
+                                           ctypes.c_uint64(value), CU_STREAM_WAIT_VALUE_GEQ),
+               "cuStreamWaitValue64")
 
 
 def synchronize_stream(ordinal: int, stream: int) -> None:

@@ -487,8 +487,27 @@ class Runtime:
         n = len(self._batch)
         if n < self._pump_at and not (n >= 2 and time.perf_counter() - self._batch_since >= PUMP_AFTER_S):
             return
-        batch, self._batch, self._batch_bytes = self._batch, [], 0
         self._pump_at = min(2 * self._pump_at, BATCH_MAX_COMMANDS)
+        self._send_batch()
+
+    def send_now(self) -> None:
+        """Sends the batch at once as an asynchronous Submit (after collecting the one in
+        flight), without waiting for its reply: a framework stream made to wait on the GPU for
+        a command of it (weft.interop.cuda_order) is then released without another weft call.
+        A failed earlier Submit is raised here (by a synchronize, which also sends the batch)."""
+        with self._lock:
+            self.pump_held = 0
+            if not self._batch:
+                return
+            self._collect_inflight()
+            if self.pipelined and self._deferred_error is None:
+                self._send_batch()
+            if self._batch or self._deferred_error is not None:
+                self.synchronize()
+
+    def _send_batch(self) -> None:
+        """The batch as an asynchronous Submit (caller holds the lock, none in flight)."""
+        batch, self._batch, self._batch_bytes = self._batch, [], 0
         request = exec_pb2.SubmitRequest(commands=batch)
         if self.fast_lane is not None and self.fast_lane.fits(request):
             try:   # sent without waiting; the reply is collected like the grpc future's

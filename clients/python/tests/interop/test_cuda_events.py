@@ -221,8 +221,10 @@ from weft.interop import cuda_order
 t = torch.zeros(16, device="cuda")
 rt = _runtime.get_runtime()
 assert cuda_order.enabled(rt, {0}), cuda_order.refused()
+from weft.v1 import exec_pb2
 event = _cuda_ipc.next_event(0)
-cuda_order.before(rt, [0])            # this session opens its events
+_cuda_ipc.record_event(event, 0)      # this session opens its events (as the event path does)
+rt.submit(cuda_order._command(exec_pb2.CudaEventCommand.WAIT, 0, event))
 rt.synchronize()
 print(" ".join(e.handle.hex() for e in _cuda_ipc._events[0]), flush=True)
 sys.stdin.readline()

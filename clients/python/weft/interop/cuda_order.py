@@ -1,19 +1,24 @@
 """Ordering on the GPU between this process's CUDA streams (Torch's current stream, CuPy's,
 the stream of a `wp.ScopedStream(wp.stream_from_torch(s))`) and the daemon's session stream,
-with interprocess CUDA events instead of host synchronization (docs/interop.md, "Ordering").
+without host synchronization (docs/interop.md, "Ordering").
 
-- before(rt, ordinals): an event of this process is recorded on the framework stream and the
-  daemon's session stream waits for it (ExecService CudaEventCommand WAIT) before the commands
-  queued next: framework work issued before a weft launch is visible to it.
-- after(rt, ordinals): the daemon records an event on its session stream after the commands
-  queued so far (RECORD, in a Submit that returns once weftd ran it, GPU work not finished),
-  then the framework stream waits for it (cuStreamWaitEvent): framework work issued after is
-  ordered after weft's.
+Two mechanisms, chosen per session and device (probed once):
+- Stream memory operations (where both the daemon's and this process's driver and GPU support
+  64-bit ones): counters in a small weft GPU array of the session (the order array), which
+  this process sees through its CUDA IPC mapping. before(): the framework stream writes the
+  next value of its slot (cuStreamWriteValue64) and the session's stream waits for it
+  (CudaValueCommand WAIT); after(): the session's stream writes the next value of slot 0 after
+  the launch (WRITE) and the framework stream waits for it (cuStreamWaitValue64 GEQ). The
+  counters only grow, so nothing has to come back from the daemon: an ordered launch costs no
+  round trip, only an asynchronous send.
+- Interprocess CUDA events otherwise: before() records an event of this process on the
+  framework stream and the session's stream waits for it (CudaEventCommand WAIT); after() has
+  the daemon record an event (RECORD, in a Submit that returns once weftd queued it: one round
+  trip) and the framework stream waits for it.
 
-Events come from a small pool per device (weft._cuda_ipc.next_event); weftd opens each handle
-once per session. Where events cannot be used (remote session, no CUDA driver here, a daemon
-that cannot open this process's handles, WEFT_CUDA_EVENTS=0) `enabled()` is False and callers
-synchronize on the host as before.
+Where neither can be used (remote session, no CUDA driver here, a daemon that cannot open this
+process's handles, WEFT_CUDA_EVENTS=0) `enabled()` is False and callers synchronize on the
+host. WEFT_CUDA_VALUES=0 keeps events even where values would work.
 """
 from __future__ import annotations
 
@@ -26,6 +31,8 @@ from .. import _cuda_ipc
 _state = threading.local()       # .foreign: {ordinal: stream handle} of a ScopedStream
 _refused: dict = {}              # id(runtime) -> why weftd cannot use this process's events
 _probed: set = set()             # (id(runtime), ordinal) that passed the probe
+_values: dict = {}               # (session id, ordinal) -> _ValueOrder, or None (events)
+SLOTS = 31                       # framework streams ordered by values at once, per device
 # (id(runtime), ordinal, stream) -> runtime.work_queued when that stream was last made to wait
 # for everything queued: a later hand-out with nothing new queued needs no round trip
 _ordered: dict = {}
@@ -79,6 +86,83 @@ def _pb():
     return exec_pb2
 
 
+class _ValueOrder:
+    """Ordering by stream memory operations for one session on one device: the order array
+    (uint64, 1 + SLOTS elements; element 0 is written by the session's stream, element i > 0
+    by framework stream i's), its address here, and the counters."""
+
+    def __init__(self, order, address: int, ordinal: int):
+        self.order = order
+        self.ref = order._ref()
+        self.address = address
+        self.ordinal = ordinal
+        self.done_value = 0          # element 0: the last value the session's stream will write
+        self.slots: dict = {}        # framework stream handle -> element index (LRU order)
+        self.values = [0] * (SLOTS + 1)
+
+    def slot(self, stream: int) -> int:
+        index = self.slots.pop(stream, None)
+        if index is None:
+            if len(self.slots) < SLOTS:
+                index = len(self.slots) + 1
+            else:
+                # Least recently used stream gives its element up; its writes already queued
+                # must land before another stream's larger values (a counter never goes back).
+                old_stream, index = next(iter(self.slots.items()))
+                del self.slots[old_stream]
+                _cuda_ipc.synchronize_stream(self.ordinal, old_stream)
+        self.slots[stream] = index
+        return index
+
+    def command(self, op, index: int, value: int):
+        pb = _pb()
+        return pb.Command(cuda_value=pb.CudaValueCommand(op=op, order=self.ref, index=index,
+                                                         value=value))
+
+
+def _value_order(rt, ordinal):
+    """The session's _ValueOrder on `ordinal`, or None where stream memory operations cannot
+    order it (then events do); probed once per session and device."""
+    key = (rt.session_id, ordinal)
+    if key in _values:
+        return _values[key]
+    _values[key] = None
+    pb = _pb()
+    if os.environ.get("WEFT_CUDA_VALUES", "1") == "0" or not hasattr(pb, "CudaValueCommand") \
+            or not _cuda_ipc.stream_mem_ops(ordinal):
+        return None
+    import weft  # noqa: PLC0415
+    from ..errors import WeftError  # noqa: PLC0415
+
+    try:
+        order = weft.zeros(SLOTS + 1, dtype=weft.uint64, device=f"cuda:{ordinal}")
+        address = order.ptr
+        if not address:
+            return None
+        state = _ValueOrder(order, int(address), ordinal)
+        # Probe: the daemon writes element 0, waits for it, and this process reads it back.
+        rt.synchronize()
+        rt.submit(state.command(pb.CudaValueCommand.WRITE, 0, 1))
+        rt.submit(state.command(pb.CudaValueCommand.WAIT, 0, 1))
+        rt.synchronize()
+        import ctypes  # noqa: PLC0415
+        word = ctypes.c_uint64()
+        _cuda_ipc.copy_to_host(ordinal, ctypes.addressof(word), state.address, 8)
+        if word.value != 1:
+            return None
+    except (WeftError, _cuda_ipc.CudaError):
+        return None
+    state.done_value = 1
+    _values[key] = state
+    return state
+
+
+def uses_values(rt, ordinal) -> bool:
+    """Whether launches of this session on `ordinal` are ordered by stream memory operations
+    (no round trip) rather than events (tests, benchmarks)."""
+    return enabled(rt, {ordinal}) and _values.get((rt.session_id, ordinal)) is not None
+
+
 def _command(op, ordinal, event):
     pb = _pb()
     return pb.Command(cuda_event=pb.CudaEventCommand(op=op, device=f"cuda:{ordinal}",
@@ -121,6 +205,7 @@ def _probe(rt, ordinal) -> bool:
         _refused[id(rt)] = f"weftd cannot use this process's events ({err})"
         return False
     _probed.add((id(rt), ordinal))
+    _value_order(rt, ordinal)
     return True
 
 
@@ -130,6 +215,15 @@ def before(rt, ordinals, stream=None) -> None:
     pb = _pb()
     rt.pump_held += 1                 # WAIT, the launch and RECORD go out in one Submit (run)
     for ordinal in ordinals:
+        values = _values.get((rt.session_id, ordinal))
+        if values is not None:
+            source = framework_stream(ordinal) if stream is None else stream
+            index = values.slot(source)
+            values.values[index] += 1
+            _cuda_ipc.write_value(ordinal, source, values.address + 8 * index,
+                                  values.values[index])
+            rt.submit(values.command(pb.CudaValueCommand.WAIT, index, values.values[index]))
+            continue
         event = _cuda_ipc.next_event(ordinal)
         _cuda_ipc.record_event(event, framework_stream(ordinal) if stream is None else stream)
         rt.submit(_command(pb.CudaEventCommand.WAIT, ordinal, event))
@@ -141,11 +235,25 @@ def after(rt, ordinals, streams=None) -> None:
     that returns once weftd queued it, then GPU-side waits; no host wait for the GPU."""
     pb = _pb()
     events = []
+    waits = []
     for ordinal in ordinals:
+        values = _values.get((rt.session_id, ordinal))
+        if values is not None:
+            values.done_value += 1
+            rt.submit(values.command(pb.CudaValueCommand.WRITE, 0, values.done_value))
+            waits.append((ordinal, values))
+            continue
         event = _cuda_ipc.next_event(ordinal)
         rt.submit(_command(pb.CudaEventCommand.RECORD, ordinal, event))
         events.append((ordinal, event))
-    rt.run()
+    if events:
+        rt.run()
+    else:
+        rt.send_now()                 # the WRITE must reach weftd without another weft call
+    for ordinal, values in waits:
+        for stream in ([framework_stream(ordinal)] if streams is None else streams):
+            _cuda_ipc.wait_value(ordinal, stream, values.address, values.done_value)
+            _ordered[(id(rt), ordinal, stream)] = rt.work_queued
     for ordinal, event in events:
         for stream in ([framework_stream(ordinal)] if streams is None else streams):
             _cuda_ipc.wait_event(stream, event)
