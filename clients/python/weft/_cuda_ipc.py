@@ -477,21 +477,34 @@ def stream_mem_ops(ordinal: int) -> bool:
         return ok
 
 
+CUDA_ERROR_INVALID_CONTEXT = 201
+
+
+def _stream_op(fn, what, ordinal, stream, address, value, flags):
+    # A stream of its own names its context: queued from whatever context is current (Torch
+    # and CuPy keep the device's primary context current), pushed only when the driver asks.
+    # The legacy default stream (0) is the current context's: always pushed.
+    rc = CUDA_ERROR_INVALID_CONTEXT if not stream else fn(stream, address, value, flags)
+    if rc == CUDA_ERROR_INVALID_CONTEXT:
+        with _Scope(ordinal):
+            rc = fn(stream or None, address, value, flags)
+    _check(rc, what)
+
+
 def write_value(ordinal: int, stream: int, address: int, value: int) -> None:
     """Queues on this process's stream `stream`: write the 64-bit `value` at device `address`
     after the work queued before it."""
-    with _lock, _Scope(ordinal):
-        _check(_lib.cuStreamWriteValue64_v2(ctypes.c_void_p(stream or None), ctypes.c_uint64(address),
-                                            ctypes.c_uint64(value), 0), "cuStreamWriteValue64")
+    with _lock:
+        _stream_op(_lib.cuStreamWriteValue64_v2, "cuStreamWriteValue64", ordinal, stream,
+                   address, value, 0)
 
 
 def wait_value(ordinal: int, stream: int, address: int, value: int) -> None:
     """Queues on this process's stream `stream`: wait (on the GPU) until the 64-bit word at
     device `address` holds at least `value`."""
-    with _lock, _Scope(ordinal):
-        _check(_lib.cuStreamWaitValue64_v2(ctypes.c_void_p(stream or None), ctypes.c_uint64(address),
-                                           ctypes.c_uint64(value), CU_STREAM_WAIT_VALUE_GEQ),
-               "cuStreamWaitValue64")
+    with _lock:
+        _stream_op(_lib.cuStreamWaitValue64_v2, "cuStreamWaitValue64", ordinal, stream,
+                   address, value, CU_STREAM_WAIT_VALUE_GEQ)
 
 
 def synchronize_stream(ordinal: int, stream: int) -> None:

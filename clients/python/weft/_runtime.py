@@ -32,6 +32,7 @@ MAX_MESSAGE_BYTES = 64 << 20
 BATCH_MAX_COMMANDS = 1000
 BATCH_MAX_BYTES = 16 << 20
 PENDING_FREE_LIMIT = 4096
+LANE_IN_FLIGHT = 16     # asynchronous fast-lane Submits sent before the oldest reply is read
 PUMP_FIRST = 8         # commands queued before the first early Submit after a sync point
 PUMP_AFTER_S = 0.002   # or: two commands, the oldest queued this long ago
 DAEMON_START_TIMEOUT_S = 30.0
@@ -331,7 +332,9 @@ class Runtime:
         self._pending_frees: collections.deque = collections.deque()
         self._free_calls: list = []
         self._deferred_error: WeftError | None = None
-        self._inflight = None   # the asynchronous Submit in flight (at most one), see _pump
+        # Asynchronous Submits in flight, oldest first: one gRPC future, or up to
+        # LANE_IN_FLIGHT fast-lane replies (the lane keeps frames in order), see _pump/send_now.
+        self._inflight: collections.deque = collections.deque()
         self.pipelined = _PIPELINED
         # Commands (and GPU array creations) queued so far: weft.interop.cuda_order knows
         # from it whether a framework stream already waits for everything queued.
@@ -395,10 +398,9 @@ class Runtime:
         lane = self.fast_lane
         if lane is None or lane.broken:
             return None
-        if isinstance(self._inflight, _fast_lane.PendingReply):
-            if not self._inflight.done():
-                return None
-            self._collect_inflight()
+        self._collect_done()
+        if any(isinstance(call, _fast_lane.PendingReply) for call in self._inflight):
+            return None
         return None if lane.broken else lane
 
     def array_call(self, method: str, request):
@@ -470,7 +472,8 @@ class Runtime:
         PUMP_AFTER_S ago (caller holds the lock). Without this a batch waited for the next
         synchronize, and the device idled while the client queued launches (Warp's launches
         start at once). At most one Submit is in flight, so the daemon receives batches in
-        order; while one is on its way, commands accumulate. `_pump_at` starts at PUMP_FIRST
+        order (send_now, for ordered GPU launches, may add fast-lane Submits behind it: the lane keeps
+        frames in order); while one is on its way, commands accumulate. `_pump_at` starts at PUMP_FIRST
         after each sync point and doubles with each asynchronous Submit, so a long run of
         launches costs only a few extra round trips, while a short step (a few launches, then
         a sync) stays one fused Submit: an early Submit there would add a round trip. A failed
@@ -478,11 +481,9 @@ class Runtime:
         nothing more is sent before that."""
         if not self.pipelined or self._deferred_error is not None or self.pump_held:
             return
-        if self._inflight is not None:
-            if not self._inflight.done():
-                return
-            self._collect_inflight()
-            if self._deferred_error is not None:
+        if self._inflight:
+            self._collect_done()
+            if self._inflight or self._deferred_error is not None:
                 return
         n = len(self._batch)
         if n < self._pump_at and not (n >= 2 and time.perf_counter() - self._batch_since >= PUMP_AFTER_S):
@@ -499,31 +500,44 @@ class Runtime:
             self.pump_held = 0
             if not self._batch:
                 return
-            self._collect_inflight()
+            self._collect_done()
+            lane_ok = self.fast_lane is not None and not self.fast_lane.broken and \
+                len(self._inflight) < LANE_IN_FLIGHT and \
+                all(isinstance(call, _fast_lane.PendingReply) for call in self._inflight)
+            if not lane_ok:
+                self._collect_inflight()
             if self.pipelined and self._deferred_error is None:
                 self._send_batch()
             if self._batch or self._deferred_error is not None:
                 self.synchronize()
 
     def _send_batch(self) -> None:
-        """The batch as an asynchronous Submit (caller holds the lock, none in flight)."""
+        """The batch as an asynchronous Submit (caller holds the lock; nothing in flight, or
+        only fast-lane Submits when this one goes over the lane too: the lane keeps order)."""
         batch, self._batch, self._batch_bytes = self._batch, [], 0
         request = exec_pb2.SubmitRequest(commands=batch)
-        if self.fast_lane is not None and self.fast_lane.fits(request):
+        lane = self.fast_lane
+        if lane is not None and not lane.broken and lane.fits(request):
             try:   # sent without waiting; the reply is collected like the grpc future's
-                self._inflight = self.fast_lane.send(_fast_lane.SUBMIT, request, exec_pb2.SubmitResponse)
+                self._inflight.append(lane.send(_fast_lane.SUBMIT, request, exec_pb2.SubmitResponse))
             except WeftError as err:
                 self._deferred_error = err
             return
-        self._inflight = self.exec_stub.Submit.future(exec_pb2.SubmitRequest(commands=batch),
-                                                      metadata=self.metadata)
+        self._collect_inflight()           # gRPC and the lane are not ordered with each other
+        self._inflight.append(self.exec_stub.Submit.future(request, metadata=self.metadata))
 
     def _collect_inflight(self) -> None:
         """Waits for the asynchronous Submit in flight, if any (caller holds the lock); its
         error becomes the deferred error."""
-        call, self._inflight = self._inflight, None
-        if call is None:
-            return
+        while self._inflight:
+            self._collect_one(self._inflight.popleft())
+
+    def _collect_done(self) -> None:
+        """Collects the asynchronous Submits at the head of the queue whose replies are in."""
+        while self._inflight and self._inflight[0].done():
+            self._collect_one(self._inflight.popleft())
+
+    def _collect_one(self, call) -> None:
         try:
             call.result()
         except grpc.RpcError as err:
@@ -602,7 +616,8 @@ class Runtime:
     def drain_frees(self) -> None:
         """Frees what finalizers released, if no command that may use them is unsent."""
         with self._lock:
-            if self._batch or (self._inflight is not None and not self._inflight.done()):
+            self._collect_done()
+            if self._batch or self._inflight:
                 # Commands that may use them are not in the daemon yet.
                 if len(self._pending_frees) < PENDING_FREE_LIMIT:
                     return

@@ -497,6 +497,51 @@ def _array_arg(value):
     return cached
 
 
+# A Torch tensor passed to wp.launch directly: the weft array it resolved to (imported by CUDA
+# IPC or weft's own memory, used in place) is remembered on the tensor, keyed by what the
+# tensor is (pointer, shape, strides, dtype) and what the parameter asks for, so the next
+# launch with it skips the resolution. The tensor holds its storage, so a key that matches
+# names the same memory. Only arrays over the tensor's own memory are remembered (never a
+# copy).
+_FRAMEWORK_ATTR = "_weft_launch_array"
+
+
+def _framework_key(value, p, device):
+    return (value.data_ptr(), value.shape, value.stride(), value.dtype, p.elem_text, p.ndim,
+            device)
+
+
+def _framework_arg(value, p, device):
+    d = getattr(value, "__dict__", None)
+    entry = d.get(_FRAMEWORK_ATTR) if d is not None else None
+    if entry is None:
+        return None
+    key, known = entry
+    if known._alloc.runtime.closed or key != _framework_key(value, p, device):
+        return None
+    return known
+
+
+def _remember_framework_arg(value, p, device, launched):
+    if launched is value or not type(value).__module__.startswith("torch") or \
+            not _is_array(launched):
+        return
+    try:
+        in_place = launched.ptr is not None and launched.ptr == value.data_ptr()
+    except Exception:  # noqa: BLE001 - not a tensor after all: nothing remembered
+        return
+    if not in_place:                     # a copy: the next launch must copy again
+        return
+    try:
+        value.__dict__[_FRAMEWORK_ATTR] = (_framework_key(value, p, device), launched)
+    except (AttributeError, TypeError):
+        pass
+
+
+def _is_array(value) -> bool:
+    return isinstance(value, _array_type())
+
+
 def _device_matches(array_device: str, launch_device: str) -> bool:
     return array_device == launch_device or (launch_device == "cuda" and
                                              array_device.startswith("cuda"))
@@ -523,6 +568,14 @@ def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
                         _device_matches(c[8], device):
                     packed.append(c[9])
                     continue
+            else:
+                known = _framework_arg(value, p, device)
+                if known is not None:
+                    packed.append(_array_arg(known)[9])
+                    if resolved is args:
+                        resolved = list(args)
+                    resolved[i] = known
+                    continue
         elif p.pack_float is not None:
             if type(value) is float or type(value) is int:
                 try:
@@ -543,8 +596,11 @@ def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
                 continue
         if packer is None:
             packer = ArgPacker(kernel, device)
+        copy_backs = len(packer.copy_backs)
         arg, launched = packer.pack(p.name, p.type_text, p.annotation, value)
         packed.append(arg)
+        if p.is_array and len(packer.copy_backs) == copy_backs:
+            _remember_framework_arg(value, p, device, launched)
         if launched is not value:
             if resolved is args:
                 resolved = list(args)

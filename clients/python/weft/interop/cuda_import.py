@@ -280,14 +280,33 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
 
 def _fresh(a):
     """A new array object over imported array `a` (each conversion returns its own object,
-    as in Warp; they share the allocation, the gradient and the framework reference)."""
-    v = a._make_view(a._byte_offset, a.shape, a.strides)
-    v._grad = a._grad
-    v._requires_grad = a._requires_grad
+    as in Warp; they share the allocation, the gradient, the framework reference and the
+    launch's cached wire reference), a view of `a`."""
+    if "_weft_launch_ref" not in a.__dict__:
+        from .._kernel.launch import _array_arg  # noqa: PLC0415
+
+        _array_arg(a)                     # computed once, inherited by every conversion
+    v = type(a).__new__(type(a))
+    state = dict(a.__dict__)
+    state.pop("_is_read", None)
+    state["_view_of"] = a
+    v.__dict__.update(state)
     return v
 
 
-_TORCH_IMPORTS_KEPT = 4      # imported arrays remembered per tensor (dtypes/gradients differ)
+_TORCH_IMPORTS_KEPT = 8      # imported arrays remembered per tensor (dtypes/gradients differ)
+
+
+def _fast_key(t, dtype, g):
+    """What a conversion of `t` asks for, from cheap facts only (the cache's first look-up,
+    before the layout is resolved): None when `dtype` cannot be a key."""
+    key = (t.data_ptr(), t.shape, t.stride(), t.dtype, t.device, dtype,
+           None if g is None else (g.data_ptr(), g.shape, g.stride(), g.dtype, g.device))
+    try:
+        hash(key)
+    except TypeError:
+        return None
+    return key
 
 
 def import_torch(t, dtype, what, requires_grad=False, grad=None):
@@ -316,6 +335,13 @@ def import_torch(t, dtype, what, requires_grad=False, grad=None):
         if g.device != t.device or g.dtype != t.dtype or g.shape != t.shape or \
                 g.stride() != t.stride():
             return None
+    # The same conversion again (a training loop): no layout work, no round trip.
+    cache = t.__dict__.get("_weft_imports")
+    fast = _fast_key(t, dtype, g)
+    if cache is not None and fast is not None:
+        hit = cache.get(fast)
+        if hit is not None and hit._alloc.runtime is rt:
+            return _fresh(hit)
     np_dtype = np.dtype(scalar._np_dtype_)
     strides = tuple(s * np_dtype.itemsize for s in t.stride())
     try:
@@ -327,10 +353,11 @@ def import_torch(t, dtype, what, requires_grad=False, grad=None):
         return None
     # keyed by what the array is (resolved dtype), not by how it was asked for
     key = (t.data_ptr(), tuple(t.shape), strides, wdtype, g.data_ptr() if g is not None else None)
-    cache = t.__dict__.get("_weft_imports")
     if cache is not None:
         hit = cache.get(key)
-        if hit is not None:
+        if hit is not None and hit._alloc.runtime is rt:
+            if fast is not None:
+                cache[fast] = hit
             return _fresh(hit)
     ordinal = t.device.index if t.device.index is not None else 0
     try:
@@ -346,9 +373,11 @@ def import_torch(t, dtype, what, requires_grad=False, grad=None):
         return None
     if cache is None:
         cache = t.__dict__["_weft_imports"] = {}
-    if len(cache) >= _TORCH_IMPORTS_KEPT:
+    while len(cache) >= _TORCH_IMPORTS_KEPT - 1:
         cache.pop(next(iter(cache)))
     cache[key] = a
+    if fast is not None:
+        cache[fast] = a
     return _fresh(a)
 
 

@@ -80,10 +80,18 @@ def framework_stream(ordinal: int) -> int:
     return 0
 
 
-def _pb():
-    from ..v1 import exec_pb2  # noqa: PLC0415
+_EXEC_PB = None
+_EMPTY_ORIGIN = None
 
-    return exec_pb2
+
+def _pb():
+    global _EXEC_PB, _EMPTY_ORIGIN
+    if _EXEC_PB is None:
+        from ..v1 import exec_pb2, types_pb2  # noqa: PLC0415
+
+        _EMPTY_ORIGIN = types_pb2.SourceLocation()
+        _EXEC_PB = exec_pb2
+    return _EXEC_PB
 
 
 class _ValueOrder:
@@ -116,8 +124,10 @@ class _ValueOrder:
 
     def command(self, op, index: int, value: int):
         pb = _pb()
+        # origin set (empty): the client's file:line is for user commands, not these
         return pb.Command(cuda_value=pb.CudaValueCommand(op=op, order=self.ref, index=index,
-                                                         value=value))
+                                                         value=value),
+                          origin=_EMPTY_ORIGIN)
 
 
 def _value_order(rt, ordinal):

@@ -200,8 +200,22 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
                                     f"weft counterpart (weft has cpu and cuda:N)")
     if requires_grad is None:
         requires_grad = bool(t.requires_grad)
+    if not requires_grad:
+        # The same conversion again (a loop): the array over the tensor's slab memory,
+        # remembered on the tensor while it points there.
+        from .cuda_import import _fresh  # noqa: PLC0415
+
+        key = (t.data_ptr(), t.shape, t.stride(), t.dtype, dtype)
+        known = t.__dict__.get("_weft_cpu_array")
+        if known is not None and known[0] == key and not known[1]._alloc.runtime.closed:
+            return _fresh(known[1])
     a = _adopt_tensor(t, dtype, what, requires_grad)
     if not requires_grad:
+        if a.ptr is not None and a.ptr == t.data_ptr():
+            try:
+                t.__dict__["_weft_cpu_array"] = ((t.data_ptr(), t.shape, t.stride(), t.dtype, dtype), a)
+            except TypeError:
+                pass
         return a
     torch = _torch()
     if grad is not None:
