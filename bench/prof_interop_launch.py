@@ -26,6 +26,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--iters", type=int, default=2000)
     ap.add_argument("--mode", default="from_torch", choices=["from_torch", "direct"])
+    ap.add_argument("--top", type=int, default=30)
     args = ap.parse_args()
     import torch
 
@@ -55,8 +56,8 @@ def main() -> None:
         prof.disable()
         out = io.StringIO()
         stats = pstats.Stats(prof, stream=out)
-        stats.sort_stats("tottime").print_stats(25)
-        stats.sort_stats("cumulative").print_stats(35)
+        stats.sort_stats("tottime").print_stats(args.top)
+        stats.sort_stats("cumulative").print_stats(args.top)
         print(out.getvalue())
         print(f"per iteration without the profiler: {plain * 1e6:.1f} us ({args.mode})")
         print(np.float64(0))
