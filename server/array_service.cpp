@@ -33,6 +33,20 @@ Status ArrayFree(Engine& engine, Session& s, const v1::FreeArrayRequest& req) {
   return engine.FreeArray(s, req.handle());
 }
 
+Status ArrayImportCuda(Engine& engine, Session& s, const v1::ImportCudaRequest& req, v1::ImportCudaResponse* resp) {
+  CudaImportParams p;
+  p.device = req.device();
+  p.dtype = FromProto(req.dtype());
+  p.shape.assign(req.shape().begin(), req.shape().end());
+  p.data = {req.data().ipc_handle(), req.data().allocation_id(), req.data().byte_offset()};
+  p.has_grad = req.has_grad();
+  if (p.has_grad) p.grad = {req.grad().ipc_handle(), req.grad().allocation_id(), req.grad().byte_offset()};
+  auto r = engine.ImportCudaArray(s, p);
+  if (!r.ok()) return r.status();
+  ToProto(*r, resp->mutable_info());
+  return Status::Ok();
+}
+
 Status ArrayDescribe(Engine& engine, Session& s, const v1::DescribeArrayRequest& req, v1::DescribeArrayResponse* resp) {
   auto r = engine.DescribeArray(s, req.handle());
   if (!r.ok()) return r.status();
@@ -135,16 +149,8 @@ grpc::Status ArrayServiceImpl::ImportCuda(grpc::ServerContext* ctx, const v1::Im
                                           v1::ImportCudaResponse* resp) {
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
-  CudaImportParams p;
-  p.device = req->device();
-  p.dtype = FromProto(req->dtype());
-  p.shape.assign(req->shape().begin(), req->shape().end());
-  p.data = {req->data().ipc_handle(), req->data().allocation_id(), req->data().byte_offset()};
-  p.has_grad = req->has_grad();
-  if (p.has_grad) p.grad = {req->grad().ipc_handle(), req->grad().allocation_id(), req->grad().byte_offset()};
-  auto r = auth_.engine().ImportCudaArray(**s, p);
-  if (!r.ok()) return Fail(ctx, "CUDA import", r.status());
-  ToProto(*r, resp->mutable_info());
+  Status st = ArrayImportCuda(auth_.engine(), **s, *req, resp);
+  if (!st.ok()) return Fail(ctx, "CUDA import", st);
   return grpc::Status::OK;
 }
 

@@ -1,5 +1,5 @@
 // FastLane: listening, the hello (peer uid + one-time secret), serving Submit/Synchronize and
-// ArrayService Create/Free/Describe frames through the gRPC methods' handler functions,
+// ArrayService Create/Free/Describe/ImportCuda frames through the gRPC methods' handler functions,
 // replies in chunks.
 #include "server/fast_lane.h"
 
@@ -281,6 +281,10 @@ void FastLane::Serve(Conn* c) {
       case kArrayDescribe:
         r = ServeFrame<v1::DescribeArrayRequest, v1::DescribeArrayResponse>(fd, "ArrayService.Describe", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) { return ArrayDescribe(engine, ss, req, resp); });
+        break;
+      case kArrayImportCuda:
+        r = ServeFrame<v1::ImportCudaRequest, v1::ImportCudaResponse>(fd, "ArrayService.ImportCuda", body, body_len, s,
+            [&](Session& ss, const auto& req, auto* resp) { return ArrayImportCuda(engine, ss, req, resp); });
         break;
       default:
         break;

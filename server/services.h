@@ -62,6 +62,7 @@ void ExecSynchronize(Engine& engine, Session& s, v1::SynchronizeResponse* resp);
 Status ArrayCreate(Engine& engine, Session& s, const v1::CreateArrayRequest& req, v1::CreateArrayResponse* resp);
 Status ArrayFree(Engine& engine, Session& s, const v1::FreeArrayRequest& req);
 Status ArrayDescribe(Engine& engine, Session& s, const v1::DescribeArrayRequest& req, v1::DescribeArrayResponse* resp);
+Status ArrayImportCuda(Engine& engine, Session& s, const v1::ImportCudaRequest& req, v1::ImportCudaResponse* resp);
 
 class ExecServiceImpl final : public v1::ExecService::Service {
  public:

@@ -398,7 +398,7 @@ def test_fast_lane_off_by_environment(run_client):
     assert "lane True" in out.stdout
 
 
-ARRAY_CREATE, ARRAY_FREE, ARRAY_DESCRIBE = 4, 5, 6
+ARRAY_CREATE, ARRAY_FREE, ARRAY_DESCRIBE, ARRAY_IMPORT_CUDA = 4, 5, 6, 7
 
 
 def test_fast_lane_carries_array_create_describe_free(wp, monkeypatch):
@@ -426,7 +426,8 @@ def test_fast_lane_carries_array_create_describe_free(wp, monkeypatch):
 
 
 def test_fast_lane_array_errors_are_the_grpc_errors(wp):
-    """A bad shape, an unknown handle, another session's handle: through a bound lane the same
+    """A bad shape, an unknown handle, another session's handle, a CUDA import on the CPU or
+    with a short IPC handle: through a bound lane the same
     status and message as through gRPC, and the lane stays open."""
     rt = _runtime_with_lane(wp)
     from weft.v1 import array_pb2, types_pb2
@@ -439,6 +440,12 @@ def test_fast_lane_array_errors_are_the_grpc_errors(wp):
             (ARRAY_DESCRIBE, "Describe", array_pb2.DescribeArrayRequest(handle=mine._handle)),
             (ARRAY_FREE, "Free", array_pb2.FreeArrayRequest(handle=mine._handle)),
             (ARRAY_DESCRIBE, "Describe", array_pb2.DescribeArrayRequest(handle=(1 << 63) + 12345)),
+            (ARRAY_IMPORT_CUDA, "ImportCuda", array_pb2.ImportCudaRequest(
+                device="cpu", dtype=types_pb2.DType(scalar=types_pb2.FLOAT32), shape=[4],
+                data=array_pb2.CudaMemoryRef(ipc_handle=b"\x01" * 64, allocation_id=1))),
+            (ARRAY_IMPORT_CUDA, "ImportCuda", array_pb2.ImportCudaRequest(
+                device="cuda:0", dtype=types_pb2.DType(scalar=types_pb2.FLOAT32), shape=[4],
+                data=array_pb2.CudaMemoryRef(ipc_handle=b"\x01" * 63, allocation_id=1))),
         ]
         meta = (("weft-session", a.session_id),) + tuple(m for m in rt._base_metadata if m[0] != "weft-session")
         for method, name, request in cases:

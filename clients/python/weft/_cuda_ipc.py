@@ -82,6 +82,7 @@ def _load():
         "cuCtxPushCurrent_v2": [vp],
         "cuCtxPopCurrent_v2": [p(vp)],
         "cuCtxSynchronize": [],
+        "cuCtxGetCurrent": [p(vp)],
         "cuIpcOpenMemHandle_v2": [p(ctypes.c_uint64), _IpcHandle, u],
         "cuIpcCloseMemHandle": [ctypes.c_uint64],
         "cuMemcpyDtoH_v2": [vp, ctypes.c_uint64, sz],
@@ -484,7 +485,13 @@ def _stream_op(fn, what, ordinal, stream, address, value, flags):
     # A stream of its own names its context: queued from whatever context is current (Torch
     # and CuPy keep the device's primary context current), pushed only when the driver asks.
     # The legacy default stream (0) is the current context's: always pushed.
-    rc = CUDA_ERROR_INVALID_CONTEXT if not stream else fn(stream, address, value, flags)
+    if stream:
+        rc = fn(stream, address, value, flags)
+    else:
+        current = ctypes.c_void_p()
+        _lib.cuCtxGetCurrent(ctypes.byref(current))
+        rc = fn(None, address, value, flags) if current.value == _context(ordinal).value \
+            else CUDA_ERROR_INVALID_CONTEXT
     if rc == CUDA_ERROR_INVALID_CONTEXT:
         with _Scope(ordinal):
             rc = fn(stream or None, address, value, flags)

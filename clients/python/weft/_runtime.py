@@ -390,7 +390,8 @@ class Runtime:
 
     _LANE_ARRAY_METHODS = {"Create": (_fast_lane.ARRAY_CREATE, array_pb2.CreateArrayResponse),
                            "Free": (_fast_lane.ARRAY_FREE, array_pb2.FreeArrayResponse),
-                           "Describe": (_fast_lane.ARRAY_DESCRIBE, array_pb2.DescribeArrayResponse)}
+                           "Describe": (_fast_lane.ARRAY_DESCRIBE, array_pb2.DescribeArrayResponse),
+                           "ImportCuda": (_fast_lane.ARRAY_IMPORT_CUDA, array_pb2.ImportCudaResponse)}
 
     def _lane_free(self):
         """The fast lane when it is open and no asynchronous Submit's reply is outstanding on
@@ -404,7 +405,7 @@ class Runtime:
         return None if lane.broken else lane
 
     def array_call(self, method: str, request):
-        """ArrayService.Create / Free / Describe: through the fast lane when it is free and the
+        """ArrayService.Create / Free / Describe / ImportCuda: through the fast lane when it is free and the
         request fits a frame (a round trip without gRPC: wp.zeros in a loop), else through
         gRPC. Same responses and errors either way."""
         if self.lane_arrays and self.fast_lane is not None and self.fast_lane.fits(request):
@@ -500,7 +501,8 @@ class Runtime:
             self.pump_held = 0
             if not self._batch:
                 return
-            self._collect_done()
+            if len(self._inflight) >= LANE_IN_FLIGHT:
+                self._collect_done()       # replies are read in bulk, not one per send
             lane_ok = self.fast_lane is not None and not self.fast_lane.broken and \
                 len(self._inflight) < LANE_IN_FLIGHT and \
                 all(isinstance(call, _fast_lane.PendingReply) for call in self._inflight)

@@ -247,7 +247,7 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
         request.grad.CopyFrom(refs[1])
     rt.drain_frees()
     try:
-        info = rt.call(rt.array_stub.ImportCuda, request).info
+        info = rt.array_call("ImportCuda", request).info
     except WeftError as err:
         if "could not be opened" not in str(err):
             raise

@@ -101,7 +101,8 @@ class _ValueOrder:
 
     def __init__(self, order, address: int, ordinal: int):
         self.order = order
-        self.ref = order._ref()
+        # the handle alone names the whole array (offset 0, its own shape): a smaller message
+        self.ref = type(order._ref())(handle=order._handle)
         self.address = address
         self.ordinal = ordinal
         self.done_value = 0          # element 0: the last value the session's stream will write

@@ -1,0 +1,72 @@
+"""Where one step of the Torch Rosenbrock autograd example goes on a GPU (bench_interop's
+second table: from_torch of the points, wp.zeros, the launch, to_torch, from_torch of the
+incoming gradient set as z.grad, the adjoint launch, to_torch of the gradient): cProfile of
+the client, top functions by cumulative and own time. Usage: WEFT_DAEMON=... python3
+bench/prof_rosenbrock_step.py [--iters 500]"""
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import pstats
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "clients" / "python"))
+sys.path.insert(0, str(HERE))
+
+import bench_common as bc  # noqa: E402
+from bench_interop import SOURCE  # noqa: E402
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--iters", type=int, default=500)
+    ap.add_argument("--top", type=int, default=30)
+    args = ap.parse_args()
+    import torch
+
+    with bc.WeftSession() as (wp, rt):
+        mod = bc.load_kernels(SOURCE, "weft", "rosen_prof")
+        n = 1500
+        rng = np.random.default_rng(7)
+        xy = torch.tensor(rng.uniform(-1.5, 1.5, size=(n, 2)), dtype=torch.float32,
+                          device="cuda", requires_grad=True)
+
+        def loop(iters):
+            for _ in range(iters):
+                xy.grad = None
+                wxy = wp.from_torch(xy, dtype=wp.vec2, requires_grad=True)
+                z = wp.zeros(n, requires_grad=True, device="cuda:0")
+                wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], device="cuda:0")
+                tz = wp.to_torch(z)
+                z.grad = wp.from_torch(torch.ones_like(tz))
+                wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z],
+                          adj_inputs=[wxy.grad], adj_outputs=[z.grad], adjoint=True,
+                          device="cuda:0")
+                wp.to_torch(wxy.grad)
+            wp.synchronize()
+            torch.cuda.synchronize()
+
+        loop(20)
+        t0 = time.perf_counter()
+        loop(args.iters)
+        plain = (time.perf_counter() - t0) / args.iters
+        prof = cProfile.Profile()
+        prof.enable()
+        loop(args.iters)
+        prof.disable()
+        out = io.StringIO()
+        stats = pstats.Stats(prof, stream=out)
+        stats.sort_stats("cumulative").print_stats(args.top)
+        stats.sort_stats("tottime").print_stats(15)
+        print(out.getvalue())
+        print(f"per step without the profiler: {plain * 1e6:.1f} us")
+
+
+if __name__ == "__main__":
+    main()
