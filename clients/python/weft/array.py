@@ -241,7 +241,7 @@ class _Allocation:
     """One daemon allocation held by this process; freed when the last view lets go."""
 
     __slots__ = ("runtime", "info", "owned", "parent", "_mapping", "_cuda", "_cuda_slab",
-                 "keep", "__weakref__")
+                 "keep", "recycle", "__weakref__")
 
     def __init__(self, runtime, info, owned=True, parent=None):
         self.runtime = runtime
@@ -252,6 +252,9 @@ class _Allocation:
         self._cuda = None      # device address in this process (0: no IPC mapping)
         self._cuda_slab = None  # slab id whose mapping this allocation holds
         self.keep = None       # imported framework memory: the object that owns it
+        # imported framework memory: called with the ArrayInfo instead of freeing the handle
+        # when this allocation dies (weft.interop.cuda_import keeps it for the same block)
+        self.recycle = None
 
     def cuda_address(self):
         """The allocation's device address in this process (GPU arrays of local sessions,
@@ -288,7 +291,10 @@ class _Allocation:
             if self._cuda_slab is not None:
                 _cuda_ipc.release(self._cuda_slab)
             if self.owned and self.info.handle:
-                self.runtime.free_later(self.info.handle)
+                if self.recycle is not None and not self.runtime.closed:
+                    self.recycle(self.info)
+                else:
+                    self.runtime.free_later(self.info.handle)
         except Exception:  # noqa: BLE001 - interpreter shutdown: nothing left to free
             pass
 
@@ -769,6 +775,7 @@ class array:
         grad_ref = value._ref() if value is not None else _runtime.types_pb2.ArrayRef(handle=0)
         rt.submit(ep.Command(set_grad=ep.SetGradCommand(array=self._ref(), grad=grad_ref)))
         self._info.grad_handle = value._handle if value is not None else 0
+        self._alloc.recycle = None     # no longer what its import asked for: freed when it dies
 
     @property
     def vars(self):

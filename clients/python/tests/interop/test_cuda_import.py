@@ -3,7 +3,8 @@ the reason without a GPU the daemon computes on, without Torch/CuPy on CUDA, or 
 cannot use CUDA IPC): wp.from_torch, tensors passed to wp.launch, from_dlpack of CuPy arrays
 are the framework's memory (same device pointer, no copy, the tensor not re-pointed), writes
 seen both ways with Torch's stream work ordered before the launch, the gradient the same memory
-on both sides, a tensor converted again costs no new import, blocks the caching allocator frees
+on both sides, a tensor converted again costs no new import, a block handed out again reuses
+the dead import's parked handle without a round trip, blocks the caching allocator frees
 and hands out again (also after empty_cache) are never read through an old mapping; hostile
 requests (a forged handle, a range past the allocation, a handle another session imported,
 weft's own memory) get clear errors, as does a tensor of another GPU than the launch's; an
@@ -121,6 +122,56 @@ def test_reused_blocks_are_never_read_through_an_old_mapping(wp, tcuda, torch):
         gc.collect()                 # the weft array (and its hold on the tensor) goes
         if k % 2 == 0:
             torch.cuda.empty_cache()  # the segment goes back to the driver
+
+
+def test_a_block_handed_out_again_reuses_the_parked_import(wp, tcuda, torch, monkeypatch):
+    """A tensor whose import died parks its daemon handle (cuda_import.PARKED_IMPORTS); a new
+    tensor Torch places in the same block of the same allocation (a training loop's new
+    gradient) gets it back without a round trip and is that tensor's memory; at most
+    PARKED_IMPORTS handles stay parked."""
+    import gc
+
+    from weft import _runtime
+    from weft.interop import cuda_import
+
+    rt = _runtime.get_runtime()
+    n = 1 << 15
+    t = torch.full((n,), 1.0, device="cuda")
+    ptr = t.data_ptr()
+    a = wp.from_torch(t)
+    handle = a._handle
+    total = wp.zeros(1, dtype=float, device=tcuda)
+    wp.launch(scale_sum, dim=n, inputs=[a, 1.0, total], device=tcuda)
+    wp.synchronize()
+    del a, t
+    gc.collect()
+    t2 = torch.full((n,), 2.0, device="cuda")
+    if t2.data_ptr() != ptr:
+        pytest.skip("Torch placed the new tensor in another block")
+    calls = []
+    real = rt.array_call
+    monkeypatch.setattr(rt, "array_call", lambda method, req: calls.append(method) or real(method, req))
+    b = wp.from_torch(t2)
+    assert "ImportCuda" not in calls, "the parked import was not reused"
+    assert b._handle == handle and b.ptr == t2.data_ptr()
+    total.zero_()
+    wp.launch(scale_sum, dim=n, inputs=[b, 3.0, total], device=tcuda)
+    assert total.numpy()[0] == pytest.approx(6.0 * n)        # t2's values, not t's
+    np.testing.assert_array_equal(t2.cpu().numpy(), np.full(n, 6.0, dtype=np.float32))
+    # another shape at the same address is another import
+    del b
+    gc.collect()
+    t3 = t2.view(2, n // 2)
+    c = wp.from_torch(t3)
+    assert "ImportCuda" in calls and c.shape == (2, n // 2)
+    del c, t3, t2
+    # bounded: many distinct blocks imported and dropped
+    keep = [torch.zeros(256 + 64 * k, device="cuda") for k in range(3 * cuda_import.PARKED_IMPORTS)]
+    for t in keep:
+        wp.from_torch(t)
+    del keep, t
+    gc.collect()
+    assert 0 < len(cuda_import._parked(rt)) <= cuda_import.PARKED_IMPORTS
 
 
 def _raw_import(wp, handle: bytes, allocation_id: int, offset: int, n: int, device="cuda:0"):

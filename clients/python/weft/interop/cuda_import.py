@@ -209,6 +209,44 @@ def copy_in(obj, dtype, device: str, what: str, requires_grad=False, cast_ok=Fal
     return out, src
 
 
+# Imports whose arrays died, by request (device, dtype, shape, IPC handle, buffer id, offset,
+# gradient): their daemon handles are kept instead of freed, so a framework that hands out the
+# same block again (Torch's caching allocator: a new gradient or `ones_like` each training
+# step) gets it back without a round trip. The buffer id is unique for the life of the
+# process, so a block freed and allocated again never matches; at most PARKED_IMPORTS per
+# session, the oldest freed first.
+PARKED_IMPORTS = 16
+
+
+def _parked(rt) -> dict:
+    pool = rt.__dict__.get("_weft_parked_imports")
+    if pool is None:
+        import collections  # noqa: PLC0415
+
+        pool = rt.__dict__["_weft_parked_imports"] = collections.OrderedDict()
+    return pool
+
+
+class _Recycle:
+    """Parks a dead imported allocation's handle (see PARKED_IMPORTS)."""
+
+    __slots__ = ("rt", "key")
+
+    def __init__(self, rt, key):
+        self.rt = rt
+        self.key = key
+
+    def __call__(self, info) -> None:
+        pool = _parked(self.rt)
+        old = pool.pop(self.key, None)
+        if old is not None:
+            self.rt.free_later(old.handle)
+        pool[self.key] = info
+        while len(pool) > PARKED_IMPORTS:
+            _, evicted = pool.popitem(last=False)
+            self.rt.free_later(evicted.handle)
+
+
 def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
                   grad_src: "_Source | None" = None):
     """A weft array over `src`'s memory, opened by weftd through CUDA IPC (None where that
@@ -245,17 +283,21 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
         data=refs[0])
     if len(refs) > 1:
         request.grad.CopyFrom(refs[1])
-    rt.drain_frees()
-    try:
-        info = rt.array_call("ImportCuda", request).info
-    except WeftError as err:
-        if "could not be opened" not in str(err):
-            raise
-        # the daemon cannot open this process's handles (a sandbox, another PID namespace):
-        # copies from now on, as without IPC
-        _import_refused = str(err)
-        return None
+    key = request.SerializeToString(deterministic=True)
+    info = _parked(rt).pop(key, None)       # the same block imported before, handle kept
+    if info is None:
+        rt.drain_frees()
+        try:
+            info = rt.array_call("ImportCuda", request).info
+        except WeftError as err:
+            if "could not be opened" not in str(err):
+                raise
+            # the daemon cannot open this process's handles (a sandbox, another PID
+            # namespace): copies from now on, as without IPC
+            _import_refused = str(err)
+            return None
     out = array._from_info(info, wdtype)
+    out._alloc.recycle = _Recycle(rt, key)
     out._alloc.keep = src.keep              # the framework memory lives as long as the array
     out._alloc._cuda = src.ptr              # its address in this process
     memory.mark_shared(out._alloc)          # launches order with the framework
