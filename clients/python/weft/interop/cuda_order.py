@@ -229,11 +229,12 @@ def before(rt, ordinals, stream=None) -> None:
         values = _values.get((rt.session_id, ordinal))
         if values is not None:
             source = framework_stream(ordinal) if stream is None else stream
-            index = values.slot(source)
-            values.values[index] += 1
-            _cuda_ipc.write_value(ordinal, source, values.address + 8 * index,
-                                  values.values[index])
-            rt.submit(values.command(pb.CudaValueCommand.WAIT, index, values.values[index]))
+            with rt._lock:    # counter order is queue order (threads of one runtime)
+                index = values.slot(source)
+                values.values[index] += 1
+                _cuda_ipc.write_value(ordinal, source, values.address + 8 * index,
+                                      values.values[index])
+                rt.submit(values.command(pb.CudaValueCommand.WAIT, index, values.values[index]))
             continue
         event = _cuda_ipc.next_event(ordinal)
         _cuda_ipc.record_event(event, framework_stream(ordinal) if stream is None else stream)
@@ -250,9 +251,10 @@ def after(rt, ordinals, streams=None) -> None:
     for ordinal in ordinals:
         values = _values.get((rt.session_id, ordinal))
         if values is not None:
-            values.done_value += 1
-            rt.submit(values.command(pb.CudaValueCommand.WRITE, 0, values.done_value))
-            waits.append((ordinal, values))
+            with rt._lock:    # counter order is queue order (threads of one runtime)
+                values.done_value += 1
+                rt.submit(values.command(pb.CudaValueCommand.WRITE, 0, values.done_value))
+                waits.append((ordinal, values, values.done_value))
             continue
         event = _cuda_ipc.next_event(ordinal)
         rt.submit(_command(pb.CudaEventCommand.RECORD, ordinal, event))
@@ -261,9 +263,9 @@ def after(rt, ordinals, streams=None) -> None:
         rt.run()
     else:
         rt.send_now()                 # the WRITE must reach weftd without another weft call
-    for ordinal, values in waits:
+    for ordinal, values, target in waits:
         for stream in ([framework_stream(ordinal)] if streams is None else streams):
-            _cuda_ipc.wait_value(ordinal, stream, values.address, values.done_value)
+            _cuda_ipc.wait_value(ordinal, stream, values.address, target)
             _ordered[(id(rt), ordinal, stream)] = rt.work_queued
     for ordinal, event in events:
         for stream in ([framework_stream(ordinal)] if streams is None else streams):
