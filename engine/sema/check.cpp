@@ -593,6 +593,12 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
     case ast::StmtKind::kAugAssign: {
       const auto& a = static_cast<const ast::AugAssign&>(s);
       if (const auto* n = ast::As<ast::Name>(a.target.get())) st_->untyped_literal_names.erase(n->id);
+      // arr[i][j] op= v, arr[i].x op= v: a component of an array element (Warp's composite-slot
+      // atomics), for the same operators; see LowerComponentAtomic.
+      {
+        WEFT_ASSIGN_OR_RETURN(bool lowered, LowerComponentAtomic(a));
+        if (lowered) return Status::Ok();
+      }
       // arr[i] += v / -= v are atomic adds (Warp's rule), so parallel threads may accumulate;
       // &=, |=, ^= on integer elements (scalars, integer vectors/matrices) are atomic and/or/xor.
       if (const auto* sub = ast::As<ast::Subscript>(a.target.get())) {
@@ -925,6 +931,93 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
     return Error(loc, "cannot assign to attribute '" + at->attr + "' of a value of type " + TypeString(bt));
   }
   return Error(loc, "cannot assign to this expression");
+}
+
+// `arr[i][j] += v`, `arr[i].x -= v`, `m_arr[i][r] &= row` (a component or a matrix row of an
+// array element; arr may be wp.adjoint[a] or a struct's array field): one atomic on the whole
+// element whose value is the operator's identity (zero, or all bits set for &=) with `v` in
+// that component, so threads updating the same component of one element do not race (a plain
+// read-modify-write would lose updates on a GPU). The adjoint flows through the insert: `v`
+// gets the element gradient's component. Only 32/64-bit scalars (the widths with hardware
+// atomics); other element types keep the read-modify-write. Returns false when `a` is not such
+// an update.
+Expected<bool> Checker::LowerComponentAtomic(const ast::AugAssign& a) {
+  const bool bitwise = a.op == ast::BinaryOperator::kBitAnd || a.op == ast::BinaryOperator::kBitOr ||
+                       a.op == ast::BinaryOperator::kBitXor;
+  if (a.op != ast::BinaryOperator::kAdd && a.op != ast::BinaryOperator::kSub && !bitwise) return false;
+  const ast::Subscript* element = nullptr;      // arr[i]
+  const ast::ExprList* component = nullptr;     // [j] or [r, c]
+  int attr_index = -1;                          // .x .y .z .w
+  if (const auto* s1 = ast::As<ast::Subscript>(a.target.get())) {
+    element = ast::As<ast::Subscript>(s1->value.get());
+    component = &s1->indices;
+  } else if (const auto* at = ast::As<ast::Attribute>(a.target.get())) {
+    static const std::string kXYZW = "xyzw";
+    element = ast::As<ast::Subscript>(at->value.get());
+    if (at->attr.size() == 1 && kXYZW.find(at->attr[0]) != std::string::npos)
+      attr_index = static_cast<int>(kXYZW.find(at->attr[0]));
+    else
+      element = nullptr;
+  }
+  if (element == nullptr) return false;
+  WEFT_ASSIGN_OR_RETURN(Value arr, Eval(*element->value));
+  if (arr.kind != Value::Kind::kVar || !TypeOf(arr.var).is_array()) return false;
+  const Type at = TypeOf(arr.var);
+  const Type et = at.elem();
+  if (static_cast<int>(element->indices.size()) != at.ndim) return false;   // the generic path reports it
+  if (!(et.is_vector() || et.is_matrix() || et.kind == TypeKind::kQuat)) return false;
+  const ScalarKind sk = et.scalar;
+  const int width = ScalarSize(sk);
+  if (sk == ScalarKind::kBool || (width != 4 && width != 8) || (bitwise && !IsInt(sk))) return false;
+  Type comp;
+  size_t n_idx = attr_index >= 0 ? 1 : component->size();
+  if (et.is_matrix()) {
+    if (attr_index >= 0) return false;
+    if (n_idx == 1) comp = Type::Vector(et.cols, sk);
+    else if (n_idx == 2) comp = Type::Scalar(sk);
+    else return false;
+  } else {
+    if (n_idx != 1) return false;
+    if (attr_index >= et.component_count()) return false;
+    comp = Type::Scalar(sk);
+  }
+  std::vector<Value> args{arr};
+  for (const auto& ix : element->indices) {
+    WEFT_ASSIGN_OR_RETURN(Value iv, Eval(*ix));
+    if (iv.kind == Value::Kind::kVar && TypeOf(iv.var).is_scalar() && !IsInt(TypeOf(iv.var).scalar))
+      return ErrorOf("type", ix->loc, "Array slot write indices must be integers, got `" +
+                                          TypeString(TypeOf(iv.var)) + "`");
+    args.push_back(iv);
+  }
+  std::vector<int> slot;
+  if (attr_index >= 0) {
+    slot.push_back(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(attr_index) + ")"));
+  } else {
+    WEFT_ASSIGN_OR_RETURN(slot, EvalIndices(*component, false));
+    for (int i : slot)
+      if (!TypeOf(i).is_scalar() || !IsInt(TypeOf(i).scalar)) return Error(a.loc, "component indices must be integers");
+  }
+  WEFT_ASSIGN_OR_RETURN(Value val, Eval(*a.value));
+  if (val.kind != Value::Kind::kVar || TypeOf(val.var).kind != comp.kind)   // Warp's TypeError
+    return ErrorOf("type", a.loc, "Composite slot assignment expects value of type `" + TypeString(comp) + "`, got `" +
+                                      (val.kind == Value::Kind::kVar ? TypeString(TypeOf(val.var)) : std::string("?")) + "`");
+  WEFT_ASSIGN_OR_RETURN(int v, Coerce(val, comp, a.value->loc, "the component value"));
+  const std::string identity = a.op == ast::BinaryOperator::kBitAnd
+                                   ? CppType(et) + "((" + CppType(Type::Scalar(sk)) + ")~(" + CppType(Type::Scalar(sk)) + ")0)"
+                                   : CppType(et) + "()";
+  std::vector<int> insert{EmitConst(et, identity)};
+  insert.insert(insert.end(), slot.begin(), slot.end());
+  insert.push_back(v);
+  args.push_back(Value::OfVar(EmitOp(OpKind::kInsert, et, insert)));
+  const std::string fn = a.op == ast::BinaryOperator::kAdd      ? "atomic_add"
+                         : a.op == ast::BinaryOperator::kSub    ? "atomic_sub"
+                         : a.op == ast::BinaryOperator::kBitAnd ? "atomic_and"
+                         : a.op == ast::BinaryOperator::kBitOr  ? "atomic_or"
+                                                                : "atomic_xor";
+  WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(fn, std::move(args), a.loc, ArrayParamOf(arr.var),
+                                                         ExprText(*element->value)));
+  (void)r;
+  return true;
 }
 
 Status Checker::LowerIf(int cond, const std::function<Status()>& then_fn, const std::function<Status()>& else_fn) {

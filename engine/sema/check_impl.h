@@ -87,6 +87,7 @@ class Checker {
   Status LowerStmtUnguarded(const ast::Stmt& s);
   Status LowerStmt2(const ast::Stmt& s);   // LowerStmt less the tracking of path-bound names
   Status LowerAssignTo(const ast::Expr& target, Value value);
+  Expected<bool> LowerComponentAtomic(const ast::AugAssign& a);
   Status LowerIf(int cond, const std::function<Status()>& then_fn, const std::function<Status()>& else_fn);
   Status LowerFor(const ast::For& s);
   Status LowerWhile(const ast::While& s);

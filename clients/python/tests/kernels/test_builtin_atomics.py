@@ -112,3 +112,66 @@ def test_exch_and_cas(wp):
     np.testing.assert_array_equal(olds, expected)
     assert wins.numpy()[0] == 1
     assert 0 <= winner.numpy()[0] < n
+
+
+mat22i = wp.types.matrix((2, 2), wp.int32)
+
+
+@wp.kernel
+def component_updates(x: wp.array(dtype=float), bits: wp.array(dtype=wp.int32),
+                      v: wp.array(dtype=wp.vec3), m: wp.array(dtype=wp.mat22),
+                      mi: wp.array(dtype=mat22i)):
+    i = wp.tid()
+    v[0][1] += x[i]                        # a component of one element, from every thread
+    v[0].z -= x[i]
+    m[i % 2][1] += wp.vec2(x[i], 2.0 * x[i])   # a matrix row
+    m[i % 2][0, 0] += 1.0
+    mi[0][1] &= wp.vec2i(bits[i], bits[i] | 1)
+    mi[0][0, 1] |= bits[i]
+
+
+@wp.kernel
+def component_square(x: wp.array(dtype=float), out: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    out[0][1] += x[i] * x[i]
+
+
+def test_component_updates_of_array_elements_are_atomic(wp, rng):
+    """`arr[i][j] += v`, `arr[i].z -= v`, a matrix row `m[i][r] += row`, `&=`/`|=` on integer
+    matrix components, from every thread onto one element: atomic (Warp's composite-slot
+    atomics), so the result is the float64/NumPy reduction whatever the interleaving; the
+    adjoint reaches the value through the component."""
+    n = 100_003
+    x = rng.uniform(0.5, 1.5, n)
+    bits = rng.integers(0, 2**31, size=n, dtype=np.int32)
+    v = wp.zeros(1, dtype=wp.vec3)
+    m = wp.zeros(2, dtype=wp.mat22)
+    start = np.zeros((1, 2, 2), dtype=np.int32)
+    start[0, 1, :] = -1
+    mi = wp.array(start, dtype=mat22i)
+    wp.launch(component_updates, dim=n, inputs=[wp.array(x.astype(np.float32)), wp.array(bits, dtype=wp.int32),
+                                                v, m, mi])
+    x32 = x.astype(np.float32).astype(np.float64)
+    total = x32.sum()
+    # float32 accumulation of 1e5 terms in any order: ~sqrt(n) * 2^-24 relative, 1e-4 stated;
+    # a race loses whole updates (thousands of them on a GPU)
+    tol = 1e-4 * total
+    got = v.numpy()[0]
+    assert got[0] == 0.0 and abs(got[1] - total) <= tol and abs(got[2] + total) <= tol
+    mm = m.numpy()
+    for r in range(2):
+        part = x32[r::2].sum()
+        assert mm[r, 0, 0] == len(x32[r::2]) and mm[r, 0, 1] == 0.0
+        assert abs(mm[r, 1, 0] - part) <= tol and abs(mm[r, 1, 1] - 2.0 * part) <= 2 * tol
+    got_i = mi.numpy()[0]
+    assert got_i[0, 0] == 0 and got_i[0, 1] == np.bitwise_or.reduce(bits)
+    assert got_i[1, 0] == np.bitwise_and.reduce(bits)
+    assert got_i[1, 1] == np.bitwise_and.reduce(bits | 1)
+    # adjoint: d/dx_i of (seed . out[0]) with out[0][1] += x_i^2 is seed[1] * 2 x_i
+    xs = wp.array(x[:64].astype(np.float32), requires_grad=True)
+    out = wp.zeros(1, dtype=wp.vec3, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(component_square, dim=64, inputs=[xs, out])
+    tape.backward(grads={out: wp.array(np.array([[0.5, 3.0, -2.0]], np.float32), dtype=wp.vec3)})
+    np.testing.assert_allclose(xs.grad.numpy(), 3.0 * 2.0 * x32[:64], rtol=1e-6)
