@@ -190,3 +190,19 @@ def test_segmented_sort_rejects_strided_views(wp, rng):
     wp.utils.segmented_sort_pairs(k, v, 8, wp.array((0, 4), dtype=int), wp.array((4, 8), dtype=int))
     ref = np.concatenate([np.sort(keys[:4], kind="stable"), np.sort(keys[4:], kind="stable")])
     np.testing.assert_array_equal(k.numpy()[:8], ref)
+
+
+def test_segmented_sort_invalid_ranges_by_device(wp, device):
+    """Warp's rule: on the CPU a malformed segment range is a ValueError naming its index; on a
+    GPU it is treated as empty (the valid segments are sorted, the storage around is untouched)."""
+    keys = wp.array((2, 1, 4, 3, 0, 0, 0, 0), dtype=int)
+    values = wp.array((20, 10, 40, 30, 0, 0, 0, 0), dtype=int)
+    offsets = wp.array((0, 2, 5), dtype=int)        # [0, 2) valid, [2, 5) past count=4
+    if device == "cpu":
+        with pytest.raises(ValueError, match=r"Invalid segment range at index 1: \[2, 5\) with count 4"):
+            wp.utils.segmented_sort_pairs(keys, values, 4, offsets)
+        np.testing.assert_array_equal(keys.numpy()[:4], (2, 1, 4, 3))
+    else:
+        wp.utils.segmented_sort_pairs(keys, values, 4, offsets)
+        np.testing.assert_array_equal(keys.numpy()[:4], (1, 2, 4, 3))
+        np.testing.assert_array_equal(values.numpy()[:4], (10, 20, 40, 30))
