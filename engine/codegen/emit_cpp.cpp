@@ -135,7 +135,9 @@ class FnEmitter {
       return;
     }
     Decls(mode == Mode::kAdjoint);
+    print_in_replay_ = mode == Mode::kAdjoint;
     Fwd(f_.body, mode != Mode::kForward);
+    print_in_replay_ = false;
     if (mode == Mode::kAdjoint) {
       for (size_t i = 0; i < f_.return_slots.size(); ++i)
         if (Diff(T(f_.return_slots[i]))) Line("wp::cg_accum(" + A(f_.return_slots[i]) + ", __adj_ret" + std::to_string(i) + ");");
@@ -196,7 +198,9 @@ class FnEmitter {
       if (backward && HasIndexedArrays(T(p), m_.structs)) Line("wp::cg_indexed_adjoint(" + A(p) + ", " + V(p) + ");");
     }
     Decls(backward);
+    print_in_replay_ = backward;
     Fwd(f_.body, backward);
+    print_in_replay_ = false;
     if (backward) Rev(f_.body);
     --indent_;
     Line("}");
@@ -471,7 +475,7 @@ class FnEmitter {
       }
       case OpKind::kCall: {
         const BuiltinOverload* b = op.builtin;
-        if (replay && b->side_effect()) return;
+        if (replay && b->side_effect() && !(b->native == "print" && print_in_replay_)) return;
         std::string name = "wp::" + b->native;
         std::string args = Args(op.args);
         if (b->needs_ctx() || (b->flags & kBuiltinNeedsLoc)) {
@@ -676,6 +680,10 @@ class FnEmitter {
         return;
       case OpKind::kCall: {
         const BuiltinOverload* b = op.builtin;
+        if (b->native == "print" && op.args.size() == 1) {   // Warp's "adj: <adjoint>" line
+          Line("wp::adj_print(__ctx, " + V(op.args[0]) + ", " + A(op.args[0]) + ");");
+          return;
+        }
         if (!b->differentiable() || op.dst.empty()) return;
         if ((b->flags & kBuiltinArrayAccess) && (!Diff(T(op.args.back())) || T(op.args.back()).is_struct())) return;
         bool any = false;
@@ -781,6 +789,11 @@ class FnEmitter {
   const CodegenOptions& opt_;
   std::string& out_;
   Mode mode_ = Mode::kForward;
+  // print() runs in the replay of a backward pass (Warp prints the forward values there, then
+  // "adj: ..." in the reverse code), but only in the first replay of the body: not in a
+  // replay_ function (called again for every reverse loop iteration) nor in RevLoop's
+  // recomputation of a loop's iterations.
+  bool print_in_replay_ = false;
   std::string fail_ = "return;";
   int indent_ = 0;
   int last_line_ = -1;

@@ -232,17 +232,53 @@ template <typename T> WP_FUNC void print_value(print_line& l, const transform_t<
 }
 // Types without a printed form (structs): Warp's placeholder text.
 template <typename T> WP_FUNC void print_value(print_line& l, const T&) { l.add("<type without print implementation>"); }
-template <typename T> WP_FUNC void print_value(print_line& l, const array_t<T>& a) {
-  l.add("array(ndim=%d, shape=(%lld", a.ndim, (long long)a.shape[0]);
-  for (int d = 1; d < a.ndim && d < ARRAY_MAX_DIMS; ++d) l.add(", %lld", (long long)a.shape[d]);
-  l.add("))");
+// Arrays have no printed form in Warp either (its placeholder).
+template <typename T> WP_FUNC void print_value(print_line& l, const array_t<T>&) {
+  l.add("<type without print implementation>");
+}
+
+// print(): Warp's layout puts a space after every component of a vector (and of each matrix
+// row, one row per line); other values as print_value.
+template <typename T> WP_FUNC void print_spaced(print_line& l, const T& v) { print_value(l, v); }
+template <unsigned N, typename T> WP_FUNC void print_spaced(print_line& l, const vec_t<N, T>& v) {
+  for (unsigned i = 0; i < N; ++i) {
+    print_value(l, v.c[i]);
+    l.add(" ");
+  }
+}
+template <unsigned R, unsigned C, typename T> WP_FUNC void print_spaced(print_line& l, const mat_t<R, C, T>& m) {
+  for (unsigned i = 0; i < R; ++i) {
+    if (i) l.add("\n");
+    print_spaced(l, m.get_row(i));
+  }
 }
 
 template <typename T>
 WP_FUNC void print(const launch_context_t* ctx, const T& value) {
   print_line line;
-  print_value(line, value);
+  print_spaced(line, value);
   line.add("\n");
+  line.flush(ctx);
+}
+
+// The reverse code of print(value): one "adj: <adjoint>" line (Warp's adj_print); a matrix's
+// later rows are indented under the first.
+template <typename T>
+WP_FUNC void adj_print(const launch_context_t* ctx, const T&, const T& adj) {
+  print_line line;
+  line.add("adj: ");
+  print_value(line, adj);
+  line.add("\n");
+  line.flush(ctx);
+}
+template <unsigned R, unsigned C, typename T>
+WP_FUNC void adj_print(const launch_context_t* ctx, const mat_t<R, C, T>&, const mat_t<R, C, T>& adj) {
+  print_line line;
+  for (unsigned i = 0; i < R; ++i) {
+    line.add(i ? "     " : "adj: ");
+    print_value(line, adj.get_row(i));
+    line.add("\n");
+  }
   line.flush(ctx);
 }
 

@@ -30,7 +30,7 @@ const char* KindName(ArgValue::Kind k) {
 
 struct Packer {
   const KernelLayout& kernel;
-  bool adjoint = false;   // values stay zero; arrays fill `data` only
+  bool adjoint = false;   // values as sent (zero when none); arrays fill `data` only
   const PackedArgs* primal = nullptr;   // adjoint: the forward block the shapes must match
   std::string device = "cpu";           // where the launch runs: every array must live there
   PackedArgs out;
@@ -106,10 +106,11 @@ struct Packer {
       return Status::Ok();
     }
     if (a.kind != ArgValue::Kind::kRaw) {
-      if (adjoint) return Status::Ok();   // adjoint value slots are zero whatever was sent
+      if (adjoint) return Status::Ok();   // no adjoint value sent: the slot stays zero
       return InvalidArgument(Where(path, p) + ": expected a value, got " + KindName(a.kind));
     }
-    if (adjoint) return Status::Ok();
+    // An adjoint value slot starts at the value sent (Warp's adj_inputs of value parameters;
+    // zero by default), as the primal's does.
     if (a.raw.size() != p.size)
       return InvalidArgument(Where(path, p) + ": value has " + std::to_string(a.raw.size()) +
                              " bytes, expected " + std::to_string(p.size));

@@ -493,7 +493,24 @@ TEST(NativePrint, ValuesAndBuffer) {
   wp::print(&ctx, wp::uint64(18446744073709551615ull));
   wp::printf(&ctx, "x=%d y=%.2f ok\n", 3, 0.5f);
   EXPECT_EQ(PrintBufferText(pb),
-            "1.5\n-7\nTrue\n1 2.5 -3\n1 2\n3 4\n0 0 0 1\n(0 0 0) (0 0 0 1)\n0.25\n18446744073709551615\nx=3 y=0.50 ok\n");
+            "1.5\n-7\nTrue\n1 2.5 -3 \n1 2 \n3 4 \n0 0 0 1\n(0 0 0) (0 0 0 1)\n0.25\n18446744073709551615\nx=3 y=0.50 ok\n");
+}
+
+// The reverse code of print(): Warp's "adj: " lines (components without a trailing space, a
+// matrix's later rows indented under the first; values without a printed form: the placeholder).
+TEST(NativePrint, AdjointLines) {
+  std::vector<char> storage(4096);
+  wp::print_buffer_t pb{storage.data(), storage.size(), 0};
+  wp::launch_context_t ctx{};
+  ctx.print = &pb;
+  wp::adj_print(&ctx, 17.0f, 42.0f);
+  wp::adj_print(&ctx, wp::vec_t<3, float>(0.0f, 1.0f, 2.0f), wp::vec_t<3, float>(2.0f, 1.0f, 0.0f));
+  wp::adj_print(&ctx, wp::mat_t<2, 2, float>(0.0f, 1.0f, 2.0f, 3.0f), wp::mat_t<2, 2, float>(3.0f, 2.0f, 1.0f, 0.0f));
+  wp::adj_print(&ctx, true, false);
+  wp::array_t<float> a{};
+  wp::adj_print(&ctx, a, a);
+  EXPECT_EQ(PrintBufferText(pb),
+            "adj: 42\nadj: 2 1 0\nadj: 3 2\n     1 0\nadj: False\nadj: <type without print implementation>\n");
 }
 
 // wp::printf formats only what the compiler emits for its argument types; anything else

@@ -196,7 +196,7 @@ TEST_F(NativeJit, PrintExpectAndBoundsReports) {
   ctx.print = &pb;
   ctx.error = &err;
   fn(&ctx, &args, 0, 2);
-  EXPECT_EQ(std::string(buf.data(), pb.used), "0 0.5\ni=0\n1 0.5\ni=1\n");
+  EXPECT_EQ(std::string(buf.data(), pb.used), "0 0.5 \ni=0\n1 0.5 \ni=1\n");
   EXPECT_EQ(err.kind, wp::LAUNCH_EXPECT_FAILED);
   EXPECT_EQ(err.line, 13);
   EXPECT_STREQ(err.message, "expect_eq(1, 0)");

@@ -103,3 +103,54 @@ def test_generic_kernel_instances_load_and_structs_print_a_placeholder(wp, kerne
     out = capfd.readouterr().out
     assert "-17" in out and re.search(r"1\.5,? +-2", out), out
     assert "<type without print implementation>" in out, out
+
+
+ADJOINT_PRINT = '''
+import typing
+
+
+@wp.kernel
+def show(x: typing.Any):
+    print(x)
+
+
+for t in (wp.float32, wp.int16, wp.vec3, wp.mat22, wp.bool):
+    wp.overload(show, [t])
+
+
+@wp.kernel
+def running(x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    s = float(0.0)
+    for k in range(3):
+        s = s + x[0] * float(k)
+        print(s)
+    y[0] = s
+'''
+
+
+def test_print_in_adjoint_launches(wp, kernel_module, capfd):
+    """Warp's adjoint printing: an adjoint launch replays print(x) (the forward value) and its
+    reverse code prints "adj: <adjoint of x>", the adjoint starting from adj_inputs; a loop's
+    prints replay once per iteration, not once per reverse step."""
+    mod = kernel_module(ADJOINT_PRINT)
+    cases = [(wp.float32(17.0), wp.float32(42.0), "17\nadj: 42\n"),
+             (wp.int16(17), wp.int16(42), "17\nadj: 42\n"),
+             (wp.vec3(0.0, 1.0, 2.0), wp.vec3(2.0, 1.0, 0.0), "0 1 2 \nadj: 2 1 0\n"),
+             (wp.mat22(0.0, 1.0, 2.0, 3.0), wp.mat22(3.0, 2.0, 1.0, 0.0), "0 1 \n2 3 \nadj: 3 2\n     1 0\n"),
+             (True, False, "True\nadj: False\n")]
+    for value, adj, expected in cases:
+        capfd.readouterr()
+        wp.launch(mod.show, dim=1, inputs=[value], adj_inputs=[adj], adjoint=True)
+        wp.synchronize()
+        assert capfd.readouterr().out == expected, (value, expected)
+    x = wp.array([2.0], dtype=float, requires_grad=True)
+    y = wp.zeros(1, dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(mod.running, dim=1, inputs=[x, y])
+    wp.synchronize()
+    assert capfd.readouterr().out == "0\n2\n6\n"
+    tape.backward(grads={y: wp.array([1.0], dtype=float)})
+    wp.synchronize()
+    assert capfd.readouterr().out == "0\n2\n6\nadj: 1\nadj: 1\nadj: 1\n"
+    assert x.grad.numpy()[0] == 3.0
