@@ -29,7 +29,7 @@ namespace weft::sema {
 enum BuiltinFlags : unsigned {
   kBuiltinNone = 0,
   kBuiltinNeedsCtx = 1u << 0,     // native takes `const wp::launch_context_t*` first
-  kBuiltinSideEffect = 1u << 1,   // writes memory / prints: skipped in the backward pass's replay
+  kBuiltinSideEffect = 1u << 1,   // writes memory / prints: skipped in the backward pass's replay (print: see emit_cpp)
   kBuiltinNotDiff = 1u << 2,      // no adjoint: gradients stop here
   kBuiltinArrayAccess = 1u << 3,  // first param is an array indexed by the following Index params
   kBuiltinNeedsLoc = 1u << 4,     // native takes (ctx, function id, line) first: it reports launch errors

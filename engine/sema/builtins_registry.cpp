@@ -310,7 +310,7 @@ std::string BuiltinRegistry::Markdown() const {
       "| `len(a)` | int32 | `a.shape[0]` of an array; the length of a vector, quaternion (4), transform (7), matrix rows. |\n"
       "| `a.shape`, `a.shape[k]`, `a.ndim` | int32 | array extents. |\n"
       "| `range(stop)`, `range(start, stop[, step])` | - | only as the iterable of `for`; integer arguments. |\n"
-      "| `wp.printf(fmt, *scalars)`, `print(values...)` | - | output reaches the launching client; skipped in the backward pass. |\n"
+      "| `wp.printf(fmt, *scalars)`, `print(values...)` | - | output reaches the launching client; in a backward pass `print(x)` prints the forward value once more and then `adj: <adjoint of x>` (Warp's), `wp.printf` is skipped. |\n"
       "| `wp.float64(x)`, `int(x)`, `float(x)`, ... | scalar | conversions; literals are retyped at compile time. |\n"
       "| `wp.vec3(...)`, `wp.mat33(...)`, `wp.quat(...)`, `wp.transform(p, q)`, `wp.spatial_vector(w, v)`, user vector/matrix types | composite | no arguments: zeros; one scalar: fill; components (scalars and/or composites, concatenated row-major); one value of another scalar type: conversion; a matrix from R-vectors: columns (Warp's legacy rule). Differentiable. |\n"
       "| `wp.vector(*args, length=, dtype=)`, `wp.matrix(*args, shape=(r, c), dtype=)`, `wp.quaternion(...)`, `wp.transformation(p, q)` | composite | as above with explicit shape/dtype (also spelled `wp.types.vector`, `wp.types.matrix`); `length` defaults to the arguments' component count, `shape` to a single matrix argument's; sizes are integer literals or module constants. |\n"
