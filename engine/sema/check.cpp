@@ -10,6 +10,18 @@
 
 namespace weft::sema {
 
+// The atomic builtin an augmented assignment on an array element becomes (+ - & | ^).
+static const char* AtomicBuiltinOf(ast::BinaryOperator op) {
+  switch (op) {
+    case ast::BinaryOperator::kAdd: return "atomic_add";
+    case ast::BinaryOperator::kSub: return "atomic_sub";
+    case ast::BinaryOperator::kBitAnd: return "atomic_and";
+    case ast::BinaryOperator::kBitOr: return "atomic_or";
+    default: return "atomic_xor";
+  }
+}
+
+
 Checker::Checker(const ModuleSource& module, const std::vector<ParsedFunction>& parsed,
                  std::vector<Diagnostic>* diags)
     : src_(module), parsed_(parsed), diags_(diags) {
@@ -628,12 +640,7 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
                                                bitwise ? "the value combined with the array element"
                                                        : "the value added to the array"));
           args.push_back(Value::OfVar(cv));
-          std::string fn = a.op == ast::BinaryOperator::kAdd      ? "atomic_add"
-                           : a.op == ast::BinaryOperator::kSub    ? "atomic_sub"
-                           : a.op == ast::BinaryOperator::kBitAnd ? "atomic_and"
-                           : a.op == ast::BinaryOperator::kBitOr  ? "atomic_or"
-                                                                  : "atomic_xor";
-          WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(fn, std::move(args), a.loc, ArrayParamOf(base.var),
+          WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(AtomicBuiltinOf(a.op), std::move(args), a.loc, ArrayParamOf(base.var),
                                                                  ExprText(*sub->value)));
           (void)r;
           return Status::Ok();
@@ -1009,12 +1016,7 @@ Expected<bool> Checker::LowerComponentAtomic(const ast::AugAssign& a) {
   insert.insert(insert.end(), slot.begin(), slot.end());
   insert.push_back(v);
   args.push_back(Value::OfVar(EmitOp(OpKind::kInsert, et, insert)));
-  const std::string fn = a.op == ast::BinaryOperator::kAdd      ? "atomic_add"
-                         : a.op == ast::BinaryOperator::kSub    ? "atomic_sub"
-                         : a.op == ast::BinaryOperator::kBitAnd ? "atomic_and"
-                         : a.op == ast::BinaryOperator::kBitOr  ? "atomic_or"
-                                                                : "atomic_xor";
-  WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(fn, std::move(args), a.loc, ArrayParamOf(arr.var),
+  WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(AtomicBuiltinOf(a.op), std::move(args), a.loc, ArrayParamOf(arr.var),
                                                          ExprText(*element->value)));
   (void)r;
   return true;

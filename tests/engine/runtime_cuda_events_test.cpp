@@ -20,16 +20,6 @@ Command Event(CudaEventCommand::Op op, const std::string& device, std::string ha
   return c;
 }
 
-Command FillOnes(uint64_t handle) {
-  Command c;
-  FillCommand f;
-  f.dst.handle = handle;
-  float one = 1.0f;
-  f.value.assign(reinterpret_cast<const char*>(&one), sizeof(one));
-  c.kind = f;
-  return c;
-}
-
 TEST(CudaEventsTest, SubmitAndRunHasRunTheBatchWhenItReturns) {
   auto e = MakeEngine();
   auto s = e->OpenSession(Local());

@@ -32,16 +32,6 @@ Command Value(CudaValueCommand::Op op, uint64_t handle, uint32_t index, uint64_t
   return c;
 }
 
-Command FillOnes(uint64_t handle) {
-  Command c;
-  FillCommand f;
-  f.dst.handle = handle;
-  float one = 1.0f;
-  f.value.assign(reinterpret_cast<const char*>(&one), sizeof(one));
-  c.kind = f;
-  return c;
-}
-
 uint64_t Zeros(Engine& e, Session& s, DType dtype, std::vector<int64_t> shape, const std::string& device) {
   CreateArrayParams p;
   p.dtype = dtype;
@@ -53,17 +43,7 @@ uint64_t Zeros(Engine& e, Session& s, DType dtype, std::vector<int64_t> shape, c
   return a.ok() ? a->handle : 0;
 }
 
-std::vector<uint64_t> ReadU64(Engine& e, Session& s, uint64_t handle) {
-  std::vector<uint64_t> out;
-  Status st = e.ReadArray(s, handle, 0, 0, 0, [&](uint64_t, const char* d, size_t n) {
-    size_t k = out.size();
-    out.resize(k + n / 8);
-    std::memcpy(out.data() + k, d, n);
-    return true;
-  });
-  EXPECT_TRUE(st.ok()) << st.ToString();
-  return out;
-}
+std::vector<uint64_t> ReadU64(Engine& e, Session& s, uint64_t handle) { return ReadValues<uint64_t>(e, s, handle); }
 
 TEST(CudaValuesTest, OnlyWritesRunAfterAFailure) {
   EXPECT_TRUE(RunsAfterFailure(Value(CudaValueCommand::Op::kWrite, 1, 0, 1)));

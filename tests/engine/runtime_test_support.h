@@ -94,16 +94,31 @@ inline CreateArrayParams FromFloats(const std::vector<float>& v, bool requires_g
   return p;
 }
 
-inline std::vector<float> ReadFloats(Engine& e, Session& s, uint64_t handle) {
-  std::vector<float> out;
+// The whole array's elements as T (the array's element size must be sizeof(T)).
+template <typename T>
+std::vector<T> ReadValues(Engine& e, Session& s, uint64_t handle) {
+  std::vector<T> out;
   Status st = e.ReadArray(s, handle, 0, 0, 0, [&](uint64_t, const char* d, size_t n) {
     size_t k = out.size();
-    out.resize(k + n / 4);
+    out.resize(k + n / sizeof(T));
     std::memcpy(out.data() + k, d, n);
     return true;
   });
   EXPECT_TRUE(st.ok()) << st.ToString();
   return out;
+}
+
+inline std::vector<float> ReadFloats(Engine& e, Session& s, uint64_t handle) { return ReadValues<float>(e, s, handle); }
+
+// A fill of the whole array `handle` (float32 elements) with 1.0.
+inline Command FillOnes(uint64_t handle) {
+  Command c;
+  FillCommand f;
+  f.dst.handle = handle;
+  float one = 1.0f;
+  f.value.assign(reinterpret_cast<const char*>(&one), sizeof(one));
+  c.kind = f;
+  return c;
 }
 
 inline ArgValue ArrayArg(uint64_t handle) {
