@@ -394,14 +394,16 @@ class Runtime:
                            "ImportCuda": (_fast_lane.ARRAY_IMPORT_CUDA, array_pb2.ImportCudaResponse)}
 
     def _lane_free(self):
-        """The fast lane when it is open and no asynchronous Submit's reply is outstanding on
-        it (a done one is collected first); else None (caller holds the lock)."""
+        """The fast lane when it is open, once no asynchronous Submit's reply is outstanding on
+        it (they are collected first); else None (caller holds the lock)."""
         lane = self.fast_lane
         if lane is None or lane.broken:
             return None
         self._collect_done()
         if any(isinstance(call, _fast_lane.PendingReply) for call in self._inflight):
-            return None
+            # Submits of ordered launches (send_now) still on the lane: their replies come as
+            # soon as weftd has admitted them, sooner than a gRPC call would
+            self._collect_inflight()
         return None if lane.broken else lane
 
     def array_call(self, method: str, request):
