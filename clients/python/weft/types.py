@@ -57,6 +57,10 @@ class _Scalar(metaclass=_ScalarMeta):
         if isinstance(x, _Scalar):
             x = x.value
         self.value = self._py_type_(np.asarray(x).astype(self._np_dtype_).item())
+        # Warp shows a float scalar as the number it was given (float32(-1), float32(0.1)),
+        # while `.value` is the number the type holds
+        self._shown = x if self._py_type_ is _py_float and type(x) in (_py_int, _py_float) \
+            else self.value
 
     def __float__(self):
         return _py_float(self.value)
@@ -81,10 +85,10 @@ class _Scalar(metaclass=_ScalarMeta):
         return hash(self.value)
 
     def __repr__(self):
-        return f"{type(self).__name__}({self.value!r})"
+        return f"{type(self).__name__}({getattr(self, '_shown', self.value)!r})"
 
     def __str__(self):
-        return str(self.value)
+        return str(getattr(self, "_shown", self.value))
 
 
 class scalar_base(_Scalar):
@@ -150,6 +154,7 @@ def _bfloat16_init(self, x=0.0):
         x = x.value
     from ._kernel.typestr import bfloat16_bits_to_float32, float32_to_bfloat16_bits
     self.value = _py_float(bfloat16_bits_to_float32(float32_to_bfloat16_bits(_py_float(x))))
+    self._shown = x if type(x) in (_py_int, _py_float) else self.value
 
 
 bfloat16.__init__ = _bfloat16_init

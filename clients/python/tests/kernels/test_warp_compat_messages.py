@@ -206,3 +206,14 @@ def test_segmented_sort_invalid_ranges_by_device(wp, device):
         wp.utils.segmented_sort_pairs(keys, values, 4, offsets)
         np.testing.assert_array_equal(keys.numpy()[:4], (1, 2, 4, 3))
         np.testing.assert_array_equal(values.numpy()[:4], (10, 20, 40, 30))
+
+
+def test_float_scalars_show_the_number_they_were_given(wp, device):
+    """Warp's repr/str of a float scalar is the number it was made from (float16(-1),
+    float32(0.1)); `.value` is the number the type holds (rounded to its precision)."""
+    assert repr(wp.float16(-1)) == "float16(-1)" and repr(wp.float32(-1)) == "float32(-1)"
+    assert repr(wp.float64(-1)) == "float64(-1)" and str(wp.float32(2.5)) == "2.5"
+    assert repr(wp.float32(0.1)) == "float32(0.1)" and wp.float32(0.1).value != 0.1
+    assert abs(wp.float32(0.1).value - 0.1) < 1e-8
+    assert repr(wp.int8(-1)) == "int8(-1)" and repr(wp.uint64(2**64 - 1)) == "uint64(18446744073709551615)"
+    assert repr(wp.bfloat16(1)) == "bfloat16(1)"
