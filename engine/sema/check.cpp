@@ -628,13 +628,7 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
             return Error(a.loc, "array '" + ExprText(*sub->value) + "' has " + std::to_string(at.ndim) +
                                     " dimensions but " + std::to_string(sub->indices.size()) + " indices were given");
           std::vector<Value> args{base};
-          for (const auto& ix : sub->indices) {
-            WEFT_ASSIGN_OR_RETURN(Value iv, Eval(*ix));
-            if (iv.kind == Value::Kind::kVar && TypeOf(iv.var).is_scalar() && !IsInt(TypeOf(iv.var).scalar))
-              return ErrorOf("type", ix->loc, "Array slot write indices must be integers, got `" +
-                                                  TypeString(TypeOf(iv.var)) + "`");
-            args.push_back(iv);
-          }
+          WEFT_RETURN_IF_ERROR(EvalSlotIndices(sub->indices, &args));
           WEFT_ASSIGN_OR_RETURN(Value val, Eval(*a.value));
           WEFT_ASSIGN_OR_RETURN(int cv, Coerce(val, at.elem(), a.value->loc,
                                                bitwise ? "the value combined with the array element"
@@ -940,6 +934,19 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
   return Error(loc, "cannot assign to this expression");
 }
 
+// The indices of an array element an atomic update writes, appended to `out` (Warp's
+// TypeError for a float index).
+Status Checker::EvalSlotIndices(const ast::ExprList& indices, std::vector<Value>* out) {
+  for (const auto& ix : indices) {
+    WEFT_ASSIGN_OR_RETURN(Value iv, Eval(*ix));
+    if (iv.kind == Value::Kind::kVar && TypeOf(iv.var).is_scalar() && !IsInt(TypeOf(iv.var).scalar))
+      return ErrorOf("type", ix->loc, "Array slot write indices must be integers, got `" +
+                                          TypeString(TypeOf(iv.var)) + "`");
+    out->push_back(iv);
+  }
+  return Status::Ok();
+}
+
 // `arr[i][j] += v`, `arr[i].x -= v`, `m_arr[i][r] &= row` (a component or a matrix row of an
 // array element; arr may be wp.adjoint[a] or a struct's array field): one atomic on the whole
 // element whose value is the operator's identity (zero, or all bits set for &=) with `v` in
@@ -989,13 +996,7 @@ Expected<bool> Checker::LowerComponentAtomic(const ast::AugAssign& a) {
     comp = Type::Scalar(sk);
   }
   std::vector<Value> args{arr};
-  for (const auto& ix : element->indices) {
-    WEFT_ASSIGN_OR_RETURN(Value iv, Eval(*ix));
-    if (iv.kind == Value::Kind::kVar && TypeOf(iv.var).is_scalar() && !IsInt(TypeOf(iv.var).scalar))
-      return ErrorOf("type", ix->loc, "Array slot write indices must be integers, got `" +
-                                          TypeString(TypeOf(iv.var)) + "`");
-    args.push_back(iv);
-  }
+  WEFT_RETURN_IF_ERROR(EvalSlotIndices(element->indices, &args));
   std::vector<int> slot;
   if (attr_index >= 0) {
     slot.push_back(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(attr_index) + ")"));

@@ -88,6 +88,7 @@ class Checker {
   Status LowerStmt2(const ast::Stmt& s);   // LowerStmt less the tracking of path-bound names
   Status LowerAssignTo(const ast::Expr& target, Value value);
   Expected<bool> LowerComponentAtomic(const ast::AugAssign& a);
+  Status EvalSlotIndices(const ast::ExprList& indices, std::vector<Value>* out);
   Status LowerIf(int cond, const std::function<Status()>& then_fn, const std::function<Status()>& else_fn);
   Status LowerFor(const ast::For& s);
   Status LowerWhile(const ast::While& s);

@@ -179,5 +179,40 @@ TEST(ArrayValidation, AdjointArgumentsMatchThePrimal) {
   EXPECT_TRUE(PackAdjointArgs(k, *primal, {adj}).ok());
 }
 
+// An adjoint value slot starts at the value sent (Warp's adj_inputs), so its bytes get the
+// primal's size check: a short or long value is refused, none leaves the slot zero.
+TEST(ArrayValidation, AdjointValuesAreSizeCheckedAndCopied) {
+  KernelLayout k;
+  k.name = "k";
+  k.params = {ValueParam("s", "float32", 0, 4)};
+  k.args_size = 4;
+  ResolvedArg v;
+  v.kind = ArgValue::Kind::kRaw;
+  const float seven = 7.0f;
+  v.raw.assign(reinterpret_cast<const char*>(&seven), 4);
+  auto primal = PackArgs(k, {v});
+  ASSERT_TRUE(primal.ok()) << primal.status().ToString();
+  ResolvedArg adj = v;
+  const float two = 2.0f;
+  adj.raw.assign(reinterpret_cast<const char*>(&two), 4);
+  auto r = PackAdjointArgs(k, *primal, {adj});
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  float got = 0;
+  std::memcpy(&got, r->block.data(), 4);
+  EXPECT_EQ(got, 2.0f);
+  for (size_t n : {size_t{3}, size_t{5}, size_t{4096}}) {
+    adj.raw.assign(n, '\x7f');
+    r = PackAdjointArgs(k, *primal, {adj});
+    ASSERT_FALSE(r.ok()) << n;
+    EXPECT_NE(r.status().message().find("bytes, expected 4"), std::string::npos) << r.status().ToString();
+  }
+  adj.kind = ArgValue::Kind::kArray;   // no value sent: zero
+  adj.raw.clear();
+  r = PackAdjointArgs(k, *primal, {adj});
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  std::memcpy(&got, r->block.data(), 4);
+  EXPECT_EQ(got, 0.0f);
+}
+
 }  // namespace
 }  // namespace weft

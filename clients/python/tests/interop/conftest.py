@@ -34,6 +34,31 @@ def torch():
 
 
 @pytest.fixture
+def tcuda(wp, cuda, torch):
+    """"cuda:0" for tests of Torch GPU memory: Torch on CUDA and CUDA IPC usable by this client
+    (else skipped with the reason). Files narrow it further by overriding it."""
+    if not torch.cuda.is_available():
+        pytest.skip("Torch has no CUDA device")
+    from weft import _cuda_ipc
+
+    if not _cuda_ipc.available():
+        pytest.skip(f"CUDA IPC is not available in this client: {_cuda_ipc.reason()}")
+    return cuda
+
+
+@pytest.fixture
+def tordered(tcuda):
+    """tcuda, with launches on framework memory ordered on the GPU (stream memory operations
+    or events; else skipped with the reason)."""
+    from weft import _runtime
+    from weft.interop import cuda_order
+
+    if not cuda_order.enabled(_runtime.get_runtime(), {0}):
+        pytest.skip(f"GPU ordering is off: {cuda_order.refused()}")
+    return tcuda
+
+
+@pytest.fixture
 def jax():
     """JAX with float64 enabled, its arrays placed on the CPU (these are the CPU paths, also
     on machines where JAX has a GPU)."""

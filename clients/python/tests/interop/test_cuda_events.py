@@ -104,50 +104,35 @@ def test_streams_are_cuda_objects(wp, torch):
 
 # ---- GPU
 
-@pytest.fixture
-def tcuda(wp, cuda, torch):
-    """Torch on CUDA, CUDA IPC in this client and event ordering on (else skipped)."""
-    if not torch.cuda.is_available():
-        pytest.skip("Torch has no CUDA device")
-    from weft import _cuda_ipc, _runtime
-    from weft.interop import cuda_order
-
-    if not _cuda_ipc.available():
-        pytest.skip(f"CUDA IPC is not available in this client: {_cuda_ipc.reason()}")
-    if not cuda_order.enabled(_runtime.get_runtime(), {0}):
-        pytest.skip(f"event ordering is off: {cuda_order.refused()}")
-    return cuda
-
-
 SPINS = 20000
 
 
-def test_torch_work_before_a_launch_is_seen_without_a_host_wait(wp, tcuda, torch):
+def test_torch_work_before_a_launch_is_seen_without_a_host_wait(wp, tordered, torch):
     n = 1 << 16
     t = torch.zeros(n, device="cuda")
     a = wp.from_torch(t)
-    wp.launch(add_one, dim=n, inputs=[a], device=tcuda)      # imports, probes, warms up
+    wp.launch(add_one, dim=n, inputs=[a], device=tordered)      # imports, probes, warms up
     torch.cuda.synchronize()
     torch.cuda._sleep(200_000_000)                           # ~0.1 s of GPU time on Torch's stream
     t.fill_(41.0)                                            # queued behind it
-    wp.launch(add_one, dim=n, inputs=[a], device=tcuda)
+    wp.launch(add_one, dim=n, inputs=[a], device=tordered)
     busy = not torch.cuda.current_stream().query()
     result = t.cpu().numpy()                                 # Torch's stream: after the launch
     np.testing.assert_array_equal(result, np.full(n, 42.0, dtype=np.float32))
     assert busy, "wp.launch waited on the host for Torch's stream"
 
 
-def test_launch_writes_are_seen_by_torch_work_queued_after(wp, tcuda, torch):
+def test_launch_writes_are_seen_by_torch_work_queued_after(wp, tordered, torch):
     n = 1 << 15
     t = torch.zeros(n, device="cuda")
     a = wp.from_torch(t)
     for value in (3.0, 7.0):
-        wp.launch(slow_fill, dim=n, inputs=[a, value, SPINS], device=tcuda)
+        wp.launch(slow_fill, dim=n, inputs=[a, value, SPINS], device=tordered)
         s = (t * 2.0).sum().item()                           # Torch reads at once
         assert s == pytest.approx(2.0 * value * n)
 
 
-def test_scoped_stream_from_a_torch_side_stream(wp, tcuda, torch):
+def test_scoped_stream_from_a_torch_side_stream(wp, tordered, torch):
     n = 1 << 15
     side = torch.cuda.Stream()
     t = torch.zeros(n, device="cuda")
@@ -159,25 +144,25 @@ def test_scoped_stream_from_a_torch_side_stream(wp, tcuda, torch):
         torch.cuda._sleep(100_000_000)
         t.fill_(5.0)
         with wp.ScopedStream(ws):
-            wp.launch(add_one, dim=n, inputs=[a], device=tcuda)
+            wp.launch(add_one, dim=n, inputs=[a], device=tordered)
         u = t * 10.0                                         # on the side stream, after weft
     side.synchronize()
     np.testing.assert_array_equal(u.cpu().numpy(), np.full(n, 60.0, dtype=np.float32))
 
 
-def test_dlpack_stream_and_cuda_array_interface_stream(wp, tcuda, torch, rng):
+def test_dlpack_stream_and_cuda_array_interface_stream(wp, tordered, torch, rng):
     from weft import _cuda_ipc
 
     n = 4096
-    a = wp.zeros(n, dtype=float, device=tcuda)
-    wp.launch(slow_fill, dim=n, inputs=[a, 2.5, SPINS], device=tcuda)
+    a = wp.zeros(n, dtype=float, device=tordered)
+    wp.launch(slow_fill, dim=n, inputs=[a, 2.5, SPINS], device=tordered)
     side = torch.cuda.Stream()
     with torch.cuda.stream(side):
         t = torch.utils.dlpack.from_dlpack(a)            # __dlpack__(stream=side)
         total = t.sum()
     side.synchronize()
     assert total.item() == pytest.approx(2.5 * n)
-    wp.launch(slow_fill, dim=n, inputs=[a, 4.0, SPINS], device=tcuda)
+    wp.launch(slow_fill, dim=n, inputs=[a, 4.0, SPINS], device=tordered)
     cai = a.__cuda_array_interface__
     assert cai["stream"] == _cuda_ipc.proxy_stream(0) and cai["stream"] not in (0, None)
     proxy = torch.cuda.ExternalStream(cai["stream"])
@@ -187,19 +172,19 @@ def test_dlpack_stream_and_cuda_array_interface_stream(wp, tcuda, torch, rng):
     assert total.item() == pytest.approx(4.0 * n)
 
 
-def test_stream_to_torch_of_the_session_stream(wp, tcuda, torch):
+def test_stream_to_torch_of_the_session_stream(wp, tordered, torch):
     n = 4096
-    a = wp.zeros(n, dtype=float, device=tcuda)
+    a = wp.zeros(n, dtype=float, device=tordered)
     t = wp.to_torch(a)
-    wp.launch(slow_fill, dim=n, inputs=[a, 1.5, SPINS], device=tcuda)
-    ts = wp.stream_to_torch(wp.get_stream(tcuda))
+    wp.launch(slow_fill, dim=n, inputs=[a, 1.5, SPINS], device=tordered)
+    ts = wp.stream_to_torch(wp.get_stream(tordered))
     with torch.cuda.stream(ts):
         total = t.sum()
     ts.synchronize()
     assert total.item() == pytest.approx(1.5 * n)
 
 
-def test_forged_event_handle_is_a_clear_error(wp, tcuda, rng):
+def test_forged_event_handle_is_a_clear_error(wp, tordered, rng):
     from weft import _runtime
     from weft.v1 import exec_pb2
 
@@ -209,8 +194,8 @@ def test_forged_event_handle_is_a_clear_error(wp, tcuda, rng):
     rt.submit(_event_command(exec_pb2.CudaEventCommand.WAIT, forged))
     with pytest.raises(Exception, match="could not be opened on cuda:0"):
         rt.run()
-    a = wp.zeros(16, dtype=float, device=tcuda)             # the session and daemon go on
-    wp.launch(add_one, dim=16, inputs=[a], device=tcuda)
+    a = wp.zeros(16, dtype=float, device=tordered)             # the session and daemon go on
+    wp.launch(add_one, dim=16, inputs=[a], device=tordered)
     np.testing.assert_array_equal(a.numpy(), np.ones(16, dtype=np.float32))
 
 
@@ -231,7 +216,7 @@ sys.stdin.readline()
 """
 
 
-def test_an_event_another_session_uses_is_refused(wp, tcuda, spawn_client):
+def test_an_event_another_session_uses_is_refused(wp, tordered, spawn_client):
     from weft import _runtime
     from weft.v1 import exec_pb2
 

@@ -28,18 +28,6 @@ def square_sum(x: wp.array(dtype=float), loss: wp.array(dtype=float)):
     wp.atomic_add(loss, 0, x[i] * x[i])
 
 
-@pytest.fixture
-def tcuda(wp, cuda, torch):
-    """Torch on CUDA with CUDA IPC usable by this client (else skipped with the reason)."""
-    if not torch.cuda.is_available():
-        pytest.skip("Torch has no CUDA device")
-    from weft import _cuda_ipc
-
-    if not _cuda_ipc.available():
-        pytest.skip(f"CUDA IPC is not available in this client: {_cuda_ipc.reason()}")
-    return cuda
-
-
 def _imported(a) -> bool:
     return a._alloc.keep is not None
 

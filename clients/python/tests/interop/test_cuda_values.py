@@ -90,23 +90,16 @@ def test_unknown_value_op_is_refused_at_submit(wp):
 # ---- GPU
 
 @pytest.fixture
-def tvalues(wp, cuda, torch):
-    """Torch on CUDA, CUDA IPC in this client and ordering by stream memory operations on."""
-    if not torch.cuda.is_available():
-        pytest.skip("Torch has no CUDA device")
+def tvalues(tordered):
+    """tordered, ordering by stream memory operations (else skipped with the reason)."""
     from weft import _cuda_ipc, _runtime
     from weft.interop import cuda_order
 
-    if not _cuda_ipc.available():
-        pytest.skip(f"CUDA IPC is not available in this client: {_cuda_ipc.reason()}")
     if not _cuda_ipc.stream_mem_ops(0):
         pytest.skip("cuda:0 has no 64-bit stream memory operations in this client")
-    rt = _runtime.get_runtime()
-    if not cuda_order.enabled(rt, {0}):
-        pytest.skip(f"GPU ordering is off: {cuda_order.refused()}")
-    assert cuda_order.uses_values(rt, 0), \
+    assert cuda_order.uses_values(_runtime.get_runtime(), 0), \
         "both sides support stream memory operations, yet the session orders by events"
-    return cuda
+    return tordered
 
 
 def test_ordered_launches_make_no_round_trip(wp, tvalues, torch, monkeypatch):

@@ -19,6 +19,7 @@ for launches, copied back after the kernel ran.
 """
 from __future__ import annotations
 
+import collections
 import ctypes
 
 import numpy as np
@@ -221,8 +222,6 @@ PARKED_IMPORTS = 16
 def _parked(rt) -> dict:
     pool = rt.__dict__.get("_weft_parked_imports")
     if pool is None:
-        import collections  # noqa: PLC0415
-
         pool = rt.__dict__["_weft_parked_imports"] = collections.OrderedDict()
     return pool
 

@@ -22,6 +22,7 @@ host. WEFT_CUDA_VALUES=0 keeps events even where values would work.
 """
 from __future__ import annotations
 
+import ctypes
 import os
 import sys
 import threading
@@ -156,7 +157,6 @@ def _value_order(rt, ordinal):
         rt.submit(state.command(pb.CudaValueCommand.WRITE, 0, 1))
         rt.submit(state.command(pb.CudaValueCommand.WAIT, 0, 1))
         rt.synchronize()
-        import ctypes  # noqa: PLC0415
         word = ctypes.c_uint64()
         _cuda_ipc.copy_to_host(ordinal, ctypes.addressof(word), state.address, 8)
         if word.value != 1:
