@@ -183,6 +183,7 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
       lc.device = l.device();
       lc.block_dim = l.block_dim();
       lc.max_blocks = l.max_blocks();
+      lc.record_only = l.record_only();
       c.kind = std::move(lc);
       break;
     }

@@ -249,8 +249,14 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
                            "; the launch runs on " + device->name() + " (compile it for that device)");
   const LoadedKernel* kernel = module->Find(c.kernel);
   if (!kernel) return NotFound("module '" + c.module_id + "' has no kernel '" + c.kernel + "'");
+  if (c.record_only && c.adjoint)
+    return InvalidArgument("launch of '" + c.kernel + "': record_only applies to forward launches, not adjoint ones");
   WEFT_ASSIGN_OR_RETURN(std::vector<ResolvedArg> args, ResolveArgs(c.args, h, c.kernel));
   WEFT_ASSIGN_OR_RETURN(PackedArgs packed, PackArgs(kernel->layout, args, device->name()));
+  if (c.record_only) {
+    if (s.active_tape != 0) RecordOnTape(s, c, device->name(), origin, std::move(packed));
+    return Status::Ok();
+  }
 
   KernelLaunch launch;
   launch.dim = c.dim;
@@ -281,22 +287,25 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
   WEFT_RETURN_IF_ERROR(st);
 
   // Record forward launches on the active tape.
-  if (!c.adjoint && s.active_tape != 0) {
-    Tape& tape = s.tapes[s.active_tape];
-    TapeRecord r;
-    r.module_id = c.module_id;
-    r.kernel = c.kernel;
-    r.dim = c.dim;
-    r.origin = origin;
-    r.device = device->name();
-    r.block_dim = c.block_dim;
-    r.max_blocks = c.max_blocks;
-    for (auto& a : packed.keep_alive) tape.Touch(a);
-    r.args = std::move(packed);
-    r.args.keep_alive.clear();   // tapes do not keep arrays alive
-    tape.records.push_back(std::move(r));
-  }
+  if (!c.adjoint && s.active_tape != 0) RecordOnTape(s, c, device->name(), origin, std::move(packed));
   return Status::Ok();
+}
+
+void CommandExecutor::RecordOnTape(Session& s, const LaunchCommand& c, const std::string& device,
+                                   const SourceLocation& origin, PackedArgs packed) {
+  Tape& tape = s.tapes[s.active_tape];
+  TapeRecord r;
+  r.module_id = c.module_id;
+  r.kernel = c.kernel;
+  r.dim = c.dim;
+  r.origin = origin;
+  r.device = device;
+  r.block_dim = c.block_dim;
+  r.max_blocks = c.max_blocks;
+  for (auto& a : packed.keep_alive) tape.Touch(a);
+  r.args = std::move(packed);
+  r.args.keep_alive.clear();   // tapes do not keep arrays alive
+  tape.records.push_back(std::move(r));
 }
 
 Status CommandExecutor::TapeOp(Session& s, const TapeCommand& c, const HandleSnapshot& h) {

@@ -43,6 +43,7 @@ struct LaunchCommand {
   std::string device;               // "cpu", "cuda:N", "cuda" (the session's GPU)
   uint32_t block_dim = 0;           // GPU threads per block (0 = 256), Warp's block_dim
   uint32_t max_blocks = 0;          // GPU grid bound (0 = none), Warp's max_blocks
+  bool record_only = false;         // validate and record on the active tape, do not run
 };
 
 struct TapeCommand {

@@ -268,5 +268,40 @@ TEST(Tape, SessionsNeverSeeEachOthersTapes) {
   EXPECT_EQ(ReadFloats(*t.e, *t.s, xa->grad_handle), (std::vector<float>{2, 4}));
 }
 
+// A record-only launch (a launch captured into a graph while a tape records) is checked like
+// a forward launch and recorded, but does not run; backward replays its adjoint. Without a
+// tape it runs nothing; with adjoint, or with arguments a forward launch would refuse, it fails.
+TEST(Tape, RecordOnlyLaunchesAreRecordedNotRun) {
+  TapeRig t;
+  std::mt19937 rng(std::random_device{}());
+  std::vector<float> x(64);
+  for (auto& v : x) v = std::uniform_real_distribution<float>(-3, 3)(rng);
+  auto xa = t.e->CreateArray(*t.s, FromFloats(x, true));
+  auto sq = t.e->CreateArray(*t.s, FromFloats(std::vector<float>(64, 0), true));
+  LaunchCommand rec = L("square", xa->handle, sq->handle, 64);
+  rec.record_only = true;
+  ASSERT_TRUE(t.Run({Cmd(rec)}).ok());   // no tape: validated, nothing recorded or run
+  Status st = t.Run({Cmd(T(TapeCommand::Op::kBegin, 3)), Cmd(rec), Cmd(T(TapeCommand::Op::kEnd, 3))});
+  ASSERT_TRUE(st.ok()) << st.ToString();
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, sq->handle), std::vector<float>(64, 0));   // not run
+  TapeCommand back = T(TapeCommand::Op::kBackward, 3);
+  auto ones = t.e->CreateArray(*t.s, FromFloats(std::vector<float>(64, 1), false));
+  back.seeds.emplace_back(ArrayRef{sq->handle, 0, {}, {}}, ArrayRef{ones->handle, 0, {}, {}});
+  st = t.Run({Cmd(back)});
+  ASSERT_TRUE(st.ok()) << st.ToString();
+  auto g = ReadFloats(*t.e, *t.s, xa->grad_handle);
+  for (int i = 0; i < 64; ++i) ASSERT_NEAR(g[i], 2.0 * x[i], 1e-5) << i;
+
+  LaunchCommand adjoint = rec;
+  adjoint.adjoint = true;
+  st = t.Run({Cmd(adjoint)});
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("record_only"), std::string::npos) << st.ToString();
+  LaunchCommand stray = rec;
+  stray.args[0] = ArrayArg(987654321);
+  st = t.Run({Cmd(T(TapeCommand::Op::kBegin, 4)), Cmd(stray), Cmd(T(TapeCommand::Op::kEnd, 4))});
+  ASSERT_FALSE(st.ok());
+}
+
 }  // namespace
 }  // namespace weft

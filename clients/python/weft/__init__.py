@@ -26,6 +26,9 @@ from .mempool import (ScopedMempool, ScopedMempoolAccess, ScopedPeerAccess,  # n
                       is_peer_access_enabled, is_peer_access_supported,
                       set_mempool_access_enabled, set_mempool_enabled,
                       set_mempool_release_threshold, set_peer_access_enabled)
+from .graph import (Graph, ScopedCapture, capture_begin, capture_debug_dot_print,  # noqa: F401
+                    capture_end, capture_if, capture_launch, capture_pause, capture_resume,
+                    capture_while, is_conditional_graph_supported)
 from .streams import (Event, ScopedStream, Stream, get_event_elapsed_time,  # noqa: F401
                       get_stream, record_event, set_stream, synchronize_event,
                       synchronize_stream, wait_event, wait_stream)

@@ -346,6 +346,11 @@ class Runtime:
         self._slabs = weakref.WeakValueDictionary()   # name -> _SlabMapping in use
         self._devices = None
         self._unsynchronized = False   # commands were queued since the last Synchronize
+        # Graph capture (weft/graph.py): thread id -> the capture recording that thread's
+        # commands; handles that captured graphs name, and those freed while a graph held them.
+        self.captures: dict = {}
+        self._graph_handles: collections.Counter = collections.Counter()
+        self._graph_freed: set = set()
         self.closed = False
         self.attach_lost = False
         self.attach_message = ""
@@ -456,6 +461,10 @@ class Runtime:
         (see _pump): the daemon starts on it while this process queues more."""
         if not cmd.HasField("origin"):
             cmd.origin.CopyFrom(caller_location())
+        if self.captures:
+            capture = self.captures.get(threading.get_ident())
+            if capture is not None and capture.take(cmd):
+                return
         with self._lock:
             self._unsynchronized = True
             self.work_queued += 1
@@ -468,6 +477,44 @@ class Runtime:
                 self._pump()
         if full:
             self.flush()
+
+    def submit_recorded(self, commands, nbytes: int) -> None:
+        """Queues recorded commands (a captured graph: origins set, checked when captured) as
+        one block of the batch; a block larger than a batch goes out in batch-sized Submits."""
+        if self.captures and threading.get_ident() in self.captures:
+            for cmd in commands:        # a graph launched while capturing: part of the new one
+                self.submit(cmd)
+            return
+        for start in range(0, len(commands), BATCH_MAX_COMMANDS):
+            chunk = commands[start:start + BATCH_MAX_COMMANDS]
+            if len(self._batch) + len(chunk) > BATCH_MAX_COMMANDS or \
+                    self._batch_bytes + nbytes > BATCH_MAX_BYTES:
+                self.flush()
+            with self._lock:
+                self._unsynchronized = True
+                self.work_queued += len(chunk)
+                if not self._batch:
+                    self._batch_since = time.perf_counter()
+                self._batch.extend(chunk)
+                self._batch_bytes += nbytes if len(chunk) == len(commands) else \
+                    sum(cmd.ByteSize() for cmd in chunk)
+                self._pump()
+
+    def retain_handles(self, handles) -> None:
+        """Keeps the daemon arrays `handles` while a captured graph names them."""
+        with self._lock:
+            self._graph_handles.update(handles)
+
+    def release_handles(self, handles) -> None:
+        """A graph is gone: frees the arrays that were released while it held them."""
+        with self._lock:
+            for handle in handles:
+                self._graph_handles[handle] -= 1
+                if self._graph_handles[handle] <= 0:
+                    del self._graph_handles[handle]
+                    if handle in self._graph_freed:
+                        self._graph_freed.discard(handle)
+                        self._pending_frees.append(handle)
 
     def _pump(self) -> None:
         """Sends the batch as an asynchronous Submit when no Submit is in flight and the batch
@@ -614,8 +661,14 @@ class Runtime:
 
     # -- frees (deferred: never an RPC from a finalizer, never before queued commands are sent)
     def free_later(self, handle: int) -> None:
-        if not self.closed:
-            self._pending_frees.append(handle)
+        if self.closed:
+            return
+        if self._graph_handles:
+            with self._lock:
+                if handle in self._graph_handles:   # a captured graph still names it
+                    self._graph_freed.add(handle)
+                    return
+        self._pending_frees.append(handle)
 
     def drain_frees(self) -> None:
         """Frees what finalizers released, if no command that may use them is unsent."""

@@ -1158,7 +1158,26 @@ def _new_array(shape, dtype, device, requires_grad, init, value=b""):
     if dtype is Any:
         dtype = float32
     out._init_new(dtype, _normalize_shape(shape), requires_grad, init, value)
+    rt = _runtime.get_runtime()
+    if rt.captures and init != _runtime.array_pb2.CreateArrayRequest.EMPTY:
+        _refill_in_capture(rt, out, init, value)
     return out
+
+
+def _refill_in_capture(rt, out, init, value) -> None:
+    """A zeros/full array made while this thread captures a graph on its device: the graph
+    also sets its value (and zeroes its gradient), as Warp's captured memset does."""
+    from .graph import is_capturing  # noqa: PLC0415
+
+    if out.size == 0 or not is_capturing(out.device):
+        return
+    if init == _runtime.array_pb2.CreateArrayRequest.ZEROS:
+        out.zero_()
+    else:
+        rt.submit(_runtime.exec_pb2.Command(fill=_runtime.exec_pb2.FillCommand(
+            dst=out._ref(), value=value)))
+    if out.grad is not None:
+        out.grad.zero_()
 
 
 def _legacy_length(shape, n):

@@ -56,6 +56,20 @@ class Device:
     def context(self):
         return None
 
+    @property
+    def is_capturing(self) -> bool:
+        """Whether this thread is capturing a graph on this device (weft/graph.py)."""
+        from .graph import is_capturing  # noqa: PLC0415
+        return is_capturing(self)
+
+    @property
+    def stream(self):
+        """The current stream of this CUDA device (wp.get_stream)."""
+        if not self.is_cuda:
+            raise RuntimeError(f"Device {self.alias} is not a CUDA device: it has no streams")
+        from .streams import get_stream  # noqa: PLC0415
+        return get_stream(self)
+
     def __str__(self):
         return self.alias
 

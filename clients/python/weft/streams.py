@@ -109,7 +109,9 @@ class Stream:
 
     @property
     def is_capturing(self) -> bool:
-        return False
+        """Whether this thread is capturing a graph on the stream's device."""
+        from .graph import is_capturing  # noqa: PLC0415
+        return is_capturing(self.device)
 
     def record_event(self, event=None) -> Event:
         if event is None:

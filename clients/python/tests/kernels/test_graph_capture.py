@@ -1,0 +1,240 @@
+"""Graph capture (weft/graph.py) on every test device: wp.ScopedCapture / capture_begin /
+capture_end record instead of running, wp.capture_launch replays with the arguments fixed at
+capture; zeros/full made inside a capture are reset by each replay; a tape recorded inside a
+capture replays its backward (a gradient-descent step captured whole matches a float64
+reference); a graph keeps the arrays it names; capture_if/capture_while; errors in replayed
+commands carry the captured launch's file:line; a tampered graph command is refused by the
+daemon like any command."""
+import gc
+import inspect
+import re
+
+import numpy as np
+import pytest
+
+import weft as wp
+
+
+@wp.kernel
+def axpy(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):
+    i = wp.tid()
+    y[i] = y[i] + a * x[i]
+
+
+@wp.kernel
+def sum_squares(x: wp.array(dtype=float), loss: wp.array(dtype=float)):
+    i = wp.tid()
+    wp.atomic_add(loss, 0, x[i] * x[i] * x[i] * x[i])
+
+
+@wp.kernel
+def descend(x: wp.array(dtype=float), g: wp.array(dtype=float), rate: float):
+    i = wp.tid()
+    x[i] = x[i] - rate * g[i]
+
+
+@wp.kernel
+def count_down(counter: wp.array(dtype=wp.int32), hits: wp.array(dtype=float)):
+    counter[0] = counter[0] - 1
+    hits[0] = hits[0] + 1.0
+
+
+@wp.kernel
+def read_at(x: wp.array(dtype=float), index: int, out: wp.array(dtype=float)):
+    out[0] = x[index]
+
+
+def test_capture_records_and_replays_with_fixed_arguments(rng, device):
+    n = 1000
+    x_np = rng.standard_normal(n).astype(np.float32) * np.float32(1e3)
+    y0 = rng.standard_normal(n).astype(np.float32)
+    x = wp.array(x_np)
+    y = wp.array(y0)
+    a = float(rng.uniform(0.5, 2.0))
+    with wp.ScopedCapture() as capture:
+        wp.launch(axpy, n, inputs=[x, y, a])
+        wp.launch(axpy, n, inputs=[x, y, -0.25 * a])
+    assert wp.get_device().is_capturing is False
+    np.testing.assert_array_equal(y.numpy(), y0)          # nothing ran while capturing
+    graph = capture.graph
+    assert isinstance(graph, wp.Graph) and len(graph.commands) == 2
+    replays = 5
+    for _ in range(replays):
+        wp.capture_launch(graph)
+    expected = y0.astype(np.float64)
+    for _ in range(replays):
+        expected = expected + np.float32(a) * x_np.astype(np.float64)
+        expected = expected + np.float32(-0.25 * a) * x_np.astype(np.float64)
+    # float32 accumulation of 10 terms of |a x| <= ~2e3: a few ulps of the running sum
+    np.testing.assert_allclose(y.numpy(), expected, rtol=0, atol=1e-3 * np.abs(expected).max())
+
+
+def test_capture_begin_end_and_misuse(device):
+    x = wp.zeros(4)
+    wp.capture_begin()
+    try:
+        assert wp.get_device().is_capturing
+        with pytest.raises(RuntimeError, match="already in progress"):
+            wp.capture_begin()
+        x.fill_(3.0)
+    finally:
+        graph = wp.capture_end()
+    assert not wp.get_device().is_capturing
+    np.testing.assert_array_equal(x.numpy(), 0.0)
+    wp.capture_launch(graph)
+    np.testing.assert_array_equal(x.numpy(), 3.0)
+    with pytest.raises(RuntimeError, match="not active"):
+        wp.capture_end()
+    with pytest.raises(TypeError, match="wp.Graph"):
+        wp.capture_launch("graph")
+    assert wp.is_conditional_graph_supported() is False
+
+
+def test_zeros_made_in_a_capture_start_from_zero_at_each_replay(rng, device):
+    values = rng.standard_normal(64).astype(np.float32)
+    x = wp.array(values)
+    with wp.ScopedCapture() as capture:
+        acc = wp.zeros(1)
+        ones = wp.full(64, 1.5)
+        wp.launch(sum_squares, 64, inputs=[x, acc])
+        wp.launch(axpy, 64, inputs=[ones, x, 0.0])
+    expected = float(np.sum(values.astype(np.float64) ** 4))
+    for _ in range(3):
+        wp.capture_launch(capture.graph)
+        assert acc.numpy()[0] == pytest.approx(expected, rel=1e-5)
+
+
+def test_a_captured_training_step_with_a_tape_matches_float64(rng, device):
+    n = 256
+    x0 = rng.uniform(-1.5, 1.5, n).astype(np.float32)
+    x = wp.array(x0, requires_grad=True)
+    loss = wp.zeros(1, requires_grad=True)
+    rate = 0.01
+    tape = wp.Tape()
+    with wp.ScopedCapture() as capture:
+        with tape:
+            wp.launch(sum_squares, n, inputs=[x, loss])
+        tape.backward(loss)
+        wp.launch(descend, n, inputs=[x, x.grad, rate])
+        tape.zero()
+    np.testing.assert_array_equal(x.numpy(), x0)
+    steps = 20
+    ref = x0.astype(np.float64)
+    for _ in range(steps):
+        loss.zero_()
+        wp.capture_launch(capture.graph)
+        ref = ref - rate * 4.0 * ref ** 3
+    # float32 steps of a contraction: errors stay at float32 rounding of |x| <= 1.5
+    np.testing.assert_allclose(x.numpy(), ref, rtol=0, atol=2e-5)
+    np.testing.assert_array_equal(x.grad.numpy(), 0.0)   # the captured tape.zero() ran last
+
+
+def test_a_graph_keeps_the_arrays_it_names(rng, device):
+    rt = wp._runtime.get_runtime()
+    values = rng.standard_normal(32).astype(np.float32)
+    out = wp.zeros(1)
+
+    def capture_with_temporary():
+        temp = wp.array(values)
+        with wp.ScopedCapture() as capture:
+            wp.launch(read_at, 1, inputs=[temp, 7, out])
+        return capture.graph, temp.ptr
+
+    graph, _ = capture_with_temporary()
+    gc.collect()
+    wp.capture_launch(graph)
+    assert out.numpy()[0] == values[7]
+    held = set(graph._handles)
+    assert held and held <= set(rt._graph_handles)
+    del graph
+    gc.collect()
+    assert not held & set(rt._graph_handles)
+    assert not held & rt._graph_freed
+
+
+def test_capture_if_and_capture_while_outside_a_capture(device):
+    counter = wp.array([3], dtype=wp.int32)
+    hits = wp.zeros(1)
+    wp.capture_while(counter, lambda: wp.launch(count_down, 1, inputs=[counter, hits]))
+    assert counter.numpy()[0] == 0 and hits.numpy()[0] == 3.0
+    taken = []
+    wp.capture_if(counter, on_true=lambda: taken.append("true"),
+                  on_false=lambda: taken.append("false"))
+    assert taken == ["false"]
+    with wp.ScopedCapture() as body:
+        wp.launch(count_down, 1, inputs=[counter, hits])
+    counter.fill_(1)
+    wp.capture_if(counter, on_true=body.graph)
+    assert counter.numpy()[0] == 0 and hits.numpy()[0] == 4.0
+    with pytest.raises(RuntimeError, match="conditional graph nodes"):
+        with wp.ScopedCapture():
+            wp.capture_while(counter, body.graph)
+    with pytest.raises(TypeError, match="int32"):
+        wp.capture_if(hits, on_true=body.graph)
+
+
+def test_a_replayed_bounds_error_names_the_captured_line(device):
+    x = wp.zeros(8)
+    out = wp.zeros(1)
+    with wp.ScopedCapture() as capture:
+        line = inspect.currentframe().f_lineno + 1
+        wp.launch(read_at, 1, inputs=[x, 100, out])
+    with pytest.raises(Exception) as err:
+        wp.capture_launch(capture.graph)
+        wp.synchronize()
+    message = str(err.value)
+    assert "out of bounds" in message or "bounds" in message
+    assert re.search(rf"test_graph_capture\.py:{line}\b", message), message
+    out.fill_(2.0)          # the session goes on
+    assert out.numpy()[0] == 2.0
+
+
+def test_a_tampered_graph_command_is_refused_like_any_command(device):
+    x = wp.zeros(8)
+    with wp.ScopedCapture() as capture:
+        wp.launch(axpy, 8, inputs=[x, x, 1.0])
+    capture.graph.commands[0].launch.args[0].array.handle = 0x7FFF_FFFF_0000
+    with pytest.raises(Exception, match="(?i)handle|unknown|not found"):
+        wp.capture_launch(capture.graph)
+        wp.synchronize()
+    x.fill_(1.0)
+    assert x.numpy()[0] == 1.0
+
+
+def test_record_only_launches_are_checked_and_not_adjoint(device):
+    """A raw record-only launch (what a capture sends for a tape) gets the forward checks,
+    is refused with adjoint, and runs nothing."""
+    rt = wp._runtime.get_runtime()
+    x = wp.array(np.arange(8, dtype=np.float32))
+    with wp.ScopedCapture() as capture:
+        wp.launch(axpy, 8, inputs=[x, x, 1.0])
+    cmd = type(capture.graph.commands[0])()
+    cmd.CopyFrom(capture.graph.commands[0])
+    cmd.launch.record_only = True
+    rt.submit(cmd)
+    wp.synchronize()
+    np.testing.assert_array_equal(x.numpy(), np.arange(8))   # validated, not run
+    bad = type(cmd)()
+    bad.CopyFrom(cmd)
+    bad.launch.adjoint = True
+    rt.submit(bad)
+    with pytest.raises(Exception, match="record_only"):
+        wp.synchronize()
+    short = type(cmd)()
+    short.CopyFrom(cmd)
+    del short.launch.args[-1]
+    rt.submit(short)
+    with pytest.raises(Exception, match="(?i)argument"):
+        wp.synchronize()
+
+
+def test_capture_debug_dot_print(tmp_path, device):
+    x = wp.zeros(8)
+    with wp.ScopedCapture() as capture:
+        wp.launch(axpy, 8, inputs=[x, x, 1.0])
+        x.zero_()
+    path = tmp_path / "graph.dot"
+    wp.capture_debug_dot_print(capture.graph, str(path))
+    text = path.read_text()
+    assert text.startswith("digraph") and "launch axpy" in text and "fill" in text
+    assert "n0 -> n1" in text

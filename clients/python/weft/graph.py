@@ -1,0 +1,309 @@
+"""Graph capture for a weft client: wp.capture_begin / capture_end / capture_launch,
+wp.ScopedCapture, wp.Graph, capture_pause / capture_resume, capture_if / capture_while and
+capture_debug_dot_print, on CPU and CUDA devices alike (docs/graphs.md).
+
+A client's device work reaches the daemon as commands that run in order (launches, copies,
+fills, a tape's backward/zero/reset). While a thread captures on a device, the commands it
+issues for that device are recorded instead of sent: nothing runs. `capture_launch` queues the
+recorded commands as one block of the command batch, and the daemon runs them as it runs any
+command (the same validation and bounds checks, so a graph is nothing a client could not send
+command by command). Launch arguments are fixed when captured, as in a CUDA graph.
+
+What is state rather than work is not recorded: array creation (a `zeros`/`full` made while
+capturing also records a fill, so each replay starts from the value, as Warp's captured
+memset does), a tape's begin/end, gradient replacement, framework stream ordering. A forward
+launch captured while a tape records is also sent at once as a record-only launch, so the
+tape holds it as Warp's tape does, and a captured `tape.backward()` replays its adjoints.
+
+A graph keeps the daemon arrays it names: an array the program drops stays allocated until
+the graph is gone (Warp asks the program to keep them alive; weft does it for it).
+"""
+from __future__ import annotations
+
+import threading
+
+from . import _runtime
+from .device import get_device
+
+__all__ = ["Graph", "ScopedCapture", "capture_begin", "capture_end", "capture_launch",
+           "capture_pause", "capture_resume", "capture_if", "capture_while",
+           "capture_debug_dot_print", "is_conditional_graph_supported", "is_capturing"]
+
+
+def _array_handles(message, out: set) -> None:
+    """The daemon array handles an exec_pb2 message names (every ArrayRef in it)."""
+    for field, value in message.ListFields():
+        if field.message_type is None:
+            continue
+        repeated = getattr(field, "is_repeated", None)
+        if repeated is None:                       # protobuf before 6: the field's label
+            repeated = field.label == field.LABEL_REPEATED
+        values = value if repeated else (value,)
+        if field.message_type.name == "ArrayRef":
+            out.update(ref.handle for ref in values if ref.handle)
+        else:
+            for item in values:
+                _array_handles(item, out)
+
+
+class Graph:
+    """Commands captured on one device, replayed by wp.capture_launch (Warp's wp.Graph)."""
+
+    def __init__(self, device, runtime):
+        self.device = device
+        self.commands: list = []
+        self._runtime = runtime
+        self._nbytes = 0
+        self._handles: tuple = ()
+        self.graph = self            # Warp exposes the native graph; here the command list
+        self.graph_exec = None
+
+    def _seal(self) -> None:
+        handles: set = set()
+        for cmd in self.commands:
+            _array_handles(cmd, handles)
+        self._handles = tuple(sorted(handles))
+        self._nbytes = sum(cmd.ByteSize() for cmd in self.commands)
+        self._runtime.retain_handles(self._handles)
+
+    @property
+    def is_loaded(self) -> bool:
+        return False
+
+    def __len__(self) -> int:
+        return len(self.commands)
+
+    def __del__(self):
+        try:
+            if self._handles and not self._runtime.closed:
+                self._runtime.release_handles(self._handles)
+        except Exception:  # noqa: BLE001 - finalizer: never raise
+            pass
+
+    def __repr__(self):
+        return f"<weft Graph on {self.device}: {len(self.commands)} commands>"
+
+
+class _Capture:
+    """The recording of one thread on one device (installed in Runtime.captures)."""
+
+    def __init__(self, graph):
+        self.graph = graph
+        self.paused = False
+
+    def take(self, cmd) -> bool:
+        """Records `cmd` into the graph (True), or lets it go out now (False)."""
+        if self.paused:
+            return False
+        kind = cmd.WhichOneof("kind")
+        if kind == "launch":
+            launch = cmd.launch
+            if launch.record_only:
+                return False
+            if launch.device != self.graph.device.alias and \
+                    get_device(launch.device) != self.graph.device:
+                return False               # work on another device runs now, as in Warp
+            if not launch.adjoint:
+                self._record_on_tape(cmd)
+        elif kind == "tape":
+            from .v1 import exec_pb2  # noqa: PLC0415
+            ops = exec_pb2.TapeCommand
+            if cmd.tape.op not in (ops.BACKWARD, ops.ZERO, ops.RESET):
+                return False               # begin/end/free: the tape's state, not work
+        elif kind not in ("copy", "fill"):
+            return False                   # gradient replacement, framework stream ordering
+        self.graph.commands.append(cmd)
+        return True
+
+    def _record_on_tape(self, cmd) -> None:
+        from ._kernel import tape as tape_mod  # noqa: PLC0415
+
+        tape = tape_mod.active_tape()
+        if tape is None or tape._mode != "daemon":
+            return
+        record = type(cmd)()
+        record.CopyFrom(cmd)
+        record.launch.record_only = True
+        self.graph._runtime.submit(record)   # passes take(): record_only
+
+
+def _capture_of_thread(rt):
+    return rt.captures.get(threading.get_ident())
+
+
+def is_capturing(device=None) -> bool:
+    """Whether this thread is capturing a graph on `device` (any device when None)."""
+    rt = _runtime.get_runtime()
+    capture = _capture_of_thread(rt)
+    if capture is None:
+        return False
+    return device is None or get_device(device) == capture.graph.device
+
+
+def capture_begin(device=None, stream=None, force_module_load=None, external=False,
+                  apic=False, capture_mode=None):
+    """Starts recording this thread's commands for `device` (or `stream`'s device)."""
+    if external:
+        raise RuntimeError("external graph capture is not available to weft clients: the "
+                           "daemon runs the work, not a CUDA stream of this process")
+    if stream is not None:
+        device = stream.device
+    device = get_device(device)
+    rt = _runtime.get_runtime()
+    if _capture_of_thread(rt) is not None:
+        raise RuntimeError("Graph capture already in progress")
+    rt.captures[threading.get_ident()] = _Capture(Graph(device, rt))
+
+
+def capture_end(device=None, stream=None) -> Graph:
+    """Ends this thread's capture and returns the graph."""
+    rt = _runtime.get_runtime()
+    capture = _capture_of_thread(rt)
+    if capture is None:
+        raise RuntimeError("Graph capture is not active on this stream")
+    if stream is not None:
+        device = stream.device
+    if device is not None and get_device(device) != capture.graph.device:
+        raise RuntimeError(f"Graph capture is active on {capture.graph.device}, not on "
+                           f"{get_device(device)}")
+    del rt.captures[threading.get_ident()]
+    capture.graph._seal()
+    return capture.graph
+
+
+def capture_pause(device=None, stream=None) -> Graph:
+    """Lets this thread's commands run at once until capture_resume."""
+    rt = _runtime.get_runtime()
+    capture = _capture_of_thread(rt)
+    if capture is None:
+        raise RuntimeError("Graph capture is not active on this stream")
+    capture.paused = True
+    return capture.graph
+
+
+def capture_resume(graph=None, device=None, stream=None) -> None:
+    rt = _runtime.get_runtime()
+    capture = _capture_of_thread(rt)
+    if capture is None or (graph is not None and graph is not capture.graph):
+        raise RuntimeError("capture_resume: the graph's capture is not paused on this thread")
+    capture.paused = False
+
+
+def capture_launch(graph: Graph, stream=None) -> None:
+    """Queues the graph's commands (one block of the batch; see Runtime.submit_recorded)."""
+    if not isinstance(graph, Graph):
+        raise TypeError(f"capture_launch expects a wp.Graph, got {type(graph).__name__}")
+    if stream is not None and stream.device != graph.device:
+        raise RuntimeError(f"Cannot launch graph from device {graph.device} on stream from "
+                           f"device {stream.device}")
+    rt = _runtime.get_runtime()
+    if graph._runtime is not rt:
+        raise RuntimeError("this graph was captured by another weft session")
+    if graph.commands:
+        rt.submit_recorded(graph.commands, graph._nbytes)
+
+
+def is_conditional_graph_supported() -> bool:
+    """False: a condition is read on the host (capture_if/capture_while outside a capture);
+    a captured graph has no device-side branches."""
+    return False
+
+
+def _condition_value(condition) -> bool:
+    from .array import array  # noqa: PLC0415
+    from .types import int32  # noqa: PLC0415
+
+    if not isinstance(condition, array) or condition.dtype is not int32:
+        raise TypeError("Condition must be a Warp array of int32 with a single element")
+    return bool(condition.numpy().reshape(-1)[0])
+
+
+def _run_branch(branch, stream, kwargs) -> None:
+    if isinstance(branch, Graph):
+        capture_launch(branch, stream=stream)
+    elif callable(branch):
+        branch(**kwargs)
+    else:
+        raise RuntimeError("branch must be a callable or a wp.Graph")
+
+
+def _refuse_in_capture(what) -> None:
+    if _capture_of_thread(_runtime.get_runtime()) is not None:
+        raise RuntimeError(f"{what} inside a graph capture needs conditional graph nodes, "
+                           f"which weft graphs do not have (wp.is_conditional_graph_supported() "
+                           f"is False): call it outside the capture")
+
+
+def capture_if(condition, on_true=None, on_false=None, stream=None, **kwargs) -> None:
+    """Runs on_true or on_false (callables or graphs) by condition[0] (Warp's capture_if
+    outside a capture: the condition is read after the work queued before it)."""
+    if on_true is None and on_false is None:
+        return
+    _refuse_in_capture("capture_if")
+    branch = on_true if _condition_value(condition) else on_false
+    if branch is not None:
+        _run_branch(branch, stream, kwargs)
+
+
+def capture_while(condition, while_body, stream=None, **kwargs) -> None:
+    """Runs while_body (a callable or graph) as long as condition[0] is nonzero."""
+    _refuse_in_capture("capture_while")
+    while _condition_value(condition):
+        _run_branch(while_body, stream, kwargs)
+
+
+def capture_debug_dot_print(graph: Graph, path: str, verbose: bool = True) -> None:
+    """Writes the graph's commands, in order, as a DOT file (one node per command)."""
+    if not isinstance(graph, Graph):
+        raise TypeError(f"capture_debug_dot_print expects a wp.Graph, got "
+                        f"{type(graph).__name__}")
+    lines = ["digraph weft_graph {", "  rankdir=TB;", "  node [shape=box];"]
+    for i, cmd in enumerate(graph.commands):
+        kind = cmd.WhichOneof("kind")
+        if kind == "launch":
+            label = f"{'adjoint ' if cmd.launch.adjoint else ''}launch {cmd.launch.kernel}"
+            if verbose:
+                label += f"\\ndim {list(cmd.launch.dim)}"
+        else:
+            label = kind
+            if kind == "tape":
+                from .v1 import exec_pb2  # noqa: PLC0415
+                label += " " + exec_pb2.TapeCommand.Op.Name(cmd.tape.op).lower()
+        if verbose and cmd.origin.file:
+            label += f"\\n{cmd.origin.file}:{cmd.origin.line}"
+        label = label.replace('"', "'")
+        lines.append(f'  n{i} [label="{label}"];')
+        if i:
+            lines.append(f"  n{i - 1} -> n{i};")
+    lines.append("}")
+    with open(path, "w", encoding="utf-8") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+class ScopedCapture:
+    """`with wp.ScopedCapture() as capture:` records; `capture.graph` after the block."""
+
+    def __init__(self, device=None, stream=None, force_module_load=None, external=False,
+                 apic=False, capture_mode=None):
+        self.device = device
+        self.stream = stream
+        self.force_module_load = force_module_load
+        self.external = external
+        self.active = False
+        self.graph = None
+
+    def __enter__(self):
+        capture_begin(device=self.device, stream=self.stream, external=self.external)
+        self.active = True
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if self.active:
+            try:
+                self.graph = capture_end(device=self.device, stream=self.stream)
+            except Exception:
+                if exc_type is None:
+                    raise
+            finally:
+                self.active = False
+        return False
