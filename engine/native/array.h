@@ -64,7 +64,7 @@ WP_FUNC array_t<T> view(const array_t<T>& a, int64 i) {
   r.shape[ARRAY_MAX_DIMS - 1] = 0;
   r.strides[ARRAY_MAX_DIMS - 1] = 0;
   r.ndim = a.ndim - 1;
-  r._pad = 0;
+  r.flags = a.flags;
   return r;
 }
 template <typename T> WP_FUNC array_t<T> view(const array_t<T>& a, int64 i, int64 j) { return view(view(a, i), j); }
@@ -248,7 +248,7 @@ WP_FUNC array_t<T> cg_slice(const array_t<T>& a, int32 n, cg_slice_kinds_t kinds
   for (; out < ARRAY_MAX_DIMS; ++out) r.shape[out] = r.strides[out] = 0;
   r.data = valid ? (T*)((char*)a.data + offset) : nullptr;
   r.grad = (valid && a.grad) ? (T*)((char*)a.grad + offset) : nullptr;
-  r._pad = 0;
+  r.flags = a.flags;
   return r;
 }
 

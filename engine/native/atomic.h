@@ -303,7 +303,7 @@ WP_FUNC T atomic_cas(const array_t<T>& a, int64 i, int64 j, int64 k, int64 l, ty
 // ---------------------------------------------------------------------------------------------
 // Adjoints (Warp): `adj_a` is the gradient array of `a` (data == nullptr: no gradient wanted).
 // Reading a[i] accumulates the read's adjoint into adj_a[i] (atomically: many threads may read
-// the same element). Writing a[i] = v moves adj_a[i] into adj_v. atomic_add/sub: adj_v +=/-=
+// the same element). Writing a[i] = v moves adj_a[i] into adj_v (adj_store). atomic_add/sub: adj_v +=/-=
 // adj_a[i]. atomic_min/max: adj_v += adj_a[i] when v is the value the element holds (it won).
 template <typename T> WP_FUNC void adj_load(const array_t<T>& adj_a, int64 i, const T& adj_ret) {
   if (adj_a.data) atomic_add_ptr(address(adj_a, i), adj_ret);
@@ -317,17 +317,23 @@ template <typename T> WP_FUNC void adj_load(const array_t<T>& adj_a, int64 i, in
 template <typename T> WP_FUNC void adj_load(const array_t<T>& adj_a, int64 i, int64 j, int64 k, int64 l, const T& adj_ret) {
   if (adj_a.data) atomic_add_ptr(address(adj_a, i, j, k, l), adj_ret);
 }
+// A store's adjoint: adj_v += adj_a[i], which is then cleared when adj_a is the gradient of
+// the stored array (ARRAY_FLAG_CONSUME_ADJOINT): the overwritten value receives no gradient.
+template <typename T> WP_FUNC void adj_store_at(const array_t<T>& adj_a, T* g, T& adj_v) {
+  adj_v += *g;
+  if (adj_a.flags & ARRAY_FLAG_CONSUME_ADJOINT) *g = T{};
+}
 template <typename T> WP_FUNC void adj_store(const array_t<T>& adj_a, int64 i, T& adj_v) {
-  if (adj_a.data) adj_v += *address(adj_a, i);
+  if (adj_a.data) adj_store_at(adj_a, address(adj_a, i), adj_v);
 }
 template <typename T> WP_FUNC void adj_store(const array_t<T>& adj_a, int64 i, int64 j, T& adj_v) {
-  if (adj_a.data) adj_v += *address(adj_a, i, j);
+  if (adj_a.data) adj_store_at(adj_a, address(adj_a, i, j), adj_v);
 }
 template <typename T> WP_FUNC void adj_store(const array_t<T>& adj_a, int64 i, int64 j, int64 k, T& adj_v) {
-  if (adj_a.data) adj_v += *address(adj_a, i, j, k);
+  if (adj_a.data) adj_store_at(adj_a, address(adj_a, i, j, k), adj_v);
 }
 template <typename T> WP_FUNC void adj_store(const array_t<T>& adj_a, int64 i, int64 j, int64 k, int64 l, T& adj_v) {
-  if (adj_a.data) adj_v += *address(adj_a, i, j, k, l);
+  if (adj_a.data) adj_store_at(adj_a, address(adj_a, i, j, k, l), adj_v);
 }
 // Atomic adjoints in the generic convention adj_f(args..., adj_args&..., adj_ret):
 //   adj_atomic_add(a, i[, j, k, l], v, adj_a, adj_i[, adj_j, ...], adj_v, adj_ret)

@@ -26,7 +26,7 @@ WP_FUNC array_t<U> contiguous_array(U* data, int64 n0, int64 n1, int64 n2, int64
   r.grad = nullptr;
   const int64 ext[ARRAY_MAX_DIMS] = {n0, n1, n2, n3};
   r.ndim = n1 == 0 ? 1 : (n2 == 0 ? 2 : (n3 == 0 ? 3 : 4));
-  r._pad = 0;
+  r.flags = 0;
   int64 stride = (int64)sizeof(U);
   for (int d = ARRAY_MAX_DIMS - 1; d >= 0; --d) {
     r.shape[d] = d < r.ndim ? ext[d] : 0;

@@ -84,6 +84,12 @@ struct launch_context_t {
 
 constexpr uint32 LAUNCH_FLAG_NO_BOUNDS_CHECK = 1u;
 
+// array_t::flags. ARRAY_FLAG_CONSUME_ADJOINT, on a gradient array an adjoint launch gets: it
+// is the gradient of the array in that slot (a tape's backward, or an explicit adjoint launch
+// given the array's own .grad), so reversing a store a[i] = v moves adj_a[i] into adj_v and
+// clears it: the overwritten value's gradient is consumed (Warp's adj_array_store).
+constexpr int32 ARRAY_FLAG_CONSUME_ADJOINT = 1;
+
 // Arrays as kernels see them (all backends). Strides are in bytes. data == nullptr for None.
 template <typename T>
 struct array_t {
@@ -92,7 +98,7 @@ struct array_t {
   int64 shape[ARRAY_MAX_DIMS];
   int64 strides[ARRAY_MAX_DIMS];
   int32 ndim;
-  int32 _pad;
+  int32 flags;
 };
 
 // Untyped twin the runtime fills; same layout as every array_t<T>.
@@ -102,7 +108,7 @@ struct array_abi_t {
   int64 shape[ARRAY_MAX_DIMS];
   int64 strides[ARRAY_MAX_DIMS];
   int32 ndim;
-  int32 _pad;
+  int32 flags;
 };
 
 }  // namespace wp

@@ -66,6 +66,7 @@ struct Packer {
         // An adjoint array must have exactly the shape of the primal array in the same slot:
         // the forward replay's bounds checks and the adjoint's index the same elements.
         std::vector<int64_t> primal_shape;
+        const void* primal_grad = nullptr;
         if (adjoint && primal) {
           for (const PackedArray& ps : primal->arrays) {
             if (ps.offset != at || ps.handle == 0) continue;
@@ -75,12 +76,16 @@ struct Packer {
             std::memcpy(&pabi, primal->block.data() + at, sizeof(pabi));
             const int nd = pabi.ndim < 0 ? 0 : (pabi.ndim > wp::ARRAY_MAX_DIMS ? wp::ARRAY_MAX_DIMS : pabi.ndim);
             primal_shape.assign(pabi.shape, pabi.shape + nd);
+            primal_grad = pabi.grad;
             req.shape = &primal_shape;
           }
         }
         WEFT_ASSIGN_OR_RETURN(ArrayView v, ValidateArray(a.alloc, a.ref, req));
         abi.data = v.data();
         abi.grad = (!adjoint && al.grad) ? al.grad->data() + v.byte_offset : nullptr;
+        // The primal array's own gradient (its .grad when packed) is consumed by stores'
+        // adjoints, as Warp's adj_array_store does when adj_buf.data == buf.grad.
+        if (primal_grad != nullptr && primal_grad == abi.data) abi.flags = wp::ARRAY_FLAG_CONSUME_ADJOINT;
         abi.ndim = static_cast<wp::int32>(v.shape.size());
         for (size_t i = 0; i < v.shape.size(); ++i) {
           abi.shape[i] = v.shape[i];
@@ -157,6 +162,7 @@ Expected<PackedArgs> GradientArgs(const KernelLayout& kernel, const PackedArgs& 
     wp::array_abi_t abi{};
     std::memcpy(&abi, forward.block.data() + slot.offset, sizeof(abi));
     const std::shared_ptr<Allocation>& a = i < live.size() ? live[i] : nullptr;
+    const void* recorded_grad = abi.grad;   // the array's .grad when the launch was recorded
     abi.data = nullptr;
     abi.grad = nullptr;
     if (a && a->grad) {
@@ -175,6 +181,8 @@ Expected<PackedArgs> GradientArgs(const KernelLayout& kernel, const PackedArgs& 
       req.element_size = a->dtype.ElementSize();
       req.shape = &ref.shape;
       WEFT_ASSIGN_OR_RETURN(ArrayView v, ValidateArray(a->grad, ref, req));
+      // Consumed by stores' adjoints when it is the gradient the array had when recorded.
+      if (recorded_grad != nullptr && recorded_grad == v.data()) abi.flags = wp::ARRAY_FLAG_CONSUME_ADJOINT;
       abi.data = v.data();
       out.keep_alive.push_back(a->grad);
     }
