@@ -221,9 +221,33 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
                                 FromProto(v.order()), v.index(), v.value()};
       break;
     }
+    case v1::Command::kGraph: {
+      const auto& g = p.graph();
+      if (g.op() != v1::GraphCommand::CREATE && g.op() != v1::GraphCommand::LAUNCH &&
+          g.op() != v1::GraphCommand::DESTROY)
+        return InvalidArgument("command " + std::to_string(index) + ": unknown graph op " + std::to_string(g.op()));
+      GraphCommand gc;
+      gc.op = static_cast<GraphCommand::Op>(g.op());
+      gc.graph_id = g.graph_id();
+      gc.device = g.device();
+      if (gc.op != GraphCommand::Op::kCreate && g.commands_size() != 0)
+        return InvalidArgument("command " + std::to_string(index) + ": only a graph CREATE carries commands");
+      gc.commands.reserve(static_cast<size_t>(g.commands_size()));
+      for (int i = 0; i < g.commands_size(); ++i) {
+        const v1::Command& inner = g.commands(i);
+        if (inner.kind_case() != v1::Command::kLaunch && inner.kind_case() != v1::Command::kCopy &&
+            inner.kind_case() != v1::Command::kFill)
+          return InvalidArgument("command " + std::to_string(index) + ": graph command " + std::to_string(i) +
+                                 " is not a launch, copy or fill (a graph holds only those)");
+        WEFT_ASSIGN_OR_RETURN(Command converted, FromProto(inner, static_cast<size_t>(i)));
+        gc.commands.push_back(std::move(converted));
+      }
+      c.kind = std::move(gc);
+      break;
+    }
     default:
       return InvalidArgument("command " + std::to_string(index) +
-                             " is empty (no copy/fill/launch/tape/set_grad/cuda_event/cuda_value)");
+                             " is empty (no copy/fill/launch/tape/set_grad/cuda_event/cuda_value/graph)");
   }
   return c;
 }

@@ -926,6 +926,20 @@ Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) 
   return r;
 }
 
+Status CudaDevice::MakeRoom(Session& s, Stream& st, size_t n) {
+  if (st.pending.size() + n <= kErrorSlots) return Status::Ok();
+  // Not enough free error slots: wait for the stream and read them back.
+  int reason = 0;
+  WEFT_RETURN_IF_ERROR(QueueErrorReadback(st));
+  jit::CuResult r = WaitStream(s, st, &reason);
+  if (r != 0) return driver_->Check(r, "cuStreamQuery");
+  if (reason != 0) WEFT_RETURN_IF_ERROR(ClearCancel(st));
+  DeviceSyncResult drained = Drain(st);
+  if (!drained.output.empty()) s.AppendOutput(drained.output);
+  if (!drained.error.ok()) return Status(drained.error.code(), drained.error.message() + Where(drained.origin));
+  return Status::Ok();
+}
+
 Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   std::shared_lock<std::shared_mutex> reset(reset_mu_);
   WEFT_RETURN_IF_ERROR(CheckUsable());
@@ -945,20 +959,20 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   WEFT_ASSIGN_OR_RETURN(ctx.bounds, LaunchBoundsOf(l.dim));
   if (ctx.bounds.size == 0) return Status::Ok();
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
-  if (st->pending.size() >= kErrorSlots) {
-    // Every error slot is in use: wait for the stream and read them back.
-    int reason = 0;
-    WEFT_RETURN_IF_ERROR(QueueErrorReadback(*st));
-    jit::CuResult r = WaitStream(s, *st, &reason);
-    if (r != 0) return driver_->Check(r, "cuStreamQuery");
-    if (reason != 0) WEFT_RETURN_IF_ERROR(ClearCancel(*st));
-    DeviceSyncResult drained = Drain(*st);
-    if (!drained.output.empty()) s.AppendOutput(drained.output);
-    if (!drained.error.ok())
-      return Status(drained.error.code(), drained.error.message() + Where(drained.origin));
+  if (!st->capture) WEFT_RETURN_IF_ERROR(MakeRoom(s, *st, 1));
+  jit::CuDevicePtr error_slot = st->errors + st->pending.size() * sizeof(wp::launch_error_t);
+  if (st->capture) {   // recorded into a graph: the graph's own slots (cuda_device_graphs.cpp)
+    if (st->capture->launches.size() >= kErrorSlots) {
+      st->capture->refused = "more than " + std::to_string(kErrorSlots) + " launches";
+      return FailedPrecondition("graph capture: " + st->capture->refused);
+    }
+    if (s.geometry().TableFor(name_)) {
+      st->capture->refused = "a launch while the session holds geometry objects";
+      return FailedPrecondition("graph capture: " + st->capture->refused);
+    }
+    error_slot = st->capture->slots + st->capture->launches.size() * sizeof(wp::launch_error_t);
   }
-  const size_t slot = st->pending.size();
-  ctx.error = reinterpret_cast<wp::launch_error_t*>(static_cast<uintptr_t>(st->errors + slot * sizeof(wp::launch_error_t)));
+  ctx.error = reinterpret_cast<wp::launch_error_t*>(static_cast<uintptr_t>(error_slot));
   ctx.print = reinterpret_cast<wp::print_buffer_t*>(static_cast<uintptr_t>(st->errors_base));
   ctx.flags = 0;
   ctx.cancel = reinterpret_cast<const wp::int32*>(static_cast<uintptr_t>(st->errors_base + kCancelOffset));
@@ -973,7 +987,7 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   WEFT_RETURN_IF_ERROR(driver_->Check(
       driver_->LaunchKernel(fn, grid, 1, 1, block, 1, 1, 0, st->stream, adjoint ? params_adj : params_fwd, nullptr),
       ("cuLaunchKernel " + symbol).c_str()));
-  st->pending.push_back(Pending{l.module, l.kernel, adjoint, l.origin});
+  (st->capture ? st->capture->launches : st->pending).push_back(Pending{l.module, l.kernel, adjoint, l.origin});
   return Status::Ok();
 }
 

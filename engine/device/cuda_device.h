@@ -111,6 +111,22 @@ class CudaDevice final : public Device {
                      std::shared_ptr<const void> keep);
   bool StreamMemOpsSupported() const;
 
+  // CUDA graphs of a session's commands (cuda_device_graphs.cpp, docs/graphs.md). A Graph owns
+  // the instantiated graph, its own error slots (one per launch, copied into the stream's after
+  // each replay so errors read back as a plain launch's), and the launches' names and origins.
+  class Graph;
+  // Whether the driver has what capture needs.
+  bool GraphsSupported() const;
+  // Starts recording the session's stream: until EndCapture the operations queued on it (launches,
+  // fills, copies on this GPU) are captured, not run. A launch then uses the capture's error slots.
+  Status BeginCapture(Session& s);
+  // Ends the capture. `keep` false (a command failed) discards it. Errors (the capture is dropped):
+  // more launches than error slots, a launch that would read the session's geometry table, an
+  // operation the driver could not capture or instantiate.
+  Expected<std::shared_ptr<Graph>> EndCapture(Session& s, bool keep);
+  // Queues one replay of `g` (captured for this session on this device) on the session's stream.
+  Status LaunchGraph(Session& s, Graph& g);
+
   CudaDeviceStats stats() const;
   // True once a fault left the device unusable for the rest of this process (the driver kept
   // the sticky error through the context reset); every operation then fails with the reason.
@@ -169,6 +185,13 @@ class CudaDevice final : public Device {
     };
     std::mutex value_waits_mu;
     std::map<jit::CuDevicePtr, ValueWait> value_waits;
+    // While a graph is being captured on this stream (BeginCapture .. EndCapture).
+    struct Capture {
+      jit::CuDevicePtr slots = 0;      // kErrorSlots launch_error_t, zeroed
+      std::vector<Pending> launches;   // slot = index
+      std::string refused;             // why the capture cannot become a graph
+    };
+    std::unique_ptr<Capture> capture;
   };
   struct CuModuleEntry {
     jit::CuModule module = nullptr;
@@ -200,6 +223,8 @@ class CudaDevice final : public Device {
   void ForgetValueWaits(Stream& st);
   // After a wait that set the cancel word: clears it (ordered before the stream's next work).
   Status ClearCancel(Stream& st);
+  // Waits for the stream and drains its error slots when fewer than `n` are free.
+  Status MakeRoom(Session& s, Stream& st, size_t n);
   // Queues the read-back of the pending launches' error slots (before waiting for the stream).
   Status QueueErrorReadback(Stream& st);
   // After the wait: the first error of the pending launches (or Ok); their slots are cleared.

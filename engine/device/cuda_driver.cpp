@@ -76,6 +76,13 @@ Expected<const CudaDriver*> Load() {
   std::string optional_missing;
   Resolve(library, "cuStreamWaitValue64_v2", &driver.StreamWaitValue64, &optional_missing);
   Resolve(library, "cuStreamWriteValue64_v2", &driver.StreamWriteValue64, &optional_missing);
+  // Optional (graphs): without them a graph is replayed command by command.
+  Resolve(library, "cuStreamBeginCapture_v2", &driver.StreamBeginCapture, &optional_missing);
+  Resolve(library, "cuStreamEndCapture", &driver.StreamEndCapture, &optional_missing);
+  Resolve(library, "cuGraphInstantiateWithFlags", &driver.GraphInstantiate, &optional_missing);
+  Resolve(library, "cuGraphLaunch", &driver.GraphLaunch, &optional_missing);
+  Resolve(library, "cuGraphExecDestroy", &driver.GraphExecDestroy, &optional_missing);
+  Resolve(library, "cuGraphDestroy", &driver.GraphDestroy, &optional_missing);
   WEFT_RETURN_IF_ERROR(driver.Check(driver.Init(0), "cuInit"));
   return &driver;
 }

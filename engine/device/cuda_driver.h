@@ -21,6 +21,8 @@ using CuFunction = struct CUfunc_st*;
 using CuStream = struct CUstream_st*;
 using CuEvent = struct CUevent_st*;
 using CuDevicePtr = unsigned long long;  // CUdeviceptr (64-bit)
+using CuGraph = struct CUgraph_st*;
+using CuGraphExec = struct CUgraphExec_st*;
 
 // CUipcMemHandle: 64 opaque bytes.
 struct CuIpcMemHandle {
@@ -91,6 +93,13 @@ struct CudaDriver {
   // the driver lacks them.
   CuResult (*StreamWaitValue64)(CuStream stream, CuDevicePtr address, uint64_t value, unsigned flags) = nullptr;
   CuResult (*StreamWriteValue64)(CuStream stream, CuDevicePtr address, uint64_t value, unsigned flags) = nullptr;
+  // Graph capture of a session's stream (cuda_device_graphs.cpp); null when the driver lacks them.
+  CuResult (*StreamBeginCapture)(CuStream stream, int mode) = nullptr;
+  CuResult (*StreamEndCapture)(CuStream stream, CuGraph* graph) = nullptr;
+  CuResult (*GraphInstantiate)(CuGraphExec* exec, CuGraph graph, unsigned long long flags) = nullptr;
+  CuResult (*GraphLaunch)(CuGraphExec exec, CuStream stream) = nullptr;
+  CuResult (*GraphExecDestroy)(CuGraphExec exec) = nullptr;
+  CuResult (*GraphDestroy)(CuGraph graph) = nullptr;
   CuResult (*MemGetAddressRange)(CuDevicePtr* base, size_t* size, CuDevicePtr pointer) = nullptr;
   CuResult (*PointerGetAttribute)(void* data, int attribute, CuDevicePtr pointer) = nullptr;
   CuResult (*GetErrorName)(CuResult result, const char** name) = nullptr;
@@ -111,6 +120,9 @@ constexpr int kCuAttributeComputeCapabilityMinor = 76;
 constexpr int kCuAttributeCanUse64BitStreamMemOps = 122;
 // cuStreamWaitValue64 flags: wait until (int64_t)(*address - value) >= 0.
 constexpr unsigned kCuStreamWaitValueGeq = 0;
+// cuStreamBeginCapture mode: CU_STREAM_CAPTURE_MODE_RELAXED (other threads of the daemon keep
+// serving their sessions while one session's stream captures).
+constexpr int kCuStreamCaptureModeRelaxed = 2;
 // cuIpcOpenMemHandle flags.
 constexpr unsigned kCuIpcMemLazyEnablePeerAccess = 1;
 // CUpointer_attribute values.

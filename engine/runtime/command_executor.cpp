@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <cstring>
 
+#include <spdlog/spdlog.h>
+
 #include "engine/device/cuda_device.h"
 #include "engine/runtime/array_validation.h"
 #include "engine/runtime/array_view.h"
@@ -128,6 +130,8 @@ void CollectHandles(const Command& c, std::vector<uint64_t>* out) {
     if (sg->grad.handle) out->push_back(sg->grad.handle);
   } else if (auto* v = std::get_if<CudaValueCommand>(&c.kind)) {
     out->push_back(v->order.handle);
+  } else if (auto* g = std::get_if<GraphCommand>(&c.kind)) {
+    for (const Command& inner : g->commands) CollectHandles(inner, out);
   }
 }
 
@@ -144,7 +148,112 @@ Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapsh
   if (auto* sg = std::get_if<SetGradCommand>(&c.kind)) return SetGrad(s, *sg, h);
   if (auto* e = std::get_if<CudaEventCommand>(&c.kind)) return CudaEvent(s, *e);
   if (auto* v = std::get_if<CudaValueCommand>(&c.kind)) return CudaValue(s, *v, h);
+  if (auto* g = std::get_if<GraphCommand>(&c.kind)) return Graph(s, *g, h, c.origin);
   return InvalidArgument("empty command");
+}
+
+namespace {
+
+std::string At(const SourceLocation& o) {
+  return o.file.empty() ? std::string() : " (at " + o.file + ":" + std::to_string(o.line) + ")";
+}
+
+// Whether `c` can go into a CUDA graph of `device`: a launch there, a fill or copy of arrays
+// that live there (host and peer copies stage through the daemon's memory: replayed instead).
+bool CapturableOn(const Command& c, const std::string& device, const HandleSnapshot& arrays) {
+  auto on_device = [&](const ArrayRef& r) {
+    auto it = arrays.find(r.handle);
+    return it != arrays.end() && it->second && it->second->device == device;
+  };
+  if (auto* l = std::get_if<LaunchCommand>(&c.kind)) return !l->record_only;
+  if (auto* f = std::get_if<FillCommand>(&c.kind)) return on_device(f->dst);
+  if (auto* cp = std::get_if<CopyCommand>(&c.kind)) return on_device(cp->dst) && on_device(cp->src);
+  return false;
+}
+
+}  // namespace
+
+Status CommandExecutor::Graph(Session& s, const GraphCommand& c, const HandleSnapshot& h,
+                              const SourceLocation& origin) {
+  const std::string which = "graph " + std::to_string(c.graph_id);
+  if (c.op == GraphCommand::Op::kDestroy) {
+    s.graphs.erase(c.graph_id);
+    return Status::Ok();
+  }
+  if (c.op == GraphCommand::Op::kLaunch) {
+    auto it = s.graphs.find(c.graph_id);
+    if (it == s.graphs.end())
+      return NotFound(which + ": unknown (never created, destroyed, or its creation failed)");
+    const CommandGraph& g = it->second;
+    s.in_graph = true;
+    Status st = Status::Ok();
+    if (g.device_graph) {
+      WEFT_ASSIGN_OR_RETURN(Device * device, devices_.Resolve(s.id(), g.device));
+      auto* gpu = dynamic_cast<CudaDevice*>(device);
+      st = gpu ? gpu->LaunchGraph(s, *std::static_pointer_cast<CudaDevice::Graph>(g.device_graph))
+               : Internal(which + ": a device graph on a device without graphs");
+    } else {
+      for (const Command& inner : g.commands) {
+        st = Execute(s, inner, g.arrays);
+        if (!st.ok()) {   // reported with the captured command's file:line
+          s.in_graph = false;
+          s.Fail(Status(st.code(), which + ": " + st.message()), inner.origin);
+          return Status::Ok();
+        }
+      }
+    }
+    s.in_graph = false;
+    return st;
+  }
+  if (c.op != GraphCommand::Op::kCreate) return InvalidArgument(which + ": unknown op");
+  if (!s.graphs.count(c.graph_id) && s.graphs.size() >= kMaxGraphsPerSession)
+    return ResourceExhausted("the session holds " + std::to_string(s.graphs.size()) + " graphs, the limit " +
+                             "(destroy some: a wp.Graph is destroyed when it is collected)");
+  WEFT_ASSIGN_OR_RETURN(Device * device, devices_.Resolve(s.id(), c.device));
+  CommandGraph g;
+  g.device = device->name();
+  g.commands = c.commands;
+  std::vector<uint64_t> handles;
+  for (const Command& inner : c.commands) CollectHandles(inner, &handles);
+  for (uint64_t handle : handles) {
+    if (handle == 0 || g.arrays.count(handle)) continue;
+    WEFT_ASSIGN_OR_RETURN(g.arrays[handle], Lookup(h, handle, which));
+  }
+  s.graphs.erase(c.graph_id);
+  auto* gpu = dynamic_cast<CudaDevice*>(device);
+  bool capturable = gpu != nullptr && gpu->GraphsSupported() && !c.commands.empty();
+  for (const Command& inner : c.commands) {
+    if (!capturable) break;
+    capturable = CapturableOn(inner, g.device, g.arrays);
+    if (auto* l = std::get_if<LaunchCommand>(&inner.kind)) {
+      auto resolved = devices_.Resolve(s.id(), l->device);
+      capturable = capturable && resolved.ok() && *resolved == device;
+    }
+  }
+  if (capturable && gpu->BeginCapture(s).ok()) {
+    s.in_graph = true;
+    Status st = Status::Ok();
+    for (const Command& inner : c.commands) {
+      st = Execute(s, inner, g.arrays);
+      if (!st.ok()) {
+        st = Status(st.code(), which + ": " + st.message() + At(inner.origin));
+        break;
+      }
+    }
+    s.in_graph = false;
+    auto captured = gpu->EndCapture(s, st.ok());
+    const bool refused = !captured.ok() && captured.status().message().rfind("graph capture:", 0) == 0;
+    if (captured.ok()) {
+      g.device_graph = std::move(*captured);
+    } else if (!st.ok() && !refused) {
+      return st;   // the command itself is wrong: no graph
+    } else {       // the device cannot capture these commands: replayed command by command
+      spdlog::debug("session {}: {} replays command by command: {}", s.label(), which, captured.status().ToString());
+    }
+  }
+  (void)origin;
+  s.graphs.emplace(c.graph_id, std::move(g));
+  return Status::Ok();
 }
 
 namespace {
@@ -286,8 +395,8 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
   if (!output.empty()) s.AppendOutput(output);
   WEFT_RETURN_IF_ERROR(st);
 
-  // Record forward launches on the active tape.
-  if (!c.adjoint && s.active_tape != 0) RecordOnTape(s, c, device->name(), origin, std::move(packed));
+  // Record forward launches on the active tape (not those of graphs).
+  if (!c.adjoint && s.active_tape != 0 && !s.in_graph) RecordOnTape(s, c, device->name(), origin, std::move(packed));
   return Status::Ok();
 }
 

@@ -25,6 +25,7 @@ using HandleSnapshot = std::unordered_map<uint64_t, std::shared_ptr<Allocation>>
 
 class CommandExecutor {
  public:
+  static constexpr size_t kMaxGraphsPerSession = 4096;   // GraphCommand CREATE
   CommandExecutor(DeviceSet& devices, ModuleStore* store) : devices_(devices), store_(store) {}
 
   Status Execute(Session& s, const Command& c, const HandleSnapshot& handles);
@@ -40,6 +41,9 @@ class CommandExecutor {
   void RecordOnTape(Session& s, const LaunchCommand& c, const std::string& device, const SourceLocation& origin,
                     PackedArgs packed);
   Status TapeOp(Session& s, const TapeCommand& c, const HandleSnapshot& h);
+  // GraphCommand: create (captured as a CUDA graph where the device and commands allow,
+  // else kept as a list), launch, destroy.
+  Status Graph(Session& s, const GraphCommand& c, const HandleSnapshot& h, const SourceLocation& origin);
   Status Backward(Session& s, Tape& tape, const TapeCommand& c, const HandleSnapshot& h);
   Status SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h);
   Status CudaEvent(Session& s, const CudaEventCommand& c);

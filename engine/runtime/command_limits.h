@@ -14,6 +14,7 @@ namespace weft {
 struct CommandLimits {
   uint64_t max_launch_threads = uint64_t{1} << 32;   // product of a launch's dim; also fill/copy elements
   uint64_t max_queued_commands = 65536;              // per session, submitted and not yet run
+  uint64_t max_graph_commands = 65536;               // commands of one graph (GraphCommand CREATE)
 };
 
 // RESOURCE_EXHAUSTED naming the limit (and its weftd flag) for a launch or view over the limit;

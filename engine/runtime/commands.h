@@ -84,12 +84,27 @@ struct CudaValueCommand {
   uint64_t value = 0;
 };
 
+struct Command;
+
+// A graph of the session's commands (a captured wp.Graph, docs/graphs.md), by an id the client
+// chooses (private to its session). kCreate: `commands` (launches, copies, fills; no graphs)
+// become graph `graph_id` on `device`: on a GPU, a CUDA graph captured on the session's stream
+// where every command can be captured, else the list, replayed command by command. kLaunch
+// runs it; kDestroy forgets it.
+struct GraphCommand {
+  enum class Op { kCreate = 0, kLaunch = 1, kDestroy = 2 };
+  Op op = Op::kLaunch;
+  uint64_t graph_id = 0;
+  std::string device;              // kCreate: "cpu", "cuda:N", "cuda"
+  std::vector<Command> commands;   // kCreate
+};
+
 // INVALID_ARGUMENT for an op value outside TapeCommand::Op (a client may send any number).
 Status CheckTapeOp(TapeCommand::Op op);
 
 struct Command {
   std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand, SetGradCommand, CudaEventCommand,
-               CudaValueCommand>
+               CudaValueCommand, GraphCommand>
       kind;
   SourceLocation origin;   // where the client issued it
 };

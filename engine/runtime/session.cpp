@@ -60,6 +60,7 @@ size_t Session::array_count() const {
 }
 
 void Session::ReleaseAll() {
+  graphs.clear();   // they hold arrays
   std::unordered_map<uint64_t, std::shared_ptr<Allocation>> drop;
   {
     std::lock_guard<std::mutex> lock(mu_);

@@ -20,10 +20,22 @@
 #include "engine/core/status.h"
 #include "engine/geometry/geometry_registry.h"
 #include "engine/runtime/allocation.h"
+#include "engine/runtime/commands.h"
 #include "engine/runtime/serial_queue.h"
 #include "engine/runtime/tape.h"
 
 namespace weft {
+
+// A session's command graph (GraphCommand, docs/graphs.md): its commands, the arrays they name
+// (held for the graph's life, so a replay never meets a freed handle), and the device graph
+// captured from them where the device has one (CudaDevice::Graph), else none: the commands are
+// replayed one by one.
+struct CommandGraph {
+  std::string device;
+  std::vector<Command> commands;
+  std::unordered_map<uint64_t, std::shared_ptr<Allocation>> arrays;
+  std::shared_ptr<void> device_graph;
+};
 
 struct SessionOptions {
   std::string client_name;
@@ -89,6 +101,10 @@ class Session {
   // Executor-thread state.
   std::map<uint64_t, Tape> tapes;
   uint64_t active_tape = 0;   // 0 = none
+  // Command graphs by the client's id (GraphCommand); launches while one is created or
+  // replayed are not recorded on tapes (as Warp's graph launches).
+  std::map<uint64_t, CommandGraph> graphs;
+  bool in_graph = false;
   bool unchecked_allowed = false;
 
  private:

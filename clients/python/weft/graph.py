@@ -4,10 +4,12 @@ capture_debug_dot_print, on CPU and CUDA devices alike (docs/graphs.md).
 
 A client's device work reaches the daemon as commands that run in order (launches, copies,
 fills, a tape's backward/zero/reset). While a thread captures on a device, the commands it
-issues for that device are recorded instead of sent: nothing runs. `capture_launch` queues the
-recorded commands as one block of the command batch, and the daemon runs them as it runs any
-command (the same validation and bounds checks, so a graph is nothing a client could not send
-command by command). Launch arguments are fixed when captured, as in a CUDA graph.
+issues for that device are recorded instead of sent: nothing runs. capture_end sends each run
+of recorded launches, copies and fills to the daemon once, as a graph of the session
+(GraphCommand CREATE: on a GPU a CUDA graph captured on the session's stream, checked as the
+commands would be; elsewhere a list the daemon replays), and `capture_launch` queues one small
+LAUNCH per run (and the tape commands between runs). Launch arguments are fixed when captured,
+as in a CUDA graph.
 
 What is state rather than work is not recorded: array creation (a `zeros`/`full` made while
 capturing also records a fill, so each replay starts from the value, as Warp's captured
@@ -20,6 +22,7 @@ the graph is gone (Warp asks the program to keep them alive; weft does it for it
 """
 from __future__ import annotations
 
+import itertools
 import threading
 
 from . import _runtime
@@ -46,25 +49,56 @@ def _array_handles(message, out: set) -> None:
                 _array_handles(item, out)
 
 
+_graph_ids = itertools.count(1)
+_GRAPH_KINDS = ("launch", "copy", "fill")
+
+
 class Graph:
     """Commands captured on one device, replayed by wp.capture_launch (Warp's wp.Graph)."""
 
     def __init__(self, device, runtime):
         self.device = device
-        self.commands: list = []
+        self.commands: list = []     # as captured
         self._runtime = runtime
+        self._replay: list = []      # what capture_launch queues: LAUNCHes and tape commands
+        self._graph_ids: list = []   # the daemon graphs made from the runs of commands
         self._nbytes = 0
         self._handles: tuple = ()
-        self.graph = self            # Warp exposes the native graph; here the command list
+        self.graph = self            # Warp exposes the native graph; here this object
         self.graph_exec = None
 
     def _seal(self) -> None:
+        """Sends each run of launches/copies/fills to the daemon as a graph (CREATE)."""
+        from .v1 import exec_pb2  # noqa: PLC0415
+
         handles: set = set()
         for cmd in self.commands:
             _array_handles(cmd, handles)
         self._handles = tuple(sorted(handles))
-        self._nbytes = sum(cmd.ByteSize() for cmd in self.commands)
         self._runtime.retain_handles(self._handles)
+        run: list = []
+
+        def close_run():
+            if not run:
+                return
+            graph_id = next(_graph_ids)
+            create = exec_pb2.GraphCommand(op=exec_pb2.GraphCommand.CREATE, graph_id=graph_id,
+                                           device=self.device.alias, commands=run)
+            self._runtime.submit(exec_pb2.Command(graph=create, origin=run[0].origin))
+            self._graph_ids.append(graph_id)
+            self._replay.append(exec_pb2.Command(
+                graph=exec_pb2.GraphCommand(op=exec_pb2.GraphCommand.LAUNCH, graph_id=graph_id),
+                origin=run[0].origin))
+            run.clear()
+
+        for cmd in self.commands:
+            if cmd.WhichOneof("kind") in _GRAPH_KINDS:
+                run.append(cmd)
+            else:
+                close_run()
+                self._replay.append(cmd)
+        close_run()
+        self._nbytes = sum(cmd.ByteSize() for cmd in self._replay)
 
     @property
     def is_loaded(self) -> bool:
@@ -75,8 +109,16 @@ class Graph:
 
     def __del__(self):
         try:
-            if self._handles and not self._runtime.closed:
-                self._runtime.release_handles(self._handles)
+            rt = self._runtime
+            if rt.closed:
+                return
+            if self._graph_ids:
+                from .v1 import exec_pb2  # noqa: PLC0415
+                for graph_id in self._graph_ids:
+                    rt.submit(exec_pb2.Command(graph=exec_pb2.GraphCommand(
+                        op=exec_pb2.GraphCommand.DESTROY, graph_id=graph_id)))
+            if self._handles:
+                rt.release_handles(self._handles)
         except Exception:  # noqa: BLE001 - finalizer: never raise
             pass
 
@@ -110,6 +152,10 @@ class _Capture:
             ops = exec_pb2.TapeCommand
             if cmd.tape.op not in (ops.BACKWARD, ops.ZERO, ops.RESET):
                 return False               # begin/end/free: the tape's state, not work
+        elif kind == "graph":
+            from .v1 import exec_pb2  # noqa: PLC0415
+            if cmd.graph.op != exec_pb2.GraphCommand.LAUNCH:
+                return False               # a graph made or destroyed: the session's state
         elif kind not in ("copy", "fill"):
             return False                   # gradient replacement, framework stream ordering
         self.graph.commands.append(cmd)
@@ -199,8 +245,8 @@ def capture_launch(graph: Graph, stream=None) -> None:
     rt = _runtime.get_runtime()
     if graph._runtime is not rt:
         raise RuntimeError("this graph was captured by another weft session")
-    if graph.commands:
-        rt.submit_recorded(graph.commands, graph._nbytes)
+    if graph._replay:
+        rt.submit_recorded(graph._replay, graph._nbytes)
 
 
 def is_conditional_graph_supported() -> bool:

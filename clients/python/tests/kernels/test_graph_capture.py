@@ -189,16 +189,59 @@ def test_a_replayed_bounds_error_names_the_captured_line(device):
     assert out.numpy()[0] == 2.0
 
 
-def test_a_tampered_graph_command_is_refused_like_any_command(device):
+def _graph_command(op, graph_id, device="", commands=()):
+    from weft.v1 import exec_pb2
+    return exec_pb2.Command(graph=exec_pb2.GraphCommand(op=op, graph_id=graph_id, device=device,
+                                                        commands=list(commands)))
+
+
+def test_graph_commands_are_checked_like_any_command(device):
+    """Raw GraphCommands as a hostile client sends them: a graph naming a handle the session
+    does not hold, a graph holding a graph command or a tape command, a launch of an unknown
+    graph id, and an unknown op are refused with clear errors; the session goes on."""
+    from weft.v1 import exec_pb2
+    rt = wp._runtime.get_runtime()
+    GC = exec_pb2.GraphCommand
     x = wp.zeros(8)
     with wp.ScopedCapture() as capture:
         wp.launch(axpy, 8, inputs=[x, x, 1.0])
-    capture.graph.commands[0].launch.args[0].array.handle = 0x7FFF_FFFF_0000
-    with pytest.raises(Exception, match="(?i)handle|unknown|not found"):
-        wp.capture_launch(capture.graph)
+    launch = type(capture.graph.commands[0])()
+    launch.CopyFrom(capture.graph.commands[0])
+    launch.launch.args[0].array.handle = 0x7FFF_FFFF_0000
+    rt.submit(_graph_command(GC.CREATE, 0xDEAD01, device, [launch]))
+    with pytest.raises(Exception, match="unknown array handle"):
+        wp.synchronize()
+    rt.submit(_graph_command(GC.LAUNCH, 0xDEAD01))
+    with pytest.raises(Exception, match="unknown"):
+        wp.synchronize()
+    nested = _graph_command(GC.LAUNCH, 1)
+    for inner, message in ((nested, "not a launch, copy or fill"),
+                           (exec_pb2.Command(tape=exec_pb2.TapeCommand(op=exec_pb2.TapeCommand.ZERO,
+                                                                        tape_id=1)),
+                            "not a launch, copy or fill")):
+        rt.submit(_graph_command(GC.CREATE, 0xDEAD02, device, [inner]))
+        with pytest.raises(Exception, match=message):
+            wp.synchronize()
+    rt.submit(_graph_command(7, 0xDEAD03))
+    with pytest.raises(Exception, match="unknown graph op"):
         wp.synchronize()
     x.fill_(1.0)
     assert x.numpy()[0] == 1.0
+
+
+def test_a_graph_replays_after_its_arrays_are_freed_by_handle(device):
+    """The daemon's graph holds the arrays it names: even a client that frees their handles
+    (bypassing the Python-side retention) replays it safely, on memory still alive."""
+    from weft.v1 import array_pb2
+    rt = wp._runtime.get_runtime()
+    x = wp.array(np.arange(16, dtype=np.float32))
+    out = wp.zeros(1)
+    with wp.ScopedCapture() as capture:
+        wp.launch(read_at, 1, inputs=[x, 5, out])
+    wp.synchronize()                       # the CREATE ran
+    rt.call(rt.array_stub.Free, array_pb2.FreeArrayRequest(handle=x._ref().handle))
+    wp.capture_launch(capture.graph)
+    assert out.numpy()[0] == 5.0
 
 
 def test_record_only_launches_are_checked_and_not_adjoint(device):
