@@ -192,6 +192,7 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
       TapeCommand tc;
       tc.op = static_cast<TapeCommand::Op>(t.op());
       tc.tape_id = t.tape_id();
+      tc.marker = t.marker();
       tc.loss = FromProto(t.loss());
       for (const auto& s : t.seeds()) tc.seeds.emplace_back(FromProto(s.array()), FromProto(s.grad()));
       c.kind = std::move(tc);

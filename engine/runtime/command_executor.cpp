@@ -431,6 +431,13 @@ Status CommandExecutor::TapeOp(Session& s, const TapeCommand& c, const HandleSna
     case TapeCommand::Op::kEnd:
       if (s.active_tape == c.tape_id) s.active_tape = 0;
       return Status::Ok();
+    case TapeCommand::Op::kMark: {
+      if (c.marker == 0) return InvalidArgument("tape " + std::to_string(c.tape_id) + ": marker 0 is reserved");
+      TapeRecord r;
+      r.marker = c.marker;
+      s.tapes[c.tape_id].records.push_back(std::move(r));
+      return Status::Ok();
+    }
     case TapeCommand::Op::kFree:
       if (s.active_tape == c.tape_id) s.active_tape = 0;
       s.tapes.erase(c.tape_id);
@@ -475,9 +482,18 @@ Status CommandExecutor::Backward(Session& s, Tape& tape, const TapeCommand& c, c
     std::vector<std::shared_ptr<Allocation>> live;
     Device* device = nullptr;
   };
+  size_t start = tape.records.size();
+  if (c.marker != 0) {
+    start = 0;
+    while (start < tape.records.size() && tape.records[start].marker != c.marker) ++start;
+    if (start == tape.records.size())
+      return FailedPrecondition("backward on tape " + std::to_string(c.tape_id) + ": no marker " +
+                                std::to_string(c.marker) + " (reset since it was recorded?)");
+  }
   std::vector<Step> steps;
-  for (size_t i = tape.records.size(); i-- > 0;) {
+  for (size_t i = start; i-- > 0;) {
     const TapeRecord& r = tape.records[i];
+    if (r.marker != 0) break;   // a client callback runs here; the next BACKWARD goes on
     Step st{&r, nullptr, nullptr, {}, nullptr};
     for (const PackedArray& slot : r.args.arrays) {
       std::shared_ptr<Allocation> a = slot.alloc.lock();

@@ -11,6 +11,7 @@ Status CheckTapeOp(TapeCommand::Op op) {
     case TapeCommand::Op::kZero:
     case TapeCommand::Op::kReset:
     case TapeCommand::Op::kFree:
+    case TapeCommand::Op::kMark:
       return Status::Ok();
   }
   return InvalidArgument("unknown tape op " + std::to_string(static_cast<int>(op)) +

@@ -47,9 +47,13 @@ struct LaunchCommand {
 };
 
 struct TapeCommand {
-  enum class Op { kBegin = 0, kEnd = 1, kBackward = 2, kZero = 3, kReset = 4, kFree = 5 };
+  enum class Op { kBegin = 0, kEnd = 1, kBackward = 2, kZero = 3, kReset = 4, kFree = 5, kMark = 6 };
   Op op = Op::kBegin;
   uint64_t tape_id = 0;
+  // kMark: appends marker `marker` (non-zero) to the tape's records (a client callback's place,
+  // wp.Tape.record_func). kBackward: runs the adjoints older than marker `marker` (0: from the
+  // newest record), stopping at the next older marker.
+  uint64_t marker = 0;
   ArrayRef loss;                                     // handle 0 = none
   std::vector<std::pair<ArrayRef, ArrayRef>> seeds;  // (array, gradient value)
 };

@@ -21,6 +21,7 @@ struct TapeRecord {
   std::string device = "cpu";   // where it ran (the adjoint runs there too)
   uint32_t block_dim = 0;
   uint32_t max_blocks = 0;
+  uint64_t marker = 0;      // non-zero: a marker (TapeCommand kMark), not a launch
 };
 
 struct Tape {

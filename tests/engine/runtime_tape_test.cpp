@@ -303,5 +303,38 @@ TEST(Tape, RecordOnlyLaunchesAreRecordedNotRun) {
   ASSERT_FALSE(st.ok());
 }
 
+// MARK splits the backward pass where a client callback runs (wp.Tape.record_func): BACKWARD
+// stops at the newest marker; BACKWARD from that marker runs the older records; an unknown
+// marker is a clear error.
+TEST(Tape, MarkersSplitTheBackwardPass) {
+  TapeRig t;
+  std::mt19937 rng(std::random_device{}());
+  const int64_t n = 32;
+  std::vector<float> x(n);
+  for (auto& v : x) v = std::uniform_real_distribution<float>(-2, 2)(rng);
+  auto xa = t.e->CreateArray(*t.s, FromFloats(x, true));
+  auto sq = t.e->CreateArray(*t.s, FromFloats(std::vector<float>(n, 0), true));
+  auto loss = t.e->CreateArray(*t.s, FromFloats({0}, true));
+  TapeCommand mark = T(TapeCommand::Op::kMark, 5);
+  mark.marker = 77;
+  Status st = t.Run({Cmd(T(TapeCommand::Op::kBegin, 5)), Cmd(L("square", xa->handle, sq->handle, n)), Cmd(mark),
+                     Cmd(L("sum", sq->handle, loss->handle, n)), Cmd(T(TapeCommand::Op::kEnd, 5)),
+                     Cmd(T(TapeCommand::Op::kBackward, 5, loss->handle))});
+  ASSERT_TRUE(st.ok()) << st.ToString();
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, sq->grad_handle), std::vector<float>(n, 1));   // sum's adjoint ran
+  EXPECT_EQ(ReadFloats(*t.e, *t.s, xa->grad_handle), std::vector<float>(n, 0));   // square's did not
+  TapeCommand rest = T(TapeCommand::Op::kBackward, 5);
+  rest.marker = 77;
+  ASSERT_TRUE(t.Run({Cmd(rest)}).ok());
+  auto g = ReadFloats(*t.e, *t.s, xa->grad_handle);
+  for (int64_t i = 0; i < n; ++i) ASSERT_NEAR(g[i], 2.0 * x[i], 1e-5) << i;
+  rest.marker = 78;
+  st = t.Run({Cmd(rest)});
+  EXPECT_EQ(st.code(), StatusCode::kFailedPrecondition) << st.ToString();
+  mark.marker = 0;
+  st = t.Run({Cmd(mark)});
+  EXPECT_EQ(st.code(), StatusCode::kInvalidArgument) << st.ToString();
+}
+
 }  // namespace
 }  // namespace weft

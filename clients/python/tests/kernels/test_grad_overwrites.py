@@ -4,6 +4,7 @@ backward, or an explicit adjoint launch given a.grad), so a dead write and a cop
 kernel's output pass nothing back; gradients given as separate adj_inputs buffers are left
 as they are. Checked against float64 references from fresh random data."""
 import numpy as np
+import pytest
 
 import weft as wp
 
@@ -98,3 +99,40 @@ def test_separate_adjoint_buffers_are_not_consumed(rng):
     wp.launch(scale, n, inputs=[x, y, 5.0], adj_inputs=[x.grad, y.grad, 0.0], adjoint=True)
     np.testing.assert_allclose(x.grad.numpy(), 5.0 * adj_y_np.astype(np.float64), rtol=1e-6)
     np.testing.assert_array_equal(y.grad.numpy(), 0.0)
+
+
+@wp.kernel
+def square(x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = x[i] * x[i]
+
+
+def test_record_func_runs_between_the_daemon_tapes_adjoints(rng):
+    """wp.Tape.record_func on a daemon tape: the callback runs at its place in the reverse pass
+    (after the adjoints of later launches, before those of earlier ones)."""
+    n = 32
+    x_np = _data(rng, n)
+    w_np = _data(rng, n)
+    x = wp.array(x_np, requires_grad=True)
+    w = wp.array(w_np)
+    y = wp.zeros(n, requires_grad=True)
+    z = wp.zeros(n, requires_grad=True)
+    loss = wp.zeros(1, requires_grad=True)
+    tape = wp.Tape()
+    calls = []
+
+    def square_backward():
+        calls.append(float(z.grad.numpy()[0]))     # the later launch's adjoint ran already
+        wp.launch(square, n, inputs=[y, z], adj_inputs=[y.grad, z.grad], adj_outputs=[],
+                  adjoint=True)
+
+    with tape:
+        wp.launch(scale, n, inputs=[x, y, 2.0])
+        wp.launch(square, n, inputs=[y, z], record_tape=False)
+        tape.record_func(square_backward, arrays=[y, z])
+        wp.launch(weighted_sum, n, inputs=[z, w, loss])
+    assert tape.mode == "daemon"
+    tape.backward(loss)
+    assert calls == [pytest.approx(float(w_np[0]))]
+    expected = 8.0 * x_np.astype(np.float64) * w_np      # d/dx sum(w (2x)^2)
+    np.testing.assert_allclose(x.grad.numpy(), expected, rtol=1e-5, atol=1e-6)

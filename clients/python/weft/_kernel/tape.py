@@ -7,7 +7,10 @@ Two modes, one API:
   "client"  the recording is kept in this process (= this session) and backward() submits one
             adjoint LaunchCommand per recorded launch, in reverse order. Used when the daemon
             answers a tape command with UNIMPLEMENTED (probed once per session), or when
-            WEFT_TAPE=client is set, or for tapes with record_func callbacks.
+            WEFT_TAPE=client is set.
+A record_func callback on a daemon tape is a marker in the daemon's records (TapeCommand MARK);
+backward() then runs the adjoints in segments: BACKWARD down to the newest marker, the
+callback, BACKWARD from that marker down to the next, and so on.
 """
 from __future__ import annotations
 
@@ -96,9 +99,10 @@ class _RecordedLaunch:
 
 
 class _RecordedFunc:
-    def __init__(self, backward, arrays):
+    def __init__(self, backward, arrays, marker=0):
         self.backward = backward
         self.arrays = list(arrays)
+        self.marker = marker           # daemon tapes: the marker at its place in the records
 
 
 class _Gradients(dict):
@@ -137,10 +141,10 @@ class Tape:
     def mode(self) -> str:
         return self._choose_mode()
 
-    def _tape_command(self, op, loss=None, seeds=()):
+    def _tape_command(self, op, loss=None, seeds=(), marker=0):
         from weft.v1 import exec_pb2  # noqa: PLC0415
 
-        cmd = exec_pb2.TapeCommand(op=op, tape_id=self.tape_id)
+        cmd = exec_pb2.TapeCommand(op=op, tape_id=self.tape_id, marker=marker)
         if loss is not None:
             cmd.loss.CopyFrom(loss._ref())
         for array, grad in seeds:
@@ -200,12 +204,15 @@ class Tape:
         self.launches.append(_RecordedLaunch(kernel, dims, args, device, temps))
 
     def record_func(self, backward, arrays):
-        """Records a Python callback to run at its place in the backward pass (Warp's API).
-        Client-mode tapes only (the daemon cannot call back into Python)."""
-        if self._mode == "daemon":
-            raise NotImplementedError("record_func needs a client-side tape: set "
-                                      "WEFT_TAPE=client")
-        self.launches.append(_RecordedFunc(backward, arrays))
+        """Records a Python callback to run at its place in the backward pass (Warp's API)."""
+        if not callable(backward):
+            raise TypeError("record_func expects a callable backward function")
+        marker = 0
+        if self._choose_mode() == "daemon":
+            from weft.v1 import exec_pb2  # noqa: PLC0415
+            marker = next(_tape_ids)
+            self._tape_command(exec_pb2.TapeCommand.MARK, marker=marker)
+        self.launches.append(_RecordedFunc(backward, arrays, marker))
 
     # --- backward -----------------------------------------------------------------------
     def backward(self, loss=None, grads=None):
@@ -250,6 +257,10 @@ class Tape:
             if recording:
                 self._tape_command(exec_pb2.TapeCommand.END)
             self._tape_command(exec_pb2.TapeCommand.BACKWARD, loss=loss, seeds=seeds)
+            for entry in reversed(self.launches):      # record_func callbacks, newest first
+                if isinstance(entry, _RecordedFunc):
+                    entry.backward()
+                    self._tape_command(exec_pb2.TapeCommand.BACKWARD, marker=entry.marker)
             if recording:
                 self._tape_command(exec_pb2.TapeCommand.BEGIN)
             self._note_gradients()
