@@ -136,3 +136,34 @@ def test_record_func_runs_between_the_daemon_tapes_adjoints(rng):
     assert calls == [pytest.approx(float(w_np[0]))]
     expected = 8.0 * x_np.astype(np.float64) * w_np      # d/dx sum(w (2x)^2)
     np.testing.assert_allclose(x.grad.numpy(), expected, rtol=1e-5, atol=1e-6)
+
+
+@wp.struct
+class Pair:
+    x: wp.array(dtype=float)
+    y: wp.array(dtype=float)
+
+
+@wp.kernel
+def pair_dot(p: Pair, out: wp.array(dtype=float)):
+    i = wp.tid()
+    wp.atomic_add(out, 0, p.x[i] * p.y[i])
+
+
+def test_tape_gradients_of_a_struct_are_a_struct_of_gradients(rng):
+    n = 16
+    x_np, y_np = _data(rng, n), _data(rng, n)
+    p = Pair()
+    p.x = wp.array(x_np, requires_grad=True)
+    p.y = wp.array(y_np, requires_grad=True)
+    out = wp.zeros(1, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(pair_dot, n, inputs=[p, out])
+    tape.backward(out)
+    grads = tape.gradients[p]
+    assert grads._struct_type is p._struct_type
+    np.testing.assert_allclose(grads.x.numpy(), y_np, rtol=1e-6)
+    np.testing.assert_allclose(grads.y.numpy(), x_np, rtol=1e-6)
+    tape.zero()
+    np.testing.assert_array_equal(grads.x.numpy(), 0.0)

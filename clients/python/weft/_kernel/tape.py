@@ -105,10 +105,24 @@ class _RecordedFunc:
         self.marker = marker           # daemon tapes: the marker at its place in the records
 
 
+def _struct_gradients(value):
+    """A struct instance of `value`'s type whose array fields are the fields' gradients
+    (nested structs likewise; other fields keep their defaults)."""
+    out = StructInstance(value._struct_type)
+    for name, field_value in value._values.items():
+        if isinstance(field_value, StructInstance):
+            out._values[name] = _struct_gradients(field_value)
+        elif is_weft_array(field_value) and getattr(field_value, "grad", None) is not None:
+            out._values[name] = field_value.grad
+    return out
+
+
 class _Gradients(dict):
     """tape.gradients: array -> its gradient array (arrays are keyed by identity)."""
 
     def __missing__(self, array):
+        if isinstance(array, StructInstance):   # Warp: a struct of its fields' gradients
+            return _struct_gradients(array)
         grad = getattr(array, "grad", None)
         if grad is None:
             raise KeyError(f"array {array!r} has no gradient (create it with requires_grad=True)")
@@ -293,7 +307,8 @@ class Tape:
 
     def _note_gradients(self):
         for entry in self.launches:
-            for value in getattr(entry, "args", ()):
+            values = entry.args if isinstance(entry, _RecordedLaunch) else entry.arrays
+            for value in values:
                 if not is_weft_array(value):
                     continue
                 try:
