@@ -25,6 +25,7 @@ ArrayRef FromProto(const v1::ArrayRef& p) {
   r.byte_offset = p.byte_offset();
   r.shape.assign(p.shape().begin(), p.shape().end());
   r.strides.assign(p.strides().begin(), p.strides().end());
+  r.retain_grad = p.retain_grad();
   return r;
 }
 

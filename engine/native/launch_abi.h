@@ -89,6 +89,9 @@ constexpr uint32 LAUNCH_FLAG_NO_BOUNDS_CHECK = 1u;
 // given the array's own .grad), so reversing a store a[i] = v moves adj_a[i] into adj_v and
 // clears it: the overwritten value's gradient is consumed (Warp's adj_array_store).
 constexpr int32 ARRAY_FLAG_CONSUME_ADJOINT = 1;
+// array_t::flags of a primal array passed with retain_grad (Warp's): its gradient is never
+// consumed; read by the daemon when it packs the adjoint arrays.
+constexpr int32 ARRAY_FLAG_RETAIN_GRAD = 2;
 
 // Arrays as kernels see them (all backends). Strides are in bytes. data == nullptr for None.
 template <typename T>

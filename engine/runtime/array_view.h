@@ -23,6 +23,7 @@ struct ArrayRef {
   uint64_t byte_offset = 0;
   std::vector<int64_t> shape;
   std::vector<int64_t> strides;
+  bool retain_grad = false;   // a kernel argument: its gradient is kept through stores' adjoints
 };
 
 // A checked view: the allocation it points into and the resolved shape/strides.

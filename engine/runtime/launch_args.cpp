@@ -76,13 +76,14 @@ struct Packer {
             std::memcpy(&pabi, primal->block.data() + at, sizeof(pabi));
             const int nd = pabi.ndim < 0 ? 0 : (pabi.ndim > wp::ARRAY_MAX_DIMS ? wp::ARRAY_MAX_DIMS : pabi.ndim);
             primal_shape.assign(pabi.shape, pabi.shape + nd);
-            primal_grad = pabi.grad;
+            if (!(pabi.flags & wp::ARRAY_FLAG_RETAIN_GRAD)) primal_grad = pabi.grad;
             req.shape = &primal_shape;
           }
         }
         WEFT_ASSIGN_OR_RETURN(ArrayView v, ValidateArray(a.alloc, a.ref, req));
         abi.data = v.data();
         abi.grad = (!adjoint && al.grad) ? al.grad->data() + v.byte_offset : nullptr;
+        if (!adjoint && a.ref.retain_grad) abi.flags = wp::ARRAY_FLAG_RETAIN_GRAD;
         // The primal array's own gradient (its .grad when packed) is consumed by stores'
         // adjoints, as Warp's adj_array_store does when adj_buf.data == buf.grad.
         if (primal_grad != nullptr && primal_grad == abi.data) abi.flags = wp::ARRAY_FLAG_CONSUME_ADJOINT;
@@ -162,7 +163,9 @@ Expected<PackedArgs> GradientArgs(const KernelLayout& kernel, const PackedArgs& 
     wp::array_abi_t abi{};
     std::memcpy(&abi, forward.block.data() + slot.offset, sizeof(abi));
     const std::shared_ptr<Allocation>& a = i < live.size() ? live[i] : nullptr;
-    const void* recorded_grad = abi.grad;   // the array's .grad when the launch was recorded
+    // The array's .grad when the launch was recorded (none to consume with retain_grad).
+    const void* recorded_grad = (abi.flags & wp::ARRAY_FLAG_RETAIN_GRAD) ? nullptr : abi.grad;
+    abi.flags = 0;
     abi.data = nullptr;
     abi.grad = nullptr;
     if (a && a->grad) {

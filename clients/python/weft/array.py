@@ -440,7 +440,10 @@ class array:
     # -- construction
     def __init__(self, data=None, dtype: Any = Any, shape=None, strides=None, length=None,
                  ptr=None, capacity=None, device=None, pinned=False, copy=True, owner=False,
-                 deleter=None, ndim=None, grad=None, requires_grad=False):
+                 deleter=None, ndim=None, grad=None, requires_grad=False, retain_grad=False):
+        if retain_grad and not requires_grad:
+            raise ValueError("retain_grad=True requires requires_grad=True")
+        self._retain_grad = bool(retain_grad)
         self._alloc = None
         self._info = None
         self._handle = 0
@@ -653,14 +656,18 @@ class array:
         out.device = self.device
         out.pinned = self.pinned
         out._requires_grad = self._requires_grad
+        out._retain_grad = self._retain_grad
         out._grad = None
         out._view_of = self
         return out
 
     # -- wire reference (used by commands and by weft._kernel)
     def _ref(self):
-        return _runtime.types_pb2.ArrayRef(handle=self._handle, byte_offset=self._byte_offset,
-                                           shape=list(self.shape), strides=list(self.strides))
+        ref = _runtime.types_pb2.ArrayRef(handle=self._handle, byte_offset=self._byte_offset,
+                                          shape=list(self.shape), strides=list(self.strides))
+        if self._retain_grad:
+            ref.retain_grad = True
+        return ref
 
     # -- properties
     @property
@@ -694,6 +701,21 @@ class array:
     def requires_grad(self) -> bool:
         return self._requires_grad
 
+    _retain_grad = False
+
+    @property
+    def retain_grad(self) -> bool:
+        """Whether the gradient is kept through the adjoints of stores to this array instead of
+        consumed (Warp's retain_grad; docs/autodiff.md, "Overwritten array elements")."""
+        return self._retain_grad
+
+    @retain_grad.setter
+    def retain_grad(self, value: bool):
+        value = bool(value)
+        if value and not self._requires_grad:
+            raise ValueError("retain_grad=True requires requires_grad=True")
+        self._retain_grad = value
+
     @requires_grad.setter
     def requires_grad(self, value: bool):
         """True gives the array a zeroed gradient when it has none; False removes it. Both
@@ -704,6 +726,8 @@ class array:
         elif not value and self._handle and self.grad is not None:
             self.grad = None
         self._requires_grad = value
+        if not value:
+            self._retain_grad = False
 
     @property
     def grad(self):
@@ -1185,18 +1209,26 @@ def _legacy_length(shape, n):
     return shape if n is None else (n,)
 
 
-def empty(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None):
+def _with_retain(out, retain_grad):
+    if retain_grad:
+        out.retain_grad = True          # ValueError without requires_grad, as Warp
+    return out
+
+
+def empty(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None,
+          retain_grad=False):
     """An uninitialised array (Warp's wp.empty)."""
     shape = _legacy_length(shape, n)
-    return _new_array(shape, dtype, device, requires_grad,
-                      _runtime.array_pb2.CreateArrayRequest.EMPTY)
+    return _with_retain(_new_array(shape, dtype, device, requires_grad,
+                                   _runtime.array_pb2.CreateArrayRequest.EMPTY), retain_grad)
 
 
-def zeros(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None):
+def zeros(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None,
+          retain_grad=False):
     """An array of zeros (Warp's wp.zeros)."""
     shape = _legacy_length(shape, n)
-    return _new_array(shape, dtype, device, requires_grad,
-                      _runtime.array_pb2.CreateArrayRequest.ZEROS)
+    return _with_retain(_new_array(shape, dtype, device, requires_grad,
+                                   _runtime.array_pb2.CreateArrayRequest.ZEROS), retain_grad)
 
 
 def _infer_value_dtype(value):
@@ -1233,7 +1265,8 @@ def _infer_value_dtype(value):
     raise ValueError("Values with more than two dimensions are not supported")
 
 
-def full(shape=0, value=0, dtype=None, device=None, requires_grad=False, pinned=False, *, n=None):
+def full(shape=0, value=0, dtype=None, device=None, requires_grad=False, pinned=False, *, n=None,
+         retain_grad=False):
     """An array with every element set to `value` (Warp's wp.full); dtype None infers it."""
     shape = _legacy_length(shape, n)
     dtype = _canonical_dtype(Any if dtype is None else dtype)
@@ -1241,37 +1274,40 @@ def full(shape=0, value=0, dtype=None, device=None, requires_grad=False, pinned=
         dtype = _infer_value_dtype(value)
     payload = (types.value_to_bytes(dtype, value) if types.is_dtype(dtype)
                else _struct_bytes(dtype, value))
-    return _new_array(shape, dtype, device, requires_grad,
-                      _runtime.array_pb2.CreateArrayRequest.FILL, payload)
+    return _with_retain(_new_array(shape, dtype, device, requires_grad,
+                                   _runtime.array_pb2.CreateArrayRequest.FILL, payload),
+                        retain_grad)
 
 
-def ones(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None):
+def ones(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None,
+         retain_grad=False):
     """An array of ones (Warp's wp.ones)."""
-    return full(_legacy_length(shape, n), 1, dtype, device, requires_grad, pinned)
+    return full(_legacy_length(shape, n), 1, dtype, device, requires_grad, pinned,
+                retain_grad=retain_grad)
 
 
 def _like_grad(src, requires_grad):
     return src.requires_grad if requires_grad is None else requires_grad
 
 
-def empty_like(src, device=None, requires_grad=None, pinned=None):
+def empty_like(src, device=None, requires_grad=None, pinned=None, retain_grad=False):
     return empty(src.shape, src.dtype, device if device is not None else src.device,
-                 _like_grad(src, requires_grad))
+                 _like_grad(src, requires_grad), retain_grad=retain_grad)
 
 
-def zeros_like(src, device=None, requires_grad=None, pinned=None):
+def zeros_like(src, device=None, requires_grad=None, pinned=None, retain_grad=False):
     return zeros(src.shape, src.dtype, device if device is not None else src.device,
-                 _like_grad(src, requires_grad))
+                 _like_grad(src, requires_grad), retain_grad=retain_grad)
 
 
-def ones_like(src, device=None, requires_grad=None, pinned=None):
+def ones_like(src, device=None, requires_grad=None, pinned=None, retain_grad=False):
     return ones(src.shape, src.dtype, device if device is not None else src.device,
-                _like_grad(src, requires_grad))
+                _like_grad(src, requires_grad), retain_grad=retain_grad)
 
 
-def full_like(src, value, device=None, requires_grad=None, pinned=None):
+def full_like(src, value, device=None, requires_grad=None, pinned=None, retain_grad=False):
     return full(src.shape, value, src.dtype, device if device is not None else src.device,
-                _like_grad(src, requires_grad))
+                _like_grad(src, requires_grad), retain_grad=retain_grad)
 
 
 def from_numpy(arr, dtype=None, shape=None, device=None, requires_grad=False):

@@ -1,8 +1,10 @@
 """An overwritten value gets no gradient (Warp's adj_array_store): reversing `a[i] = v`
 moves a's gradient into v and clears it when the gradient array is a's own .grad (a tape's
 backward, or an explicit adjoint launch given a.grad), so a dead write and a copy over a
-kernel's output pass nothing back; gradients given as separate adj_inputs buffers are left
-as they are. Checked against float64 references from fresh random data."""
+kernel's output pass nothing back; gradients given as separate adj_inputs buffers, and arrays
+with retain_grad=True, keep theirs. Also daemon tapes' record_func callbacks (run between the
+adjoints) and tape.gradients of a struct. Checked against float64 references from fresh random
+data."""
 import numpy as np
 import pytest
 
@@ -167,3 +169,26 @@ def test_tape_gradients_of_a_struct_are_a_struct_of_gradients(rng):
     np.testing.assert_allclose(grads.y.numpy(), x_np, rtol=1e-6)
     tape.zero()
     np.testing.assert_array_equal(grads.x.numpy(), 0.0)
+
+
+def test_retain_grad_keeps_an_overwritten_arrays_gradient(rng):
+    """retain_grad=True (Warp's): the gradient of the array stays through the store's adjoint
+    (and the dead write upstream then receives it); it needs requires_grad."""
+    n = 24
+    x_np, w_np = _data(rng, n), _data(rng, n)
+    x = wp.array(x_np, requires_grad=True)
+    w = wp.array(w_np)
+    y = wp.zeros(n, requires_grad=True, retain_grad=True)
+    assert y.retain_grad and y[2:5].retain_grad
+    loss = wp.zeros(1, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(scale, n, inputs=[x, y, 3.0])
+        wp.launch(weighted_sum, n, inputs=[y, w, loss])
+    tape.backward(loss)
+    np.testing.assert_allclose(y.grad.numpy(), w_np, rtol=1e-6)         # kept
+    np.testing.assert_allclose(x.grad.numpy(), 3.0 * w_np.astype(np.float64), rtol=1e-6)
+    with pytest.raises(ValueError, match="requires_grad"):
+        wp.zeros(3, retain_grad=True)
+    y.requires_grad = False
+    assert not y.retain_grad
