@@ -229,7 +229,7 @@ def test_queued_commands_per_session_are_limited(start_weftd):
 
 def test_unknown_tape_op_is_refused(weftd):
     with weftd.raw_session("pytest tape op") as raw:
-        for op in (6, 99, 2 ** 31 - 1):
+        for op in (7, 99, 2 ** 31 - 1):
             cmd = exec_pb2.Command(tape=exec_pb2.TapeCommand(op=op, tape_id=1))
             with pytest.raises(grpc.RpcError) as error:
                 raw.exec.Submit(exec_pb2.SubmitRequest(commands=[cmd], synchronize=True),

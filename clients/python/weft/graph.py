@@ -178,10 +178,11 @@ def _capture_of_thread(rt):
 
 
 def is_capturing(device=None) -> bool:
-    """Whether this thread is capturing a graph on `device` (any device when None)."""
+    """Whether this thread is capturing a graph on `device` (any device when None); not while
+    the capture is paused."""
     rt = _runtime.get_runtime()
     capture = _capture_of_thread(rt)
-    if capture is None:
+    if capture is None or capture.paused:
         return False
     return device is None or get_device(device) == capture.graph.device
 

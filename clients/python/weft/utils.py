@@ -98,9 +98,25 @@ def _same_dtype(a, b) -> bool:
     return t.type_str(a) == t.type_str(b)
 
 
+def _not_in_capture(name, *arrays) -> None:
+    """These algorithms run on the host (NumPy) in weft: inside a graph capture they would read
+    data the graph has not produced yet, so they refuse with a clear error."""
+    from . import _runtime  # noqa: PLC0415
+    from .graph import is_capturing  # noqa: PLC0415
+
+    if not _runtime.get_runtime().captures:
+        return
+    for a in arrays:
+        if a is not None and getattr(a, "device", None) is not None and is_capturing(a.device):
+            raise RuntimeError(f"wp.utils.{name} runs on the host in weft and cannot be captured "
+                               f"into a graph: call it outside the capture (or between "
+                               f"wp.capture_pause and wp.capture_resume)")
+
+
 def array_scan(in_array, out_array, inclusive: bool = True) -> None:
     """Prefix sum of in_array into out_array (inclusive or exclusive), per vector component.
     int32, int64, float32, float64 and vectors of them."""
+    _not_in_capture("array_scan", in_array, out_array)
     if in_array.device != out_array.device:
         raise RuntimeError(f"In and out array storage devices do not match "
                            f"({in_array.device} vs {out_array.device})")
@@ -166,6 +182,7 @@ def array_sum(values, out=None, value_count=None, axis=None):
     of them) or along `axis` (its first value_count entries; the result keeps the axis with
     size 1, as Warp 1.19). Returns the sum (a NumPy scalar or vector; an array along an axis),
     or writes it to out and returns out."""
+    _not_in_capture("array_sum", values, out)
     if out is not None and out.device != values.device:
         raise RuntimeError(f"out array storage device ({out.device}) does not match the values "
                            f"array ({values.device})")
@@ -197,6 +214,7 @@ def array_inner(a, b, out=None, count=None, axis=None):
     componentwise products): over all elements (the first `count`) or along `axis` (its first
     `count` entries; the result keeps the axis with size 1, as Warp 1.19). Returns it, or
     writes it to out and returns out."""
+    _not_in_capture("array_inner", a, b, out)
     if tuple(a.shape) != tuple(b.shape):
         raise ValueError(f"array_inner() arguments must have the same shape, got "
                          f"{tuple(a.shape)} and {tuple(b.shape)}")
@@ -238,6 +256,7 @@ def array_cast(in_array, out_array, count=None) -> None:
     """Converts in_array's scalars to out_array's scalar type (C casts: floats truncate to
     ints). Arrays of several dimensions need one shape; 1-d arrays convert the first `count`
     elements (default: all of in_array), component by component."""
+    _not_in_capture("array_cast", in_array, out_array)
     if in_array.device != out_array.device:
         raise RuntimeError(f"Array storage devices do not match ({in_array.device} vs "
                            f"{out_array.device})")
@@ -297,6 +316,7 @@ def radix_sort_pairs(keys, values, count: int, begin_bit: int = 0, end_bit=None)
     """Sorts the first `count` keys (stable, by bits [begin_bit, end_bit) of their numeric
     order) and moves the values with them. Like Warp's, both arrays must hold 2*count elements
     (the second half is scratch space)."""
+    _not_in_capture("radix_sort_pairs", keys, values)
     if keys.device != values.device:
         raise RuntimeError(f"Keys and values array storage devices do not match "
                            f"({keys.device} vs {values.device})")
@@ -354,6 +374,7 @@ def segmented_sort_pairs(keys, values, count: int, segment_start_indices,
     float32 keys with int32 values) and moves the values with them. Without end indices,
     segment i ends where segment i+1 starts (the last start only closes the one before).
     Both arrays must hold 2*count elements."""
+    _not_in_capture("segmented_sort_pairs", keys, values)
     starts, ends = segment_start_indices, segment_end_indices
     devices = {keys.device, values.device, starts.device} | (
         {ends.device} if ends is not None else set())
@@ -410,6 +431,7 @@ def runlength_encode(values, run_values, run_lengths, run_count=None, value_coun
     """Run-length encodes the first value_count values (default: all): run_values gets each
     run's value, run_lengths its length. Returns the number of runs when run_count is None,
     else writes it to run_count[0]."""
+    _not_in_capture("runlength_encode", values, run_values, run_lengths)
     if run_values.device != values.device or run_lengths.device != values.device:
         raise RuntimeError("Values, run values and run lengths must live on one device")
     if not _same_dtype(run_values.dtype, values.dtype):

@@ -281,3 +281,20 @@ def test_capture_debug_dot_print(tmp_path, device):
     text = path.read_text()
     assert text.startswith("digraph") and "launch axpy" in text and "fill" in text
     assert "n0 -> n1" in text
+
+
+def test_host_side_utils_refuse_to_be_captured(rng, device):
+    """weft's wp.utils algorithms run on the host: inside a capture they would read data the
+    graph has not produced, so they refuse; paused, they run."""
+    keys_np = rng.integers(0, 1000, 16).astype(np.int32)
+    keys = wp.array(np.concatenate([keys_np, keys_np]), dtype=wp.int32)
+    values = wp.array(np.arange(32, dtype=np.int32), dtype=wp.int32)
+    with wp.ScopedCapture():
+        with pytest.raises(RuntimeError, match="cannot be captured"):
+            wp.utils.radix_sort_pairs(keys, values, 16)
+        with pytest.raises(RuntimeError, match="cannot be captured"):
+            wp.utils.array_sum(wp.zeros(4))
+        wp.capture_pause()
+        wp.utils.radix_sort_pairs(keys, values, 16)
+        wp.capture_resume()
+    np.testing.assert_array_equal(keys.numpy()[:16], np.sort(keys_np, kind="stable"))
