@@ -63,6 +63,7 @@ class Graph:
         self._replay: list = []      # what capture_launch queues: LAUNCHes and tape commands
         self._graph_ids: list = []   # the daemon graphs made from the runs of commands
         self._nbytes = 0
+        self._retained: list = []    # handles of the recorded commands, one entry per command
         self._handles: tuple = ()
         self.graph = self            # Warp exposes the native graph; here this object
         self.graph_exec = None
@@ -71,11 +72,7 @@ class Graph:
         """Sends each run of launches/copies/fills to the daemon as a graph (CREATE)."""
         from .v1 import exec_pb2  # noqa: PLC0415
 
-        handles: set = set()
-        for cmd in self.commands:
-            _array_handles(cmd, handles)
-        self._handles = tuple(sorted(handles))
-        self._runtime.retain_handles(self._handles)
+        self._handles = tuple(self._retained)   # retained as each command was recorded
         run: list = []
 
         def close_run():
@@ -117,8 +114,8 @@ class Graph:
                 for graph_id in self._graph_ids:
                     rt.submit(exec_pb2.Command(graph=exec_pb2.GraphCommand(
                         op=exec_pb2.GraphCommand.DESTROY, graph_id=graph_id)))
-            if self._handles:
-                rt.release_handles(self._handles)
+            if self._retained:
+                rt.release_handles(self._retained)
         except Exception:  # noqa: BLE001 - finalizer: never raise
             pass
 
@@ -159,6 +156,12 @@ class _Capture:
         elif kind not in ("copy", "fill"):
             return False                   # gradient replacement, framework stream ordering
         self.graph.commands.append(cmd)
+        # Kept from now: an array made and dropped while capturing stays for the graph.
+        handles: set = set()
+        _array_handles(cmd, handles)
+        if handles:
+            self.graph._runtime.retain_handles(handles)
+            self.graph._retained.extend(handles)
         return True
 
     def _record_on_tape(self, cmd) -> None:

@@ -298,3 +298,15 @@ def test_host_side_utils_refuse_to_be_captured(rng, device):
         wp.utils.radix_sort_pairs(keys, values, 16)
         wp.capture_resume()
     np.testing.assert_array_equal(keys.numpy()[:16], np.sort(keys_np, kind="stable"))
+
+
+def test_arrays_made_and_dropped_while_capturing_stay_for_the_graph(rng, device):
+    value = float(rng.uniform(1, 2))
+    out = wp.zeros(1)
+    with wp.ScopedCapture() as capture:
+        tmp = wp.full(8, value)                 # its fill is recorded too
+        wp.launch(read_at, 1, inputs=[tmp, 3, out])
+        del tmp
+        gc.collect()
+    wp.capture_launch(capture.graph)
+    assert out.numpy()[0] == np.float32(value)
