@@ -192,3 +192,24 @@ def test_retain_grad_keeps_an_overwritten_arrays_gradient(rng):
         wp.zeros(3, retain_grad=True)
     y.requires_grad = False
     assert not y.retain_grad
+
+
+def test_tape_visualize_shows_scopes_and_repeated_launches(rng, tmp_path):
+    n = 8
+    x = wp.array(_data(rng, n), requires_grad=True)
+    w = wp.array(_data(rng, n))
+    loss = wp.zeros(1, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        tape.record_scope_begin("my loop")
+        for _ in range(5):
+            wp.launch(weighted_sum, n, inputs=[x, w, loss])
+        tape.record_scope_end()
+        wp.launch(scale, n, inputs=[x, x, 1.0])
+    path = tmp_path / "tape.dot"
+    text = tape.visualize(str(path), array_labels={x: "positions"})
+    assert path.read_text() == text
+    assert text.startswith("digraph") and "repeated 5x" in text and "my loop" in text
+    assert text.count("weighted_sum") == 1 and "scale" in text and "positions" in text
+    assert "cluster" in text
+    assert "repeated" not in tape.visualize(simplify_graph=False)

@@ -137,6 +137,8 @@ class Tape:
 
     def __init__(self):
         self.launches: list = []
+        self._scopes: list = []        # (first launch, end launch, depth, name), closed scopes
+        self._open_scopes: list = []   # (first launch, name) of scopes still open
         self.gradients = _Gradients()
         self.loss = None
         self.tape_id = next(_tape_ids)
@@ -227,6 +229,39 @@ class Tape:
             marker = next(_tape_ids)
             self._tape_command(exec_pb2.TapeCommand.MARK, marker=marker)
         self.launches.append(_RecordedFunc(backward, arrays, marker))
+
+    # --- scopes and visualization ---------------------------------------------------------
+    def record_scope_begin(self, scope_name, metadata=None):
+        """Opens a named scope around the launches recorded until record_scope_end."""
+        self._open_scopes.append((len(self.launches), str(scope_name)))
+
+    def record_scope_end(self, remove_scope_if_empty=True):
+        if not self._open_scopes:
+            raise RuntimeError("record_scope_end without record_scope_begin")
+        first, name = self._open_scopes.pop()
+        if first == len(self.launches) and remove_scope_if_empty:
+            return
+        self._scopes.append((first, len(self.launches), len(self._open_scopes), name))
+
+    def visualize(self, filename=None, simplify_graph=True, hide_readonly_arrays=False,
+                  array_labels=None, choose_longest_node_name=True, ignore_graph_scopes=False,
+                  track_inputs=None, track_outputs=None, track_input_names=None,
+                  track_output_names=None, graph_direction="LR"):
+        """The recorded launches as GraphViz DOT text (written to `filename` when given)."""
+        from .tape_dot import tape_dot  # noqa: PLC0415
+
+        scopes = self._scopes
+        if ignore_graph_scopes:
+            self._scopes = []
+        try:
+            text = tape_dot(self, simplify_graph=simplify_graph, array_labels=array_labels,
+                            graph_direction=graph_direction)
+        finally:
+            self._scopes = scopes
+        if filename is not None:
+            with open(filename, "w", encoding="utf-8") as f:
+                f.write(text)
+        return text
 
     # --- backward -----------------------------------------------------------------------
     def backward(self, loss=None, grads=None):
@@ -382,6 +417,8 @@ class Tape:
         else:
             self.zero()
         self.launches.clear()
+        self._scopes.clear()
+        self._open_scopes.clear()
         self.gradients.clear()
         self.loss = None
 
