@@ -211,5 +211,5 @@ def test_tape_visualize_shows_scopes_and_repeated_launches(rng, tmp_path):
     assert path.read_text() == text
     assert text.startswith("digraph") and "repeated 5x" in text and "my loop" in text
     assert text.count("weighted_sum") == 1 and "scale" in text and "positions" in text
-    assert "cluster" in text
+    assert "cluster" in text and "array: dtype=float32" in text
     assert "repeated" not in tape.visualize(simplify_graph=False)

@@ -9,6 +9,14 @@ def _quote(text: str) -> str:
     return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
 
 
+def _type_name(dtype) -> str:
+    from ..types import type_repr  # noqa: PLC0415
+    try:
+        return type_repr(dtype)
+    except Exception:  # noqa: BLE001 - a label only
+        return getattr(dtype, "__name__", str(dtype))
+
+
 def _kernel_name(kernel) -> str:
     return getattr(kernel, "key", None) or getattr(kernel, "name", None) or "kernel"
 
@@ -51,7 +59,10 @@ def tape_dot(tape, simplify_graph=True, array_labels=None, graph_direction="LR")
             if name is None:
                 name = arrays[id(value)] = f"a{len(arrays)}"
                 text = labels.get(id(value)) or f"array {tuple(value.shape)}"
-                lines.append(f"  {name} [shape=ellipse, label={_quote(text)}];")
+                tip = (f"array: dtype={_type_name(value.dtype)}, shape={tuple(value.shape)}, "
+                       f"requires_grad={bool(value.requires_grad)}")
+                lines.append(f"  {name} [shape=ellipse, label={_quote(text)}, "
+                             f"tooltip={_quote(tip)}];")
             node_lines.append(f"  {name} -> k{n};")
         body[index] = node_lines
 
