@@ -63,8 +63,9 @@ class Graph:
         self._replay: list = []      # what capture_launch queues: LAUNCHes and tape commands
         self._graph_ids: list = []   # the daemon graphs made from the runs of commands
         self._nbytes = 0
-        self._retained: list = []    # handles of the recorded commands, one entry per command
+        self._retained: list = []    # array handles kept for the recorded commands (per command)
         self._handles: tuple = ()
+        self._children: list = []    # graphs launched while this one was captured
         self.graph = self            # Warp exposes the native graph; here this object
         self.graph_exec = None
 
@@ -249,6 +250,9 @@ def capture_launch(graph: Graph, stream=None) -> None:
     rt = _runtime.get_runtime()
     if graph._runtime is not rt:
         raise RuntimeError("this graph was captured by another weft session")
+    outer = _capture_of_thread(rt)
+    if outer is not None and not outer.paused:
+        outer.graph._children.append(graph)   # its daemon graphs live as long as the outer one
     if graph._replay:
         rt.submit_recorded(graph._replay, graph._nbytes)
 

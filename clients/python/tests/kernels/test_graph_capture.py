@@ -310,3 +310,16 @@ def test_arrays_made_and_dropped_while_capturing_stay_for_the_graph(rng, device)
         gc.collect()
     wp.capture_launch(capture.graph)
     assert out.numpy()[0] == np.float32(value)
+
+
+def test_a_graph_launched_while_capturing_becomes_part_of_the_new_one(device):
+    x = wp.zeros(4)
+    with wp.ScopedCapture() as inner:
+        wp.launch(axpy, 4, inputs=[wp.full(4, 1.0), x, 2.0])
+    with wp.ScopedCapture() as outer:
+        wp.capture_launch(inner.graph)
+        wp.capture_launch(inner.graph)
+    del inner
+    gc.collect()                          # the outer graph keeps the inner one
+    wp.capture_launch(outer.graph)
+    np.testing.assert_array_equal(x.numpy(), 4.0)
