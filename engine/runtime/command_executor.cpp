@@ -148,7 +148,7 @@ Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapsh
   if (auto* sg = std::get_if<SetGradCommand>(&c.kind)) return SetGrad(s, *sg, h);
   if (auto* e = std::get_if<CudaEventCommand>(&c.kind)) return CudaEvent(s, *e);
   if (auto* v = std::get_if<CudaValueCommand>(&c.kind)) return CudaValue(s, *v, h);
-  if (auto* g = std::get_if<GraphCommand>(&c.kind)) return Graph(s, *g, h, c.origin);
+  if (auto* g = std::get_if<GraphCommand>(&c.kind)) return Graph(s, *g, h);
   return InvalidArgument("empty command");
 }
 
@@ -173,8 +173,7 @@ bool CapturableOn(const Command& c, const std::string& device, const HandleSnaps
 
 }  // namespace
 
-Status CommandExecutor::Graph(Session& s, const GraphCommand& c, const HandleSnapshot& h,
-                              const SourceLocation& origin) {
+Status CommandExecutor::Graph(Session& s, const GraphCommand& c, const HandleSnapshot& h) {
   const std::string which = "graph " + std::to_string(c.graph_id);
   if (c.op == GraphCommand::Op::kDestroy) {
     s.graphs.erase(c.graph_id);
@@ -251,7 +250,6 @@ Status CommandExecutor::Graph(Session& s, const GraphCommand& c, const HandleSna
       spdlog::debug("session {}: {} replays command by command: {}", s.label(), which, captured.status().ToString());
     }
   }
-  (void)origin;
   s.graphs.emplace(c.graph_id, std::move(g));
   return Status::Ok();
 }

@@ -43,7 +43,7 @@ class CommandExecutor {
   Status TapeOp(Session& s, const TapeCommand& c, const HandleSnapshot& h);
   // GraphCommand: create (captured as a CUDA graph where the device and commands allow,
   // else kept as a list), launch, destroy.
-  Status Graph(Session& s, const GraphCommand& c, const HandleSnapshot& h, const SourceLocation& origin);
+  Status Graph(Session& s, const GraphCommand& c, const HandleSnapshot& h);
   Status Backward(Session& s, Tape& tape, const TapeCommand& c, const HandleSnapshot& h);
   Status SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h);
   Status CudaEvent(Session& s, const CudaEventCommand& c);
