@@ -393,13 +393,14 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
   if (!output.empty()) s.AppendOutput(output);
   WEFT_RETURN_IF_ERROR(st);
 
-  // Record forward launches on the active tape (not those of graphs).
-  if (!c.adjoint && s.active_tape != 0 && !s.in_graph) RecordOnTape(s, c, device->name(), origin, std::move(packed));
+  // Record forward launches on the active tape.
+  if (!c.adjoint && s.active_tape != 0) RecordOnTape(s, c, device->name(), origin, std::move(packed));
   return Status::Ok();
 }
 
 void CommandExecutor::RecordOnTape(Session& s, const LaunchCommand& c, const std::string& device,
                                    const SourceLocation& origin, PackedArgs packed) {
+  if (s.in_graph) return;   // launches of graphs are not recorded (as Warp's graph launches)
   Tape& tape = s.tapes[s.active_tape];
   TapeRecord r;
   r.module_id = c.module_id;

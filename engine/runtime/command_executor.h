@@ -37,7 +37,8 @@ class CommandExecutor {
   Expected<Device*> DeviceOf(const Allocation& a) const;
   Status ZeroGradients(Session& s, Tape& tape);
   Status Launch(Session& s, const LaunchCommand& c, const HandleSnapshot& h, const SourceLocation& origin);
-  // Appends a forward launch (its packed arguments) to the session's active tape.
+  // Appends a forward launch (its packed arguments) to the session's active tape, unless it
+  // runs from a graph.
   void RecordOnTape(Session& s, const LaunchCommand& c, const std::string& device, const SourceLocation& origin,
                     PackedArgs packed);
   Status TapeOp(Session& s, const TapeCommand& c, const HandleSnapshot& h);

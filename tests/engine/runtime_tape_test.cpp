@@ -297,6 +297,23 @@ TEST(Tape, RecordOnlyLaunchesAreRecordedNotRun) {
   st = t.Run({Cmd(adjoint)});
   ASSERT_FALSE(st.ok());
   EXPECT_NE(st.message().find("record_only"), std::string::npos) << st.ToString();
+  // Launches run from a graph, record-only ones included, are not recorded on tapes.
+  Command in_graph;
+  GraphCommand create;
+  create.op = GraphCommand::Op::kCreate;
+  create.graph_id = 1;
+  create.device = "cpu";
+  create.commands = {Cmd(rec), Cmd(L("square", xa->handle, sq->handle, 64))};
+  in_graph.kind = create;
+  Command launch_graph;
+  GraphCommand run;
+  run.op = GraphCommand::Op::kLaunch;
+  run.graph_id = 1;
+  launch_graph.kind = run;
+  st = t.Run({in_graph, Cmd(T(TapeCommand::Op::kBegin, 6)), launch_graph, Cmd(T(TapeCommand::Op::kEnd, 6)),
+              Cmd(T(TapeCommand::Op::kBackward, 6))});
+  EXPECT_EQ(st.code(), StatusCode::kFailedPrecondition) << st.ToString();   // tape 6 recorded nothing
+
   LaunchCommand stray = rec;
   stray.args[0] = ArrayArg(987654321);
   st = t.Run({Cmd(T(TapeCommand::Op::kBegin, 4)), Cmd(stray), Cmd(T(TapeCommand::Op::kEnd, 4))});

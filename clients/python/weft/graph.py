@@ -64,7 +64,6 @@ class Graph:
         self._graph_ids: list = []   # the daemon graphs made from the runs of commands
         self._nbytes = 0
         self._retained: list = []    # array handles kept for the recorded commands (per command)
-        self._handles: tuple = ()
         self._children: list = []    # graphs launched while this one was captured
         self.graph = self            # Warp exposes the native graph; here this object
         self.graph_exec = None
@@ -73,7 +72,6 @@ class Graph:
         """Sends each run of launches/copies/fills to the daemon as a graph (CREATE)."""
         from .v1 import exec_pb2  # noqa: PLC0415
 
-        self._handles = tuple(self._retained)   # retained as each command was recorded
         run: list = []
 
         def close_run():
