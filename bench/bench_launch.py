@@ -1,16 +1,34 @@
-"""Launch overhead of an empty kernel on the CPU: weft batched (N launches, one sync),
-weft synchronous (launch + sync each time: one round trip), and warp-lang (N launches + sync).
-"client CPU" is this process's CPU time per launch (all its threads): on a loaded machine it is
-steadier than wall time, which includes waiting for a core.
-Error column: the empty kernel writes nothing, so the check is that a counter kernel launched
-N times in the same way counts exactly N. Ratio = warp time / weft time."""
+"""Launch overhead, weft beside warp-lang on the same device in the same run.
+
+Rows (per launch; N launches per timing, median of repeats):
+- empty kernel, N launches then one synchronize (batched);
+- a 4-argument kernel (array of vec3, vec3, float, float: the step of Warp's particle
+  examples) batched the same way;
+- the same kernel in steps of 24 launches then a synchronize (an eager simulation frame);
+- empty kernel, launch + synchronize each time (one round trip per launch).
+Columns: wall time, this process's CPU time, weftd's CPU time (from /proc: the daemon's share
+of the work; on a machine with few cores the two compete), warp-lang's wall time and the ratio
+warp/weft (above 1: weft is faster).
+Error column: a counter kernel launched N times the same way must count exactly N; the
+4-argument kernel's array after all its launches is compared with a float64 NumPy reference
+(max |error| / max |v|).
+Usage: python3 bench/bench_launch.py [--device cpu|cuda:0] [-n 2000] [--repeat 3]
+(the bench starts its own weftd: WEFT_DAEMON or build/bin/weftd)."""
 from __future__ import annotations
 
+import argparse
+import os
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-import bench_common as bc
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "clients" / "python"))
+
+import bench_common as bc  # noqa: E402
 
 SOURCE = '''
 @wp.kernel
@@ -20,84 +38,125 @@ def empty_kernel(a: wp.array(dtype=float)):
 @wp.kernel
 def count(c: wp.array(dtype=int)):
     wp.atomic_add(c, 0, 1)
+
+@wp.kernel
+def forces(v: wp.array(dtype=wp.vec3), g: wp.vec3, damping: float, dt: float):
+    i = wp.tid()
+    v[i] = (v[i] + g * dt) * (1.0 - damping * dt)
 '''
-N = 2000
+STEP = 24                       # launches per eager step
+PARTICLES = 1000
+G, DAMPING, DT = (0.0, -9.8, 0.0), 0.1, 1e-3
 
 
-def weft_overhead():
-    import weft as wp
+def _cpu_seconds(pid) -> float:
+    """User + system CPU seconds of process `pid` (0: this process)."""
+    if not pid:
+        return time.process_time()
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
-    wp.init()
-    mod = bc.load_kernels(SOURCE, "weft", "launch")
-    a = wp.zeros(1, dtype=float, device="cpu")
-    wp.launch(mod.empty_kernel, dim=1, inputs=[a])
-    wp.synchronize()
 
-    def batched():
-        for _ in range(N):
-            wp.launch(mod.empty_kernel, dim=1, inputs=[a])
+def _measure(fn, launches, repeat, daemon_pid):
+    """(wall, client CPU, daemon CPU or None) per launch of fn(), which makes `launches`."""
+    wall = bc.median_time(fn, repeat=repeat) / launches
+    c0 = time.process_time()
+    d0 = _cpu_seconds(daemon_pid) if daemon_pid else None
+    fn()
+    client = (time.process_time() - c0) / launches
+    daemon = (_cpu_seconds(daemon_pid) - d0) / launches if daemon_pid else None
+    return wall, client, daemon
+
+
+def run_library(wp, mod, device, n, repeat, daemon_pid=None):
+    """{row: (wall, client CPU, daemon CPU)} and {row: error text} for one library."""
+    a = wp.zeros(1, dtype=float, device=device)
+    rng = np.random.default_rng(11)
+    v0 = rng.standard_normal((PARTICLES, 3)).astype(np.float32)
+    v = wp.array(v0, dtype=wp.vec3, device=device)
+    g = wp.vec3(*G)
+    launched = [0]
+
+    def empty_batched():
+        for _ in range(n):
+            wp.launch(mod.empty_kernel, dim=1, inputs=[a], device=device)
         wp.synchronize()
 
-    def synchronous():
-        for _ in range(200):
-            wp.launch(mod.empty_kernel, dim=1, inputs=[a])
+    def forces_batched():
+        for _ in range(n):
+            wp.launch(mod.forces, PARTICLES, inputs=[v, g, DAMPING, DT], device=device)
+        wp.synchronize()
+        launched[0] += n
+
+    def forces_steps():
+        for _ in range(n // STEP):
+            for _ in range(STEP):
+                wp.launch(mod.forces, PARTICLES, inputs=[v, g, DAMPING, DT], device=device)
+            wp.synchronize()
+        launched[0] += n // STEP * STEP
+
+    def empty_synchronous():
+        for _ in range(n // 10):
+            wp.launch(mod.empty_kernel, dim=1, inputs=[a], device=device)
             wp.synchronize()
 
-    batched_s = bc.median_time(batched, repeat=3) / N
-    cpu0 = time.process_time()
-    batched()
-    batched_cpu_s = (time.process_time() - cpu0) / N
-    sync_s = bc.median_time(synchronous, repeat=3) / 200
-    cpu0 = time.process_time()
-    synchronous()
-    sync_cpu_s = (time.process_time() - cpu0) / 200
-    c = wp.zeros(1, dtype=int, device="cpu")
-    for _ in range(N):
-        wp.launch(mod.count, dim=1, inputs=[c])
+    wp.launch(mod.empty_kernel, dim=1, inputs=[a], device=device)
+    wp.launch(mod.forces, PARTICLES, inputs=[v, g, DAMPING, DT], device=device)
+    wp.synchronize()
+    launched[0] += 1
+    times = {
+        "empty kernel, batched": _measure(empty_batched, n, repeat, daemon_pid),
+        "4-arg kernel, batched": _measure(forces_batched, n, repeat, daemon_pid),
+        f"4-arg kernel, steps of {STEP} + sync": _measure(forces_steps, n // STEP * STEP,
+                                                         repeat, daemon_pid),
+        "empty kernel, launch + sync each": _measure(empty_synchronous, n // 10, repeat,
+                                                     daemon_pid),
+    }
+    c = wp.zeros(1, dtype=int, device=device)
+    for _ in range(n):
+        wp.launch(mod.count, dim=1, inputs=[c], device=device)
     counted = int(c.numpy()[0])
-    return batched_s, sync_s, counted, batched_cpu_s, sync_cpu_s
-
-
-def warp_overhead():
-    warp = bc.import_warp()
-    if warp is None:
-        return None, None, None
-    mod = bc.load_kernels(SOURCE, "warp", "launch")
-    a = warp.zeros(1, dtype=float, device="cpu")
-    warp.launch(mod.empty_kernel, dim=1, inputs=[a], device="cpu")
-    warp.synchronize()
-
-    def batched():
-        for _ in range(N):
-            warp.launch(mod.empty_kernel, dim=1, inputs=[a], device="cpu")
-        warp.synchronize()
-
-    batched_s = bc.median_time(batched, repeat=3) / N
-    cpu0 = time.process_time()
-    batched()
-    batched_cpu_s = (time.process_time() - cpu0) / N
-    c = warp.zeros(1, dtype=int, device="cpu")
-    for _ in range(N):
-        warp.launch(mod.count, dim=1, inputs=[c], device="cpu")
-    return batched_s, int(c.numpy()[0]), batched_cpu_s
+    ref = v0.astype(np.float64)
+    gd = np.array(G, dtype=np.float64)
+    for _ in range(launched[0]):
+        ref = (ref + gd * DT) * (1.0 - DAMPING * DT)
+    got = v.numpy().astype(np.float64)
+    rel = float(np.max(np.abs(got - ref)) / np.max(np.abs(ref)))
+    errors = {"empty kernel, batched": f"count {counted - n:+d}",
+              "4-arg kernel, batched": f"{rel:.1e}"}
+    return times, errors
 
 
 def main():
-    batched_s, sync_s, counted, batched_cpu_s, sync_cpu_s = weft_overhead()
-    warp_s, warp_counted, warp_cpu_s = warp_overhead()
-    rows = [["weft batched (N launches, 1 sync)", bc.fmt_time(batched_s),
-             bc.fmt_time(batched_cpu_s), f"{1 / batched_s:,.0f}/s", f"{counted - N:+d}",
-             bc.fmt_time(warp_s), bc.fmt_time(warp_cpu_s), bc.fmt_ratio(batched_s, warp_s)],
-            ["weft launch + sync each", bc.fmt_time(sync_s), bc.fmt_time(sync_cpu_s),
-             f"{1 / sync_s:,.0f}/s", "", bc.fmt_time(warp_s), bc.fmt_time(warp_cpu_s),
-             bc.fmt_ratio(sync_s, warp_s)]]
-    if warp_counted is not None and warp_counted != N:
-        print(f"(warp counted {warp_counted} of {N})")
-    bc.print_table(f"empty-kernel launch overhead, CPU, N={N}",
-                   ["mode", "per launch", "client CPU", "launches", "count error",
-                    "warp-lang per launch", "warp CPU", "ratio warp/weft"], rows)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("-n", type=int, default=2000, help="launches per timing")
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+
+    session = bc.WeftSession()
+    with session as (weft, _rt):
+        mod = bc.load_kernels(SOURCE, "weft", "launch")
+        weft_times, weft_errors = run_library(weft, mod, args.device, args.n, args.repeat,
+                                              session.daemon.proc.pid)
+
+    warp = bc.import_warp()
+    warp_times = {}
+    if warp is not None:
+        wmod = bc.load_kernels(SOURCE, "warp", "launch")
+        warp_times, _ = run_library(warp, wmod, args.device, args.n, args.repeat)
+
+    rows = []
+    for name, (wall, client, daemon) in weft_times.items():
+        ref = warp_times.get(name)
+        rows.append([name, bc.fmt_time(wall), bc.fmt_time(client), bc.fmt_time(daemon),
+                     f"{1 / wall:,.0f}/s", weft_errors.get(name, ""),
+                     bc.fmt_time(ref[0] if ref else None), bc.fmt_ratio(wall, ref[0] if ref else None)])
+    bc.print_table(f"launch overhead, {args.device}, N={args.n} (per launch)",
+                   ["case", "weft", "client CPU", "weftd CPU", "launches", "error",
+                    "warp-lang", "ratio warp/weft"], rows)
 
 
 if __name__ == "__main__":
     main()
-    del np, time

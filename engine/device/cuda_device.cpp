@@ -678,7 +678,10 @@ Expected<jit::CuFunction> CudaDevice::Function(const LoadedModule& module, const
   if (module.cuda_sm != sm_)
     return InvalidArgument("module '" + module.id + "' was compiled for sm_" + std::to_string(module.cuda_sm) +
                            ", " + name_ + " is sm_" + std::to_string(sm_));
-  const std::string key = module.id + (module.has_backward ? "/b" : "/f");
+  // The key is built in a per-thread buffer: no allocation per launch once it has grown.
+  thread_local std::string key;
+  key.assign(module.id);
+  key.append(module.has_backward ? "/b" : "/f");
   std::lock_guard<std::mutex> lock(mu_);
   auto it = modules_.find(key);
   if (it == modules_.end()) {
@@ -943,10 +946,12 @@ Status CudaDevice::MakeRoom(Session& s, Stream& st, size_t n) {
 Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   std::shared_lock<std::shared_mutex> reset(reset_mu_);
   WEFT_RETURN_IF_ERROR(CheckUsable());
+  const uint64_t generation = generation_.load();
   for (const PackedArgs* block : {l.args, l.adj_args}) {
     if (!block) continue;
     for (const auto& a : block->keep_alive)
-      WEFT_RETURN_IF_ERROR(CheckBlock(a->block, "kernel '" + l.kernel->layout.name + "' array " + std::to_string(a->handle)));
+      if (a->block.generation != generation)   // the message is built only for a lost array
+        WEFT_RETURN_IF_ERROR(CheckBlock(a->block, "kernel '" + l.kernel->layout.name + "' array " + std::to_string(a->handle)));
   }
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   const bool adjoint = l.adj_args != nullptr;
@@ -984,9 +989,9 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   void* adj = adjoint ? const_cast<char*>(l.adj_args->block.data()) : nullptr;
   void* params_fwd[] = {&ctx, args};
   void* params_adj[] = {&ctx, args, adj};
-  WEFT_RETURN_IF_ERROR(driver_->Check(
-      driver_->LaunchKernel(fn, grid, 1, 1, block, 1, 1, 0, st->stream, adjoint ? params_adj : params_fwd, nullptr),
-      ("cuLaunchKernel " + symbol).c_str()));
+  const jit::CuResult launched =
+      driver_->LaunchKernel(fn, grid, 1, 1, block, 1, 1, 0, st->stream, adjoint ? params_adj : params_fwd, nullptr);
+  if (launched != 0) return driver_->Check(launched, ("cuLaunchKernel " + symbol).c_str());
   (st->capture ? st->capture->launches : st->pending).push_back(Pending{l.module, l.kernel, adjoint, l.origin});
   return Status::Ok();
 }

@@ -19,25 +19,26 @@ Status CheckAllocationConsistent(const Allocation& a) {
 
 Expected<ArrayView> ValidateArray(std::shared_ptr<Allocation> alloc, const ArrayRef& ref,
                                   const ArrayRequirement& req) {
-  if (!alloc) return Internal(req.what + ": no allocation to validate (daemon bug)");
+  const ArrayName what = req.Name();
+  if (!alloc) return Internal(what.Text() + ": no allocation to validate (daemon bug)");
   const Allocation& a = *alloc;
-  const std::string name = req.what + ": array " + std::to_string(a.handle);
+  auto name = [&] { return what.Text() + ": array " + std::to_string(a.handle); };
   if (!req.device.empty() && a.device != req.device)
-    return InvalidArgument(name + " lives on " + a.device + ", the command runs on " + req.device);
+    return InvalidArgument(name() + " lives on " + a.device + ", the command runs on " + req.device);
   WEFT_RETURN_IF_ERROR(CheckAllocationConsistent(a));
   if (!req.dtype.empty() && req.dtype != "any" && !a.dtype.MatchesParam(req.dtype))
-    return InvalidArgument(name + " has dtype " + a.dtype.Name() + ", expected " + req.dtype);
+    return InvalidArgument(name() + " has dtype " + a.dtype.Name() + ", expected " + req.dtype);
   if (req.element_size != 0 && a.dtype.ElementSize() != req.element_size)
-    return InvalidArgument(name + " has elements of " + std::to_string(a.dtype.ElementSize()) + " bytes (dtype " +
+    return InvalidArgument(name() + " has elements of " + std::to_string(a.dtype.ElementSize()) + " bytes (dtype " +
                            a.dtype.Name() + " as created), but the compiled kernel's " +
                            (req.dtype.empty() ? std::string("element type") : req.dtype) + " has " +
                            std::to_string(req.element_size) + " bytes per element");
-  WEFT_ASSIGN_OR_RETURN(ArrayView v, MakeView(std::move(alloc), ref, req.what));
+  WEFT_ASSIGN_OR_RETURN(ArrayView v, MakeView(std::move(alloc), ref, what));
   if (req.ndim > 0 && static_cast<int>(v.shape.size()) != req.ndim)
-    return InvalidArgument(name + " has " + std::to_string(v.shape.size()) + " dimensions " + ShapeString(v.shape) +
+    return InvalidArgument(name() + " has " + std::to_string(v.shape.size()) + " dimensions " + ShapeString(v.shape) +
                            ", expected " + std::to_string(req.ndim));
   if (req.shape && v.shape != *req.shape)
-    return InvalidArgument(name + " has shape " + ShapeString(v.shape) + ", but the primal array has shape " +
+    return InvalidArgument(name() + " has shape " + ShapeString(v.shape) + ", but the primal array has shape " +
                            ShapeString(*req.shape) + " (an adjoint array must have the primal's shape)");
   return v;
 }

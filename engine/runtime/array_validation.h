@@ -26,6 +26,10 @@ namespace weft {
 // What a command requires of one array. Empty / zero fields are not checked.
 struct ArrayRequirement {
   std::string what;                 // names the array in messages ("copy dst", "kernel 'k' parameter 'a'")
+  // Builds that name instead of `what`, only when a message needs it (launch arguments).
+  std::string (*build_what)(const void*) = nullptr;
+  const void* build_what_context = nullptr;
+  ArrayName Name() const { return build_what ? ArrayName(build_what, build_what_context) : ArrayName(what); }
   std::string device = "cpu";       // where the command runs
   std::string dtype;                // canonical element type the code was compiled for ("" / "any": any)
   uint64_t element_size = 0;        // bytes per element in the compiled layout (0: not compiled code)

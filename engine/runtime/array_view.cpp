@@ -20,13 +20,14 @@ bool ArrayView::contiguous() const {
 }
 
 Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& ref,
-                             const std::string& what) {
+                             const ArrayName& what) {
   ArrayView v;
   const uint64_t esize = alloc->dtype.ElementSize();
-  const std::string name = what + " (array " + std::to_string(alloc->handle) + ")";
+  const uint64_t handle = alloc->handle;
+  auto name = [&] { return what.Text() + " (array " + std::to_string(handle) + ")"; };
   if (ref.shape.empty()) {
     if (ref.byte_offset != 0 || !ref.strides.empty())
-      return InvalidArgument(name + ": a view with an empty shape means the whole array; give a shape with byte_offset/strides");
+      return InvalidArgument(name() + ": a view with an empty shape means the whole array; give a shape with byte_offset/strides");
     v.shape = alloc->shape;
     v.strides = alloc->strides;
     v.byte_offset = 0;
@@ -34,18 +35,18 @@ Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& 
     return v;
   }
   if (ref.shape.size() > kMaxArrayDims)
-    return InvalidArgument(name + ": view has " + std::to_string(ref.shape.size()) +
+    return InvalidArgument(name() + ": view has " + std::to_string(ref.shape.size()) +
                            " dimensions; at most 4");
   if (!ref.strides.empty() && ref.strides.size() != ref.shape.size())
-    return InvalidArgument(name + ": view has " + std::to_string(ref.shape.size()) +
+    return InvalidArgument(name() + ": view has " + std::to_string(ref.shape.size()) +
                            " dimensions but " + std::to_string(ref.strides.size()) + " strides");
   for (int64_t d : ref.shape)
-    if (d < 0) return InvalidArgument(name + ": negative extent in view shape " + ShapeString(ref.shape));
+    if (d < 0) return InvalidArgument(name() + ": negative extent in view shape " + ShapeString(ref.shape));
   // The view's logical size (elements x element size) must fit kMaxCheckedSize, checked without
   // wrapping: element counts, contiguous strides and temporaries are then exact in 64 bits.
   uint64_t logical_bytes = 0;
   if (!CheckedShapeProduct(ref.shape, esize, &logical_bytes))
-    return InvalidArgument(name + ": view shape " + ShapeString(ref.shape) + " has too many elements (more than " +
+    return InvalidArgument(name() + ": view shape " + ShapeString(ref.shape) + " has too many elements (more than " +
                            std::to_string(kMaxCheckedSize) + " bytes of " + alloc->dtype.Name() + ")");
   v.shape = ref.shape;
   v.strides = ref.strides.empty() ? ContiguousStrides(ref.shape, esize) : ref.strides;
@@ -53,11 +54,11 @@ Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& 
   const uint32_t unit = alloc->dtype.ComponentSize();
   if (unit > 1) {
     if (ref.byte_offset % unit)
-      return InvalidArgument(name + ": byte_offset " + std::to_string(ref.byte_offset) +
+      return InvalidArgument(name() + ": byte_offset " + std::to_string(ref.byte_offset) +
                              " is not a multiple of the scalar size " + std::to_string(unit));
     for (int64_t s : v.strides)
       if (s % static_cast<int64_t>(unit))
-        return InvalidArgument(name + ": stride " + std::to_string(s) +
+        return InvalidArgument(name() + ": stride " + std::to_string(s) +
                                " is not a multiple of the scalar size " + std::to_string(unit));
   }
   // Lowest and highest byte touched, in 128-bit arithmetic to survive absurd inputs.
@@ -71,10 +72,10 @@ Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& 
   const __int128 size = static_cast<__int128>(alloc->byte_size);
   if (empty) {
     if (ref.byte_offset > alloc->byte_size)
-      return OutOfRange(name + ": byte_offset " + std::to_string(ref.byte_offset) +
+      return OutOfRange(name() + ": byte_offset " + std::to_string(ref.byte_offset) +
                         " is past the end of the allocation (" + std::to_string(alloc->byte_size) + " bytes)");
   } else if (lo < 0 || hi + static_cast<__int128>(esize) > size) {
-    return OutOfRange(name + ": view (offset " + std::to_string(ref.byte_offset) + ", shape " +
+    return OutOfRange(name() + ": view (offset " + std::to_string(ref.byte_offset) + ", shape " +
                       ShapeString(v.shape) + ", strides " + ShapeString(v.strides) +
                       ") reaches outside the allocation of " + std::to_string(alloc->byte_size) +
                       " bytes (array shape " + ShapeString(alloc->shape) + ")");

@@ -38,11 +38,31 @@ struct ArrayView {
   bool contiguous() const;
 };
 
+// Names an array in error messages: fixed text, or a function that builds the text only when a
+// message needs it (a launch checks every array argument; most checks pass). Holds pointers:
+// what it names must outlive it.
+class ArrayName {
+ public:
+  ArrayName(const std::string& text) : text_(&text) {}   // NOLINT: implicit by design
+  ArrayName(const char* text) : literal_(text) {}         // NOLINT: implicit by design
+  ArrayName(std::string (*build)(const void*), const void* context) : build_(build), context_(context) {}
+  std::string Text() const {
+    if (build_) return build_(context_);
+    return text_ ? *text_ : std::string(literal_ ? literal_ : "");
+  }
+
+ private:
+  const std::string* text_ = nullptr;
+  const char* literal_ = nullptr;
+  std::string (*build_)(const void*) = nullptr;
+  const void* context_ = nullptr;
+};
+
 // Resolves `ref` against `alloc` and checks it: 1..4 dimensions, non-negative extents, offset
 // and strides aligned to the element's scalar size, every element inside the allocation.
 // `what` names the view in messages ("dst", "argument 'a'").
 Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& ref,
-                             const std::string& what);
+                             const ArrayName& what);
 
 // Sets every element of `dst` to `value` (one element's bytes). A strided walk checks `cancel`
 // (may be null) every 65,536 elements and stops with CANCELLED once it is set.

@@ -58,7 +58,16 @@ struct Packer {
       if (a.alloc) {
         Allocation& al = *a.alloc;
         ArrayRequirement req;
-        req.what = Where(path, p);
+        struct WhereContext {
+          const Packer* packer;
+          const std::string* path;
+          const ParamLayout* param;
+        } where{this, &path, &p};
+        req.build_what = [](const void* c) {
+          const auto* w = static_cast<const WhereContext*>(c);
+          return w->packer->Where(*w->path, *w->param);
+        };
+        req.build_what_context = &where;
         req.device = device;
         req.dtype = p.array_dtype;
         req.element_size = p.array_elem_size;

@@ -28,11 +28,13 @@ LaunchWatchdog::Watch::Watch(LaunchWatchdog& dog, const std::atomic<bool>* sessi
     reason_ = Reason::kSessionCancelled;
     __atomic_store_n(&word_, 1, __ATOMIC_RELAXED);
   }
+  bool wake;
   {
     std::lock_guard<std::mutex> lock(dog_.mu_);
     dog_.watches_.push_back(this);
+    wake = dog_.idle_;   // a thread between ticks sees this watch at its next tick
   }
-  dog_.cv_.notify_all();
+  if (wake) dog_.cv_.notify_all();
 }
 
 LaunchWatchdog::Watch::~Watch() {
@@ -50,7 +52,9 @@ void LaunchWatchdog::Loop() {
   std::unique_lock<std::mutex> lock(mu_);
   while (!stop_) {
     if (watches_.empty()) {
+      idle_ = true;
       cv_.wait(lock, [&] { return stop_ || !watches_.empty(); });
+      idle_ = false;
       continue;
     }
     const auto now = std::chrono::steady_clock::now();

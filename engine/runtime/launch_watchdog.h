@@ -2,7 +2,8 @@
 // int32 its kernel polls through wp::launch_context_t::cancel, and the launch loop checks per
 // chunk of threads) together with its session's cancel flag and its time limit; one thread
 // sets the word when the session is cancelled or the limit passes, and records why.
-// The thread wakes every kTick while launches are registered and sleeps otherwise.
+// The thread wakes every kTick while launches are registered and sleeps otherwise; a new watch
+// wakes it only from that sleep (short launches in a row cost no thread switch each).
 #pragma once
 
 #include <atomic>
@@ -53,6 +54,7 @@ class LaunchWatchdog {
   std::condition_variable cv_;
   std::vector<Watch*> watches_;
   bool stop_ = false;
+  bool idle_ = false;   // the thread waits for a first watch (not for its next tick)
   std::thread thread_;
 };
 

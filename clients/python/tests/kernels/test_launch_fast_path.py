@@ -80,3 +80,49 @@ def test_argument_errors_after_the_plan_exists(wp):
     with pytest.raises(WeftLaunchError, match="number of arguments"):
         wp.launch(axpy_fast, dim=4, inputs=[x, 1.0], outputs=[y])
     wp.synchronize()
+
+
+@wp.kernel
+def composite_values(v: wp.vec3, d: wp.vec3d, m: wp.mat22, q: wp.quat, iv: wp.vec2i,
+                     out: wp.array(dtype=wp.float64)):
+    out[0] = wp.float64(v[0])
+    out[1] = wp.float64(v[2])
+    out[2] = d[1]
+    out[3] = wp.float64(m[0, 1])
+    out[4] = wp.float64(m[1, 0])
+    out[5] = wp.float64(q[3])
+    out[6] = wp.float64(iv[1])
+
+
+def test_composite_values_pack_like_the_general_path(wp, rng):
+    """Vector, matrix and quaternion arguments take their components' bytes when the value's
+    storage matches the parameter; any other value (a float32 vector for a vec3d, a quat for a
+    vec4, a tuple, a NumPy array) converts as the general path does, before and after the
+    fast path has seen a matching class."""
+    out = wp.zeros(7, dtype=wp.float64)
+    for _ in range(3):
+        a, b, c = (float(x) for x in rng.uniform(-1e3, 1e3, 3))
+        tiny = float(rng.uniform(1e-30, 1e-29))
+        args = [wp.vec3(a, b, tiny), wp.vec3d(a, 1e300 * c / abs(c), b),
+                wp.mat22(a, b, c, tiny), wp.quat(0.0, 0.0, 0.0, c), wp.vec2i(3, -2**31)]
+        wp.launch(composite_values, dim=1, inputs=args, outputs=[out])
+        want = [np.float32(a), np.float32(tiny), 1e300 * c / abs(c), np.float32(b),
+                np.float32(c), np.float32(c), -2**31]
+        np.testing.assert_array_equal(out.numpy(), np.array(want, dtype=np.float64))
+        # values of other classes: converted (float32 -> float64, tuples, NumPy, quat as vec4)
+        other = [(a, b, tiny), wp.vec3(a, 7.5, b),          # float32 storage for the vec3d
+                 np.array([[a, b], [c, tiny]]), wp.vec4(0.0, 0.0, 0.0, c), [3, -2**31]]
+        wp.launch(composite_values, dim=1, inputs=other, outputs=[out])
+        want[2] = 7.5
+        np.testing.assert_array_equal(out.numpy(), np.array(want, dtype=np.float64))
+
+
+def test_composite_value_of_the_wrong_size_is_refused(wp):
+    out = wp.zeros(7, dtype=wp.float64)
+    good = [wp.vec3(), wp.vec3d(), wp.mat22(), wp.quat(), wp.vec2i()]
+    wp.launch(composite_values, dim=1, inputs=good, outputs=[out])
+    for i, bad in enumerate([wp.vec4(), wp.vec2d(), wp.vec3(), wp.vec2(), wp.vec3i()]):
+        args = list(good)
+        args[i] = bad
+        with pytest.raises(WeftLaunchError, match="components"):
+            wp.launch(composite_values, dim=1, inputs=args, outputs=[out])

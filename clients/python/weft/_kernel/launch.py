@@ -417,7 +417,8 @@ class _ParamPlan:
     """How one kernel parameter is packed on the fast path."""
 
     __slots__ = ("name", "type_text", "desc", "annotation", "is_array", "elem_text", "elem_any",
-                 "ndim", "pack_float", "pack_int", "int_range", "last_raw", "last_arg")
+                 "ndim", "pack_float", "pack_int", "int_range", "last_raw", "last_arg",
+                 "composite_dtype", "composite_cls")
 
     def __init__(self, name, type_text, annotation):
         desc = typestr.parse(type_text)
@@ -436,6 +437,13 @@ class _ParamPlan:
         self.int_range = _INT_RANGES.get(desc.scalar)
         self.last_raw = None
         self.last_arg = None
+        # vector/matrix/quat/transform values: a weft value of exactly this shape and storage
+        # dtype passes its components' bytes (the class is remembered once it matched)
+        self.composite_dtype = None
+        if desc.kind in ("vec", "mat", "quat", "transform") and desc.scalar != "bfloat16" and \
+                sys.byteorder == "little":
+            self.composite_dtype = desc.numpy_scalar
+        self.composite_cls = None
 
 
 class _LaunchPlan:
@@ -594,6 +602,17 @@ def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
                     p.last_raw, p.last_arg = raw, arg_value(raw=raw)
                 packed.append(p.last_arg)
                 continue
+        elif p.composite_dtype is not None:
+            cls = type(value)
+            if cls is p.composite_cls or (p.composite_cls is None and
+                                          _composite_matches(cls, p)):
+                data = value._data
+                if data.dtype == p.composite_dtype:
+                    raw = data.tobytes()
+                    if raw != p.last_raw:
+                        p.last_raw, p.last_arg = raw, arg_value(raw=raw)
+                    packed.append(p.last_arg)
+                    continue
         if packer is None:
             packer = ArgPacker(kernel, device)
         copy_backs = len(packer.copy_backs)
@@ -606,6 +625,21 @@ def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
                 resolved = list(args)
             resolved[i] = launched
     return packed, packer, resolved
+
+
+def _composite_matches(cls, p) -> bool:
+    """True (and remembered on p) when cls is a weft value class whose values pack as p's
+    vector, matrix, quaternion or transform type: as many components, stored as p's scalar
+    (the bytes ArgPacker would produce, without the conversion)."""
+    from weft.types import _Composite  # noqa: PLC0415
+
+    if not (isinstance(cls, type) and issubclass(cls, _Composite)) or \
+            int(np.prod(cls._shape_)) != p.desc.count:
+        return False
+    if np.dtype(cls._value_dtype_) != p.composite_dtype:
+        return False
+    p.composite_cls = cls
+    return True
 
 
 _ARRAY_TYPE = None
