@@ -9,8 +9,13 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cerrno>
+#include <chrono>
+#include <cstdlib>
 #include <cstring>
+#include <thread>
 #include <vector>
 
 #include <google/protobuf/arena.h>
@@ -67,6 +72,37 @@ enum class FrameResult { kContinue, kEnd, kUnknownMethod };
 // body that does not parse ends the connection; the handler's error is the reply and the lane
 // stays open. The session reference is released before the reply is sent, so a slow peer
 // never holds a closed session alive.
+// A client that waited for a synchronizing reply sends its next frame soon after it (a
+// launch + synchronize loop): polling for it a short while avoids a thread wake-up per round
+// trip, which costs more than the daemon's work on such a frame. Only after such replies (an
+// asynchronous Submit's client is busy queueing; the CPU device's kernels need the cores), on
+// machines of 4 cores or more, at most a quarter of the cores at once; after kSpinFor without
+// a frame the lane thread blocks in recvmsg as before. WEFT_LANE_POLLERS=N overrides the
+// number of lanes that may poll at once.
+constexpr auto kSpinFor = std::chrono::microseconds(60);
+std::atomic<int> spinning_lanes{0};
+
+ssize_t SpinReceive(int fd, msghdr* msg) {
+  static const int max_spinning = [] {
+    // WEFT_LANE_POLLERS overrides how many lanes may poll at once (0: none).
+    if (const char* env = std::getenv("WEFT_LANE_POLLERS")) return std::clamp(std::atoi(env), 0, 1024);
+    return static_cast<int>(std::thread::hardware_concurrency() / 4);
+  }();
+  if (spinning_lanes.fetch_add(1) >= max_spinning) {
+    spinning_lanes.fetch_sub(1);
+    return -1;
+  }
+  const auto until = std::chrono::steady_clock::now() + kSpinFor;
+  ssize_t n = -1;
+  do {
+    n = recvmsg(fd, msg, MSG_DONTWAIT);
+    if (n >= 0 || (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) break;
+    n = -1;
+  } while (std::chrono::steady_clock::now() < until);
+  spinning_lanes.fetch_sub(1);
+  return n;
+}
+
 template <typename Req, typename Resp, typename Fn>
 FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
                        Fn&& serve) {
@@ -208,15 +244,19 @@ void FastLane::Serve(Conn* c) {
   // Small until the hello is accepted: connections that never bind cost little memory.
   std::vector<char> buf(kMaxHelloBytes + 1);
   std::string session_id;
+  bool spin_next = false;   // the last reply answered a synchronizing request
   for (;;) {
     iovec iov{buf.data(), buf.size()};
     msghdr msg{};
     msg.msg_iov = &iov;
     msg.msg_iovlen = 1;
-    ssize_t n;
-    do {
-      n = recvmsg(fd, &msg, 0);
-    } while (n < 0 && errno == EINTR);
+    ssize_t n = spin_next ? SpinReceive(fd, &msg) : -1;
+    spin_next = false;
+    if (n < 0) {
+      do {
+        n = recvmsg(fd, &msg, 0);
+      } while (n < 0 && errno == EINTR);
+    }
     if (n <= 0) return;   // peer gone, shut down, or no hello in time
     const size_t limit = session_id.empty() ? kMaxHelloBytes : kMaxRequestBytes;
     if ((msg.msg_flags & MSG_TRUNC) || static_cast<size_t>(n) > limit) {
@@ -272,9 +312,13 @@ void FastLane::Serve(Conn* c) {
     switch (method) {
       case kSubmit:
         r = ServeFrame<v1::SubmitRequest, v1::SubmitResponse>(fd, "Submit", body, body_len, s,
-            [&](Session& ss, const auto& req, auto* resp) { return ExecSubmit(engine, ss, req, resp); });
+            [&](Session& ss, const auto& req, auto* resp) {
+              spin_next = req.synchronize() || req.run();
+              return ExecSubmit(engine, ss, req, resp);
+            });
         break;
       case kSynchronize:
+        spin_next = true;
         r = ServeFrame<v1::SynchronizeRequest, v1::SynchronizeResponse>(fd, "Synchronize", body, body_len, s,
             [&](Session& ss, const auto&, auto* resp) { ExecSynchronize(engine, ss, resp); return Status::Ok(); });
         break;

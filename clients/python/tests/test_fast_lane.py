@@ -506,3 +506,92 @@ def test_array_calls_over_grpc_when_turned_off(wp, monkeypatch):
     wp.launch(lane_add, dim=9, inputs=[z, 0.5], device="cpu")
     np.testing.assert_array_equal(z.numpy(), np.full(9, 1.75, np.float32))
     assert ARRAY_CREATE not in methods and (SUBMIT in methods or SYNCHRONIZE in methods)
+
+
+def test_fast_lane_polling_after_sync_replies(start_weftd, run_client, monkeypatch, tmp_path):
+    """After a synchronizing reply the daemon's lane thread polls for the next frame a short
+    while (server/fast_lane.cpp SpinReceive; WEFT_LANE_POLLERS forces it on this machine) and
+    the client polls for the reply (WEFT_FAST_LANE_SPIN_US). Frames that come at once, and
+    after the poll gave up, are served alike; a launch + synchronize loop computes exactly;
+    a bounds error is reported with its line; garbage and an oversized frame right after a
+    synchronizing reply are refused and end that connection, and the daemon keeps serving."""
+    import time
+
+    import grpc
+
+    monkeypatch.setenv("WEFT_LANE_POLLERS", "2")
+    daemon = start_weftd()
+    code = """
+import numpy as np
+import weft as wp
+from weft import _runtime
+rt = _runtime.get_runtime()
+assert rt.fast_lane is not None
+@wp.kernel
+def step(x: wp.array(dtype=wp.float64), k: wp.float64):
+    i = wp.tid()
+    x[i] = x[i] * k + wp.float64(1.0)
+@wp.kernel
+def oob(x: wp.array(dtype=wp.float64), n: int):
+    i = wp.tid()
+    x[i + n] = 1.0
+rng = np.random.default_rng()
+x0 = rng.uniform(-1e6, 1e6, 257)
+x = wp.array(x0, dtype=wp.float64)
+ref = x0.copy()
+for j in range(300):
+    k = float(rng.uniform(0.5, 1.5))
+    wp.launch(step, dim=257, inputs=[x, k])
+    wp.synchronize()
+    ref = ref * k + 1.0
+assert np.array_equal(x.numpy(), ref), np.max(np.abs(x.numpy() - ref))
+wp.launch(oob, dim=4, inputs=[x, 256])
+try:
+    wp.synchronize()
+    raise SystemExit("no bounds error")
+except Exception as err:
+    assert "out of bounds" in str(err) or "outside" in str(err), err
+    print("error:", err)
+wp.launch(step, dim=257, inputs=[x, 1.0])
+wp.synchronize()
+print("ok", rt.fast_lane is not None and not rt.fast_lane.broken)
+"""
+    script = tmp_path / "lane_poll_client.py"      # kernels need a source file
+    script.write_text(code)
+    code = f"import runpy; runpy.run_path({str(script)!r})"
+    out = run_client(code, env={"WEFT_ADDRESS": daemon.address, "WEFT_FAST_LANE_SPIN_US": "300"})
+    assert "ok True" in out.stdout, out.stdout + out.stderr
+    assert "lane_poll_client.py:14" in out.stdout, out.stdout     # the bounds error's line
+
+    channel = grpc.insecure_channel(daemon.address)
+    try:
+        stub = _runtime.SessionServiceStub(channel)
+        for bad in (b"\x0a\xff\xff\xff\xff\x0f" + b"\x00" * 20, None):
+            opened = stub.Open(session_pb2.OpenSessionRequest(client_name="poll"), timeout=10)
+            s = _connect(opened.fast_lane_path)
+            _send(s, HELLO, _hello(opened.session_id, opened.fast_lane_secret))
+            assert _reply(s)[0] == 0
+            sync = exec_pb2.SynchronizeRequest().SerializeToString()
+            for pause in (0.0, 0.0, 0.002, 0.0, 0.05, 0.0):   # within and after the poll
+                time.sleep(pause)
+                _send(s, SYNCHRONIZE, sync)
+                code_, flags, _ = _reply(s)
+                assert code_ == 0 and not flags & 2
+            _send(s, SYNCHRONIZE, sync)
+            assert _reply(s)[0] == 0
+            if bad is None:             # oversized, sent right after a synchronizing reply
+                s.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 20)
+                size = MAX_REQUEST_BYTES + 4096
+                if s.getsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF) < size + 1024:
+                    s.close()
+                    continue
+                bad = b"\x00" * size
+            _send(s, SUBMIT, bad)
+            _assert_refused_and_closed(s, "INVALID_ARGUMENT")
+            s.close()
+            stub.Close(session_pb2.CloseSessionRequest(session_id=opened.session_id),
+                       metadata=(("weft-session", opened.session_id),), timeout=10)
+    finally:
+        channel.close()
+    out = run_client(code, env={"WEFT_ADDRESS": daemon.address, "WEFT_FAST_LANE_SPIN_US": "0"})
+    assert "ok True" in out.stdout, out.stdout + out.stderr
