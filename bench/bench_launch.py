@@ -6,9 +6,11 @@ Rows (per launch; N launches per timing, median of repeats):
   examples) batched the same way;
 - the same kernel in steps of 24 launches then a synchronize (an eager simulation frame);
 - empty kernel, launch + synchronize each time (one round trip per launch).
-Columns: wall time, this process's CPU time, weftd's CPU time (from /proc: the daemon's share
-of the work; on a machine with few cores the two compete), warp-lang's wall time and the ratio
-warp/weft (above 1: weft is faster).
+Columns: wall time, this process's CPU time, weftd's CPU time (all its threads, from
+/proc/<pid>/task/*/schedstat; on a machine with few cores the two processes compete), the part
+of it weftd's executors spent running the commands (StatsResponse.command_run_seconds; the
+rest is receiving, parsing and admitting them, and waking threads), warp-lang's wall time and
+the ratio warp/weft (above 1: weft is faster).
 Error column: a counter kernel launched N times the same way must count exactly N; the
 4-argument kernel's array after all its launches is compared with a float64 NumPy reference
 (max |error| / max |v|).
@@ -50,26 +52,46 @@ G, DAMPING, DT = (0.0, -9.8, 0.0), 0.1, 1e-3
 
 
 def _cpu_seconds(pid) -> float:
-    """User + system CPU seconds of process `pid` (0: this process)."""
+    """CPU seconds of this process (pid 0) or of every thread of process `pid` (from
+    /proc/<pid>/task/*/schedstat: nanoseconds, not clock ticks)."""
     if not pid:
         return time.process_time()
-    with open(f"/proc/{pid}/stat") as f:
-        fields = f.read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    total = 0
+    for task in os.listdir(f"/proc/{pid}/task"):
+        try:
+            with open(f"/proc/{pid}/task/{task}/schedstat") as f:
+                total += int(f.read().split()[0])
+        except (OSError, ValueError, IndexError):
+            pass                      # a thread that ended meanwhile
+    return total * 1e-9
 
 
-def _measure(fn, launches, repeat, daemon_pid):
-    """(wall, client CPU, daemon CPU or None) per launch of fn(), which makes `launches`."""
+def _executor_seconds(rt):
+    """weftd's command_run_seconds (StatsResponse), or None for a daemon without it."""
+    if rt is None:
+        return None
+    from weft.v1 import session_pb2  # noqa: PLC0415
+
+    stats = rt.call(rt.session_stub.Stats, session_pb2.StatsRequest())
+    return stats.command_run_seconds if hasattr(stats, "command_run_seconds") else None
+
+
+def _measure(fn, launches, repeat, daemon_pid, rt):
+    """(wall, client CPU, daemon CPU, daemon executor time) per launch of fn(), which makes
+    `launches`; the daemon columns are None for warp-lang."""
     wall = bc.median_time(fn, repeat=repeat) / launches
     c0 = time.process_time()
     d0 = _cpu_seconds(daemon_pid) if daemon_pid else None
+    e0 = _executor_seconds(rt)
     fn()
     client = (time.process_time() - c0) / launches
     daemon = (_cpu_seconds(daemon_pid) - d0) / launches if daemon_pid else None
-    return wall, client, daemon
+    e1 = _executor_seconds(rt)
+    executor = (e1 - e0) / launches if e0 is not None and e1 is not None else None
+    return wall, client, daemon, executor
 
 
-def run_library(wp, mod, device, n, repeat, daemon_pid=None):
+def run_library(wp, mod, device, n, repeat, daemon_pid=None, rt=None):
     """{row: (wall, client CPU, daemon CPU)} and {row: error text} for one library."""
     a = wp.zeros(1, dtype=float, device=device)
     rng = np.random.default_rng(11)
@@ -106,12 +128,12 @@ def run_library(wp, mod, device, n, repeat, daemon_pid=None):
     wp.synchronize()
     launched[0] += 1
     times = {
-        "empty kernel, batched": _measure(empty_batched, n, repeat, daemon_pid),
-        "4-arg kernel, batched": _measure(forces_batched, n, repeat, daemon_pid),
+        "empty kernel, batched": _measure(empty_batched, n, repeat, daemon_pid, rt),
+        "4-arg kernel, batched": _measure(forces_batched, n, repeat, daemon_pid, rt),
         f"4-arg kernel, steps of {STEP} + sync": _measure(forces_steps, n // STEP * STEP,
-                                                         repeat, daemon_pid),
+                                                         repeat, daemon_pid, rt),
         "empty kernel, launch + sync each": _measure(empty_synchronous, n // 10, repeat,
-                                                     daemon_pid),
+                                                     daemon_pid, rt),
     }
     c = wp.zeros(1, dtype=int, device=device)
     for _ in range(n):
@@ -136,10 +158,10 @@ def main():
     args = parser.parse_args()
 
     session = bc.WeftSession()
-    with session as (weft, _rt):
+    with session as (weft, rt):
         mod = bc.load_kernels(SOURCE, "weft", "launch")
         weft_times, weft_errors = run_library(weft, mod, args.device, args.n, args.repeat,
-                                              session.daemon.proc.pid)
+                                              session.daemon.proc.pid, rt)
 
     warp = bc.import_warp()
     warp_times = {}
@@ -148,13 +170,15 @@ def main():
         warp_times, _ = run_library(warp, wmod, args.device, args.n, args.repeat)
 
     rows = []
-    for name, (wall, client, daemon) in weft_times.items():
+    for name, (wall, client, daemon, executor) in weft_times.items():
         ref = warp_times.get(name)
         rows.append([name, bc.fmt_time(wall), bc.fmt_time(client), bc.fmt_time(daemon),
+                     bc.fmt_time(executor),
                      f"{1 / wall:,.0f}/s", weft_errors.get(name, ""),
                      bc.fmt_time(ref[0] if ref else None), bc.fmt_ratio(wall, ref[0] if ref else None)])
     bc.print_table(f"launch overhead, {args.device}, N={args.n} (per launch)",
-                   ["case", "weft", "client CPU", "weftd CPU", "launches", "error",
+                   ["case", "weft", "client CPU", "weftd CPU", "weftd executor", "launches",
+                    "error",
                     "warp-lang", "ratio warp/weft"], rows)
 
 

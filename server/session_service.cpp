@@ -160,6 +160,8 @@ grpc::Status SessionServiceImpl::Stats(grpc::ServerContext* ctx, const v1::Stats
   resp->set_gpu_slab_bytes(e.gpu_slab_bytes);
   resp->set_gpu_resets(e.gpu_resets);
   resp->set_last_gpu_reset_ms(e.last_gpu_reset_ms);
+  resp->set_commands_run_total(e.commands_run_total);
+  resp->set_command_run_seconds(e.command_run_seconds);
   // The calling session's placement, when the call names one.
   if (auto s = auth_.SessionOf(*ctx); s.ok()) resp->set_cuda_placement(auth_.engine().CudaPlacement(**s));
   return grpc::Status::OK;

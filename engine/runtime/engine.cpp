@@ -572,7 +572,11 @@ std::function<void()> Engine::BatchTask(Session& s, std::vector<Command> command
   auto batch = std::make_shared<std::vector<Command>>(std::move(commands));
   CommandExecutor* exec = executor_.get();
   Session* sp = &s;
-  return [exec, sp, batch, snapshot] {
+  std::atomic<uint64_t>* run = &commands_run_;
+  std::atomic<uint64_t>* run_ns = &command_run_ns_;
+  return [exec, sp, batch, snapshot, run, run_ns] {
+    const auto start = std::chrono::steady_clock::now();
+    uint64_t ran = 0;
     for (const Command& c : *batch) {
       if (sp->cancelled()) break;   // closing: the rest of the batch does not run
       if (sp->failed() && !RunsAfterFailure(c)) {
@@ -580,6 +584,7 @@ std::function<void()> Engine::BatchTask(Session& s, std::vector<Command> command
         continue;
       }
       Status st = exec->Execute(*sp, c, *snapshot);
+      ++ran;
       if (!st.ok()) {
         spdlog::warn("session {}: command failed: {}", sp->label(), st.ToString());
         sp->Fail(st, c.origin);
@@ -587,6 +592,11 @@ std::function<void()> Engine::BatchTask(Session& s, std::vector<Command> command
     }
     sp->queued_commands -= batch->size();
     snapshot->clear();
+    run->fetch_add(ran, std::memory_order_relaxed);
+    run_ns->fetch_add(static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                                std::chrono::steady_clock::now() - start)
+                                                .count()),
+                      std::memory_order_relaxed);
   };
 }
 
@@ -732,6 +742,8 @@ EngineStats Engine::Stats() const {
   }
   st.sessions_opened_total = sessions_opened_.load();
   st.sessions_reaped_total = sessions_reaped_.load();
+  st.commands_run_total = commands_run_.load();
+  st.command_run_seconds = static_cast<double>(command_run_ns_.load()) * 1e-9;
   return st;
 }
 

@@ -107,6 +107,8 @@ struct EngineStats {
   uint64_t gpu_slab_bytes = 0;
   uint64_t gpu_resets = 0;           // device resets after kernel faults
   double last_gpu_reset_ms = 0;
+  uint64_t commands_run_total = 0;   // commands the executors ran, all sessions
+  double command_run_seconds = 0;    // their time in the executor (GPU: queueing, not running)
 };
 
 class Engine {
@@ -223,6 +225,8 @@ class Engine {
   std::atomic<uint64_t> next_handle_{1};
   std::atomic<uint64_t> sessions_opened_{0};
   std::atomic<uint64_t> sessions_reaped_{0};
+  std::atomic<uint64_t> commands_run_{0};
+  std::atomic<uint64_t> command_run_ns_{0};
   std::atomic<bool> stopping_{false};
   uint64_t memory_limit_ = 0;
 };
