@@ -21,7 +21,8 @@ void FillSync(Session::SyncResult& r, v1::SynchronizeResponse* resp) {
 
 }  // namespace
 
-Status ExecSubmit(Engine& engine, Session& s, const v1::SubmitRequest& req, v1::SubmitResponse* resp) {
+Status ExecSubmit(Engine& engine, Session& s, const v1::SubmitRequest& req, v1::SubmitResponse* resp,
+                  bool run_here_when_idle) {
   std::vector<Command> commands;
   commands.reserve(req.commands_size());
   for (int i = 0; i < req.commands_size(); ++i) {
@@ -44,7 +45,7 @@ Status ExecSubmit(Engine& engine, Session& s, const v1::SubmitRequest& req, v1::
     if (r->has_value()) FillSync(**r, resp->mutable_sync());
     return Status::Ok();
   }
-  auto r = engine.Submit(s, std::move(commands));
+  auto r = engine.Submit(s, std::move(commands), run_here_when_idle);
   if (!r.ok()) return r.status();
   resp->set_queued(*r);
   return Status::Ok();

@@ -103,6 +103,18 @@ ssize_t SpinReceive(int fd, msghdr* msg) {
   return n;
 }
 
+// Whether a batch only queues work on GPU streams: kernel launches on "cuda..." devices and
+// stream orderings (events, stream memory operations). Copies, fills, tapes and graphs may do
+// host work (a CPU copy, a list replay, a backward pass on the CPU).
+bool OnlyQueuesGpuWork(const v1::SubmitRequest& req) {
+  for (const v1::Command& c : req.commands()) {
+    if (c.has_cuda_value() || c.has_cuda_event()) continue;
+    if (c.has_launch() && c.launch().device().rfind("cuda", 0) == 0) continue;
+    return false;
+  }
+  return true;
+}
+
 template <typename Req, typename Resp, typename Fn>
 FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
                        Fn&& serve) {
@@ -313,8 +325,13 @@ void FastLane::Serve(Conn* c) {
       case kSubmit:
         r = ServeFrame<v1::SubmitRequest, v1::SubmitResponse>(fd, "Submit", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) {
-              spin_next = req.synchronize() || req.run();
-              return ExecSubmit(engine, ss, req, resp);
+              // A GPU-only batch is queued on streams in microseconds: it runs here when the
+              // session's executor is idle, and the client's next frame (it queues on while
+              // this one is answered) is polled for. Any other batch (CPU kernels need the
+              // cores) goes to the executor thread, and the lane then waits in recvmsg.
+              const bool gpu_only = OnlyQueuesGpuWork(req);
+              spin_next = req.synchronize() || req.run() || gpu_only;
+              return ExecSubmit(engine, ss, req, resp, gpu_only);
             });
         break;
       case kSynchronize:

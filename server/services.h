@@ -54,7 +54,10 @@ class ArrayServiceImpl final : public v1::ArrayService::Service {
 // The bodies of ExecService.Submit and Synchronize for a session already resolved and
 // authorized: the gRPC methods and the fast lane (fast_lane.h) both call these, so a frame is
 // checked exactly as a call is.
-Status ExecSubmit(Engine& engine, Session& s, const v1::SubmitRequest& req, v1::SubmitResponse* resp);
+// `run_here_when_idle`: an asynchronous batch runs on the calling thread when the session's
+// executor is idle (Engine::Submit; the fast lane's connection thread).
+Status ExecSubmit(Engine& engine, Session& s, const v1::SubmitRequest& req, v1::SubmitResponse* resp,
+                  bool run_here_when_idle = false);
 void ExecSynchronize(Engine& engine, Session& s, v1::SynchronizeResponse* resp);
 
 // The bodies of ArrayService.Create, Free and Describe for a session already resolved and

@@ -607,11 +607,12 @@ Status Engine::AdmitBatch(Session& s, const std::vector<Command>& commands) {
   return Status::Ok();
 }
 
-Expected<uint64_t> Engine::Submit(Session& s, std::vector<Command> commands) {
+Expected<uint64_t> Engine::Submit(Session& s, std::vector<Command> commands, bool run_here_when_idle) {
   const uint64_t n = commands.size();
   if (n == 0) return n;
   WEFT_RETURN_IF_ERROR(AdmitBatch(s, commands));
-  s.queue().Post(BatchTask(s, std::move(commands)));
+  if (run_here_when_idle) s.queue().RunHereOrPost(BatchTask(s, std::move(commands)));
+  else s.queue().Post(BatchTask(s, std::move(commands)));
   return n;
 }
 

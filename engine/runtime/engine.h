@@ -162,7 +162,10 @@ class Engine {
   Expected<ArrayDesc> ImportCudaArray(Session& s, const CudaImportParams& p);
 
   // Commands: queued in order on the session's executor; errors surface at Synchronize.
-  Expected<uint64_t> Submit(Session& s, std::vector<Command> commands);
+  // With `run_here_when_idle`, a batch the session's queue is idle for runs on the calling
+  // thread before this returns (the fast lane: its connection thread, no thread switch);
+  // otherwise, and when the queue is busy, it is queued behind the others.
+  Expected<uint64_t> Submit(Session& s, std::vector<Command> commands, bool run_here_when_idle = false);
   Session::SyncResult Synchronize(Session& s);
   // Submit + Synchronize in one step (the fused sync point): when the session's executor is
   // idle the batch runs on the calling thread, saving two thread hand-offs.

@@ -50,6 +50,28 @@ void SerialQueue::RunAndWait(std::function<void()> task) {
   cv_.notify_one();   // tasks posted meanwhile
 }
 
+bool SerialQueue::RunHereOrPost(std::function<void()> task) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!tasks_.empty() || running_task_) {
+      tasks_.push_back(std::move(task));
+      if (!thread_.joinable()) thread_ = std::thread([this] { Loop(); });
+      cv_.notify_one();
+      return false;
+    }
+    running_task_ = true;   // the worker starts nothing while this runs here
+  }
+  task();
+  task = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    running_task_ = false;
+    if (tasks_.empty()) idle_cv_.notify_all();
+  }
+  cv_.notify_one();   // tasks posted meanwhile
+  return true;
+}
+
 uint64_t SerialQueue::pending() const {
   std::lock_guard<std::mutex> lock(mu_);
   return tasks_.size() + (running_task_ ? 1 : 0);

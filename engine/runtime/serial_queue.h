@@ -24,6 +24,9 @@ class SerialQueue {
   void Post(std::function<void()> task);
   void WaitIdle();
   void RunAndWait(std::function<void()> task);
+  // Runs `task` on the calling thread when nothing is queued or running (no thread switch),
+  // else queues it behind the others and returns at once. Returns whether it ran here.
+  bool RunHereOrPost(std::function<void()> task);
   uint64_t pending() const;
 
  private:
