@@ -146,7 +146,12 @@ def test_float32_arithmetic_with_hard_inputs(wp, rng):
                         a * b + a / (b * b + np.float32(1.0))], axis=1)
     got = out.numpy()
     # IEEE float32 results: exact except rounding of fused/unfused steps
-    np.testing.assert_allclose(got[:, :6], ref[:, :6], rtol=2e-7, atol=0, equal_nan=True)
+    np.testing.assert_allclose(got[:, :5], ref[:, :5], rtol=2e-7, atol=0, equal_nan=True)
+    # x ** 2.0 is pow(): CUDA's powf is within 4 ulp (the CUDA programming guide's table of
+    # single-precision functions), not correctly rounded; near the subnormal range an ulp is
+    # 2**-149 absolute
+    np.testing.assert_allclose(got[:, 5], ref[:, 5], rtol=4 * 2.0**-23, atol=4 * 2.0**-149,
+                               equal_nan=True)
     np.testing.assert_allclose(got[:, 6], ref[:, 6], rtol=1e-5, atol=1e-30, equal_nan=True)
 
 
