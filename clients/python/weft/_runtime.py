@@ -552,9 +552,11 @@ class Runtime:
                 return
             if len(self._inflight) >= LANE_IN_FLIGHT:
                 self._collect_done()       # replies are read in bulk, not one per send
+            # A gRPC Submit is only ever in flight alone (_send_batch collects everything
+            # before sending one): the head tells whether all in flight went over the lane.
             lane_ok = self.fast_lane is not None and not self.fast_lane.broken and \
                 len(self._inflight) < LANE_IN_FLIGHT and \
-                all(isinstance(call, _fast_lane.PendingReply) for call in self._inflight)
+                (not self._inflight or isinstance(self._inflight[0], _fast_lane.PendingReply))
             if not lane_ok:
                 self._collect_inflight()
             if self.pipelined and self._deferred_error is None:

@@ -109,6 +109,7 @@ class _ValueOrder:
         self.done_value = 0          # element 0: the last value the session's stream will write
         self.slots: dict = {}        # framework stream handle -> element index (LRU order)
         self.values = [0] * (SLOTS + 1)
+        self._templates: dict = {}   # (op, index) -> the Command less its value (copied per use)
 
     def slot(self, stream: int) -> int:
         index = self.slots.pop(stream, None)
@@ -126,10 +127,16 @@ class _ValueOrder:
 
     def command(self, op, index: int, value: int):
         pb = _pb()
-        # origin set (empty): the client's file:line is for user commands, not these
-        return pb.Command(cuda_value=pb.CudaValueCommand(op=op, order=self.ref, index=index,
-                                                         value=value),
-                          origin=_EMPTY_ORIGIN)
+        template = self._templates.get((op, index))
+        if template is None:
+            # origin set (empty): the client's file:line is for user commands, not these
+            template = self._templates[(op, index)] = pb.Command(
+                cuda_value=pb.CudaValueCommand(op=op, order=self.ref, index=index),
+                origin=_EMPTY_ORIGIN)
+        cmd = pb.Command()          # a copy costs a quarter of building the nested messages
+        cmd.CopyFrom(template)
+        cmd.cuda_value.value = value
+        return cmd
 
 
 def _value_order(rt, ordinal):
