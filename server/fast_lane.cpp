@@ -67,18 +67,13 @@ bool SendError(int fd, const Status& st, bool closing = true) { return SendReply
 
 enum class FrameResult { kContinue, kEnd, kUnknownMethod };
 
-// One request frame of a bound connection: parses the body as Req, serves it with
-// `serve(session, request, &response)` (the gRPC method's handler function), and replies. A
-// body that does not parse ends the connection; the handler's error is the reply and the lane
-// stays open. The session reference is released before the reply is sent, so a slow peer
-// never holds a closed session alive.
-// A client that waited for a synchronizing reply sends its next frame soon after it (a
-// launch + synchronize loop): polling for it a short while avoids a thread wake-up per round
-// trip, which costs more than the daemon's work on such a frame. Only after such replies (an
-// asynchronous Submit's client is busy queueing; the CPU device's kernels need the cores), on
-// machines of 4 cores or more, at most a quarter of the cores at once; after kSpinFor without
-// a frame the lane thread blocks in recvmsg as before. WEFT_LANE_POLLERS=N overrides the
-// number of lanes that may poll at once.
+// A client sends its next frame soon after a synchronizing reply (a launch + synchronize
+// loop) or after the reply to a GPU-only batch (it goes on queueing launches): polling for
+// it a short while avoids a thread wake-up per round trip, which costs more than the daemon's
+// work on such a frame. Not after other replies (the CPU device's kernels need the cores); on
+// machines of 4 cores or more, at most a quarter of the cores' worth of lanes at once; after
+// kSpinFor without a frame the lane thread blocks in recvmsg as before. WEFT_LANE_POLLERS=N
+// overrides the number of lanes that may poll at once.
 constexpr auto kSpinFor = std::chrono::microseconds(60);
 std::atomic<int> spinning_lanes{0};
 
@@ -115,6 +110,11 @@ bool OnlyQueuesGpuWork(const v1::SubmitRequest& req) {
   return true;
 }
 
+// One request frame of a bound connection: parses the body as Req, serves it with
+// `serve(session, request, &response)` (the gRPC method's handler function), and replies. A
+// body that does not parse ends the connection; the handler's error is the reply and the lane
+// stays open. The session reference is released before the reply is sent, so a slow peer
+// never holds a closed session alive.
 template <typename Req, typename Resp, typename Fn>
 FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
                        Fn&& serve) {
@@ -256,7 +256,7 @@ void FastLane::Serve(Conn* c) {
   // Small until the hello is accepted: connections that never bind cost little memory.
   std::vector<char> buf(kMaxHelloBytes + 1);
   std::string session_id;
-  bool spin_next = false;   // the last reply answered a synchronizing request
+  bool spin_next = false;   // the last reply answered a synchronizing or GPU-only request
   for (;;) {
     iovec iov{buf.data(), buf.size()};
     msghdr msg{};

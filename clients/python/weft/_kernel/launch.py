@@ -437,8 +437,9 @@ class _ParamPlan:
         self.int_range = _INT_RANGES.get(desc.scalar)
         self.last_raw = None
         self.last_arg = None
-        # vector/matrix/quat/transform values: a weft value of exactly this shape and storage
-        # dtype passes its components' bytes (the class is remembered once it matched)
+        # vector/matrix/quat/transform values: a weft value with as many components, stored
+        # as this scalar type, passes its components' bytes (its class is remembered once it
+        # matched; any other value goes through ArgPacker's conversion)
         self.composite_dtype = None
         if desc.kind in ("vec", "mat", "quat", "transform") and desc.scalar != "bfloat16" and \
                 sys.byteorder == "little":
