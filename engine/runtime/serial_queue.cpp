@@ -40,14 +40,7 @@ void SerialQueue::RunAndWait(std::function<void()> task) {
     }
     running_task_ = true;   // the worker starts nothing while this runs here
   }
-  task();
-  task = nullptr;
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    running_task_ = false;
-    if (tasks_.empty()) idle_cv_.notify_all();
-  }
-  cv_.notify_one();   // tasks posted meanwhile
+  RunClaimed(std::move(task));
 }
 
 bool SerialQueue::RunHereOrPost(std::function<void()> task) {
@@ -61,15 +54,19 @@ bool SerialQueue::RunHereOrPost(std::function<void()> task) {
     }
     running_task_ = true;   // the worker starts nothing while this runs here
   }
+  RunClaimed(std::move(task));
+  return true;
+}
+
+void SerialQueue::RunClaimed(std::function<void()> task) {
   task();
-  task = nullptr;
+  task = nullptr;   // release captured references before the queue counts as idle
   {
     std::lock_guard<std::mutex> lock(mu_);
     running_task_ = false;
     if (tasks_.empty()) idle_cv_.notify_all();
   }
   cv_.notify_one();   // tasks posted meanwhile
-  return true;
 }
 
 uint64_t SerialQueue::pending() const {

@@ -31,6 +31,8 @@ class SerialQueue {
 
  private:
   void Loop();
+  // Runs `task` on the calling thread, which set running_task_ under the lock, then clears it.
+  void RunClaimed(std::function<void()> task);
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::condition_variable idle_cv_;
