@@ -66,6 +66,36 @@ def test_tensor_passed_to_launch_is_imported_and_remembered(wp, tcuda, torch, rn
     assert a is not b and a._handle == b._handle == next(iter(imports.values()))._handle
 
 
+def test_converting_again_follows_what_the_tensor_is_now(wp, tcuda, torch, rng):
+    """A tensor converted again takes the first look-up (interop/torch.py _last_import): the
+    same import, a new array object; once the tensor is resized, re-pointed, asks for another
+    dtype or requires grad, the conversion sees that (new shape, new memory, the gradient)."""
+    values = rng.standard_normal(4096).astype(np.float32)
+    t = torch.tensor(values, device="cuda")
+    a = wp.from_torch(t)
+    b = wp.from_torch(t)
+    assert a is not b and a._handle == b._handle and b.ptr == t.data_ptr() and _imported(b)
+    total = wp.zeros(1, dtype=float, device=tcuda)
+    wp.launch(scale_sum, dim=4096, inputs=[b, 2.0, total], device=tcuda)
+    wp.synchronize()
+    np.testing.assert_allclose(t.cpu().numpy(), values.astype(np.float64) * 2.0, rtol=1e-6)
+    u = torch.tensor(values.reshape(2048, 2), device="cuda")
+    assert wp.from_torch(u).shape == (2048, 2) and wp.from_torch(u).shape == (2048, 2)
+    c = wp.from_torch(u, dtype=wp.vec2)                 # another dtype asked for
+    assert c.shape == (2048,) and c.dtype == wp.vec2 and c.ptr == u.data_ptr()
+    t.resize_(1000)                                      # same memory, another shape
+    d = wp.from_torch(t)
+    assert d.shape == (1000,) and d.ptr == t.data_ptr()
+    t.set_(torch.tensor(values[:7], device="cuda"))      # re-pointed at other memory
+    e = wp.from_torch(t)
+    assert e.shape == (7,) and e.ptr == t.data_ptr() and e.ptr != a.ptr
+    np.testing.assert_array_equal(e.numpy(), values[:7])
+    t.requires_grad_(True)                               # the gradient path, not the look-up
+    f = wp.from_torch(t)
+    assert f.requires_grad and f.grad is not None and t.grad is not None
+    assert f.grad.ptr == t.grad.data_ptr()
+
+
 def test_strided_tensor_view_is_imported(wp, tcuda, torch, rng):
     base = torch.tensor(rng.standard_normal((64, 6)).astype(np.float32), device="cuda")
     view = base[:, ::2]

@@ -168,6 +168,28 @@ def _set_now(a, values=None):
     a._alloc.runtime.synchronize()
 
 
+# On a CUDA tensor imported in place without a gradient: ((pointer, shape, strides, dtype,
+# dtype asked for), the imported array), the next conversion's first look-up (a loop converting
+# the same tensors: no checks, layout work or runtime look-ups before it).
+_LAST_IMPORT = "_weft_last_import"
+
+
+def _last_import(t, dtype, requires_grad):
+    d = getattr(t, "__dict__", None)
+    last = d.get(_LAST_IMPORT) if d is not None else None
+    if last is None or (requires_grad if requires_grad is not None else t.requires_grad):
+        return None
+    key, known = last
+    if key != (t.data_ptr(), t.shape, t.stride(), t.dtype, dtype):
+        return None
+    from .. import _runtime  # noqa: PLC0415
+
+    rt = known._alloc.runtime
+    if rt.closed or rt is not _runtime.get_runtime():
+        return None
+    return known
+
+
 def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False):
     """A weft array sharing memory with Torch tensor `t` (Warp's wp.from_torch; the memory
     rules are in this module's docstring). `dtype` may be a vector/matrix type whose shape
@@ -175,6 +197,12 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
     tensor's .grad to the array's .grad (zeros when the tensor has none); `grad` gives that
     gradient tensor explicitly. `return_ctype` is accepted for Warp compatibility: weft has no
     ctypes descriptors, and the array returned is already a thin view."""
+    if grad is None:
+        known = _last_import(t, dtype, requires_grad)
+        if known is not None:
+            from .cuda_import import _fresh  # noqa: PLC0415
+
+            return _fresh(known)
     what = "wp.from_torch"
     _check_tensor(t, what)
     if t.device.type == "cuda":
@@ -186,6 +214,11 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
         # imported by CUDA IPC in place, the gradient too (docs/interop.md)
         a = cuda_import.import_torch(t, dtype, what, bool(rg), grad)
         if a is not None:
+            if not rg and grad is None:
+                try:
+                    t.__dict__[_LAST_IMPORT] = ((t.data_ptr(), t.shape, t.stride(), t.dtype, dtype), a)
+                except (AttributeError, TypeError):
+                    pass
             return a
         # weft memory in place, or moved into weft memory (t re-pointed); a copy (a snapshot
         # later Torch writes do not reach) only for views and where IPC is unavailable
