@@ -313,7 +313,9 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
   } else if (!fs.is_kernel && !fs.return_type.empty() && fs.return_type != "void" && fs.return_type != "None") {
     auto rt = ParseType(fs.return_type);
     if (!rt.ok()) return finish_error(Error(pf.def->loc, "return type: " + rt.status().message()));
-    if (rt->is_tuple()) fn.returns = rt->sub;
+    if (ContainsAny(*rt)) {
+      state.return_patterns = rt->is_tuple() ? rt->sub : std::vector<Type>{*rt};
+    } else if (rt->is_tuple()) fn.returns = rt->sub;
     else fn.returns.push_back(*rt);
     for (const auto& t : fn.returns) fn.return_slots.push_back(NewVar(t, "ret", true));
   }
@@ -1361,6 +1363,17 @@ Status Checker::LowerReturn(const ast::Return& s) {
   if (fn.is_kernel && !vals.empty()) return Error(s.loc, "kernels cannot return a value");
   if (!fn.is_kernel) {
     if (fn.return_slots.empty() && !vals.empty()) {
+      const auto& patterns = st_->return_patterns;
+      if (!patterns.empty()) {
+        bool fits = patterns.size() == vals.size();
+        for (size_t i = 0; fits && i < vals.size(); ++i) fits = GenericAccepts(patterns[i], TypeOf(vals[i].var));
+        if (!fits) {
+          std::string want, got;
+          for (size_t i = 0; i < patterns.size(); ++i) want += (i ? ", " : "") + TypeString(patterns[i]);
+          for (size_t i = 0; i < vals.size(); ++i) got += (i ? ", " : "") + TypeString(TypeOf(vals[i].var));
+          return Error(s.loc, "'" + fn.name + "' is annotated to return " + want + " but returns " + got);
+        }
+      }
       for (const auto& x : vals) {
         fn.returns.push_back(TypeOf(x.var));
         fn.return_slots.push_back(NewVar(TypeOf(x.var), "ret", true));

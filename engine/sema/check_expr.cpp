@@ -408,8 +408,10 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
     }
     return Error(a.attr_loc, "'wp." + n + "' is not a supported builtin, type or constant");
   }
+  if (base.kind == Value::Kind::kType) return TypeAttribute(base.type, a);
   if (base.kind != Value::Kind::kVar) return Error(a.loc, "'" + ExprText(a) + "' is not supported");
   const Type bt = TypeOf(base.var);
+  if (bt.is_array() && a.attr == "dtype") return TypeAttribute(bt, a);
   if (bt.is_array()) {
     if (a.attr == "shape") {
       Value v;
@@ -458,6 +460,30 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
     return ResolveAndEmitBuiltin(a.attr == "p" ? "transform_get_translation" : "transform_get_rotation", {base}, a.loc);
   }
   return Error(a.attr_loc, "a value of type " + TypeString(bt) + " has no attribute '" + a.attr + "'");
+}
+
+// An attribute of a type (wp.vec3.length, type(a).dtype, an array's .dtype): an array's element
+// type, a composite's scalar type and extents, as Warp's type objects have them.
+Expected<Value> Checker::TypeAttribute(const Type& t, const ast::Attribute& a) {
+  auto int_const = [&](int n) {
+    Value v = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(n) + ")"));
+    v.literal = true;
+    v.literal_text = std::to_string(n);
+    return v;
+  };
+  Value r;
+  r.kind = Value::Kind::kType;
+  if (a.attr == "dtype" && t.is_array()) {
+    r.type = t.elem();
+    return r;
+  }
+  if (a.attr == "dtype" && (t.is_composite() || t.is_scalar())) {
+    r.type = Type::Scalar(t.scalar);
+    return r;
+  }
+  if (a.attr == "length" && t.is_composite() && !t.is_matrix()) return int_const(t.component_count());
+  if (a.attr == "ndim" && t.is_array()) return int_const(t.ndim);
+  return Error(a.attr_loc, "`" + a.attr + "` is not an attribute of type " + TypeString(t));
 }
 
 // a[1:3], a[:2, 1:], a[i, ::2] on an array or fixed-size array: a view (Python's slice rules:
@@ -1004,6 +1030,19 @@ Expected<Value> Checker::EvalCall(const ast::Call& c) {
   if (const auto* fa = ast::As<ast::Attribute>(c.func.get()); fa && fa->attr == "array") {
     auto owner = Eval(*fa->value);
     if (owner.ok() && owner->kind == Value::Kind::kModule) return EvalArrayOverFixed(c);
+  }
+  if (const auto* fn = ast::As<ast::Name>(c.func.get());
+      fn && fn->id == "type" && !st_->scope.count("type") && !symbols_.count("type")) {
+    // type(x): the type of a value, as a constructor or for its .dtype/.length (Warp's type()).
+    if (c.args.size() != 1 || !c.keywords.empty() || ast::As<ast::Starred>(c.args[0].get()))
+      return Error(c.loc, "type() takes one value");
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*c.args[0]));
+    if (v.kind != Value::Kind::kVar) return Error(c.args[0]->loc, "type() takes a value, got '" + ExprText(*c.args[0]) + "'");
+    Value t;
+    t.kind = Value::Kind::kType;
+    t.type = TypeOf(v.var);
+    t.source = ExprText(c);
+    return t;
   }
   WEFT_ASSIGN_OR_RETURN(Value callee, Eval(*c.func));
   std::vector<Value> args;
@@ -1560,15 +1599,6 @@ Expected<Value> Checker::CallConstructor(const Type& t, std::vector<Value> args,
   return Value::OfVar(d);
 }
 
-namespace {
-// Does a parameter type (possibly containing `any`) accept an argument type?
-bool GenericAccepts(const Type& p, const Type& a) {
-  if (p.is_any()) return !a.is_void() && !a.is_tuple() && a.kind != TypeKind::kString;
-  if (p.kind != a.kind) return false;
-  if (p.is_array()) return p.ndim == a.ndim && GenericAccepts(p.elem(), a.elem());
-  return p == a;
-}
-}  // namespace
 
 bool RefTypeInner(const std::string& ts, std::string* inner) {
   if (ts.size() < 6 || ts.compare(0, 4, "ref(") != 0 || ts.back() != ')') return false;

@@ -56,6 +56,9 @@ class Checker {
     std::map<int, int> array_param;  // var -> kernel param index (arrays and structs)
     int line = 0;                    // current user line
     bool has_bare_return = false;
+    // A generic return annotation (`-> wp.Float`, `-> wp.vec(Any, float)`): the returned types
+    // are inferred from the first return and must match these patterns.
+    std::vector<Type> return_patterns;
     // In a gradient function (wp.func_grad): parameter name -> its wp.adjoint[...] slot (a
     // return slot; for an array parameter, the gradient array it takes as an extra parameter).
     std::map<std::string, int> adjoint_slots;
@@ -105,6 +108,7 @@ class Checker {
   Expected<int> EvalCond(const ast::Expr& e);         // bool var (ints compared with 0)
   Expected<Value> EvalName(const ast::Name& n);
   Expected<Value> EvalAttribute(const ast::Attribute& a);
+  Expected<Value> TypeAttribute(const Type& t, const ast::Attribute& a);
   Expected<Value> EvalSubscript(const ast::Subscript& s);
   // wp.adjoint[x] / wp.adjoint[x.f.g]: AdjointRoot gives x's slot and the field names after
   // it; AdjointSlot reads the (field of the) slot, AssignAdjoint writes it.

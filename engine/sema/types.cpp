@@ -72,45 +72,72 @@ class TypeReader {
     if (!ParseScalarName(id, &k)) return Error("expected a scalar type, got '" + id + "'");
     return k;
   }
+  // A composite's element scalar, or a scalar pattern ("any", "any_float", ...) into *generic.
+  Expected<ScalarKind> ScalarOrPattern(GenericScalar* generic) {
+    const size_t at = pos_;
+    std::string id = Ident();
+    if (ParseGenericScalar(id, generic)) return ScalarKind::kFloat32;
+    pos_ = at;
+    return Scalar();
+  }
+  // An extent, or "any" (0) in a pattern.
+  Expected<int> ExtentOrAny() {
+    const size_t at = pos_;
+    if (Ident() == "any") return 0;
+    pos_ = at;
+    WEFT_ASSIGN_OR_RETURN(int n, Int());
+    if (n < 1) return Error("extent must be positive");
+    return n;
+  }
 
   Expected<Type> Read() {
     std::string id = Ident();
     if (id.empty()) return Error("expected a type");
     ScalarKind sk;
     if (ParseScalarName(id, &sk)) return Type::Scalar(sk);
-    if (id == "any") return Type::Any();
+    GenericScalar category;
+    if (ParseGenericScalar(id, &category)) return Type::Any(category);
     if (id == "void" || id == "None") return Type::Void();
     if (id == "function") return Type::Function();
     if (id == "vec") {
       if (!Eat('(')) return Error("expected '('");
-      WEFT_ASSIGN_OR_RETURN(int n, Int());
+      WEFT_ASSIGN_OR_RETURN(int n, ExtentOrAny());
       if (!Eat(',')) return Error("expected ','");
-      WEFT_ASSIGN_OR_RETURN(ScalarKind s, Scalar());
+      GenericScalar g = GenericScalar::kNone;
+      WEFT_ASSIGN_OR_RETURN(ScalarKind s, ScalarOrPattern(&g));
       if (!Eat(')')) return Error("expected ')'");
-      if (n < 1 || n > 1024) return Error("vector length out of range");
-      return Type::Vector(n, s);
+      if (n < 0 || n > 1024) return Error("vector length out of range");
+      Type t = Type::Vector(n, s);
+      t.generic = g;
+      return t;
     }
     if (id == "mat") {
       if (!Eat('(')) return Error("expected '('");
-      WEFT_ASSIGN_OR_RETURN(int r, Int());
+      WEFT_ASSIGN_OR_RETURN(int r, ExtentOrAny());
       if (!Eat(',')) return Error("expected ','");
-      WEFT_ASSIGN_OR_RETURN(int c, Int());
+      WEFT_ASSIGN_OR_RETURN(int c, ExtentOrAny());
       if (!Eat(',')) return Error("expected ','");
-      WEFT_ASSIGN_OR_RETURN(ScalarKind s, Scalar());
+      GenericScalar g = GenericScalar::kNone;
+      WEFT_ASSIGN_OR_RETURN(ScalarKind s, ScalarOrPattern(&g));
       if (!Eat(')')) return Error("expected ')'");
-      if (r < 1 || c < 1 || r > 64 || c > 64) return Error("matrix shape out of range");
-      return Type::Matrix(r, c, s);
+      if (r < 0 || c < 0 || r > 64 || c > 64) return Error("matrix shape out of range");
+      Type t = Type::Matrix(r, c, s);
+      t.generic = g;
+      return t;
     }
     if (id == "quat" || id == "transform" || id == "spatial_vector" || id == "spatial_matrix") {
       ScalarKind s = ScalarKind::kFloat32;
+      GenericScalar g = GenericScalar::kNone;
       if (Eat('(')) {
-        WEFT_ASSIGN_OR_RETURN(s, Scalar());
+        WEFT_ASSIGN_OR_RETURN(s, ScalarOrPattern(&g));
         if (!Eat(')')) return Error("expected ')'");
       }
-      if (id == "quat") return Type::Quat(s);
-      if (id == "transform") return Type::Transform(s);
-      if (id == "spatial_vector") return Type::Vector(6, s);
-      return Type::Matrix(6, 6, s);
+      Type t = id == "quat"             ? Type::Quat(s)
+               : id == "transform"      ? Type::Transform(s)
+               : id == "spatial_vector" ? Type::Vector(6, s)
+                                        : Type::Matrix(6, 6, s);
+      t.generic = g;
+      return t;
     }
     if (id == "array" || id == "indexedarray") {
       if (!Eat('(')) return Error("expected '('");
@@ -234,14 +261,17 @@ bool Type::operator==(const Type& o) const {
   if (kind != o.kind) return false;
   switch (kind) {
     case TypeKind::kVoid:
-    case TypeKind::kAny:
     case TypeKind::kString: return true;
+    case TypeKind::kAny: return generic == o.generic;
     case TypeKind::kFunction: return struct_name == o.struct_name;
-    case TypeKind::kScalar:
+    case TypeKind::kScalar: return scalar == o.scalar;
     case TypeKind::kQuat:
-    case TypeKind::kTransform: return scalar == o.scalar;
-    case TypeKind::kVector: return scalar == o.scalar && rows == o.rows;
-    case TypeKind::kMatrix: return scalar == o.scalar && rows == o.rows && cols == o.cols;
+    case TypeKind::kTransform: return generic == o.generic && (generic != GenericScalar::kNone || scalar == o.scalar);
+    case TypeKind::kVector:
+      return generic == o.generic && (generic != GenericScalar::kNone || scalar == o.scalar) && rows == o.rows;
+    case TypeKind::kMatrix:
+      return generic == o.generic && (generic != GenericScalar::kNone || scalar == o.scalar) && rows == o.rows &&
+             cols == o.cols;
     case TypeKind::kArray: return ndim == o.ndim && indexed == o.indexed && fixed_shape == o.fixed_shape && sub == o.sub;
     case TypeKind::kStruct: return struct_name == o.struct_name;
     case TypeKind::kTuple: return sub == o.sub;
@@ -280,11 +310,67 @@ bool ParseScalarName(std::string_view name, ScalarKind* out) {
   return false;
 }
 
+bool ParseGenericScalar(std::string_view name, GenericScalar* out) {
+  if (name == "any") *out = GenericScalar::kAny;
+  else if (name == "any_int") *out = GenericScalar::kInt;
+  else if (name == "any_float") *out = GenericScalar::kFloat;
+  else if (name == "any_scalar") *out = GenericScalar::kScalar;
+  else return false;
+  return true;
+}
+
+const char* GenericScalarName(GenericScalar g) {
+  switch (g) {
+    case GenericScalar::kInt: return "any_int";
+    case GenericScalar::kFloat: return "any_float";
+    case GenericScalar::kScalar: return "any_scalar";
+    default: return "any";
+  }
+}
+
 bool ContainsAny(const Type& t) {
   if (t.is_any() || (t.is_function() && t.struct_name.empty())) return true;
+  if (t.is_composite() && t.generic != GenericScalar::kNone) return true;
+  if ((t.is_vector() || t.is_matrix()) && (t.rows == 0 || (t.is_matrix() && t.cols == 0))) return true;
   for (const auto& s : t.sub)
     if (ContainsAny(s)) return true;
   return false;
+}
+
+namespace {
+bool ScalarInCategory(GenericScalar g, ScalarKind s) {
+  switch (g) {
+    case GenericScalar::kNone: return false;
+    case GenericScalar::kAny: return true;
+    case GenericScalar::kInt: return IsInt(s);
+    case GenericScalar::kFloat: return IsFloat(s);
+    case GenericScalar::kScalar: return s != ScalarKind::kBool;
+  }
+  return false;
+}
+}  // namespace
+
+bool GenericAccepts(const Type& p, const Type& a) {
+  if (p.is_any()) {
+    if (a.is_void() || a.is_tuple() || a.kind == TypeKind::kString) return false;
+    return p.generic == GenericScalar::kAny || (a.is_scalar() && ScalarInCategory(p.generic, a.scalar));
+  }
+  if (p.kind != a.kind) return false;
+  if (p.is_array())
+    return p.ndim == a.ndim && GenericAccepts(p.elem(), a.elem());
+  if (p.is_composite()) {
+    if (p.generic == GenericScalar::kNone ? p.scalar != a.scalar : !ScalarInCategory(p.generic, a.scalar)) return false;
+    if ((p.is_vector() || p.is_matrix()) && p.rows != 0 && p.rows != a.rows) return false;
+    if (p.is_matrix() && p.cols != 0 && p.cols != a.cols) return false;
+    return true;
+  }
+  if (p.is_tuple()) {
+    if (p.sub.size() != a.sub.size()) return false;
+    for (size_t i = 0; i < p.sub.size(); ++i)
+      if (!GenericAccepts(p.sub[i], a.sub[i])) return false;
+    return true;
+  }
+  return p == a;
 }
 
 bool IsDifferentiable(const Type& t) {
@@ -304,17 +390,21 @@ bool IsDifferentiable(const Type& t) {
 }
 
 std::string TypeString(const Type& t) {
+  // A composite's element scalar or its pattern; an extent, or "any" in a pattern.
+  auto elem = [&]() -> std::string {
+    return t.generic == GenericScalar::kNone ? ScalarName(t.scalar) : GenericScalarName(t.generic);
+  };
+  auto extent = [](int n) { return n == 0 ? std::string("any") : std::to_string(n); };
   switch (t.kind) {
     case TypeKind::kVoid: return "void";
-    case TypeKind::kAny: return "any";
+    case TypeKind::kAny: return GenericScalarName(t.generic);
     case TypeKind::kString: return "str";
     case TypeKind::kFunction: return t.struct_name.empty() ? "function" : "function(" + t.struct_name + ")";
     case TypeKind::kScalar: return ScalarName(t.scalar);
-    case TypeKind::kVector: return "vec(" + std::to_string(t.rows) + "," + ScalarName(t.scalar) + ")";
-    case TypeKind::kMatrix:
-      return "mat(" + std::to_string(t.rows) + "," + std::to_string(t.cols) + "," + ScalarName(t.scalar) + ")";
-    case TypeKind::kQuat: return std::string("quat(") + ScalarName(t.scalar) + ")";
-    case TypeKind::kTransform: return std::string("transform(") + ScalarName(t.scalar) + ")";
+    case TypeKind::kVector: return "vec(" + extent(t.rows) + "," + elem() + ")";
+    case TypeKind::kMatrix: return "mat(" + extent(t.rows) + "," + extent(t.cols) + "," + elem() + ")";
+    case TypeKind::kQuat: return "quat(" + elem() + ")";
+    case TypeKind::kTransform: return "transform(" + elem() + ")";
     case TypeKind::kArray: {
       if (t.is_fixed_array()) {
         std::string r = "fixedarray(" + TypeString(t.elem());

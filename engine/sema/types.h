@@ -1,5 +1,7 @@
 // The kernel language's value types: scalars, vec, mat, quat, transform, array(T, ndim),
-// struct, any, void, tuple (multiple returns) and string (printf formats).
+// struct, any, void, tuple (multiple returns) and string (printf formats), and the generic
+// patterns of @wp.func/@wp.kernel annotations (typing.Any, wp.Int/Float/Scalar, vectors and
+// matrices of any length or scalar category).
 // Owns: canonical type strings (docs/protocol.md) both ways, the C++ spelling of each type
 // in generated code, and size/alignment for the kernel argument layout.
 #pragma once
@@ -39,12 +41,18 @@ enum class TypeKind : uint8_t {
   kTransform,
   kArray,      // sub[0] = element type, ndim; `indexed`: Warp's indexedarray (data + index arrays)
   kStruct,     // struct_name (canonical)
-  kAny,        // typing.Any in generic funcs; never reaches codegen
+  kAny,        // typing.Any in generic funcs (`generic` narrows it to a scalar category); never reaches codegen
   kTuple,      // sub = element types (multiple return values)
   kString,     // a string literal (printf format); not a storable value
   kFunction,   // a wp.Function parameter: struct_name = its target ("func:<name>" / "builtin:<name>"),
                // empty in a declaration (any function); a compile-time value, never stored
 };
+
+// A scalar pattern of a generic annotation: typing.Any ("any"), wp.Int ("any_int": the
+// integer types), wp.Float ("any_float": the float types), wp.Scalar ("any_scalar": both, not
+// bool). On kAny it narrows what the parameter takes to scalars of that category; on a
+// vec/mat/quat/transform it stands for the element scalar.
+enum class GenericScalar : uint8_t { kNone, kAny, kInt, kFloat, kScalar };
 
 // Elements of one fixed-size array (a kernel-local value on the thread's stack).
 constexpr int kMaxFixedArrayElements = 4096;
@@ -52,8 +60,9 @@ constexpr int kMaxFixedArrayElements = 4096;
 struct Type {
   TypeKind kind = TypeKind::kVoid;
   ScalarKind scalar = ScalarKind::kFloat32;  // scalar, or the element scalar of vec/mat/quat/transform
-  int rows = 0;
-  int cols = 0;
+  GenericScalar generic = GenericScalar::kNone;  // kAny's category; a composite's pattern scalar
+  int rows = 0;   // vec length / mat rows; 0 in a pattern: any
+  int cols = 0;   // mat cols; 0 in a pattern: any
   int ndim = 0;
   bool indexed = false;  // kArray: an indexed array (wp::indexedarray_t: data + int32 index arrays)
   // kArray: a fixed-size array (wp.zeros(shape=..., dtype=...) in a kernel): a value holding its
@@ -63,7 +72,9 @@ struct Type {
   std::string struct_name;
 
   static Type Void() { return {}; }
-  static Type Any() { Type t; t.kind = TypeKind::kAny; return t; }
+  static Type Any(GenericScalar category = GenericScalar::kAny) {
+    Type t; t.kind = TypeKind::kAny; t.generic = category; return t;
+  }
   static Type String() { Type t; t.kind = TypeKind::kString; return t; }
   static Type Scalar(ScalarKind s) { Type t; t.kind = TypeKind::kScalar; t.scalar = s; return t; }
   static Type Bool() { return Scalar(ScalarKind::kBool); }
@@ -124,9 +135,16 @@ bool IsSigned(ScalarKind s);
 int ScalarSize(ScalarKind s);  // bytes
 const char* ScalarName(ScalarKind s);  // canonical: "float32"
 bool ParseScalarName(std::string_view name, ScalarKind* out);
+// "any", "any_int", "any_float", "any_scalar" (typing.Any, wp.Int, wp.Float, wp.Scalar).
+bool ParseGenericScalar(std::string_view name, GenericScalar* out);
+const char* GenericScalarName(GenericScalar g);
 
 // Does `t` or anything inside it contain `any` (a generic to instantiate)?
 bool ContainsAny(const Type& t);
+// Does a generic parameter type (a pattern: `any`, a scalar category, a vector of any length,
+// an array of any element, ...) accept a value of the concrete type `a`? A concrete `p`
+// accepts only itself.
+bool GenericAccepts(const Type& p, const Type& a);
 // Float scalars and aggregates of floats, and structs (through their float fields): values
 // whose adjoints carry gradient.
 bool IsDifferentiable(const Type& t);

@@ -18,6 +18,52 @@ TEST(SemaTypes, CanonicalStringsRoundTrip) {
   }
 }
 
+// Patterns of generic annotations: typing.Any, wp.Int/Float/Scalar, vectors and matrices of any
+// length or scalar category; what each accepts.
+TEST(SemaTypes, GenericPatterns) {
+  for (const char* s : {"any_int", "any_float", "any_scalar", "vec(any,float32)", "vec(3,any_int)", "vec(any,any)",
+                        "mat(any,any,float64)", "mat(2,any,any_scalar)", "quat(any_float)", "transform(any)",
+                        "array(vec(any,float32),1)", "tuple(any_int,any_float)"}) {
+    auto t = ParseType(s);
+    ASSERT_TRUE(t.ok()) << s << ": " << t.status().message();
+    EXPECT_EQ(TypeString(*t), s);
+    EXPECT_TRUE(ContainsAny(*t)) << s;
+  }
+  auto accepts = [](const char* p, const char* a) { return GenericAccepts(*ParseType(p), *ParseType(a)); };
+  EXPECT_TRUE(accepts("any_int", "int16"));
+  EXPECT_TRUE(accepts("any_int", "uint64"));
+  EXPECT_FALSE(accepts("any_int", "float32"));
+  EXPECT_FALSE(accepts("any_int", "bool"));
+  EXPECT_FALSE(accepts("any_int", "vec(3,int32)"));
+  EXPECT_TRUE(accepts("any_float", "float16"));
+  EXPECT_TRUE(accepts("any_float", "bfloat16"));
+  EXPECT_FALSE(accepts("any_float", "int32"));
+  EXPECT_TRUE(accepts("any_scalar", "int8"));
+  EXPECT_TRUE(accepts("any_scalar", "float64"));
+  EXPECT_FALSE(accepts("any_scalar", "bool"));
+  EXPECT_TRUE(accepts("vec(any,float32)", "vec(4,float32)"));
+  EXPECT_FALSE(accepts("vec(any,float32)", "vec(4,float64)"));
+  EXPECT_FALSE(accepts("vec(any,float32)", "mat(2,2,float32)"));
+  EXPECT_TRUE(accepts("vec(3,any_int)", "vec(3,int16)"));
+  EXPECT_FALSE(accepts("vec(3,any_int)", "vec(4,int16)"));
+  EXPECT_FALSE(accepts("vec(3,any_int)", "vec(3,float32)"));
+  EXPECT_TRUE(accepts("mat(any,any,float64)", "mat(3,5,float64)"));
+  EXPECT_TRUE(accepts("mat(2,any,any_scalar)", "mat(2,7,int64)"));
+  EXPECT_FALSE(accepts("mat(2,any,any_scalar)", "mat(3,7,int64)"));
+  EXPECT_TRUE(accepts("quat(any_float)", "quat(float64)"));
+  EXPECT_TRUE(accepts("array(vec(any,float32),1)", "array(vec(6,float32),1)"));
+  EXPECT_FALSE(accepts("array(vec(any,float32),1)", "array(vec(6,float32),2)"));
+  EXPECT_TRUE(accepts("any", "struct(m.S)"));
+  // A concrete type accepts itself only; a pattern is not equal to a type it accepts.
+  EXPECT_TRUE(accepts("vec(3,float32)", "vec(3,float32)"));
+  EXPECT_FALSE(accepts("vec(3,float32)", "vec(3,float64)"));
+  EXPECT_NE(*ParseType("vec(3,any_int)"), *ParseType("vec(3,int32)"));
+  EXPECT_NE(*ParseType("any_int"), *ParseType("any"));
+  EXPECT_FALSE(ContainsAny(*ParseType("vec(3,float32)")));
+  for (const char* bad : {"vec(any)", "vec(3,anything)", "mat(any,2)", "any_bool", "vec(-1,float32)"})
+    EXPECT_FALSE(ParseType(bad).ok()) << bad;
+}
+
 // Indexed arrays, fixed-size arrays and wp.Function parameters: strings, C++ spellings, layouts.
 TEST(SemaTypes, IndexedFixedAndFunctionTypes) {
   for (const char* s : {"indexedarray(float32,1)", "indexedarray(vec(3,float64),4)", "fixedarray(int32,2,3)",

@@ -25,7 +25,7 @@ __all__ = [
     "type_str", "type_size", "type_size_in_bytes", "type_scalar_type", "type_length", "types_equal",
     "dtype_to_numpy", "dtype_from_numpy", "value_to_bytes", "is_array", "is_value",
     "is_vector", "is_matrix", "is_quaternion", "is_transformation", "is_float", "is_int",
-    "scalar_short_name", "matrix_from_rows", "matrix_from_cols",
+    "scalar_short_name", "matrix_from_rows", "matrix_from_cols", "Int", "Float", "Scalar",
 ]
 
 # Python's own names, kept before this module shadows `bool`, `float` and `int`.
@@ -525,6 +525,64 @@ _quat_cache: dict = {}
 _transform_cache: dict = {}
 
 
+class _GenericScalarMeta(type):
+    def __repr__(cls):
+        return f"<class 'weft.types.{cls.__name__}'>"
+
+
+class Int(metaclass=_GenericScalarMeta):
+    """wp.Int: any integer scalar type, in the annotations of generic functions and kernels."""
+
+    _type_str = "any_int"
+
+
+class Float(metaclass=_GenericScalarMeta):
+    """wp.Float: any floating-point scalar type, in generic annotations."""
+
+    _type_str = "any_float"
+
+
+class Scalar(metaclass=_GenericScalarMeta):
+    """wp.Scalar: any integer or floating-point scalar type (not bool), in generic annotations."""
+
+    _type_str = "any_scalar"
+
+
+def _scalar_pattern(dtype):
+    """The type string of a scalar pattern (typing.Any, wp.Int/Float/Scalar), else None."""
+    if dtype is Any:
+        return "any"
+    if dtype in (Int, Float, Scalar):
+        return dtype._type_str
+    return None
+
+
+_COMPOSITE_GENERIC_STR = {"_Vector": "vec_t", "_Matrix": "mat_t", "_Quaternion": "quat_t",
+                          "_Transformation": "transform_t"}
+
+
+def _generic_composite(base, name, shape, dtype, type_string):
+    """A vector/matrix/quaternion/transform type of a generic annotation: its length or shape
+    holds typing.Any, or its scalar is a pattern. It names a pattern that the daemon matches
+    (an instance of any type it accepts); it has no values of its own."""
+
+    def __init__(self, *args, **kwargs):
+        raise TypeError(f"{name} is a generic type (for annotations): it cannot be constructed")
+
+    return _CompositeMeta(name, (base,), {
+        "_length_": Any if Any in shape else _py_int(np.prod(shape)),
+        "_shape_": tuple(shape),
+        "_type_str": type_string,
+        "_wp_scalar_type_": dtype,
+        "_wp_type_params_": list(shape) + [dtype],
+        "_wp_generic_type_str_": _COMPOSITE_GENERIC_STR[base.__name__],
+        "_weft_generic_": True,
+        "__init__": __init__,
+        "__module__": __name__,
+        "__qualname__": name,
+    })
+
+
 def _composite_class(base, name, shape, dtype, type_string, extra=None):
     namespace = {
         "_length_": _py_int(np.prod(shape)),
@@ -536,6 +594,7 @@ def _composite_class(base, name, shape, dtype, type_string, extra=None):
         # bfloat16 (stored as bits), whose values are float32 rounded to bfloat16.
         "_value_dtype_": np.dtype(np.float32) if dtype is bfloat16 else dtype._np_dtype_,
         "_wp_type_params_": list(shape) + [dtype],
+        "_wp_generic_type_str_": _COMPOSITE_GENERIC_STR[base.__name__],
         "__module__": __name__,
         "__qualname__": name,
     }
@@ -544,7 +603,17 @@ def _composite_class(base, name, shape, dtype, type_string, extra=None):
 
 
 def vector(length, dtype):
-    """The vector type of `length` elements of `dtype` (Warp's wp.types.vector)."""
+    """The vector type of `length` elements of `dtype` (Warp's wp.types.vector). `length`
+    typing.Any or `dtype` typing.Any/wp.Int/wp.Float/wp.Scalar: a generic annotation type."""
+    pattern = _scalar_pattern(dtype)
+    if length is Any or pattern is not None:
+        scalar = pattern or _composite_scalar(dtype)._type_str
+        extent = "any" if length is Any else _py_int(length)
+        if extent != "any" and extent <= 0:
+            raise ValueError(f"Vector length must be positive, got {length}")
+        return _generic_composite(_Vector, f"vec{'' if extent == 'any' else extent}_generic",
+                                  (length if length is Any else extent,), dtype,
+                                  f"vec({extent},{scalar})")
     dtype = _composite_scalar(dtype)
     length = _py_int(length)
     if length <= 0:
@@ -564,6 +633,14 @@ def matrix(shape, dtype):
     """The matrix type of `shape` (rows, cols) of `dtype` (Warp's wp.types.matrix)."""
     if len(shape) != 2:
         raise ValueError(f"Matrix shape must have two dimensions, got {shape}")
+    pattern = _scalar_pattern(dtype)
+    if Any in tuple(shape) or pattern is not None:
+        scalar = pattern or _composite_scalar(dtype)._type_str
+        dims = tuple(d if d is Any else _py_int(d) for d in shape)
+        if any(d is not Any and d <= 0 for d in dims):
+            raise ValueError(f"Matrix dimensions must be positive, got {shape}")
+        text = ",".join("any" if d is Any else str(d) for d in dims)
+        return _generic_composite(_Matrix, "mat_generic", dims, dtype, f"mat({text},{scalar})")
     rows, cols = _py_int(shape[0]), _py_int(shape[1])
     if rows <= 0 or cols <= 0:
         raise ValueError(f"Matrix dimensions must be positive, got {shape}")
@@ -593,6 +670,9 @@ class _Quaternion(_Vector):
 
 def quaternion(dtype=float32):
     """The quaternion type of `dtype` (Warp's wp.types.quaternion)."""
+    pattern = _scalar_pattern(dtype)
+    if pattern is not None:
+        return _generic_composite(_Quaternion, "quat_generic", (4,), dtype, f"quat({pattern})")
     dtype = _composite_scalar(dtype)
     cls = _quat_cache.get(dtype)
     if cls is None:
@@ -630,6 +710,10 @@ class _Transformation(_Vector):
 
 def transformation(dtype=float32):
     """The transform type of `dtype` (Warp's wp.types.transformation)."""
+    pattern = _scalar_pattern(dtype)
+    if pattern is not None:
+        return _generic_composite(_Transformation, "transform_generic", (7,), dtype,
+                                  f"transform({pattern})")
     dtype = _composite_scalar(dtype)
     cls = _transform_cache.get(dtype)
     if cls is None:

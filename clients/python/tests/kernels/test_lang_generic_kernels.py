@@ -4,6 +4,7 @@ several types from one kernel."""
 from typing import Any
 
 import numpy as np
+import pytest
 
 import weft as wp
 
@@ -59,3 +60,133 @@ def test_generic_func_with_three_types(wp, rng):
     np.testing.assert_allclose(fa.numpy(), f + 2.0, rtol=1e-6)
     np.testing.assert_allclose(da.numpy(), d + 0.5, rtol=1e-15)
     np.testing.assert_allclose(va.numpy(), v + np.array([2.0, 4.0, 6.0]), rtol=1e-6)
+
+
+# --- generic patterns: wp.Int / wp.Float / wp.Scalar, vectors and matrices of any length ---
+
+@wp.func
+def sum3_int(v: wp.types.vector(3, wp.Int)) -> wp.Int:
+    return v[0] + v[1] + v[2]
+
+
+@wp.func
+def sum3_float(v: wp.types.vector(3, wp.Float)) -> wp.Float:
+    return v[0] + v[1] + v[2]
+
+
+@wp.func
+def trace2(m: wp.types.matrix((Any, Any), wp.Scalar)):
+    return m[0, 0] + m[1, 1]
+
+
+@wp.func
+def twice_scalar(x: wp.Scalar) -> wp.Scalar:
+    return x + x
+
+
+@wp.kernel
+def pattern_calls(vi: wp.array(dtype=wp.vec3s), vd: wp.array(dtype=wp.vec3d),
+                  md: wp.array(dtype=wp.mat22d), mi: wp.array(dtype=wp.types.matrix((3, 3), wp.int64)),
+                  out_i: wp.array(dtype=wp.int16), out_d: wp.array(dtype=wp.float64),
+                  out_m: wp.array(dtype=wp.float64), out_mi: wp.array(dtype=wp.int64),
+                  out_t: wp.array(dtype=wp.float32)):
+    i = wp.tid()
+    out_i[i] = sum3_int(vi[i])
+    out_d[i] = sum3_float(vd[i])
+    out_m[i] = trace2(md[i])
+    out_mi[i] = trace2(mi[i])
+    out_t[i] = twice_scalar(wp.float32(out_d[i]))
+
+
+def test_scalar_categories_and_any_shapes(wp, rng):
+    n = 16
+    vi = rng.integers(-1000, 1000, size=(n, 3)).astype(np.int16)
+    vd = rng.standard_normal((n, 3)) * np.array([1e12, 1.0, 1e-12])
+    md = rng.standard_normal((n, 2, 2)) * 1e8
+    mi = rng.integers(-2**40, 2**40, size=(n, 3, 3), dtype=np.int64)
+    outs = [wp.zeros(n, dtype=t) for t in (wp.int16, wp.float64, wp.float64, wp.int64, wp.float32)]
+    wp.launch(pattern_calls, dim=n, inputs=[wp.array(vi, dtype=wp.vec3s), wp.array(vd, dtype=wp.vec3d),
+                                            wp.array(md, dtype=wp.mat22d),
+                                            wp.array(mi, dtype=wp.types.matrix((3, 3), wp.int64)), *outs])
+    np.testing.assert_array_equal(outs[0].numpy(), vi.sum(axis=1).astype(np.int16))
+    # float64 sums in the kernel's order (left to right), against a float64 reference
+    np.testing.assert_allclose(outs[1].numpy(), (vd[:, 0] + vd[:, 1]) + vd[:, 2], rtol=1e-15)
+    np.testing.assert_allclose(outs[2].numpy(), md[:, 0, 0] + md[:, 1, 1], rtol=1e-15)
+    np.testing.assert_array_equal(outs[3].numpy(), mi[:, 0, 0] + mi[:, 1, 1])
+    np.testing.assert_allclose(outs[4].numpy(), 2 * outs[1].numpy().astype(np.float32), rtol=1e-7)
+
+
+@wp.kernel
+def any_length_kernel(v: wp.types.vector(Any, float), out: wp.array(dtype=int)):
+    out[0] = len(v)
+    out[1] = int(v[len(v) - 1])
+
+
+def test_kernel_parameter_of_any_length(wp):
+    out = wp.zeros(2, dtype=int)
+    wp.launch(any_length_kernel, dim=1, inputs=[wp.vec4(1.0, 2.0, 3.0, 7.0), out])
+    np.testing.assert_array_equal(out.numpy(), [4, 7])
+    wp.launch(any_length_kernel, dim=1, inputs=[wp.vec2(5.0, 9.0), out])
+    np.testing.assert_array_equal(out.numpy(), [2, 9])
+
+
+def test_pattern_mismatch_is_refused(wp):
+    out = wp.zeros(2, dtype=int)
+    with pytest.raises(wp.WeftLaunchError, match="does not match the annotation"):
+        wp.launch(any_length_kernel, dim=1, inputs=[wp.vec3d(1.0, 2.0, 3.0), out])
+
+
+def test_func_pattern_mismatch_is_a_compile_error(wp, kernel_module):
+    mod = kernel_module('''
+@wp.func
+def only_ints(x: wp.Int):
+    return x * 2
+
+@wp.kernel
+def k(a: wp.array(dtype=float)):
+    a[0] = only_ints(a[0])
+''')
+    with pytest.raises(Exception, match="only_ints"):
+        wp.launch(mod.k, dim=1, inputs=[wp.zeros(1, dtype=float)])
+
+
+def test_generic_types_cannot_be_constructed(wp):
+    with pytest.raises(TypeError, match="generic"):
+        wp.types.vector(Any, float)(1.0, 2.0)
+    assert wp.types.vector(3, wp.Float)._wp_generic_type_str_ == "vec_t"
+    assert wp.vec3._wp_generic_type_str_ == "vec_t" and wp.mat22._wp_generic_type_str_ == "mat_t"
+
+
+@wp.kernel
+def type_of_values(a: wp.array(dtype=Any), s: Any, out: wp.array(dtype=Any)):
+    i = wp.tid()
+    zero = type(a[i])(0)
+    scaled = a[i] * type(s)(2)
+    out[i] = a.dtype(scaled) + zero
+    if i == 0:
+        wp.expect_eq(type(s)(1.5), s - s + type(s)(1.5))
+
+
+def test_type_of_a_value_in_a_kernel(wp, rng):
+    x = rng.standard_normal(32)
+    for dtype in (wp.float32, wp.float64):
+        a = wp.array(x, dtype=dtype)
+        out = wp.zeros(32, dtype=dtype)
+        wp.launch(type_of_values, dim=32, inputs=[a, dtype(3.0), out])
+        np.testing.assert_allclose(out.numpy(), x.astype(dtype._np_dtype_) * 2,
+                                   rtol=1e-7 if dtype is wp.float32 else 1e-15)
+
+
+@wp.kernel
+def type_attributes(v: wp.array(dtype=wp.vec3d), out: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    n = type(v[i]).length
+    e = v.dtype.dtype(0.5)
+    out[i] = wp.float64(n) * e + wp.dot(v[i], v.dtype(1.0))
+
+
+def test_type_attributes_in_a_kernel(wp, rng):
+    x = rng.standard_normal((8, 3)) * 1e6
+    out = wp.zeros(8, dtype=wp.float64)
+    wp.launch(type_attributes, dim=8, inputs=[wp.array(x, dtype=wp.vec3d), out])
+    np.testing.assert_allclose(out.numpy(), 1.5 + ((x[:, 0] + x[:, 1]) + x[:, 2]), rtol=1e-15)

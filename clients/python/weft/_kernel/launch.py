@@ -306,10 +306,15 @@ def infer_param_types(kernel: Kernel, args: list) -> list:
             types.append(declared)
             continue
         try:
-            types.append(_value_type_string(value))
+            concrete = _value_type_string(value)
         except TypeError as err:
             raise WeftLaunchError(f"Invalid argument '{name}' for generic kernel "
                                   f"'{kernel.key}': {err}") from None
+        if not typestr.accepts(declared, concrete):
+            raise WeftLaunchError(f"Invalid argument '{name}' for generic kernel '{kernel.key}': "
+                                  f"a value of type {concrete} does not match the annotation "
+                                  f"{declared}")
+        types.append(concrete)
     return types
 
 

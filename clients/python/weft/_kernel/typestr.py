@@ -111,19 +111,28 @@ def parse(text: str) -> TypeDesc:
     return desc
 
 
+# Scalar patterns of generic annotations: typing.Any, wp.Int, wp.Float, wp.Scalar.
+SCALAR_PATTERNS = ("any", "any_int", "any_float", "any_scalar")
+
+
+def _extent(text: str) -> int:
+    """A vector length or matrix extent; "any" (a generic annotation) is 0."""
+    return 0 if text == "any" else int(text)
+
+
 def _parse(text: str) -> TypeDesc:
     if text in SCALAR_NUMPY:
         return TypeDesc("scalar", text, scalar=text)
-    if text == "any":
-        return TypeDesc("any", text)
+    if text in SCALAR_PATTERNS:
+        return TypeDesc("any", text, scalar=text)
     if "(" not in text or not text.endswith(")"):
         raise ValueError(f"not a weft type string: {text!r}")
     head, inner = text.split("(", 1)
     args = _split_args(inner[:-1])
     if head == "vec" and len(args) == 2:
-        return TypeDesc("vec", text, scalar=args[1], shape=(int(args[0]),))
+        return TypeDesc("vec", text, scalar=args[1], shape=(_extent(args[0]),))
     if head == "mat" and len(args) == 3:
-        return TypeDesc("mat", text, scalar=args[2], shape=(int(args[0]), int(args[1])))
+        return TypeDesc("mat", text, scalar=args[2], shape=(_extent(args[0]), _extent(args[1])))
     if head == "quat" and len(args) == 1:
         return TypeDesc("quat", text, scalar=args[0], shape=(4,))
     if head == "transform" and len(args) == 1:
@@ -138,6 +147,40 @@ def _parse(text: str) -> TypeDesc:
     if head == "struct" and len(args) == 1:
         return TypeDesc("struct", text, struct_name=args[0])
     raise ValueError(f"not a weft type string: {text!r}")
+
+
+def _scalar_accepts(pattern: str, scalar: str) -> bool:
+    if pattern == "any":
+        return True
+    if pattern == "any_int":
+        return scalar in INT_SCALARS
+    if pattern == "any_float":
+        return scalar in FLOAT_SCALARS
+    if pattern == "any_scalar":
+        return scalar in INT_SCALARS or scalar in FLOAT_SCALARS
+    return pattern == scalar
+
+
+def accepts(pattern: str, concrete: str) -> bool:
+    """Whether a parameter type of a generic annotation (typing.Any, wp.Int/Float/Scalar, a
+    vector of any length, an array of any element, ...) takes a value of type `concrete`
+    (the daemon applies the same rule to @wp.func calls)."""
+    if pattern == concrete or pattern == "any":
+        return True
+    try:
+        p, c = parse(pattern), parse(concrete)
+    except ValueError:
+        return False
+    if p.kind == "any":
+        return p.scalar == "any" or (c.kind == "scalar" and _scalar_accepts(p.scalar, c.scalar))
+    if p.kind != c.kind:
+        return False
+    if p.kind in ("array", "indexedarray"):
+        return p.ndim == c.ndim and accepts(p.elem.text, c.elem.text)
+    if p.kind in ("vec", "mat", "quat", "transform"):
+        return _scalar_accepts(p.scalar, c.scalar) and all(
+            a == 0 or a == b for a, b in zip(p.shape, c.shape))
+    return False
 
 
 def vec_str(length: int, scalar: str) -> str:
