@@ -766,8 +766,10 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
       st_->path_bound.erase(n->id);
       return Status::Ok();
     }
-    if (value.kind == Value::Kind::kFunc || value.kind == Value::Kind::kBuiltin) {
-      if (st_->scope.count(n->id)) return Error(loc, "'" + n->id + "' holds a value; it cannot be rebound to a function");
+    if (value.kind == Value::Kind::kFunc || value.kind == Value::Kind::kBuiltin || value.kind == Value::Kind::kType) {
+      if (st_->scope.count(n->id))
+        return Error(loc, "'" + n->id + "' holds a value; it cannot be rebound to a " +
+                              (value.kind == Value::Kind::kType ? "type" : "function"));
       st_->func_scope[n->id] = value;
       st_->path_bound.erase(n->id);
       return Status::Ok();

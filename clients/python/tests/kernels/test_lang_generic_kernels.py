@@ -190,3 +190,18 @@ def test_type_attributes_in_a_kernel(wp, rng):
     out = wp.zeros(8, dtype=wp.float64)
     wp.launch(type_attributes, dim=8, inputs=[wp.array(x, dtype=wp.vec3d), out])
     np.testing.assert_allclose(out.numpy(), 1.5 + ((x[:, 0] + x[:, 1]) + x[:, 2]), rtol=1e-15)
+
+
+@wp.kernel
+def type_as_a_local(a: Any, out: wp.array(dtype=Any)):
+    v = wp.types.vector(length=2, dtype=type(a))
+    m = wp.identity(n=v.length, dtype=v.dtype) * a
+    out[0] = wp.trace(m)
+    out[1] = v(a, a)[1]
+
+
+def test_a_type_bound_to_a_local(wp):
+    for dtype in (wp.float32, wp.float64):
+        out = wp.zeros(2, dtype=dtype)
+        wp.launch(type_as_a_local, dim=1, inputs=[dtype(-1.25), out])
+        np.testing.assert_array_equal(out.numpy(), [-2.5, -1.25])
