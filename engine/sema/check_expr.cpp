@@ -448,6 +448,7 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
     r.source = ExprText(a);
     return r;
   }
+  if (bt.is_composite() && (a.attr == "dtype" || a.attr == "length")) return TypeAttribute(bt, a);
   if (bt.is_vector() || bt.kind == TypeKind::kQuat) {
     static const std::string kXYZW = "xyzw";
     size_t k = a.attr.size() == 1 ? kXYZW.find(a.attr[0]) : std::string::npos;
@@ -462,49 +463,8 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
   return Error(a.attr_loc, "a value of type " + TypeString(bt) + " has no attribute '" + a.attr + "'");
 }
 
-// wp.types.vector(length=N, dtype=T) and wp.types.matrix(shape=(R, C), dtype=T) in a kernel: the
-// type itself, with constant extents.
-Expected<Value> Checker::TypeFactory(const std::string& which, const ast::Call& c) {
-  auto extent = [&](const ast::Expr& e) -> Expected<int> {
-    WEFT_ASSIGN_OR_RETURN(Value v, Eval(e));
-    if (v.kind != Value::Kind::kVar || v.literal_text.empty() || !IsIntLiteralText(v.literal_text) ||
-        v.literal_text[0] == '-' || v.literal_text.size() > 4 || std::stoi(v.literal_text) < 1)
-      return Error(e.loc, "wp.types." + which + "(): '" + ExprText(e) + "' must be a positive integer constant");
-    return std::stoi(v.literal_text);
-  };
-  std::vector<int> dims;
-  ScalarKind scalar = ScalarKind::kFloat32;
-  for (const auto& kw : c.keywords) {
-    if (kw.name == "dtype") {
-      WEFT_ASSIGN_OR_RETURN(Type t, EvalTypeExpr(*kw.value));
-      if (!t.is_scalar()) return Error(kw.value->loc, "wp.types." + which + "(): dtype must be a scalar type");
-      scalar = t.scalar;
-    } else if (which == "vector" && kw.name == "length") {
-      WEFT_ASSIGN_OR_RETURN(int n, extent(*kw.value));
-      dims = {n};
-    } else if (which == "matrix" && kw.name == "shape") {
-      const auto* tu = ast::As<ast::Tuple>(kw.value.get());
-      if (!tu || tu->elts.size() != 2) return Error(kw.value->loc, "wp.types.matrix(): shape must be (rows, cols)");
-      dims.clear();
-      for (const auto& e : tu->elts) {
-        WEFT_ASSIGN_OR_RETURN(int n, extent(*e));
-        dims.push_back(n);
-      }
-    } else {
-      return Error(c.loc, "wp.types." + which + "() takes no argument '" + kw.name + "'");
-    }
-  }
-  if (dims.empty()) return Error(c.loc, "wp.types." + which + "() needs its " + (which == "vector" ? "length" : "shape"));
-  if ((which == "vector" && dims[0] > 1024) || (which == "matrix" && (dims[0] > 64 || dims[1] > 64)))
-    return Error(c.loc, "wp.types." + which + "(): too large");
-  Value r;
-  r.kind = Value::Kind::kType;
-  r.type = which == "vector" ? Type::Vector(dims[0], scalar) : Type::Matrix(dims[0], dims[1], scalar);
-  return r;
-}
-
-// An attribute of a type (wp.vec3.length, type(a).dtype, an array's .dtype): an array's element
-// type, a composite's scalar type and extents, as Warp's type objects have them.
+// An attribute of a type or of a value's type (wp.vec3.length, type(a).dtype, v.dtype, an array's
+// .dtype): an array's element type, a composite's scalar type and length, as Warp resolves them.
 Expected<Value> Checker::TypeAttribute(const Type& t, const ast::Attribute& a) {
   auto int_const = [&](int n) {
     Value v = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(n) + ")"));
@@ -1067,20 +1027,38 @@ Expected<Value> Checker::EvalArrayOverFixed(const ast::Call& c) {
   return Value::OfVar(v);
 }
 
+// The function of a call. A bare name bound nowhere (no local, global or Python builtin) names
+// the wp builtin or type of that name, as Warp resolves callees: `vec3(...)`, `expect_eq(...)`.
+Expected<Value> Checker::EvalCallee(const ast::Expr& f) {
+  const auto* n = ast::As<ast::Name>(&f);
+  if (!n || st_->scope.count(n->id) || st_->tuple_scope.count(n->id) || st_->func_scope.count(n->id) ||
+      st_->path_bound.count(n->id))
+    return Eval(f);
+  bool found = false;
+  WEFT_ASSIGN_OR_RETURN(Value v, LookupGlobal(n->id, n->loc, &found));
+  if (found) {
+    v.source = n->id;
+    return v;
+  }
+  Value w;
+  if (BuiltinRegistry::Get().Has(n->id) || IsSpecialBuiltin(n->id)) {
+    w.kind = Value::Kind::kBuiltin;
+    w.name = n->id;
+    return w;
+  }
+  auto t = ParseType(n->id);
+  if (t.ok() && !t->is_void() && !ContainsAny(*t) && !t->is_struct() && !t->is_tuple()) {
+    w.kind = Value::Kind::kType;
+    w.type = *t;
+    return w;
+  }
+  return Error(n->loc, "unknown name '" + n->id + "'");
+}
+
 Expected<Value> Checker::EvalCall(const ast::Call& c) {
   if (const auto* fa = ast::As<ast::Attribute>(c.func.get()); fa && fa->attr == "array") {
     auto owner = Eval(*fa->value);
     if (owner.ok() && owner->kind == Value::Kind::kModule) return EvalArrayOverFixed(c);
-  }
-  if (const auto* fa = ast::As<ast::Attribute>(c.func.get());
-      fa && (fa->attr == "vector" || fa->attr == "matrix") && c.args.empty() && !c.keywords.empty()) {
-    // wp.types.vector(length=N, dtype=T) / wp.types.matrix(shape=(R, C), dtype=T): the type
-    // (wp.vector(...) and wp.matrix(...) with values construct one).
-    const auto* owner = ast::As<ast::Attribute>(fa->value.get());
-    if (owner && owner->attr == "types") {
-      auto mod = Eval(*owner->value);
-      if (mod.ok() && mod->kind == Value::Kind::kModule) return TypeFactory(fa->attr, c);
-    }
   }
   if (const auto* fn = ast::As<ast::Name>(c.func.get());
       fn && fn->id == "type" && !st_->scope.count("type") && !symbols_.count("type")) {
@@ -1095,7 +1073,7 @@ Expected<Value> Checker::EvalCall(const ast::Call& c) {
     t.source = ExprText(c);
     return t;
   }
-  WEFT_ASSIGN_OR_RETURN(Value callee, Eval(*c.func));
+  WEFT_ASSIGN_OR_RETURN(Value callee, EvalCallee(*c.func));
   std::vector<Value> args;
   for (const auto& a : c.args) {
     if (const auto* star = ast::As<ast::Starred>(a.get())) {

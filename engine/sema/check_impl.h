@@ -109,7 +109,7 @@ class Checker {
   Expected<Value> EvalName(const ast::Name& n);
   Expected<Value> EvalAttribute(const ast::Attribute& a);
   Expected<Value> TypeAttribute(const Type& t, const ast::Attribute& a);
-  Expected<Value> TypeFactory(const std::string& which, const ast::Call& c);
+  Expected<Value> EvalCallee(const ast::Expr& f);
   Expected<Value> EvalSubscript(const ast::Subscript& s);
   // wp.adjoint[x] / wp.adjoint[x.f.g]: AdjointRoot gives x's slot and the field names after
   // it; AdjointSlot reads the (field of the) slot, AssignAdjoint writes it.

@@ -616,8 +616,8 @@ def vector(length, dtype):
                                   f"vec({extent},{scalar})")
     dtype = _composite_scalar(dtype)
     length = _py_int(length)
-    if length <= 0:
-        raise ValueError(f"Vector length must be positive, got {length}")
+    if length < 0:   # 0: the type of an empty slice (Warp has it; kernels cannot use it)
+        raise ValueError(f"Vector length must be non-negative, got {length}")
     key = (length, dtype)
     cls = _vector_cache.get(key)
     if cls is None:
@@ -642,8 +642,8 @@ def matrix(shape, dtype):
         text = ",".join("any" if d is Any else str(d) for d in dims)
         return _generic_composite(_Matrix, "mat_generic", dims, dtype, f"mat({text},{scalar})")
     rows, cols = _py_int(shape[0]), _py_int(shape[1])
-    if rows <= 0 or cols <= 0:
-        raise ValueError(f"Matrix dimensions must be positive, got {shape}")
+    if rows < 0 or cols < 0:   # 0: the type of an empty slice, as for vectors
+        raise ValueError(f"Matrix dimensions must be non-negative, got {shape}")
     dtype = _composite_scalar(dtype)
     key = (rows, cols, dtype)
     cls = _matrix_cache.get(key)

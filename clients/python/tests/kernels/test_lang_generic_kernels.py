@@ -194,14 +194,15 @@ def test_type_attributes_in_a_kernel(wp, rng):
 
 @wp.kernel
 def type_as_a_local(a: Any, out: wp.array(dtype=Any)):
-    v = wp.types.vector(length=2, dtype=type(a))
+    v = wp.types.vector(length=2, dtype=type(a))   # a zero vector, as in Warp
+    T = type(a)
     m = wp.identity(n=v.length, dtype=v.dtype) * a
     out[0] = wp.trace(m)
-    out[1] = v(a, a)[1]
+    out[1] = T(0.5) * a + v[1]
 
 
-def test_a_type_bound_to_a_local(wp):
+def test_value_dtype_length_and_a_type_bound_to_a_local(wp):
     for dtype in (wp.float32, wp.float64):
         out = wp.zeros(2, dtype=dtype)
         wp.launch(type_as_a_local, dim=1, inputs=[dtype(-1.25), out])
-        np.testing.assert_array_equal(out.numpy(), [-2.5, -1.25])
+        np.testing.assert_array_equal(out.numpy(), [-2.5, -0.625])
