@@ -57,6 +57,8 @@ WP_FUNC void expect_near_at(const launch_context_t* ctx, int32 function_id, int3
 // expect_near(a, b) without a tolerance: Warp's default, 1e-6 (in the scalar type of a).
 template <typename T> WP_FUNC T near_default_tol(const T&) { return T(1.0e-6f); }
 template <unsigned N, typename T> WP_FUNC T near_default_tol(const vec_t<N, T>&) { return T(1.0e-6f); }
+template <unsigned R, unsigned C, typename T> WP_FUNC T near_default_tol(const mat_t<R, C, T>&) { return T(1.0e-6f); }
+template <typename T> WP_FUNC T near_default_tol(const quat_t<T>&) { return T(1.0e-6f); }
 template <typename A>
 WP_FUNC void expect_near_at(const launch_context_t* ctx, int32 function_id, int32 line, const A& a, const A& b) {
   expect_near_at(ctx, function_id, line, a, b, near_default_tol(a));

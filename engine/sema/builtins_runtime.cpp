@@ -62,6 +62,16 @@ void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows) {
   misc("expect_near(a: vec(N,Float), b: vec(N,Float), tolerance: Float) -> void",
        "Report a launch error when a component differs by more than tolerance.",
        kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
+  misc("expect_near(a: quat(Float), b: quat(Float), tolerance: Float) -> void",
+       "Report a launch error when a component differs by more than tolerance.",
+       kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
+  misc("expect_near(a: mat(R,C,Float), b: mat(R,C,Float), tolerance: Float) -> void",
+       "Report a launch error when an element differs by more than tolerance.",
+       kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
+  misc("expect_near(a: quat(Float), b: quat(Float)) -> void", "expect_near with Warp's default tolerance, 1e-6.",
+       kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
+  misc("expect_near(a: mat(R,C,Float), b: mat(R,C,Float)) -> void", "expect_near with Warp's default tolerance, 1e-6.",
+       kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
   misc("expect_near(a: Float, b: Float) -> void", "expect_near with Warp's default tolerance, 1e-6.",
        kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
   misc("expect_near(a: vec(N,Float), b: vec(N,Float)) -> void", "expect_near with Warp's default tolerance, 1e-6.",

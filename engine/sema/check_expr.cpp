@@ -1542,9 +1542,31 @@ Expected<Value> Checker::CallConstructor(const Type& t, std::vector<Value> args,
     }
     return Value::OfVar(d);
   }
-  for (const auto& kw : call.keywords)
+  bool transform_parts = false;   // wp.transform(p=..., q=...): q defaults to the identity
+  for (const auto& kw : call.keywords) {
+    if (t.kind == TypeKind::kTransform && (kw.name == "p" || kw.name == "q")) {
+      transform_parts = true;
+      continue;
+    }
     if (kw.name != "dtype" && kw.name != "length" && kw.name != "shape")
       return Error(kw.loc, "unexpected keyword '" + kw.name + "' for " + TypeString(t));
+  }
+  if (transform_parts || (t.kind == TypeKind::kTransform && args.size() == 1 && args[0].kind == Value::Kind::kVar &&
+                          TypeOf(args[0].var).is_vector() && TypeOf(args[0].var).rows == 3)) {
+    std::vector<Value> parts(args.begin(), args.end());
+    if (parts.size() > 2) return Error(loc, TypeString(t) + "(p, q) takes at most two arguments");
+    parts.resize(2);
+    for (const auto& kw : call.keywords) {
+      if (kw.name != "p" && kw.name != "q") continue;
+      Value& slot = parts[kw.name == "p" ? 0 : 1];
+      if (slot.kind != Value::Kind::kNone) return Error(kw.loc, "'" + kw.name + "' given twice");
+      WEFT_ASSIGN_OR_RETURN(slot, Eval(*kw.value));
+    }
+    if (parts[0].kind == Value::Kind::kNone) return Error(loc, TypeString(t) + "() needs its translation p");
+    if (parts[1].kind == Value::Kind::kNone)
+      parts[1] = Value::OfVar(EmitConst(Type::Quat(t.scalar), "wp::cg_identity<" + CppType(Type::Quat(t.scalar)) + ">()"));
+    args = std::move(parts);
+  }
   for (const auto& a : args)
     if (a.kind != Value::Kind::kVar) return Error(loc, "constructor arguments of " + TypeString(t) + " must be values");
   if (t.is_scalar()) {

@@ -186,3 +186,29 @@ def test_spatial(wp, rng):
     np.testing.assert_allclose(vout.numpy()[:, 0], aw, **tol)
     np.testing.assert_allclose(vout.numpy()[:, 1], av, **tol)
     np.testing.assert_allclose(fout.numpy(), (a * b).sum(1), **tol)
+
+
+@wp.kernel
+def transform_from_parts(p: wp.array(dtype=wp.vec3d), q: wp.array(dtype=wp.quatd),
+                         out: wp.array(dtype=wp.transformd), out_p: wp.array(dtype=wp.transformd)):
+    i = wp.tid()
+    t = wp.transformd(p=p[i], q=q[i])
+    u = wp.transformd(q=q[i], p=p[i])
+    wp.expect_eq(t, u)
+    wp.expect_near(wp.transform_get_rotation(t), q[i], wp.float64(0.0))
+    wp.expect_near(wp.quat_to_matrix(q[i]), wp.quat_to_matrix(q[i]))
+    out[i] = t
+    out_p[i] = wp.transformd(p=p[i])
+
+
+def test_transform_keyword_construction_and_expect_near_on_quat_mat(wp, rng):
+    n = 12
+    p = rng.standard_normal((n, 3)) * 1e9
+    q = rng.standard_normal((n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    out = wp.zeros(n, dtype=wp.transformd)
+    out_p = wp.zeros(n, dtype=wp.transformd)
+    wp.launch(transform_from_parts, dim=n, inputs=[wp.array(p, dtype=wp.vec3d), wp.array(q, dtype=wp.quatd),
+                                                   out, out_p])
+    np.testing.assert_array_equal(out.numpy(), np.concatenate([p, q], axis=1))
+    np.testing.assert_array_equal(out_p.numpy(), np.concatenate([p, np.tile([0, 0, 0, 1.0], (n, 1))], axis=1))
