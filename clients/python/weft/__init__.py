@@ -56,6 +56,10 @@ from ._kernel.annotations import ref  # noqa: F401,E402
 from ._kernel.api import *  # noqa: F401,F403,E402
 from ._kernel.transform_funcs import (transform_compose, transform_decompose,  # noqa: F401,E402
                                       transform_from_matrix, transform_to_matrix)
+from ._kernel.math_funcs import (norm_huber, norm_l1, norm_l2, norm_pseudo_huber,  # noqa: F401,E402
+                                 quat_from_euler, quat_to_euler, quat_to_rpy, quat_twist,
+                                 quat_twist_angle, quat_twist_angle_signed, smooth_normalize,
+                                 transform_twist, transform_wrench, velocity_at_point)
 
 from .interop.dlpack import from_dlpack, to_dlpack  # noqa: F401,E402
 from .interop.jax import (device_from_jax, device_to_jax, dtype_from_jax,  # noqa: F401,E402
