@@ -132,3 +132,55 @@ def test_errors(wp, torch):
     out = wp.zeros(1, dtype=float, device="cpu")
     with pytest.raises(Exception, match="lives on meta but the kernel is launched on cpu"):
         wp.launch(square_sum, dim=3, inputs=[meta, out], device="cpu")
+
+
+@wp.kernel
+def square64(x: wp.array(dtype=wp.float64), y: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    y[i] = x[i] * x[i]
+
+
+def test_a_tensor_with_views_is_not_moved(wp, torch, rng):
+    """A CPU tensor whose storage other tensors share (a view) keeps its memory: converting it
+    copies, so writes through the view reach the next conversion (gradcheck writes each
+    grad_output through a flat view of it)."""
+    base = torch.from_numpy(rng.standard_normal(6))
+    flat = base.view(-1)
+    a = wp.from_torch(base)
+    assert base.untyped_storage().data_ptr() == flat.untyped_storage().data_ptr()
+    flat[2] = 123.5
+    assert base[2].item() == 123.5
+    np.testing.assert_array_equal(wp.from_torch(base).numpy(), base.numpy())
+    np.testing.assert_array_equal(a.numpy()[[0, 1, 3]], base.numpy()[[0, 1, 3]])
+
+
+def test_tape_backed_autograd_function_passes_gradcheck(wp, torch):
+    class Square(torch.autograd.Function):
+        @staticmethod
+        def forward(ctx, x):
+            xw = wp.from_torch(x.detach(), dtype=wp.float64, requires_grad=True)
+            yw = wp.zeros(x.shape[0], dtype=wp.float64, device=xw.device, requires_grad=True)
+            tape = wp.Tape()
+            with tape:
+                wp.launch(square64, dim=x.shape[0], inputs=[xw], outputs=[yw], device=xw.device)
+            ctx.tape, ctx.xw, ctx.yw = tape, xw, yw
+            return wp.to_torch(yw, requires_grad=False)
+
+        @staticmethod
+        def backward(ctx, adj_y):
+            ctx.tape.backward(grads={ctx.yw: wp.from_torch(adj_y, dtype=wp.float64)})
+            adj_x = wp.to_torch(ctx.xw.grad, requires_grad=False).clone()
+            ctx.tape.zero()
+            return adj_x
+
+    x = torch.tensor([1.0, -2.0, 3.0e3, 1.0e-4], dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(Square.apply, (x,), eps=1e-6, atol=1e-5)
+
+
+def test_launch_writes_reach_a_tensor_with_views(wp, torch, rng):
+    v = torch.tensor(rng.standard_normal((7, 3)).astype(np.float32))
+    out = torch.zeros((7, 3))
+    rows = out.view(21)                        # shares the storage: `out` is copied, not moved
+    wp.launch(double_vec, dim=7, inputs=[v, out], device="cpu")
+    np.testing.assert_allclose(out.numpy(), 2.0 * v.numpy().astype(np.float64), rtol=1e-6)
+    np.testing.assert_array_equal(rows.numpy(), out.numpy().reshape(21))

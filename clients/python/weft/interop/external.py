@@ -338,7 +338,10 @@ def launch_array(value, dtype, device: str, what: str):
             # later launches use it in place
             from . import torch as torch_interop  # noqa: PLC0415
 
-            return torch_interop._adopt_tensor(value, wdtype, what), None
+            adopted = torch_interop._adopt_tensor(value, wdtype, what, other_refs=1)
+            # a tensor that could not move (others share its storage) got a copy: the
+            # kernel's writes are copied back into it after the launch
+            return adopted, (None if adopted.ptr == value.data_ptr() else view)
     # a copy (converted to the parameter's scalar type where the data has another one)
     data = view
     if view.dtype != np.dtype(wdtype._wp_scalar_type_._np_dtype_) and \

@@ -102,10 +102,12 @@ def _check_tensor(t, what):
         raise TypeError(f"{what} expects a torch.Tensor, got {type(t).__name__}")
 
 
-def _adopt_tensor(t, dtype, what, requires_grad=False):
+def _adopt_tensor(t, dtype, what, requires_grad=False, other_refs=0):
     """A weft array over `t`'s memory: in place when it is a weft slab, else after moving the
     tensor's storage into a new slab (created with a daemon-side gradient when
-    `requires_grad`); views and tensors Torch will not re-point get a copy."""
+    `requires_grad`); views, tensors whose storage others share and tensors Torch will not
+    re-point get a copy. `other_refs`: references to the storage the caller holds (a NumPy
+    view of it)."""
     weft_scalar = _dtype_map().get(t.dtype) if t.device.type == "cpu" else None
     if weft_scalar is not None and t.numel():
         # hot path: the tensor's own layout, no NumPy view
@@ -117,6 +119,7 @@ def _adopt_tensor(t, dtype, what, requires_grad=False):
         if found is not None:
             memory.mark_shared(found._alloc)
             return found
+    exclusive = _storage_exclusive(t, other_refs)   # before the NumPy view below shares it too
     view = external.host_view(t, what)
     wdtype, shape, strides = external.resolve_layout(view, dtype, what)
     found = external.find_in_place(view, wdtype, shape, strides)
@@ -125,7 +128,7 @@ def _adopt_tensor(t, dtype, what, requires_grad=False):
         return found
     out, _ = external.weft_array(view, dtype=wdtype, device="cpu", what=what,
                                  requires_grad=requires_grad)
-    if t._base is None and not t.is_inference():
+    if t._base is None and not t.is_inference() and exclusive:
         moved = _tensor_over(out, t.dtype, tuple(t.shape))
         if moved is not None:
             torch = _torch()
@@ -135,6 +138,21 @@ def _adopt_tensor(t, dtype, what, requires_grad=False):
             except RuntimeError:
                 pass                    # Torch refused: the array stays a copy
     return out
+
+
+def _storage_exclusive(t, other_refs=0) -> bool:
+    """Whether no other tensor shares `t`'s storage (views of it included): only then may `t`
+    be re-pointed at a slab, since the others would go on reading and writing the old memory
+    (gradcheck writes each grad_output through a view of it). Unknown: False (a copy)."""
+    torch = _torch()
+    use_count = getattr(torch._C, "_storage_Use_Count", None)
+    if use_count is None:
+        return False
+    try:
+        # one reference is the tensor's, one the storage object this call makes
+        return use_count(t.untyped_storage()._cdata) <= 2 + other_refs
+    except (RuntimeError, AttributeError, TypeError):
+        return False
 
 
 def _tensor_over(a, torch_dtype, shape):
