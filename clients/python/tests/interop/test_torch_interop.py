@@ -24,13 +24,14 @@ def double_vec(v: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
 def test_dtype_and_device_helpers(wp, torch):
     pairs = [(torch.float16, wp.float16), (torch.float32, wp.float32), (torch.float64, wp.float64),
              (torch.int8, wp.int8), (torch.int16, wp.int16), (torch.int32, wp.int32),
-             (torch.int64, wp.int64), (torch.uint8, wp.uint8), (torch.bool, wp.bool)]
+             (torch.int64, wp.int64), (torch.uint8, wp.uint8), (torch.bool, wp.bool),
+             (torch.bfloat16, wp.bfloat16)]
     for t, w in pairs:
         assert wp.dtype_from_torch(t) is w
         assert wp.dtype_to_torch(w) is t
     assert wp.dtype_to_torch(wp.vec3) is torch.float32
     with pytest.raises(TypeError, match="unsupported"):
-        wp.dtype_from_torch(torch.bfloat16)
+        wp.dtype_from_torch(torch.complex64)
     assert wp.device_from_torch("cpu") == wp.get_device("cpu")
     assert wp.device_from_torch(torch.device("cpu")).is_cpu
     assert wp.device_to_torch("cpu") == "cpu"
@@ -116,7 +117,7 @@ def test_streams_are_cuda_objects(wp, torch):
 
 def test_errors(wp, torch):
     with pytest.raises(Exception, match="unsupported"):
-        wp.from_torch(torch.zeros(3, dtype=torch.bfloat16))
+        wp.from_torch(torch.zeros(3, dtype=torch.complex64))
     with pytest.raises(Exception, match=r"trailing dimensions must be \(3,\)"):
         wp.from_torch(torch.zeros(4, 2), dtype=wp.vec3)
     with pytest.raises(Exception, match="not contiguous"):
@@ -184,3 +185,27 @@ def test_launch_writes_reach_a_tensor_with_views(wp, torch, rng):
     wp.launch(double_vec, dim=7, inputs=[v, out], device="cpu")
     np.testing.assert_allclose(out.numpy(), 2.0 * v.numpy().astype(np.float64), rtol=1e-6)
     np.testing.assert_array_equal(rows.numpy(), out.numpy().reshape(21))
+
+
+@wp.kernel
+def bf16_scale(x: wp.array(dtype=wp.bfloat16), out: wp.array(dtype=wp.float32)):
+    i = wp.tid()
+    out[i] = wp.float32(x[i]) * 2.0
+    x[i] = wp.bfloat16(-1.0)
+
+
+def test_bfloat16_both_ways_zero_copy(wp, torch, rng):
+    values = rng.standard_normal(16).astype(np.float32) * 1e3
+    t = torch.tensor(values, dtype=torch.bfloat16)
+    a = wp.from_torch(t)
+    assert a.dtype is wp.bfloat16 and a.ptr == t.data_ptr()     # the tensor moved into a slab
+    out = wp.zeros(16, dtype=wp.float32)
+    wp.launch(bf16_scale, dim=16, inputs=[a, out])
+    ref = torch.tensor(values, dtype=torch.bfloat16).double().numpy()   # values as bfloat16 holds them
+    np.testing.assert_array_equal(out.numpy(), (2.0 * ref).astype(np.float32))
+    np.testing.assert_array_equal(t.float().numpy(), -1.0)                # the kernel's writes, in Torch
+    b = wp.array(values, dtype=wp.types.vector(4, wp.bfloat16))
+    tb = wp.to_torch(b)
+    assert tb.dtype == torch.bfloat16 and tuple(tb.shape) == (4, 4) and tb.data_ptr() == b.ptr
+    np.testing.assert_array_equal(tb.double().numpy().reshape(-1), ref)
+    assert wp.dtype_from_torch(torch.bfloat16) is wp.bfloat16 and wp.dtype_to_torch(wp.bfloat16) == torch.bfloat16

@@ -75,6 +75,8 @@ def host_view(obj, what: str = "array") -> np.ndarray:
             t = t.resolve_conj()
         if t.is_neg():
             t = t.resolve_neg()
+        if t.dtype is sys.modules["torch"].bfloat16:
+            t = t.view(sys.modules["torch"].int16)   # NumPy has no bfloat16: its bits
         try:
             return t.numpy()
         except (TypeError, RuntimeError) as err:

@@ -39,7 +39,7 @@ def _dtype_map() -> dict:
                  ("float64", types.float64), ("int8", types.int8), ("int16", types.int16),
                  ("int32", types.int32), ("int64", types.int64), ("uint8", types.uint8),
                  ("uint16", types.uint16), ("uint32", types.uint32), ("uint64", types.uint64),
-                 ("bool", types.bool)]
+                 ("bool", types.bool), ("bfloat16", types.bfloat16)]
         for name, weft_type in pairs:
             torch_type = getattr(torch, name, None)
             if torch_type is not None:
@@ -48,11 +48,11 @@ def _dtype_map() -> dict:
 
 
 def dtype_from_torch(torch_dtype):
-    """The weft scalar dtype of a Torch dtype (TypeError for bfloat16, complex, ...)."""
+    """The weft scalar dtype of a Torch dtype (TypeError for complex, float8, ...)."""
     weft_type = _dtype_map().get(torch_dtype)
     if weft_type is None:
         raise TypeError(f"Invalid or unsupported data type: {torch_dtype} (weft arrays hold "
-                        f"bool, int8..int64, uint8..uint64, float16, float32, float64)")
+                        f"bool, int8..int64, uint8..uint64, float16, bfloat16, float32, float64)")
     return weft_type
 
 
@@ -163,6 +163,8 @@ def _tensor_over(a, torch_dtype, shape):
         return None
     view = a.numpy()
     memory.mark_shared(a._alloc)
+    if view.dtype.name == "bfloat16":   # ml_dtypes' bfloat16: Torch takes its bits
+        view = view.view(np.uint16)
     t = torch.from_numpy(view)
     if t.dtype != torch_dtype:
         t = t.view(torch_dtype)         # same-size alias (int8 <-> uint8, bool <-> uint8)
@@ -215,6 +217,10 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
     tensor's .grad to the array's .grad (zeros when the tensor has none); `grad` gives that
     gradient tensor explicitly. `return_ctype` is accepted for Warp compatibility: weft has no
     ctypes descriptors, and the array returned is already a thin view."""
+    if dtype is None and getattr(t, "dtype", None) is _torch().bfloat16:
+        from .. import types  # noqa: PLC0415
+
+        dtype = types.bfloat16     # its bits are read as uint16: the dtype is not inferred
     if grad is None:
         known = _last_import(t, dtype, requires_grad)
         if known is not None:
@@ -320,7 +326,10 @@ def to_torch(a, requires_grad=None):
         t = _tensor_over(a, dtype_to_torch(a.dtype), tuple(a.numpy().shape)) \
             if a._info is not None else None
         if t is None:
-            t = torch.from_numpy(np.array(a.numpy(), copy=True))
+            host = np.array(a.numpy(), copy=True)
+            t = torch.from_numpy(host.view(np.uint16) if host.dtype.name == "bfloat16" else host)
+    if t.dtype == torch.uint16 and dtype_to_torch(a.dtype) is torch.bfloat16:
+        t = t.view(torch.bfloat16)      # bfloat16 travels as its bits
     if requires_grad is None:
         requires_grad = a.requires_grad
     if requires_grad:
