@@ -212,3 +212,44 @@ def test_transform_keyword_construction_and_expect_near_on_quat_mat(wp, rng):
                                                    out, out_p])
     np.testing.assert_array_equal(out.numpy(), np.concatenate([p, q], axis=1))
     np.testing.assert_array_equal(out_p.numpy(), np.concatenate([p, np.tile([0, 0, 0, 1.0], (n, 1))], axis=1))
+
+
+@wp.kernel
+def quat_builtins_in_kernel(rpy: wp.array(dtype=wp.vec3), axis: wp.array(dtype=wp.vec3),
+                            v: wp.array(dtype=wp.vec3), out: wp.array2d(dtype=float)):
+    i = wp.tid()
+    q = wp.quat_rpy(rpy[i][0], rpy[i][1], rpy[i][2])
+    a = wp.quat_from_axis_angle(axis[i], rpy[i][0])
+    r = wp.quat_rotate(a, v[i])
+    p = wp.transform_point(wp.transform(v[i], q), axis[i])
+    for k in range(4):
+        out[i, k] = q[k]
+    for k in range(3):
+        out[i, 4 + k] = r[k]
+        out[i, 7 + k] = p[k]
+
+
+def test_quaternion_builtins_called_from_python_match_kernels(wp, rng):
+    """wp.quat_rpy, quat_from_axis_angle, quat_rotate, transform_point, quat_identity and
+    quat_to_matrix called from Python give what the kernel builtins give (float64 math there,
+    float32 results)."""
+    n = 16
+    rpy = rng.uniform(-np.pi, np.pi, size=(n, 3)).astype(np.float32)
+    axis = rng.standard_normal((n, 3))
+    axis = (axis / np.linalg.norm(axis, axis=1, keepdims=True)).astype(np.float32)
+    v = (rng.standard_normal((n, 3)) * 10).astype(np.float32)
+    out = wp.zeros((n, 10), dtype=float)
+    wp.launch(quat_builtins_in_kernel, dim=n, inputs=[wp.array(rpy, dtype=wp.vec3), wp.array(axis, dtype=wp.vec3),
+                                                      wp.array(v, dtype=wp.vec3), out])
+    got = out.numpy()
+    for i in range(n):
+        q = wp.quat_rpy(*(float(x) for x in rpy[i]))
+        a = wp.quat_from_axis_angle(wp.vec3(*axis[i]), float(rpy[i][0]))
+        r = wp.quat_rotate(a, wp.vec3(*v[i]))
+        p = wp.transform_point(wp.transform(wp.vec3(*v[i]), q), wp.vec3(*axis[i]))
+        np.testing.assert_allclose(got[i], np.concatenate([np.asarray(q), np.asarray(r), np.asarray(p)]),
+                                   rtol=2e-5, atol=2e-5)
+        m = np.asarray(wp.quat_to_matrix(q), dtype=np.float64)
+        np.testing.assert_allclose(m @ m.T, np.eye(3), atol=1e-6)
+    assert list(wp.quat_identity(dtype=wp.float64)) == [0.0, 0.0, 0.0, 1.0]
+    assert type(wp.quat_identity(dtype=wp.float64)) is wp.quatd
