@@ -1441,6 +1441,18 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
         return;
       }
       if (const auto* c = ast::As<ast::Call>(&e)) {
+        // len(x) of a value whose length its type fixes (vector, matrix, quaternion, fixed-size
+        // array, tuple) is known while compiling, whatever x holds
+        const auto* fn = ast::As<ast::Name>(c->func.get());
+        const auto* arg = c->args.size() == 1 ? ast::As<ast::Name>(c->args[0].get()) : nullptr;
+        if (fn && fn->id == "len" && arg && c->keywords.empty()) {
+          if (st_->tuple_scope.count(arg->id)) return;
+          auto it = st_->scope.find(arg->id);
+          if (it != st_->scope.end()) {
+            const Type t = TypeOf(it->second);
+            if (t.is_composite() || t.is_fixed_array()) return;
+          }
+        }
         walk(*c->func);
         for (const auto& a : c->args) walk(*a);
         for (const auto& k : c->keywords) walk(*k.value);

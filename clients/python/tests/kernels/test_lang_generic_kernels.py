@@ -206,3 +206,18 @@ def test_value_dtype_length_and_a_type_bound_to_a_local(wp):
         out = wp.zeros(2, dtype=dtype)
         wp.launch(type_as_a_local, dim=1, inputs=[dtype(-1.25), out])
         np.testing.assert_array_equal(out.numpy(), [-2.5, -0.625])
+
+
+@wp.kernel
+def static_len_of_params(v: wp.types.vector(Any, float), m: wp.mat33, out: wp.array(dtype=int)):
+    out[0] = wp.static(len(v))
+    out[1] = wp.static(len(m)) * 10
+    for k in range(wp.static(len(v))):
+        out[2 + k] = int(v[k])
+
+
+def test_static_len_of_a_kernel_parameter(wp):
+    out = wp.zeros(8, dtype=int)
+    wp.launch(static_len_of_params, dim=1, inputs=[wp.types.vector(5, float)(1.0, 2.0, 3.0, 4.0, 5.0),
+                                                   wp.mat33(), out])
+    np.testing.assert_array_equal(out.numpy(), [5, 30, 1, 2, 3, 4, 5, 0])
