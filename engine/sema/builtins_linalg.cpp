@@ -34,6 +34,7 @@ void AddLinalgBuiltins(std::vector<BuiltinOverload>* rows) {
   op("div(a: mat(N,M,Scalar), b: Scalar) -> mat(N,M,Scalar)", "Matrix divided by scalar.");
   op("div(a: Scalar, b: mat(N,M,Scalar)) -> mat(N,M,Scalar)", "Scalar divided by each component.");
   op("div(a: quat(Float), b: Float) -> quat(Float)", "Quaternion divided by scalar.");
+  op("div(a: Float, b: quat(Float)) -> quat(Float)", "Scalar divided by each component (as Warp).");
   op("div_approx(a: vec(N,Float), b: Float) -> vec(N,Float)", "Vector divided by scalar (approximate on CUDA).");
   op("div_approx(a: Float, b: vec(N,Float)) -> vec(N,Float)", "Scalar divided by each component (approximate on CUDA).");
   op("div_approx(a: mat(N,M,Float), b: Float) -> mat(N,M,Float)", "Matrix divided by scalar (approximate on CUDA).");

@@ -253,3 +253,21 @@ def test_quaternion_builtins_called_from_python_match_kernels(wp, rng):
         np.testing.assert_allclose(m @ m.T, np.eye(3), atol=1e-6)
     assert list(wp.quat_identity(dtype=wp.float64)) == [0.0, 0.0, 0.0, 1.0]
     assert type(wp.quat_identity(dtype=wp.float64)) is wp.quatd
+
+
+@wp.kernel
+def scalar_over_quat(x: wp.array(dtype=wp.quatd), y: wp.array(dtype=wp.quatd)):
+    i = wp.tid()
+    y[i] = wp.float64(2.0) / x[i]
+
+
+def test_scalar_divided_by_a_quaternion_and_its_gradient(wp, rng):
+    x = rng.uniform(0.5, 4.0, size=(6, 4)) * rng.choice([-1.0, 1.0], size=(6, 4))
+    xa = wp.array(x, dtype=wp.quatd, requires_grad=True)
+    y = wp.zeros(6, dtype=wp.quatd, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(scalar_over_quat, dim=6, inputs=[xa, y])
+    np.testing.assert_allclose(y.numpy(), 2.0 / x, rtol=1e-15)
+    tape.backward(grads={y: wp.array(np.ones((6, 4)), dtype=wp.quatd)})
+    np.testing.assert_allclose(xa.grad.numpy(), -2.0 / x ** 2, rtol=1e-14)
