@@ -506,9 +506,13 @@ Status Checker::LowerBlock(const ast::StmtList& stmts, size_t from) {
 
 Status Checker::BindLocal(const std::string& name, int var, const SourceLocation& loc) {
   auto it = st_->scope.find(name);
-  if (it != st_->scope.end() && TypeOf(it->second) != TypeOf(var))
+  // In the function's own block (not inside an if, for or while) a name may be bound again to
+  // a value of another type, as in Warp: straight-line code has no path to merge. Inside a
+  // compound statement a variable keeps one type.
+  if (it != st_->scope.end() && TypeOf(it->second) != TypeOf(var) && st_->block != &st_->fn.body)
     return Error(loc, "'" + name + "' has type " + TypeString(TypeOf(it->second)) + "; cannot assign a value of type " +
-                          TypeString(TypeOf(var)) + " (a variable keeps one type, as in Warp)");
+                          TypeString(TypeOf(var)) + " inside a branch or loop (a variable keeps one type there, as in Warp)");
+  if (it != st_->scope.end() && TypeOf(it->second) != TypeOf(var)) st_->literal_locals.erase(name);
   if (st_->fn.vars[var].is_mutable) {  // never alias a slot that changes later
     int copy = NewVar(TypeOf(var), name);
     EmitCopy(copy, var);

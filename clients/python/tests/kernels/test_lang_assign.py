@@ -1,6 +1,7 @@
 """Language: assignments, tuple unpacking, augmented assignment, variable reassignment with a
 new value of the same type; against NumPy float64 references on fresh random data."""
 import numpy as np
+import pytest
 
 import weft as wp
 
@@ -81,3 +82,33 @@ def test_augmented_assignment(wp, rng):
     ref = ((a.astype(np.float64) + 1.5) * 2.0 - 0.25) / 4.0 + 1.0
     np.testing.assert_allclose(out.numpy(), ref, rtol=1e-6, atol=1e-6)
     np.testing.assert_array_equal(iout.numpy(), (k.astype(np.int64) + 7) * 3 - 2)
+
+
+@wp.kernel
+def rebind_to_other_types(a: wp.array3d(dtype=wp.float64), out: wp.array(dtype=wp.float64)):
+    sub = a[1]                 # array(float64, 2)
+    out[0] = sub[2, 3]
+    sub = a[1, 2]              # the same name, now array(float64, 1): straight-line code
+    out[1] = sub[3]
+    sub = a[1, 2, 3] * 2.0     # and a float64
+    out[2] = sub
+
+
+def test_a_name_rebound_to_another_type_in_straight_line_code(wp, rng):
+    x = rng.standard_normal((3, 4, 5)) * 1e100
+    out = wp.zeros(3, dtype=wp.float64)
+    wp.launch(rebind_to_other_types, dim=1, inputs=[wp.array(x, dtype=wp.float64), out])
+    np.testing.assert_array_equal(out.numpy(), [x[1, 2, 3], x[1, 2, 3], 2.0 * x[1, 2, 3]])
+
+
+def test_a_name_keeps_its_type_inside_a_branch(wp, kernel_module):
+    mod = kernel_module("""
+@wp.kernel
+def k(a: wp.array(dtype=float), flag: int):
+    x = a[0]
+    if flag > 0:
+        x = wp.vec3(1.0)
+    a[0] = x
+""")
+    with pytest.raises(Exception, match="inside a branch or loop"):
+        wp.launch(mod.k, dim=1, inputs=[wp.zeros(1, dtype=float), 1])
