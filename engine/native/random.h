@@ -56,8 +56,9 @@ template <typename T>
 WP_FUNC int32 lower_bound(const array_t<T>& arr, int32 begin, int32 end, T v) {
   if (!arr.data) return begin;
   int64 n = arr.shape[0];
+  // Warp's search: over [begin, end - 1], so a value past the last element gives end - 1
   int32 lo = begin < 0 ? 0 : begin;
-  int32 hi = (int64)end > n ? (int32)n : end;
+  int32 hi = ((int64)end > n ? (int32)n : end) - 1;
   while (lo < hi) {
     int32 mid = lo + (hi - lo) / 2;
     if (load(arr, mid) < v) lo = mid + 1;

@@ -46,9 +46,11 @@ void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows) {
   misc("where(cond: Cond, value_if_true: X, value_if_false: X) -> X", "value_if_true if cond else value_if_false.");
   misc("select(cond: Cond, value_if_false: X, value_if_true: X) -> X", "Deprecated twin of where (argument order reversed).");
   misc("lower_bound(arr: array(Scalar,1), value: Scalar) -> int32",
-       "First index i with arr[i] >= value in a sorted array.", kBuiltinNotDiff);
+       "First index i with arr[i] >= value in a sorted array; the last index when every element is smaller "
+       "(as Warp).", kBuiltinNotDiff);
   misc("lower_bound(arr: array(Scalar,1), arr_begin: int32, arr_end: int32, value: Scalar) -> int32",
-       "lower_bound in arr[arr_begin:arr_end].", kBuiltinNotDiff);
+       "lower_bound in arr[arr_begin:arr_end]: arr_end - 1 when every element there is smaller (as Warp).",
+       kBuiltinNotDiff);
   misc("block_dim() -> int32", "Threads per block of the launch: blockDim.x on CUDA, 1 on CPU.",
        kBuiltinNeedsCtx | kBuiltinNotDiff);
   misc("print(value: X) -> void", "Print a value; the text reaches the launching client's stdout.",

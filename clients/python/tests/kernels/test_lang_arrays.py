@@ -107,3 +107,23 @@ def test_numpy_arguments_are_copied_back(wp, rng):
     # a list is accepted (no place to copy back to)
     wp.launch(scale_inplace, dim=3, inputs=[[1.0, 2.0, 3.0], 2.0], device="cpu")
     wp.synchronize()
+
+
+@wp.kernel
+def lower_bounds(arr: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.float64),
+                 out: wp.array2d(dtype=int)):
+    i = wp.tid()
+    out[i, 0] = wp.lower_bound(arr, values[i])
+    out[i, 1] = wp.lower_bound(arr, 2, 7, values[i])
+
+
+def test_lower_bound_as_warp(wp, rng):
+    """Warp's lower_bound searches [begin, end - 1]: a value past the last element gives end - 1."""
+    arr = np.sort(rng.standard_normal(10)) * 1e6
+    values = np.concatenate([rng.standard_normal(20) * 2e6, arr[[0, 3, 9]], [arr[-1] * 2 + 1, -1e300, 1e300]])
+    out = wp.zeros((len(values), 2), dtype=int)
+    wp.launch(lower_bounds, dim=len(values), inputs=[wp.array(arr, dtype=wp.float64),
+                                                     wp.array(values, dtype=wp.float64), out])
+    ref_full = np.minimum(np.searchsorted(arr, values, side="left"), 9)
+    ref_part = np.clip(2 + np.searchsorted(arr[2:7], values, side="left"), 2, 6)
+    np.testing.assert_array_equal(out.numpy(), np.stack([ref_full, ref_part], axis=1))
