@@ -202,7 +202,7 @@ def _normalize_shape(shape) -> tuple:
         raise RuntimeError("Arrays must have at least one dimension")
     for s in shape:
         if s < 0:
-            raise ValueError(f"Invalid array shape {shape}: dimensions must be non-negative")
+            raise ValueError(f"Array shapes must be non-negative, got {shape}")
     return shape
 
 
@@ -1076,7 +1076,8 @@ class array:
             shape[shape.index(-1)] = self.size // known
         shape = _normalize_shape(shape)
         if math.prod(shape) != self.size:
-            raise RuntimeError(f"Cannot reshape array of shape {self.shape} into {shape}")
+            raise RuntimeError(f"cannot reshape array of shape {self.shape} (size {self.size}) into "
+                               f"shape {shape} (size {math.prod(shape)})")
         if not self.is_contiguous:
             raise RuntimeError("Reshaping non-contiguous arrays is unsupported")
         view = self._make_view(self._byte_offset, shape,
@@ -1382,8 +1383,13 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
     if type_str(src.dtype) != type_str(dest.dtype):
         raise RuntimeError(f"Incompatible array data types: cannot copy {type_str(src.dtype)} "
                            f"to {type_str(dest.dtype)}")
-    if dest_offset < 0 or src_offset < 0 or count < 0:
-        raise RuntimeError("wp.copy() offsets and count must be non-negative")
+    for value, name in ((src_offset, "Source offset"), (dest_offset, "Destination offset"),
+                        (count, "Copy count")):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise RuntimeError(f"wp.copy(): offsets and count must be integers, got {name.lower()} "
+                               f"{value!r}")
+        if value < 0:
+            raise RuntimeError(f"wp.copy(): {name} must be non-negative, got {value}")
     whole = count == 0 and dest_offset == 0 and src_offset == 0
     if whole and src.shape == dest.shape:
         d, s = dest, src
