@@ -67,12 +67,12 @@ void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows) {
   misc("expect_near(a: quat(Float), b: quat(Float), tolerance: Float) -> void",
        "Report a launch error when a component differs by more than tolerance.",
        kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
-  misc("expect_near(a: mat(R,C,Float), b: mat(R,C,Float), tolerance: Float) -> void",
+  misc("expect_near(a: mat(N,M,Float), b: mat(N,M,Float), tolerance: Float) -> void",
        "Report a launch error when an element differs by more than tolerance.",
        kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
   misc("expect_near(a: quat(Float), b: quat(Float)) -> void", "expect_near with Warp's default tolerance, 1e-6.",
        kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
-  misc("expect_near(a: mat(R,C,Float), b: mat(R,C,Float)) -> void", "expect_near with Warp's default tolerance, 1e-6.",
+  misc("expect_near(a: mat(N,M,Float), b: mat(N,M,Float)) -> void", "expect_near with Warp's default tolerance, 1e-6.",
        kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);
   misc("expect_near(a: Float, b: Float) -> void", "expect_near with Warp's default tolerance, 1e-6.",
        kBuiltinNeedsCtx | kBuiltinSideEffect | kBuiltinNotDiff);

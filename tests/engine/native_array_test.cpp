@@ -386,9 +386,9 @@ TEST(NativeRandom, MatchesWarpStreamAndDistributions) {
   EXPECT_NEAR(counts[0] / 30000.0, 0.1, 0.01);
   EXPECT_NEAR(counts[1] / 30000.0, 0.3, 0.01);
   EXPECT_EQ(wp::lower_bound(ca, 0.4f), 1);
-  EXPECT_EQ(wp::lower_bound(ca, 2.0f), 3);
+  EXPECT_EQ(wp::lower_bound(ca, 2.0f), 2);               // past the last: end - 1 (Warp)
   EXPECT_EQ(wp::lower_bound(ca, 1, 3, 0.0f), 1);
-  EXPECT_EQ(wp::lower_bound(ca, -5, 100, 2.0f), 3);  // range clamped to the array
+  EXPECT_EQ(wp::lower_bound(ca, -5, 100, 2.0f), 2);  // range clamped to the array
   wp::array_t<float> none{};
   EXPECT_EQ(wp::lower_bound(none, 0.5f), 0);
   EXPECT_EQ(wp::sample_cdf(s, none), 0);
