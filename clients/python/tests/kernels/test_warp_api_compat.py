@@ -567,3 +567,30 @@ def test_unique_kernel_module_load_raises_its_compile_error(wp, kernel_module):
     assert m.alone.module.load(device="cpu") is not None
     assert m.alone.module.name == m.fine.module.name
     assert wp.get_module(m.__name__).load(device="cpu") is not None
+
+
+@wp.kernel
+def launch_defaults(out: wp.array(dtype=wp.float64), v: wp.vec3d, q: wp.quatd, s: wp.float64, n: int):
+    i = wp.tid()
+    out[i] = wp.float64(i) + v[0] + v[2] + q[0] + q[3] + s + wp.float64(n)
+
+
+def test_launch_object_without_params_starts_at_zero(wp, rng):
+    """wp.Launch(kernel, device): every parameter starts at zero (a quaternion too, as in Warp;
+    arrays None) and is set by name later; launching before an array is set fails clearly."""
+    out = wp.zeros(8, dtype=wp.float64)
+    cmd = wp.Launch(launch_defaults, "cpu")
+    cmd.set_dim(8)
+    with pytest.raises(wp.WeftError, match="array 'out' which is None"):
+        cmd.launch()
+        wp.synchronize()
+    cmd.set_param_by_name("out", out)
+    cmd.set_dim(5)
+    cmd.launch()
+    np.testing.assert_array_equal(out.numpy(), [0, 1, 2, 3, 4, 0, 0, 0])
+    x = rng.standard_normal(3) * 1e8
+    cmd.set_param_by_name("v", wp.vec3d(*x))
+    cmd.set_param_by_name("n", 7)
+    cmd.set_dim(8)
+    cmd.launch()
+    np.testing.assert_allclose(out.numpy(), np.arange(8) + (x[0] + x[2]) + 7.0, rtol=1e-15)

@@ -839,15 +839,37 @@ def verify_finite(kernel: Kernel, args, origin) -> None:
                                      f"(wp.config.verify_fp)")
 
 
+def _zero_argument(kernel: Kernel, name: str, type_text: str):
+    """The value of an unset parameter of a wp.Launch: None for arrays, zero for numbers and for
+    every component of vectors, matrices, quaternions and transforms, a default struct."""
+    desc = typestr.parse(type_text)
+    if desc.kind in ("array", "indexedarray"):
+        return None
+    annotation = kernel.definition.annotations.get(name)
+    if desc.kind == "struct":
+        return annotation()
+    if desc.kind == "scalar":
+        return False if desc.scalar == "bool" else 0
+    return annotation(*([0] * desc.count))
+
+
 class Launch:
     """What wp.launch(..., record_cmd=True) returns instead of launching (Warp's wp.Launch): the
     kernel, device, dim and arguments, checked and compiled once; launch() runs it with the
     arguments as they are then (not recorded on a tape, as in Warp); set_dim and set_param_*
     change them."""
 
-    def __init__(self, kernel: Kernel, device, dim, params, adj_params=(), adjoint=False,
+    def __init__(self, kernel: Kernel, device, dim=0, params=None, adj_params=(), adjoint=False,
                  max_blocks=0, block_dim=256):
         device = device_name(device) if not isinstance(device, str) else device
+        if params is None:
+            # wp.Launch(kernel, device): every parameter at its type's zero (arrays None), set
+            # later with set_param_*; a generic kernel needs its arguments to pick an instance
+            if kernel.is_generic:
+                raise WeftLaunchError(f"wp.Launch of generic kernel '{kernel.key}' needs its "
+                                      f"params (they choose the instance)")
+            params = [_zero_argument(kernel, name, text)
+                      for name, text in zip(kernel.param_names, kernel.param_types)]
         if kernel.is_generic:
             kernel = kernel.specialize(infer_param_types(kernel, list(params)))
         self.kernel = kernel
