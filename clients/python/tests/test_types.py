@@ -74,7 +74,11 @@ def test_vector_and_matrix_factories():
     assert types.type_size_in_bytes(m) == 12
     assert types.type_size_in_bytes(wp.transform) == 28
     with pytest.raises(ValueError):
-        wp.types.vector(0, float)
+        wp.types.vector(-1, float)
+    with pytest.raises(ValueError):
+        wp.types.matrix((2, -3), float)
+    # length 0: the type of an empty slice, as in Warp (no values to hold)
+    assert wp.types.vector(0, float)._length_ == 0 and wp.types.vector(0, float)()._data.size == 0
 
 
 def test_vector_values_behave_like_warp_python_scope():

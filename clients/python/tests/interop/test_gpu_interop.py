@@ -126,3 +126,26 @@ def test_gpu_device_mismatch_is_a_clear_error(wp, cuda, torch):
         cuda_import.copy_in(t, None, "cuda:1", "x")
     with pytest.raises(Exception, match="launched on cpu"):
         wp.launch(add_one, dim=4, inputs=[t], device="cpu")
+
+
+@wp.kernel
+def bf16_negate(x: wp.array(dtype=wp.bfloat16), out: wp.array(dtype=wp.float32)):
+    i = wp.tid()
+    out[i] = wp.float32(x[i])
+    x[i] = -x[i]
+
+
+def test_bfloat16_gpu_tensors_both_ways(wp, cuda, torch, rng):
+    if not torch.cuda.is_available():
+        pytest.skip("Torch has no CUDA device")
+    values = rng.standard_normal(64).astype(np.float32) * 100
+    t = torch.tensor(values, dtype=torch.bfloat16, device=wp.device_to_torch(cuda))
+    a = wp.from_torch(t)
+    assert a.dtype is wp.bfloat16 and a.ptr == t.data_ptr()
+    out = wp.zeros(64, dtype=wp.float32, device=cuda)
+    wp.launch(bf16_negate, dim=64, inputs=[a, out], device=cuda)
+    ref = torch.tensor(values, dtype=torch.bfloat16).double().numpy()
+    np.testing.assert_array_equal(out.numpy(), ref.astype(np.float32))
+    back = wp.to_torch(a)
+    assert back.dtype == torch.bfloat16 and back.data_ptr() == t.data_ptr()
+    np.testing.assert_array_equal(t.double().cpu().numpy(), -ref)

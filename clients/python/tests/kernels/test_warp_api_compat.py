@@ -579,7 +579,7 @@ def test_launch_object_without_params_starts_at_zero(wp, rng):
     """wp.Launch(kernel, device): every parameter starts at zero (a quaternion too, as in Warp;
     arrays None) and is set by name later; launching before an array is set fails clearly."""
     out = wp.zeros(8, dtype=wp.float64)
-    cmd = wp.Launch(launch_defaults, "cpu")
+    cmd = wp.Launch(launch_defaults, wp.get_device())
     cmd.set_dim(8)
     with pytest.raises(wp.WeftError, match="array 'out' which is None"):
         cmd.launch()
