@@ -1,4 +1,5 @@
-"""DLPack capsules over weft GPU arrays (kDLCUDA), made with ctypes.
+"""DLPack capsules over weft GPU arrays (kDLCUDA), and over CPU arrays NumPy cannot export
+(bfloat16, kDLBfloat), made with ctypes; reading a bfloat16 capsule (read_bfloat16).
 
 The capsule's data pointer is the array's address in this process's CUDA IPC mapping of the
 daemon's slab (weft._cuda_ipc), so the consumer (Torch, CuPy, JAX) reads and writes the
@@ -13,8 +14,8 @@ import ctypes
 
 import numpy as np
 
-KDL_CUDA = 2
-_KDL_INT, _KDL_UINT, _KDL_FLOAT, _KDL_BOOL = 0, 1, 2, 6
+KDL_CPU, KDL_CUDA = 1, 2
+_KDL_INT, _KDL_UINT, _KDL_FLOAT, _KDL_BFLOAT, _KDL_BOOL = 0, 1, 2, 4, 6
 
 
 class DLDevice(ctypes.Structure):
@@ -76,8 +77,9 @@ def dl_dtype(np_dtype: np.dtype) -> DLDataType:
 
 
 def to_capsule(a):
-    """A "dltensor" capsule over GPU array `a` in this process's IPC mapping (BufferError
-    when the mapping is not available: no CUDA driver here, or IPC refused)."""
+    """A "dltensor" capsule over array `a`: a GPU array in this process's IPC mapping
+    (BufferError when the mapping is not available: no CUDA driver here, or IPC refused), a CPU
+    array in this process's mapping of its slab."""
     from ._cuda_ipc import reason  # noqa: PLC0415
     from .array import _elem_layout  # noqa: PLC0415
 
@@ -103,9 +105,11 @@ def to_capsule(a):
     strides_buf = (ctypes.c_int64 * ndim)(*strides)
     managed = DLManagedTensor()
     managed.dl_tensor.data = ctypes.c_void_p(int(ptr))
-    managed.dl_tensor.device = DLDevice(KDL_CUDA, int(a.device.ordinal))
+    cuda = a.device is not None and a.device.is_cuda
+    managed.dl_tensor.device = DLDevice(KDL_CUDA, int(a.device.ordinal)) if cuda else DLDevice(KDL_CPU, 0)
     managed.dl_tensor.ndim = ndim
-    managed.dl_tensor.dtype = dl_dtype(np_dtype)
+    bf16 = getattr(a.dtype, "_wp_scalar_type_", a.dtype).__name__ == "bfloat16"
+    managed.dl_tensor.dtype = DLDataType(_KDL_BFLOAT, 16, 1) if bf16 else dl_dtype(np_dtype)
     managed.dl_tensor.shape = shape_buf
     managed.dl_tensor.strides = strides_buf
     managed.dl_tensor.byte_offset = 0
@@ -114,3 +118,65 @@ def to_capsule(a):
     address = ctypes.addressof(managed)
     _live[address] = (managed, shape_buf, strides_buf, a._alloc)
     return _PyCapsule_New(address, _NAME, _capsule_destructor)
+
+
+_PyCapsule_GetName = ctypes.pythonapi["PyCapsule_GetName"]   # a function object of its own
+_PyCapsule_GetName.restype = ctypes.c_char_p
+_PyCapsule_GetName.argtypes = [ctypes.py_object]
+_PyCapsule_SetName = ctypes.pythonapi["PyCapsule_SetName"]   # a function object of its own
+_PyCapsule_SetName.restype = ctypes.c_int
+_PyCapsule_SetName.argtypes = [ctypes.py_object, ctypes.c_char_p]
+_PyCapsule_GetPointerObj = ctypes.pythonapi["PyCapsule_GetPointer"]
+_PyCapsule_GetPointerObj.restype = ctypes.c_void_p
+_PyCapsule_GetPointerObj.argtypes = [ctypes.py_object, ctypes.c_char_p]
+_USED = b"used_dltensor"
+
+
+def capsule_tensor(capsule):
+    """(DLTensor, managed tensor address, versioned) of an unconsumed legacy or versioned
+    capsule."""
+    name = _PyCapsule_GetName(capsule)
+    if name not in (b"dltensor", b"dltensor_versioned"):
+        raise BufferError("not an unconsumed DLPack capsule")
+    address = _PyCapsule_GetPointerObj(capsule, name)
+    versioned = name == b"dltensor_versioned"
+    # versioned: version (2 x uint32), manager_ctx, deleter, flags (uint64), then the DLTensor
+    offset = 8 + 3 * ctypes.sizeof(ctypes.c_void_p) if versioned else 0
+    return DLTensor.from_address(address + offset), address, versioned
+
+
+def read_bfloat16(capsule) -> np.ndarray:
+    """A copy (uint16 bit patterns) of the CPU bfloat16 tensor of an unconsumed capsule, which
+    this consumes: its deleter runs once the data is copied."""
+    t, address, versioned = capsule_tensor(capsule)
+    if t.device.device_type not in (KDL_CPU, 3) or t.dtype.code != _KDL_BFLOAT or t.dtype.bits != 16 \
+            or t.dtype.lanes != 1:
+        raise BufferError("not a CPU bfloat16 DLPack tensor")
+    ndim = int(t.ndim)
+    shape = [int(t.shape[i]) for i in range(ndim)]
+    if t.strides:
+        strides = [int(t.strides[i]) * 2 for i in range(ndim)]
+    else:
+        strides, step = [], 2
+        for n in reversed(shape):
+            strides.insert(0, step)
+            step *= max(n, 1)
+    if any(n == 0 for n in shape):
+        out = np.zeros(shape, dtype=np.uint16)
+    else:
+        lo = sum(min(0, (n - 1) * st) for n, st in zip(shape, strides))
+        hi = sum(max(0, (n - 1) * st) for n, st in zip(shape, strides)) + 2
+        base = int(t.data or 0) + int(t.byte_offset) + lo
+        raw = (ctypes.c_uint8 * (hi - lo)).from_address(base)
+        first = np.frombuffer(raw, dtype=np.uint16)[-lo // 2:]   # element 0 of the tensor
+        view = np.lib.stride_tricks.as_strided(first, shape, strides)
+        out = np.array(view, copy=True)
+    # consumed: mark the capsule used (its destructor then leaves the tensor alone) and run the
+    # producer's deleter ourselves
+    _PyCapsule_SetName(capsule, _USED)
+    deleter_offset = 8 + ctypes.sizeof(ctypes.c_void_p) if versioned else \
+        ctypes.sizeof(DLTensor) + ctypes.sizeof(ctypes.c_void_p)
+    fn = ctypes.c_void_p.from_address(address + deleter_offset).value
+    if fn:
+        ctypes.CFUNCTYPE(None, ctypes.c_void_p)(fn)(address)
+    return out

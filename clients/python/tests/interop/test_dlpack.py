@@ -91,3 +91,30 @@ def test_from_dlpack_errors(wp, torch):
         wp.from_dlpack(torch.zeros(3, dtype=torch.complex64))
     with pytest.raises(Exception, match="incompatible dtypes"):
         wp.from_dlpack(np.zeros(3, dtype=np.float64), dtype=wp.float32)
+
+
+def test_bfloat16_through_dlpack(wp, torch, rng):
+    """bfloat16 (which NumPy cannot carry) goes both ways as kDLBfloat: a weft array exports
+    over its own memory, a Torch tensor (strided too) or a weft capsule imports as a
+    wp.bfloat16 array holding the same bits."""
+    values = (rng.standard_normal(9) * 1e3).astype(np.float32)
+    ref = torch.tensor(values, dtype=torch.bfloat16)
+    a = wp.array(values, dtype=wp.bfloat16)
+    t = torch.from_dlpack(a)
+    assert t.dtype == torch.bfloat16 and t.data_ptr() == a.ptr
+    assert torch.equal(t, ref)
+    back = wp.from_dlpack(wp.to_dlpack(a))
+    assert back.dtype is wp.bfloat16
+    np.testing.assert_array_equal(back.numpy().astype(np.float64), ref.double().numpy())
+    strided = wp.from_dlpack(ref[1::3])
+    assert strided.dtype is wp.bfloat16 and strided.shape == (3,)
+    np.testing.assert_array_equal(strided.numpy().astype(np.float64), ref[1::3].double().numpy())
+    with pytest.raises(TypeError, match="Expected a valid DLPack capsule"):
+        class NotACapsule:
+            def __dlpack_device__(self):
+                return (1, 0)
+
+            def __dlpack__(self, stream=None):
+                return object()
+
+        wp.from_dlpack(NotACapsule())

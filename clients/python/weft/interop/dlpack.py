@@ -61,11 +61,21 @@ def export(a, stream=None, max_version=None, dl_device=None, copy=None):
         raise BufferError("this array's memory is not mapped in this process (remote session); "
                           "it can only be exported as a copy")
     view = a.numpy()                    # finishes pending commands; zero-copy when local
+    if _is_bfloat16(a) and zero_copy and not copy:
+        # NumPy cannot export bfloat16: a kDLBfloat capsule over the slab (weft._dlpack)
+        from .. import _dlpack as producer  # noqa: PLC0415
+
+        memory.mark_shared(a._alloc)
+        return producer.to_capsule(a)
     if copy:
         view = view.copy()
     elif zero_copy:
         memory.mark_shared(a._alloc)
     return _numpy_capsule(view, max_version, a)
+
+
+def _is_bfloat16(a) -> bool:
+    return getattr(a.dtype, "_wp_scalar_type_", a.dtype).__name__ == "bfloat16"
 
 
 def _numpy_capsule(view: np.ndarray, max_version, a):
@@ -166,8 +176,28 @@ def from_dlpack(source, dtype=None):
                         f"__dlpack_device__) or a DLPack capsule, got {type(source).__name__}")
     kind, ordinal = (int(v) for v in source.__dlpack_device__())
     if kind in (_KDL_CPU, _KDL_CUDA_HOST):
+        # the capsule is taken here: bfloat16 (NumPy has no such dtype) is read directly, any
+        # other dtype goes to NumPy
         try:
-            view = np.from_dlpack(source)
+            capsule = source.__dlpack__()
+        except TypeError as err:
+            raise external.InteropError(f"wp.from_dlpack: {err}") from None
+        if not _is_capsule(capsule):
+            raise TypeError(f"Expected a valid DLPack capsule, got {type(capsule).__name__}")
+        from .. import _dlpack as producer  # noqa: PLC0415
+        from .. import types  # noqa: PLC0415
+
+        tensor, _, _ = producer.capsule_tensor(capsule)
+        if tensor.dtype.code == 4:           # kDLBfloat
+            try:
+                bits = producer.read_bfloat16(capsule)
+            except BufferError as err:
+                raise external.InteropError(f"wp.from_dlpack: {err}") from None
+            out, _ = external.weft_array(bits, dtype=dtype or types.bfloat16, device="cpu",
+                                         what="wp.from_dlpack")
+            return out
+        try:
+            view = np.from_dlpack(_CapsuleProducer(capsule))
         except (TypeError, BufferError) as err:
             raise external.InteropError(f"wp.from_dlpack: {err}") from None
         out, _ = external.weft_array(view, dtype=dtype, device="cpu", what="wp.from_dlpack")
