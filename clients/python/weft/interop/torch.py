@@ -217,10 +217,6 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
     tensor's .grad to the array's .grad (zeros when the tensor has none); `grad` gives that
     gradient tensor explicitly. `return_ctype` is accepted for Warp compatibility: weft has no
     ctypes descriptors, and the array returned is already a thin view."""
-    if dtype is None and getattr(t, "dtype", None) is _torch().bfloat16:
-        from .. import types  # noqa: PLC0415
-
-        dtype = types.bfloat16     # its bits are read as uint16: the dtype is not inferred
     if grad is None:
         known = _last_import(t, dtype, requires_grad)
         if known is not None:
@@ -229,6 +225,10 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False)
             return _fresh(known)
     what = "wp.from_torch"
     _check_tensor(t, what)
+    if dtype is None and t.dtype is _torch().bfloat16:
+        from .. import types  # noqa: PLC0415
+
+        dtype = types.bfloat16     # its bits are read as uint16: the dtype is not inferred
     if t.device.type == "cuda":
         from . import cuda_import  # noqa: PLC0415
 
