@@ -231,6 +231,33 @@ WP_FUNC float32 mesh_parity_sign(const geometry_desc_t* g, const vec3& p, int32 
   return 2 * inside > n ? -1.0f : 1.0f;
 }
 
+// Warp 1.19's mesh_query_point sign: three rays along +x, +y, +z; each votes by the orientation
+// of its closest hit (leaving through a face whose normal points along the ray: inside; a miss:
+// outside); -1 when at least two vote inside, else 1. It relies on outward-facing winding.
+WP_FUNC float32 mesh_orientation_sign(const geometry_desc_t* g, const vec3& p) {
+  if (!g || g->num_nodes == 0) return 1.0f;
+  int32 inside = 0;
+  for (int32 axis = 0; axis < 3; ++axis) {
+    vec3 d(axis == 0 ? 1.0f : 0.0f, axis == 1 ? 1.0f : 0.0f, axis == 2 ? 1.0f : 0.0f);
+    bvh_walk_t w;
+    bvh_walk_begin(w, g, 1, p, d, 3.0e38f, 0);
+    int32 f;
+    float32 best_t = 3.0e38f;
+    float32 best_dot = 0.0f;
+    while (bvh_walk_next(w, f)) {
+      vec3 a, b, c;
+      mesh_face(g, f, a, b, c);
+      float32 ft, fu, fv;
+      if (mesh_ray_triangle(p, d, a, b, c, best_t, ft, fu, fv) && ft < best_t) {
+        best_t = ft;
+        best_dot = dot(d, cross(b - a, c - a));
+      }
+    }
+    if (best_dot > 0.0f) ++inside;
+  }
+  return inside >= 2 ? -1.0f : 1.0f;
+}
+
 // Solid angle of triangle abc seen from p (Van Oosterom and Strackee), over 4 pi.
 WP_FUNC float32 mesh_solid_angle(const vec3& p, const vec3& a0, const vec3& b0, const vec3& c0) {
   vec3 a = a0 - p, b = b0 - p, c = c0 - p;
@@ -329,7 +356,7 @@ WP_FUNC weft_struct_MeshQueryPoint mesh_query_point(const launch_context_t* ctx,
   int32 face;
   float32 u, v, best;
   mesh_closest(g, point, max_dist, face, u, v, best);
-  return mesh_point_result(face, u, v, face >= 0 ? mesh_parity_sign(g, point, 3, 0.0f) : 0.0f);
+  return mesh_point_result(face, u, v, face >= 0 ? mesh_orientation_sign(g, point) : 0.0f);
 }
 
 WP_FUNC weft_struct_MeshQueryPoint mesh_query_point_sign_parity(const launch_context_t* ctx, int32 fid, int32 line, uint64 id,

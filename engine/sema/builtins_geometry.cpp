@@ -75,7 +75,8 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
     rows->push_back(Builtin("Meshes", sig, doc, flags));
   };
   mesh("mesh_query_point(id: uint64, point: vec(3,float32), max_dist: float32) -> struct(MeshQueryPoint)",
-       "Closest point within max_dist; sign -1 inside / 1 outside by the parity of 3 ray casts.", q);
+       "Closest point within max_dist; sign -1 inside / 1 outside by a vote of 3 axis rays on the orientation "
+       "of their closest hits (a miss votes outside; outward winding assumed, as Warp 1.19).", q);
   mesh("mesh_query_point_no_sign(id: uint64, point: vec(3,float32), max_dist: float32) -> struct(MeshQueryPoint)",
        "Closest point within max_dist (sign 0).", q);
   mesh("mesh_query_point_sign_normal(id: uint64, point: vec(3,float32), max_dist: float32) -> struct(MeshQueryPoint)",

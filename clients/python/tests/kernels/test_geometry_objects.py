@@ -881,3 +881,35 @@ def test_capsule_queries_match_float64(rng):
                                                     lo.astype(np.float64), hi.astype(np.float64))
         clear = margin > 1e-4
         assert (got[i][clear & want] == 1).all() and (got[i][clear & ~want] == 0).all()
+
+
+_CUBE_POINTS = [(x, y, z) for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)]
+# two triangles per face, counter-clockwise seen from outside (outward normals)
+_CUBE_OUTWARD = [0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5]
+
+
+@wp.kernel
+def cube_signs(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), out: wp.array2d(dtype=float)):
+    i = wp.tid()
+    q = wp.mesh_query_point(mesh, points[i], 10.0)
+    r = wp.mesh_query_point_sign_parity(mesh, points[i], 10.0, 3, 0.0)
+    out[i, 0] = q.sign
+    out[i, 1] = r.sign
+
+
+def test_mesh_query_point_sign_follows_the_winding(wp, rng):
+    """Warp 1.19's mesh_query_point: the sign is a vote of 3 axis rays on the orientation of
+    their closest hits, so a cube wound inward reads its inside as outside; the parity sign does
+    not depend on the winding."""
+    inside = rng.uniform(-0.4, 0.4, size=(24, 3)).astype(np.float32)
+    outside = (rng.uniform(0.6, 2.0, size=(24, 3)) * rng.choice([-1, 1], size=(24, 3))).astype(np.float32)
+    pts = wp.array(np.concatenate([inside, outside]), dtype=wp.vec3)
+    expected_inside = np.concatenate([-np.ones(24), np.ones(24)])
+    for winding, flip in ((_CUBE_OUTWARD, 1.0), (np.array(_CUBE_OUTWARD).reshape(-1, 3)[:, ::-1].reshape(-1), -1.0)):
+        mesh = wp.Mesh(points=wp.array(_CUBE_POINTS, dtype=wp.vec3), indices=wp.array(np.asarray(winding), dtype=int))
+        out = wp.zeros((48, 2), dtype=float)
+        wp.launch(cube_signs, dim=48, inputs=[mesh.id, pts, out])
+        got = out.numpy()
+        np.testing.assert_array_equal(got[:, 0], np.where(expected_inside < 0, -flip, 1.0))
+        np.testing.assert_array_equal(got[:, 1], expected_inside)
