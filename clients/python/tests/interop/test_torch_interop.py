@@ -209,3 +209,11 @@ def test_bfloat16_both_ways_zero_copy(wp, torch, rng):
     assert tb.dtype == torch.bfloat16 and tuple(tb.shape) == (4, 4) and tb.data_ptr() == b.ptr
     np.testing.assert_array_equal(tb.double().numpy().reshape(-1), ref)
     assert wp.dtype_from_torch(torch.bfloat16) is wp.bfloat16 and wp.dtype_to_torch(wp.bfloat16) == torch.bfloat16
+
+
+def test_from_torch_retain_grad(wp, torch):
+    t = torch.zeros(10, requires_grad=True)
+    assert wp.from_torch(t, requires_grad=True, retain_grad=True).retain_grad
+    assert not wp.from_torch(t, requires_grad=True).retain_grad
+    with pytest.raises(ValueError, match="requires requires_grad"):
+        wp.from_torch(torch.zeros(3), requires_grad=False, retain_grad=True)

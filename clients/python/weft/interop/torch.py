@@ -210,13 +210,21 @@ def _last_import(t, dtype, requires_grad):
     return known
 
 
-def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False):
+def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False, retain_grad=False):
     """A weft array sharing memory with Torch tensor `t` (Warp's wp.from_torch; the memory
     rules are in this module's docstring). `dtype` may be a vector/matrix type whose shape
     matches `t`'s trailing dimensions; `requires_grad` (default: t.requires_grad) maps the
     tensor's .grad to the array's .grad (zeros when the tensor has none); `grad` gives that
-    gradient tensor explicitly. `return_ctype` is accepted for Warp compatibility: weft has no
-    ctypes descriptors, and the array returned is already a thin view."""
+    gradient tensor explicitly; `retain_grad` sets the array's retain_grad (its gradient is kept
+    through the adjoints of stores to it). `return_ctype` is accepted for Warp compatibility:
+    weft has no ctypes descriptors, and the array returned is already a thin view."""
+    a = _from_torch(t, dtype, requires_grad, grad)
+    if retain_grad:
+        a.retain_grad = True
+    return a
+
+
+def _from_torch(t, dtype, requires_grad, grad):
     if grad is None:
         known = _last_import(t, dtype, requires_grad)
         if known is not None:
