@@ -12,11 +12,13 @@ import grpc
 import numpy as np
 
 LIMIT_S = 2.0
+HEAVY = 3000
 
 
 def pathological_kernel(n: int) -> str:
-    """A kernel of n chained vec3 statements (about 3 s of clang -O2 per 100 statements squared
-    on a 2-core machine: 300 take several seconds, 900 take minutes)."""
+    """A kernel of n chained vec3 statements; the CPU compile grows faster than linearly with n
+    (on the 2-core CI machine, 2026-11-24: 900 statements 1.9 s, 1800 5.1 s, 3600 17 s), so the
+    tests use HEAVY statements, several times a 2 s limit."""
     lines = ["v0 = wp.vec3(x[i], x[i] * 2.0, 1.0)"]
     for k in range(1, n):
         lines.append(f"v{k} = wp.cross(v{k - 1}, wp.vec3(1.0, {k}.0, 2.0)) * 0.5 + v{k - 1}")
@@ -55,7 +57,7 @@ def test_compile_time_limit_stops_a_pathological_kernel_and_others_are_served(st
     no_verify_cuda(monkeypatch)
     daemon = start_weftd(["--compile-time-limit", str(LIMIT_S)])
     heavy = tmp_path / "heavy.py"
-    heavy.write_text(pathological_kernel(900))
+    heavy.write_text(pathological_kernel(HEAVY))
     light = tmp_path / "light.py"
     light.write_text('''
 import weft as wp
@@ -124,7 +126,7 @@ def test_sigterm_stops_the_daemon_during_a_long_compile(start_weftd, spawn_clien
     past its stop bound: SIGTERM kills the compiler process and weftd exits 0 within 5 s."""
     no_verify_cuda(monkeypatch)
     daemon = start_weftd(["--compile-time-limit", "600"])
-    (tmp_path / "heavy.py").write_text(pathological_kernel(900))
+    (tmp_path / "heavy.py").write_text(pathological_kernel(HEAVY))
     env = {"WEFT_ADDRESS": daemon.address, "PYTHONPATH": f"{tmp_path}:" + client_env(None)["PYTHONPATH"]}
     child = spawn_client('''
         import weft as wp

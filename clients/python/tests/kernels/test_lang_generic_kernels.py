@@ -221,3 +221,26 @@ def test_static_len_of_a_kernel_parameter(wp):
     wp.launch(static_len_of_params, dim=1, inputs=[wp.types.vector(5, float)(1.0, 2.0, 3.0, 4.0, 5.0),
                                                    wp.mat33(), out])
     np.testing.assert_array_equal(out.numpy(), [5, 30, 1, 2, 3, 4, 5, 0])
+
+
+@wp.kernel
+def stub_target(x: Any, out: wp.array(dtype=wp.float64)):
+    out[0] = wp.float64(x) * wp.float64(2.0)
+
+
+@wp.overload
+def stub_target(x: wp.float32, out: wp.array(dtype=wp.float64)):  # noqa: F811 - Warp's stub form
+    ...
+
+
+def test_overload_stub_instantiates_the_generic_kernel(wp):
+    assert isinstance(stub_target, wp.Kernel) and len(stub_target.overloads) == 1
+    assert stub_target.overloads[0].param_types[0] == "float32"
+    out = wp.zeros(1, dtype=wp.float64)
+    wp.launch(stub_target, dim=1, inputs=[wp.float32(1.25), out])
+    assert out.numpy()[0] == 2.5
+
+    def with_return(x: wp.float64, out: wp.array(dtype=wp.float64)) -> float: ...
+    with_return.__qualname__ = stub_target.__qualname__
+    with pytest.raises(TypeError, match="Return annotations are not allowed"):
+        wp.overload(with_return)

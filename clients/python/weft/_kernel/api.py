@@ -149,6 +149,23 @@ def overload(target, arg_types=None):
     if isinstance(target, Function):
         return target
     if callable(target):
+        stubbed = _generic_kernel_of_stub(target)
+        if stubbed is not None:
+            # decorator form on a stub def named as a generic kernel: that kernel's instance for
+            # the stub's annotations; the kernel itself is returned (Warp's behaviour)
+            try:
+                annotations = dict(inspect.get_annotations(target, eval_str=True))
+            except Exception:  # noqa: BLE001 - names the stub cannot resolve: as written
+                annotations = dict(getattr(target, "__annotations__", {}))
+            ret = annotations.pop("return", None)
+            if ret is not None and ret is not type(None) and ret not in ("None", "NoneType", "types.NoneType"):
+                raise TypeError("Return annotations are not allowed on @wp.overload stubs")
+            missing = [n for n in stubbed.param_names if n not in annotations]
+            if missing:
+                raise TypeError(f"@wp.overload stub of kernel '{stubbed.key}' does not annotate "
+                                f"{', '.join(missing)}")
+            overload(stubbed, [annotations[n] for n in stubbed.param_names])
+            return stubbed
         # decorator form on a def whose name is an existing generic @wp.func: add it
         definition = FunctionDefinition(target, is_kernel=False)
         existing = module_mod.get_module(definition.module).functions.get(definition.qualname)
@@ -158,6 +175,19 @@ def overload(target, arg_types=None):
             return existing
         return module_mod.register_function(definition)
     raise TypeError(f"wp.overload expects a @wp.func or @wp.kernel, got {target!r}")
+
+
+def _generic_kernel_of_stub(stub):
+    """The generic kernel a @wp.overload stub def names (same module and qualified name), None
+    when it names none; RuntimeError when several kernels were made from that def."""
+    module = module_mod.get_module(getattr(stub, "__module__", "") or "__main__")
+    qualname = getattr(stub, "__qualname__", None)
+    found = [k for k in list(module.kernels.values())
+             if k.__qualname__ == qualname and k.is_generic and k.generic_parent is None]
+    if len(found) > 1:
+        raise RuntimeError(f"Ambiguous kernel lookup for the @wp.overload stub '{qualname}': "
+                           f"kernels {', '.join(k.key for k in found)} come from one function")
+    return found[0] if found else None
 
 
 def constant(x):

@@ -434,6 +434,12 @@ class Kernel:
     def is_generic(self) -> bool:
         return self.definition.is_generic
 
+    @property
+    def overloads(self) -> list:
+        """The instances of a generic kernel made so far (wp.overload, launches), Warp's
+        kernel.overloads."""
+        return list(self._specializations.values())
+
     def specialize(self, param_types: list, annotations: typing.Optional[list] = None) -> "Kernel":
         """The instance of a generic kernel (typing.Any parameters) for concrete types;
         `annotations`, when given, are the concrete Python types (structs they name are
