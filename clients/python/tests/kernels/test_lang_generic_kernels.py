@@ -244,3 +244,21 @@ def test_overload_stub_instantiates_the_generic_kernel(wp):
     with_return.__qualname__ = stub_target.__qualname__
     with pytest.raises(TypeError, match="Return annotations are not allowed"):
         wp.overload(with_return)
+
+
+def test_named_kernels_of_one_function_and_an_ambiguous_stub(wp):
+    def body(x: Any, out: wp.array(dtype=wp.float64)):
+        out[0] = wp.float64(x) + wp.float64(1.0)
+
+    body.__qualname__ = "named_kernel_body"
+    a = wp.kernel(name="named_kernel_a")(body)
+    b = wp.kernel(name="named_kernel_b")(body)
+    assert a.key == "named_kernel_a" and b.key == "named_kernel_b" and a is not b
+    out = wp.zeros(1, dtype=wp.float64)
+    wp.launch(b, dim=1, inputs=[wp.float64(2.0), out])
+    assert out.numpy()[0] == 3.0
+
+    def named_kernel_body(x: float, out: wp.array(dtype=wp.float64)): ...
+    named_kernel_body.__module__, named_kernel_body.__qualname__ = body.__module__, body.__qualname__
+    with pytest.raises(RuntimeError, match="Ambiguous kernel lookup"):
+        wp.overload(named_kernel_body)

@@ -61,9 +61,10 @@ __all__ = [
 ]
 
 
-def kernel(f=None, *, enable_backward: typing.Optional[bool] = None, module=None, **options):
-    """@wp.kernel or @wp.kernel(enable_backward=..., module="unique"|name): declares a kernel
-    of its Python module (or of the named module)."""
+def kernel(f=None, *, enable_backward: typing.Optional[bool] = None, module=None, name=None, **options):
+    """@wp.kernel or @wp.kernel(enable_backward=..., module="unique"|name, name=key): declares a
+    kernel of its Python module (or of the named module), named `name` when given (Warp's
+    kernel key; several kernels may then come from one function)."""
 
     def wrap(function):
         opts = dict(options)
@@ -74,7 +75,7 @@ def kernel(f=None, *, enable_backward: typing.Optional[bool] = None, module=None
             opts["module"] = "unique"
         elif module:
             target = module
-        return Kernel(func=function, module=target, options=opts)
+        return Kernel(func=function, key=name, module=target, options=opts)
 
     if f is not None:
         return wrap(f)
