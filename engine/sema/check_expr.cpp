@@ -342,7 +342,7 @@ Expected<Value> Checker::EvalName(const ast::Name& n) {
   if (fu != st_->func_scope.end()) return fu->second;
   bool found = false;
   WEFT_ASSIGN_OR_RETURN(Value v, LookupGlobal(n.id, n.loc, &found));
-  if (!found) return Error(n.loc, "unknown name '" + n.id + "'");
+  if (!found) return ErrorOf("key", n.loc, "unknown name '" + n.id + "' (Referencing undefined symbol: " + n.id + ")");
   v.source = n.id;
   return v;
 }
@@ -1052,7 +1052,7 @@ Expected<Value> Checker::EvalCallee(const ast::Expr& f) {
     w.type = *t;
     return w;
   }
-  return Error(n->loc, "unknown name '" + n->id + "'");
+  return ErrorOf("key", n->loc, "unknown name '" + n->id + "' (Referencing undefined symbol: " + n->id + ")");
 }
 
 Expected<Value> Checker::EvalCall(const ast::Call& c) {

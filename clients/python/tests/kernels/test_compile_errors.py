@@ -154,3 +154,14 @@ def test_composite_slot_value_of_another_kind_is_a_type_error(wp, kernel_module,
     with pytest.raises(TypeError, match=f"Composite slot assignment expects value of type `{re.escape(want)}`, "
                                         f"got `{re.escape(got)}`"):
         wp.load_module(m, device="cpu")
+
+
+def test_an_unknown_name_is_a_key_error_as_in_warp(wp, kernel_module):
+    mod = kernel_module("""
+@wp.kernel
+def k(a: wp.array(dtype=float)):
+    a[0] = typez(1.0)
+""")
+    with pytest.raises(wp.WarpCodegenKeyError, match="Referencing undefined symbol: typez") as info:
+        wp.launch(mod.k, dim=1, inputs=[wp.zeros(1, dtype=float)])
+    assert isinstance(info.value, KeyError) and "unknown name 'typez'" in str(info.value)
