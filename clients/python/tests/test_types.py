@@ -272,3 +272,22 @@ def test_type_size_counts_scalars_like_warp():
     assert types.type_size(wp.quat) == 4 and types.type_size(wp.transform) == 7
     assert types.type_size(wp.spatial_vector) == 6
     assert types.type_size(Pair) == 1
+
+
+def test_vector_arrays_from_data_of_other_inner_shapes(wp):
+    """Warp's rules when data's inner dimensions are not the dtype's shape: trailing 1s go, then
+    an innermost dimension of the dtype's length, or a multiple of it, holds the components."""
+    rng = np.random.default_rng()
+    x = rng.standard_normal((7, 3, 1)).astype(np.float32)
+    a = wp.array(x, dtype=wp.vec3, device="cpu")
+    assert a.shape == (7,)
+    np.testing.assert_array_equal(a.numpy(), x[:, :, 0])
+    y = rng.standard_normal((2, 12))
+    b = wp.array(y, dtype=wp.vec3d, device="cpu")
+    assert b.shape == (2, 4)
+    np.testing.assert_array_equal(b.numpy().reshape(2, 12), y)
+    m = wp.array(y.reshape(6, 4), dtype=wp.mat22d, device="cpu")
+    assert m.shape == (6,)
+    np.testing.assert_array_equal(m.numpy().reshape(6, 4), y.reshape(6, 4))
+    with pytest.raises(RuntimeError, match="a multiple of 3"):
+        wp.array(np.ones((3, 4), dtype=np.float32), dtype=wp.vec3, device="cpu")

@@ -561,14 +561,25 @@ class array:
                                f"{type_str(dtype)}: {err}") from None
         k = len(inner)
         length = int(np.prod(inner, dtype=np.int64))
+        if k and not (arr.ndim >= k and tuple(arr.shape[arr.ndim - k:]) == inner):
+            # Warp's rules for data whose inner dimensions are not the dtype's shape: trailing
+            # dimensions of length 1 go, then an innermost dimension of the dtype's length, or a
+            # multiple of it, holds the elements' components
+            while arr.ndim > 1 and arr.shape[-1] == 1 and \
+                    not (arr.ndim >= k and tuple(arr.shape[arr.ndim - k:]) == inner):
+                arr = arr.reshape(arr.shape[:-1])
         if k and arr.ndim >= k and tuple(arr.shape[arr.ndim - k:]) == inner:
             arr_shape = tuple(arr.shape[:arr.ndim - k])
-        elif k and arr.ndim <= 1 and arr.size % length == 0:
-            arr_shape = (arr.size // length,)
+        elif k and arr.ndim >= 1 and arr.shape[-1] == length:
+            arr_shape = tuple(arr.shape[:-1]) or (1,)
+        elif k and arr.ndim >= 1 and arr.shape[-1] % length == 0 and arr.shape[-1] > 0:
+            arr_shape = tuple(arr.shape[:-1]) + (arr.shape[-1] // length,)
+        elif k and arr.ndim == 0 and length == 1:
+            arr_shape = (1,)
         elif k:
             raise RuntimeError(f"Failed to convert input data of shape {arr.shape} to an array "
                                f"of dtype {type_str(dtype)}: the innermost dimensions must be "
-                               f"{inner}")
+                               f"{inner}, or the innermost one a multiple of {length}")
         else:
             arr_shape = tuple(arr.shape)
         if not arr_shape:
