@@ -83,6 +83,7 @@ void ToProto(const DeviceInfo& d, v1::DeviceInfo* p) {
   p->set_compute_capability_major(d.compute_capability_major);
   p->set_compute_capability_minor(d.compute_capability_minor);
   p->set_cores(d.cores);
+  p->set_max_shared_memory_per_block(d.max_shared_memory_per_block);
   p->set_compute_supported(d.compute_supported);
 }
 

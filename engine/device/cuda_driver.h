@@ -115,6 +115,7 @@ struct CudaDriver {
 
 // Device attribute numbers used above (cuda.h's CUdevice_attribute values).
 constexpr int kCuAttributeMultiprocessorCount = 16;
+constexpr int kCuAttributeMaxSharedMemoryPerBlockOptin = 97;
 constexpr int kCuAttributeComputeCapabilityMajor = 75;
 constexpr int kCuAttributeComputeCapabilityMinor = 76;
 constexpr int kCuAttributeCanUse64BitStreamMemOps = 122;

@@ -63,6 +63,7 @@ std::vector<DeviceInfo> QueryCudaDevices() {
     d.DeviceGetAttribute(&info.compute_capability_major, jit::kCuAttributeComputeCapabilityMajor, dev);
     d.DeviceGetAttribute(&info.compute_capability_minor, jit::kCuAttributeComputeCapabilityMinor, dev);
     d.DeviceGetAttribute(&info.cores, jit::kCuAttributeMultiprocessorCount, dev);
+    d.DeviceGetAttribute(&info.max_shared_memory_per_block, jit::kCuAttributeMaxSharedMemoryPerBlockOptin, dev);
     // Free memory needs a context: the device's primary context, retained for the query and
     // released after it (the CUDA device holds its own reference; a device reset must be able to
     // drop every reference of the daemon).

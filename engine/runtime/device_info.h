@@ -17,6 +17,7 @@ struct DeviceInfo {
   int32_t compute_capability_major = 0;
   int32_t compute_capability_minor = 0;
   int32_t cores = 0;         // CPU pool threads / GPU SMs
+  int32_t max_shared_memory_per_block = 0;   // GPUs: the opt-in maximum, bytes; CPU: 0
   bool compute_supported = false;  // arrays and launches work on it (CPU: yes; CUDA: not yet)
 };
 

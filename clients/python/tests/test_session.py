@@ -120,8 +120,11 @@ def test_devices_like_warp(wp):
     assert wp.is_cpu_available()
     assert wp.get_cuda_device_count() == len(wp.get_cuda_devices())
     assert wp.is_cuda_available() == (wp.get_cuda_device_count() > 0)
+    assert cpu.max_shared_memory_per_block == 0
     for d in wp.get_cuda_devices():
         assert d.is_cuda and d.alias.startswith("cuda:") and d.arch >= 50
+        # the opt-in maximum: at least the 48 KiB every architecture since sm_50 has
+        assert d.max_shared_memory_per_block >= 48 * 1024
     preferred = wp.get_preferred_device()
     assert preferred.alias == ("cuda:0" if wp.is_cuda_available() else "cpu")
     outer = wp.get_device()          # cpu: this file's autouse scope

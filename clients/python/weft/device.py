@@ -31,6 +31,9 @@ class Device:
         self.arch = (info.compute_capability_major * 10 + info.compute_capability_minor
                      if self.is_cuda else 0)
         self.sm_count = info.cores if self.is_cuda else 0
+        # the opt-in maximum shared memory of a block, bytes (Warp's attribute; 0 on the CPU)
+        self.max_shared_memory_per_block = (int(getattr(info, "max_shared_memory_per_block", 0))
+                                            if self.is_cuda else 0)
         self.is_uva = self.is_cuda
         self.is_mempool_supported = False
         # array.ipc_handle() / wp.from_ipc_handle() share this device's arrays between client
