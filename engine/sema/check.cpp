@@ -75,6 +75,12 @@ Expected<Module> Checker::Run() {
         loc.file = sd.name;
         return Error(loc, "struct " + sd.name + " field '" + f.name + "': a geometry query cannot be a struct field");
       }
+      if (ContainsAny(*t)) {
+        SourceLocation loc;
+        loc.file = sd.name;
+        return Error(loc, "struct " + sd.name + " field '" + f.name + "': a struct field needs a concrete type, not the "
+                              "generic " + TypeString(*t));
+      }
       info.fields.push_back({f.name, *t});
     }
     module_.structs[sd.name] = std::move(info);

@@ -297,6 +297,9 @@ Expected<Value> Checker::LookupGlobal(const std::string& name, const SourceLocat
       case Symbol::Kind::kType: {
         auto t = ParseType(s.target);
         if (!t.ok()) return Error(loc, "'" + name + "': " + t.status().message());
+        if (ContainsAny(*t))
+          return Error(loc, "'" + name + "' is the generic type " + TypeString(*t) +
+                                " (for annotations): kernel code cannot construct or declare values of it");
         v.kind = Value::Kind::kType;
         v.type = *t;
         return v;
@@ -342,7 +345,7 @@ Expected<Value> Checker::EvalName(const ast::Name& n) {
   if (fu != st_->func_scope.end()) return fu->second;
   bool found = false;
   WEFT_ASSIGN_OR_RETURN(Value v, LookupGlobal(n.id, n.loc, &found));
-  if (!found) return ErrorOf("key", n.loc, "unknown name '" + n.id + "' (Referencing undefined symbol: " + n.id + ")");
+  if (!found) return UnknownName(n.id, n.loc);
   v.source = n.id;
   return v;
 }
@@ -1027,6 +1030,12 @@ Expected<Value> Checker::EvalArrayOverFixed(const ast::Call& c) {
   return Value::OfVar(v);
 }
 
+// A name bound nowhere: weft's words and Warp's (tests match "Referencing undefined symbol"), a
+// KeyError in the client as in Warp.
+Status Checker::UnknownName(const std::string& name, const SourceLocation& loc) {
+  return ErrorOf("key", loc, "unknown name '" + name + "' (Referencing undefined symbol: " + name + ")");
+}
+
 // The function of a call. A bare name bound nowhere (no local, global or Python builtin) names
 // the wp builtin or type of that name, as Warp resolves callees: `vec3(...)`, `expect_eq(...)`.
 Expected<Value> Checker::EvalCallee(const ast::Expr& f) {
@@ -1052,7 +1061,7 @@ Expected<Value> Checker::EvalCallee(const ast::Expr& f) {
     w.type = *t;
     return w;
   }
-  return ErrorOf("key", n->loc, "unknown name '" + n->id + "' (Referencing undefined symbol: " + n->id + ")");
+  return UnknownName(n->id, n->loc);
 }
 
 Expected<Value> Checker::EvalCall(const ast::Call& c) {
@@ -1563,8 +1572,7 @@ Expected<Value> Checker::CallConstructor(const Type& t, std::vector<Value> args,
     if (kw.name != "dtype" && kw.name != "length" && kw.name != "shape")
       return Error(kw.loc, "unexpected keyword '" + kw.name + "' for " + TypeString(t));
   }
-  if (transform_parts || (t.kind == TypeKind::kTransform && args.size() == 1 && args[0].kind == Value::Kind::kVar &&
-                          TypeOf(args[0].var).is_vector() && TypeOf(args[0].var).rows == 3)) {
+  if (transform_parts) {
     std::vector<Value> parts(args.begin(), args.end());
     if (parts.size() > 2) return Error(loc, TypeString(t) + "(p, q) takes at most two arguments");
     parts.resize(2);

@@ -110,6 +110,7 @@ class Checker {
   Expected<Value> EvalAttribute(const ast::Attribute& a);
   Expected<Value> TypeAttribute(const Type& t, const ast::Attribute& a);
   Expected<Value> EvalCallee(const ast::Expr& f);
+  Status UnknownName(const std::string& name, const SourceLocation& loc);
   Expected<Value> EvalSubscript(const ast::Subscript& s);
   // wp.adjoint[x] / wp.adjoint[x.f.g]: AdjointRoot gives x's slot and the field names after
   // it; AdjointSlot reads the (field of the) slot, AssignAdjoint writes it.

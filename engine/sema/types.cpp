@@ -469,6 +469,7 @@ std::string CppType(const Type& t) {
 }
 
 Expected<TypeLayout> LayoutOf(const Type& t, const StructTable& structs) {
+  if (ContainsAny(t)) return InvalidArgument("the generic type " + TypeString(t) + " has no layout");
   switch (t.kind) {
     case TypeKind::kScalar: {
       uint32_t s = static_cast<uint32_t>(ScalarSize(t.scalar));

@@ -262,3 +262,43 @@ def test_named_kernels_of_one_function_and_an_ambiguous_stub(wp):
     named_kernel_body.__module__, named_kernel_body.__qualname__ = body.__module__, body.__qualname__
     with pytest.raises(RuntimeError, match="Ambiguous kernel lookup"):
         wp.overload(named_kernel_body)
+
+
+def test_generic_types_never_reach_generated_code(wp, kernel_module):
+    """A generic type sent where a concrete one is needed (a struct field, a value constructed
+    in kernel code) is refused with a clear error, not emitted with a placeholder layout."""
+    mod = kernel_module("""
+AnyVec = wp.types.vector(typing.Any, float)
+
+@wp.kernel
+def construct(a: wp.array(dtype=float)):
+    v = AnyVec(1.0, 2.0)
+    a[0] = v[0]
+""")
+    with pytest.raises(wp.WeftCompileError, match="generic type vec\\(any,float32\\)"):
+        wp.launch(mod.construct, dim=1, inputs=[wp.zeros(1, dtype=float)])
+    with pytest.raises(TypeError, match="needs a concrete type, not the generic vec\\(3,any_int\\)"):
+        kernel_module("""
+@wp.struct
+class Holder:
+    v: wp.types.vector(3, wp.Int)
+""")
+
+
+@wp.struct
+class Company:
+    many: wp.float64
+
+
+@wp.kernel
+def company_kernel(c: Company, out: wp.array(dtype=wp.float64)):
+    out[0] = c.many * wp.float64(2.0)
+
+
+def test_a_struct_whose_name_holds_any_is_not_generic(wp):
+    assert not company_kernel.is_generic
+    c = Company()
+    c.many = wp.float64(-0.75)
+    out = wp.zeros(1, dtype=wp.float64)
+    wp.launch(company_kernel, dim=1, inputs=[c, out])
+    assert out.numpy()[0] == -1.5

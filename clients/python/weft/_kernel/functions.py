@@ -167,7 +167,7 @@ class FunctionDefinition:
 
     @property
     def is_generic(self) -> bool:
-        return any("any" in t for t in self.param_types)
+        return any(typestr.is_generic(t) for t in self.param_types)
 
     def environment(self) -> dict:
         """Closure variables over globals: where the body's free names resolve."""
@@ -449,7 +449,7 @@ class Kernel:
         if existing is not None:
             return existing
         for declared, concrete in zip(self.definition.param_types, param_types):
-            if "any" not in declared and declared != concrete:
+            if not typestr.is_generic(declared) and declared != concrete:
                 raise TypeError(f"kernel {self.key}: parameter type {declared} cannot be "
                                 f"specialized to {concrete}")
         definition = copy.copy(self.definition)

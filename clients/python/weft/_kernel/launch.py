@@ -302,7 +302,7 @@ def infer_param_types(kernel: Kernel, args: list) -> list:
                               f"got {len(args)}")
     types = []
     for name, declared, value in zip(kernel.param_names, kernel.param_types, args):
-        if "any" not in declared:
+        if not typestr.is_generic(declared):
             types.append(declared)
             continue
         try:

@@ -27,6 +27,9 @@ class StructField:
         self.name = name
         self.annotation = annotation
         self.type_str = typestr.type_string(annotation)
+        if typestr.is_generic(self.type_str):   # typing.Any, wp.Int/Float/Scalar, vector(Any, ...)
+            raise TypeError(f"struct field '{name}': a struct field needs a concrete type, not "
+                            f"the generic {self.type_str}")
         self.desc = typestr.parse(self.type_str)
 
 

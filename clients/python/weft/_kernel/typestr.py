@@ -161,6 +161,27 @@ def _scalar_accepts(pattern: str, scalar: str) -> bool:
     return pattern == scalar
 
 
+def is_generic(text: str) -> bool:
+    """Whether a type string is a generic pattern or holds one (`any`, `any_int`,
+    `vec(any,float32)`, `array(any,1)`, `tuple(any_float,int32)`); a struct's name never makes
+    it one. Strings this parser does not know (function, ref(...)) are not patterns."""
+    if text in SCALAR_PATTERNS:
+        return True
+    if "any" not in text:
+        return False                         # the common case, without parsing
+    head = text.split("(", 1)[0]
+    if head == "tuple" or head == "ref":
+        return any(is_generic(a) for a in _split_args(text[len(head) + 1:-1]))
+    try:
+        d = parse(text)
+    except ValueError:
+        return False
+    if d.kind in ("array", "indexedarray", "fixedarray"):
+        return is_generic(d.elem.text)
+    return d.kind in ("vec", "mat", "quat", "transform") and (
+        d.scalar in SCALAR_PATTERNS or 0 in d.shape)
+
+
 def accepts(pattern: str, concrete: str) -> bool:
     """Whether a parameter type of a generic annotation (typing.Any, wp.Int/Float/Scalar, a
     vector of any length, an array of any element, ...) takes a value of type `concrete`
