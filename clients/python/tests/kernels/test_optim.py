@@ -93,6 +93,20 @@ def test_sgd_matches_float64(rng, momentum, dampening, weight_decay, nesterov):
         np.testing.assert_allclose(opt.b[0].numpy(), ref_b, rtol=1e-5, atol=1e-5)
 
 
+@pytest.mark.parametrize("dtype,lanes,np_dtype,tol", [(wp.float64, (), np.float64, 1e-12),
+                                                     (wp.mat22d, (2, 2), np.float64, 1e-12),
+                                                     (wp.vec2h, (2,), np.float16, 2e-2)])
+def test_sgd_in_the_parameters_precision(rng, dtype, lanes, np_dtype, tol):
+    p0 = rng.uniform(-2, 2, size=(50,) + lanes).astype(np_dtype)
+    grads = [rng.uniform(-2, 2, size=(50,) + lanes).astype(np_dtype) for _ in range(3)]
+    params = wp.array(p0, dtype=dtype)
+    opt = weft.optim.SGD([params], lr=0.05, momentum=0.7, dampening=0.1, weight_decay=0.02)
+    for g in grads:
+        opt.step([wp.array(g, dtype=dtype)])
+    ref = _sgd_ref(p0, grads, 0.05, 0.7, 0.1, 0.02, False)[0]
+    np.testing.assert_allclose(params.numpy().astype(np.float64), ref, rtol=tol, atol=tol)
+
+
 def test_sgd_vec3_and_two_params(rng):
     a0, b0 = _random(rng, (40, 3)), _random(rng, (17,))
     ga, gb = [_random(rng, (40, 3)) for _ in range(3)], [_random(rng, (17,)) for _ in range(3)]
@@ -167,6 +181,8 @@ def test_optimizer_errors():
             opt.step([None])
         with pytest.raises(ValueError, match="contiguous"):   # a strided 2-D view cannot be flattened
             cls([wp.zeros((4, 4), dtype=wp.float32)[:, 1:3]]).step([wp.zeros((4, 2), dtype=wp.float32)])
+    with pytest.raises(TypeError, match="SGD updates arrays of float16, float32 or float64"):
+        weft.optim.SGD([wp.zeros(3, dtype=wp.int32)]).step([wp.zeros(3, dtype=wp.int32)])
     with pytest.raises(RuntimeError, match="Unsupported dtype for Warp Adam optimizer"):
         weft.optim.Adam([wp.zeros(3, dtype=wp.int32)])
     assert params.numpy().tolist() == [0.0, 0.0]      # nothing was launched by the refused steps

@@ -1,6 +1,7 @@
 """Stochastic gradient descent with Warp's interface: optional momentum (with dampening and
-Nesterov's variant) and weight decay (an L2 term added to the gradient), one generic step
-kernel for every parameter dtype."""
+Nesterov's variant) and weight decay (an L2 term added to the gradient); generic step kernels
+(one for scalar, one for vector/matrix dtypes) compute in the parameter's own scalar type (the
+coefficients arrive as float64), so float16, float32 and float64 parameters all work."""
 from __future__ import annotations
 
 from typing import Any
@@ -11,24 +12,49 @@ from ..types import type_repr
 from ._common import check_gradient, flat, state_like
 
 
-@wp.kernel
-def _sgd_step(g: wp.array(dtype=Any), b: wp.array(dtype=Any), lr: float, momentum: float,
-              dampening: float, weight_decay: float, nesterov: int, t: int,
-              params: wp.array(dtype=Any)):
-    i = wp.tid()
-    d = g[i]
-    if weight_decay != 0.0:
-        d = d + weight_decay * params[i]
-    if momentum != 0.0:
+@wp.func
+def _sgd_update(p: Any, g: Any, b: Any, lr: Any, momentum: Any, dampening: Any, weight_decay: Any,
+                nesterov: int, t: int):
+    """(new parameter, new momentum buffer) of one element; the coefficients have the
+    parameter's scalar type."""
+    zero = lr - lr
+    d = g
+    if weight_decay != zero:
+        d = d + weight_decay * p
+    buf = b
+    if momentum != zero:
         buf = d
         if t > 0:
-            buf = momentum * b[i] + (1.0 - dampening) * d
-        b[i] = buf
+            buf = momentum * b + (lr / lr - dampening) * d
         if nesterov != 0:
             d = d + momentum * buf
         else:
             d = buf
-    params[i] = params[i] - lr * d
+    return p - lr * d, buf
+
+
+@wp.kernel
+def _sgd_scalar(g: wp.array(dtype=Any), b: wp.array(dtype=Any), lr: wp.float64, momentum: wp.float64,
+                dampening: wp.float64, weight_decay: wp.float64, nesterov: int, t: int,
+                params: wp.array(dtype=Any)):
+    i = wp.tid()
+    p = params[i]
+    s = type(p)
+    new_p, new_b = _sgd_update(p, g[i], b[i], s(lr), s(momentum), s(dampening), s(weight_decay), nesterov, t)
+    b[i] = new_b
+    params[i] = new_p
+
+
+@wp.kernel
+def _sgd_vector(g: wp.array(dtype=Any), b: wp.array(dtype=Any), lr: wp.float64, momentum: wp.float64,
+                dampening: wp.float64, weight_decay: wp.float64, nesterov: int, t: int,
+                params: wp.array(dtype=Any)):
+    i = wp.tid()
+    p = params[i]
+    s = p.dtype
+    new_p, new_b = _sgd_update(p, g[i], b[i], s(lr), s(momentum), s(dampening), s(weight_decay), nesterov, t)
+    b[i] = new_b
+    params[i] = new_p
 
 
 class SGD:
@@ -82,9 +108,14 @@ class SGD:
         if params.dtype != b.dtype:
             raise TypeError(f"SGD momentum buffer dtype must match parameter dtype "
                             f"{type_repr(params.dtype)}, got {type_repr(b.dtype)}")
+        scalar = getattr(params.dtype, "_wp_scalar_type_", None)
+        if scalar not in (wp.float16, wp.float32, wp.float64):
+            raise TypeError(f"SGD updates arrays of float16, float32 or float64 scalars, vectors or "
+                            f"matrices, got {type_repr(params.dtype)}")
         if params.size == 0:
             return
-        wp.launch(_sgd_step, dim=params.size,
+        kernel = _sgd_vector if getattr(params.dtype, "_shape_", ()) else _sgd_scalar
+        wp.launch(kernel, dim=params.size,
                   inputs=[flat(g), flat(b), float(lr), float(momentum), float(dampening),
                           float(weight_decay), int(bool(nesterov)), int(t), flat(params)],
                   device=params.device)
