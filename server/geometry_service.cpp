@@ -28,6 +28,7 @@ grpc::Status GeometryServiceImpl::Call(grpc::ServerContext* ctx, const v1::Geome
   r.lowers = req->lowers();
   r.uppers = req->uppers();
   r.radius = req->radius();
+  r.groups = req->groups();
   auto id = auth_.engine().RunGeometry(**s, r);
   if (!id.ok()) {
     spdlog::info("geometry op {} from {} failed: {}", op, ctx->peer(), id.status().ToString());

@@ -1,6 +1,7 @@
 // Geometry objects: construction with checked arrays, builds and refits; see geometry_object.h.
 #include "engine/geometry/geometry_object.h"
 
+#include <algorithm>
 #include <cstring>
 #include <new>
 
@@ -240,7 +241,8 @@ Status GeometryObject::Mirror(const DeviceAccess* dev) {
   WEFT_RETURN_IF_ERROR(
       MirrorOne(dev, cell_starts_.data(), cell_starts_.size() * sizeof(int32_t), &gpu_cell_starts_));
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, cell_ends_.data(), cell_ends_.size() * sizeof(int32_t), &gpu_cell_ends_));
-  return MirrorOne(dev, sorted_ids_.data(), sorted_ids_.size() * sizeof(int32_t), &gpu_sorted_ids_);
+  WEFT_RETURN_IF_ERROR(MirrorOne(dev, sorted_ids_.data(), sorted_ids_.size() * sizeof(int32_t), &gpu_sorted_ids_));
+  return MirrorOne(dev, sorted_groups_.data(), sorted_groups_.size() * sizeof(int32_t), &gpu_sorted_groups_);
 }
 
 Status GeometryObject::Rebuild(const DeviceAccess* dev) {
@@ -266,13 +268,41 @@ Status GeometryObject::Refit(const DeviceAccess* dev) {
   return MirrorOne(dev, bvh_.nodes.data(), bvh_.nodes.size() * sizeof(wp::bvh_node_t), &gpu_nodes_);
 }
 
-Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float radius, const DeviceAccess* dev) {
+Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float radius, const DeviceAccess* dev,
+                                     std::shared_ptr<Allocation> groups) {
   if (kind_ != wp::GEOMETRY_HASH_GRID) return InvalidArgument("build(points, radius) is a HashGrid operation");
   if (!(radius > 0.0f) || radius > 3.0e38f)
     return InvalidArgument("HashGrid.build: radius must be a positive finite number, got " + std::to_string(radius));
   WEFT_ASSIGN_OR_RETURN(int64_t n, CheckVec3Array(points, "HashGrid.build points", true));
   if (points->device != device_)
     return InvalidArgument("HashGrid.build: the points live on " + points->device + ", the grid on " + device_);
+  std::vector<int32_t> group_of;   // the groups' copy (grouped build)
+  if (groups) {
+    ArrayRequirement req;
+    req.what = "HashGrid.build groups";
+    req.device = device_;
+    req.dtype = "int32";
+    WEFT_ASSIGN_OR_RETURN(ArrayView gv, ValidateArray(groups, ArrayRef{groups->handle, 0, {}, {}}, req));
+    if (groups->dtype.scalar != ScalarType::kInt32 || !groups->dtype.elem_shape.empty() || groups->dtype.is_struct())
+      return InvalidArgument("HashGrid.build groups: expected an int32 array, got " + groups->dtype.Name());
+    if (!gv.contiguous()) return InvalidArgument("HashGrid.build groups: the array must be contiguous");
+    if (gv.element_count() != static_cast<uint64_t>(n))
+      return InvalidArgument("HashGrid.build groups: " + std::to_string(gv.element_count()) + " group ids for " +
+                             std::to_string(n) + " points (one per point)");
+    try {
+      group_of.resize(static_cast<size_t>(n));
+    } catch (const std::bad_alloc&) {
+      return ResourceExhausted("HashGrid.build: out of memory for a copy of the groups");
+    }
+    if (n > 0) {
+      if (on_gpu()) {
+        WEFT_RETURN_IF_ERROR(NeedAccess(device_, dev, "HashGrid.build"));
+        WEFT_RETURN_IF_ERROR(dev->download(*groups, group_of.data(), static_cast<uint64_t>(n) * sizeof(int32_t)));
+      } else {
+        std::memcpy(group_of.data(), groups->data(), static_cast<size_t>(n) * sizeof(int32_t));
+      }
+    }
+  }
   const int64_t cells = static_cast<int64_t>(dim_[0]) * dim_[1] * dim_[2];
   const ScalarType scalar = points->dtype.scalar;
   const char* bytes = points->data();
@@ -307,8 +337,19 @@ Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float r
       cell_ends_[c] = cell_starts_[c];   // fill cursor
     }
     for (int64_t i = 0; i < n; ++i) sorted_ids_[cell_ends_[cell_of[i]]++] = static_cast<int32_t>(i);
+    sorted_groups_.clear();
+    if (groups) {   // each cell's run ordered by group id (point order within a group kept)
+      for (int64_t c = 0; c < cells; ++c) {
+        if (cell_ends_[c] - cell_starts_[c] > 1)
+          std::stable_sort(sorted_ids_.begin() + cell_starts_[c], sorted_ids_.begin() + cell_ends_[c],
+                           [&](int32_t a, int32_t b) { return group_of[a] < group_of[b]; });
+      }
+      sorted_groups_.resize(static_cast<size_t>(n));
+      for (int64_t k = 0; k < n; ++k) sorted_groups_[k] = group_of[sorted_ids_[k]];
+    }
   } catch (const std::bad_alloc&) {
     sorted_ids_.clear();
+    sorted_groups_.clear();
     return ResourceExhausted("HashGrid.build: out of memory for the cells");
   }
   points_ = std::move(points);
@@ -343,6 +384,7 @@ void GeometryObject::Describe(wp::geometry_desc_t* d) const {
     d->cell_starts = cell_starts_.empty() ? nullptr : cell_starts_.data();
     d->cell_ends = cell_ends_.empty() ? nullptr : cell_ends_.data();
     d->sorted_ids = sorted_ids_.empty() ? nullptr : sorted_ids_.data();
+    d->sorted_groups = sorted_groups_.empty() ? nullptr : sorted_groups_.data();
     d->num_sorted = cell_width_ > 0.0f ? static_cast<int64_t>(sorted_ids_.size()) : 0;
     for (int k = 0; k < 3; ++k) d->dim[k] = dim_[k];
     d->cell_width = cell_width_;
@@ -354,6 +396,7 @@ void GeometryObject::Describe(wp::geometry_desc_t* d) const {
     d->cell_starts = DevicePtr<int32_t>(gpu_cell_starts_.memory, gpu_cell_starts_.bytes);
     d->cell_ends = DevicePtr<int32_t>(gpu_cell_ends_.memory, gpu_cell_ends_.bytes);
     d->sorted_ids = DevicePtr<int32_t>(gpu_sorted_ids_.memory, gpu_sorted_ids_.bytes);
+    d->sorted_groups = DevicePtr<int32_t>(gpu_sorted_groups_.memory, gpu_sorted_groups_.bytes);
   }
 }
 

@@ -61,7 +61,11 @@ class GeometryObject {
   const std::string& device() const { return device_; }
 
   // HashGrid: sorts `points` (contiguous vec3 of float16/32/64) into cells of width `radius` (> 0).
-  Status BuildHashGrid(std::shared_ptr<Allocation> points, float radius, const DeviceAccess* dev = nullptr);
+  // With `groups` (contiguous int32, one per point, on the grid's device; may be null), each
+  // cell's points are ordered by group id and the ids are kept for grouped queries (a copy taken
+  // now: later writes to `groups` take effect at the next build).
+  Status BuildHashGrid(std::shared_ptr<Allocation> points, float radius, const DeviceAccess* dev = nullptr,
+                       std::shared_ptr<Allocation> groups = nullptr);
   // HashGrid: nothing to reserve ahead (cells are sized by the dims, sorted ids by the build).
   // Bvh / Mesh: recompute the node bounds from the arrays' current values.
   Status Refit(const DeviceAccess* dev = nullptr);
@@ -97,8 +101,10 @@ class GeometryObject {
   int32_t dim_[3] = {1, 1, 1};
   float cell_width_ = 0.0f;
   std::vector<int32_t> cell_starts_, cell_ends_, sorted_ids_;
+  std::vector<int32_t> sorted_groups_;   // grouped build: the group of each sorted_ids_ entry
   // GPU: device copies of indices_, the nodes, the prim ids and the cells.
   DeviceCopy gpu_indices_, gpu_nodes_, gpu_prim_ids_, gpu_cell_starts_, gpu_cell_ends_, gpu_sorted_ids_;
+  DeviceCopy gpu_sorted_groups_;
 };
 
 // Checks that `a` is a whole contiguous array of vec3 float32 (any number of dimensions, or

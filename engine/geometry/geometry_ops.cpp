@@ -45,7 +45,8 @@ Expected<uint64_t> Run(Session& s, const GeometryRequest& r, const DeviceAccess*
     case GeometryRequest::Op::kBuildHashGrid: {
       WEFT_ASSIGN_OR_RETURN(auto g, reg.Find(r.id));
       WEFT_ASSIGN_OR_RETURN(auto p, Array(s, r.points, "HashGrid.build points"));
-      WEFT_RETURN_IF_ERROR(g->BuildHashGrid(std::move(p), r.radius, dev));
+      WEFT_ASSIGN_OR_RETURN(auto groups, Array(s, r.groups, "HashGrid.build groups", true));
+      WEFT_RETURN_IF_ERROR(g->BuildHashGrid(std::move(p), r.radius, dev, std::move(groups)));
       return uint64_t{0};
     }
     case GeometryRequest::Op::kRefit: {

@@ -47,9 +47,12 @@ struct geometry_desc_t {
   const int32* prim_ids;   // leaf item order, each < num_prims
   int64 num_nodes;
   // HashGrid: cell c holds sorted_ids[cell_starts[c] .. cell_ends[c]) (original point indices).
+  // A grid built with groups also has sorted_groups (the group id of each sorted_ids entry),
+  // and each cell's entries are ordered by group id (null: built without groups).
   const int32* cell_starts;
   const int32* cell_ends;
   const int32* sorted_ids;
+  const int32* sorted_groups;
   int64 num_sorted;        // points of the last build (0 before the first build)
   int32 dim[3];
   float32 cell_width;      // the build's radius (> 0 after a build)

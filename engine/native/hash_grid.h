@@ -1,6 +1,9 @@
 // Kernel-side wp.HashGrid queries: hash_grid_query (the cells a sphere of radius max_dist around
-// a point touches), hash_grid_query_next (the next point index in those cells; the caller filters
-// by distance, as in Warp) and hash_grid_point_id (points in cell order). The cells are the
+// a point touches; with a group id, only that group's points), hash_grid_query_next (the next point
+// index in those cells; the caller filters by distance, as in Warp) and hash_grid_point_id (points
+// in cell order). A grouped query finds its group's run in each cell by binary search (a grouped
+// build orders each cell by group id), so it never walks other groups' points; on a grid built
+// without groups every point is in group 0. The cells are the
 // daemon's build of the grid (geometry_abi.h: cell_starts/cell_ends/sorted_ids, index values
 // checked by the build). vec3h / vec3d points are converted to float32. Not differentiable.
 // No standard library headers.
@@ -17,6 +20,8 @@ struct weft_struct_HashGridQuery {
   int32 cell[3];    // the current cell coordinates (x fastest)
   int32 cur;        // next entry of sorted_ids in the current cell
   int32 end;
+  int32 group;      // with `grouped`: the only group visited
+  bool grouped;
   bool started;
   bool done;
 };
@@ -29,6 +34,8 @@ WP_FUNC weft_struct_HashGridQuery hash_grid_query(const launch_context_t* ctx, i
   weft_struct_HashGridQuery q;
   q.g = geometry_resolve(ctx, fid, line, "hash_grid_query", id, GEOMETRY_HASH_GRID);
   q.cur = q.end = 0;
+  q.group = 0;
+  q.grouped = false;
   q.started = false;
   q.done = true;
   for (int k = 0; k < 3; ++k) q.lo[k] = q.hi[k] = q.cell[k] = 0;
@@ -46,6 +53,34 @@ WP_FUNC weft_struct_HashGridQuery hash_grid_query(const launch_context_t* ctx, i
   }
   q.done = false;
   return q;
+}
+
+template <typename T>
+WP_FUNC weft_struct_HashGridQuery hash_grid_query(const launch_context_t* ctx, int32 fid, int32 line, uint64 id,
+                                                  const vec_t<3, T>& point, T max_dist, int32 group) {
+  weft_struct_HashGridQuery q = hash_grid_query(ctx, fid, line, id, point, max_dist);
+  q.group = group;
+  q.grouped = true;
+  return q;
+}
+
+// The run of `group` in [begin, end) of a grouped build's cell (ordered by group id).
+WP_FUNC void hash_grid_group_run(const int32* groups, int32 group, int32& begin, int32& end) {
+  int32 lo = begin, hi = end;
+  while (lo < hi) {   // first entry >= group
+    int32 mid = lo + (hi - lo) / 2;
+    if (groups[mid] < group) lo = mid + 1;
+    else hi = mid;
+  }
+  int32 first = lo;
+  hi = end;
+  while (lo < hi) {   // first entry > group
+    int32 mid = lo + (hi - lo) / 2;
+    if (groups[mid] <= group) lo = mid + 1;
+    else hi = mid;
+  }
+  begin = first;
+  end = lo;
 }
 
 WP_FUNC bool hash_grid_query_next(weft_struct_HashGridQuery& q, int32& index) {
@@ -72,6 +107,10 @@ WP_FUNC bool hash_grid_query_next(weft_struct_HashGridQuery& q, int32& index) {
     int64 c = hash_grid_cell(q.g->dim, q.cell[0], q.cell[1], q.cell[2]);
     q.cur = q.g->cell_starts[c];
     q.end = q.g->cell_ends[c];
+    if (q.grouped) {
+      if (q.g->sorted_groups) hash_grid_group_run(q.g->sorted_groups, q.group, q.cur, q.end);
+      else if (q.group != 0) q.end = q.cur;
+    }
   }
 }
 

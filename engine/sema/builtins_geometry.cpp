@@ -41,6 +41,13 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
      "hash_grid_query with a float64 point (converted to float32, the grid's precision).", q);
   hg("hash_grid_query(id: uint64, point: vec(3,float16), max_dist: float16) -> struct(HashGridQuery)",
      "hash_grid_query with a float16 point (converted to float32, the grid's precision).", q);
+  hg("hash_grid_query(id: uint64, point: vec(3,float32), max_dist: float32, group: int32) -> struct(HashGridQuery)",
+     "hash_grid_query visiting only the points of `group` (HashGrid.build(..., groups=); on a grid built "
+     "without groups every point is in group 0).", q);
+  hg("hash_grid_query(id: uint64, point: vec(3,float64), max_dist: float64, group: int32) -> struct(HashGridQuery)",
+     "The grouped hash_grid_query with a float64 point.", q);
+  hg("hash_grid_query(id: uint64, point: vec(3,float16), max_dist: float16, group: int32) -> struct(HashGridQuery)",
+     "The grouped hash_grid_query with a float16 point.", q);
   hg("hash_grid_query_next(query: struct(HashGridQuery), index: int32) -> bool",
      "Next point index of the query into `index`; false when done.", kBuiltinNotDiff | kBuiltinWritesArgs);
   hg("hash_grid_point_id(id: uint64, index: int32) -> int32",

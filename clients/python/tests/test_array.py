@@ -233,10 +233,23 @@ def test_copy_with_offsets_and_count(wp):
     grid = wp.zeros((5, 10), dtype=wp.float64)
     wp.copy(grid, src)  # same size, different shape: flat copy
     np.testing.assert_array_equal(grid.numpy(), src_np.reshape(5, 10))
-    with pytest.raises(RuntimeError, match="out of bounds"):
+    # Warp's wording for each refusal
+    with pytest.raises(RuntimeError, match=r"copy a range of 20 element\(s\) to destination offset \(30\) "
+                                           r"exceeds the destination size \(40\)"):
         wp.copy(dst, src, dest_offset=30, count=20)
-    with pytest.raises(RuntimeError, match="Incompatible"):
+    with pytest.raises(RuntimeError, match=r"from source offset \(45\) exceeds the source size \(50\)"):
+        wp.copy(dst, src, src_offset=45, count=10)
+    with pytest.raises(RuntimeError, match="destination dtype=float32, source dtype=float64"):
         wp.copy(wp.zeros(4, dtype=wp.float32), wp.zeros(4, dtype=wp.float64))
+    strided = wp.zeros((6, 6), dtype=wp.float64)[::2, ::2]
+    with pytest.raises(RuntimeError, match="only supported for 1-D non-contiguous arrays"):
+        wp.copy(wp.zeros_like(strided), strided, count=2)
+    with pytest.raises(RuntimeError, match=r"destination shape=\(3, 2\), source shape=\(3, 3\)"):
+        wp.copy(wp.zeros((6, 2), dtype=wp.float64)[::2], strided)
+    indexed = wp.indexedarray(src, [wp.array(np.array([1, 3], dtype=np.int32))])
+    assert not indexed.is_contiguous and src.is_contiguous
+    with pytest.raises(RuntimeError, match="not supported when copying to/from non-contiguous indexed"):
+        wp.copy(wp.zeros(2, dtype=wp.float64), indexed, count=1)
     np.testing.assert_array_equal(dst.numpy(), dst_np)
 
 

@@ -138,6 +138,13 @@ def test_quat_and_transform_defaults():
     np.testing.assert_array_equal(np.asarray(t), [1, 2, 3, 0, 0, 0, 1])
     np.testing.assert_array_equal(np.asarray(t.p), [1, 2, 3])
     np.testing.assert_array_equal(np.asarray(wp.transform()), [0, 0, 0, 0, 0, 0, 1])
+    # the parts are settable (Warp's t.p = ..., t.q = ...), with the component count checked
+    t.p = wp.vec3(-4.5, 5.0, 6.0)
+    t.q = (0.0, 0.6, 0.0, 0.8)
+    np.testing.assert_array_equal(np.asarray(t), np.array([-4.5, 5, 6, 0, 0.6, 0, 0.8], dtype=np.float32))
+    assert t.p == wp.vec3(-4.5, 5.0, 6.0)
+    with pytest.raises(ValueError, match="takes 4 components, got 3"):
+        t.q = wp.vec3(1, 2, 3)
 
 
 @pytest.mark.parametrize("wp_type,np_type,name", SCALARS)

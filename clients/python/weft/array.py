@@ -1372,6 +1372,12 @@ def _on_tape(dest, src) -> bool:
     return scalar in types.float_types
 
 
+def _check_copy_types(dest, src) -> None:
+    if type_str(src.dtype) != type_str(dest.dtype):
+        raise RuntimeError(f"Incompatible array data types: destination dtype={types.type_repr(dest.dtype)}, "
+                           f"source dtype={types.type_repr(src.dtype)}")
+
+
 def copy(dest, src, dest_offset=0, src_offset=0, count=0):
     """Copies `src` into `dest` (Warp's wp.copy). Offsets and count are in elements of the
     flattened arrays, which must then be contiguous; count 0 copies all of src."""
@@ -1379,21 +1385,18 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
 
     if isinstance(dest, indexedarray) or isinstance(src, indexedarray):
         if dest_offset or src_offset or count:
-            raise RuntimeError("wp.copy() of indexed arrays takes no offsets or count")
-        if type_str(src.dtype) != type_str(dest.dtype):
-            raise RuntimeError(f"Incompatible array data types: cannot copy "
-                               f"{type_str(src.dtype)} to {type_str(dest.dtype)}")
+            raise RuntimeError("dest_offset, src_offset, and count are not supported when copying to/from "
+                               "non-contiguous indexed or Fabric arrays")
+        _check_copy_types(dest, src)
         if tuple(src.shape) != tuple(dest.shape):
-            raise RuntimeError(f"Incompatible array shapes: cannot copy {tuple(src.shape)} to "
-                               f"{tuple(dest.shape)}")
+            raise RuntimeError(f"Incompatible array shapes: destination shape={tuple(dest.shape)}, "
+                               f"source shape={tuple(src.shape)}")
         if src.size:
             dest.assign(src.numpy() if isinstance(src, indexedarray) else src)
         return
     if not isinstance(dest, array) or not isinstance(src, array):
-        raise RuntimeError("wp.copy() needs weft arrays as source and destination")
-    if type_str(src.dtype) != type_str(dest.dtype):
-        raise RuntimeError(f"Incompatible array data types: cannot copy {type_str(src.dtype)} "
-                           f"to {type_str(dest.dtype)}")
+        raise RuntimeError("Copy source and destination must be arrays")
+    _check_copy_types(dest, src)
     for value, name in ((src_offset, "Source offset"), (dest_offset, "Destination offset"),
                         (count, "Copy count")):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
@@ -1405,18 +1408,21 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
     if whole and src.shape == dest.shape:
         d, s = dest, src
     else:
+        strided = [a for a in (src, dest) if a.ndim > 1 and not a.is_contiguous]
+        if strided and whole:
+            raise RuntimeError(f"Incompatible array shapes: destination shape={tuple(dest.shape)}, "
+                               f"source shape={tuple(src.shape)}")
+        if strided:
+            raise RuntimeError("dest_offset, src_offset, and count are only supported for 1-D "
+                               "non-contiguous arrays")
         if count == 0:
             count = src.size - src_offset
         if src_offset + count > src.size:
-            raise RuntimeError(f"Copy out of bounds: source has {src.size} elements, copying "
-                               f"{count} from offset {src_offset}")
+            raise RuntimeError(f"Trying to copy a range of {count} element(s) from source offset "
+                               f"({src_offset}) exceeds the source size ({src.size})")
         if dest_offset + count > dest.size:
-            raise RuntimeError(f"Copy out of bounds: destination has {dest.size} elements, "
-                               f"copying {count} to offset {dest_offset}")
-        for a in (src, dest):
-            if a.ndim > 1 and not a.is_contiguous:
-                raise RuntimeError("Copying arrays of different shapes, or with offsets/counts, "
-                                   "requires contiguous (or 1-d) arrays")
+            raise RuntimeError(f"Trying to copy a range of {count} element(s) to destination offset "
+                               f"({dest_offset}) exceeds the destination size ({dest.size})")
         d = _flat_view(dest, dest_offset, count)
         s = _flat_view(src, src_offset, count)
     if d.size == 0 or d._info is None or s._info is None:

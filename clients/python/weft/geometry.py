@@ -98,13 +98,17 @@ class HashGrid(_Object):
                 raise ValueError(f"HashGrid: dims must be in [1, 2^31), got ({dim_x}, {dim_y}, {dim_z})")
         self.reserved = False
         self.points = None
+        self.groups = None
         self.radius = 0.0
         self.id = _call(self._rt, op=_op().CREATE_HASH_GRID, device=str(self.device),
                         dim=[self.dim_x, self.dim_y, self.dim_z])
 
-    def build(self, points, radius: float):
+    def build(self, points, radius: float, groups=None):
         """Sorts `points` (a vec3 array of the grid's dtype, on its device) into cells of width
-        `radius` (positive, finite)."""
+        `radius` (positive, finite). `groups` (int32, one per point, on the grid's device):
+        each point's group id, any int32 value; `wp.hash_grid_query(id, p, r, group)` then
+        visits only that group's points. The ids are read at this build (assign new ones, then
+        build again). A strided or multi-dimensional array is taken through a contiguous copy."""
         radius = float(radius)
         if not (0.0 < radius < float("inf")):
             raise ValueError(f"HashGrid.build: radius must be a positive finite number, got {radius}")
@@ -113,17 +117,38 @@ class HashGrid(_Object):
             raise TypeError(f"HashGrid.build: a grid of dtype {getattr(self.dtype, '__name__', self.dtype)} "
                             f"needs points of {getattr(self._point_dtype, '__name__', self._point_dtype)}, "
                             f"got {getattr(points, 'dtype', type(points).__name__)}")
-        _call(self._rt, op=_op().BUILD_HASH_GRID, id=self.id, points=_handle_of(points, "HashGrid.build points"),
-              radius=float(radius))
+        if groups is not None:
+            if type_string(getattr(groups, "dtype", None)) != "int32":
+                raise RuntimeError("groups should be an array of type wp.int32")
+            if str(groups.device) != str(self.device):
+                raise RuntimeError("groups must live on the same device as this HashGrid")
+            if groups.size != points.size:
+                raise RuntimeError("groups must have the same length as points")
+        if str(points.device) != str(self.device):
+            raise RuntimeError("points must live on the same device as this HashGrid")
+        built_points = _whole(points)
+        built_groups = _whole(groups) if groups is not None else None
+        _call(self._rt, op=_op().BUILD_HASH_GRID, id=self.id,
+              points=_handle_of(built_points, "HashGrid.build points"),
+              groups=_handle_of(built_groups, "HashGrid.build groups"), radius=float(radius))
         self.points = points
+        self.groups = groups
         self.radius = float(radius)
         self.reserved = True
 
     def reserve(self, num_points: int, with_groups: bool = False):
-        """Warp preallocates here; the daemon sizes its buffers at build time."""
+        """Warp preallocates here; the daemon sizes its buffers (groups included) at build time."""
         if int(num_points) < 0:
             raise ValueError("reserve: num_points must be >= 0")
         self.reserved = True
+
+
+def _whole(a):
+    """`a` itself when it is a whole contiguous array, else a contiguous copy of it."""
+    from .array import clone  # noqa: PLC0415
+    if hasattr(a, "_is_whole") and not a._is_whole():
+        return clone(a)
+    return a
 
 
 class Bvh(_Object):

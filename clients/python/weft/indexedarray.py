@@ -122,6 +122,12 @@ class indexedarray:
             if self.dtype is not typing.Any else f"indexedarray(any,{self.ndim})"
 
     @property
+    def is_contiguous(self) -> bool:
+        """Always False: an indexed view gathers elements, it is never one contiguous block
+        (Warp's rule; wp.copy from or into it takes no offsets)."""
+        return False
+
+    @property
     def requires_grad(self) -> bool:
         return bool(self.data is not None and self.data.requires_grad)
 

@@ -163,6 +163,9 @@ int = int32  # noqa: A001
 
 int_types = (int8, uint8, int16, uint16, int32, uint32, int64, uint64)
 float_types = (float16, float32, float64)
+# Warp's name for the scalar types whose atomics it refuses; weft implements atomics on every
+# scalar type (8- and 16-bit integers included, docs/types.md), so there are none.
+non_atomic_types = ()
 scalar_types = int_types + float_types
 scalar_and_bool_types = scalar_types + (bool,)
 
@@ -703,9 +706,23 @@ class _Transformation(_Vector):
     def p(self):
         return vector(3, self._wp_scalar_type_)(self._data[:3])
 
+    @p.setter
+    def p(self, value):
+        self._set_part(0, 3, value, "p (translation)")
+
     @property
     def q(self):
         return quaternion(self._wp_scalar_type_)(self._data[3:])
+
+    @q.setter
+    def q(self, value):
+        self._set_part(3, 7, value, "q (rotation)")
+
+    def _set_part(self, start: int, stop: int, value, what: str) -> None:
+        flat = np.asarray(getattr(value, "_data", value), dtype=np.float64).reshape(-1)
+        if flat.size != stop - start:
+            raise ValueError(f"transform.{what} takes {stop - start} components, got {flat.size}")
+        self._data[start:stop] = flat.astype(self._data.dtype)
 
 
 def transformation(dtype=float32):

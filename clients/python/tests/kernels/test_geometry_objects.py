@@ -302,6 +302,109 @@ def test_hash_grid_neighbours_match_brute_force(rng):
     assert (got_ids[n:] == -1).all()
 
 
+@wp.kernel
+def grid_group_neighbours(grid: wp.uint64, points: wp.array(dtype=wp.vec3), groups: wp.array(dtype=int),
+                          radius: float, counts: wp.array(dtype=int), visits: wp.array(dtype=int),
+                          wrong: wp.array(dtype=int)):
+    i = wp.tid()
+    p = points[i]
+    g = groups[i]
+    query = wp.hash_grid_query(grid, p, radius, g)
+    index = int(0)
+    n = int(0)
+    v = int(0)
+    while wp.hash_grid_query_next(query, index):
+        v += 1
+        if groups[index] != g:
+            wp.atomic_add(wrong, 0, 1)
+        if wp.length(points[index] - p) <= radius:
+            n += 1
+    counts[i] = n
+    visits[i] = v
+
+
+@wp.kernel
+def grid_fixed_group_count(grid: wp.uint64, points: wp.array(dtype=wp.vec3), radius: float, group: int,
+                           counts: wp.array(dtype=int)):
+    i = wp.tid()
+    query = wp.hash_grid_query(grid, points[i], radius, group)
+    index = int(0)
+    n = int(0)
+    while wp.hash_grid_query_next(query, index):
+        n += 1
+    counts[i] = n
+
+
+def test_hash_grid_groups_match_brute_force(rng):
+    """Grouped builds: a grouped query sees exactly its group's neighbours (the brute-force
+    set), never another group's point, and visits no more candidates than the ungrouped query
+    visits of its own group; group ids span all of int32; ids are read at build time."""
+    n, radius = 2000, 0.5
+    pts = rng.uniform(-3.0, 3.0, size=(n, 3)).astype(np.float32)
+    ids = np.array([-2**31, -1, 0, 7, 2**31 - 1], dtype=np.int32)
+    grp = rng.choice(ids, size=n).astype(np.int32)
+    points = wp.array(pts, dtype=wp.vec3, device=DEV)
+    groups = wp.array(grp, dtype=int, device=DEV)
+    grid = wp.HashGrid(8, 8, 8, device=DEV)
+    grid.build(points, radius, groups=groups)
+    counts, visits = wp.zeros(n, dtype=int, device=DEV), wp.zeros(n, dtype=int, device=DEV)
+    wrong = wp.zeros(1, dtype=int, device=DEV)
+    wp.launch(grid_group_neighbours, dim=n, inputs=[grid.id, points, groups, radius, counts, visits, wrong],
+              device=DEV)
+    assert wrong.numpy()[0] == 0
+    p64 = pts.astype(np.float64)
+    d = np.linalg.norm(p64[:, None, :] - p64[None, :, :], axis=2)
+    same = grp[:, None] == grp[None, :]
+    sure_in, maybe = (d <= radius - TOL) & same, (d <= radius + TOL) & same
+    got = counts.numpy()
+    assert (got >= sure_in.sum(1)).all() and (got <= maybe.sum(1)).all()
+    # the ungrouped query of the same grid visits every group's candidates: more than the grouped one
+    all_visits = wp.zeros(n, dtype=int, device=DEV)
+    wp.launch(grid_visits, dim=n, inputs=[grid.id, points, radius, all_visits], device=DEV)
+    assert (visits.numpy() <= all_visits.numpy()).all() and visits.numpy().sum() < all_visits.numpy().sum()
+    # a group no point has: nothing; the ids are copied at build: new ids count after a rebuild
+    fixed = wp.zeros(n, dtype=int, device=DEV)
+    wp.launch(grid_fixed_group_count, dim=n, inputs=[grid.id, points, radius, 5, fixed], device=DEV)
+    assert not fixed.numpy().any()
+    groups.fill_(5)
+    wp.launch(grid_fixed_group_count, dim=n, inputs=[grid.id, points, radius, 5, fixed], device=DEV)
+    assert not fixed.numpy().any()
+    grid.build(points, radius, groups=groups)
+    wp.launch(grid_fixed_group_count, dim=n, inputs=[grid.id, points, radius, 5, fixed], device=DEV)
+    np.testing.assert_array_equal(fixed.numpy(), all_visits.numpy())
+
+
+def test_hash_grid_groups_inputs_and_errors(rng):
+    n = 64
+    pts = rng.uniform(-1.0, 1.0, size=(n, 3)).astype(np.float32)
+    grid = wp.HashGrid(4, 4, 4, device=DEV)
+    # strided points and groups are taken through contiguous copies
+    buf = wp.zeros(2 * n, dtype=wp.vec3, device=DEV)
+    wp.copy(buf[::2], wp.array(pts, dtype=wp.vec3, device=DEV))
+    gbuf = wp.zeros(2 * n, dtype=int, device=DEV)
+    grid.build(buf[::2], 0.5, groups=gbuf[::2])
+    fixed = wp.zeros(n, dtype=int, device=DEV)
+    whole = wp.array(pts, dtype=wp.vec3, device=DEV)
+    wp.launch(grid_fixed_group_count, dim=n, inputs=[grid.id, whole, 0.5, 0, fixed], device=DEV)
+    visits = wp.zeros(n, dtype=int, device=DEV)
+    wp.launch(grid_visits, dim=n, inputs=[grid.id, whole, 0.5, visits], device=DEV)
+    np.testing.assert_array_equal(fixed.numpy(), visits.numpy())
+    # an ungrouped grid: every point is in group 0
+    grid.build(whole, 0.5)
+    wp.launch(grid_fixed_group_count, dim=n, inputs=[grid.id, whole, 0.5, 0, fixed], device=DEV)
+    np.testing.assert_array_equal(fixed.numpy(), visits.numpy())
+    wp.launch(grid_fixed_group_count, dim=n, inputs=[grid.id, whole, 0.5, 3, fixed], device=DEV)
+    assert not fixed.numpy().any()
+    with pytest.raises(RuntimeError, match="groups should be an array of type wp.int32"):
+        grid.build(whole, 0.5, groups=wp.zeros(n, dtype=float, device=DEV))
+    with pytest.raises(RuntimeError, match="groups must have the same length as points"):
+        grid.build(whole, 0.5, groups=wp.zeros(n - 1, dtype=int, device=DEV))
+    other = "cuda:0" if DEV == "cpu" else "cpu"
+    if other == "cpu" or any(d.alias == other for d in wp.get_cuda_devices()):
+        with pytest.raises(RuntimeError, match="groups must live on the same device"):
+            grid.build(whole, 0.5, groups=wp.zeros(n, dtype=int, device=other))
+
+
 def test_hash_grid_small_dims_wrap_and_rebuild(rng):
     n, radius = 500, 0.9
     pts = rng.uniform(-3.0, 3.0, size=(n, 3)).astype(np.float32)
