@@ -272,6 +272,9 @@ Expected<BuiltinMatch> BuiltinRegistry::Resolve(const std::string& name, const s
     m.param_types = std::move(types);
     return m;
   }
+  // Warp's message for comparing values of two different types (expect_eq(vec3, vec2), ...).
+  if ((name == "expect_eq" || name == "expect_neq") && args.size() == 2 && !(args[0] == args[1]))
+    return InvalidArgument("Can't test equality for objects with different types");
   std::string got;
   for (size_t k = 0; k < args.size(); ++k) got += (k ? ", " : "") + TypeString(args[k]);
   std::string msg = "Couldn't find function overload for '" + name + "' that accepts (" + got + "); candidates:";

@@ -832,7 +832,16 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
 Expected<Value> Checker::EvalBinOp(const ast::BinOp& b) {
   WEFT_ASSIGN_OR_RETURN(Value l, Eval(*b.left));
   WEFT_ASSIGN_OR_RETURN(Value r, Eval(*b.right));
-  return ResolveAndEmitBuiltin(BinaryBuiltins().at(b.op), {l, r}, b.loc);
+  const std::string& name = BinaryBuiltins().at(b.op);
+  // An operator on a struct is the user's @wp.func of the operator's builtin name (`add` for +,
+  // `mul` for *, ...), as in Warp: no builtin takes a struct.
+  auto is_struct = [this](const Value& v) { return v.kind == Value::Kind::kVar && TypeOf(v.var).is_struct(); };
+  if (is_struct(l) || is_struct(r)) {
+    auto range = symbols_.equal_range(name);
+    for (auto it = range.first; it != range.second; ++it)
+      if (it->second->kind == Symbol::Kind::kFunction) return CallUserFunc(name, {l, r}, b.loc);
+  }
+  return ResolveAndEmitBuiltin(name, {l, r}, b.loc);
 }
 
 Expected<Value> Checker::EvalCompare(const ast::Compare& c) {

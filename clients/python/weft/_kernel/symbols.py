@@ -78,6 +78,7 @@ class _Collector(ast.NodeVisitor):
     def __init__(self, local_names: set):
         self.local_names = local_names
         self.chains: list = []     # lists of identifiers, root first
+        self.operator_names: set = set()
 
     def visit_Attribute(self, node):
         chain = _attribute_chain(node)
@@ -89,6 +90,20 @@ class _Collector(ast.NodeVisitor):
     def visit_Name(self, node):
         if isinstance(node.ctx, ast.Load) and node.id not in self.local_names:
             self.chains.append([node.id])
+
+    def visit_BinOp(self, node):
+        # `a + b` on structs calls the user's @wp.func `add` (Warp's operator overloading): the
+        # operator's builtin name is a candidate free name (kept only if it names a @wp.func)
+        name = _OPERATOR_FUNCS.get(type(node.op))
+        if name is not None and name not in self.local_names:
+            self.operator_names.add(name)
+        self.generic_visit(node)
+
+
+# ast operator -> the builtin (and @wp.func) name the compiler calls for it on structs
+_OPERATOR_FUNCS = {ast.Add: "add", ast.Sub: "sub", ast.Mult: "mul", ast.MatMult: "mul", ast.Div: "div",
+                   ast.FloorDiv: "floordiv", ast.Mod: "mod", ast.Pow: "pow", ast.LShift: "lshift",
+                   ast.RShift: "rshift", ast.BitOr: "bit_or", ast.BitXor: "bit_xor", ast.BitAnd: "bit_and"}
 
 
 def resolve(definition: FunctionDefinition) -> Resolution:
@@ -172,6 +187,11 @@ def resolve(definition: FunctionDefinition) -> Resolution:
         if isinstance(value, NativeSnippet):
             raise WeftCompileError(value.refusal(definition.name, definition.file, definition.first_line))
         classify(name, value, add, functions, structs)
+
+    for name in sorted(collector.operator_names):
+        value = lookup(name)
+        if isinstance(value, Function):
+            classify(name, value, add, functions, structs)
 
     gradient = getattr(definition, "custom_grad", None)
     if gradient is not None:     # wp.func_grad: travels with the func, keyed after it
