@@ -10,7 +10,7 @@ namespace wp {
 
 template <unsigned R, unsigned C, typename T>
 struct mat_t {
-  T data[R][C];
+  T data[R > 0 ? R : 1][C > 0 ? C : 1];   // zero rows or columns (a slice) keep one unused slot
 
   WP_CALLABLE mat_t() : data() {}
   WP_CALLABLE explicit mat_t(cg_uninit_t) {}   // entries left uninitialised (scalar.h)

@@ -9,7 +9,7 @@ namespace wp {
 
 template <unsigned N, typename T>
 struct vec_t {
-  T c[N];
+  T c[N > 0 ? N : 1];   // a zero-length vector (a slice selecting nothing) keeps one unused slot
 
   WP_CALLABLE vec_t() : c() {}
   WP_CALLABLE explicit vec_t(cg_uninit_t) {}   // components left uninitialised (scalar.h)

@@ -588,8 +588,7 @@ Expected<std::vector<int>> Checker::SliceComponents(const ast::Slice& sl, int n)
   hi = (sl.upper || step > 0) ? clamp(hi) : -1;
   std::vector<int> out;
   for (long i = lo; step > 0 ? i < hi : i > hi; i += step) out.push_back(static_cast<int>(i));
-  if (out.empty()) return Error(sl.loc, "this slice selects no components");
-  return out;
+  return out;   // may be empty: a zero-length vector (Python's rule; `v[4:]` of a vec4)
 }
 
 Expected<bool> Checker::SliceRegionOf(const ast::Subscript& s, const Type& bt, SliceRegion* out) {

@@ -80,13 +80,14 @@ class TypeReader {
     pos_ = at;
     return Scalar();
   }
-  // An extent, or "any" (0) in a pattern.
+  // An extent (0 is a zero-length vector or matrix, as a slice may select), or "any"
+  // (kAnyExtent) in a pattern.
   Expected<int> ExtentOrAny() {
     const size_t at = pos_;
-    if (Ident() == "any") return 0;
+    if (Ident() == "any") return kAnyExtent;
     pos_ = at;
     WEFT_ASSIGN_OR_RETURN(int n, Int());
-    if (n < 1) return Error("extent must be positive");
+    if (n < 0) return Error("extent must not be negative");
     return n;
   }
 
@@ -106,7 +107,7 @@ class TypeReader {
       GenericScalar g = GenericScalar::kNone;
       WEFT_ASSIGN_OR_RETURN(ScalarKind s, ScalarOrPattern(&g));
       if (!Eat(')')) return Error("expected ')'");
-      if (n < 0 || n > 1024) return Error("vector length out of range");
+      if (n < kAnyExtent || n > 1024) return Error("vector length out of range");
       Type t = Type::Vector(n, s);
       t.generic = g;
       return t;
@@ -120,7 +121,7 @@ class TypeReader {
       GenericScalar g = GenericScalar::kNone;
       WEFT_ASSIGN_OR_RETURN(ScalarKind s, ScalarOrPattern(&g));
       if (!Eat(')')) return Error("expected ')'");
-      if (r < 0 || c < 0 || r > 64 || c > 64) return Error("matrix shape out of range");
+      if (r < kAnyExtent || c < kAnyExtent || r > 64 || c > 64) return Error("matrix shape out of range");
       Type t = Type::Matrix(r, c, s);
       t.generic = g;
       return t;
@@ -331,7 +332,8 @@ const char* GenericScalarName(GenericScalar g) {
 bool ContainsAny(const Type& t) {
   if (t.is_any() || (t.is_function() && t.struct_name.empty())) return true;
   if (t.is_composite() && t.generic != GenericScalar::kNone) return true;
-  if ((t.is_vector() || t.is_matrix()) && (t.rows == 0 || (t.is_matrix() && t.cols == 0))) return true;
+  if ((t.is_vector() || t.is_matrix()) && (t.rows == kAnyExtent || (t.is_matrix() && t.cols == kAnyExtent)))
+    return true;
   for (const auto& s : t.sub)
     if (ContainsAny(s)) return true;
   return false;
@@ -360,8 +362,8 @@ bool GenericAccepts(const Type& p, const Type& a) {
     return p.ndim == a.ndim && GenericAccepts(p.elem(), a.elem());
   if (p.is_composite()) {
     if (p.generic == GenericScalar::kNone ? p.scalar != a.scalar : !ScalarInCategory(p.generic, a.scalar)) return false;
-    if ((p.is_vector() || p.is_matrix()) && p.rows != 0 && p.rows != a.rows) return false;
-    if (p.is_matrix() && p.cols != 0 && p.cols != a.cols) return false;
+    if ((p.is_vector() || p.is_matrix()) && p.rows != kAnyExtent && p.rows != a.rows) return false;
+    if (p.is_matrix() && p.cols != kAnyExtent && p.cols != a.cols) return false;
     return true;
   }
   if (p.is_tuple()) {
@@ -394,7 +396,7 @@ std::string TypeString(const Type& t) {
   auto elem = [&]() -> std::string {
     return t.generic == GenericScalar::kNone ? ScalarName(t.scalar) : GenericScalarName(t.generic);
   };
-  auto extent = [](int n) { return n == 0 ? std::string("any") : std::to_string(n); };
+  auto extent = [](int n) { return n == kAnyExtent ? std::string("any") : std::to_string(n); };
   switch (t.kind) {
     case TypeKind::kVoid: return "void";
     case TypeKind::kAny: return GenericScalarName(t.generic);
@@ -479,6 +481,10 @@ Expected<TypeLayout> LayoutOf(const Type& t, const StructTable& structs) {
     case TypeKind::kMatrix:
     case TypeKind::kQuat:
     case TypeKind::kTransform: {
+      if (t.component_count() == 0)
+        return InvalidArgument("the zero-length type " + TypeString(t) +
+                               " exists only inside kernels and functions (not as a kernel argument, struct field "
+                               "or array element)");
       uint32_t s = static_cast<uint32_t>(ScalarSize(t.scalar));
       return TypeLayout{s * static_cast<uint32_t>(t.component_count()), s};
     }

@@ -57,12 +57,15 @@ enum class GenericScalar : uint8_t { kNone, kAny, kInt, kFloat, kScalar };
 // Elements of one fixed-size array (a kernel-local value on the thread's stack).
 constexpr int kMaxFixedArrayElements = 4096;
 
+// The extent of a vector or matrix pattern that takes any length ("vec(any,float32)").
+constexpr int kAnyExtent = -1;
+
 struct Type {
   TypeKind kind = TypeKind::kVoid;
   ScalarKind scalar = ScalarKind::kFloat32;  // scalar, or the element scalar of vec/mat/quat/transform
   GenericScalar generic = GenericScalar::kNone;  // kAny's category; a composite's pattern scalar
-  int rows = 0;   // vec length / mat rows; 0 in a pattern: any
-  int cols = 0;   // mat cols; 0 in a pattern: any
+  int rows = 0;   // vec length / mat rows (0: a zero-length vector); kAnyExtent in a pattern
+  int cols = 0;   // mat cols; kAnyExtent in a pattern
   int ndim = 0;
   bool indexed = false;  // kArray: an indexed array (wp::indexedarray_t: data + int32 index arrays)
   // kArray: a fixed-size array (wp.zeros(shape=..., dtype=...) in a kernel): a value holding its

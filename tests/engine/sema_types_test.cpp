@@ -111,12 +111,31 @@ TEST(SemaTypes, WarpAliases) {
 }
 
 TEST(SemaTypes, BadStringsAreErrorsNotCrashes) {
-  for (const char* s : {"", "vec(", "vec(3)", "vec(3,float)", "vec(0,float32)", "mat(3,float32)", "array(float32,5)",
+  for (const char* s : {"", "vec(", "vec(3)", "vec(3,float)", "mat(3,float32)", "array(float32,5)",
                         "array(array(float32,1),1)", "struct()", "float33", "vec(3,float32)x", "quat(int32",
-                        "array(float32,99999999999)", "vec(-1,float32)"}) {
+                        "array(float32,99999999999)", "vec(-1,float32)", "vec(-2,float32)", "mat(2,-1,float32)"}) {
     auto t = ParseType(s);
     EXPECT_FALSE(t.ok()) << s;
   }
+}
+
+TEST(SemaTypes, ZeroLengthIsATypeAnyLengthIsAPattern) {
+  auto zero = ParseType("vec(0,float32)");
+  ASSERT_TRUE(zero.ok());
+  EXPECT_EQ(zero->rows, 0);
+  EXPECT_FALSE(ContainsAny(*zero));
+  EXPECT_EQ(TypeString(*zero), "vec(0,float32)");
+  EXPECT_FALSE(LayoutOf(*zero, {}).ok());   // no bytes: never a kernel argument or field
+  auto any = ParseType("vec(any,float32)");
+  ASSERT_TRUE(any.ok());
+  EXPECT_TRUE(ContainsAny(*any));
+  EXPECT_TRUE(GenericAccepts(*any, *zero));
+  EXPECT_TRUE(GenericAccepts(*any, *ParseType("vec(3,float32)")));
+  EXPECT_FALSE(GenericAccepts(*zero, *ParseType("vec(3,float32)")));
+  auto m = ParseType("mat(0,3,float64)");
+  ASSERT_TRUE(m.ok());
+  EXPECT_FALSE(ContainsAny(*m));
+  EXPECT_TRUE(ContainsAny(*ParseType("mat(any,3,float64)")));
 }
 
 TEST(SemaTypes, CppSpellings) {

@@ -159,3 +159,46 @@ def test_slice_shape_mismatch_is_an_error(wp, kernel_module):
     """)
     with pytest.raises(TypeError, match=r"to a slice of .* of shape"):
         wp.launch(mod.k, 1, inputs=[wp.mat33()], outputs=[wp.zeros(1, dtype=wp.mat33)])
+
+
+vec0 = wp.types.vector(0, float)
+vec1 = wp.types.vector(1, float)
+
+
+@wp.kernel
+def empty_slices(v: wp.vec4, m: wp.mat33, out: wp.array[int], sums: wp.array[float]):
+    z = v[123:]                          # Python's rule: bounds are clamped, nothing selected
+    out[0] = int(z == vec0())
+    out[1] = int(v[:-123] == vec0())
+    out[2] = int(v[::123] == vec1(v[0]))
+    out[3] = wp.static(len(vec0()))
+    e = m[3:, 1]                         # a matrix slice selecting no rows: a vec0
+    out[4] = int(e == vec0())
+    w = v
+    w[4:] = vec0()                       # writing an empty slice changes nothing
+    w[2:2] += vec0()
+    out[5] = int(w == v)
+    s = float(0.0)
+    for i in range(len(z)):              # a loop over no components runs no iteration
+        s += z[i]
+    sums[0] = s + wp.length(v[:0]) + wp.dot(z, z)
+
+
+def test_zero_length_slices(wp, rng):
+    v = rng.uniform(-2, 2, size=4).astype(np.float32)
+    out, sums = wp.zeros(6, dtype=int), wp.full(1, 5.0, dtype=float)
+    wp.launch(empty_slices, 1, inputs=[wp.vec4(*v), wp.mat33(*rng.uniform(-1, 1, size=9)), out, sums])
+    np.testing.assert_array_equal(out.numpy(), [1, 1, 1, 0, 1, 1])
+    assert sums.numpy()[0] == 0.0
+
+
+def test_zero_length_vector_is_kernel_local(wp, kernel_module):
+    mod = kernel_module("""
+        vec0 = wp.types.vector(0, float)
+
+        @wp.kernel
+        def k(v: vec0, out: wp.array[float]):
+            out[0] = 1.0
+    """)
+    with pytest.raises(Exception, match="zero-length type vec\\(0,float32\\) exists only inside kernels"):
+        wp.launch(mod.k, 1, inputs=[mod.vec0()], outputs=[wp.zeros(1)])
