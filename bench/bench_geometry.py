@@ -8,7 +8,7 @@ launch of Q closest-point queries (mesh_query_point_no_sign + mesh_eval_position
 sync), median of several runs. The error column is the largest difference, over 64 of the
 queries, between the distance to the closest point found and the float64 brute-force distance
 to every triangle. Ratio = warp time / weft time (higher is better for weft). On a GPU weft
-builds and refits on the host (docs/geometry.md), Warp on the device.
+builds on the host and refits on the device (docs/geometry.md), Warp does both on the device.
 """
 from __future__ import annotations
 

@@ -67,6 +67,49 @@ extern "C" __global__ void weft_fill_strided(char* dst, weft_view dv, weft_value
     else weft_move<unsigned char>(d, s, esize);
   }
 }
+// BVH refit (wp::bvh_node_t): the nodes of one level, each from its items (a leaf: wp.Bvh boxes,
+// or the triangles of a wp.Mesh) or its two children (refitted by the launch before), with the
+// host refit's arithmetic (bounds start at +-3e38; a NaN coordinate never wins a min/max).
+struct weft_bvh_node { float lower[3]; int left; float upper[3]; int right; };
+__device__ __forceinline__ void weft_grow(float* lo, float* hi, const float* l, const float* h) {
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = l[k] < lo[k] ? l[k] : lo[k];
+    hi[k] = hi[k] < h[k] ? h[k] : hi[k];
+  }
+}
+extern "C" __global__ void weft_bvh_refit_level(weft_bvh_node* nodes, const int* levels, i64 begin, i64 end,
+                                                const int* prim_ids, const float* lowers, const float* uppers,
+                                                const float* points, const int* indices) {
+  for (i64 k = begin + (i64)blockIdx.x * blockDim.x + threadIdx.x; k < end; k += (i64)blockDim.x * gridDim.x) {
+    weft_bvh_node n = nodes[levels[k]];
+    float lo[3] = {3.0e38f, 3.0e38f, 3.0e38f}, hi[3] = {-3.0e38f, -3.0e38f, -3.0e38f};
+    if (n.right < 0) {
+      for (int i = n.left; i < n.left - n.right; ++i) {
+        const i64 item = prim_ids[i];
+        if (indices) {
+          float l[3] = {3.0e38f, 3.0e38f, 3.0e38f}, h[3] = {-3.0e38f, -3.0e38f, -3.0e38f};
+          for (int c = 0; c < 3; ++c) {
+            const float* v = points + 3 * (i64)indices[3 * item + c];
+            for (int a = 0; a < 3; ++a) {
+              if (v[a] < l[a]) l[a] = v[a];
+              if (v[a] > h[a]) h[a] = v[a];
+            }
+          }
+          weft_grow(lo, hi, l, h);
+        } else {
+          weft_grow(lo, hi, lowers + 3 * item, uppers + 3 * item);
+        }
+      }
+    } else {
+      weft_grow(lo, hi, nodes[n.left].lower, nodes[n.left].upper);
+      weft_grow(lo, hi, nodes[n.right].lower, nodes[n.right].upper);
+    }
+    for (int a = 0; a < 3; ++a) {
+      nodes[levels[k]].lower[a] = lo[a];
+      nodes[levels[k]].upper[a] = hi[a];
+    }
+  }
+}
 )CUDA";
 
 struct ViewArg {
@@ -793,6 +836,25 @@ Status CudaDevice::Fill(Session& s, const ArrayView& dst, const std::string& val
   void* params[] = {const_cast<jit::CuDevicePtr*>(&d), &dv, &v, &count, &es, &word};
   return driver_->Check(driver_->LaunchKernel(fn, GridFor(n, 256, 65536), 1, 1, 256, 1, 1, 0, st->stream, params, nullptr),
                         "cuLaunchKernel (fill)");
+}
+
+Status CudaDevice::RefitBvh(Session& s, const geometry::BvhRefitJob& job) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  if (lost_.load()) return Unavailable(name_ + " was lost");
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  WEFT_ASSIGN_OR_RETURN(jit::CuFunction fn, Builtin("weft_bvh_refit_level"));
+  jit::CuDevicePtr nodes = job.nodes, levels = job.levels, prim_ids = job.prim_ids, lowers = job.lowers,
+                   uppers = job.uppers, points = job.points, indices = job.indices;
+  for (size_t l = 0; l + 1 < job.level_starts.size(); ++l) {
+    int64_t begin = job.level_starts[l], end = job.level_starts[l + 1];
+    if (end <= begin) continue;
+    void* params[] = {&nodes, &levels, &begin, &end, &prim_ids, &lowers, &uppers, &points, &indices};
+    WEFT_RETURN_IF_ERROR(driver_->Check(driver_->LaunchKernel(fn, GridFor(static_cast<uint64_t>(end - begin), 128, 65536),
+                                                              1, 1, 128, 1, 1, 0, st->stream, params, nullptr),
+                                        "cuLaunchKernel (BVH refit)"));
+  }
+  return Status::Ok();
 }
 
 Status CudaDevice::StridedCopyOnDevice(Stream& st, const ArrayView& dst, const ArrayView& src) {

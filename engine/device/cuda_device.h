@@ -76,6 +76,7 @@ class CudaDevice final : public Device {
   Status Copy(Session& s, const ArrayView& dst, const ArrayView& src) override;
   Status Launch(Session& s, const KernelLaunch& launch, std::string* output) override;
   DeviceSyncResult Synchronize(Session& s) override;
+  Status RefitBvh(Session& s, const geometry::BvhRefitJob& job) override;
   void CloseSession(Session& s) override;
 
   // CUDA IPC import of a client process's allocation (cuda_device_import.cpp): the open

@@ -13,6 +13,7 @@
 
 #include "engine/core/module_source.h"
 #include "engine/core/status.h"
+#include "engine/geometry/bvh_build.h"
 #include "engine/runtime/array_view.h"
 #include "engine/runtime/launch_args.h"
 #include "engine/runtime/module_store.h"
@@ -72,6 +73,11 @@ class Device {
   virtual DeviceSyncResult Synchronize(Session& s) = 0;
   // The session closed (its work already stopped and waited for): drop its stream.
   virtual void CloseSession(Session& s) = 0;
+
+  // Recomputes a BVH's node bounds on this device, one launch per level of `job` (deepest
+  // first), queued on the session's stream after its earlier work (a GPU geometry refit).
+  // Unimplemented where the device has no such path (the caller refits on the host).
+  virtual Status RefitBvh(Session&, const geometry::BvhRefitJob&) { return Unimplemented(name() + " refits BVHs on the host"); }
 };
 
 }  // namespace weft

@@ -27,6 +27,8 @@ float Clean(float x) { return x == x ? x : 0.0f; }   // NaN sorts as 0
 
 void BuildBvh(int64_t n, const ItemBounds& bounds, BvhData* out) {
   out->nodes.clear();
+  out->levels.clear();
+  out->level_starts.clear();
   out->prim_ids.resize(static_cast<size_t>(n));
   if (n <= 0) return;
   std::vector<float> lo(3 * n), hi(3 * n), centroid(3 * n);
@@ -79,6 +81,27 @@ void BuildBvh(int64_t n, const ItemBounds& bounds, BvhData* out) {
     stack.push_back({right, mid, t.end});
     stack.push_back({left, t.begin, mid});
   }
+  OrderLevels(out);
+}
+
+void OrderLevels(BvhData* bvh) {
+  const size_t n = bvh->nodes.size();
+  std::vector<int32_t> depth(n, 0);
+  int32_t deepest = 0;
+  for (size_t k = 0; k < n; ++k) {   // children come after their parent
+    const wp::bvh_node_t& node = bvh->nodes[k];
+    if (node.right >= 0) {
+      depth[node.left] = depth[node.right] = depth[k] + 1;
+      deepest = std::max(deepest, depth[k] + 1);
+    }
+  }
+  std::vector<int64_t> count(static_cast<size_t>(deepest) + 2, 0);
+  for (size_t k = 0; k < n; ++k) ++count[deepest - depth[k] + 1];   // slot of level d: deepest - d
+  for (size_t l = 1; l < count.size(); ++l) count[l] += count[l - 1];
+  bvh->level_starts = count;
+  bvh->levels.assign(n, 0);
+  std::vector<int64_t> cursor(count.begin(), count.end() - 1);
+  for (size_t k = 0; k < n; ++k) bvh->levels[cursor[deepest - depth[k]]++] = static_cast<int32_t>(k);
 }
 
 void RefitBvh(const ItemBounds& bounds, BvhData* bvh) {

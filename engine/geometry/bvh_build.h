@@ -17,6 +17,20 @@ constexpr int32_t kBvhLeafSize = 4;
 struct BvhData {
   std::vector<wp::bvh_node_t> nodes;
   std::vector<int32_t> prim_ids;
+  // The nodes level by level, deepest level first (levels[level_starts[k] .. level_starts[k+1])
+  // is one level): a device refit recomputes one level per launch, every child before its parent.
+  std::vector<int32_t> levels;
+  std::vector<int64_t> level_starts;
+};
+
+// Device memory of one BVH refit (engine/geometry): the nodes (wp::bvh_node_t), the leaf item
+// order, the nodes level by level and the item arrays: lowers/uppers (a wp.Bvh) or points and
+// the checked face indices (a wp.Mesh), all on the device; levels[level_starts[k] ..
+// level_starts[k+1]) is one level, deepest first.
+struct BvhRefitJob {
+  uintptr_t nodes = 0, prim_ids = 0, levels = 0;
+  uintptr_t lowers = 0, uppers = 0, points = 0, indices = 0;
+  std::vector<int64_t> level_starts;
 };
 
 // Bounds of item i into lo[3], hi[3].
@@ -26,5 +40,7 @@ using ItemBounds = std::function<void(int64_t i, float* lo, float* hi)>;
 void BuildBvh(int64_t n, const ItemBounds& bounds, BvhData* out);
 // Recomputes every node's bounds from the items' current bounds (same tree).
 void RefitBvh(const ItemBounds& bounds, BvhData* bvh);
+// Fills bvh->levels / level_starts from the nodes (BuildBvh calls it).
+void OrderLevels(BvhData* bvh);
 
 }  // namespace weft::geometry

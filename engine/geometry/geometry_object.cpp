@@ -238,6 +238,7 @@ Status GeometryObject::Mirror(const DeviceAccess* dev) {
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, indices_.data(), indices_.size() * sizeof(int32_t), &gpu_indices_));
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.nodes.data(), bvh_.nodes.size() * sizeof(wp::bvh_node_t), &gpu_nodes_));
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.prim_ids.data(), bvh_.prim_ids.size() * sizeof(int32_t), &gpu_prim_ids_));
+  WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.levels.data(), bvh_.levels.size() * sizeof(int32_t), &gpu_levels_));
   WEFT_RETURN_IF_ERROR(
       MirrorOne(dev, cell_starts_.data(), cell_starts_.size() * sizeof(int32_t), &gpu_cell_starts_));
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, cell_ends_.data(), cell_ends_.size() * sizeof(int32_t), &gpu_cell_ends_));
@@ -260,6 +261,26 @@ Status GeometryObject::Rebuild(const DeviceAccess* dev) {
 
 Status GeometryObject::Refit(const DeviceAccess* dev) {
   if (kind_ == wp::GEOMETRY_HASH_GRID) return Status::Ok();
+  if (on_gpu() && dev && dev->refit_bvh && gpu_nodes_.bytes > 0) {
+    // On the device, queued after the session's work: no download, no upload.
+    BvhRefitJob job;
+    auto address = [](const std::shared_ptr<Allocation>& a) {
+      return a ? reinterpret_cast<uintptr_t>(a->data()) : uintptr_t{0};
+    };
+    job.nodes = address(gpu_nodes_.memory);
+    job.prim_ids = address(gpu_prim_ids_.memory);
+    job.levels = address(gpu_levels_.memory);
+    job.level_starts = bvh_.level_starts;
+    if (kind_ == wp::GEOMETRY_BVH) {
+      job.lowers = address(lowers_);
+      job.uppers = address(uppers_);
+    } else {
+      job.points = address(points_);
+      job.indices = address(gpu_indices_.memory);
+    }
+    Status refit = dev->refit_bvh(device_, job);
+    if (refit.code() != StatusCode::kUnimplemented) return refit;
+  }
   std::vector<float> host;
   const float *lo, *hi, *p;
   WEFT_RETURN_IF_ERROR(HostArrays(dev, &host, &lo, &hi, &p));

@@ -37,6 +37,8 @@ struct DeviceAccess {
   std::function<Expected<std::shared_ptr<Allocation>>(const std::string& device, uint64_t bytes)> allocate;
   // Copies n bytes from src to the start of `a`, ordered with the session's work on a's device.
   std::function<Status(const Allocation& a, const void* src, uint64_t n)> upload;
+  // Refits a BVH on `device` (Device::RefitBvh; may be empty: the host refits).
+  std::function<Status(const std::string& device, const BvhRefitJob& job)> refit_bvh;
 };
 
 class GeometryObject {
@@ -104,7 +106,7 @@ class GeometryObject {
   std::vector<int32_t> sorted_groups_;   // grouped build: the group of each sorted_ids_ entry
   // GPU: device copies of indices_, the nodes, the prim ids and the cells.
   DeviceCopy gpu_indices_, gpu_nodes_, gpu_prim_ids_, gpu_cell_starts_, gpu_cell_ends_, gpu_sorted_ids_;
-  DeviceCopy gpu_sorted_groups_;
+  DeviceCopy gpu_sorted_groups_, gpu_levels_;
 };
 
 // Checks that `a` is a whole contiguous array of vec3 float32 (any number of dimensions, or

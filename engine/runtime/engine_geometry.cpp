@@ -33,6 +33,11 @@ Expected<uint64_t> Engine::RunGeometry(Session& s, const geometry::GeometryReque
     bytes_type.scalar = ScalarType::kUInt8;
     return NewAllocation(s, *d, bytes_type, {static_cast<int64_t>(bytes)}, false);
   };
+  access.refit_bvh = [this, &s](const std::string& device, const geometry::BvhRefitJob& job) -> Status {
+    Device* d = devices_->Find(device);
+    if (!d) return Internal("geometry object on unknown device '" + device + "'");
+    return d->RefitBvh(s, job);
+  };
   return geometry::RunGeometryOp(s, r, &access);
 }
 

@@ -89,6 +89,72 @@ TEST(GeometryBvh, BuildCoversEveryItemOnceAndIsShallow) {
   EXPECT_TRUE(empty.nodes.empty());
 }
 
+// The level order a device refit walks: every node once, each level a contiguous run, every
+// child in an earlier run than its parent; refitting run by run (as the device does, one launch
+// per run) gives exactly the host refit's bounds.
+TEST(GeometryBvh, LevelOrderPutsChildrenBeforeParents) {
+  for (int n : {1, 2, 5, 17, 1000, 4097}) {
+    Boxes b = RandomBoxes(n, 11u + n);
+    BvhData d;
+    BuildBvh(n, b.bounds(), &d);
+    ASSERT_EQ(d.levels.size(), d.nodes.size());
+    ASSERT_GE(d.level_starts.size(), 2u);
+    EXPECT_EQ(d.level_starts.front(), 0);
+    EXPECT_EQ(d.level_starts.back(), static_cast<int64_t>(d.nodes.size()));
+    std::vector<int> run_of(d.nodes.size(), -1);
+    for (size_t r = 0; r + 1 < d.level_starts.size(); ++r) {
+      ASSERT_LE(d.level_starts[r], d.level_starts[r + 1]);
+      for (int64_t k = d.level_starts[r]; k < d.level_starts[r + 1]; ++k) {
+        ASSERT_EQ(run_of[d.levels[k]], -1) << "node listed twice";
+        run_of[d.levels[k]] = static_cast<int>(r);
+      }
+    }
+    for (size_t k = 0; k < d.nodes.size(); ++k) {
+      ASSERT_GE(run_of[k], 0);
+      if (d.nodes[k].right >= 0) {
+        EXPECT_LT(run_of[d.nodes[k].left], run_of[k]);
+        EXPECT_LT(run_of[d.nodes[k].right], run_of[k]);
+      }
+    }
+    EXPECT_EQ(d.levels[d.level_starts[d.level_starts.size() - 2]], 0);   // the root alone, last
+    // Move the boxes, refit on the host, and refit again run by run on a copy.
+    for (auto& v : b.lo) v += 0.5f;
+    for (auto& v : b.hi) v += 1.5f;
+    BvhData by_level = d;
+    RefitBvh(b.bounds(), &d);
+    for (size_t r = 0; r + 1 < by_level.level_starts.size(); ++r) {
+      for (int64_t k = by_level.level_starts[r]; k < by_level.level_starts[r + 1]; ++k) {
+        wp::bvh_node_t& node = by_level.nodes[by_level.levels[k]];
+        float lo[3] = {3.0e38f, 3.0e38f, 3.0e38f}, hi[3] = {-3.0e38f, -3.0e38f, -3.0e38f};
+        auto grow = [&](const float* l, const float* h) {
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = l[a] < lo[a] ? l[a] : lo[a];
+            hi[a] = hi[a] < h[a] ? h[a] : hi[a];
+          }
+        };
+        if (node.right < 0) {
+          for (int i = node.left; i < node.left - node.right; ++i) {
+            int p = by_level.prim_ids[i];
+            grow(&b.lo[3 * p], &b.hi[3 * p]);
+          }
+        } else {
+          grow(by_level.nodes[node.left].lower, by_level.nodes[node.left].upper);
+          grow(by_level.nodes[node.right].lower, by_level.nodes[node.right].upper);
+        }
+        for (int a = 0; a < 3; ++a) {
+          node.lower[a] = lo[a];
+          node.upper[a] = hi[a];
+        }
+      }
+    }
+    for (size_t k = 0; k < d.nodes.size(); ++k)
+      for (int a = 0; a < 3; ++a) {
+        EXPECT_EQ(by_level.nodes[k].lower[a], d.nodes[k].lower[a]);
+        EXPECT_EQ(by_level.nodes[k].upper[a], d.nodes[k].upper[a]);
+      }
+  }
+}
+
 TEST(GeometryBvh, NanBoundsAndIdenticalCentroidsStillBuild) {
   Boxes b = RandomBoxes(300, 3);
   for (int i = 0; i < 300; i += 3) b.lo[3 * i] = std::numeric_limits<float>::quiet_NaN();
