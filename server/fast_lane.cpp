@@ -355,6 +355,10 @@ void FastLane::Serve(Conn* c) {
         r = ServeFrame<v1::ImportCudaRequest, v1::ImportCudaResponse>(fd, "ArrayService.ImportCuda", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) { return ArrayImportCuda(engine, ss, req, resp); });
         break;
+      case kGeometryCall:
+        r = ServeFrame<v1::GeometryRequest, v1::GeometryResponse>(fd, "GeometryService.Call", body, body_len, s,
+            [&](Session& ss, const auto& req, auto* resp) { return GeometryCall(engine, ss, req, resp); });
+        break;
       default:
         break;
     }

@@ -1,17 +1,19 @@
 // The fast lane: a second transport for local clients, carrying the hot calls of one session
-// (ExecService.Submit and Synchronize; ArrayService.Create, Free, Describe and ImportCuda) over a Unix
+// (ExecService.Submit and Synchronize; ArrayService.Create, Free, Describe and ImportCuda;
+// GeometryService.Call) over a Unix
 // SOCK_SEQPACKET socket without gRPC.
 // Owns: the listening socket (<first unix path>.fast, mode 0600), the one-time secrets that
 // bind a connection to a session (handed out by SessionService.Open to local peers), the
 // per-connection threads and the frame format. Every frame is parsed and served by the same
 // handler functions as the gRPC methods (ExecSubmit, ExecSynchronize, ArrayCreate, ArrayFree,
-// ArrayDescribe, ArrayImportCuda in services.h).
+// ArrayDescribe, ArrayImportCuda, GeometryCall in services.h).
 //
 // Frames (one datagram each; docs/protocol.md "Fast lane"):
 //   request: u32 method (little endian; 1 hello, 2 Submit, 3 Synchronize, 4 ArrayService.Create,
-//            5 Free, 6 Describe, 7 ImportCuda), then the request message serialized
-//            (FastLaneHello, SubmitRequest, SynchronizeRequest, CreateArrayRequest,
-//            FreeArrayRequest, DescribeArrayRequest, ImportCudaRequest); at most
+//            5 Free, 6 Describe, 7 ImportCuda, 8 GeometryService.Call), then the request
+//            message serialized (FastLaneHello, SubmitRequest, SynchronizeRequest,
+//            CreateArrayRequest, FreeArrayRequest, DescribeArrayRequest, ImportCudaRequest,
+//            GeometryRequest); at most
 //            kMaxRequestBytes in all.
 //   reply:   u32 status code (gRPC numbering), u32 flags (bit 0: more frames of this reply
 //            follow; bit 1: the daemon ends the connection after this reply), then a piece of the payload: the response message serialized on OK, the
@@ -47,6 +49,7 @@ class FastLane {
   static constexpr uint32_t kArrayFree = 5;
   static constexpr uint32_t kArrayDescribe = 6;
   static constexpr uint32_t kArrayImportCuda = 7;
+  static constexpr uint32_t kGeometryCall = 8;
   static constexpr size_t kMaxRequestBytes = 160u << 10;   // fits a default socket send buffer
   static constexpr size_t kMaxHelloBytes = 1024;           // before the hello is accepted
   static constexpr size_t kReplyChunkBytes = 64u << 10;

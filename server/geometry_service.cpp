@@ -8,34 +8,38 @@
 
 namespace weft::server {
 
+Status GeometryCall(Engine& engine, Session& s, const v1::GeometryRequest& req, v1::GeometryResponse* resp) {
+  geometry::GeometryRequest r;
+  int op = static_cast<int>(req.op());
+  if (op < 1 || op > 7) return InvalidArgument("geometry: unknown operation " + std::to_string(op));
+  r.op = static_cast<geometry::GeometryRequest::Op>(op);
+  r.id = req.id();
+  r.device = req.device().empty() ? "cpu" : req.device();
+  if (r.op == geometry::GeometryRequest::Op::kCreateHashGrid) {
+    if (req.dim_size() != 3) return InvalidArgument("HashGrid: dim must have 3 values");
+    for (int k = 0; k < 3; ++k) r.dim[k] = req.dim(k);
+  }
+  r.points = req.points();
+  r.indices = req.indices();
+  r.velocities = req.velocities();
+  r.lowers = req.lowers();
+  r.uppers = req.uppers();
+  r.radius = req.radius();
+  r.groups = req.groups();
+  auto id = engine.RunGeometry(s, r);
+  if (!id.ok()) {
+    spdlog::info("geometry op {} of session {} failed: {}", op, s.label(), id.status().ToString());
+    return id.status();
+  }
+  resp->set_id(*id);
+  return Status::Ok();
+}
+
 grpc::Status GeometryServiceImpl::Call(grpc::ServerContext* ctx, const v1::GeometryRequest* req,
                                        v1::GeometryResponse* resp) {
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
-  geometry::GeometryRequest r;
-  int op = static_cast<int>(req->op());
-  if (op < 1 || op > 7) return ToGrpc(InvalidArgument("geometry: unknown operation " + std::to_string(op)));
-  r.op = static_cast<geometry::GeometryRequest::Op>(op);
-  r.id = req->id();
-  r.device = req->device().empty() ? "cpu" : req->device();
-  if (r.op == geometry::GeometryRequest::Op::kCreateHashGrid) {
-    if (req->dim_size() != 3) return ToGrpc(InvalidArgument("HashGrid: dim must have 3 values"));
-    for (int k = 0; k < 3; ++k) r.dim[k] = req->dim(k);
-  }
-  r.points = req->points();
-  r.indices = req->indices();
-  r.velocities = req->velocities();
-  r.lowers = req->lowers();
-  r.uppers = req->uppers();
-  r.radius = req->radius();
-  r.groups = req->groups();
-  auto id = auth_.engine().RunGeometry(**s, r);
-  if (!id.ok()) {
-    spdlog::info("geometry op {} from {} failed: {}", op, ctx->peer(), id.status().ToString());
-    return ToGrpc(id.status());
-  }
-  resp->set_id(*id);
-  return grpc::Status::OK;
+  return ToGrpc(GeometryCall(auth_.engine(), **s, *req, resp));
 }
 
 }  // namespace weft::server

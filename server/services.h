@@ -66,6 +66,8 @@ Status ArrayCreate(Engine& engine, Session& s, const v1::CreateArrayRequest& req
 Status ArrayFree(Engine& engine, Session& s, const v1::FreeArrayRequest& req);
 Status ArrayDescribe(Engine& engine, Session& s, const v1::DescribeArrayRequest& req, v1::DescribeArrayResponse* resp);
 Status ArrayImportCuda(Engine& engine, Session& s, const v1::ImportCudaRequest& req, v1::ImportCudaResponse* resp);
+// The body of GeometryService.Call (the gRPC method and the fast lane).
+Status GeometryCall(Engine& engine, Session& s, const v1::GeometryRequest& req, v1::GeometryResponse* resp);
 
 class ExecServiceImpl final : public v1::ExecService::Service {
  public:

@@ -469,6 +469,58 @@ def test_fast_lane_array_errors_are_the_grpc_errors(wp):
         _close_session(rt, a.session_id)
 
 
+GEOMETRY_CALL = 8
+
+
+@wp.kernel
+def lane_grid_ids(grid: wp.uint64, out: wp.array(dtype=int)):
+    i = wp.tid()
+    out[i] = wp.hash_grid_point_id(grid, i)
+
+
+def test_fast_lane_carries_geometry_calls(wp, monkeypatch):
+    """HashGrid/Mesh create, build, refit and rebuild go over the lane (a refit every step
+    costs no gRPC round trip), with the same objects as through gRPC; another session's object
+    id and an unknown operation get the gRPC errors through a bound lane, and it stays open."""
+    rt = _runtime_with_lane(wp)
+    methods = []
+    real_call = rt.fast_lane.call
+    monkeypatch.setattr(rt.fast_lane, "call", lambda m, r, t: (methods.append(m), real_call(m, r, t))[1])
+    rng = np.random.default_rng(5)
+    pts = wp.array(rng.uniform(-2, 2, size=(300, 3)).astype(np.float32), dtype=wp.vec3, device="cpu")
+    grid = wp.HashGrid(8, 8, 8, device="cpu")
+    grid.build(pts, 0.5)
+    ids = wp.zeros(300, dtype=int, device="cpu")
+    wp.launch(lane_grid_ids, dim=300, inputs=[grid.id, ids], device="cpu")
+    assert sorted(ids.numpy().tolist()) == list(range(300))
+    tri = wp.array(np.array([0, 1, 2, 2, 1, 3], dtype=np.int32), dtype=int, device="cpu")
+    mesh = wp.Mesh(points=pts, indices=tri)
+    mesh.refit()
+    mesh.rebuild()
+    assert methods.count(GEOMETRY_CALL) == 5, methods
+    from weft.v1 import geometry_pb2
+    a, s = _bound_lane(rt)   # another session of this process, on a lane of its own
+    try:
+        meta = (("weft-session", a.session_id),) + tuple(m for m in rt._base_metadata if m[0] != "weft-session")
+        stub = _runtime._make_stub_class(geometry_pb2.DESCRIPTOR.services_by_name["GeometryService"])(rt.channel)
+        for request in (geometry_pb2.GeometryRequest(op=geometry_pb2.GeometryRequest.REFIT, id=mesh.id),
+                        geometry_pb2.GeometryRequest(op=99, id=mesh.id)):
+            _send(s, GEOMETRY_CALL, request.SerializeToString())
+            code, flags, payload = _reply(s)
+            assert code != 0 and not flags & 2, payload
+            with pytest.raises(Exception) as via_grpc:
+                rt.call(lambda req, metadata, timeout: stub.Call(req, metadata=meta, timeout=timeout), request)
+            via_lane = wp.WeftError(payload.decode(), _fast_lane._CODE_NAMES[code])
+            assert str(via_lane) == str(via_grpc.value)
+        _send(s, SYNCHRONIZE, exec_pb2.SynchronizeRequest().SerializeToString())
+        assert _reply(s)[0] == 0
+    finally:
+        s.close()
+        _close_session(rt, a.session_id)
+    wp.launch(lane_grid_ids, dim=300, inputs=[grid.id, ids], device="cpu")   # still this session's
+    assert sorted(ids.numpy().tolist()) == list(range(300))
+
+
 def test_array_calls_fall_back_to_grpc_when_the_lane_refuses_them(wp, run_client):
     """A daemon whose lane does not serve a method ends the lane on it (unknown method): the
     client then serves the call, and every later one, through gRPC. Run in a child client, so

@@ -25,6 +25,7 @@ from .errors import WeftError
 
 HELLO, SUBMIT, SYNCHRONIZE = 1, 2, 3
 ARRAY_CREATE, ARRAY_FREE, ARRAY_DESCRIBE, ARRAY_IMPORT_CUDA = 4, 5, 6, 7
+GEOMETRY_CALL = 8
 # Frames sent before their replies are read by call_many: the replies wait in this process's
 # receive buffer meanwhile, and a window this small never fills it (the daemon would block).
 PIPELINE_WINDOW = 32

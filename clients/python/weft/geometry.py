@@ -38,15 +38,18 @@ def _pb2():
 _STUBS = {}
 
 
-def _call(rt, **fields) -> int:
+def _call(rt, _lane=True, **fields) -> int:
     pb2 = _pb2()
     stub = _STUBS.get(id(rt))
     if stub is None or stub[0] is not rt:
         cls = _runtime._make_stub_class(pb2.DESCRIPTOR.services_by_name["GeometryService"])
         stub = (rt, cls(rt.channel))
         _STUBS[id(rt)] = stub
+    request = pb2.GeometryRequest(**fields)
     rt.flush()   # the operation runs after everything queued before it
-    return rt.call(stub[1].Call, pb2.GeometryRequest(**fields)).id
+    if not _lane:   # a free from a finalizer: gRPC, as before the lane carried geometry
+        return rt.call(stub[1].Call, request).id
+    return rt.geometry_call(stub[1].Call, request).id
 
 
 def _handle_of(a, what: str) -> int:
@@ -67,7 +70,7 @@ class _Object:
     def _free(self):
         if self.id and self._rt is not None and _runtime.current_runtime() is self._rt:
             try:
-                _call(self._rt, op=_op().FREE, id=self.id)
+                _call(self._rt, _lane=False, op=_op().FREE, id=self.id)
             except Exception:  # noqa: BLE001 - session already closed / interpreter shutdown
                 pass
         self.id = 0
