@@ -3,62 +3,67 @@ gradient, bias-corrected, one step kernel per parameter array. Parameters may be
 float16 (moments kept in float32) or vec3 arrays, as in Warp."""
 from __future__ import annotations
 
+from typing import Any
+
 import weft as wp
 
 from ._common import check_gradient, flat, state_like
 
 
-@wp.kernel
-def _adam_float32(g: wp.array(dtype=wp.float32), m: wp.array(dtype=wp.float32),
-                  v: wp.array(dtype=wp.float32), lr: float, beta1: float, beta2: float,
-                  t: float, eps: float, params: wp.array(dtype=wp.float32)):
-    i = wp.tid()
-    gi = g[i]
-    mi = beta1 * m[i] + (1.0 - beta1) * gi
-    vi = beta2 * v[i] + (1.0 - beta2) * gi * gi
-    m[i] = mi
-    v[i] = vi
-    m_hat = mi / (1.0 - wp.pow(beta1, t + 1.0))
-    v_hat = vi / (1.0 - wp.pow(beta2, t + 1.0))
-    params[i] = params[i] - lr * m_hat / (wp.sqrt(v_hat) + eps)
+@wp.func
+def _square(g: float):
+    return g * g
+
+
+@wp.func
+def _square(g: wp.vec3):  # noqa: F811 - the vec3 overload
+    return wp.cw_mul(g, g)
+
+
+@wp.func
+def _ratio(m_hat: float, v_hat: float, eps: float):
+    return m_hat / (wp.sqrt(v_hat) + eps)
+
+
+@wp.func
+def _ratio(m_hat: wp.vec3, v_hat: wp.vec3, eps: float):  # noqa: F811 - the vec3 overload
+    return wp.cw_div(m_hat, wp.vec3(wp.sqrt(v_hat[0]) + eps, wp.sqrt(v_hat[1]) + eps, wp.sqrt(v_hat[2]) + eps))
+
+
+@wp.func
+def _adam_update(m: Any, v: Any, g: Any, beta1: float, beta2: float, t: float, eps: float):
+    """The new moments and the bias-corrected step direction (to be scaled by lr)."""
+    mi = beta1 * m + (1.0 - beta1) * g
+    vi = beta2 * v + (1.0 - beta2) * _square(g)
+    return mi, vi, _ratio(mi / (1.0 - wp.pow(beta1, t + 1.0)), vi / (1.0 - wp.pow(beta2, t + 1.0)), eps)
 
 
 @wp.kernel
-def _adam_float16(g: wp.array(dtype=wp.float16), m: wp.array(dtype=wp.float32),
-                  v: wp.array(dtype=wp.float32), lr: float, beta1: float, beta2: float,
-                  t: float, eps: float, params: wp.array(dtype=wp.float16)):
+def _adam_step(g: wp.array(dtype=Any), m: wp.array(dtype=Any), v: wp.array(dtype=Any), lr: float, beta1: float,
+               beta2: float, t: float, eps: float, params: wp.array(dtype=Any)):
     i = wp.tid()
-    gi = float(g[i])
-    mi = beta1 * m[i] + (1.0 - beta1) * gi
-    vi = beta2 * v[i] + (1.0 - beta2) * gi * gi
+    mi, vi, d = _adam_update(m[i], v[i], g[i], beta1, beta2, t, eps)
     m[i] = mi
     v[i] = vi
-    m_hat = mi / (1.0 - wp.pow(beta1, t + 1.0))
-    v_hat = vi / (1.0 - wp.pow(beta2, t + 1.0))
-    params[i] = wp.float16(float(params[i]) - lr * m_hat / (wp.sqrt(v_hat) + eps))
+    params[i] = params[i] - lr * d
 
 
 @wp.kernel
-def _adam_vec3(g: wp.array(dtype=wp.vec3), m: wp.array(dtype=wp.vec3),
-               v: wp.array(dtype=wp.vec3), lr: float, beta1: float, beta2: float,
-               t: float, eps: float, params: wp.array(dtype=wp.vec3)):
+def _adam_step_half(g: wp.array(dtype=wp.float16), m: wp.array(dtype=wp.float32), v: wp.array(dtype=wp.float32),
+                    lr: float, beta1: float, beta2: float, t: float, eps: float,
+                    params: wp.array(dtype=wp.float16)):
     i = wp.tid()
-    gi = g[i]
-    mi = beta1 * m[i] + (1.0 - beta1) * gi
-    vi = beta2 * v[i] + (1.0 - beta2) * wp.cw_mul(gi, gi)
+    mi, vi, d = _adam_update(m[i], v[i], float(g[i]), beta1, beta2, t, eps)
     m[i] = mi
     v[i] = vi
-    m_hat = mi / (1.0 - wp.pow(beta1, t + 1.0))
-    v_hat = vi / (1.0 - wp.pow(beta2, t + 1.0))
-    root = wp.vec3(wp.sqrt(v_hat[0]) + eps, wp.sqrt(v_hat[1]) + eps, wp.sqrt(v_hat[2]) + eps)
-    params[i] = params[i] - lr * wp.cw_div(m_hat, root)
+    params[i] = wp.float16(float(params[i]) - lr * d)
 
 
 # parameter dtype -> (moment dtype, step kernel)
 _KERNELS = {
-    wp.float32: (wp.float32, _adam_float32),
-    wp.float16: (wp.float32, _adam_float16),
-    wp.vec3: (wp.vec3, _adam_vec3),
+    wp.float32: (wp.float32, _adam_step),
+    wp.float16: (wp.float32, _adam_step_half),
+    wp.vec3: (wp.vec3, _adam_step),
 }
 
 

@@ -1,7 +1,7 @@
 """Stochastic gradient descent with Warp's interface: optional momentum (with dampening and
-Nesterov's variant) and weight decay (an L2 term added to the gradient); generic step kernels
-(one for scalar, one for vector/matrix dtypes) compute in the parameter's own scalar type (the
-coefficients arrive as float64), so float16, float32 and float64 parameters all work."""
+Nesterov's variant) and weight decay (an L2 term added to the gradient); one generic step kernel
+computes in the parameter's own scalar type (the coefficients are passed as values of that type),
+so float16, float32 and float64 parameters, vectors and matrices all work."""
 from __future__ import annotations
 
 from typing import Any
@@ -12,49 +12,26 @@ from ..types import type_repr
 from ._common import check_gradient, flat, state_like
 
 
-@wp.func
-def _sgd_update(p: Any, g: Any, b: Any, lr: Any, momentum: Any, dampening: Any, weight_decay: Any,
-                nesterov: int, t: int):
-    """(new parameter, new momentum buffer) of one element; the coefficients have the
-    parameter's scalar type."""
+@wp.kernel
+def _sgd_step(g: wp.array(dtype=Any), b: wp.array(dtype=Any), lr: Any, momentum: Any, dampening: Any,
+              weight_decay: Any, nesterov: int, t: int, params: wp.array(dtype=Any)):
+    # the coefficients arrive as values of the parameters' scalar type
+    i = wp.tid()
     zero = lr - lr
-    d = g
+    p = params[i]
+    d = g[i]
     if weight_decay != zero:
         d = d + weight_decay * p
-    buf = b
     if momentum != zero:
         buf = d
         if t > 0:
-            buf = momentum * b + (lr / lr - dampening) * d
+            buf = momentum * b[i] + (lr / lr - dampening) * d
+        b[i] = buf
         if nesterov != 0:
             d = d + momentum * buf
         else:
             d = buf
-    return p - lr * d, buf
-
-
-@wp.kernel
-def _sgd_scalar(g: wp.array(dtype=Any), b: wp.array(dtype=Any), lr: wp.float64, momentum: wp.float64,
-                dampening: wp.float64, weight_decay: wp.float64, nesterov: int, t: int,
-                params: wp.array(dtype=Any)):
-    i = wp.tid()
-    p = params[i]
-    s = type(p)
-    new_p, new_b = _sgd_update(p, g[i], b[i], s(lr), s(momentum), s(dampening), s(weight_decay), nesterov, t)
-    b[i] = new_b
-    params[i] = new_p
-
-
-@wp.kernel
-def _sgd_vector(g: wp.array(dtype=Any), b: wp.array(dtype=Any), lr: wp.float64, momentum: wp.float64,
-                dampening: wp.float64, weight_decay: wp.float64, nesterov: int, t: int,
-                params: wp.array(dtype=Any)):
-    i = wp.tid()
-    p = params[i]
-    s = p.dtype
-    new_p, new_b = _sgd_update(p, g[i], b[i], s(lr), s(momentum), s(dampening), s(weight_decay), nesterov, t)
-    b[i] = new_b
-    params[i] = new_p
+    params[i] = p - lr * d
 
 
 class SGD:
@@ -114,8 +91,7 @@ class SGD:
                             f"matrices, got {type_repr(params.dtype)}")
         if params.size == 0:
             return
-        kernel = _sgd_vector if getattr(params.dtype, "_shape_", ()) else _sgd_scalar
-        wp.launch(kernel, dim=params.size,
-                  inputs=[flat(g), flat(b), float(lr), float(momentum), float(dampening),
-                          float(weight_decay), int(bool(nesterov)), int(t), flat(params)],
+        wp.launch(_sgd_step, dim=params.size,
+                  inputs=[flat(g), flat(b), scalar(lr), scalar(momentum), scalar(dampening),
+                          scalar(weight_decay), int(bool(nesterov)), int(t), flat(params)],
                   device=params.device)
