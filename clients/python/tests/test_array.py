@@ -74,6 +74,9 @@ def test_composite_dtypes_from_numpy(wp):
     assert q.shape == (5,) and wp.types.type_str(q.dtype) == "quat(float64)"
     with pytest.raises(RuntimeError, match="innermost"):
         wp.array(np.zeros((4, 5)), dtype=wp.vec3)
+    for dtype in (wp.vec2b, wp.mat33d, wp.quat):    # an empty list: an empty array of that dtype
+        e = wp.array([], dtype=dtype)
+        assert e.shape == (0,) and e.size == 0 and e.dtype is dtype
 
 
 def test_data_with_shape_reshapes(wp):

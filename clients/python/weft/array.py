@@ -576,6 +576,8 @@ class array:
             arr_shape = tuple(arr.shape[:-1]) + (arr.shape[-1] // length,)
         elif k and arr.ndim == 0 and length == 1:
             arr_shape = (1,)
+        elif k and arr.size == 0 and arr.ndim == 1:
+            arr_shape = (0,)                 # wp.array([], dtype=vec3): no elements
         elif k:
             raise RuntimeError(f"Failed to convert input data of shape {arr.shape} to an array "
                                f"of dtype {type_str(dtype)}: the innermost dimensions must be "
