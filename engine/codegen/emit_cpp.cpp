@@ -494,6 +494,7 @@ class FnEmitter {
         if (op.dst.size() > 1) Line(name + "(" + args + ", " + Args(op.dst) + ");");
         else if (op.dst.empty()) Line(name + "(" + args + ");");
         else Line(d() + " = " + name + "(" + args + ");");
+        if (op.dst.size() == 1 && Links(T(op.dst[0]))) Line("wp::cg_link_grads(" + A(op.dst[0]) + ", " + d() + ");");
         return;
       }
       case OpKind::kFuncCall: {

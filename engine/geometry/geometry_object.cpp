@@ -162,6 +162,7 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_pt
   g->device_ = points->device;
   g->points_ = std::move(points);
   g->velocities_ = std::move(velocities);
+  g->user_indices_ = std::move(indices);
   g->num_points_ = np;
   g->num_prims_ = static_cast<int64_t>(count / 3);
   WEFT_RETURN_IF_ERROR(g->Rebuild(dev));
@@ -388,12 +389,20 @@ const T* DevicePtr(const std::shared_ptr<Allocation>& memory, uint64_t bytes) {
 
 }  // namespace
 
-void GeometryObject::Describe(wp::geometry_desc_t* d) const {
+void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_ptr<const void>>* keep) const {
   std::memset(d, 0, sizeof(*d));
   d->kind = kind_;
   d->points = Floats(points_);
   d->velocities = Floats(velocities_);
   d->indices = indices_.empty() ? nullptr : indices_.data();
+  d->user_indices = user_indices_ && !indices_.empty() ? reinterpret_cast<const int32_t*>(user_indices_->data()) : nullptr;
+  if (kind_ == wp::GEOMETRY_MESH && points_) {
+    std::shared_ptr<Allocation> grad = points_->grad;
+    if (grad && grad->byte_size >= points_->byte_size && grad->device == points_->device) {
+      d->points_grad = reinterpret_cast<float*>(grad->data());
+      if (keep) keep->push_back(std::move(grad));
+    }
+  }
   d->lowers = Floats(lowers_);
   d->uppers = Floats(uppers_);
   d->num_points = num_points_;

@@ -74,7 +74,9 @@ class GeometryObject {
   // Bvh / Mesh: a new tree from the arrays' current values.
   Status Rebuild(const DeviceAccess* dev = nullptr);
 
-  void Describe(wp::geometry_desc_t* d) const;
+  // The kernel-side descriptor; `keep` receives memory it points to beyond the object's own
+  // (the points' gradient, which the array may replace while a launch still uses it).
+  void Describe(wp::geometry_desc_t* d, std::vector<std::shared_ptr<const void>>* keep = nullptr) const;
 
  private:
   GeometryObject() = default;
@@ -98,6 +100,7 @@ class GeometryObject {
   int64_t num_points_ = 0;
   int64_t num_prims_ = 0;
   std::vector<int32_t> indices_;   // mesh: checked copy
+  std::shared_ptr<Allocation> user_indices_;   // mesh: the caller's array (mesh_get's indices)
   BvhData bvh_;
   // hash grid
   int32_t dim_[3] = {1, 1, 1};

@@ -89,7 +89,7 @@ std::shared_ptr<LaunchTable> GeometryRegistry::TableFor(const std::string& devic
       d = wp::geometry_desc_t{};
       continue;
     }
-    s.object->Describe(&d);
+    s.object->Describe(&d, &t->keep);
     d.generation = s.generation;
     t->keep.push_back(s.object);
   }

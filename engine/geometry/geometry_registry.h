@@ -24,7 +24,7 @@ constexpr size_t kMaxGeometryObjects = 65536;
 // The table of one launch; keeps its objects alive until the launch ends.
 struct LaunchTable {
   std::vector<wp::geometry_desc_t> slots;
-  std::vector<std::shared_ptr<const GeometryObject>> keep;
+  std::vector<std::shared_ptr<const void>> keep;   // the objects and the memory they point to
   wp::geometry_table_t table{};
 };
 

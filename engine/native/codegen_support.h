@@ -67,6 +67,9 @@ template <typename T> WP_FUNC void cg_accum(transform_t<T>& a, const transform_t
 // generated overloads of cg_accum / cg_link (fieldwise).
 template <typename T> WP_FUNC void cg_link(T&, const T&) {}
 template <typename T> WP_FUNC void cg_link(array_t<T>& d, const array_t<T>& s) { d = s; }
+// The adjoint of a builtin's result that holds arrays, from the result itself (their gradients):
+// nothing for most types; mesh_get's Mesh overloads it (mesh.h).
+template <typename T> WP_FUNC void cg_link_grads(T&, const T&) {}
 
 // ---- constructors by mode ----------------------------------------------------------------
 template <typename S, typename A> WP_FUNC void cg_put(S* out, int& k, const A& a) {

@@ -38,6 +38,8 @@ struct geometry_desc_t {
   const float32* points;
   const float32* velocities;
   const int32* indices;
+  const int32* user_indices;   // Mesh: the caller's indices array (what mesh_get exposes; never trusted)
+  float32* points_grad;        // Mesh: the points array's gradient (mesh_get's adjoint target), or null
   const float32* lowers;
   const float32* uppers;
   int64 num_points;

@@ -478,6 +478,43 @@ WP_FUNC vec3 mesh_eval_face_normal(const launch_context_t* ctx, int32 fid, int32
   return g ? mesh_face_normal(g, face) : vec3();
 }
 
+// wp.mesh_get: the mesh's arrays as kernel arrays. points and velocities are the caller's arrays
+// (velocities a None array when the mesh has none), indices the caller's indices array, not the
+// daemon's checked copy the queries read (writes through it cannot reach a query). No gradients.
+struct weft_struct_Mesh {   // fields named as codegen names struct fields (f_<name>)
+  array_t<vec3> f_points;
+  array_t<vec3> f_velocities;
+  array_t<int32> f_indices;
+};
+WP_FUNC void cg_accum(weft_struct_Mesh&, const weft_struct_Mesh&) {}
+WP_FUNC void cg_link(weft_struct_Mesh&, const weft_struct_Mesh&) {}
+// The adjoint of mesh_get's result (codegen_support.h cg_link_grads): a load from m.points
+// accumulates into the points array's gradient, as in Warp; velocities and indices carry none.
+WP_FUNC void cg_link_grads(weft_struct_Mesh& adj, const weft_struct_Mesh& m) { adj.f_points = grad_of(m.f_points); }
+
+template <typename T>
+WP_FUNC array_t<T> mesh_array_1d(const T* data, int64 n) {
+  array_t<T> a;
+  a.data = (T*)data;
+  a.grad = nullptr;
+  for (int d = 0; d < ARRAY_MAX_DIMS; ++d) a.shape[d] = a.strides[d] = 0;
+  a.shape[0] = data ? n : 0;
+  a.strides[0] = (int64)sizeof(T);
+  a.ndim = 1;
+  a.flags = 0;
+  return a;
+}
+
+WP_FUNC weft_struct_Mesh mesh_get(const launch_context_t* ctx, int32 fid, int32 line, uint64 id) {
+  weft_struct_Mesh m;
+  const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "mesh_get", id, GEOMETRY_MESH);
+  m.f_points = mesh_array_1d((const vec3*)(g ? g->points : nullptr), g ? g->num_points : 0);
+  m.f_points.grad = (vec3*)(g ? g->points_grad : nullptr);
+  m.f_velocities = mesh_array_1d((const vec3*)(g ? g->velocities : nullptr), g ? g->num_points : 0);
+  m.f_indices = mesh_array_1d(g ? g->user_indices : (const int32*)nullptr, g ? 3 * g->num_prims : 0);
+  return m;
+}
+
 WP_FUNC vec3 mesh_get_point(const launch_context_t* ctx, int32 fid, int32 line, uint64 id, int32 index) {
   const geometry_desc_t* g = mesh_checked(ctx, fid, line, "mesh_get_point", id, index, 3);
   return g ? geometry_load3(g->points, g->indices[index]) : vec3();

@@ -20,6 +20,8 @@ const StructTable& GeometryStructs() {
     };
     const Type f32 = Type::Float32(), i32 = Type::Int32(), b = Type::Bool();
     add("HashGridQuery", {});
+    const Type points = Type::Array(Type::Vector(3, ScalarKind::kFloat32), 1);
+    add("Mesh", {{"points", points}, {"velocities", points}, {"indices", Type::Array(i32, 1)}});
     add("BvhQuery", {});
     add("MeshQueryAABB", {});
     add("MeshQueryPoint", {{"result", b}, {"sign", f32}, {"face", i32}, {"u", f32}, {"v", f32}});
@@ -143,6 +145,9 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
   mesh("mesh_get_point(id: uint64, index: int32) -> vec(3,float32)", "points[indices[index]].", q);
   mesh("mesh_get_velocity(id: uint64, index: int32) -> vec(3,float32)", "velocities[indices[index]].", q);
   mesh("mesh_get_index(id: uint64, index: int32) -> int32", "indices[index].", q);
+  mesh("mesh_get(id: uint64) -> struct(Mesh)",
+       "The mesh's arrays: points, velocities (a None array without them) and indices (the caller's "
+       "arrays; the queries read the daemon's checked copy of the indices). No gradients flow through them.", q);
 }
 
 }  // namespace weft::sema

@@ -604,6 +604,104 @@ def test_mesh_query_aabb_and_accessors(rng):
     np.testing.assert_allclose(vels.numpy(), vref, atol=1e-5)
 
 
+@wp.kernel
+def mesh_get_faces(mesh: wp.uint64, corners: wp.array(dtype=wp.vec3), vels: wp.array(dtype=wp.vec3),
+                   counts: wp.array(dtype=int)):
+    f = wp.tid()
+    m = wp.mesh_get(mesh)
+    for k in range(3):
+        v = m.indices[3 * f + k]
+        corners[3 * f + k] = m.points[v]
+        if m.velocities.shape[0] > 0:
+            vels[3 * f + k] = m.velocities[v]
+    if f == 0:
+        counts[0] = m.points.shape[0]
+        counts[1] = m.indices.shape[0]
+        counts[2] = m.velocities.shape[0]
+
+
+@wp.kernel
+def mesh_get_scramble(mesh: wp.uint64):
+    m = wp.mesh_get(mesh)
+    m.indices[wp.tid()] = 1 << 30          # the caller's array: the queries keep the checked copy
+
+
+@wp.kernel
+def mesh_get_velocity_of(mesh: wp.uint64, out: wp.array(dtype=wp.vec3)):
+    out[0] = wp.mesh_get(mesh).velocities[0]
+
+
+def test_mesh_get_exposes_the_mesh_arrays(rng):
+    mesh, pts, tris, vel = make_mesh(rng, velocities=True)
+    nf = len(tris)
+    corners, vels = wp.zeros(3 * nf, dtype=wp.vec3, device=DEV), wp.zeros(3 * nf, dtype=wp.vec3, device=DEV)
+    counts = wp.zeros(3, dtype=int, device=DEV)
+    wp.launch(mesh_get_faces, dim=nf, inputs=[mesh.id, corners, vels, counts], device=DEV)
+    np.testing.assert_array_equal(corners.numpy(), pts[tris.reshape(-1)].astype(np.float32))
+    np.testing.assert_array_equal(vels.numpy(), vel[tris.reshape(-1)])
+    assert counts.numpy().tolist() == [len(pts), 3 * nf, len(pts)]
+    # writes through mesh_get's indices reach the caller's array, never the queries
+    q = wp.array(rng.uniform(-1.5, 1.5, size=(40, 3)).astype(np.float32), dtype=wp.vec3, device=DEV)
+    args = lambda hit, closest: [mesh.id, q, 10.0, hit, closest, wp.zeros(40, dtype=int, device=DEV),  # noqa: E731
+                                 wp.zeros(40, dtype=wp.vec4, device=DEV)]
+    before_hit, before = wp.zeros(40, dtype=int, device=DEV), wp.zeros(40, dtype=wp.vec3, device=DEV)
+    wp.launch(mesh_closest, dim=40, inputs=args(before_hit, before), device=DEV)
+    wp.launch(mesh_get_scramble, dim=3 * nf, inputs=[mesh.id], device=DEV)
+    assert (mesh.indices.numpy() == 1 << 30).all()
+    after_hit, after = wp.zeros(40, dtype=int, device=DEV), wp.zeros(40, dtype=wp.vec3, device=DEV)
+    wp.launch(mesh_closest, dim=40, inputs=args(after_hit, after), device=DEV)
+    np.testing.assert_array_equal(after.numpy(), before.numpy())
+    # a mesh without velocities: a None array, whose access is an error at its line
+    plain, _, _, _ = make_mesh(rng)
+    wp.launch(mesh_get_faces, dim=1, inputs=[plain.id, corners, vels, counts], device=DEV)
+    assert counts.numpy()[2] == 0
+    with pytest.raises(wp.WeftError, match="mesh_get_velocity_of"):
+        wp.launch(mesh_get_velocity_of, dim=1, inputs=[plain.id, vels], device=DEV)
+        wp.synchronize()
+    # an id that is not a mesh
+    grid = wp.HashGrid(2, 2, 2, device=DEV)
+    _expect_launch_error(mesh_get_velocity_of, [grid.id, vels], match="not a live Mesh|is a HashGrid")
+
+
+@wp.kernel
+def mesh_get_area(mesh: wp.uint64, out: wp.array(dtype=float)):
+    f = wp.tid()
+    m = wp.mesh_get(mesh)
+    a = m.points[m.indices[3 * f]]
+    b = m.points[m.indices[3 * f + 1]]
+    c = m.points[m.indices[3 * f + 2]]
+    wp.atomic_add(out, 0, 0.5 * wp.length(wp.cross(b - a, c - a)))
+
+
+def test_mesh_get_points_gradient(rng):
+    """Loads through mesh_get's points accumulate into the points array's gradient on a tape
+    (as in Warp): the total area's gradient against the float64 analytic one."""
+    pts, tris = sphere_mesh(rng)
+    points = wp.array(pts, dtype=wp.vec3, device=DEV, requires_grad=True)
+    mesh = wp.Mesh(points=points, indices=wp.array(tris.reshape(-1), dtype=int, device=DEV))
+    out = wp.zeros(1, dtype=float, device=DEV, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(mesh_get_area, dim=len(tris), inputs=[mesh.id, out], device=DEV)
+    tape.backward(loss=out)
+    p = pts.astype(np.float64)
+    ref = np.zeros_like(p)
+    area = 0.0
+    for i, j, k in tris:
+        a, b, c = p[i], p[j], p[k]
+        n = np.cross(b - a, c - a)
+        ln = np.linalg.norm(n)
+        area += 0.5 * ln
+        if ln == 0:
+            continue
+        u = n / ln
+        ref[i] += 0.5 * np.cross(b - c, u)      # d|n|/da = (b - c) x u, and cyclically
+        ref[j] += 0.5 * np.cross(c - a, u)
+        ref[k] += 0.5 * np.cross(a - b, u)
+    assert abs(out.numpy()[0] - area) <= 1e-4 * area
+    np.testing.assert_allclose(points.grad.numpy(), ref, atol=1e-4)
+
+
 def test_mesh_refit_after_moving_points(rng):
     mesh, pts, tris, _ = make_mesh(rng)
     offset = np.array([3.0, -2.0, 0.5], dtype=np.float32)
