@@ -512,6 +512,34 @@ def test_fast_lane_carries_geometry_calls(wp, monkeypatch):
                 rt.call(lambda req, metadata, timeout: stub.Call(req, metadata=meta, timeout=timeout), request)
             via_lane = wp.WeftError(payload.decode(), _fast_lane._CODE_NAMES[code])
             assert str(via_lane) == str(via_grpc.value)
+        # the build's groups field through the lane: a float array, a wrong length, another
+        # session's handle, an unknown handle are each refused by the daemon, not the client
+        other_grid = geometry_pb2.GeometryRequest(op=geometry_pb2.GeometryRequest.CREATE_HASH_GRID,
+                                                  device="cpu", dim=[4, 4, 4])
+        _send(s, GEOMETRY_CALL, other_grid.SerializeToString())
+        code, _, payload = _reply(s)
+        assert code == 0
+        gid = geometry_pb2.GeometryResponse.FromString(payload).id
+        from weft.v1 import array_pb2, types_pb2
+        handles = {}
+        for name, scalar, n in (("float", types_pb2.FLOAT32, 300), ("short", types_pb2.INT32, 299),
+                                ("points", types_pb2.FLOAT32, 300)):
+            req = array_pb2.CreateArrayRequest(dtype=types_pb2.DType(scalar=scalar), shape=[n], device="cpu")
+            if name == "points":
+                req.dtype.elem_shape.append(3)
+            _send(s, ARRAY_CREATE, req.SerializeToString())
+            code, _, payload = _reply(s)
+            assert code == 0, payload
+            handles[name] = array_pb2.CreateArrayResponse.FromString(payload).info.handle
+        for groups, match in ((handles["float"], b"expected int32"),
+                              (handles["short"], b"299 group ids for 300 points"),
+                              (ids._handle, b"unknown array handle"),       # this process's other session
+                              ((1 << 63) + 99, b"unknown array handle")):
+            req = geometry_pb2.GeometryRequest(op=geometry_pb2.GeometryRequest.BUILD_HASH_GRID, id=gid,
+                                               points=handles["points"], radius=0.5, groups=groups)
+            _send(s, GEOMETRY_CALL, req.SerializeToString())
+            code, flags, payload = _reply(s)
+            assert code != 0 and not flags & 2 and match in payload, payload
         _send(s, SYNCHRONIZE, exec_pb2.SynchronizeRequest().SerializeToString())
         assert _reply(s)[0] == 0
     finally:
