@@ -11,7 +11,7 @@ namespace weft::server {
 Status GeometryCall(Engine& engine, Session& s, const v1::GeometryRequest& req, v1::GeometryResponse* resp) {
   geometry::GeometryRequest r;
   int op = static_cast<int>(req.op());
-  if (op < 1 || op > 7) return InvalidArgument("geometry: unknown operation " + std::to_string(op));
+  if (op < 1 || op > 8) return InvalidArgument("geometry: unknown operation " + std::to_string(op));
   r.op = static_cast<geometry::GeometryRequest::Op>(op);
   r.id = req.id();
   r.device = req.device().empty() ? "cpu" : req.device();
@@ -26,6 +26,14 @@ Status GeometryCall(Engine& engine, Session& s, const v1::GeometryRequest& req, 
   r.uppers = req.uppers();
   r.radius = req.radius();
   r.groups = req.groups();
+  r.leaves = req.leaves();
+  r.masks = req.masks();
+  r.values = req.values();
+  r.value_type = static_cast<uint32_t>(req.value_type());
+  if (req.background().size() > 64) return InvalidArgument("Volume: the background value is too long");
+  r.background = req.background();
+  if (req.transform_size() > 12) return InvalidArgument("Volume: the transform has more than 12 values");
+  r.transform.assign(req.transform().begin(), req.transform().end());
   auto id = engine.RunGeometry(s, r);
   if (!id.ok()) {
     spdlog::info("geometry op {} of session {} failed: {}", op, s.label(), id.status().ToString());

@@ -694,11 +694,15 @@ class FnEmitter {
           int ndim = T(op.args[0]).ndim;
           Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.begin() + 1 + ndim), true);
         }
+        // Natives that report launch errors take (ctx, function id, line) in their adjoints too.
+        const std::string loc = (b->flags & kBuiltinNeedsLoc)
+                                    ? "__ctx, " + std::to_string(f_.function_id) + ", " + std::to_string(line) + ", "
+                                    : "";
         if (op.dst.size() > 1) {
-          Line("wp::" + b->adjoint + "(" + Args(op.args) + ", " + Args(op.dst) + ", " + Args(op.args, 0, std::string::npos, true) +
-               ", " + Args(op.dst, 0, std::string::npos, true) + ");");
+          Line("wp::" + b->adjoint + "(" + loc + Args(op.args) + ", " + Args(op.dst) + ", " +
+               Args(op.args, 0, std::string::npos, true) + ", " + Args(op.dst, 0, std::string::npos, true) + ");");
         } else {
-          Line("wp::" + b->adjoint + "(" + Args(op.args) + (op.args.empty() ? "" : ", ") +
+          Line("wp::" + b->adjoint + "(" + loc + Args(op.args) + (op.args.empty() ? "" : ", ") +
                Args(op.args, 0, std::string::npos, true) + (op.args.empty() ? "" : ", ") + A(op.dst[0]) + ");");
         }
         return;

@@ -169,6 +169,101 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_pt
   return g;
 }
 
+namespace {
+
+// The whole array `a` checked through the one array validation: contiguous, of scalar `scalar`
+// (int64 also for uint64), not a struct; returns its scalar count.
+Expected<uint64_t> CheckScalars(const std::shared_ptr<Allocation>& a, const std::string& what, ScalarType scalar) {
+  ArrayRequirement req;
+  req.what = what;
+  req.device = a->device;
+  WEFT_ASSIGN_OR_RETURN(ArrayView v, ValidateArray(a, ArrayRef{a->handle, 0, {}, {}}, req));
+  const DType& d = a->dtype;
+  bool ok = !d.is_struct() && (d.scalar == scalar || (scalar == ScalarType::kUInt64 && d.scalar == ScalarType::kInt64));
+  if (!ok) return InvalidArgument(what + ": expected " + std::string(ScalarName(scalar)) + " values, got " + d.Name());
+  if (!v.contiguous()) return InvalidArgument(what + ": the array must be contiguous");
+  uint64_t per = 1;
+  for (uint32_t e : d.elem_shape) per *= e;
+  return v.element_count() * per;
+}
+
+}  // namespace
+
+Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewVolume(std::shared_ptr<Allocation> leaves,
+                                                                    std::shared_ptr<Allocation> masks,
+                                                                    std::shared_ptr<Allocation> values, uint32_t type,
+                                                                    const std::string& background,
+                                                                    const std::vector<double>& transform,
+                                                                    const DeviceAccess* dev) {
+  if (!leaves || !masks) return InvalidArgument("Volume: the leaves and masks arrays are required");
+  WEFT_ASSIGN_OR_RETURN(uint32_t value_size, VolumeValueSize(type));
+  const std::string device = leaves->device;
+  WEFT_RETURN_IF_ERROR(NeedAccess(device, dev, "Volume"));
+  WEFT_ASSIGN_OR_RETURN(uint64_t coords, CheckScalars(leaves, "Volume leaves", ScalarType::kInt32));
+  if (coords % 3 != 0 || coords == 0)
+    return InvalidArgument("Volume leaves: expected n leaf origins of 3 int32 each (n >= 1), got " +
+                           std::to_string(coords) + " values");
+  const uint64_t n = coords / 3;
+  if (n > static_cast<uint64_t>(kMaxVolumeLeaves))
+    return InvalidArgument("Volume: " + std::to_string(n) + " leaves exceed the limit of 2^22 (2^31 voxels)");
+  if (masks->device != device) return InvalidArgument("Volume masks live on " + masks->device + ", the leaves on " + device);
+  WEFT_ASSIGN_OR_RETURN(uint64_t words, CheckScalars(masks, "Volume masks", ScalarType::kUInt64));
+  if (words != 8 * n)
+    return InvalidArgument("Volume masks: expected 8 words per leaf (" + std::to_string(8 * n) + "), got " +
+                           std::to_string(words));
+  if (value_size == 0 && values) return InvalidArgument("Volume: an index grid (" + VolumeTypeName(type) + ") has no values array");
+  if (value_size != 0) {
+    if (!values) return InvalidArgument("Volume: a " + VolumeTypeName(type) + " grid needs its values array");
+    if (values->device != device)
+      return InvalidArgument("Volume values live on " + values->device + ", the leaves on " + device);
+    static const struct { uint32_t type; ScalarType scalar; } kScalars[] = {
+        {wp::VOLUME_FLOAT, ScalarType::kFloat32}, {wp::VOLUME_DOUBLE, ScalarType::kFloat64},
+        {wp::VOLUME_INT32, ScalarType::kInt32},   {wp::VOLUME_INT64, ScalarType::kInt64},
+        {wp::VOLUME_UINT32, ScalarType::kUInt32}, {wp::VOLUME_VEC3F, ScalarType::kFloat32},
+        {wp::VOLUME_VEC3D, ScalarType::kFloat64}, {wp::VOLUME_VEC4F, ScalarType::kFloat32},
+        {wp::VOLUME_VEC4D, ScalarType::kFloat64}};
+    ScalarType scalar = ScalarType::kFloat32;
+    for (const auto& e : kScalars)
+      if (e.type == type) scalar = e.scalar;
+    WEFT_ASSIGN_OR_RETURN(uint64_t scalars, CheckScalars(values, "Volume values", scalar));
+    const uint64_t want = n * wp::VOLUME_LEAF_VOXELS * (value_size / ScalarSize(scalar));
+    if (scalars != want)
+      return InvalidArgument("Volume values: a " + VolumeTypeName(type) + " grid of " + std::to_string(n) +
+                             " leaves needs " + std::to_string(n * wp::VOLUME_LEAF_VOXELS) + " values (" +
+                             std::to_string(want) + " " + ScalarName(scalar) + "), got " + std::to_string(scalars));
+  }
+  std::vector<int32_t> origins;
+  std::vector<uint64_t> mask_words;
+  try {
+    origins.resize(3 * n);
+    mask_words.resize(8 * n);
+  } catch (const std::bad_alloc&) {
+    return ResourceExhausted("Volume: out of host memory for " + std::to_string(n) + " leaves");
+  }
+  if (device != "cpu") {
+    WEFT_RETURN_IF_ERROR(dev->download(*leaves, origins.data(), origins.size() * sizeof(int32_t)));
+    WEFT_RETURN_IF_ERROR(dev->download(*masks, mask_words.data(), mask_words.size() * sizeof(uint64_t)));
+  } else {
+    std::memcpy(origins.data(), leaves->data(), origins.size() * sizeof(int32_t));
+    std::memcpy(mask_words.data(), masks->data(), mask_words.size() * sizeof(uint64_t));
+  }
+  auto g = std::shared_ptr<GeometryObject>(new GeometryObject());
+  WEFT_RETURN_IF_ERROR(BuildVolume(type, origins.data(), mask_words.data(), static_cast<int64_t>(n), background,
+                                   transform, &g->volume_));
+  g->kind_ = wp::GEOMETRY_VOLUME;
+  g->device_ = device;
+  g->values_ = std::move(values);
+  g->num_prims_ = static_cast<int64_t>(n);
+  if (g->on_gpu()) {
+    const VolumeData& v = g->volume_;
+    WEFT_RETURN_IF_ERROR(g->MirrorOne(dev, v.table.data(), v.table.size() * sizeof(int32_t), &g->gpu_vol_table_));
+    WEFT_RETURN_IF_ERROR(g->MirrorOne(dev, v.origins.data(), v.origins.size() * sizeof(int32_t), &g->gpu_vol_origins_));
+    WEFT_RETURN_IF_ERROR(g->MirrorOne(dev, v.masks.data(), v.masks.size() * sizeof(uint64_t), &g->gpu_vol_masks_));
+    WEFT_RETURN_IF_ERROR(g->MirrorOne(dev, v.prefix.data(), v.prefix.size() * sizeof(int64_t), &g->gpu_vol_prefix_));
+  }
+  return g;
+}
+
 ItemBounds GeometryObject::Bounds(const float* lo, const float* hi, const float* p) const {
   if (kind_ == wp::GEOMETRY_BVH) {
     return [lo, hi](int64_t i, float* l, float* h) {
@@ -249,6 +344,7 @@ Status GeometryObject::Mirror(const DeviceAccess* dev) {
 
 Status GeometryObject::Rebuild(const DeviceAccess* dev) {
   if (kind_ == wp::GEOMETRY_HASH_GRID) return Status::Ok();
+  if (kind_ == wp::GEOMETRY_VOLUME) return InvalidArgument("rebuild() is a Bvh or Mesh operation, not a Volume's");
   std::vector<float> host;
   const float *lo, *hi, *p;
   WEFT_RETURN_IF_ERROR(HostArrays(dev, &host, &lo, &hi, &p));
@@ -262,6 +358,7 @@ Status GeometryObject::Rebuild(const DeviceAccess* dev) {
 
 Status GeometryObject::Refit(const DeviceAccess* dev) {
   if (kind_ == wp::GEOMETRY_HASH_GRID) return Status::Ok();
+  if (kind_ == wp::GEOMETRY_VOLUME) return InvalidArgument("refit() is a Bvh or Mesh operation, not a Volume's");
   if (on_gpu() && dev && dev->refit_bvh && gpu_nodes_.bytes > 0) {
     // On the device, queued after the session's work: no download, no upload.
     BvhRefitJob job;
@@ -418,6 +515,30 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
     d->num_sorted = cell_width_ > 0.0f ? static_cast<int64_t>(sorted_ids_.size()) : 0;
     for (int k = 0; k < 3; ++k) d->dim[k] = dim_[k];
     d->cell_width = cell_width_;
+  }
+  if (kind_ == wp::GEOMETRY_VOLUME) {
+    const VolumeData& v = volume_;
+    d->vol_table = v.table.data();
+    d->vol_origins = v.origins.data();
+    d->vol_masks = reinterpret_cast<const wp::uint64*>(v.masks.data());
+    d->vol_prefix = reinterpret_cast<const wp::int64*>(v.prefix.data());
+    d->vol_values = values_ ? values_->data() : nullptr;
+    d->vol_table_mask = static_cast<int64_t>(v.table.size()) - 1;
+    d->vol_active = v.active;
+    d->vol_max_probe = v.max_probe;
+    d->vol_type = v.type;
+    d->vol_value_size = v.value_size;
+    std::memcpy(d->vol_background, v.background, sizeof(d->vol_background));
+    std::memcpy(d->vol_xform, v.xform, sizeof(d->vol_xform));
+    std::memcpy(d->vol_inverse, v.inverse, sizeof(d->vol_inverse));
+    std::memcpy(d->vol_translation, v.translation, sizeof(d->vol_translation));
+    if (on_gpu()) {
+      d->vol_table = DevicePtr<int32_t>(gpu_vol_table_.memory, gpu_vol_table_.bytes);
+      d->vol_origins = DevicePtr<int32_t>(gpu_vol_origins_.memory, gpu_vol_origins_.bytes);
+      d->vol_masks = DevicePtr<wp::uint64>(gpu_vol_masks_.memory, gpu_vol_masks_.bytes);
+      d->vol_prefix = DevicePtr<wp::int64>(gpu_vol_prefix_.memory, gpu_vol_prefix_.bytes);
+    }
+    return;
   }
   if (on_gpu()) {   // the same layout, with the device copies of the build products
     d->indices = DevicePtr<int32_t>(gpu_indices_.memory, gpu_indices_.bytes);

@@ -1,4 +1,4 @@
-// One geometry object of a session (wp.HashGrid, wp.Bvh or wp.Mesh) on one device: the session
+// One geometry object of a session (wp.HashGrid, wp.Bvh, wp.Mesh or wp.Volume) on one device: the session
 // arrays it reads (held, so freeing them client-side cannot free the memory under a kernel) and
 // the daemon's own build products (BVH nodes, the checked copy of a mesh's indices, the hash
 // grid's cells). Describe() writes the kernel-side descriptor (geometry_abi.h). Builds and refits
@@ -17,6 +17,7 @@
 
 #include "engine/core/status.h"
 #include "engine/geometry/bvh_build.h"
+#include "engine/geometry/volume_build.h"
 #include "engine/native/geometry_abi.h"
 #include "engine/runtime/allocation.h"
 
@@ -58,6 +59,17 @@ class GeometryObject {
                                                            std::shared_ptr<Allocation> indices,
                                                            std::shared_ptr<Allocation> velocities,
                                                            const DeviceAccess* dev = nullptr);
+
+  // A Volume (volume_build.h): leaves (int32 (n, 3) or vec3i (n), leaf origins), masks (uint64,
+  // 8 per leaf) and, for value types, values (512 per leaf of the type's dtype, contiguous: kept
+  // and used in place, so volume_store writes reach it). The leaves and masks are copied and
+  // checked here; the kernel-side tables are built from the copies.
+  static Expected<std::shared_ptr<GeometryObject>> NewVolume(std::shared_ptr<Allocation> leaves,
+                                                             std::shared_ptr<Allocation> masks,
+                                                             std::shared_ptr<Allocation> values, uint32_t type,
+                                                             const std::string& background,
+                                                             const std::vector<double>& transform,
+                                                             const DeviceAccess* dev = nullptr);
 
   uint32_t kind() const { return kind_; }
   const std::string& device() const { return device_; }
@@ -107,9 +119,13 @@ class GeometryObject {
   float cell_width_ = 0.0f;
   std::vector<int32_t> cell_starts_, cell_ends_, sorted_ids_;
   std::vector<int32_t> sorted_groups_;   // grouped build: the group of each sorted_ids_ entry
+  // volume
+  VolumeData volume_;
+  std::shared_ptr<Allocation> values_;
   // GPU: device copies of indices_, the nodes, the prim ids and the cells.
   DeviceCopy gpu_indices_, gpu_nodes_, gpu_prim_ids_, gpu_cell_starts_, gpu_cell_ends_, gpu_sorted_ids_;
   DeviceCopy gpu_sorted_groups_, gpu_levels_;
+  DeviceCopy gpu_vol_table_, gpu_vol_origins_, gpu_vol_masks_, gpu_vol_prefix_;
 };
 
 // Checks that `a` is a whole contiguous array of vec3 float32 (any number of dimensions, or

@@ -42,6 +42,14 @@ Expected<uint64_t> Run(Session& s, const GeometryRequest& r, const DeviceAccess*
       WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewMesh(std::move(p), std::move(i), std::move(v), dev));
       return reg.Add(std::move(g));
     }
+    case GeometryRequest::Op::kCreateVolume: {
+      WEFT_ASSIGN_OR_RETURN(auto leaves, Array(s, r.leaves, "Volume leaves"));
+      WEFT_ASSIGN_OR_RETURN(auto masks, Array(s, r.masks, "Volume masks"));
+      WEFT_ASSIGN_OR_RETURN(auto values, Array(s, r.values, "Volume values", true));
+      WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewVolume(std::move(leaves), std::move(masks), std::move(values),
+                                                              r.value_type, r.background, r.transform, dev));
+      return reg.Add(std::move(g));
+    }
     case GeometryRequest::Op::kBuildHashGrid: {
       WEFT_ASSIGN_OR_RETURN(auto g, reg.Find(r.id));
       WEFT_ASSIGN_OR_RETURN(auto p, Array(s, r.points, "HashGrid.build points"));

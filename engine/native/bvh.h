@@ -41,7 +41,10 @@ inline WP_NOINLINE WP_CALLABLE void geometry_report(const launch_context_t* ctx,
 }
 
 WP_FUNC const char* geometry_kind_name(uint32 kind) {
-  return kind == GEOMETRY_HASH_GRID ? "HashGrid" : (kind == GEOMETRY_BVH ? "Bvh" : "Mesh");
+  return kind == GEOMETRY_HASH_GRID ? "HashGrid"
+         : kind == GEOMETRY_BVH     ? "Bvh"
+         : kind == GEOMETRY_MESH    ? "Mesh"
+                                    : "Volume";
 }
 
 // Reports why `id` names no live object of kind `kind` for `fn` (out of line: the cold path).

@@ -1,8 +1,8 @@
-// The binary interface of geometry objects (wp.HashGrid, wp.Bvh, wp.Mesh) between the runtime
+// The binary interface of geometry objects (wp.HashGrid, wp.Bvh, wp.Mesh, wp.Volume) between the runtime
 // (engine/geometry) and generated kernel code. Owns: the per-launch geometry table a launch
 // context points at, one descriptor per live object of the launching session, the BVH node
-// layout, the id encoding and the hash grid's cell rule (shared by the daemon-side build and the
-// kernel-side query so both compute the same cell). Compiled by clang, g++ and NVRTC: no std
+// layout, the id encoding, the hash grid's cell rule and the volume's leaf hash (each shared by the
+// daemon-side build and the kernel-side query so both compute the same cell or slot). Compiled by clang, g++ and NVRTC: no std
 // headers. docs/geometry.md describes the design.
 #pragma once
 
@@ -15,7 +15,24 @@ enum geometry_kind : uint32 {
   GEOMETRY_HASH_GRID = 1,
   GEOMETRY_BVH = 2,
   GEOMETRY_MESH = 3,
+  GEOMETRY_VOLUME = 4,
 };
+
+// Value types of volumes: NanoVDB's grid type numbers (what .nvdb files and Warp's type strings use).
+enum volume_type : uint32 {
+  VOLUME_FLOAT = 1,
+  VOLUME_DOUBLE = 2,
+  VOLUME_INT32 = 4,
+  VOLUME_INT64 = 5,
+  VOLUME_VEC3F = 6,
+  VOLUME_VEC3D = 7,
+  VOLUME_UINT32 = 10,
+  VOLUME_VEC4F = 17,
+  VOLUME_VEC4D = 18,
+  VOLUME_INDEX = 19,     // no values: every voxel of a leaf has an index (leaf * 512 + offset)
+  VOLUME_ONINDEX = 20,   // no values: the active voxels have indices 0..active-1 (leaf order, then offset)
+};
+constexpr int32 VOLUME_LEAF_VOXELS = 512;   // 8 x 8 x 8; voxel offset (x&7)*64 + (y&7)*8 + (z&7)
 
 // A BVH node. Inner node: children `left` and `right` (node indices, both > this node's index).
 // Leaf: right < 0 and the items are prim_ids[left .. left - right). Bounds in float32.
@@ -58,6 +75,27 @@ struct geometry_desc_t {
   int64 num_sorted;        // points of the last build (0 before the first build)
   int32 dim[3];
   float32 cell_width;      // the build's radius (> 0 after a build)
+  // Volume: leaves of 8x8x8 voxels (num_prims of them). vol_table (vol_table_mask + 1 slots, a power
+  // of two) maps a leaf's key to its position (-1: empty slot), found within vol_max_probe linear
+  // probes of volume_leaf_hash; vol_origins holds each leaf's origin (3 int32, multiples of 8),
+  // vol_masks its active voxels (8 words), vol_prefix the active voxels of the leaves before it.
+  // vol_values: the caller's values array (512 per leaf, vol_value_size bytes each; null for index
+  // grids), read and written in place. All index values were checked by the daemon's build.
+  const int32* vol_table;
+  const int32* vol_origins;
+  const uint64* vol_masks;
+  const int64* vol_prefix;
+  void* vol_values;
+  int64 vol_table_mask;
+  int64 vol_active;         // active voxels in all leaves
+  int32 vol_max_probe;
+  uint32 vol_type;          // volume_type
+  uint32 vol_value_size;
+  uint32 _vol_pad;
+  float64 vol_background[4];   // the background value's bytes (up to a vec4d)
+  float64 vol_xform[9];        // index to world, row-major
+  float64 vol_inverse[9];      // world to index
+  float64 vol_translation[3];
 };
 
 // Entries of the kernel-side traversal stack; trees deeper than BVH_STACK_DEPTH_LIMIT could
@@ -94,6 +132,15 @@ WP_CALLABLE inline int64 hash_grid_cell(const int32* dim, int32 x, int32 y, int3
   int32 cy = y % dim[1]; if (cy < 0) cy += dim[1];
   int32 cz = z % dim[2]; if (cz < 0) cz += dim[2];
   return ((int64)cz * dim[1] + cy) * dim[0] + cx;
+}
+
+// Slot of the leaf with key (origin / 8) in a table of mask + 1 slots.
+WP_CALLABLE inline int64 volume_leaf_hash(int32 kx, int32 ky, int32 kz, int64 mask) {
+  uint32 h = (uint32)kx * 73856093u ^ (uint32)ky * 19349663u ^ (uint32)kz * 83492791u;
+  h ^= h >> 16;
+  h *= 0x45d9f3bu;
+  h ^= h >> 16;
+  return (int64)h & mask;
 }
 
 }  // namespace wp

@@ -23,3 +23,4 @@
 #include "hash_grid.h"
 #include "bvh.h"
 #include "mesh.h"
+#include "volume.h"

@@ -66,6 +66,7 @@ void AddScalarBuiltins(std::vector<BuiltinOverload>* rows);
 void AddLinalgBuiltins(std::vector<BuiltinOverload>* rows);
 void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows);
 void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows);
+void AddVolumeBuiltins(std::vector<BuiltinOverload>* rows);
 
 // The query types of the geometry builtins (HashGridQuery, BvhQuery, MeshQueryPoint,
 // MeshQueryRay, MeshQueryAABB): structs defined by engine/native (not emitted per module),

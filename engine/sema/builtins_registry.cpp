@@ -208,6 +208,7 @@ BuiltinRegistry::BuiltinRegistry() {
   AddLinalgBuiltins(&rows_);
   AddRuntimeBuiltins(&rows_);
   AddGeometryBuiltins(&rows_);
+  AddVolumeBuiltins(&rows_);
   for (size_t i = 0; i < rows_.size(); ++i) by_name_[rows_[i].name].push_back(i);
 }
 

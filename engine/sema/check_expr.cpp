@@ -377,8 +377,23 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
   if (base.kind == Value::Kind::kModule) {
     const std::string& n = a.attr;
     Value v;
+    if (base.name == "Volume") {   // wp.Volume.CLOSEST, wp.Volume.LINEAR: sampling modes
+      if (n != "CLOSEST" && n != "LINEAR")
+        return Error(a.attr_loc, "'wp.Volume." + n + "' is not supported in kernels (wp.Volume.CLOSEST, wp.Volume.LINEAR)");
+      const std::string text = n == "CLOSEST" ? "0" : "1";
+      WEFT_ASSIGN_OR_RETURN(std::string cpp, CppLiteral(Type::Int32(), text));
+      v = Value::OfVar(EmitConst(Type::Int32(), cpp));
+      v.literal = true;
+      v.literal_text = text;
+      return v;
+    }
     if (n == "types") {  // wp.types.vector(...), wp.types.matrix(...): the same builtins
       v.kind = Value::Kind::kModule;
+      return v;
+    }
+    if (n == "Volume") {
+      v.kind = Value::Kind::kModule;
+      v.name = "Volume";
       return v;
     }
     if (BuiltinRegistry::Get().Has(n) || IsSpecialBuiltin(n)) {
@@ -1209,6 +1224,35 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     WEFT_ASSIGN_OR_RETURN(Value updated, ResolveAndEmitBuiltin(name, std::move(args), loc));
     WEFT_RETURN_IF_ERROR(LowerAssignTo(*call->args[0], updated));
     return Value();
+  }
+  // Volumes: the value type of volume_sample / volume_sample_grad / volume_lookup is the dtype=
+  // keyword, passed on as a value of that type (the rows' last parameter); the forms with Warp's
+  // out-parameter `grad` (the last positional argument) return (value, grad): the gradient is
+  // assigned to the argument and the call gives the value.
+  if (call && name.rfind("volume_", 0) == 0) {
+    const bool typed = (name == "volume_sample" || name == "volume_sample_grad" || name == "volume_lookup") &&
+                       kwarg("dtype") != nullptr;
+    // The positional inputs of the grad forms; one more argument is the out-parameter.
+    const size_t grad_inputs = name == "volume_sample_grad_index" ? 5
+                               : (name == "volume_sample_grad" || name == "volume_sample_grad_f") ? 3
+                                                                                                  : 0;
+    const bool grad_out = grad_inputs != 0 && args.size() == grad_inputs + 1 && (typed || name != "volume_sample_grad");
+    if (typed || grad_out) {
+      for (const auto& kw : call->keywords)
+        if (!typed || kw.name != "dtype") return Error(loc, "wp." + name + "() got an unexpected keyword argument '" + kw.name + "'");
+      std::vector<Value> inputs = std::move(args);
+      Value grad_target;
+      if (grad_out) inputs.pop_back();
+      if (typed) {
+        WEFT_ASSIGN_OR_RETURN(Type t, EvalTypeExpr(*kwarg("dtype")));
+        inputs.push_back(Value::OfVar(EmitRaw(t, "wp::cg_zeros<" + CppType(t) + ">()", {})));
+      }
+      WEFT_ASSIGN_OR_RETURN(Value result, ResolveAndEmitBuiltin(name, std::move(inputs), loc));
+      if (!grad_out) return result;
+      if (result.elems.size() != 2) return Error(loc, "wp." + name + "(): internal result shape");
+      WEFT_RETURN_IF_ERROR(LowerAssignTo(*call->args.back(), result.elems[1]));
+      return result.elems[0];
+    }
   }
   // Warp's out-parameter form of builtins with several results: wp.svd3(A, U, sigma, V)
   // assigns the results to the trailing arguments (names, fields or elements), as
