@@ -41,6 +41,7 @@ from .geometry import (Bvh, BvhQuery, HashGrid, HashGridQuery, Mesh, MeshQuery, 
                        MeshQueryPoint, MeshQueryRay, bvh_query_t, hash_grid_query_t,
                        is_cubql_available, mesh_query_aabb_t, mesh_query_point_t,
                        mesh_query_ray_t)
+from .volume import Volume  # noqa: F401
 
 __version__ = "0.1.0"
 DeviceLike = object  # typing alias of Warp (a Device or its alias string)
