@@ -25,10 +25,12 @@ float Clean(float x) { return x == x ? x : 0.0f; }   // NaN sorts as 0
 
 }  // namespace
 
-void BuildBvh(int64_t n, const ItemBounds& bounds, BvhData* out) {
+void BuildBvh(int64_t n, const ItemBounds& bounds, BvhData* out, const int32_t* groups) {
   out->nodes.clear();
   out->levels.clear();
   out->level_starts.clear();
+  out->group_ids.clear();
+  out->group_roots.clear();
   out->prim_ids.resize(static_cast<size_t>(n));
   if (n <= 0) return;
   std::vector<float> lo(3 * n), hi(3 * n), centroid(3 * n);
@@ -37,13 +39,18 @@ void BuildBvh(int64_t n, const ItemBounds& bounds, BvhData* out) {
     for (int k = 0; k < 3; ++k) centroid[3 * i + k] = Clean(0.5f * (lo[3 * i + k] + hi[3 * i + k]));
     out->prim_ids[i] = static_cast<int32_t>(i);
   }
+  if (groups)   // each group's items contiguous, groups ascending (spatial splits keep this)
+    std::stable_sort(out->prim_ids.begin(), out->prim_ids.end(),
+                     [groups](int32_t a, int32_t b) { return groups[a] < groups[b]; });
+  auto group_of = [&](int32_t pos) { return groups[out->prim_ids[pos]]; };
   out->nodes.reserve(static_cast<size_t>(2 * (n / kBvhLeafSize + 1)));
   struct Task {
     int32_t node, begin, end;
+    bool whole_group;   // grouped builds: the range is one group's items, all of them, or mixed
   };
   std::vector<Task> stack;
   out->nodes.push_back({});
-  stack.push_back({0, 0, static_cast<int32_t>(n)});
+  stack.push_back({0, 0, static_cast<int32_t>(n), true});
   while (!stack.empty()) {
     Task t = stack.back();
     stack.pop_back();
@@ -58,18 +65,31 @@ void BuildBvh(int64_t n, const ItemBounds& bounds, BvhData* out) {
         chi[k] = std::max(chi[k], centroid[3 * p + k]);
       }
     }
-    if (t.end - t.begin <= kBvhLeafSize) {
+    const bool mixed = groups && group_of(t.begin) != group_of(t.end - 1);
+    if (groups && !mixed && t.whole_group) {   // the first node holding only this group: its root
+      out->group_ids.push_back(group_of(t.begin));
+      out->group_roots.push_back(t.node);
+    }
+    if (!mixed && t.end - t.begin <= kBvhLeafSize) {
       node.left = t.begin;
       node.right = -(t.end - t.begin);
       out->nodes[t.node] = node;
       continue;
     }
-    int axis = 0;
-    for (int k = 1; k < 3; ++k)
-      if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
     int32_t mid = t.begin + (t.end - t.begin) / 2;
-    std::nth_element(out->prim_ids.begin() + t.begin, out->prim_ids.begin() + mid, out->prim_ids.begin() + t.end,
-                     [&](int32_t a, int32_t b) { return centroid[3 * a + axis] < centroid[3 * b + axis]; });
+    if (mixed) {   // split at the group boundary nearest the middle
+      const int32_t g = group_of(mid);
+      int32_t first = mid, last = mid;
+      while (first > t.begin && group_of(first - 1) == g) --first;
+      while (last < t.end && group_of(last) == g) ++last;
+      mid = (first > t.begin && (mid - first <= last - mid || last == t.end)) ? first : last;
+    } else {
+      int axis = 0;
+      for (int k = 1; k < 3; ++k)
+        if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
+      std::nth_element(out->prim_ids.begin() + t.begin, out->prim_ids.begin() + mid, out->prim_ids.begin() + t.end,
+                       [&](int32_t a, int32_t b) { return centroid[3 * a + axis] < centroid[3 * b + axis]; });
+    }
     int32_t left = static_cast<int32_t>(out->nodes.size());
     out->nodes.push_back({});
     int32_t right = static_cast<int32_t>(out->nodes.size());
@@ -78,8 +98,20 @@ void BuildBvh(int64_t n, const ItemBounds& bounds, BvhData* out) {
     node.right = right;
     out->nodes[t.node] = node;
     // Pre-order indices are not needed for correctness; children > parent is (refit).
-    stack.push_back({right, mid, t.end});
-    stack.push_back({left, t.begin, mid});
+    stack.push_back({right, mid, t.end, mixed});
+    stack.push_back({left, t.begin, mid, mixed});
+  }
+  if (groups) {   // ascending group ids for the kernel's binary search
+    std::vector<size_t> order(out->group_ids.size());
+    for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return out->group_ids[a] < out->group_ids[b]; });
+    std::vector<int32_t> ids, roots;
+    for (size_t k : order) {
+      ids.push_back(out->group_ids[k]);
+      roots.push_back(out->group_roots[k]);
+    }
+    out->group_ids = std::move(ids);
+    out->group_roots = std::move(roots);
   }
   OrderLevels(out);
 }

@@ -1,7 +1,9 @@
 // Daemon-side BVH construction and refit for wp.Bvh and wp.Mesh: a median split on the longest
 // axis of the item centroids (leaves of up to kBvhLeafSize items), nodes in pre-order so every
 // child index is greater than its parent's (refit walks the nodes backwards). Depth is at most
-// ceil(log2(items)) + 1, well inside the kernel-side traversal stack (BVH_STACK).
+// ceil(log2(items)) + 1, well inside the kernel-side traversal stack (BVH_STACK). A grouped build
+// (an int32 group id per item) first splits the items by group, so each group's items are one
+// subtree whose root node bvh_get_group_root finds; depth grows by at most log2(groups) + 1.
 #pragma once
 
 #include <cstdint>
@@ -21,6 +23,9 @@ struct BvhData {
   // is one level): a device refit recomputes one level per launch, every child before its parent.
   std::vector<int32_t> levels;
   std::vector<int64_t> level_starts;
+  // Grouped builds: the groups present, ascending, and the root node of each one's subtree.
+  std::vector<int32_t> group_ids;
+  std::vector<int32_t> group_roots;
 };
 
 // Device memory of one BVH refit (engine/geometry): the nodes (wp::bvh_node_t), the leaf item
@@ -36,8 +41,9 @@ struct BvhRefitJob {
 // Bounds of item i into lo[3], hi[3].
 using ItemBounds = std::function<void(int64_t i, float* lo, float* hi)>;
 
-// Builds over items [0, n) (n < 2^31). NaN bounds sort as 0 and never break the build.
-void BuildBvh(int64_t n, const ItemBounds& bounds, BvhData* out);
+// Builds over items [0, n) (n < 2^31). NaN bounds sort as 0 and never break the build. With
+// `groups` (n values), each group's items form one subtree (BvhData::group_roots).
+void BuildBvh(int64_t n, const ItemBounds& bounds, BvhData* out, const int32_t* groups = nullptr);
 // Recomputes every node's bounds from the items' current bounds (same tree).
 void RefitBvh(const ItemBounds& bounds, BvhData* bvh);
 // Fills bvh->levels / level_starts from the nodes (BuildBvh calls it).

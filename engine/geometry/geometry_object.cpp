@@ -99,7 +99,8 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewHashGrid(const std:
 
 Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewBvh(std::shared_ptr<Allocation> lowers,
                                                                  std::shared_ptr<Allocation> uppers,
-                                                                 const DeviceAccess* dev) {
+                                                                 const DeviceAccess* dev,
+                                                                 std::shared_ptr<Allocation> groups) {
   WEFT_ASSIGN_OR_RETURN(int64_t nl, CheckVec3Array(lowers, "Bvh lowers"));
   WEFT_ASSIGN_OR_RETURN(int64_t nu, CheckVec3Array(uppers, "Bvh uppers"));
   if (nl != nu)
@@ -112,6 +113,7 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewBvh(std::shared_ptr
   g->lowers_ = std::move(lowers);
   g->uppers_ = std::move(uppers);
   g->num_prims_ = nl;
+  WEFT_RETURN_IF_ERROR(g->TakeGroups(groups, dev, "Bvh groups"));
   WEFT_RETURN_IF_ERROR(g->Rebuild(dev));
   return g;
 }
@@ -119,7 +121,8 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewBvh(std::shared_ptr
 Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_ptr<Allocation> points,
                                                                   std::shared_ptr<Allocation> indices,
                                                                   std::shared_ptr<Allocation> velocities,
-                                                                  const DeviceAccess* dev) {
+                                                                  const DeviceAccess* dev,
+                                                                  std::shared_ptr<Allocation> groups) {
   WEFT_ASSIGN_OR_RETURN(int64_t np, CheckVec3Array(points, "Mesh points"));
   if (velocities) {
     WEFT_ASSIGN_OR_RETURN(int64_t nv, CheckVec3Array(velocities, "Mesh velocities"));
@@ -165,6 +168,7 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_pt
   g->user_indices_ = std::move(indices);
   g->num_points_ = np;
   g->num_prims_ = static_cast<int64_t>(count / 3);
+  WEFT_RETURN_IF_ERROR(g->TakeGroups(groups, dev, "Mesh groups"));
   WEFT_RETURN_IF_ERROR(g->Rebuild(dev));
   return g;
 }
@@ -200,9 +204,9 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewVolume(std::shared_
   const std::string device = leaves->device;
   WEFT_RETURN_IF_ERROR(NeedAccess(device, dev, "Volume"));
   WEFT_ASSIGN_OR_RETURN(uint64_t coords, CheckScalars(leaves, "Volume leaves", ScalarType::kInt32));
-  if (coords % 3 != 0 || coords == 0)
-    return InvalidArgument("Volume leaves: expected n leaf origins of 3 int32 each (n >= 1), got " +
-                           std::to_string(coords) + " values");
+  if (coords % 3 != 0)
+    return InvalidArgument("Volume leaves: expected n leaf origins of 3 int32 each, got " + std::to_string(coords) +
+                           " values");
   const uint64_t n = coords / 3;
   if (n > static_cast<uint64_t>(kMaxVolumeLeaves))
     return InvalidArgument("Volume: " + std::to_string(n) + " leaves exceed the limit of 2^22 (2^31 voxels)");
@@ -262,6 +266,27 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewVolume(std::shared_
     WEFT_RETURN_IF_ERROR(g->MirrorOne(dev, v.prefix.data(), v.prefix.size() * sizeof(int64_t), &g->gpu_vol_prefix_));
   }
   return g;
+}
+
+Status GeometryObject::TakeGroups(const std::shared_ptr<Allocation>& groups, const DeviceAccess* dev,
+                                  const char* what) {
+  item_groups_.clear();
+  if (!groups) return Status::Ok();
+  if (groups->device != device_)
+    return InvalidArgument(std::string(what) + ": the groups live on " + groups->device + ", the object on " + device_);
+  WEFT_ASSIGN_OR_RETURN(uint64_t count, CheckScalars(groups, what, ScalarType::kInt32));
+  if (count != static_cast<uint64_t>(num_prims_))
+    return InvalidArgument(std::string(what) + ": " + std::to_string(count) + " group ids for " +
+                           std::to_string(num_prims_) + " items (one per item)");
+  try {
+    item_groups_.resize(count);
+  } catch (const std::bad_alloc&) {
+    return ResourceExhausted(std::string(what) + ": out of host memory");
+  }
+  if (count == 0) return Status::Ok();
+  if (on_gpu()) return dev->download(*groups, item_groups_.data(), count * sizeof(int32_t));
+  std::memcpy(item_groups_.data(), groups->data(), count * sizeof(int32_t));
+  return Status::Ok();
 }
 
 ItemBounds GeometryObject::Bounds(const float* lo, const float* hi, const float* p) const {
@@ -335,6 +360,9 @@ Status GeometryObject::Mirror(const DeviceAccess* dev) {
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.nodes.data(), bvh_.nodes.size() * sizeof(wp::bvh_node_t), &gpu_nodes_));
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.prim_ids.data(), bvh_.prim_ids.size() * sizeof(int32_t), &gpu_prim_ids_));
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.levels.data(), bvh_.levels.size() * sizeof(int32_t), &gpu_levels_));
+  WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.group_ids.data(), bvh_.group_ids.size() * sizeof(int32_t), &gpu_group_ids_));
+  WEFT_RETURN_IF_ERROR(
+      MirrorOne(dev, bvh_.group_roots.data(), bvh_.group_roots.size() * sizeof(int32_t), &gpu_group_roots_));
   WEFT_RETURN_IF_ERROR(
       MirrorOne(dev, cell_starts_.data(), cell_starts_.size() * sizeof(int32_t), &gpu_cell_starts_));
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, cell_ends_.data(), cell_ends_.size() * sizeof(int32_t), &gpu_cell_ends_));
@@ -349,7 +377,7 @@ Status GeometryObject::Rebuild(const DeviceAccess* dev) {
   const float *lo, *hi, *p;
   WEFT_RETURN_IF_ERROR(HostArrays(dev, &host, &lo, &hi, &p));
   try {
-    BuildBvh(num_prims_, Bounds(lo, hi, p), &bvh_);
+    BuildBvh(num_prims_, Bounds(lo, hi, p), &bvh_, item_groups_.empty() ? nullptr : item_groups_.data());
   } catch (const std::bad_alloc&) {
     return ResourceExhausted("out of memory building the BVH");
   }
@@ -507,6 +535,9 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
   d->nodes = bvh_.nodes.empty() ? nullptr : bvh_.nodes.data();
   d->prim_ids = bvh_.prim_ids.empty() ? nullptr : bvh_.prim_ids.data();
   d->num_nodes = static_cast<int64_t>(bvh_.nodes.size());
+  d->group_ids = bvh_.group_ids.empty() ? nullptr : bvh_.group_ids.data();
+  d->group_roots = bvh_.group_roots.empty() ? nullptr : bvh_.group_roots.data();
+  d->num_groups = static_cast<int64_t>(bvh_.group_ids.size());
   if (kind_ == wp::GEOMETRY_HASH_GRID) {
     d->cell_starts = cell_starts_.empty() ? nullptr : cell_starts_.data();
     d->cell_ends = cell_ends_.empty() ? nullptr : cell_ends_.data();
@@ -544,6 +575,8 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
     d->indices = DevicePtr<int32_t>(gpu_indices_.memory, gpu_indices_.bytes);
     d->nodes = DevicePtr<wp::bvh_node_t>(gpu_nodes_.memory, gpu_nodes_.bytes);
     d->prim_ids = DevicePtr<int32_t>(gpu_prim_ids_.memory, gpu_prim_ids_.bytes);
+    d->group_ids = DevicePtr<int32_t>(gpu_group_ids_.memory, gpu_group_ids_.bytes);
+    d->group_roots = DevicePtr<int32_t>(gpu_group_roots_.memory, gpu_group_roots_.bytes);
     d->cell_starts = DevicePtr<int32_t>(gpu_cell_starts_.memory, gpu_cell_starts_.bytes);
     d->cell_ends = DevicePtr<int32_t>(gpu_cell_ends_.memory, gpu_cell_ends_.bytes);
     d->sorted_ids = DevicePtr<int32_t>(gpu_sorted_ids_.memory, gpu_sorted_ids_.bytes);

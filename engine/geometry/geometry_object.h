@@ -49,16 +49,21 @@ class GeometryObject {
                                                                int32_t dim_y, int32_t dim_z);
   // A Bvh over lowers/uppers (contiguous vec3 float32 arrays of one length), built now.
   // `dev` is required for arrays on a GPU (each method below takes it the same way).
+  // With `groups` (contiguous int32, one per item, on the arrays' device; may be null), each
+  // group's items form one subtree (bvh_get_group_root); the ids are copied now and used by
+  // every rebuild.
   static Expected<std::shared_ptr<GeometryObject>> NewBvh(std::shared_ptr<Allocation> lowers,
                                                           std::shared_ptr<Allocation> uppers,
-                                                          const DeviceAccess* dev = nullptr);
+                                                          const DeviceAccess* dev = nullptr,
+                                                          std::shared_ptr<Allocation> groups = nullptr);
   // A Mesh over points (contiguous vec3 float32), indices (int32, length a multiple of 3, each
   // value < points: checked here and copied, so later writes to the array cannot reach a query)
   // and optional velocities (as points); its BVH built now.
   static Expected<std::shared_ptr<GeometryObject>> NewMesh(std::shared_ptr<Allocation> points,
                                                            std::shared_ptr<Allocation> indices,
                                                            std::shared_ptr<Allocation> velocities,
-                                                           const DeviceAccess* dev = nullptr);
+                                                           const DeviceAccess* dev = nullptr,
+                                                           std::shared_ptr<Allocation> groups = nullptr);
 
   // A Volume (volume_build.h): leaves (int32 (n, 3) or vec3i (n), leaf origins), masks (uint64,
   // 8 per leaf) and, for value types, values (512 per leaf of the type's dtype, contiguous: kept
@@ -105,6 +110,8 @@ class GeometryObject {
     uint64_t bytes = 0;   // in use
   };
   Status MirrorOne(const DeviceAccess* dev, const void* src, uint64_t bytes, DeviceCopy* copy);
+  // Copies `groups` (one int32 per item) into item_groups_.
+  Status TakeGroups(const std::shared_ptr<Allocation>& groups, const DeviceAccess* dev, const char* what);
 
   uint32_t kind_ = wp::GEOMETRY_NONE;
   std::string device_;
@@ -112,6 +119,7 @@ class GeometryObject {
   int64_t num_points_ = 0;
   int64_t num_prims_ = 0;
   std::vector<int32_t> indices_;   // mesh: checked copy
+  std::vector<int32_t> item_groups_;   // grouped Bvh / Mesh: the group of each item (face)
   std::shared_ptr<Allocation> user_indices_;   // mesh: the caller's array (mesh_get's indices)
   BvhData bvh_;
   // hash grid
@@ -125,6 +133,7 @@ class GeometryObject {
   // GPU: device copies of indices_, the nodes, the prim ids and the cells.
   DeviceCopy gpu_indices_, gpu_nodes_, gpu_prim_ids_, gpu_cell_starts_, gpu_cell_ends_, gpu_sorted_ids_;
   DeviceCopy gpu_sorted_groups_, gpu_levels_;
+  DeviceCopy gpu_group_ids_, gpu_group_roots_;
   DeviceCopy gpu_vol_table_, gpu_vol_origins_, gpu_vol_masks_, gpu_vol_prefix_;
 };
 

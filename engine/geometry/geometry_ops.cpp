@@ -32,14 +32,16 @@ Expected<uint64_t> Run(Session& s, const GeometryRequest& r, const DeviceAccess*
     case GeometryRequest::Op::kCreateBvh: {
       WEFT_ASSIGN_OR_RETURN(auto lo, Array(s, r.lowers, "Bvh lowers"));
       WEFT_ASSIGN_OR_RETURN(auto hi, Array(s, r.uppers, "Bvh uppers"));
-      WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewBvh(std::move(lo), std::move(hi), dev));
+      WEFT_ASSIGN_OR_RETURN(auto groups, Array(s, r.groups, "Bvh groups", true));
+      WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewBvh(std::move(lo), std::move(hi), dev, std::move(groups)));
       return reg.Add(std::move(g));
     }
     case GeometryRequest::Op::kCreateMesh: {
       WEFT_ASSIGN_OR_RETURN(auto p, Array(s, r.points, "Mesh points"));
       WEFT_ASSIGN_OR_RETURN(auto i, Array(s, r.indices, "Mesh indices"));
       WEFT_ASSIGN_OR_RETURN(auto v, Array(s, r.velocities, "Mesh velocities", true));
-      WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewMesh(std::move(p), std::move(i), std::move(v), dev));
+      WEFT_ASSIGN_OR_RETURN(auto groups, Array(s, r.groups, "Mesh groups", true));
+      WEFT_ASSIGN_OR_RETURN(auto g, GeometryObject::NewMesh(std::move(p), std::move(i), std::move(v), dev, std::move(groups)));
       return reg.Add(std::move(g));
     }
     case GeometryRequest::Op::kCreateVolume: {

@@ -27,7 +27,7 @@ struct GeometryRequest {
   std::string device = "cpu";      // create hash grid
   int32_t dim[3] = {0, 0, 0};      // create hash grid
   uint64_t points = 0;             // mesh / hash grid build
-  uint64_t groups = 0;             // hash grid build (optional)
+  uint64_t groups = 0;             // hash grid build, bvh, mesh (optional)
   uint64_t indices = 0;            // mesh
   uint64_t velocities = 0;         // mesh, 0 = none
   uint64_t lowers = 0, uppers = 0; // bvh

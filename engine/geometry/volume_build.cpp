@@ -72,7 +72,7 @@ bool Invert3(const double* m, double* inv) {
 Status BuildVolume(uint32_t type, const int32_t* origins, const uint64_t* masks, int64_t n,
                    const std::string& background, const std::vector<double>& transform, VolumeData* out) {
   WEFT_ASSIGN_OR_RETURN(uint32_t value_size, VolumeValueSize(type));
-  if (n < 1) return InvalidArgument("Volume: at least one leaf is required");
+  if (n < 0) return InvalidArgument("Volume: a negative leaf count");
   if (n > kMaxVolumeLeaves)
     return InvalidArgument("Volume: " + std::to_string(n) + " leaves exceed the limit of 2^22 (2^31 voxels)");
   if (background.size() != value_size)
@@ -96,7 +96,7 @@ Status BuildVolume(uint32_t type, const int32_t* origins, const uint64_t* masks,
     d.masks.assign(masks, masks + 8 * n);
     d.prefix.resize(static_cast<size_t>(n));
     // At least twice the leaves, a power of two.
-    const uint64_t slots = std::bit_ceil(static_cast<uint64_t>(2 * n));
+    const uint64_t slots = std::bit_ceil(static_cast<uint64_t>(2 * n + 1));
     d.table.assign(slots, -1);
   } catch (const std::bad_alloc&) {
     return ResourceExhausted("Volume: out of host memory for " + std::to_string(n) + " leaves");

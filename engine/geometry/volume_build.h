@@ -35,10 +35,10 @@ Expected<uint32_t> VolumeValueSize(uint32_t type);
 // The type's name as Warp reports it ("float", "Vec3f", "OnIndex", ...).
 std::string VolumeTypeName(uint32_t type);
 
-// Builds `out` from n leaves: origins (3 int32 per leaf: multiples of 8, distinct, within
-// +-2^30), masks (8 words per leaf), the background value's bytes (value_size of them, none for
-// index types) and the index-to-world transform (3x3 row-major, then the translation: finite,
-// invertible).
+// Builds `out` from n >= 0 leaves (none: an empty volume, every voxel the background): origins
+// (3 int32 per leaf: multiples of 8, distinct, within +-2^30), masks (8 words per leaf), the
+// background value's bytes (value_size of them, none for index types) and the index-to-world
+// transform (3x3 row-major, then the translation: finite, invertible).
 Status BuildVolume(uint32_t type, const int32_t* origins, const uint64_t* masks, int64_t n,
                    const std::string& background, const std::vector<double>& transform, VolumeData* out);
 

@@ -83,6 +83,26 @@ WP_FUNC const geometry_desc_t* geometry_resolve(const launch_context_t* ctx, int
   return nullptr;
 }
 
+// The root node of `group`'s subtree in a grouped Bvh or Mesh (binary search of the ascending
+// group ids); -1 when the object has no such group (or no groups): a query from root -1 walks
+// the whole tree.
+WP_FUNC int32 bvh_group_root(const geometry_desc_t* g, int32 group) {
+  if (!g || g->num_groups <= 0) return -1;
+  int64 lo = 0, hi = g->num_groups;
+  while (lo < hi) {
+    const int64 mid = lo + (hi - lo) / 2;
+    if (g->group_ids[mid] < group) lo = mid + 1;
+    else hi = mid;
+  }
+  return (lo < g->num_groups && g->group_ids[lo] == group) ? g->group_roots[lo] : -1;
+}
+WP_FUNC int32 bvh_get_group_root(const launch_context_t* ctx, int32 fid, int32 line, uint64 id, int32 group) {
+  return bvh_group_root(geometry_resolve(ctx, fid, line, "bvh_get_group_root", id, GEOMETRY_BVH), group);
+}
+WP_FUNC int32 mesh_get_group_root(const launch_context_t* ctx, int32 fid, int32 line, uint64 id, int32 group) {
+  return bvh_group_root(geometry_resolve(ctx, fid, line, "mesh_get_group_root", id, GEOMETRY_MESH), group);
+}
+
 WP_FUNC vec3 geometry_load3(const float32* p, int64 i) { return vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2]); }
 
 // ---------------------------------------------------------------------------------------------

@@ -65,6 +65,10 @@ struct geometry_desc_t {
   const bvh_node_t* nodes;
   const int32* prim_ids;   // leaf item order, each < num_prims
   int64 num_nodes;
+  // Grouped Bvh / Mesh: the groups present (ascending) and each one's subtree root node.
+  const int32* group_ids;
+  const int32* group_roots;
+  int64 num_groups;
   // HashGrid: cell c holds sorted_ids[cell_starts[c] .. cell_ends[c]) (original point indices).
   // A grid built with groups also has sorted_groups (the group id of each sorted_ids entry),
   // and each cell's entries are ordered by group id (null: built without groups).

@@ -177,13 +177,13 @@ WP_FUNC bool mesh_ray_triangle(const vec3& s, const vec3& d, const vec3& a, cons
 
 // Closest hit along the ray; face -1 when none.
 WP_FUNC void mesh_raycast(const geometry_desc_t* g, const vec3& s, const vec3& d, float32 max_t, int32& face, float32& t,
-                          float32& u, float32& v) {
+                          float32& u, float32& v, int32 root = -1) {
   face = -1;
   t = max_t;
   u = v = 0.0f;
   if (!g || g->num_nodes == 0) return;
   bvh_walk_t w;
-  bvh_walk_begin(w, g, 1, s, d, max_t, 0);
+  bvh_walk_begin(w, g, 1, s, d, max_t, root);
   int32 f;
   while (bvh_walk_next(w, f)) {
     vec3 a, b, c;
@@ -200,11 +200,11 @@ WP_FUNC void mesh_raycast(const geometry_desc_t* g, const vec3& s, const vec3& d
 }
 
 // Number of faces a ray crosses (every hit, t >= 0).
-WP_FUNC int32 mesh_ray_count(const geometry_desc_t* g, const vec3& s, const vec3& d) {
+WP_FUNC int32 mesh_ray_count(const geometry_desc_t* g, const vec3& s, const vec3& d, int32 root = -1) {
   int32 hits = 0;
   if (!g || g->num_nodes == 0) return 0;
   bvh_walk_t w;
-  bvh_walk_begin(w, g, 1, s, d, 3.0e38f, 0);
+  bvh_walk_begin(w, g, 1, s, d, 3.0e38f, root);
   int32 f;
   while (bvh_walk_next(w, f)) {
     vec3 a, b, c;
@@ -391,12 +391,11 @@ WP_FUNC weft_struct_MeshQueryPoint mesh_query_point_sign_winding_number(const la
 
 WP_FUNC weft_struct_MeshQueryRay mesh_query_ray(const launch_context_t* ctx, int32 fid, int32 line, uint64 id,
                                                 const vec3& start, const vec3& dir, float32 max_t, int32 root = -1) {
-  (void)root;   // groups are not supported: every query starts at the root
   const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "mesh_query_ray", id, GEOMETRY_MESH);
   weft_struct_MeshQueryRay r;
   int32 face;
   float32 t, u, v;
-  mesh_raycast(g, start, dir, max_t, face, t, u, v);
+  mesh_raycast(g, start, dir, max_t, face, t, u, v, root);
   r.f_result = face >= 0;
   r.f_face = face >= 0 ? face : 0;
   r.f_t = face >= 0 ? t : 0.0f;
@@ -542,11 +541,10 @@ WP_FUNC int32 mesh_get_index(const launch_context_t* ctx, int32 fid, int32 line,
 
 WP_FUNC bool mesh_query_ray_anyhit(const launch_context_t* ctx, int32 fid, int32 line, uint64 id, const vec3& start,
                                    const vec3& dir, float32 max_t, int32 root = -1) {
-  (void)root;
   const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "mesh_query_ray_anyhit", id, GEOMETRY_MESH);
   if (!g || g->num_nodes == 0) return false;
   bvh_walk_t w;
-  bvh_walk_begin(w, g, 1, start, dir, max_t, 0);
+  bvh_walk_begin(w, g, 1, start, dir, max_t, root);
   int32 f;
   while (bvh_walk_next(w, f)) {
     vec3 a, b, c;
@@ -559,9 +557,8 @@ WP_FUNC bool mesh_query_ray_anyhit(const launch_context_t* ctx, int32 fid, int32
 
 WP_FUNC int32 mesh_query_ray_count_intersections(const launch_context_t* ctx, int32 fid, int32 line, uint64 id,
                                                  const vec3& start, const vec3& dir, int32 root = -1) {
-  (void)root;
   const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "mesh_query_ray_count_intersections", id, GEOMETRY_MESH);
-  return mesh_ray_count(g, start, dir);
+  return mesh_ray_count(g, start, dir, root);
 }
 
 // The furthest point of the mesh from `point` at distance >= min_dist (a vertex: the furthest
@@ -619,8 +616,7 @@ WP_FUNC bool mesh_query_point_sign_winding_number(const launch_context_t* ctx, i
 WP_FUNC bool mesh_query_ray(const launch_context_t* ctx, int32 fid, int32 line, uint64 id, const vec3& start,
                             const vec3& dir, float32 max_t, float32& t, float32& u, float32& v, float32& sign, vec3& normal,
                             int32& face, int32 root = -1) {
-  (void)root;   // groups are not supported: every query starts at the root
-  weft_struct_MeshQueryRay r = mesh_query_ray(ctx, fid, line, id, start, dir, max_t);
+  weft_struct_MeshQueryRay r = mesh_query_ray(ctx, fid, line, id, start, dir, max_t, root);
   t = r.f_t;
   u = r.f_u;
   v = r.f_v;

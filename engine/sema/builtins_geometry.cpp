@@ -75,6 +75,9 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
       "(t in [0, max_dist] of bvh_query_next: max_dist 1 bounds it to the segment start..start+dir).", q);
   bvh("bvh_query_capsule(id: uint64, start: vec(3,float32), dir: vec(3,float32), radius: float32, root: int32) -> struct(BvhQuery)",
       "bvh_query_capsule from node `root` (-1: the root).", q);
+  bvh("bvh_get_group_root(id: uint64, group: int32) -> int32",
+      "The root node of `group`'s subtree in a Bvh built with groups (pass it as a query's root); -1 when "
+      "there is no such group (a query from -1 walks the whole tree).", q);
   bvh("bvh_query_next(query: struct(BvhQuery), index: int32) -> bool",
       "Next item index of the query into `index`; false when done.", kBuiltinNotDiff | kBuiltinWritesArgs);
   bvh("bvh_query_next(query: struct(BvhQuery), index: int32, max_dist: float32) -> bool",
@@ -101,7 +104,7 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
   mesh("mesh_query_ray(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32) -> struct(MeshQueryRay)",
        "Closest hit of the ray within t in [0, max_t] (rays parallel to a face miss it).", q);
   mesh("mesh_query_ray(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32, root: int32) -> struct(MeshQueryRay)",
-       "mesh_query_ray; root is accepted and ignored (no groups: the whole mesh).", q);
+       "mesh_query_ray over the subtree at node `root` (mesh_get_group_root; -1: the whole mesh).", q);
   mesh("mesh_query_aabb(id: uint64, low: vec(3,float32), high: vec(3,float32)) -> struct(MeshQueryAABB)",
        "Start a query of the faces whose bounds overlap [low, high].", q);
   mesh("mesh_query_sphere(id: uint64, center: vec(3,float32), radius: float32) -> struct(MeshQueryAABB)",
@@ -115,9 +118,9 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
   mesh("mesh_query_ray_count_intersections(id: uint64, start: vec(3,float32), dir: vec(3,float32)) -> int32",
        "Number of faces the ray (t >= 0) crosses.", q);
   mesh("mesh_query_ray_anyhit(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32, root: int32) -> bool",
-       "mesh_query_ray_anyhit; root is accepted and ignored.", q);
+       "mesh_query_ray_anyhit over the subtree at node `root` (-1: the whole mesh).", q);
   mesh("mesh_query_ray_count_intersections(id: uint64, start: vec(3,float32), dir: vec(3,float32), root: int32) -> int32",
-       "mesh_query_ray_count_intersections; root is accepted and ignored.", q);
+       "mesh_query_ray_count_intersections over the subtree at node `root` (-1: the whole mesh).", q);
   mesh("mesh_query_furthest_point_no_sign(id: uint64, point: vec(3,float32), min_dist: float32) -> struct(MeshQueryPoint)",
        "The furthest mesh point (a vertex) at distance >= min_dist.", q);
   // Warp's older forms with out-parameters (local variables written by the call).
@@ -136,7 +139,9 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
   mesh("mesh_query_ray(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32, t: float32, bary_u: float32, bary_v: float32, sign: float32, normal: vec(3,float32), face: int32) -> bool",
        "Out-parameter form of mesh_query_ray.", q);
   mesh("mesh_query_ray(id: uint64, start: vec(3,float32), dir: vec(3,float32), max_t: float32, t: float32, bary_u: float32, bary_v: float32, sign: float32, normal: vec(3,float32), face: int32, root: int32) -> bool",
-       "Out-parameter form of mesh_query_ray; root is accepted and ignored.", q);
+       "Out-parameter form of mesh_query_ray from node `root`.", q);
+  mesh("mesh_get_group_root(id: uint64, group: int32) -> int32",
+       "The root node of `group`'s faces in a Mesh built with groups; -1 when there is no such group.", q);
   mesh("mesh_eval_position(id: uint64, face: int32, bary_u: float32, bary_v: float32) -> vec(3,float32)",
        "u * p0 + v * p1 + (1 - u - v) * p2 of face.", q);
   mesh("mesh_eval_velocity(id: uint64, face: int32, bary_u: float32, bary_v: float32) -> vec(3,float32)",

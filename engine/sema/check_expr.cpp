@@ -1241,15 +1241,32 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
       for (const auto& kw : call->keywords)
         if (!typed || kw.name != "dtype") return Error(loc, "wp." + name + "() got an unexpected keyword argument '" + kw.name + "'");
       std::vector<Value> inputs = std::move(args);
-      Value grad_target;
-      if (grad_out) inputs.pop_back();
+      Value args_grad;
+      if (grad_out) {
+        args_grad = inputs.back();
+        inputs.pop_back();
+      }
       if (typed) {
         WEFT_ASSIGN_OR_RETURN(Type t, EvalTypeExpr(*kwarg("dtype")));
         inputs.push_back(Value::OfVar(EmitRaw(t, "wp::cg_zeros<" + CppType(t) + ">()", {})));
       }
+      const Value grad_arg = grad_out ? args_grad : Value();
       WEFT_ASSIGN_OR_RETURN(Value result, ResolveAndEmitBuiltin(name, std::move(inputs), loc));
       if (!grad_out) return result;
       if (result.elems.size() != 2) return Error(loc, "wp." + name + "(): internal result shape");
+      if (grad_arg.kind == Value::Kind::kVar && result.elems[1].kind == Value::Kind::kVar &&
+          TypeOf(grad_arg.var) != TypeOf(result.elems[1].var)) {
+        // Warp's short names: vec3f, mat43d, ...
+        auto short_name = [](const Type& t) {
+          const char* s = t.scalar == ScalarKind::kFloat64 ? "d" : t.scalar == ScalarKind::kFloat16 ? "h" : "f";
+          if (t.is_vector()) return "vec" + std::to_string(t.rows) + s;
+          if (t.is_matrix()) return "mat" + std::to_string(t.rows) + std::to_string(t.cols) + s;
+          return TypeString(t);
+        };
+        return Error(call->args.back()->loc, "Incompatible gradient type, expected " +
+                                                 short_name(TypeOf(result.elems[1].var)) + ", got " +
+                                                 short_name(TypeOf(grad_arg.var)));
+      }
       WEFT_RETURN_IF_ERROR(LowerAssignTo(*call->args.back(), result.elems[1]));
       return result.elems[0];
     }

@@ -101,8 +101,12 @@ TEST(VolumeBuild, HostileDescriptionsAreRefused) {
   // Two leaves at one origin.
   EXPECT_NE(build(wp::VOLUME_FLOAT, {8, 8, 8, 8, 8, 8}, 2, Bytes(1), kScale).message().find("same origin"),
             std::string::npos);
-  // Counts: none, or past the limit (refused before anything is read or allocated).
-  EXPECT_FALSE(build(wp::VOLUME_FLOAT, one, 0, Bytes(1), kScale).ok());
+  // No leaves: an empty volume whose searches end at once; past the limit: refused before
+  // anything is read or allocated.
+  ASSERT_TRUE(build(wp::VOLUME_FLOAT, one, 0, Bytes(1), kScale).ok());
+  EXPECT_EQ(d.max_probe, 0);
+  EXPECT_EQ(FindLeaf(d, 0, 8, -16), -1);
+  EXPECT_FALSE(build(wp::VOLUME_FLOAT, one, -1, Bytes(1), kScale).ok());
   EXPECT_FALSE(build(wp::VOLUME_FLOAT, one, kMaxVolumeLeaves + 1, Bytes(1), kScale).ok());
   EXPECT_FALSE(build(wp::VOLUME_FLOAT, one, int64_t{1} << 62, Bytes(1), kScale).ok());
   // Background of the wrong size; an index grid with one.

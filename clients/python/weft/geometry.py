@@ -146,6 +146,17 @@ class HashGrid(_Object):
         self.reserved = True
 
 
+def _check_groups(groups, device, count: int, device_of: str, length_of: str):
+    """Warp's checks of a Bvh's or Mesh's group ids (the daemon checks them again)."""
+    from ._kernel.typestr import type_string  # noqa: PLC0415
+    if type_string(getattr(groups, "dtype", None)) != "int32" or getattr(groups, "ndim", 1) != 1:
+        raise RuntimeError("groups should be a contiguous array of type wp.int32")
+    if str(groups.device) != str(device):
+        raise RuntimeError(f"groups must live on the same device as {device_of}")
+    if groups.shape[0] != count:
+        raise RuntimeError(f"groups must have the same length as {length_of}")
+
+
 def _whole(a):
     """`a` itself when it is a whole contiguous array, else a contiguous copy of it."""
     from .array import clone  # noqa: PLC0415
@@ -157,15 +168,23 @@ def _whole(a):
 class Bvh(_Object):
     """A bounding volume hierarchy over boxes [lowers[i], uppers[i]] (Warp's wp.Bvh)."""
 
-    def __init__(self, lowers, uppers, constructor: str | None = None, leaf_size: int | None = None):
+    def __init__(self, lowers, uppers, constructor: str | None = None, leaf_size: int | None = None,
+                 groups=None):
+        """`groups` (int32, one per box, on the boxes' device): each group's boxes form one
+        subtree, whose root `wp.bvh_get_group_root(id, group)` gives to the queries' `root`
+        argument. The ids are read now (rebuild() reuses them)."""
         super().__init__()
         self._rt = _runtime.get_runtime()
         self.device = lowers.device
         self.lowers = lowers
         self.uppers = uppers
+        self.groups = groups
         self.constructor = constructor or "median"
+        if groups is not None:
+            _check_groups(groups, lowers.device, lowers.shape[0], "lowers/uppers", "lowers/uppers")
         self.id = _call(self._rt, op=_op().CREATE_BVH, lowers=_handle_of(lowers, "Bvh lowers"),
-                        uppers=_handle_of(uppers, "Bvh uppers"))
+                        uppers=_handle_of(uppers, "Bvh uppers"),
+                        groups=_handle_of(_whole(groups) if groups is not None else None, "Bvh groups"))
 
     def refit(self):
         """Recomputes the node bounds from the current lowers/uppers."""
@@ -181,17 +200,23 @@ class Mesh(_Object):
     writing to it, call refit(). The indices are checked (each < len(points)) and copied."""
 
     def __init__(self, points, indices, velocities=None, support_winding_number: bool = False,
-                 bvh_constructor: str | None = None, bvh_leaf_size: int | None = None):
+                 bvh_constructor: str | None = None, bvh_leaf_size: int | None = None, groups=None):
+        """`groups` (int32, one per face): each group's faces form one subtree of the BVH
+        (`wp.mesh_get_group_root(id, group)`, the `root` of the ray queries)."""
         super().__init__()
         self._rt = _runtime.get_runtime()
         self.device = points.device
         self.points = points
         self.indices = indices
         self.velocities = velocities
+        self.groups = groups
         self.support_winding_number = bool(support_winding_number)
+        if groups is not None:
+            _check_groups(groups, points.device, indices.size // 3, "points", "indices / 3")
         self.id = _call(self._rt, op=_op().CREATE_MESH, points=_handle_of(points, "Mesh points"),
                         indices=_handle_of(indices, "Mesh indices"),
-                        velocities=_handle_of(velocities, "Mesh velocities"))
+                        velocities=_handle_of(velocities, "Mesh velocities"),
+                        groups=_handle_of(_whole(groups) if groups is not None else None, "Mesh groups"))
 
     def refit(self):
         """Recomputes the BVH bounds from the current points."""

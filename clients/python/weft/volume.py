@@ -1232,8 +1232,6 @@ class Volume(_Object):
         coords, in_world = _points_of(tile_points, "tile_points", point_mask)
         ijk = world_to_index(coords, matrix, np.asarray(translation, np.float64)) if in_world else coords
         origins = leaves_of_tiles(ijk)
-        if origins.shape[0] == 0:
-            raise RuntimeError("Failed to create volume: no tile points")
         return cls._allocate_leaves(origins, matrix, translation, bg_value, device)
 
     @classmethod
@@ -1248,8 +1246,6 @@ class Volume(_Object):
         coords, in_world = _points_of(voxel_points, "voxel_points", point_mask)
         ijk = world_to_index(coords, matrix, np.asarray(translation, np.float64)) if in_world else coords
         origins, masks = leaves_of_voxels(ijk)
-        if origins.shape[0] == 0:
-            raise RuntimeError("Failed to create volume: no voxel points")
         grid = GridContent(ON_INDEX, origins, masks, None, 0, matrix, translation)
         return cls._from_grid(grid, device)
 

@@ -784,6 +784,118 @@ def test_bvh_queries_match_brute_force(rng):
         assert (got2[i][sure] == 1).all()
 
 
+@wp.kernel
+def bvh_group_boxes(bvh: wp.uint64, lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3),
+                    groups: wp.array(dtype=int), hits: wp.array2d(dtype=int), roots: wp.array(dtype=int)):
+    tid = wp.tid()
+    root = wp.bvh_get_group_root(bvh, groups[tid])
+    roots[tid] = root
+    query = wp.bvh_query_aabb(bvh, lowers[tid], uppers[tid], root)
+    item = int(0)
+    while wp.bvh_query_next(query, item):
+        hits[tid, item] = hits[tid, item] + 1
+
+
+@wp.kernel
+def mesh_group_rays(mesh: wp.uint64, starts: wp.array(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3),
+                    groups: wp.array(dtype=int), faces: wp.array(dtype=int), counts: wp.array(dtype=int)):
+    tid = wp.tid()
+    root = wp.mesh_get_group_root(mesh, groups[tid])
+    q = wp.mesh_query_ray(mesh, starts[tid], dirs[tid], 100.0, root)
+    faces[tid] = wp.where(q.result, q.face, -1)
+    counts[tid] = wp.mesh_query_ray_count_intersections(mesh, starts[tid], dirs[tid], root)
+
+
+def test_grouped_bvh_queries_visit_only_their_group(rng):
+    m = 600
+    centers = rng.uniform(-5, 5, size=(m, 3))
+    half = rng.uniform(0.05, 0.6, size=(m, 3))
+    lo, hi = (centers - half).astype(np.float32), (centers + half).astype(np.float32)
+    ids = np.array([-2**31, -7, 0, 3, 2**31 - 1], dtype=np.int32)
+    groups_np = ids[rng.integers(0, len(ids), size=m)]
+    groups_np[:len(ids)] = ids                                  # every group present
+    bvh = wp.Bvh(wp.array(lo, dtype=wp.vec3, device=DEV), wp.array(hi, dtype=wp.vec3, device=DEV),
+                 groups=wp.array(groups_np, dtype=int, device=DEV))
+    n = 80
+    qc = rng.uniform(-5, 5, size=(n, 3))
+    qh = rng.uniform(0.2, 2.0, size=(n, 3))
+    ql, qu = (qc - qh).astype(np.float32), (qc + qh).astype(np.float32)
+    qg = np.concatenate([ids[rng.integers(0, len(ids), size=n - 10)], np.full(10, 12345, np.int32)])
+    hits = wp.zeros((n, m), dtype=int, device=DEV)
+    roots = wp.zeros(n, dtype=int, device=DEV)
+    wp.launch(bvh_group_boxes, dim=n, inputs=[bvh.id, wp.array(ql, dtype=wp.vec3, device=DEV),
+                                              wp.array(qu, dtype=wp.vec3, device=DEV),
+                                              wp.array(qg, dtype=int, device=DEV), hits, roots], device=DEV)
+    got, r = hits.numpy(), roots.numpy()
+    lo64, hi64 = lo.astype(np.float64), hi.astype(np.float64)
+    for i in range(n):
+        overlap = ((lo64 <= qu[i]) & (hi64 >= ql[i])).all(1)
+        if qg[i] == 12345:                     # no such group: root -1 walks the whole tree
+            assert r[i] == -1
+            want = overlap
+        else:
+            assert r[i] >= 0
+            want = overlap & (groups_np == qg[i])
+        sure = ((lo64 < qu[i] - TOL) & (hi64 > ql[i] + TOL)).all(1)
+        assert (got[i][want & sure] == 1).all() and (got[i][~want] == 0).all(), i
+    # a rebuild keeps the groups (read once, at creation)
+    bvh.rebuild()
+    hits.zero_()
+    wp.launch(bvh_group_boxes, dim=n, inputs=[bvh.id, wp.array(ql, dtype=wp.vec3, device=DEV),
+                                              wp.array(qu, dtype=wp.vec3, device=DEV),
+                                              wp.array(qg, dtype=int, device=DEV), hits, roots], device=DEV)
+    np.testing.assert_array_equal(hits.numpy(), got)
+
+
+def test_grouped_mesh_rays_hit_only_their_group(rng):
+    # two unit squares facing -z at z = 1 (group 5) and z = 2 (group -1), under the same rays
+    pts = np.array([[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1], [0, 0, 2], [1, 0, 2], [1, 1, 2], [0, 1, 2]],
+                   dtype=np.float32)
+    tris = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]], dtype=np.int32)
+    mesh = wp.Mesh(wp.array(pts, dtype=wp.vec3, device=DEV), wp.array(tris.ravel(), dtype=int, device=DEV),
+                   groups=wp.array(np.array([5, 5, -1, -1], dtype=np.int32), dtype=int, device=DEV))
+    n = 64
+    xy = rng.uniform(0.05, 0.95, size=(n, 2))
+    xy = xy[np.abs(xy[:, 0] - xy[:, 1]) > 1e-3]   # off the diagonal shared by two triangles
+    n = len(xy)
+    starts = np.concatenate([xy, np.zeros((n, 1))], axis=1).astype(np.float32)
+    dirs = np.tile(np.float32([0, 0, 1]), (n, 1))
+    qg = np.array([[5, -1, 77][k % 3] for k in range(n)], dtype=np.int32)
+    faces = wp.zeros(n, dtype=int, device=DEV)
+    counts = wp.zeros(n, dtype=int, device=DEV)
+    wp.launch(mesh_group_rays, dim=n, inputs=[mesh.id, wp.array(starts, dtype=wp.vec3, device=DEV),
+                                              wp.array(dirs, dtype=wp.vec3, device=DEV),
+                                              wp.array(qg, dtype=int, device=DEV), faces, counts], device=DEV)
+    f, c = faces.numpy(), counts.numpy()
+    for i in range(n):
+        lower_tri = 0 if xy[i, 0] > xy[i, 1] else 1      # which triangle of a square holds (x, y)
+        if qg[i] == 5:
+            assert f[i] == lower_tri and c[i] == 1
+        elif qg[i] == -1:
+            assert f[i] == 2 + lower_tri and c[i] == 1
+        else:                                            # unknown group: the whole mesh, nearest hit
+            assert f[i] == lower_tri and c[i] == 2
+
+
+def test_bad_groups_of_bvh_and_mesh_are_refused():
+    lo = wp.zeros(4, dtype=wp.vec3, device=DEV)
+    hi = wp.ones(4, dtype=wp.vec3, device=DEV)
+    with pytest.raises(RuntimeError, match="groups should be a contiguous array of type wp.int32"):
+        wp.Bvh(lo, hi, groups=wp.zeros(4, dtype=float, device=DEV))
+    with pytest.raises(RuntimeError, match="same length as lowers/uppers"):
+        wp.Bvh(lo, hi, groups=wp.zeros(3, dtype=int, device=DEV))
+    # the daemon checks again: a raw request with a short groups array
+    short = wp.zeros(3, dtype=int, device=DEV)
+    from weft import geometry
+    with pytest.raises(wp.WeftError, match="3 group ids for 4 items"):
+        geometry._call(wp._runtime.get_runtime(), op=geometry._op().CREATE_BVH, lowers=geometry._handle_of(lo, "l"),
+                       uppers=geometry._handle_of(hi, "u"), groups=geometry._handle_of(short, "g"))
+    pts = wp.zeros(3, dtype=wp.vec3, device=DEV)
+    idx = wp.array(np.arange(3, dtype=np.int32), dtype=int, device=DEV)
+    with pytest.raises(RuntimeError, match="same length as indices / 3"):
+        wp.Mesh(pts, idx, groups=wp.zeros(2, dtype=int, device=DEV))
+
+
 # ---------------------------------------------------------------------------------------------
 # attacks: ids are validated per launch, never dereferenced; the daemon keeps serving
 
