@@ -86,16 +86,35 @@ WP_FUNC int32 volume_find_leaf(const geometry_desc_t* g, int32 i, int32 j, int32
 
 WP_FUNC int32 volume_voxel_offset(int32 i, int32 j, int32 k) { return ((i & 7) << 6) | ((j & 7) << 3) | (k & 7); }
 
+// The last leaf a sampler found: the 8 voxels of a trilinear stencil mostly share one leaf, so
+// most reads skip the table search.
+struct volume_leaf_cache_t {
+  int32 key[3];
+  int32 leaf;
+  WP_FUNC volume_leaf_cache_t() : key{0x7fffffff, 0, 0}, leaf(-1) {}
+  WP_FUNC int32 find(const geometry_desc_t* g, int32 i, int32 j, int32 k) {
+    const int32 kx = i >> 3, ky = j >> 3, kz = k >> 3;
+    if (kx != key[0] || ky != key[1] || kz != key[2]) {
+      key[0] = kx;
+      key[1] = ky;
+      key[2] = kz;
+      leaf = volume_find_leaf(g, i, j, k);
+    }
+    return leaf;
+  }
+};
+
 WP_FUNC int32 volume_popcount(uint64 w) {
-  int32 n = 0;
-  for (; w; w &= w - 1) ++n;
-  return n;
+#if WP_DEVICE_CODE
+  return __popcll(w);
+#else
+  return __builtin_popcountll(w);
+#endif
 }
 
 // The voxel's index (Warp's volume_lookup_index): leaf * 512 + offset for value and Index grids,
 // the rank among the active voxels for OnIndex grids; -1 outside the leaves (or inactive, OnIndex).
-WP_FUNC int64 volume_voxel_index(const geometry_desc_t* g, int32 i, int32 j, int32 k) {
-  const int32 leaf = volume_find_leaf(g, i, j, k);
+WP_FUNC int64 volume_voxel_index_in(const geometry_desc_t* g, int32 leaf, int32 i, int32 j, int32 k) {
   if (leaf < 0) return -1;
   const int32 off = volume_voxel_offset(i, j, k);
   if (g->vol_type != VOLUME_ONINDEX) return (int64)leaf * VOLUME_LEAF_VOXELS + off;
@@ -105,6 +124,9 @@ WP_FUNC int64 volume_voxel_index(const geometry_desc_t* g, int32 i, int32 j, int
   int64 idx = g->vol_prefix[leaf];
   for (int32 q = 0; q < w; ++q) idx += volume_popcount(m[q]);
   return idx + volume_popcount(m[w] & ((1ull << b) - 1ull));
+}
+WP_FUNC int64 volume_voxel_index(const geometry_desc_t* g, int32 i, int32 j, int32 k) {
+  return volume_voxel_index_in(g, volume_find_leaf(g, i, j, k), i, j, k);
 }
 
 // Integer voxel coordinate of a float one, clamped so that far points stay outside every leaf.
@@ -129,8 +151,10 @@ WP_FUNC T volume_background(const geometry_desc_t* g) {
 template <typename T>
 struct volume_values_reader {
   const geometry_desc_t* g;
+  mutable volume_leaf_cache_t cache;
+  WP_FUNC explicit volume_values_reader(const geometry_desc_t* desc) : g(desc) {}
   WP_FUNC T read(int32 i, int32 j, int32 k) const {
-    const int32 leaf = volume_find_leaf(g, i, j, k);
+    const int32 leaf = cache.find(g, i, j, k);
     if (leaf < 0) return volume_background<T>(g);
     return ((const T*)g->vol_values)[(int64)leaf * VOLUME_LEAF_VOXELS + volume_voxel_offset(i, j, k)];
   }
@@ -146,9 +170,10 @@ struct volume_index_reader {
   T background;
   array_t<T> adj_data;
   T* adj_background;
+  mutable volume_leaf_cache_t cache;
   // The voxel's index into data, -1 for the background; -2 after reporting an index past data's end.
   WP_FUNC int64 slot(int32 i, int32 j, int32 k) const {
-    const int64 idx = volume_voxel_index(g, i, j, k);
+    const int64 idx = volume_voxel_index_in(g, cache.find(g, i, j, k), i, j, k);
     if (idx < 0) return -1;
     if (idx >= data.shape[0]) {
       geometry_msg_t m;
@@ -276,7 +301,7 @@ WP_FUNC T volume_lookup_typed(const launch_context_t* ctx, int32 fid, int32 line
                               int32 j, int32 k) {
   const geometry_desc_t* g = volume_resolve(ctx, fid, line, fn, id, volume_value_t<T>::code);
   if (!g) return T();
-  return volume_values_reader<T>{g}.read(i, j, k);
+  return volume_values_reader<T>(g).read(i, j, k);
 }
 template <typename T>
 WP_FUNC T volume_lookup(const launch_context_t* ctx, int32 fid, int32 line, uint64 id, int32 i, int32 j, int32 k,
@@ -329,14 +354,14 @@ WP_FUNC T volume_sample_typed(const launch_context_t* ctx, int32 fid, int32 line
     if (grad) *grad = typename volume_value_t<T>::grad();
     return T();
   }
-  return volume_sample_with<T>(volume_values_reader<T>{g}, uvw, mode, grad);
+  return volume_sample_with<T>(volume_values_reader<T>(g), uvw, mode, grad);
 }
 template <typename T>
 WP_FUNC void adj_volume_sample_typed(const launch_context_t* ctx, int32 fid, int32 line, const char* fn, uint64 id,
                                      const vec3& uvw, int32 mode, vec3& adj_uvw,
                                      const typename volume_value_t<T>::grad* adj_grad, const T& adj_ret) {
   const geometry_desc_t* g = volume_resolve(ctx, fid, line, fn, id, volume_value_t<T>::code);
-  if (g) adj_volume_sample_with<T>(volume_values_reader<T>{g}, uvw, mode, adj_uvw, adj_grad, adj_ret);
+  if (g) adj_volume_sample_with<T>(volume_values_reader<T>(g), uvw, mode, adj_uvw, adj_grad, adj_ret);
 }
 
 template <typename T>
