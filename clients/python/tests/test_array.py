@@ -394,3 +394,32 @@ def test_slabs_are_unmapped_when_nothing_uses_them(wp):
     del view
     gc.collect()
     assert not _mapped(name), "an unused slab must not stay mapped (it would pin its memory)"
+
+
+def test_allocation_with_explicit_strides_reaches_exactly_its_bytes(wp):
+    # gapped and transposed layouts: capacity = item + sum((dim - 1) * stride), as Warp
+    a = wp.empty((3, 3), dtype=wp.int32, strides=(16, 12))
+    assert (a.capacity, a.shape, a.strides) == (4 + 2 * 16 + 2 * 12, (3, 3), (16, 12))
+    t = wp.zeros((5, 3), dtype=wp.vec3, strides=(12, 60))
+    assert t.capacity == wp.zeros((5, 3), dtype=wp.vec3).capacity
+    assert not t.numpy().any()
+
+    @wp.kernel
+    def write(x: wp.array2d(dtype=float)):
+        i, j = wp.tid()
+        x[i, j] = float(i * 10 + j)
+
+    g = wp.zeros((3, 4), dtype=float, strides=(4, 12), requires_grad=True)   # column-major
+    wp.launch(write, dim=(3, 4), inputs=[g])
+    np.testing.assert_array_equal(g.numpy(), np.arange(3)[:, None] * 10.0 + np.arange(4)[None, :])
+    assert g.grad.shape == (3, 4)
+    # an empty array has no bytes and no address; bad strides are refused as Warp refuses them
+    e = wp.empty((0, 3), dtype=wp.int32, strides=(4, 16))
+    assert e.capacity == 0 and e.ptr is None
+    assert wp.empty(0, dtype=float).ptr is None
+    with pytest.raises(ValueError, match="Invalid number of strides, expected 2 strides, got 1"):
+        wp.empty((0, 3), dtype=wp.int32, strides=(4,))
+    with pytest.raises(NotImplementedError, match="Negative strides"):
+        wp.empty((3, 3), dtype=wp.int32, strides=(16, -4))
+    with pytest.raises(ValueError, match="alignment"):
+        wp.empty((3, 3), dtype=wp.int32, strides=(16, 6))

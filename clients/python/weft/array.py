@@ -683,8 +683,12 @@ class array:
         return ref
 
     # -- properties
+    _capacity = None   # bytes reachable through explicit allocation strides (wp.empty(strides=))
+
     @property
     def capacity(self) -> int:
+        if self._capacity is not None:
+            return self._capacity
         return int(self._info.byte_size) if self._info is not None else 0
 
     @property
@@ -696,8 +700,9 @@ class array:
     def ptr(self):
         """The address of the first element in this process: in the shared-memory slab for
         CPU arrays, in the CUDA IPC mapping of the slab for GPU arrays (local sessions where
-        the client has a CUDA driver, see weft._cuda_ipc); None otherwise."""
-        if self._info is None:
+        the client has a CUDA driver, see weft._cuda_ipc); None otherwise, and for an array
+        without elements (as Warp)."""
+        if self._info is None or self.size == 0:
             return None
         if self.device is not None and self.device.is_cuda:
             address = self._alloc.cuda_address()
@@ -1230,19 +1235,47 @@ def _with_retain(out, retain_grad):
 
 
 def empty(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None,
-          retain_grad=False):
-    """An uninitialised array (Warp's wp.empty)."""
+          retain_grad=False, strides=None):
+    """An uninitialised array (Warp's wp.empty); `strides` (bytes, >= 0) lays it out in a
+    buffer of exactly the bytes those strides reach."""
     shape = _legacy_length(shape, n)
+    if strides is not None:
+        return _with_retain(_strided_new(shape, dtype, device, requires_grad, strides,
+                                         _runtime.array_pb2.CreateArrayRequest.EMPTY), retain_grad)
     return _with_retain(_new_array(shape, dtype, device, requires_grad,
                                    _runtime.array_pb2.CreateArrayRequest.EMPTY), retain_grad)
 
 
 def zeros(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None,
-          retain_grad=False):
-    """An array of zeros (Warp's wp.zeros)."""
+          retain_grad=False, strides=None):
+    """An array of zeros (Warp's wp.zeros); `strides` as wp.empty's."""
     shape = _legacy_length(shape, n)
+    if strides is not None:
+        return _with_retain(_strided_new(shape, dtype, device, requires_grad, strides,
+                                         _runtime.array_pb2.CreateArrayRequest.ZEROS), retain_grad)
     return _with_retain(_new_array(shape, dtype, device, requires_grad,
                                    _runtime.array_pb2.CreateArrayRequest.ZEROS), retain_grad)
+
+
+def _strided_new(shape, dtype, device, requires_grad, strides, init):
+    """An array of `shape` with byte `strides` over a new 1-d buffer of the reached bytes
+    (rounded up to whole elements): Warp's allocation with explicit strides."""
+    shape = _normalize_shape(shape)
+    strides = tuple(int(s) for s in strides)
+    if len(strides) != len(shape):
+        raise ValueError(f"Invalid number of strides, expected {len(shape)} strides, got {len(strides)}")
+    if any(s < 0 for s in strides):
+        raise NotImplementedError("Negative strides are not supported")
+    dtype = _canonical_dtype(dtype)
+    item = _elem_size(dtype)
+    align = _elem_layout(dtype)[0].itemsize   # the scalar (struct elements: byte) alignment
+    if any(s % align for s in strides):
+        raise ValueError(f"strides {strides} are not multiples of the {type_str(dtype)} alignment ({align} bytes)")
+    reached = 0 if any(d == 0 for d in shape) else item + sum((d - 1) * s for d, s in zip(shape, strides))
+    base = _new_array((-(-reached // item),), dtype, device, requires_grad, init)
+    out = base._make_view(0, shape, strides)
+    out._capacity = reached
+    return out
 
 
 def _infer_value_dtype(value):
