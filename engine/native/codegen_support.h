@@ -73,7 +73,7 @@ template <typename T> WP_FUNC void cg_link_grads(T&, const T&) {}
 
 // ---- constructors by mode ----------------------------------------------------------------
 template <typename S, typename A> WP_FUNC void cg_put(S* out, int& k, const A& a) {
-  if constexpr (cg_traits<A>::n == 1 && sizeof(A) == sizeof(typename cg_traits<A>::scalar)) {
+  if constexpr (is_same_t<A, typename cg_traits<A>::scalar>::value) {   // a scalar (not a 1-vector)
     out[k++] = S(a);
   } else {
     const typename cg_traits<A>::scalar* in = cg_comps(a);

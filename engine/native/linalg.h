@@ -204,13 +204,9 @@ WP_FUNC void adj_eig3(const mat_t<3, 3, T>&, const mat_t<3, 3, T>& q, const vec_
       T den = T(d.c[j] - d.c[i]);
       inner.data[i][j] = abs(den) > T(1e-30) ? T(qt_aq.data[i][j] / den) : T(0);
     }
-  mat_t<3, 3, T> g = mul(mul(q, inner), transpose(q));
-  // eig3 reads only the upper triangle: fold the symmetric gradient onto it.
-  for (unsigned i = 0; i < 3; ++i)
-    for (unsigned j = 0; j < 3; ++j) {
-      if (i == j) adj_a.data[i][j] += g.data[i][j];
-      else if (i < j) adj_a.data[i][j] += T(g.data[i][j] + g.data[j][i]);
-    }
+  // Warp's convention: the gradient as a function of a symmetric A, Q (D_bar + F o Q^T adj_Q) Q^T
+  // (for eigenvalue-only losses Q D_bar Q^T, symmetric), not folded onto the triangle eig3 reads.
+  adj_a += mul(mul(q, inner), transpose(q));
 }
 // A = QR: adj_A = (adj_Q + Q copyltu(M)) R^-T, M = R adj_R^T - adj_Q^T Q (full-rank A).
 template <typename T>

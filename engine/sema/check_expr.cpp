@@ -878,9 +878,20 @@ Expected<Value> Checker::EvalCompare(const ast::Compare& c) {
     const Type& lt = TypeOf(lv);
     const Type& rt = TypeOf(rv);
     bool eq_op = op == ast::CompareOperator::kEq || op == ast::CompareOperator::kNotEq;
+    // Zero-length vectors and matrices (slices selecting nothing) of one scalar type are equal
+    // whatever their shapes, as in Warp: nothing differs.
+    auto empty = [](const Type& t) {
+      return (t.is_vector() && t.rows == 0) || (t.is_matrix() && (t.rows == 0 || t.cols == 0));
+    };
+    if (eq_op && lt != rt && empty(lt) && empty(rt) && lt.scalar == rt.scalar) {
+      parts.push_back(EmitRaw(Type::Bool(), op == ast::CompareOperator::kEq ? "true" : "false", {}));
+      left = right;
+      continue;
+    }
     if (lt != rt || !(lt.is_scalar() || (eq_op && lt.is_composite())))
       return Error(c.loc, std::string("cannot compare ") + TypeString(lt) + " " + ast::Spelling(op) + " " +
-                              TypeString(rt) + " (both sides need the same scalar type)");
+                              TypeString(rt) + (lt.is_scalar() && rt.is_scalar() ? " (both sides need the same scalar type)"
+                                                                                  : " (both sides need the same type)"));
     parts.push_back(EmitRaw(Type::Bool(), std::string("($0 ") + ast::Spelling(op) + " $1)", {lv, rv}));
     left = right;
   }

@@ -298,3 +298,29 @@ def test_vector_arrays_from_data_of_other_inner_shapes(wp):
     np.testing.assert_array_equal(m.numpy().reshape(6, 4), y.reshape(6, 4))
     with pytest.raises(RuntimeError, match="a multiple of 3"):
         wp.array(np.ones((3, 4), dtype=np.float32), dtype=wp.vec3, device="cpu")
+
+
+def test_slices_of_vectors_and_matrices_in_python_scope_are_warp_values():
+    rng = np.random.default_rng()
+    data = rng.uniform(-100, 100, size=16).astype(np.float32)
+    v = wp.vec4(*data[:4])
+    part = v[1:]
+    assert type(part).__name__ == "vec3f" and np.array_equal(np.asarray(part), data[1:4])
+    v[1:] += wp.vec3(1.0, 2.0, 3.0)              # a vector, not a list concatenation
+    np.testing.assert_allclose(np.asarray(v), data[:4] + [0.0, 1.0, 2.0, 3.0], rtol=1e-6)
+    m = wp.mat44(*data)
+    ref = data.reshape(4, 4)
+    assert np.array_equal(np.asarray(m[1:3, ::2]), ref[1:3, ::2]) and m[1:3, ::2]._shape_ == (2, 2)
+    assert np.array_equal(np.asarray(m[::-1, :1]), ref[::-1, :1])
+    assert np.array_equal(np.asarray(m[:, 2]), ref[:, 2]) and np.array_equal(np.asarray(m[3]), ref[3])
+    assert m[2, 3] == ref[2, 3]
+    m[1:, :2] += wp.types.matrix((3, 2), wp.float32)(*([1.0] * 6))
+    want = ref.copy()
+    want[1:, :2] += 1.0
+    np.testing.assert_allclose(np.asarray(m), want, rtol=1e-6)
+    # slices selecting nothing compare equal whatever their shapes, as in kernels
+    assert m[4:] == wp.types.matrix((0, 0), wp.float32)()
+    assert v[4:] == wp.types.vector(0, wp.float32)()
+    # % is C's remainder (the dividend's sign), componentwise
+    np.testing.assert_array_equal(np.asarray(wp.vec3i(-7, 7, 9) % wp.vec3i(4, -4, 5)), [-3, 3, 4])
+    np.testing.assert_allclose(np.asarray(wp.vec2(-7.5, 7.5) % wp.vec2(2.0, -2.0)), [-1.5, 1.5])

@@ -260,7 +260,8 @@ class _Composite(metaclass=_CompositeMeta):
         except Exception:  # noqa: BLE001 - not comparable
             return NotImplemented
         if other_arr.shape != self._data.shape:
-            return False
+            # composites without elements (slices selecting nothing) are equal, as in kernels
+            return _py_bool(self._data.size == 0 and other_arr.size == 0)
         return _py_bool(np.all(self._data == other_arr))
 
     def __ne__(self, other):
@@ -315,6 +316,16 @@ class _Composite(metaclass=_CompositeMeta):
         if o is NotImplemented or not isinstance(other, _Composite):
             return NotImplemented
         return self._wrap(o - self._data)
+
+    def __mod__(self, other):
+        """Componentwise remainder of composites of one shape, truncated as in kernels (C's fmod /
+        %: the sign of the dividend)."""
+        o = self._coerce(other)
+        if o is NotImplemented or not isinstance(other, _Composite):
+            return NotImplemented
+        if np.issubdtype(self._data.dtype, np.integer):
+            return self._wrap(np.sign(self._data) * (np.abs(self._data) % np.abs(o)))
+        return self._wrap(np.fmod(self._data, o))
 
     def __mul__(self, other):
         if isinstance(other, _Composite):
@@ -389,8 +400,9 @@ class _Vector(_Composite):
                              f"{self._length_} elements, got {n}")
 
     def __getitem__(self, key):
-        if isinstance(key, slice):
-            return [self._py(x) for x in self._data[key]]
+        if isinstance(key, slice):   # a vector of the slice's length, as Warp (so v[1:] += w works)
+            values = [self._py(x) for x in self._data[key]]
+            return vector(len(values), self._wp_scalar_type_)(*values)
         return self._py(self._data[_index(key, self._length_)])
 
     def __setitem__(self, key, value):
@@ -456,23 +468,34 @@ class _Matrix(_Composite):
     def set_col(self, c, v):
         self._data[:, _index(c, self._shape_[1])] = np.asarray(v)
 
+    def _key(self, key):
+        """(row key, column key) with integer indices checked; slices as given."""
+        if not isinstance(key, tuple):
+            key = (key, slice(None))
+        if len(key) != 2:
+            raise KeyError(f"Invalid key, expected one or two indices, got {len(key)}")
+        return tuple(k if isinstance(k, slice) else _index(k, n) for k, n in zip(key, self._shape_))
+
     def __getitem__(self, key):
-        if isinstance(key, tuple):
-            if len(key) != 2:
-                raise KeyError(f"Invalid key, expected one or two indices, got {len(key)}")
-            return self._py(self._data[_index(key[0], self._shape_[0]),
-                                       _index(key[1], self._shape_[1])])
-        return self.get_row(key)
+        """m[i, j]: a scalar; m[i] and m[i, cols] / m[rows, j]: a vector; slices on both
+        axes: a matrix of the selected shape (as Warp, also in Python scope)."""
+        rk, ck = self._key(key)
+        picked = self._data[rk, ck]
+        if not isinstance(rk, slice) and not isinstance(ck, slice):
+            return self._py(picked)
+        if isinstance(rk, slice) and isinstance(ck, slice):
+            return matrix(picked.shape, self._wp_scalar_type_)(picked.reshape(-1))
+        return vector(picked.shape[0], self._wp_scalar_type_)(picked)
 
     def __setitem__(self, key, value):
-        if isinstance(key, tuple):
-            if len(key) != 2:
-                raise KeyError(f"Invalid key, expected one or two indices, got {len(key)}")
-            self._data[_index(key[0], self._shape_[0]),
-                       _index(key[1], self._shape_[1])] = _wrapped(_scalar_value(value),
-                                                                   self._data.dtype)
-        else:
-            self.set_row(key, value)
+        rk, ck = self._key(key)
+        if not isinstance(rk, slice) and not isinstance(ck, slice):
+            self._data[rk, ck] = _wrapped(_scalar_value(value), self._data.dtype)
+            return
+        target = self._data[rk, ck]
+        data = value._data if isinstance(value, _Composite) else np.asarray(value)
+        self._data[rk, ck] = _wrapped(np.asarray(data).reshape(target.shape) if np.size(data) == target.size
+                                      else data, self._data.dtype)
 
 
 def _matrix_from_vectors(vectors, by_rows: _py_bool):

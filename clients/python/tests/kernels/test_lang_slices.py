@@ -163,6 +163,7 @@ def test_slice_shape_mismatch_is_an_error(wp, kernel_module):
 
 vec0 = wp.types.vector(0, float)
 vec1 = wp.types.vector(1, float)
+mat00 = wp.types.matrix((0, 0), float)
 
 
 @wp.kernel
@@ -202,3 +203,22 @@ def test_zero_length_vector_is_kernel_local(wp, kernel_module):
     """)
     with pytest.raises(Exception, match="zero-length type vec\\(0,float32\\) exists only inside kernels"):
         wp.launch(mod.k, 1, inputs=[mod.vec0()], outputs=[wp.zeros(1)])
+
+
+vec1 = wp.types.vector(1, float)
+mat00 = wp.types.matrix((0, 0), float)
+
+
+@wp.kernel
+def rows_of_one(m: wp.array[wp.mat44], out: wp.array[int]):
+    a = m[0]
+    col = wp.matrix_from_rows(vec1(a[3, 0]), vec1(a[2, 0]), vec1(a[1, 0]), vec1(a[0, 0]))
+    out[0] = wp.where(a[::-1, :1] == col, 1, 0)
+    out[1] = wp.where(a[4:] == mat00(), 1, 0)   # both without elements
+
+
+def test_one_component_rows_and_empty_slices_compare(rng):
+    m = wp.array(rng.uniform(-10, 10, size=(1, 4, 4)).astype(np.float32), dtype=wp.mat44)
+    out = wp.zeros(2, dtype=int)
+    wp.launch(rows_of_one, dim=1, inputs=[m, out])
+    assert out.numpy().tolist() == [1, 1]
