@@ -163,6 +163,35 @@ ArgValue ArgFromProto(const v1::ArgValue& p) {
 
 }  // namespace
 
+Expected<geometry::GeometryRequest> FromProto(const v1::GeometryRequest& req) {
+  geometry::GeometryRequest r;
+  int op = static_cast<int>(req.op());
+  if (op < 1 || op > 8) return InvalidArgument("geometry: unknown operation " + std::to_string(op));
+  r.op = static_cast<geometry::GeometryRequest::Op>(op);
+  r.id = req.id();
+  r.device = req.device().empty() ? "cpu" : req.device();
+  if (r.op == geometry::GeometryRequest::Op::kCreateHashGrid) {
+    if (req.dim_size() != 3) return InvalidArgument("HashGrid: dim must have 3 values");
+    for (int k = 0; k < 3; ++k) r.dim[k] = req.dim(k);
+  }
+  r.points = req.points();
+  r.indices = req.indices();
+  r.velocities = req.velocities();
+  r.lowers = req.lowers();
+  r.uppers = req.uppers();
+  r.radius = req.radius();
+  r.groups = req.groups();
+  r.leaves = req.leaves();
+  r.masks = req.masks();
+  r.values = req.values();
+  r.value_type = static_cast<uint32_t>(req.value_type());
+  if (req.background().size() > 64) return InvalidArgument("Volume: the background value is too long");
+  r.background = req.background();
+  if (req.transform_size() > 12) return InvalidArgument("Volume: the transform has more than 12 values");
+  r.transform.assign(req.transform().begin(), req.transform().end());
+  return r;
+}
+
 Expected<Command> FromProto(const v1::Command& p, size_t index) {
   Command c;
   c.origin = FromProto(p.origin());
@@ -224,6 +253,16 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
                                 FromProto(v.order()), v.index(), v.value()};
       break;
     }
+    case v1::Command::kGeometry: {
+      WEFT_ASSIGN_OR_RETURN(geometry::GeometryRequest r, FromProto(p.geometry()));
+      using Op = geometry::GeometryRequest::Op;
+      if (r.op != Op::kBuildHashGrid && r.op != Op::kRefit && r.op != Op::kRebuild)
+        return InvalidArgument("command " + std::to_string(index) +
+                               ": a geometry command builds a HashGrid or refits / rebuilds a Bvh or Mesh (op " +
+                               std::to_string(static_cast<int>(r.op)) + " goes to GeometryService)");
+      c.kind = GeometryCommand{std::move(r)};
+      break;
+    }
     case v1::Command::kGraph: {
       const auto& g = p.graph();
       if (g.op() != v1::GraphCommand::CREATE && g.op() != v1::GraphCommand::LAUNCH &&
@@ -250,7 +289,7 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
     }
     default:
       return InvalidArgument("command " + std::to_string(index) +
-                             " is empty (no copy/fill/launch/tape/set_grad/cuda_event/cuda_value/graph)");
+                             " is empty (no copy/fill/launch/tape/set_grad/cuda_event/cuda_value/graph/geometry)");
   }
   return c;
 }

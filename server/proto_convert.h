@@ -8,6 +8,7 @@
 #include "weft/v1/array.pb.h"
 #include "weft/v1/device.pb.h"
 #include "weft/v1/exec.pb.h"
+#include "weft/v1/geometry.pb.h"
 #include "weft/v1/module.pb.h"
 #include "weft/v1/types.pb.h"
 
@@ -24,5 +25,7 @@ void ToProto(const DeviceInfo& d, v1::DeviceInfo* p);
 ModuleSource FromProto(const v1::ModuleSource& p);
 // Fails on an empty oneof (INVALID_ARGUMENT naming the command index).
 Expected<Command> FromProto(const v1::Command& p, size_t index);
+// A geometry request: the op checked (1..8), the sizes of the volume fields bounded.
+Expected<geometry::GeometryRequest> FromProto(const v1::GeometryRequest& p);
 
 }  // namespace weft::server

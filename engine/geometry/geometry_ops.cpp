@@ -78,6 +78,10 @@ Expected<uint64_t> Run(Session& s, const GeometryRequest& r, const DeviceAccess*
 
 }  // namespace
 
+Expected<uint64_t> RunGeometryOpHere(Session& s, const GeometryRequest& r, const DeviceAccess* dev) {
+  return Run(s, r, dev);
+}
+
 Expected<uint64_t> RunGeometryOp(Session& s, const GeometryRequest& r, const DeviceAccess* dev) {
   Expected<uint64_t> result = Internal("geometry operation did not run");
   s.queue().RunAndWait([&] { result = Run(s, r, dev); });

@@ -42,5 +42,7 @@ struct GeometryRequest {
 // Runs `r` for session `s`; returns the new object's id for a create, 0 otherwise. `r.device`
 // of a hash grid must name a device of the daemon (the caller checks it).
 Expected<uint64_t> RunGeometryOp(Session& s, const GeometryRequest& r, const DeviceAccess* dev = nullptr);
+// The same on the calling thread, which must be the session's executor (a geometry command).
+Expected<uint64_t> RunGeometryOpHere(Session& s, const GeometryRequest& r, const DeviceAccess* dev = nullptr);
 
 }  // namespace weft::geometry

@@ -132,6 +132,9 @@ void CollectHandles(const Command& c, std::vector<uint64_t>* out) {
     out->push_back(v->order.handle);
   } else if (auto* g = std::get_if<GraphCommand>(&c.kind)) {
     for (const Command& inner : g->commands) CollectHandles(inner, out);
+  } else if (auto* geo = std::get_if<GeometryCommand>(&c.kind)) {
+    if (geo->request.points) out->push_back(geo->request.points);
+    if (geo->request.groups) out->push_back(geo->request.groups);
   }
 }
 
@@ -149,6 +152,10 @@ Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapsh
   if (auto* e = std::get_if<CudaEventCommand>(&c.kind)) return CudaEvent(s, *e);
   if (auto* v = std::get_if<CudaValueCommand>(&c.kind)) return CudaValue(s, *v, h);
   if (auto* g = std::get_if<GraphCommand>(&c.kind)) return Graph(s, *g, h);
+  if (auto* geo = std::get_if<GeometryCommand>(&c.kind)) {
+    if (!geometry_) return Unimplemented("geometry commands are not served here");
+    return geometry_(s, geo->request);
+  }
   return InvalidArgument("empty command");
 }
 

@@ -1,12 +1,13 @@
 // Runs one queued command of a session on its executor thread: copy and fill over checked
 // views, kernel launches (forward and explicit adjoint, recorded on the active tape), and
 // tape operations (begin/end, backward replay in reverse, zero, reset) and gradient
-// replacement (set_grad). Every operation goes to the Device the arrays or the launch name
+// replacement (set_grad), and geometry builds and refits (through the Engine). Every operation goes to the Device the arrays or the launch name
 // (engine/device): the CPU runs it here, a GPU queues it on the session's stream. Cancellation
 // and the per-launch time limit are the devices' (see cpu_device.h, cuda_device.h).
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -26,7 +27,11 @@ using HandleSnapshot = std::unordered_map<uint64_t, std::shared_ptr<Allocation>>
 class CommandExecutor {
  public:
   static constexpr size_t kMaxGraphsPerSession = 4096;   // GraphCommand CREATE
-  CommandExecutor(DeviceSet& devices, ModuleStore* store) : devices_(devices), store_(store) {}
+  // Runs a geometry operation on the calling thread (the session's executor), with the
+  // session's device access (Engine::RunGeometryHere).
+  using GeometryRunner = std::function<Status(Session&, const geometry::GeometryRequest&)>;
+  CommandExecutor(DeviceSet& devices, ModuleStore* store, GeometryRunner geometry = nullptr)
+      : devices_(devices), store_(store), geometry_(std::move(geometry)) {}
 
   Status Execute(Session& s, const Command& c, const HandleSnapshot& handles);
 
@@ -52,6 +57,7 @@ class CommandExecutor {
 
   DeviceSet& devices_;
   ModuleStore* store_;
+  GeometryRunner geometry_;
 };
 
 // Every array handle a command names (for the snapshot).

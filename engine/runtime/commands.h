@@ -1,5 +1,5 @@
 // Commands a session submits in a batch (engine twins of weft.v1.Command and its kinds):
-// copy, fill, kernel launch, autodiff tape operations and gradient replacement. Plain data; the server converts them.
+// copy, fill, kernel launch, autodiff tape operations, gradient replacement, geometry builds. Plain data; the server converts them.
 #pragma once
 
 #include <cstdint>
@@ -10,6 +10,7 @@
 
 #include "engine/core/module_source.h"
 #include "engine/core/status.h"
+#include "engine/geometry/geometry_ops.h"
 #include "engine/runtime/array_view.h"
 
 namespace weft {
@@ -106,9 +107,16 @@ struct GraphCommand {
 // INVALID_ARGUMENT for an op value outside TapeCommand::Op (a client may send any number).
 Status CheckTapeOp(TapeCommand::Op op);
 
+// A geometry build, refit or rebuild (geometry::GeometryRequest ops kBuildHashGrid, kRefit,
+// kRebuild) run in order with the session's other commands (a captured graph's client replays
+// one between its runs of launches).
+struct GeometryCommand {
+  geometry::GeometryRequest request;
+};
+
 struct Command {
   std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand, SetGradCommand, CudaEventCommand,
-               CudaValueCommand, GraphCommand>
+               CudaValueCommand, GraphCommand, GeometryCommand>
       kind;
   SourceLocation origin;   // where the client issued it
 };

@@ -89,7 +89,9 @@ Engine::Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store)
     }
   }
   devices_ = std::make_unique<DeviceSet>(std::make_unique<CpuDevice>(*pool_, watchdog_.get(), cpu), std::move(gpus));
-  executor_ = std::make_unique<CommandExecutor>(*devices_, store_.get());
+  executor_ = std::make_unique<CommandExecutor>(
+      *devices_, store_.get(),
+      [this](Session& s, const geometry::GeometryRequest& r) { return RunGeometryHere(s, r).status(); });
   memory_limit_ = PhysicalMemoryAndSwap();
   MemoryLimits limits = options.memory;
   if (limits.daemon == 0) limits.daemon = DefaultDaemonMemoryLimit(memory_limit_);

@@ -150,6 +150,9 @@ class Engine {
   // A geometry operation of the session (create / build / refit / rebuild / free a HashGrid,
   // Bvh or Mesh) on the device of its arrays; engine_geometry.cpp.
   Expected<uint64_t> RunGeometry(Session& s, const geometry::GeometryRequest& r);
+  // The same operation run on the calling thread, which must be the session's executor (a
+  // geometry command of a batch or a replayed graph).
+  Expected<uint64_t> RunGeometryHere(Session& s, const geometry::GeometryRequest& r);
   Status ReadArray(Session& s, uint64_t handle, uint64_t offset, uint64_t count, uint32_t chunk,
                    const std::function<bool(uint64_t, const char*, size_t)>& sink);
   // Writes bytes at offset of the allocation (range-checked; nothing written on error).
@@ -220,6 +223,8 @@ class Engine {
   std::unique_ptr<ThreadPool> pool_;
   std::unique_ptr<LaunchWatchdog> watchdog_;
   std::unique_ptr<CommandExecutor> executor_;
+  // RunGeometry (queued on the session's executor) and RunGeometryHere (already on it).
+  Expected<uint64_t> RunGeometryWith(Session& s, const geometry::GeometryRequest& r, bool queued);
   mutable std::mutex mu_;        // sessions_
   std::map<std::string, std::shared_ptr<Session>> sessions_;
   mutable std::mutex alloc_mu_;  // allocations_; never drop an Allocation while holding it

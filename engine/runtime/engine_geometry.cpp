@@ -7,6 +7,14 @@
 namespace weft {
 
 Expected<uint64_t> Engine::RunGeometry(Session& s, const geometry::GeometryRequest& request) {
+  return RunGeometryWith(s, request, true);
+}
+
+Expected<uint64_t> Engine::RunGeometryHere(Session& s, const geometry::GeometryRequest& request) {
+  return RunGeometryWith(s, request, false);
+}
+
+Expected<uint64_t> Engine::RunGeometryWith(Session& s, const geometry::GeometryRequest& request, bool queued) {
   geometry::GeometryRequest r = request;
   if (r.op == geometry::GeometryRequest::Op::kCreateHashGrid) {
     // The client names the device ("cpu", "cuda:N" or the session's "cuda").
@@ -38,6 +46,7 @@ Expected<uint64_t> Engine::RunGeometry(Session& s, const geometry::GeometryReque
     if (!d) return Internal("geometry object on unknown device '" + device + "'");
     return d->RefitBvh(s, job);
   };
+  if (!queued) return geometry::RunGeometryOpHere(s, r, &access);
   return geometry::RunGeometryOp(s, r, &access);
 }
 

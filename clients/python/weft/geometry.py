@@ -52,6 +52,19 @@ def _call(rt, _lane=True, **fields) -> int:
     return rt.geometry_call(stub[1].Call, request).id
 
 
+def _build_call(rt, **fields) -> None:
+    """A build, refit or rebuild. Inside a graph capture on this thread it is a command of the
+    graph (exec Command.geometry), run at every replay in order with the captured launches, as
+    Warp's captured builds; otherwise it runs now, after the work queued before it."""
+    import threading  # noqa: PLC0415
+
+    if rt.captures and threading.get_ident() in rt.captures:
+        from .v1 import exec_pb2  # noqa: PLC0415
+        rt.submit(exec_pb2.Command(geometry=_pb2().GeometryRequest(**fields)))
+        return
+    _call(rt, **fields)
+
+
 def _handle_of(a, what: str) -> int:
     if a is None:
         return 0
@@ -131,9 +144,9 @@ class HashGrid(_Object):
             raise RuntimeError("points must live on the same device as this HashGrid")
         built_points = _whole(points)
         built_groups = _whole(groups) if groups is not None else None
-        _call(self._rt, op=_op().BUILD_HASH_GRID, id=self.id,
-              points=_handle_of(built_points, "HashGrid.build points"),
-              groups=_handle_of(built_groups, "HashGrid.build groups"), radius=float(radius))
+        _build_call(self._rt, op=_op().BUILD_HASH_GRID, id=self.id,
+                    points=_handle_of(built_points, "HashGrid.build points"),
+                    groups=_handle_of(built_groups, "HashGrid.build groups"), radius=float(radius))
         self.points = points
         self.groups = groups
         self.radius = float(radius)
@@ -188,11 +201,11 @@ class Bvh(_Object):
 
     def refit(self):
         """Recomputes the node bounds from the current lowers/uppers."""
-        _call(self._rt, op=_op().REFIT, id=self.id)
+        _build_call(self._rt, op=_op().REFIT, id=self.id)
 
     def rebuild(self, constructor: str | None = None):
         """Builds a new tree from the current lowers/uppers."""
-        _call(self._rt, op=_op().REBUILD, id=self.id)
+        _build_call(self._rt, op=_op().REBUILD, id=self.id)
 
 
 class Mesh(_Object):
@@ -220,11 +233,11 @@ class Mesh(_Object):
 
     def refit(self):
         """Recomputes the BVH bounds from the current points."""
-        _call(self._rt, op=_op().REFIT, id=self.id)
+        _build_call(self._rt, op=_op().REFIT, id=self.id)
 
     def rebuild(self, constructor: str | None = None, leaf_size: int | None = None):
         """Builds a new BVH from the current points."""
-        _call(self._rt, op=_op().REBUILD, id=self.id)
+        _build_call(self._rt, op=_op().REBUILD, id=self.id)
 
 
 def is_cubql_available() -> bool:

@@ -152,6 +152,8 @@ class _Capture:
             from .v1 import exec_pb2  # noqa: PLC0415
             if cmd.graph.op != exec_pb2.GraphCommand.LAUNCH:
                 return False               # a graph made or destroyed: the session's state
+        elif kind == "geometry":
+            pass                           # a build or refit: sent again at each replay
         elif kind not in ("copy", "fill"):
             return False                   # gradient replacement, framework stream ordering
         self.graph.commands.append(cmd)

@@ -323,3 +323,97 @@ def test_a_graph_launched_while_capturing_becomes_part_of_the_new_one(device):
     gc.collect()                          # the outer graph keeps the inner one
     wp.capture_launch(outer.graph)
     np.testing.assert_array_equal(x.numpy(), 4.0)
+
+
+@wp.kernel
+def grouped_neighbours(grid: wp.uint64, points: wp.array(dtype=wp.vec3), groups: wp.array(dtype=int),
+                       radius: float, counts: wp.array(dtype=int)):
+    i = wp.tid()
+    q = wp.hash_grid_query(grid, points[i], radius, groups[i])
+    j = int(0)
+    n = int(0)
+    while wp.hash_grid_query_next(q, j):
+        if wp.length(points[j] - points[i]) <= radius:
+            n += 1
+    counts[i] = n
+
+
+def test_captured_hash_grid_builds_and_refits_run_at_every_replay(rng, device):
+    """A HashGrid.build and a Mesh.refit inside a capture are commands of the graph: each replay
+    rebuilds from the arrays' values then (group ids written by captured work and group ids first
+    seen at replay included), in order with the captured launches; checked against brute force."""
+    n = 200
+    pts = rng.uniform(0, 1, size=(n, 3)).astype(np.float32)
+    points = wp.array(pts, dtype=wp.vec3, device=device)
+    groups = wp.zeros(n, dtype=int, device=device)
+    source = wp.array(rng.integers(0, 3, size=n).astype(np.int32), dtype=int, device=device)
+    counts = wp.zeros(n, dtype=int, device=device)
+    grid = wp.HashGrid(8, 8, 8, device=device)
+    grid.build(points, 0.15, groups=groups)
+    with wp.ScopedCapture(device) as capture:
+        wp.copy(groups, source)
+        grid.build(points, 0.15, groups=groups)
+        wp.launch(grouped_neighbours, n, inputs=[grid.id, points, groups, 0.15, counts], device=device)
+    assert not counts.numpy().any()          # nothing ran while capturing
+
+    def brute(g):
+        d = np.linalg.norm(pts[:, None, :].astype(np.float64) - pts[None, :, :], axis=2)
+        return ((d <= 0.15 - 1e-5) & (g[:, None] == g[None, :])).sum(1), \
+            ((d <= 0.15 + 1e-5) & (g[:, None] == g[None, :])).sum(1)
+
+    for ids in (source.numpy(), rng.integers(1000, 1003, size=n).astype(np.int32)):
+        source.assign(ids)
+        wp.capture_launch(capture.graph)
+        got = counts.numpy()
+        low, high = brute(ids)
+        assert ((got >= low) & (got <= high)).all()
+    # a refit captured after a launch that moves the mesh sees the moved points at each replay
+    tri = np.array([[0, 1, 2]], dtype=np.int32)
+    mpts = wp.array(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float32), dtype=wp.vec3, device=device)
+    mesh = wp.Mesh(mpts, wp.array(tri.ravel(), dtype=int, device=device))
+    lift = wp.zeros(1, dtype=float, device=device)
+    hit = wp.zeros(1, dtype=int, device=device)
+    with wp.ScopedCapture(device) as capture:
+        wp.launch(move_mesh, 3, inputs=[mpts, lift], device=device)
+        mesh.refit()
+        wp.launch(ray_down, 1, inputs=[mesh.id, lift, hit], device=device)
+    for z in (0.5, 2.0, 7.0):
+        lift.fill_(z)
+        wp.capture_launch(capture.graph)
+        assert hit.numpy()[0] == 1, z     # the refit saw the lifted triangle
+
+
+@wp.kernel
+def move_mesh(points: wp.array(dtype=wp.vec3), lift: wp.array(dtype=float)):
+    i = wp.tid()
+    p = points[i]
+    points[i] = wp.vec3(p[0], p[1], lift[0])
+
+
+@wp.kernel
+def ray_down(mesh: wp.uint64, lift: wp.array(dtype=float), hit: wp.array(dtype=int)):
+    # a short ray crossing z = lift only: misses a tree whose bounds were not refitted
+    q = wp.mesh_query_ray(mesh, wp.vec3(0.2, 0.2, lift[0] + 0.25), wp.vec3(0.0, 0.0, -1.0), 0.5)
+    hit[0] = wp.where(q.result, 1, 0)
+
+
+def test_geometry_commands_are_checked_like_any_command(device):
+    """Raw geometry commands as a hostile client sends them: a create (only builds, refits and
+    rebuilds are commands), an unknown object id, a HashGrid build with a handle the session
+    does not hold; each is refused with a clear error and the session goes on."""
+    from weft import geometry
+    from weft.v1 import exec_pb2
+    rt = wp._runtime.get_runtime()
+    G = geometry._pb2().GeometryRequest
+    grid = wp.HashGrid(2, 2, 2, device=device)
+    for request, message in ((G(op=G.CREATE_BVH), "goes to GeometryService"),
+                             (G(op=G.REFIT, id=grid.id ^ (1 << 40)), "names no live object"),
+                             (G(op=G.BUILD_HASH_GRID, id=grid.id, points=0x7FFF_FFFF_0000, radius=1.0),
+                              "unknown array handle"),
+                             (G(op=99), "unknown operation")):
+        rt.submit(exec_pb2.Command(geometry=request))
+        with pytest.raises(Exception, match=message):
+            wp.synchronize()
+    x = wp.zeros(4, device=device)
+    x.fill_(2.0)
+    assert x.numpy()[0] == 2.0
