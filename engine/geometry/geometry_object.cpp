@@ -554,7 +554,7 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
     d->vol_masks = reinterpret_cast<const wp::uint64*>(v.masks.data());
     d->vol_prefix = reinterpret_cast<const wp::int64*>(v.prefix.data());
     d->vol_values = values_ ? values_->data() : nullptr;
-    d->vol_table_mask = static_cast<int64_t>(v.table.size()) - 1;
+    d->vol_table_mask = static_cast<int64_t>(v.table.size() / 4) - 1;
     d->vol_active = v.active;
     d->vol_max_probe = v.max_probe;
     d->vol_type = v.type;

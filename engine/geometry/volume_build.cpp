@@ -97,11 +97,11 @@ Status BuildVolume(uint32_t type, const int32_t* origins, const uint64_t* masks,
     d.prefix.resize(static_cast<size_t>(n));
     // At least twice the leaves, a power of two.
     const uint64_t slots = std::bit_ceil(static_cast<uint64_t>(2 * n + 1));
-    d.table.assign(slots, -1);
+    d.table.assign(4 * slots, -1);   // per slot: the leaf's key (3 int32) and its position
   } catch (const std::bad_alloc&) {
     return ResourceExhausted("Volume: out of host memory for " + std::to_string(n) + " leaves");
   }
-  const int64_t mask = static_cast<int64_t>(d.table.size()) - 1;
+  const int64_t mask = static_cast<int64_t>(d.table.size() / 4) - 1;
   int64_t active = 0;
   for (int64_t i = 0; i < n; ++i) {
     const int32_t* o = &d.origins[3 * i];
@@ -114,16 +114,19 @@ Status BuildVolume(uint32_t type, const int32_t* origins, const uint64_t* masks,
     const int32_t kx = o[0] / 8, ky = o[1] / 8, kz = o[2] / 8;
     int64_t slot = wp::volume_leaf_hash(kx, ky, kz, mask);
     int32_t probes = 1;
-    while (d.table[static_cast<size_t>(slot)] >= 0) {
-      const int32_t* other = &d.origins[3 * static_cast<int64_t>(d.table[static_cast<size_t>(slot)])];
-      if (other[0] == o[0] && other[1] == o[1] && other[2] == o[2])
-        return InvalidArgument("Volume: leaves " + std::to_string(d.table[static_cast<size_t>(slot)]) + " and " +
-                               std::to_string(i) + " have the same origin (" + std::to_string(o[0]) + ", " +
-                               std::to_string(o[1]) + ", " + std::to_string(o[2]) + ")");
+    for (int32_t* e = &d.table[4 * static_cast<size_t>(slot)]; e[3] >= 0; e = &d.table[4 * static_cast<size_t>(slot)]) {
+      if (e[0] == kx && e[1] == ky && e[2] == kz)
+        return InvalidArgument("Volume: leaves " + std::to_string(e[3]) + " and " + std::to_string(i) +
+                               " have the same origin (" + std::to_string(o[0]) + ", " + std::to_string(o[1]) + ", " +
+                               std::to_string(o[2]) + ")");
       slot = (slot + 1) & mask;
       ++probes;
     }
-    d.table[static_cast<size_t>(slot)] = static_cast<int32_t>(i);
+    int32_t* e = &d.table[4 * static_cast<size_t>(slot)];
+    e[0] = kx;
+    e[1] = ky;
+    e[2] = kz;
+    e[3] = static_cast<int32_t>(i);
     if (probes > d.max_probe) d.max_probe = probes;
     d.prefix[static_cast<size_t>(i)] = active;
     for (int w = 0; w < 8; ++w) active += std::popcount(d.masks[static_cast<size_t>(8 * i + w)]);

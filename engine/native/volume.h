@@ -75,10 +75,9 @@ WP_FUNC int32 volume_find_leaf(const geometry_desc_t* g, int32 i, int32 j, int32
   const int32 kx = i >> 3, ky = j >> 3, kz = k >> 3;
   int64 slot = volume_leaf_hash(kx, ky, kz, g->vol_table_mask);
   for (int32 p = 0; p < g->vol_max_probe; ++p) {
-    const int32 leaf = g->vol_table[slot];
-    if (leaf < 0) return -1;
-    const int32* o = g->vol_origins + 3 * (int64)leaf;
-    if ((o[0] >> 3) == kx && (o[1] >> 3) == ky && (o[2] >> 3) == kz) return leaf;
+    const int32* e = g->vol_table + 4 * slot;   // one 16-byte entry: key and position
+    if (e[3] < 0) return -1;
+    if (e[0] == kx && e[1] == ky && e[2] == kz) return e[3];
     slot = (slot + 1) & g->vol_table_mask;
   }
   return -1;

@@ -22,13 +22,16 @@ const std::vector<double> kScale{0.25, 0, 0, 0, 0.5, 0, 0, 0, 2.0, 1, -2, 3};
 
 // The kernel-side leaf search (engine/native/volume.h volume_find_leaf), over the host build.
 int32_t FindLeaf(const VolumeData& d, int32_t i, int32_t j, int32_t k) {
-  const int64_t mask = static_cast<int64_t>(d.table.size()) - 1;
+  const int64_t mask = static_cast<int64_t>(d.table.size() / 4) - 1;
   int64_t slot = wp::volume_leaf_hash(i >> 3, j >> 3, k >> 3, mask);
   for (int32_t p = 0; p < d.max_probe; ++p) {
-    const int32_t leaf = d.table[static_cast<size_t>(slot)];
-    if (leaf < 0) return -1;
-    const int32_t* o = &d.origins[3 * static_cast<size_t>(leaf)];
-    if ((o[0] >> 3) == (i >> 3) && (o[1] >> 3) == (j >> 3) && (o[2] >> 3) == (k >> 3)) return leaf;
+    const int32_t* e = &d.table[4 * static_cast<size_t>(slot)];
+    if (e[3] < 0) return -1;
+    if (e[0] == (i >> 3) && e[1] == (j >> 3) && e[2] == (k >> 3)) {
+      const int32_t* o = &d.origins[3 * static_cast<size_t>(e[3])];   // the entry names that leaf
+      EXPECT_TRUE(o[0] == 8 * e[0] && o[1] == 8 * e[1] && o[2] == 8 * e[2]);
+      return e[3];
+    }
     slot = (slot + 1) & mask;
   }
   return -1;
@@ -53,9 +56,9 @@ TEST(VolumeBuild, EveryLeafIsFoundAndOthersAreNot) {
   for (auto& m : masks) m = bits(rng);
   VolumeData d;
   ASSERT_TRUE(BuildVolume(wp::VOLUME_FLOAT, origins.data(), masks.data(), n, Bytes(0.5f), kScale, &d).ok());
-  ASSERT_TRUE(std::has_single_bit(d.table.size()));
-  ASSERT_GE(d.table.size(), static_cast<size_t>(2 * n));
-  for (int32_t t : d.table) ASSERT_LT(t, n);
+  ASSERT_TRUE(std::has_single_bit(d.table.size() / 4));
+  ASSERT_GE(d.table.size() / 4, static_cast<size_t>(2 * n));
+  for (size_t s = 0; s < d.table.size(); s += 4) ASSERT_LT(d.table[s + 3], n);
   int64_t active = 0;
   for (int64_t l = 0; l < n; ++l) {
     EXPECT_EQ(d.prefix[l], active);
