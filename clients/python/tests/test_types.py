@@ -318,6 +318,10 @@ def test_slices_of_vectors_and_matrices_in_python_scope_are_warp_values():
     want = ref.copy()
     want[1:, :2] += 1.0
     np.testing.assert_allclose(np.asarray(m), want, rtol=1e-6)
+    # integer slices keep the stored (wrapped) values
+    u = wp.vec4ul(1, 2, 3, 4)
+    u[0] = -1
+    assert tuple(u[0:2]) == (2**64 - 1, 2)
     # slices selecting nothing compare equal whatever their shapes, as in kernels
     assert m[4:] == wp.types.matrix((0, 0), wp.float32)()
     assert v[4:] == wp.types.vector(0, wp.float32)()

@@ -401,8 +401,10 @@ class _Vector(_Composite):
 
     def __getitem__(self, key):
         if isinstance(key, slice):   # a vector of the slice's length, as Warp (so v[1:] += w works)
-            values = [self._py(x) for x in self._data[key]]
-            return vector(len(values), self._wp_scalar_type_)(*values)
+            picked = self._data[key]
+            out = vector(len(picked), self._wp_scalar_type_)()
+            out._data[:] = picked            # the stored values as they are (wrapped integers too)
+            return out
         return self._py(self._data[_index(key, self._length_)])
 
     def __setitem__(self, key, value):
