@@ -261,7 +261,6 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewVolume(std::shared_
   if (g->on_gpu()) {
     const VolumeData& v = g->volume_;
     WEFT_RETURN_IF_ERROR(g->MirrorOne(dev, v.table.data(), v.table.size() * sizeof(int32_t), &g->gpu_vol_table_));
-    WEFT_RETURN_IF_ERROR(g->MirrorOne(dev, v.origins.data(), v.origins.size() * sizeof(int32_t), &g->gpu_vol_origins_));
     WEFT_RETURN_IF_ERROR(g->MirrorOne(dev, v.masks.data(), v.masks.size() * sizeof(uint64_t), &g->gpu_vol_masks_));
     WEFT_RETURN_IF_ERROR(g->MirrorOne(dev, v.prefix.data(), v.prefix.size() * sizeof(int64_t), &g->gpu_vol_prefix_));
   }
@@ -550,7 +549,6 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
   if (kind_ == wp::GEOMETRY_VOLUME) {
     const VolumeData& v = volume_;
     d->vol_table = v.table.data();
-    d->vol_origins = v.origins.data();
     d->vol_masks = reinterpret_cast<const wp::uint64*>(v.masks.data());
     d->vol_prefix = reinterpret_cast<const wp::int64*>(v.prefix.data());
     d->vol_values = values_ ? values_->data() : nullptr;
@@ -565,7 +563,6 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
     std::memcpy(d->vol_translation, v.translation, sizeof(d->vol_translation));
     if (on_gpu()) {
       d->vol_table = DevicePtr<int32_t>(gpu_vol_table_.memory, gpu_vol_table_.bytes);
-      d->vol_origins = DevicePtr<int32_t>(gpu_vol_origins_.memory, gpu_vol_origins_.bytes);
       d->vol_masks = DevicePtr<wp::uint64>(gpu_vol_masks_.memory, gpu_vol_masks_.bytes);
       d->vol_prefix = DevicePtr<wp::int64>(gpu_vol_prefix_.memory, gpu_vol_prefix_.bytes);
     }

@@ -134,7 +134,7 @@ class GeometryObject {
   DeviceCopy gpu_indices_, gpu_nodes_, gpu_prim_ids_, gpu_cell_starts_, gpu_cell_ends_, gpu_sorted_ids_;
   DeviceCopy gpu_sorted_groups_, gpu_levels_;
   DeviceCopy gpu_group_ids_, gpu_group_roots_;
-  DeviceCopy gpu_vol_table_, gpu_vol_origins_, gpu_vol_masks_, gpu_vol_prefix_;
+  DeviceCopy gpu_vol_table_, gpu_vol_masks_, gpu_vol_prefix_;
 };
 
 // Checks that `a` is a whole contiguous array of vec3 float32 (any number of dimensions, or

@@ -92,7 +92,6 @@ Status BuildVolume(uint32_t type, const int32_t* origins, const uint64_t* masks,
   std::memcpy(d.background, background.data(), value_size);
   constexpr int32_t kLimit = 1 << 30;
   try {
-    d.origins.assign(origins, origins + 3 * n);
     d.masks.assign(masks, masks + 8 * n);
     d.prefix.resize(static_cast<size_t>(n));
     // At least twice the leaves, a power of two.
@@ -104,7 +103,7 @@ Status BuildVolume(uint32_t type, const int32_t* origins, const uint64_t* masks,
   const int64_t mask = static_cast<int64_t>(d.table.size() / 4) - 1;
   int64_t active = 0;
   for (int64_t i = 0; i < n; ++i) {
-    const int32_t* o = &d.origins[3 * i];
+    const int32_t* o = origins + 3 * i;
     for (int k = 0; k < 3; ++k) {
       if (o[k] % 8 != 0 || o[k] < -kLimit || o[k] > kLimit)
         return InvalidArgument("Volume: leaf " + std::to_string(i) + " has origin (" + std::to_string(o[0]) + ", " +

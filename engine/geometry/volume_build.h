@@ -21,7 +21,6 @@ struct VolumeData {
   uint32_t value_size = 0;    // bytes per voxel value (0: index grids)
   std::vector<int32_t> table;     // power-of-two slots of 4 int32: the leaf's key (origin / 8), its position (-1: empty)
   int32_t max_probe = 0;          // linear probes that find every leaf
-  std::vector<int32_t> origins;   // 3 per leaf
   std::vector<uint64_t> masks;    // 8 per leaf
   std::vector<int64_t> prefix;    // active voxels before each leaf
   int64_t active = 0;

@@ -81,12 +81,11 @@ struct geometry_desc_t {
   float32 cell_width;      // the build's radius (> 0 after a build)
   // Volume: leaves of 8x8x8 voxels (num_prims of them). vol_table (vol_table_mask + 1 slots, a power
   // of two, 4 int32 each: a leaf's key, origin / 8, then its position; -1: empty slot) is found
-  // within vol_max_probe linear probes of volume_leaf_hash; vol_origins holds each leaf's origin (3 int32, multiples of 8),
-  // vol_masks its active voxels (8 words), vol_prefix the active voxels of the leaves before it.
+  // within vol_max_probe linear probes of volume_leaf_hash; vol_masks holds each leaf's active
+  // voxels (8 words), vol_prefix the active voxels of the leaves before it.
   // vol_values: the caller's values array (512 per leaf, vol_value_size bytes each; null for index
   // grids), read and written in place. All index values were checked by the daemon's build.
   const int32* vol_table;
-  const int32* vol_origins;
   const uint64* vol_masks;
   const int64* vol_prefix;
   void* vol_values;

@@ -386,10 +386,16 @@ Expected<ArrayDesc> Engine::CreateArray(Session& s, const CreateArrayParams& p) 
 }
 
 Status Engine::FreeArray(Session& s, uint64_t handle) {
-  std::shared_ptr<Allocation> keep = s.Find(handle);   // dropped after Release, outside locks
-  if (!s.Release(handle))
+  if (!s.Holds(handle))
     return NotFound("unknown array handle " + std::to_string(handle) +
                     " (never created, already freed, or not held by this session)");
+  // A free is ordered after the commands the session queued before it: released here when the
+  // executor is idle, else behind them (a queued tape BACKWARD still reads the arrays its
+  // launches recorded, which no command snapshot holds).
+  s.queue().RunHereOrPost([&s, handle] {
+    std::shared_ptr<Allocation> keep = s.Find(handle);   // dropped after Release, outside locks
+    s.Release(handle);
+  });
   return Status::Ok();
 }
 

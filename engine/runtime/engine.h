@@ -142,6 +142,7 @@ class Engine {
 
   // Arrays.
   Expected<ArrayDesc> CreateArray(Session& s, const CreateArrayParams& p);
+  // Ordered after the session's queued commands (released when the executor reaches it).
   Status FreeArray(Session& s, uint64_t handle);
   Expected<ArrayDesc> DescribeArray(Session& s, uint64_t handle) const;
   // Streams [offset, offset+count) (count 0 = to the end) in chunks of at most `chunk` bytes

@@ -32,7 +32,6 @@ MAX_MESSAGE_BYTES = 64 << 20
 BATCH_MAX_COMMANDS = 1000
 BATCH_MAX_BYTES = 16 << 20
 PENDING_FREE_LIMIT = 4096
-HELD_UNTIL_SYNC_LIMIT = 1024   # hold_until_sync entries kept between synchronizations
 LANE_IN_FLIGHT = 16     # asynchronous fast-lane Submits sent before the oldest reply is read
 PUMP_FIRST = 8         # commands queued before the first early Submit after a sync point
 PUMP_AFTER_S = 0.002   # or: two commands, the oldest queued this long ago
@@ -331,9 +330,6 @@ class Runtime:
         self._batch: list = []
         self._batch_bytes = 0
         self._pending_frees: collections.deque = collections.deque()
-        # Objects kept until the next synchronize: a dropped tape's recorded launches (their
-        # arrays), which a queued BACKWARD still reads when the daemon runs it (hold_until_sync).
-        self._held_until_sync: collections.deque = collections.deque(maxlen=HELD_UNTIL_SYNC_LIMIT)
         self._free_calls: list = []
         self._deferred_error: WeftError | None = None
         # Asynchronous Submits in flight, oldest first: one gRPC future, or up to
@@ -626,27 +622,10 @@ class Runtime:
                 self._exec("Submit", exec_pb2.SubmitRequest(commands=batch))
             self._drain_frees()
 
-    def hold_until_sync(self, obj) -> None:
-        """Keeps `obj` (and the arrays it references) alive until the next synchronize: the
-        daemon may not have run the queued commands that use them yet (a BACKWARD of a tape
-        dropped right after its backward() call reads the tape's arrays when it runs). Safe in
-        finalizers (no lock, no RPC); the oldest entries go past HELD_UNTIL_SYNC_LIMIT."""
-        self._held_until_sync.append(obj)
-
     def synchronize(self) -> None:
         """Flushes, waits for every command, prints kernel output, raises the first error.
         With commands pending this is ONE round trip: Submit(synchronize=true) queues them and
         returns what Synchronize would; with none pending, a plain Synchronize."""
-        try:
-            self._synchronize()
-        finally:
-            # every command queued so far has run: what it needed may go (outside the lock:
-            # the arrays' finalizers queue their frees)
-            held = len(self._held_until_sync)
-            for _ in range(held):
-                self._held_until_sync.popleft()
-
-    def _synchronize(self) -> None:
         with self._lock:
             self._collect_inflight()
             self._pump_at = PUMP_FIRST

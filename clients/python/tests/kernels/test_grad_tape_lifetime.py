@@ -4,9 +4,9 @@ nothing corrupted", against the daemon tape (TapeCommand in weftd).
 What happens, by layer:
   - The Python wp.Tape keeps every array of a recorded launch alive (it holds the launch
     arguments), so dropping the user's last reference and gc.collect() frees nothing: the
-    backward runs and the gradients are right. A tape dropped (or reset) right after its
-    backward() hands its launches to the runtime until the next synchronize, so the arrays
-    outlive the queued BACKWARD even when the daemon's executor is busy.
+    backward runs and the gradients are right. A tape dropped right after its backward()
+    frees its arrays at once, but weftd orders each free after the session's queued
+    commands, so the queued BACKWARD still finds them even when the executor is busy.
   - weftd's tape itself holds weak references only: an array freed in the daemon (here by a
     raw ArrayService.Free of its handle, which is what a client without that guarantee would
     do) makes BACKWARD fail with FAILED_PRECONDITION naming the kernel, the parameter and the
@@ -72,11 +72,8 @@ def test_tape_keeps_recorded_arrays_alive(wp, rng):
     np.testing.assert_allclose(x.grad.numpy(), expected, rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(loss.numpy()[0], s * np.sum(xs.astype(np.float64) ** 2),
                                rtol=1e-4)
-    # after the tape goes, its arrays go too, at the next synchronize (a queued BACKWARD of it
-    # may not have run yet)
+    # after the tape goes, its arrays go too
     del tape
-    gc.collect()
-    wp.synchronize()
     gc.collect()
     assert y_ref() is None
 
@@ -89,10 +86,10 @@ def busy(n: int, out: wp.array(dtype=float)):
     out[0] = acc
 
 
-def test_dropping_a_tape_right_after_backward_keeps_its_arrays_for_the_queued_backward(wp, rng):
+def test_frees_wait_for_a_queued_backward(wp, rng):
     """A BACKWARD is queued behind a long launch; the tape and its intermediate array are
-    dropped at once, and their frees reach the daemon before the BACKWARD runs unless the
-    client holds the tape's arrays until the next synchronize: the gradient must be right."""
+    dropped at once and their frees reach weftd before the BACKWARD runs: weftd releases them
+    only after the queued commands, so the gradient must be right."""
     n = 64
     xs = rng.standard_normal(n).astype(np.float32)
     s = float(rng.uniform(0.5, 2.0))

@@ -212,9 +212,6 @@ class Tape:
 
                 self._runtime.submit(exec_pb2.Command(tape=exec_pb2.TapeCommand(
                     op=exec_pb2.TapeCommand.FREE, tape_id=self.tape_id)))
-                # a BACKWARD queued before may not have run: its arrays stay until the next sync
-                if self.launches:
-                    self._runtime.hold_until_sync(self.launches)
         except Exception:  # noqa: BLE001 - finalizer: never raise
             pass
 
@@ -419,8 +416,6 @@ class Tape:
                 grad.zero_()
         else:
             self.zero()
-        if self._mode == "daemon" and self.launches:
-            self._runtime.hold_until_sync(list(self.launches))   # as in __del__
         self.launches.clear()
         self._scopes.clear()
         self._open_scopes.clear()
