@@ -306,9 +306,36 @@ def test_reshape_flatten_view_transpose(wp):
         a.reshape((5, 5))
     with pytest.raises(RuntimeError):
         t.reshape(-1)
-    with pytest.raises(RuntimeError):
+    with pytest.raises(TypeError, match="cannot create an array view with dtype float64"):
         a.view(wp.float64)
     np.testing.assert_array_equal(t.contiguous().numpy(), ref.transpose())
+
+
+def test_view_between_vectors_and_scalars(wp):
+    """array.view as Warp's: a vector/matrix array seen as its scalar gains the element's
+    dimensions, a scalar array with contiguous trailing dimensions seen as a vector/matrix
+    loses them (one element: shape (1,)); sizes that do not fit raise Warp's TypeError."""
+    ref = np.arange(16, dtype=np.float32).reshape(4, 4)
+    v = wp.array(ref, dtype=wp.vec4, device="cpu")
+    f = v.view(float)
+    assert f.shape == (4, 4) and f.strides == (16, 4) and f.dtype is wp.float32
+    np.testing.assert_array_equal(f.numpy(), ref)
+    m = wp.array(ref.reshape(4, 2, 2), dtype=wp.mat22, device="cpu").view(wp.float32)
+    assert m.shape == (4, 2, 2) and m.strides == (16, 8, 4)
+    back = wp.array(ref, dtype=float, device="cpu").view(wp.vec4)
+    assert back.shape == (4,) and back.strides == (16,) and back.dtype is wp.vec4
+    np.testing.assert_array_equal(back.numpy(), ref)
+    one = wp.array([[1, 2], [3, 4]], dtype=float, device="cpu").view(wp.mat22)
+    assert one.shape == (1,)
+    np.testing.assert_array_equal(one.numpy()[0], [[1, 2], [3, 4]])
+    with pytest.raises(TypeError, match="source scalar dtype float32 has size 4 bytes, but "
+                                        "target dtype has size 8 bytes"):
+        v.view(wp.float64)
+    with pytest.raises(TypeError, match="source dtype has size 4 bytes, but target scalar "
+                                        "dtype float64 has size 8 bytes"):
+        wp.array(ref, dtype=float, device="cpu").view(wp.vec4d)
+    with pytest.raises(RuntimeError, match="is not compatible with the requested data type"):
+        wp.array(ref, dtype=float, device="cpu").view(wp.vec3)
 
 
 def test_list_and_str(wp):

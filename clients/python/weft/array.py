@@ -12,8 +12,10 @@ Internal interface for weft._kernel: `a._handle`, `a._ref()` -> types_pb2.ArrayR
 """
 from __future__ import annotations
 
+import ctypes
 import math
 import types as _types_module
+import warnings
 import weakref
 from typing import Any
 
@@ -428,6 +430,18 @@ def _create(dtype, shape, device, requires_grad, init, value=b""):
 # The array
 
 
+class array_t(ctypes.Structure):
+    """Warp's ctypes descriptor of an array (what `a.__ctype__()` gives): the addresses of the
+    data and gradient in this process (0 where there is none), shape, byte strides, ndim. A
+    descriptor made by a weft array refers back to it (`_weft_value`), which is how
+    wp.Launch.set_param_*_from_ctype takes it."""
+
+    _fields_ = (("data", ctypes.c_uint64), ("grad", ctypes.c_uint64),
+                ("shape", ctypes.c_int32 * ARRAY_MAX_DIMS),
+                ("strides", ctypes.c_int32 * ARRAY_MAX_DIMS),
+                ("ndim", ctypes.c_uint16), ("flags", ctypes.c_uint16))
+
+
 class array:
     """A multi-dimensional array in weftd memory (Warp's wp.array)."""
 
@@ -714,6 +728,17 @@ class array:
         mapping = self._alloc.mapping()
         _ADDRESSED.add(self._alloc)          # wp.array(ptr=...) can find it again
         return mapping.address + self._info.shm_offset + self._byte_offset
+
+    def __ctype__(self) -> array_t:
+        """Warp's ctypes descriptor of this array (array_t), referring back to it."""
+        out = array_t(data=self.ptr or 0, ndim=self.ndim)
+        grad = self.grad
+        out.grad = (grad.ptr or 0) if grad is not None else 0
+        for i, (n, s) in enumerate(zip(self.shape, self.strides)):
+            out.shape[i], out.strides[i] = n, s
+        out.flags = 1 if self._retain_grad else 0
+        out._weft_value = self
+        return out
 
     @property
     def requires_grad(self) -> bool:
@@ -1108,12 +1133,51 @@ class array:
         return self.reshape(-1)
 
     def view(self, dtype):
-        """The same memory seen as `dtype` (of the same element size)."""
+        """The same memory seen as `dtype` (Warp's rules): of the same element size, the same
+        shape and strides; a vector/matrix array seen as its scalar gains the element's
+        dimensions; a scalar array whose trailing dimensions are a contiguous vector/matrix
+        seen as that type loses them (a single element gives shape (1,))."""
         dtype = _canonical_dtype(dtype)
-        if _elem_size(dtype) != _elem_size(self.dtype):
-            raise RuntimeError(f"Cannot view an array of {type_str(self.dtype)} as "
-                               f"{type_str(dtype)}: element sizes differ")
-        return self._make_view(self._byte_offset, self.shape, self.strides, dtype)
+        size, own = _elem_size(dtype), _elem_size(self.dtype)
+        src_scalar = getattr(self.dtype, "_wp_scalar_type_", None)
+        dst_scalar = getattr(dtype, "_wp_scalar_type_", None)
+        src_composite = isinstance(self.dtype, type) and issubclass(self.dtype, _Composite)
+        dst_composite = isinstance(dtype, type) and issubclass(dtype, _Composite)
+        what = (f"cannot create an array view with dtype {types.type_repr(dtype)} from source "
+                f"dtype {types.type_repr(self.dtype)}")
+        if size == own:
+            shape, strides = self.shape, self.strides
+        elif src_composite and isinstance(dtype, type) and issubclass(dtype, _Scalar):
+            scalar_size = _elem_size(src_scalar)
+            if size != scalar_size:
+                raise TypeError(f"{what}: source scalar dtype {types.type_repr(src_scalar)} has "
+                                f"size {scalar_size} bytes, but target dtype has size {size} "
+                                f"bytes")
+            inner = tuple(self.dtype._shape_)
+            shape = (*self.shape, *inner)
+            strides = (*self.strides, *_contiguous_strides(inner, scalar_size))
+        elif dst_composite and isinstance(self.dtype, type) and issubclass(self.dtype, _Scalar):
+            scalar_size = _elem_size(dst_scalar)
+            if own != scalar_size:
+                raise TypeError(f"{what}: source dtype has size {own} bytes, but target scalar "
+                                f"dtype {types.type_repr(dst_scalar)} has size {scalar_size} "
+                                f"bytes")
+            inner = tuple(dtype._shape_)
+            k = len(inner)
+            if self.ndim < k or tuple(self.shape[-k:]) != inner:
+                raise RuntimeError(f"The shape of the source array {tuple(self.shape)} is not "
+                                   f"compatible with the requested data type "
+                                   f"{types.type_repr(dtype)}")
+            if tuple(self.strides[-k:]) != _contiguous_strides(inner, scalar_size):
+                raise RuntimeError(f"The inner strides of the source array "
+                                   f"{tuple(self.strides)} are not compatible with the "
+                                   f"requested data type {types.type_repr(dtype)}")
+            shape = tuple(self.shape[:-k]) or (1,)
+            strides = tuple(self.strides[:-k]) or (size,)
+        else:
+            raise TypeError(f"{what}: source dtype has size {own} bytes, but target dtype has "
+                            f"size {size} bytes")
+        return self._make_view(self._byte_offset, shape, strides, dtype)
 
     def transpose(self, axes=None):
         if axes is None:
@@ -1462,6 +1526,12 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
         s = _flat_view(src, src_offset, count)
     if d.size == 0 or d._info is None or s._info is None:
         return
+    tape = _overwrite_adjoint_tape(d, s)
+    if tape is not None:
+        _submit_copy(d, s)
+        reason = _overwrite_reason(d, s)
+        tape.record_func(backward=lambda: _adj_copy_overwrite(d, s, reason), arrays=[dest, src])
+        return
     if d.device == s.device and _on_tape(d, s):
         from ._kernel.copy_kernels import launch_copy  # noqa: PLC0415
 
@@ -1473,9 +1543,75 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
             src.mark_read()
         launch_copy(d, s)
         return
+    _submit_copy(d, s)
+
+
+def _submit_copy(d, s) -> None:
     cmd = _runtime.exec_pb2.Command(copy=_runtime.exec_pb2.CopyCommand(dst=d._ref(),
                                                                         src=s._ref()))
     d._alloc.runtime.submit(cmd)
+
+
+# Copies on a tape whose gradient cannot be accumulated (Warp's "byte-copy adjoint"): gradients
+# of types without addition (structs, bool), of different types, or of windows whose bytes may
+# overlap. The backward pass overwrites the source window's gradient with the destination
+# window's and leaves the destination's, with Warp's warning (once per reason).
+_WARNED_COPY_REASONS: set = set()
+
+
+def _gradient_addable(d, s) -> bool:
+    scalar = getattr(d.dtype, "_wp_scalar_type_", None)
+    return (scalar is not None and scalar is not types.bool
+            and type_str(d.dtype) == type_str(s.dtype))
+
+
+def _may_overlap(d, s) -> bool:
+    """Warp's conservative test: any non-positive stride, or byte extents of one allocation
+    that intersect."""
+    if not all(st > 0 for a in (d, s) for st in a.strides):
+        return True
+    if d._handle != s._handle:
+        return False
+
+    def extent(a):
+        last = sum((n - 1) * st for n, st in zip(a.shape, a.strides))
+        return a._byte_offset, a._byte_offset + last + _elem_size(a.dtype)
+
+    (d_lo, d_hi), (s_lo, s_hi) = extent(d), extent(s)
+    return d_lo < s_hi and s_lo < d_hi
+
+
+def _overwrite_adjoint_tape(d, s):
+    """The active tape when the copy d <- s needs the overwrite adjoint (both have gradients,
+    same device, and the gradients cannot be accumulated); else None."""
+    if d.device != s.device or not (d.requires_grad and s.requires_grad):
+        return None
+    from ._kernel.tape import active_tape  # noqa: PLC0415 - weft._kernel imports this module
+
+    tape = active_tape()
+    if tape is None or (_gradient_addable(d, s) and not _may_overlap(d, s)):
+        return None
+    if d.grad is None or s.grad is None:
+        return None
+    return tape
+
+
+def _overwrite_reason(d, s) -> str:
+    if not _gradient_addable(d, s):
+        return "copy between unsupported gradient dtypes"
+    if not (d.is_contiguous and s.is_contiguous):
+        return "non-contiguous copy"
+    return "overlapping copy"
+
+
+def _adj_copy_overwrite(d, s, reason: str) -> None:
+    if reason not in _WARNED_COPY_REASONS:
+        _WARNED_COPY_REASONS.add(reason)
+        warnings.warn(f"A tape-recorded wp.copy() encountered a copy pattern whose gradients "
+                      f"cannot yet be fully tracked ({reason}). The backward pass may overwrite "
+                      f"existing source gradients or fail to clear gradients from overwritten "
+                      f"destination values.", UserWarning, stacklevel=4)
+    _submit_copy(s.grad, d.grad)
 
 
 def from_ipc_handle(handle, dtype=None, shape=None, strides=None, device=None):

@@ -618,6 +618,7 @@ def _composite_class(base, name, shape, dtype, type_string, extra=None):
         "_type_str": type_string,
         "_wp_scalar_type_": dtype,
         "_np_dtype_": dtype._np_dtype_,
+        "_type_": dtype._type_,     # Warp's ctypes type of one component
         # Python values keep their components in _value_dtype_: the storage dtype, except
         # bfloat16 (stored as bits), whose values are float32 rounded to bfloat16.
         "_value_dtype_": np.dtype(np.float32) if dtype is bfloat16 else dtype._np_dtype_,

@@ -89,8 +89,29 @@ def test_from_dlpack_errors(wp, torch):
         wp.from_dlpack([1, 2, 3])
     with pytest.raises(Exception, match="unsupported"):
         wp.from_dlpack(torch.zeros(3, dtype=torch.complex64))
-    with pytest.raises(Exception, match="incompatible dtypes"):
+    with pytest.raises(RuntimeError, match="Incompatible data types: DLPack float64 and Warp float32"):
         wp.from_dlpack(np.zeros(3, dtype=np.float64), dtype=wp.float32)
+
+
+def test_from_dlpack_dtype_rules_follow_warp(wp):
+    """wp.from_dlpack(dtype=) aliases as Warp's: bool8 as bool/int8/uint8, an integer as either
+    signedness of its size, a float only as itself; other pairs raise a RuntimeError in Warp's
+    words. Vector dtypes name their component's ctypes type (`_type_`), as Warp's."""
+    import ctypes
+
+    source = wp.zeros(2, dtype=wp.bool, device="cpu")
+    with pytest.raises(RuntimeError, match="^Incompatible data types: DLPack bool8 and Warp float32$"):
+        wp.from_dlpack(wp.to_dlpack(source), dtype=wp.float32)
+    with pytest.raises(RuntimeError, match="DLPack int32 and Warp vec2h"):
+        wp.from_dlpack(np.zeros((3, 2), dtype=np.int32), dtype=wp.vec2h)
+    assert wp.from_dlpack(wp.to_dlpack(source), dtype=wp.uint8).dtype is wp.uint8
+    ints = wp.from_dlpack(np.arange(4, dtype=np.int32), dtype=wp.uint32)
+    assert ints.dtype is wp.uint32 and ints.numpy().tolist() == [0, 1, 2, 3]
+    assert wp.vec2b._type_ is ctypes.c_int8 and wp.mat22d._type_ is ctypes.c_double
+    assert wp.vec3h._type_ is ctypes.c_uint16 and wp.quatf._type_ is ctypes.c_float
+    a = wp.zeros(5, dtype=wp.vec3us, device="cpu")
+    b = wp.from_dlpack(wp.to_dlpack(a), dtype=wp.uint16)
+    assert b.shape == (5, 3) and b.strides == (6, ctypes.sizeof(wp.vec3us._type_))
 
 
 def test_bfloat16_through_dlpack(wp, torch, rng):

@@ -6,6 +6,7 @@ and clones recorded), wp.launch(record_cmd=True) -> wp.Launch, wp.types.type_rep
 dtype inference and wp.array(ptr=..., strides=...). Gradients are checked against float64
 references computed with NumPy on fresh random data."""
 import re
+import sys
 
 import numpy as np
 import pytest
@@ -594,3 +595,101 @@ def test_launch_object_without_params_starts_at_zero(wp, rng):
     cmd.set_dim(8)
     cmd.launch()
     np.testing.assert_allclose(out.numpy(), np.arange(8) + (x[0] + x[2]) + 7.0, rtol=1e-15)
+
+
+@wp.struct
+class CmdParams:
+    i: int
+    f: float
+
+
+@wp.kernel
+def cmd_from_ctypes(p: CmdParams, i: int, v: wp.vec3, out: wp.array(dtype=float)):
+    t = wp.tid()
+    out[t] = float(p.i) * 100.0 + p.f * 10.0 + float(i) + v[0] + v[2]
+
+
+def test_launch_params_in_warps_order_and_zero_adjoints(wp):
+    """Launch.params is Warp's list: the bounds, the forward arguments, then (adjoint launches)
+    the adjoint ones, which start at zero for vectors and quaternions (arrays None)."""
+    out = wp.zeros(8, dtype=wp.float64)
+    cmd = wp.Launch(launch_defaults, wp.get_device(), adjoint=True)
+    params = cmd.params
+    assert len(params) == 1 + 2 * 5
+    assert cmd.fwd_args[0] is None and params[1] is None          # out
+    np.testing.assert_array_equal(np.array(params[1 + 5 + 1]), [0.0, 0.0, 0.0])   # adjoint v
+    np.testing.assert_array_equal(np.array(params[1 + 5 + 2]), [0.0, 0.0, 0.0, 0.0])  # adjoint q
+    assert params[1 + 5 + 3] == 0 and params[1 + 5 + 4] == 0
+    fwd = wp.Launch(launch_defaults, wp.get_device())
+    fwd.set_param_by_name("out", out)
+    fwd.set_dim(3)
+    assert len(fwd.params) == 6 and fwd.params[0] == (3,) and fwd.params[1] is out
+
+
+def test_launch_set_params_from_ctypes(wp):
+    """set_param_*_from_ctype takes a struct's __ctype__() (the struct as it was then), an
+    array's __ctype__(), Python and ctypes scalars and vectors, as Warp's wp.Launch does."""
+    import ctypes
+
+    p = CmdParams()
+    p.i, p.f = 3, 0.5
+    out = wp.zeros(4, dtype=float)
+    cmd = wp.launch(cmd_from_ctypes, dim=4, inputs=[CmdParams(), 0, wp.vec3(), None],
+                    record_cmd=True)
+    snapshot = p.__ctype__()
+    assert isinstance(snapshot, ctypes.Structure)
+    p.i = 9                                  # after __ctype__(): not in the snapshot
+    desc = out.__ctype__()
+    assert isinstance(desc, ctypes.Structure)
+    assert desc.data == out.ptr and desc.ndim == 1 and desc.shape[0] == 4 and desc.strides[0] == 4
+    cmd.set_param_at_index_from_ctype(0, snapshot)
+    cmd.set_param_at_index_from_ctype(1, ctypes.c_int32(7))
+    cmd.set_param_at_index_from_ctype(2, wp.vec3(1.0, 2.0, 4.0))
+    cmd.set_param_by_name_from_ctype("out", desc)
+    cmd.launch()
+    np.testing.assert_array_equal(out.numpy(), [300.0 + 5.0 + 7.0 + 5.0] * 4)
+
+
+@wp.struct
+class CopyGradStruct:
+    a: float
+    v: wp.vec3
+
+
+@wp.kernel
+def sum_into(x: wp.array(dtype=float), total: wp.array(dtype=float)):
+    wp.atomic_add(total, 0, x[wp.tid()])
+
+
+@wp.kernel
+def sum_struct_a(xs: wp.array(dtype=CopyGradStruct), total: wp.array(dtype=float)):
+    wp.atomic_add(total, 0, xs[wp.tid()].a)
+
+
+def test_copy_adjoint_overwrites_where_gradients_cannot_accumulate(wp):
+    """Warp's byte-copy adjoint for copies on a tape whose gradients cannot be accumulated
+    (overlapping windows of one array, struct dtypes): backward overwrites the source
+    window's gradient with the destination window's and leaves the destination's, with a
+    UserWarning naming the pattern."""
+    n = 4
+    y = wp.array(np.arange(1.0, n + 1), dtype=float, requires_grad=True)
+    loss = wp.zeros(1, dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.copy(y, y, dest_offset=1, src_offset=0, count=3)
+        wp.launch(sum_into, dim=n, inputs=[y, loss])
+    np.testing.assert_array_equal(y.numpy(), [1.0, 1.0, 2.0, 3.0])
+    sys.modules["weft.array"]._WARNED_COPY_REASONS.discard("overlapping copy")   # once each
+    with pytest.warns(UserWarning, match=r"cannot yet be fully tracked \(overlapping copy\)"):
+        tape.backward(loss)
+    np.testing.assert_array_equal(y.grad.numpy(), [1.0, 1.0, 1.0, 1.0])   # not [2, 1, 1, 0]
+
+    xs = wp.zeros(n, dtype=CopyGradStruct, requires_grad=True)
+    loss = wp.zeros(1, dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        cloned = wp.clone(xs)
+        wp.launch(sum_struct_a, dim=n, inputs=[cloned, loss])
+    tape.backward(loss)
+    np.testing.assert_array_equal(xs.grad.numpy()["a"], np.ones(n, dtype=np.float32))
+    np.testing.assert_array_equal(cloned.grad.numpy()["a"], np.ones(n, dtype=np.float32))

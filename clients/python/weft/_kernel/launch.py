@@ -4,6 +4,7 @@ appends a LaunchCommand to the session's batch. NumPy arrays and lists passed fo
 parameters are copied into temporary daemon arrays and copied back after the launch."""
 from __future__ import annotations
 
+import ctypes
 import os
 import struct
 import sys
@@ -857,11 +858,14 @@ class Launch:
     """What wp.launch(..., record_cmd=True) returns instead of launching (Warp's wp.Launch): the
     kernel, device, dim and arguments, checked and compiled once; launch() runs it with the
     arguments as they are then (not recorded on a tape, as in Warp); set_dim and set_param_*
-    change them."""
+    change them. The arguments are `fwd_args` and `adj_args` (Warp's names); `params` lists them
+    in Warp's order: the launch bounds, the forward arguments, then (adjoint launches) the
+    adjoint ones."""
 
     def __init__(self, kernel: Kernel, device, dim=0, params=None, adj_params=(), adjoint=False,
                  max_blocks=0, block_dim=256):
         device = device_name(device) if not isinstance(device, str) else device
+        adj_params = list(adj_params)
         if params is None:
             # wp.Launch(kernel, device): every parameter at its type's zero (arrays None), set
             # later with set_param_*; a generic kernel needs its arguments to pick an instance
@@ -870,6 +874,10 @@ class Launch:
                                       f"params (they choose the instance)")
             params = [_zero_argument(kernel, name, text)
                       for name, text in zip(kernel.param_names, kernel.param_types)]
+            if adjoint and not adj_params:
+                # adjoint values at zero too, as Warp's; structs None (their arrays' .grad)
+                adj_params = [None if typestr.parse(text).kind == "struct" else zero
+                              for text, zero in zip(kernel.param_types, params)]
         if kernel.is_generic:
             kernel = kernel.specialize(infer_param_types(kernel, list(params)))
         self.kernel = kernel
@@ -878,10 +886,16 @@ class Launch:
         self.max_blocks = max_blocks
         self.block_dim = block_dim
         self.dim = normalize_dim(dim)
-        self.params = list(params)
-        self.adj_params = list(adj_params) + [None] * (len(self.params) - len(adj_params))
-        pack_arguments(kernel, device, self.params)       # argument errors raise here
+        self.fwd_args = list(params)
+        self.adj_args = adj_params + [None] * (len(self.fwd_args) - len(adj_params))
+        pack_arguments(kernel, device, self.fwd_args)       # argument errors raise here
         module_mod.compile_kernel(kernel, device, backward=self.adjoint)
+
+    @property
+    def params(self) -> list:
+        """Warp's parameter list: the bounds (the launch dimensions), the forward arguments,
+        then the adjoint arguments of an adjoint launch (a copy: set them with set_param_*)."""
+        return [tuple(self.dim), *self.fwd_args, *(self.adj_args if self.adjoint else ())]
 
     def set_dim(self, dim) -> None:
         self.dim = normalize_dim(dim)
@@ -893,25 +907,41 @@ class Launch:
             raise KeyError(f"kernel '{self.kernel.key}' has no parameter '{name}'") from None
 
     def set_param_at_index(self, index: int, value, adjoint: bool = False) -> None:
-        if not 0 <= index < len(self.params):
-            raise IndexError(f"kernel '{self.kernel.key}' has {len(self.params)} parameters, "
+        if not 0 <= index < len(self.fwd_args):
+            raise IndexError(f"kernel '{self.kernel.key}' has {len(self.fwd_args)} parameters, "
                              f"index {index} is out of range")
         if adjoint:
-            self.adj_params[index] = value
+            self.adj_args[index] = value
             return
         name = self.kernel.param_names[index]
         ArgPacker(self.kernel, self.device).pack(name, self.kernel.param_types[index],
                                                  self.kernel.definition.annotations[name], value)
-        self.params[index] = value
+        self.fwd_args[index] = value
 
     def set_param_by_name(self, name: str, value, adjoint: bool = False) -> None:
         self.set_param_at_index(self._index(name), value, adjoint)
+
+    def set_param_at_index_from_ctype(self, index: int, value, adjoint: bool = False) -> None:
+        """Warp's setter from a ctypes value: a weft array's or struct's __ctype__() (the
+        array, or the struct as it was then), a ctypes scalar, or a plain value."""
+        if hasattr(value, "_weft_value"):
+            value = value._weft_value
+        elif isinstance(value, ctypes._SimpleCData):
+            value = value.value
+        elif isinstance(value, ctypes.Structure):
+            raise TypeError(f"wp.Launch.set_param_at_index_from_ctype: a {type(value).__name__} "
+                            f"that no weft array or struct made cannot be sent to weftd (it "
+                            f"holds raw addresses); pass the array or struct itself")
+        self.set_param_at_index(index, value, adjoint)
+
+    def set_param_by_name_from_ctype(self, name: str, value, adjoint: bool = False) -> None:
+        self.set_param_at_index_from_ctype(self._index(name), value, adjoint)
 
     def set_params(self, values) -> None:
         for i, value in enumerate(values):
             self.set_param_at_index(i, value)
 
     def launch(self, stream=None) -> None:
-        launch(self.kernel, self.dim, inputs=self.params,
-               adj_inputs=self.adj_params if self.adjoint else (), adjoint=self.adjoint,
+        launch(self.kernel, self.dim, inputs=self.fwd_args,
+               adj_inputs=self.adj_args if self.adjoint else (), adjoint=self.adjoint,
                device=self.device, record_tape=False)

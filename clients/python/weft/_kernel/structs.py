@@ -2,6 +2,8 @@
 (attribute access, usable as launch arguments) and their wire form (StructDef, StructValue)."""
 from __future__ import annotations
 
+import copy
+import ctypes
 import re
 import typing
 
@@ -62,6 +64,36 @@ class StructInstance:
     def __repr__(self):
         inner = ", ".join(f"{k}={v!r}" for k, v in self._values.items())
         return f"{self._struct_type.cls.__name__}({inner})"
+
+    def __ctype__(self) -> "StructCtype":
+        """Warp's ctypes value of the struct: a snapshot of the fields as they are now (later
+        assignments to this instance do not change it), which wp.Launch's
+        set_param_*_from_ctype takes."""
+        out = StructCtype()
+        out._weft_value = _snapshot(self)
+        return out
+
+
+class StructCtype(ctypes.Structure):
+    """What StructInstance.__ctype__ gives: a ctypes.Structure (as Warp's) that carries a
+    snapshot of the instance in `_weft_value`; weft sends structs field by field, not as
+    these bytes."""
+
+    _fields_ = ()
+
+
+def _snapshot(inst: StructInstance) -> StructInstance:
+    """A copy of a struct instance: nested structs, vectors and matrices copied, arrays shared."""
+    from weft.types import _Composite  # noqa: PLC0415
+
+    out = StructInstance(inst._struct_type)
+    for name, value in inst._values.items():
+        if isinstance(value, StructInstance):
+            value = _snapshot(value)
+        elif isinstance(value, (_Composite, np.ndarray)):
+            value = copy.deepcopy(value)
+        out._values[name] = value
+    return out
 
 
 class StructType:

@@ -161,6 +161,42 @@ def _is_capsule(obj) -> bool:
     return type(obj).__name__ == "PyCapsule"
 
 
+class DLPackDtypeError(external.InteropError, RuntimeError):
+    """A DLPack tensor whose scalar type the requested dtype cannot alias (a RuntimeError,
+    as Warp raises it; also weft's InteropError)."""
+
+
+_DL_NAMES = {0: "int", 1: "uint", 2: "float", 3: "void_p", 4: "bfloat", 5: "complex", 6: "bool"}
+
+
+def _check_dtype(dl_dtype, dtype):
+    """Warp's aliasing rule for wp.from_dlpack(dtype=): bool8 as bool/int8/uint8, an integer
+    as either signedness of its size, a float or bfloat16 only as itself; raises
+    DLPackDtypeError in Warp's words otherwise."""
+    from .. import types  # noqa: PLC0415
+    from ..array import _canonical_dtype  # noqa: PLC0415
+
+    dtype = _canonical_dtype(dtype)
+    scalar = getattr(dtype, "_wp_scalar_type_", None)
+    if scalar is None:
+        return
+    code, bits = int(dl_dtype.code), int(dl_dtype.bits)
+    if code == 6:
+        ok = bits == 8 and scalar in (types.bool, types.int8, types.uint8)
+    elif code in (0, 1):
+        ok = scalar in types.int_types and np.dtype(scalar._np_dtype_).itemsize * 8 == bits
+    elif code == 2:
+        ok = scalar in types.float_types and np.dtype(scalar._np_dtype_).itemsize * 8 == bits
+    elif code == 4:
+        ok = bits == 16 and scalar is types.bfloat16
+    else:
+        return      # left to the import, which names what it does not support
+    if not ok:
+        name = f"{_DL_NAMES[code]}{bits}" + (f"x{dl_dtype.lanes}" if dl_dtype.lanes > 1 else "")
+        raise DLPackDtypeError(f"Incompatible data types: DLPack {name} and Warp "
+                               f"{types.type_repr(dtype)}")
+
+
 def from_dlpack(source, dtype=None):
     """A weft array of a DLPack producer (an object with __dlpack__/__dlpack_device__: NumPy,
     Torch, JAX, CuPy, Paddle, weft) or a legacy capsule. CPU data in a weft slab is used in
@@ -188,6 +224,8 @@ def from_dlpack(source, dtype=None):
         from .. import types  # noqa: PLC0415
 
         tensor, _, _ = producer.capsule_tensor(capsule)
+        if dtype is not None:
+            _check_dtype(tensor.dtype, dtype)
         if tensor.dtype.code == 4:           # kDLBfloat
             try:
                 bits = producer.read_bfloat16(capsule)
