@@ -112,6 +112,14 @@ extern "C" __global__ void weft_bvh_refit_level(weft_bvh_node* nodes, const int*
 }
 )CUDA";
 
+}  // namespace
+
+extern const char* kCudaHashGridSource;   // cuda_device_hash_grid.cpp
+
+std::string CudaBuiltinSource() { return std::string(kBuiltinSource) + kCudaHashGridSource; }
+
+namespace {
+
 struct ViewArg {
   int64_t shape[4] = {1, 1, 1, 1};
   int64_t strides[4] = {0, 0, 0, 0};
@@ -745,7 +753,7 @@ Expected<jit::CuFunction> CudaDevice::Builtin(const char* name) {
   std::lock_guard<std::mutex> lock(mu_);
   if (!builtins_) {
     if (!options_.compile) return Unimplemented(name_ + ": no CUDA compiler in this daemon (strided copies and fills)");
-    WEFT_ASSIGN_OR_RETURN(std::string image, options_.compile(kBuiltinSource, "weft_builtin_copy_fill.cu", sm_));
+    WEFT_ASSIGN_OR_RETURN(std::string image, options_.compile(CudaBuiltinSource(), "weft_builtin_copy_fill.cu", sm_));
     WEFT_RETURN_IF_ERROR(driver_->Check(driver_->ModuleLoadData(&builtins_, image.data()), "cuModuleLoadData"));
   }
   auto f = builtin_functions_.find(name);

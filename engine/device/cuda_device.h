@@ -45,6 +45,10 @@ struct CudaDeviceOptions {
   std::function<Expected<std::string>(const std::string& source, const std::string& name, int sm)> compile;
 };
 
+// The CUDA source of the device's built-in kernels (strided copy and fill, BVH refit, hash grid
+// build), compiled by NVRTC on first use.
+std::string CudaBuiltinSource();
+
 struct CudaDeviceStats {
   uint64_t resets = 0;
   double last_reset_ms = 0;
@@ -77,6 +81,7 @@ class CudaDevice final : public Device {
   Status Launch(Session& s, const KernelLaunch& launch, std::string* output) override;
   DeviceSyncResult Synchronize(Session& s) override;
   Status RefitBvh(Session& s, const geometry::BvhRefitJob& job) override;
+  Status BuildHashGrid(Session& s, const geometry::HashGridBuildJob& job) override;   // cuda_device_hash_grid.cpp
   void CloseSession(Session& s) override;
 
   // CUDA IPC import of a client process's allocation (cuda_device_import.cpp): the open

@@ -14,6 +14,7 @@
 #include "engine/core/module_source.h"
 #include "engine/core/status.h"
 #include "engine/geometry/bvh_build.h"
+#include "engine/geometry/hash_grid_job.h"
 #include "engine/runtime/array_view.h"
 #include "engine/runtime/launch_args.h"
 #include "engine/runtime/module_store.h"
@@ -78,6 +79,12 @@ class Device {
   // first), queued on the session's stream after its earlier work (a GPU geometry refit).
   // Unimplemented where the device has no such path (the caller refits on the host).
   virtual Status RefitBvh(Session&, const geometry::BvhRefitJob&) { return Unimplemented(name() + " refits BVHs on the host"); }
+  // Builds a hash grid on this device (cells, then the point ids sorted by cell), queued on the
+  // session's stream after its earlier work. Unimplemented where the device has no such path
+  // (the caller builds on the host).
+  virtual Status BuildHashGrid(Session&, const geometry::HashGridBuildJob&) {
+    return Unimplemented(name() + " builds hash grids on the host");
+  }
 };
 
 }  // namespace weft

@@ -342,13 +342,19 @@ Status GeometryObject::HostArrays(const DeviceAccess* dev, std::vector<float>* s
   return Status::Ok();
 }
 
-Status GeometryObject::MirrorOne(const DeviceAccess* dev, const void* src, uint64_t bytes, DeviceCopy* copy) {
+Status GeometryObject::EnsureDeviceMemory(const DeviceAccess* dev, uint64_t bytes, DeviceCopy* copy) {
   copy->bytes = bytes;
   if (bytes == 0) return Status::Ok();
   if (!copy->memory || copy->memory->byte_size < bytes) {
     copy->memory.reset();
     WEFT_ASSIGN_OR_RETURN(copy->memory, dev->allocate(device_, bytes));
   }
+  return Status::Ok();
+}
+
+Status GeometryObject::MirrorOne(const DeviceAccess* dev, const void* src, uint64_t bytes, DeviceCopy* copy) {
+  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, bytes, copy));
+  if (bytes == 0) return Status::Ok();
   return dev->upload(*copy->memory, src, bytes);
 }
 
@@ -422,7 +428,9 @@ Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float r
   WEFT_ASSIGN_OR_RETURN(int64_t n, CheckVec3Array(points, "HashGrid.build points", true));
   if (points->device != device_)
     return InvalidArgument("HashGrid.build: the points live on " + points->device + ", the grid on " + device_);
-  std::vector<int32_t> group_of;   // the groups' copy (grouped build)
+  // A GPU grid is built on its device (the groups read there too); others on the host.
+  const bool on_device = on_gpu() && dev && dev->build_hash_grid;
+  std::vector<int32_t> group_of;   // the groups' copy (grouped build on the host)
   if (groups) {
     ArrayRequirement req;
     req.what = "HashGrid.build groups";
@@ -436,11 +444,11 @@ Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float r
       return InvalidArgument("HashGrid.build groups: " + std::to_string(gv.element_count()) + " group ids for " +
                              std::to_string(n) + " points (one per point)");
     try {
-      group_of.resize(static_cast<size_t>(n));
+      if (!on_device) group_of.resize(static_cast<size_t>(n));
     } catch (const std::bad_alloc&) {
       return ResourceExhausted("HashGrid.build: out of memory for a copy of the groups");
     }
-    if (n > 0) {
+    if (n > 0 && !on_device) {
       if (on_gpu()) {
         WEFT_RETURN_IF_ERROR(NeedAccess(device_, dev, "HashGrid.build"));
         WEFT_RETURN_IF_ERROR(dev->download(*groups, group_of.data(), static_cast<uint64_t>(n) * sizeof(int32_t)));
@@ -451,6 +459,56 @@ Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float r
   }
   const int64_t cells = static_cast<int64_t>(dim_[0]) * dim_[1] * dim_[2];
   const ScalarType scalar = points->dtype.scalar;
+  if (n > INT32_MAX) return InvalidArgument("HashGrid.build: more than 2^31 - 1 points");
+  if (on_device) {
+    // On the device, queued after the session's work: no download, no upload.
+    HashGridBuildJob job;
+    job.points = reinterpret_cast<uintptr_t>(points->data());
+    job.scalar_size = static_cast<int32_t>(ScalarSize(scalar));
+    job.n = n;
+    job.cell_width = radius;
+    for (int k = 0; k < 3; ++k) job.dim[k] = dim_[k];
+    job.cells = cells;
+    Status built = EnsureDeviceMemory(dev, static_cast<uint64_t>(cells) * 4, &gpu_cell_starts_);
+    if (built.ok()) built = EnsureDeviceMemory(dev, static_cast<uint64_t>(cells) * 4, &gpu_cell_ends_);
+    if (built.ok()) built = EnsureDeviceMemory(dev, static_cast<uint64_t>(n) * 4, &gpu_sorted_ids_);
+    if (built.ok()) built = EnsureDeviceMemory(dev, HashGridScratchBytes(n), &gpu_sort_scratch_);
+    if (built.ok()) built = EnsureDeviceMemory(dev, groups ? static_cast<uint64_t>(n) * 4 : 0, &gpu_sorted_groups_);
+    if (built.ok()) {
+      auto address = [](const DeviceCopy& c) { return c.memory ? reinterpret_cast<uintptr_t>(c.memory->data()) : uintptr_t{0}; };
+      job.cell_starts = address(gpu_cell_starts_);
+      job.cell_ends = address(gpu_cell_ends_);
+      job.sorted_ids = address(gpu_sorted_ids_);
+      job.scratch = address(gpu_sort_scratch_);
+      job.groups = groups ? reinterpret_cast<uintptr_t>(groups->data()) : 0;
+      job.sorted_groups = address(gpu_sorted_groups_);
+      built = dev->build_hash_grid(device_, job);
+    }
+    if (built.code() != StatusCode::kUnimplemented) {
+      cell_starts_.clear();
+      cell_ends_.clear();
+      sorted_ids_.clear();
+      sorted_groups_.clear();
+      if (!built.ok()) {   // the device memory may hold a partial build: the grid is empty
+        num_sorted_ = 0;
+        gpu_sorted_groups_.bytes = 0;
+        return built;
+      }
+      points_ = std::move(points);
+      num_points_ = n;
+      num_sorted_ = n;
+      cell_width_ = radius;
+      return Status::Ok();
+    }
+  }
+  if (groups && n > 0 && group_of.empty()) {   // the device had no build of its own
+    try {
+      group_of.resize(static_cast<size_t>(n));
+    } catch (const std::bad_alloc&) {
+      return ResourceExhausted("HashGrid.build: out of memory for a copy of the groups");
+    }
+    WEFT_RETURN_IF_ERROR(dev->download(*groups, group_of.data(), static_cast<uint64_t>(n) * sizeof(int32_t)));
+  }
   const char* bytes = points->data();
   std::vector<char> host;
   if (on_gpu()) {
@@ -500,6 +558,7 @@ Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float r
   }
   points_ = std::move(points);
   num_points_ = n;
+  num_sorted_ = n;
   cell_width_ = radius;
   return Mirror(dev);
 }
@@ -542,7 +601,7 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
     d->cell_ends = cell_ends_.empty() ? nullptr : cell_ends_.data();
     d->sorted_ids = sorted_ids_.empty() ? nullptr : sorted_ids_.data();
     d->sorted_groups = sorted_groups_.empty() ? nullptr : sorted_groups_.data();
-    d->num_sorted = cell_width_ > 0.0f ? static_cast<int64_t>(sorted_ids_.size()) : 0;
+    d->num_sorted = cell_width_ > 0.0f ? num_sorted_ : 0;
     for (int k = 0; k < 3; ++k) d->dim[k] = dim_[k];
     d->cell_width = cell_width_;
   }

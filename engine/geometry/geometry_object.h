@@ -3,9 +3,10 @@
 // the daemon's own build products (BVH nodes, the checked copy of a mesh's indices, the hash
 // grid's cells). Describe() writes the kernel-side descriptor (geometry_abi.h). Builds and refits
 // run on the session's executor, ordered with its launches.
-// On a GPU the builds run on the host too: the arrays are downloaded (after the session's queued
-// work on the device), the tree or cells are built as on the CPU, and the products are uploaded
-// into device memory the object owns (counted in the session's quota); kernels read the user's
+// On a GPU, hash grids (without groups) are built on the device and BVHs are refitted there;
+// the other builds run on the host: the arrays are downloaded (after the session's queued work
+// on the device), the tree or cells are built as on the CPU, and the products are uploaded into
+// device memory the object owns (counted in the session's quota); kernels read the user's
 // arrays in place.
 #pragma once
 
@@ -17,6 +18,7 @@
 
 #include "engine/core/status.h"
 #include "engine/geometry/bvh_build.h"
+#include "engine/geometry/hash_grid_job.h"
 #include "engine/geometry/volume_build.h"
 #include "engine/native/geometry_abi.h"
 #include "engine/runtime/allocation.h"
@@ -40,6 +42,8 @@ struct DeviceAccess {
   std::function<Status(const Allocation& a, const void* src, uint64_t n)> upload;
   // Refits a BVH on `device` (Device::RefitBvh; may be empty: the host refits).
   std::function<Status(const std::string& device, const BvhRefitJob& job)> refit_bvh;
+  // Builds a hash grid on `device` (Device::BuildHashGrid; may be empty: the host builds).
+  std::function<Status(const std::string& device, const HashGridBuildJob& job)> build_hash_grid;
 };
 
 class GeometryObject {
@@ -110,6 +114,8 @@ class GeometryObject {
     uint64_t bytes = 0;   // in use
   };
   Status MirrorOne(const DeviceAccess* dev, const void* src, uint64_t bytes, DeviceCopy* copy);
+  // Device memory of at least `bytes` in `copy` (kept when large enough), contents undefined.
+  Status EnsureDeviceMemory(const DeviceAccess* dev, uint64_t bytes, DeviceCopy* copy);
   // Copies `groups` (one int32 per item) into item_groups_.
   Status TakeGroups(const std::shared_ptr<Allocation>& groups, const DeviceAccess* dev, const char* what);
 
@@ -127,6 +133,7 @@ class GeometryObject {
   float cell_width_ = 0.0f;
   std::vector<int32_t> cell_starts_, cell_ends_, sorted_ids_;
   std::vector<int32_t> sorted_groups_;   // grouped build: the group of each sorted_ids_ entry
+  int64_t num_sorted_ = 0;   // points of the last build (host or device)
   // volume
   VolumeData volume_;
   std::shared_ptr<Allocation> values_;
@@ -135,6 +142,7 @@ class GeometryObject {
   DeviceCopy gpu_sorted_groups_, gpu_levels_;
   DeviceCopy gpu_group_ids_, gpu_group_roots_;
   DeviceCopy gpu_vol_table_, gpu_vol_masks_, gpu_vol_prefix_;
+  DeviceCopy gpu_sort_scratch_;   // a device hash grid build's sort buffers
 };
 
 // Checks that `a` is a whole contiguous array of vec3 float32 (any number of dimensions, or

@@ -12,6 +12,7 @@
 #include <map>
 #include <random>
 
+#include "engine/device/cuda_device.h"
 #include "runtime_test_support.h"
 #if WEFT_WITH_CUDA
 #include "engine/jit/cuda/nvrtc_compiler.h"
@@ -223,6 +224,21 @@ TEST_F(CudaMultiGpuTest, CopiesBetweenGpusAreBitExact) {
   EXPECT_TRUE(SameBits(ReadFloats(*engine_, *s, b->handle), expect_b2));
   ASSERT_TRUE(engine_->CloseSession(s->id()).ok());
 }
+
+#if WEFT_WITH_CUDA
+// The built-in kernels (copies, fills, BVH refit, hash grid build) compile for the oldest and
+// the newest architecture weft targets, with or without a GPU here.
+TEST(CudaBuiltinKernels, CompileForSm75AndSm90) {
+  for (int sm : {75, 90}) {
+    jit::NvrtcOptions o;
+    o.sm = sm;
+    o.include_dirs = {WEFT_NATIVE_DIR};
+    auto r = jit::NvrtcCompile(CudaBuiltinSource(), "weft_builtin_copy_fill.cu", o);
+    ASSERT_TRUE(r.ok()) << "sm_" << sm << ": " << r.status().ToString();
+    EXPECT_FALSE(r->image.empty());
+  }
+}
+#endif
 
 }  // namespace
 }  // namespace weft::testing

@@ -64,6 +64,64 @@ def grid_point_ids(grid: wp.uint64, out: wp.array(dtype=int)):
     out[tid] = wp.hash_grid_point_id(grid, tid)
 
 
+def _cell_order_reference(pts, radius, dims, groups=None):
+    """The ids of `pts` sorted by cell, stably (float32 division and floor, clamped to +-1e9,
+    NaN in cell 0, periodic in each dim), as both the host and the device builds order them;
+    with `groups`, each cell's points by group id, then by id."""
+    q = pts.astype(np.float32) / np.float32(radius)
+    q = np.where(np.isnan(q), np.float32(0), q)
+    q = np.clip(q, np.float32(-1e9), np.float32(1e9))
+    c = np.floor(q).astype(np.int64) % np.array(dims, dtype=np.int64)
+    cell = (c[:, 2] * dims[1] + c[:, 1]) * dims[0] + c[:, 0]
+    if groups is not None:
+        return np.lexsort((np.arange(len(cell)), groups, cell))
+    return np.argsort(cell, kind="stable")
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
+@pytest.mark.parametrize("dtype", ["vec3h", "vec3", "vec3d"])
+@pytest.mark.parametrize("case", ["spread", "one_cell", "extremes", "many_cells", "empty", "grouped"])
+def test_hash_grid_cell_order_matches_reference(rng, dtype, case):
+    """Every point id in cell order, exactly (on a GPU the grid is sorted on the device by a radix
+    sort over many tiles; on the CPU by a counting sort): NaN, huge and negative coordinates,
+    every point in one cell, 2^22 cells (six sort passes), no points at all, and group ids at
+    both int32 extremes (each cell's points by group, then by id)."""
+    vec = getattr(wp, dtype)
+    np_dtype = {"vec3h": np.float16, "vec3": np.float32, "vec3d": np.float64}[dtype]
+    dims, radius, n = (7, 5, 3), 0.37, 20000
+    if case == "spread":
+        pts = rng.uniform(-9.0, 11.0, size=(n, 3))
+    elif case == "one_cell":
+        pts = rng.uniform(0.01, 0.36, size=(n, 3))
+    elif case == "extremes":
+        pts = rng.uniform(-5.0, 5.0, size=(n, 3)) * 10.0 ** rng.integers(-3, 40, size=(n, 3))
+        pts[rng.integers(0, n, 200), rng.integers(0, 3, 200)] = np.nan
+        pts[rng.integers(0, n, 50), 1] = -np.inf
+    elif case == "many_cells":
+        dims, radius = (256, 128, 128), 0.05
+        pts = rng.uniform(-20.0, 20.0, size=(n, 3))
+    elif case == "grouped":
+        pts = rng.uniform(-3.0, 3.0, size=(n, 3))
+        choices = np.array([-2**31, -7, 0, 5, 2**31 - 1, int(rng.integers(-2**31, 2**31))], dtype=np.int64)
+        group_ids = choices[rng.integers(0, len(choices), n)].astype(np.int32)
+    else:
+        n = 0
+        pts = np.zeros((0, 3))
+    pts = pts.astype(np_dtype)
+    if dtype == "vec3h":
+        pts = np.where(np.abs(pts) > 6e4, np.float16(np.inf) * np.sign(pts), pts).astype(np.float16)
+    grid = wp.HashGrid(*dims, device=DEV, dtype=vec._wp_scalar_type_)
+    groups = wp.array(group_ids, dtype=wp.int32, device=DEV) if case == "grouped" else None
+    grid.build(wp.array(pts, dtype=vec, device=DEV), radius, groups=groups)
+    ids = wp.zeros(n + 2, dtype=int, device=DEV)
+    wp.launch(grid_point_ids, dim=n + 2, inputs=[grid.id, ids], device=DEV)
+    got = ids.numpy()
+    expected = _cell_order_reference(pts.astype(np.float64).astype(np.float32), radius, dims,
+                                     group_ids if case == "grouped" else None)
+    np.testing.assert_array_equal(got[:n], expected)
+    assert (got[n:] == -1).all()
+
+
 @wp.kernel
 def grid_neighbours_f64(grid: wp.uint64, points: wp.array(dtype=wp.vec3d), radius: wp.float64,
                         counts: wp.array(dtype=int)):
