@@ -139,8 +139,11 @@ void CollectHandles(const Command& c, std::vector<uint64_t>* out) {
 }
 
 bool RunsAfterFailure(const Command& c) {
-  auto* v = std::get_if<CudaValueCommand>(&c.kind);
-  return v != nullptr && v->op == CudaValueCommand::Op::kWrite;
+  if (auto* v = std::get_if<CudaValueCommand>(&c.kind)) return v->op == CudaValueCommand::Op::kWrite;
+  if (auto* t = std::get_if<TapeCommand>(&c.kind))
+    return t->op == TapeCommand::Op::kEnd || t->op == TapeCommand::Op::kFree;
+  if (auto* g = std::get_if<GraphCommand>(&c.kind)) return g->op == GraphCommand::Op::kDestroy;
+  return false;
 }
 
 Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapshot& h) {

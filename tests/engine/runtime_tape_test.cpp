@@ -8,6 +8,7 @@
 #include <cmath>
 #include <random>
 
+#include "engine/runtime/command_executor.h"
 #include "runtime_test_support.h"
 
 namespace weft {
@@ -351,6 +352,34 @@ TEST(Tape, MarkersSplitTheBackwardPass) {
   mark.marker = 0;
   st = t.Run({Cmd(mark)});
   EXPECT_EQ(st.code(), StatusCode::kInvalidArgument) << st.ToString();
+}
+
+// After a failed command the rest of the session's work is skipped until the client hears of
+// the failure, but ending and freeing a tape still run: a tape left recording would refuse
+// every later tape.
+TEST(Tape, EndAndFreeRunAfterAFailure) {
+  auto tape = [](TapeCommand::Op op) {
+    TapeCommand t;
+    t.op = op;
+    t.tape_id = 7;
+    Command c;
+    c.kind = t;
+    return c;
+  };
+  EXPECT_TRUE(RunsAfterFailure(tape(TapeCommand::Op::kEnd)));
+  EXPECT_TRUE(RunsAfterFailure(tape(TapeCommand::Op::kFree)));
+  for (TapeCommand::Op op : {TapeCommand::Op::kBegin, TapeCommand::Op::kBackward, TapeCommand::Op::kZero,
+                             TapeCommand::Op::kReset, TapeCommand::Op::kMark})
+    EXPECT_FALSE(RunsAfterFailure(tape(op)));
+  GraphCommand g;
+  g.op = GraphCommand::Op::kDestroy;
+  Command destroy;
+  destroy.kind = g;
+  EXPECT_TRUE(RunsAfterFailure(destroy));
+  g.op = GraphCommand::Op::kLaunch;
+  Command launch;
+  launch.kind = g;
+  EXPECT_FALSE(RunsAfterFailure(launch));
 }
 
 }  // namespace

@@ -164,3 +164,29 @@ def test_backward_on_an_empty_daemon_tape_is_a_clear_error(wp, rng):
     tape.backward(loss=loss2)
     np.testing.assert_allclose(x.grad.numpy(), 3.0 * xs.astype(np.float64), rtol=1e-5,
                                atol=1e-6)
+
+
+@wp.kernel
+def read_far(x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = x[i + 1000]
+
+
+def test_a_failed_launch_inside_a_tape_still_ends_the_recording(wp, rng, device):
+    """A launch that fails inside `with tape:` (an out-of-bounds read) is reported at the next
+    synchronize; leaving the block still stops the recording in weftd, so a later tape records
+    and its backward gives the analytic gradient (as in Warp, whose tape ends in __exit__)."""
+    n = 16
+    xs = rng.uniform(0.5, 2.0, n).astype(np.float32)
+    x = wp.array(xs, requires_grad=True, device=device)
+    y = wp.zeros(n, requires_grad=True, device=device)
+    broken = wp.Tape()
+    with pytest.raises(WeftError, match="out of bounds|index"):
+        with broken:
+            wp.launch(read_far, dim=n, inputs=[x, y], device=device)
+        wp.synchronize()
+    tape = wp.Tape()
+    with tape:
+        wp.launch(square_scaled, dim=n, inputs=[x, 3.0, y], device=device)
+    tape.backward(grads={y: wp.ones(n, device=device)})
+    np.testing.assert_allclose(x.grad.numpy(), 6.0 * xs.astype(np.float64), rtol=1e-6)
