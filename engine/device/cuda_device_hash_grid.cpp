@@ -113,32 +113,50 @@ extern "C" __global__ void weft_radix_counts(const int* keys, i64 n, int shift, 
     __syncthreads();
   }
 }
-// Exclusive prefix sums of v[0, m) in place; one block of 1024 threads, a chunk each.
+// Exclusive prefix sums of v[0, m) in place; one block of 1024 threads, in rounds of 4096
+// (4 consecutive values a thread, warp scans, then a scan of the 32 warp totals).
 extern "C" __global__ void weft_scan_exclusive(int* v, i64 m) {
-  __shared__ int sums[1024];
-  const i64 chunk = (m + blockDim.x - 1) / blockDim.x;
-  const i64 b = threadIdx.x * chunk, e = b + chunk < m ? b + chunk : m;
-  int s = 0;
-  for (i64 i = b; i < e; ++i) s += v[i];
-  sums[threadIdx.x] = s;
-  __syncthreads();
-  for (int off = 1; off < (int)blockDim.x; off <<= 1) {
-    const int x = (int)threadIdx.x >= off ? sums[threadIdx.x - off] : 0;
+  __shared__ int warp_totals[32];
+  const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5, warps = blockDim.x >> 5;
+  int carry = 0;
+  for (i64 round = 0; round < m; round += 4 * (i64)blockDim.x) {
+    const i64 b = round + 4 * (i64)threadIdx.x;
+    int x[4];
+    for (int k = 0; k < 4; ++k) x[k] = b + k < m ? v[b + k] : 0;
+    const int s = x[0] + x[1] + x[2] + x[3];
+    int inc = s;
+    for (int off = 1; off < 32; off <<= 1) {
+      const int y = __shfl_up_sync(0xffffffffu, inc, off);
+      if (lane >= off) inc += y;
+    }
+    if (lane == 31) warp_totals[warp] = inc;
     __syncthreads();
-    sums[threadIdx.x] += x;
+    if (warp == 0) {
+      int w = lane < warps ? warp_totals[lane] : 0;
+      for (int off = 1; off < 32; off <<= 1) {
+        const int y = __shfl_up_sync(0xffffffffu, w, off);
+        if (lane >= off) w += y;
+      }
+      if (lane < warps) warp_totals[lane] = w;
+    }
     __syncthreads();
-  }
-  int run = sums[threadIdx.x] - s;
-  for (i64 i = b; i < e; ++i) {
-    const int x = v[i];
-    v[i] = run;
-    run += x;
+    int before = carry + (warp ? warp_totals[warp - 1] : 0) + inc - s;
+    for (int k = 0; k < 4; ++k) {
+      if (b + k < m) v[b + k] = before;
+      before += x[k];
+    }
+    carry += warp_totals[warps - 1];
+    __syncthreads();
   }
 }
+// The scatter ranks each key within its tile (digit start in the tile + rank among the keys of
+// its digit before it), places the tile in shared memory in that order, then writes each
+// digit's run to its global place in consecutive addresses.
 extern "C" __global__ void weft_radix_scatter(const int* keys_in, const int* ids_in, int* keys_out, int* ids_out, i64 n,
                                               int shift, const int* offsets, i64 tiles) {
   __shared__ u64 warp_sums[WEFT_RS_THREADS / 32][4];
-  __shared__ int tile_offsets[16];
+  __shared__ int tile_offsets[16], tile_starts[16];
+  __shared__ int tile_keys[WEFT_RS_TILE], tile_ids[WEFT_RS_TILE];
   const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
   for (i64 t = blockIdx.x; t < tiles; t += gridDim.x) {
     const i64 base = t * WEFT_RS_TILE + (i64)threadIdx.x * WEFT_RS_ITEMS;
@@ -153,20 +171,41 @@ extern "C" __global__ void weft_radix_scatter(const int* keys_in, const int* ids
       for (int k = 0; k < 4; ++k) warp_sums[warp][k] = inc.w[k];
     if (threadIdx.x < 16) tile_offsets[threadIdx.x] = offsets[threadIdx.x * tiles + t];
     __syncthreads();
-    weft_digits next;   // the rank of this thread's next key of each digit within the tile
+    if (threadIdx.x == 0) {   // where each digit's keys start within the tile
+      weft_digits total = {{0, 0, 0, 0}};
+      for (int w = 0; w < WEFT_RS_THREADS / 32; ++w)
+        for (int k = 0; k < 4; ++k) total.w[k] += warp_sums[w][k];
+      int run = 0;
+      for (int d = 0; d < 16; ++d) {
+        tile_starts[d] = run;
+        run += weft_digit_get(total, d);
+      }
+    }
+    weft_digits next;   // the rank of this thread's next key of each digit among the tile's
     for (int k = 0; k < 4; ++k) {
       u64 before = inc.w[k] - mine.w[k];
       for (int w = 0; w < warp; ++w) before += warp_sums[w][k];
       next.w[k] = before;
     }
+    __syncthreads();
     for (int j = 0; j < WEFT_RS_ITEMS; ++j) {
       if (base + j >= n) break;
       const int k = keys_in[base + j];
       const int d = (k >> shift) & 15;
-      const int pos = tile_offsets[d] + weft_digit_get(next, d);
+      const int local = tile_starts[d] + weft_digit_get(next, d);
       weft_digit_add(next, d, 1);
+      tile_keys[local] = k;
+      tile_ids[local] = ids_in[base + j];
+    }
+    __syncthreads();
+    const i64 left = n - t * WEFT_RS_TILE;
+    const int count = left < WEFT_RS_TILE ? (int)left : WEFT_RS_TILE;
+    for (int j = threadIdx.x; j < count; j += blockDim.x) {
+      const int k = tile_keys[j];
+      const int d = (k >> shift) & 15;
+      const int pos = tile_offsets[d] + j - tile_starts[d];
       keys_out[pos] = k;
-      ids_out[pos] = ids_in[base + j];
+      ids_out[pos] = tile_ids[j];
     }
     __syncthreads();
   }
