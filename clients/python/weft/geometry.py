@@ -53,16 +53,12 @@ def _call(rt, _lane=True, **fields) -> int:
 
 
 def _build_call(rt, **fields) -> None:
-    """A build, refit or rebuild. Inside a graph capture on this thread it is a command of the
-    graph (exec Command.geometry), run at every replay in order with the captured launches, as
-    Warp's captured builds; otherwise it runs now, after the work queued before it."""
-    import threading  # noqa: PLC0415
-
-    if rt.captures and threading.get_ident() in rt.captures:
-        from .v1 import exec_pb2  # noqa: PLC0415
-        rt.submit(exec_pb2.Command(geometry=_pb2().GeometryRequest(**fields)))
-        return
-    _call(rt, **fields)
+    """A build, refit or rebuild: a command of the session's batch (exec Command.geometry), run
+    by weftd in order with the launches around it, without waiting for it (as Warp's builds on
+    a stream); a failure in the daemon is reported at the next synchronize, as a launch's.
+    Inside a graph capture on this thread it is a command of the graph, run at every replay."""
+    from .v1 import exec_pb2  # noqa: PLC0415
+    rt.submit(exec_pb2.Command(geometry=_pb2().GeometryRequest(**fields)))
 
 
 def _handle_of(a, what: str) -> int:
