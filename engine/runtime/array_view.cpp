@@ -179,9 +179,10 @@ Status FillView(const ArrayView& dst, const std::string& value, const std::atomi
 
 Status CopyView(const ArrayView& dst, const ArrayView& src, const std::atomic<bool>* cancel) {
   const uint64_t esize = dst.alloc->dtype.ElementSize();
-  if (src.alloc->dtype.ElementSize() != esize || src.alloc->dtype.Name() != dst.alloc->dtype.Name())
-    return InvalidArgument("copy: element types differ (dst " + dst.alloc->dtype.Name() + ", src " +
-                           src.alloc->dtype.Name() + ")");
+  if (src.alloc->dtype.ElementSize() != esize)   // a byte copy: any two types of one size (Warp's rule)
+    return InvalidArgument("copy: element sizes differ (dst " + dst.alloc->dtype.Name() + ", " + std::to_string(esize) +
+                           " bytes; src " + src.alloc->dtype.Name() + ", " +
+                           std::to_string(src.alloc->dtype.ElementSize()) + " bytes)");
   if (src.element_count() != dst.element_count())
     return InvalidArgument("copy: dst has " + std::to_string(dst.element_count()) + " elements " +
                            ShapeString(dst.shape) + ", src has " + std::to_string(src.element_count()) +

@@ -256,6 +256,29 @@ def test_copy_with_offsets_and_count(wp):
     np.testing.assert_array_equal(dst.numpy(), dst_np)
 
 
+def test_copy_between_dtypes_of_one_size_moves_bytes(wp):
+    """Warp's rule: wp.copy moves bytes between any two dtypes of one element size (contiguous,
+    strided, with offsets, through the daemon's copy); a size mismatch is refused."""
+    rng = np.random.default_rng(11)
+    f = rng.standard_normal(12).astype(np.float32)
+    ints = wp.zeros(12, dtype=wp.int32)
+    wp.copy(ints, wp.array(f))
+    np.testing.assert_array_equal(ints.numpy(), f.view(np.int32))
+    back = wp.zeros((6, 2), dtype=wp.float32)
+    wp.copy(back[::2], wp.array(f.view(np.uint32)).reshape((6, 2))[1::2])
+    expected = np.zeros((6, 2), dtype=np.float32)
+    expected[::2] = f.reshape(6, 2)[1::2]
+    np.testing.assert_array_equal(back.numpy(), expected)
+    windows = wp.zeros(8, dtype=wp.uint32)
+    wp.copy(windows, wp.array(f), dest_offset=2, src_offset=5, count=4)
+    np.testing.assert_array_equal(windows.numpy()[2:6], f[5:9].view(np.uint32))
+    vec = wp.zeros(4, dtype=wp.vec3)
+    wp.copy(vec, wp.array(f.view(np.int32).reshape(4, 3), dtype=wp.vec3i))
+    np.testing.assert_array_equal(vec.numpy(), f.reshape(4, 3))
+    with pytest.raises(RuntimeError, match="destination dtype=float64, source dtype=float32"):
+        wp.copy(wp.zeros(12, dtype=wp.float64), wp.array(f))
+
+
 def test_strided_copy_and_clone(wp):
     rng = np.random.default_rng(10)
     ref = rng.standard_normal((6, 8)).astype(np.float32)

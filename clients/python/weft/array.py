@@ -1472,7 +1472,8 @@ def _on_tape(dest, src) -> bool:
 
 
 def _check_copy_types(dest, src) -> None:
-    if type_str(src.dtype) != type_str(dest.dtype):
+    """Warp's rule: a copy moves bytes, between any two dtypes of one element size."""
+    if _elem_size(src.dtype) != _elem_size(dest.dtype):
         raise RuntimeError(f"Incompatible array data types: destination dtype={types.type_repr(dest.dtype)}, "
                            f"source dtype={types.type_repr(src.dtype)}")
 
@@ -1486,7 +1487,9 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
         if dest_offset or src_offset or count:
             raise RuntimeError("dest_offset, src_offset, and count are not supported when copying to/from "
                                "non-contiguous indexed or Fabric arrays")
-        _check_copy_types(dest, src)
+        if type_str(src.dtype) != type_str(dest.dtype):   # copied by value below: one dtype
+            raise RuntimeError(f"Incompatible array data types: destination dtype={types.type_repr(dest.dtype)}, "
+                               f"source dtype={types.type_repr(src.dtype)}")
         if tuple(src.shape) != tuple(dest.shape):
             raise RuntimeError(f"Incompatible array shapes: destination shape={tuple(dest.shape)}, "
                                f"source shape={tuple(src.shape)}")
@@ -1532,7 +1535,7 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
         reason = _overwrite_reason(d, s)
         tape.record_func(backward=lambda: _adj_copy_overwrite(d, s, reason), arrays=[dest, src])
         return
-    if d.device == s.device and _on_tape(d, s):
+    if d.device == s.device and _on_tape(d, s) and type_str(d.dtype) == type_str(s.dtype):
         from ._kernel.copy_kernels import launch_copy  # noqa: PLC0415
 
         if _config.verify_autograd_array_access:
