@@ -152,6 +152,28 @@ Expected<Module> Checker::Run() {
 
 namespace {
 
+// Warp's words (ValueError) for a value that does not fit the slice it is assigned to: a vector
+// slice takes a vector of its length and scalar type, a 2-D matrix slice a matrix of its shape.
+std::string SliceAssignMismatch(const Type& value, const Type& slice) {
+  const std::string dtype = ScalarName(slice.scalar);
+  if (slice.is_vector()) {
+    const std::string length = std::to_string(slice.rows);
+    if (!value.is_vector())
+      return "The provided value is expected to be a vector of length " + length + ", with dtype " + dtype + ".";
+    if (value.scalar != slice.scalar)
+      return "The provided vector is expected to be of length " + length + " with dtype " + dtype + ".";
+    return "The length of the provided vector (" + std::to_string(value.rows) +
+           ") isn't compatible with the given slice (expected " + length + ").";
+  }
+  const std::string shape = "(" + std::to_string(slice.rows) + ", " + std::to_string(slice.cols) + ")";
+  if (!value.is_matrix())
+    return "The provided value is expected to be a matrix of shape " + shape + ", with dtype " + dtype + ".";
+  if (value.scalar != slice.scalar)
+    return "The provided matrix is expected to be of shape " + shape + " with dtype " + dtype + ".";
+  return "The shape of the provided matrix ((" + std::to_string(value.rows) + ", " + std::to_string(value.cols) +
+         ")) isn't compatible with the given slice (expected " + shape + ").";
+}
+
 std::vector<std::string> SplitLines(const std::string& s) {
   std::vector<std::string> out;
   size_t b = 0;
@@ -836,9 +858,7 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
         // v[a:b] = w, m[i, a:b] = w, m[a:b, c:d] = n: component by component (Extract + Insert,
         // so the adjoint flows through each component)
         const Type vt = TypeOf(value.var);
-        if (vt != region.shape)
-          return ErrorOf("type", loc, "cannot assign a value of type " + TypeString(vt) + " to a slice of " +
-                                          TypeString(bt) + " of shape " + TypeString(region.shape));
+        if (vt != region.shape) return ErrorOf("value", loc, SliceAssignMismatch(vt, region.shape));
         const bool matrix_value = region.shape.is_matrix();
         int updated = base.var;
         for (size_t k = 0; k < region.components.size(); ++k) {

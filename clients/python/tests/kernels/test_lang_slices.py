@@ -157,8 +157,35 @@ def test_slice_shape_mismatch_is_an_error(wp, kernel_module):
             z[:2, 1:] = wp.vec2(1.0, 2.0)
             out[0] = z
     """)
-    with pytest.raises(TypeError, match=r"to a slice of .* of shape"):
+    with pytest.raises(ValueError, match=r"The provided value is expected to be a matrix of shape \(2, 2\), "
+                                         r"with dtype float32\.$"):
         wp.launch(mod.k, 1, inputs=[wp.mat33()], outputs=[wp.zeros(1, dtype=wp.mat33)])
+
+
+@pytest.mark.parametrize("value, message", [
+    ("wp.vec3d(5.0, 6.0, 7.0)", r"The provided vector is expected to be of length 3 with dtype float32\.$"),
+    ("wp.float64(5.0)", r"The provided value is expected to be a vector of length 3, with dtype float32\.$"),
+    ("wp.vec2(5.0, 6.0)", r"The length of the provided vector \(2\) isn't compatible with the given slice "
+                          r"\(expected 3\)\.$"),
+    ("wp.mat22d()", r"The provided matrix is expected to be of shape \(2, 2\) with dtype float32\.$"),
+    ("wp.mat33()", r"The shape of the provided matrix \(\(3, 3\)\) isn't compatible with the given slice "
+                   r"\(expected \(2, 2\)\)\.$"),
+])
+def test_slice_assignment_mismatches_use_warps_words(wp, kernel_module, value, message):
+    """A value that does not fit the slice is a ValueError in Warp's words, at the line."""
+    target = "v[1:]" if "vec" in value or "float64" in value else "m[1:, :2]"
+    mod = kernel_module(f"""
+        @wp.kernel
+        def k(out: wp.array[float]):
+            v = wp.vec4(1.0, 2.0, 3.0, 4.0)
+            m = wp.mat33()
+            {target} = {value}
+            out[0] = v[0] + m[0, 0]
+    """)
+    with pytest.raises(ValueError, match=message) as info:
+        wp.launch(mod.k, 1, outputs=[wp.zeros(1)])
+    line = next(k for k, text in enumerate(open(mod.__file__).read().splitlines(), 1) if f"{target} = " in text)
+    assert f":{line}:" in str(info.value)
 
 
 vec0 = wp.types.vector(0, float)
