@@ -26,6 +26,7 @@ ArrayRef FromProto(const v1::ArrayRef& p) {
   r.shape.assign(p.shape().begin(), p.shape().end());
   r.strides.assign(p.strides().begin(), p.strides().end());
   r.retain_grad = p.retain_grad();
+  if (p.has_view_dtype()) r.view_dtype = FromProto(p.view_dtype());   // validated by MakeView
   return r;
 }
 

@@ -804,10 +804,10 @@ Status CudaDevice::CopyBlock(Session& s, const MemoryBlock& dst, const MemoryBlo
 Status CudaDevice::Fill(Session& s, const ArrayView& dst, const std::string& value) {
   std::shared_lock<std::shared_mutex> reset(reset_mu_);
   WEFT_RETURN_IF_ERROR(CheckBlock(dst.alloc->block, "fill dst array " + std::to_string(dst.alloc->handle)));
-  const uint64_t esize = dst.alloc->dtype.ElementSize();
+  const uint64_t esize = dst.dtype().ElementSize();
   if (value.size() != esize)
     return InvalidArgument("fill value has " + std::to_string(value.size()) + " bytes; one element of " +
-                           dst.alloc->dtype.Name() + " has " + std::to_string(esize));
+                           dst.dtype().Name() + " has " + std::to_string(esize));
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
   const uint64_t n = dst.element_count();
@@ -867,7 +867,7 @@ Status CudaDevice::RefitBvh(Session& s, const geometry::BvhRefitJob& job) {
 
 Status CudaDevice::StridedCopyOnDevice(Stream& st, const ArrayView& dst, const ArrayView& src) {
   const uint64_t n = dst.element_count();
-  const uint64_t esize = dst.alloc->dtype.ElementSize();
+  const uint64_t esize = dst.dtype().ElementSize();
   jit::CuDevicePtr d = reinterpret_cast<uintptr_t>(dst.data()), s = reinterpret_cast<uintptr_t>(src.data());
   if (dst.contiguous() && src.contiguous())
     return driver_->Check(driver_->MemcpyDtoDAsync(d, s, n * esize, st.stream), "cuMemcpyDtoDAsync");
@@ -882,10 +882,9 @@ Status CudaDevice::StridedCopyOnDevice(Stream& st, const ArrayView& dst, const A
 
 Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) {
   std::shared_lock<std::shared_mutex> reset(reset_mu_);
-  const uint64_t esize = dst.alloc->dtype.ElementSize();
-  if (src.alloc->dtype.ElementSize() != esize)
-    return InvalidArgument("copy: element sizes differ (" + dst.alloc->dtype.Name() + " vs " +
-                           src.alloc->dtype.Name() + ")");
+  const uint64_t esize = dst.dtype().ElementSize();
+  if (src.dtype().ElementSize() != esize)
+    return InvalidArgument("copy: element sizes differ (" + dst.dtype().Name() + " vs " + src.dtype().Name() + ")");
   const uint64_t n = dst.element_count();
   if (src.element_count() != n)
     return InvalidArgument("copy: dst has " + std::to_string(n) + " elements, src has " +
@@ -913,7 +912,7 @@ Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) 
       host_contig = host;
     } else {
       staging.resize(bytes);
-      host_contig = ScratchView(host.alloc->dtype, n, staging.data(), "cpu");
+      host_contig = ScratchView(host.dtype(), n, staging.data(), "cpu");
       if (src_cpu) WEFT_RETURN_IF_ERROR(CopyView(host_contig, host, s.cancel_flag()));
     }
     host_src = host_contig.data();
@@ -922,7 +921,7 @@ Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) 
     ArrayView dev_contig = dev;
     if (!dev.contiguous()) {
       WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemAlloc(&scratch, bytes), "cuMemAlloc (staging)"));
-      dev_contig = ScratchView(dev.alloc->dtype, n, reinterpret_cast<void*>(static_cast<uintptr_t>(scratch)), name_);
+      dev_contig = ScratchView(dev.dtype(), n, reinterpret_cast<void*>(static_cast<uintptr_t>(scratch)), name_);
     }
     Status r = Status::Ok();
     const jit::CuDevicePtr dp = reinterpret_cast<uintptr_t>(dev_contig.data());
@@ -968,7 +967,7 @@ Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) 
     r = src_gpu->MakeCurrent();
     if (r.ok()) r = driver_->Check(driver_->MemAlloc(&src_scratch, bytes), "cuMemAlloc (peer staging)");
     if (r.ok()) {
-      src_contig = ScratchView(src.alloc->dtype, n, reinterpret_cast<void*>(static_cast<uintptr_t>(src_scratch)),
+      src_contig = ScratchView(src.dtype(), n, reinterpret_cast<void*>(static_cast<uintptr_t>(src_scratch)),
                                src_gpu->name());
       auto sst = src_gpu->StreamOf(s.id());
       r = sst.ok() ? src_gpu->StridedCopyOnDevice(**sst, src_contig, src) : sst.status();
@@ -979,7 +978,7 @@ Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) 
     r = dst_gpu->MakeCurrent();
     if (r.ok()) r = driver_->Check(driver_->MemAlloc(&dst_scratch, bytes), "cuMemAlloc (peer staging)");
     if (r.ok())
-      dst_contig = ScratchView(dst.alloc->dtype, n, reinterpret_cast<void*>(static_cast<uintptr_t>(dst_scratch)),
+      dst_contig = ScratchView(dst.dtype(), n, reinterpret_cast<void*>(static_cast<uintptr_t>(dst_scratch)),
                                dst_gpu->name());
   }
   if (r.ok()) r = MakeCurrent();

@@ -26,11 +26,14 @@ Expected<ArrayView> ValidateArray(std::shared_ptr<Allocation> alloc, const Array
   if (!req.device.empty() && a.device != req.device)
     return InvalidArgument(name() + " lives on " + a.device + ", the command runs on " + req.device);
   WEFT_RETURN_IF_ERROR(CheckAllocationConsistent(a));
-  if (!req.dtype.empty() && req.dtype != "any" && !a.dtype.MatchesParam(req.dtype))
-    return InvalidArgument(name() + " has dtype " + a.dtype.Name() + ", expected " + req.dtype);
-  if (req.element_size != 0 && a.dtype.ElementSize() != req.element_size)
-    return InvalidArgument(name() + " has elements of " + std::to_string(a.dtype.ElementSize()) + " bytes (dtype " +
-                           a.dtype.Name() + " as created), but the compiled kernel's " +
+  // The element type the command reads: the view's (array.view(dtype), checked by MakeView
+  // below before any byte is touched) or the allocation's.
+  const DType& dtype = ref.view_dtype ? *ref.view_dtype : a.dtype;
+  if (!req.dtype.empty() && req.dtype != "any" && !dtype.MatchesParam(req.dtype))
+    return InvalidArgument(name() + " has dtype " + dtype.Name() + ", expected " + req.dtype);
+  if (req.element_size != 0 && dtype.ElementSize() != req.element_size)
+    return InvalidArgument(name() + " has elements of " + std::to_string(dtype.ElementSize()) + " bytes (dtype " +
+                           dtype.Name() + (ref.view_dtype ? " as viewed" : " as created") + "), but the compiled kernel's " +
                            (req.dtype.empty() ? std::string("element type") : req.dtype) + " has " +
                            std::to_string(req.element_size) + " bytes per element");
   WEFT_ASSIGN_OR_RETURN(ArrayView v, MakeView(std::move(alloc), ref, what));

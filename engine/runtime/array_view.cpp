@@ -16,15 +16,29 @@ uint64_t ArrayView::element_count() const {
 }
 
 bool ArrayView::contiguous() const {
-  return strides == ContiguousStrides(shape, alloc->dtype.ElementSize());
+  return strides == ContiguousStrides(shape, dtype().ElementSize());
 }
 
 Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& ref,
                              const ArrayName& what) {
   ArrayView v;
-  const uint64_t esize = alloc->dtype.ElementSize();
   const uint64_t handle = alloc->handle;
   auto name = [&] { return what.Text() + " (array " + std::to_string(handle) + ")"; };
+  if (ref.view_dtype) {   // the bytes read as another element type (array.view(dtype))
+    const DType& d = *ref.view_dtype;
+    if (Status valid = d.Validate(); !valid.ok()) return InvalidArgument(name() + ": view dtype: " + valid.message());
+    if (d.is_struct() || alloc->dtype.is_struct())
+      return InvalidArgument(name() + ": a view as another dtype is for scalar, vector and matrix types, not structs (" +
+                             alloc->dtype.Name() + " as " + d.Name() + ")");
+    const ScalarType from = alloc->dtype.scalar;
+    if (d.scalar == ScalarType::kBool && from != ScalarType::kBool && from != ScalarType::kInt8 &&
+        from != ScalarType::kUInt8)
+      return InvalidArgument(name() + ": " + alloc->dtype.Name() + " cannot be viewed as bool (only bool, int8 or uint8)");
+    if (ref.shape.empty()) return InvalidArgument(name() + ": a view as another dtype needs its shape and strides");
+    v.view_dtype = d;
+  }
+  const DType& dtype = ref.view_dtype ? *ref.view_dtype : alloc->dtype;
+  const uint64_t esize = dtype.ElementSize();
   if (ref.shape.empty()) {
     if (ref.byte_offset != 0 || !ref.strides.empty())
       return InvalidArgument(name() + ": a view with an empty shape means the whole array; give a shape with byte_offset/strides");
@@ -47,11 +61,11 @@ Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& 
   uint64_t logical_bytes = 0;
   if (!CheckedShapeProduct(ref.shape, esize, &logical_bytes))
     return InvalidArgument(name() + ": view shape " + ShapeString(ref.shape) + " has too many elements (more than " +
-                           std::to_string(kMaxCheckedSize) + " bytes of " + alloc->dtype.Name() + ")");
+                           std::to_string(kMaxCheckedSize) + " bytes of " + dtype.Name() + ")");
   v.shape = ref.shape;
   v.strides = ref.strides.empty() ? ContiguousStrides(ref.shape, esize) : ref.strides;
   v.byte_offset = ref.byte_offset;
-  const uint32_t unit = alloc->dtype.ComponentSize();
+  const uint32_t unit = dtype.ComponentSize();
   if (unit > 1) {
     if (ref.byte_offset % unit)
       return InvalidArgument(name() + ": byte_offset " + std::to_string(ref.byte_offset) +
@@ -146,10 +160,10 @@ struct Odometer {
 }  // namespace
 
 Status FillView(const ArrayView& dst, const std::string& value, const std::atomic<bool>* cancel) {
-  const uint64_t esize = dst.alloc->dtype.ElementSize();
+  const uint64_t esize = dst.dtype().ElementSize();
   if (value.size() != esize)
     return InvalidArgument("fill: value has " + std::to_string(value.size()) +
-                           " bytes; one element of " + dst.alloc->dtype.Name() + " has " +
+                           " bytes; one element of " + dst.dtype().Name() + " has " +
                            std::to_string(esize));
   char* base = dst.data();
   const uint64_t n = dst.element_count();
@@ -178,11 +192,11 @@ Status FillView(const ArrayView& dst, const std::string& value, const std::atomi
 }
 
 Status CopyView(const ArrayView& dst, const ArrayView& src, const std::atomic<bool>* cancel) {
-  const uint64_t esize = dst.alloc->dtype.ElementSize();
-  if (src.alloc->dtype.ElementSize() != esize)   // a byte copy: any two types of one size (Warp's rule)
-    return InvalidArgument("copy: element sizes differ (dst " + dst.alloc->dtype.Name() + ", " + std::to_string(esize) +
-                           " bytes; src " + src.alloc->dtype.Name() + ", " +
-                           std::to_string(src.alloc->dtype.ElementSize()) + " bytes)");
+  const uint64_t esize = dst.dtype().ElementSize();
+  if (src.dtype().ElementSize() != esize)   // a byte copy: any two types of one size (Warp's rule)
+    return InvalidArgument("copy: element sizes differ (dst " + dst.dtype().Name() + ", " + std::to_string(esize) +
+                           " bytes; src " + src.dtype().Name() + ", " + std::to_string(src.dtype().ElementSize()) +
+                           " bytes)");
   if (src.element_count() != dst.element_count())
     return InvalidArgument("copy: dst has " + std::to_string(dst.element_count()) + " elements " +
                            ShapeString(dst.shape) + ", src has " + std::to_string(src.element_count()) +

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,10 @@ struct ArrayRef {
   std::vector<int64_t> shape;
   std::vector<int64_t> strides;
   bool retain_grad = false;   // a kernel argument: its gradient is kept through stores' adjoints
+  // The element type the view reads the bytes as (Warp's array.view(dtype)); empty: the
+  // allocation's. A scalar, vector or matrix type (validated), never a struct, over an
+  // allocation that holds no structs; bool only over bool or 8-bit integers.
+  std::optional<DType> view_dtype = std::nullopt;
 };
 
 // A checked view: the allocation it points into and the resolved shape/strides.
@@ -33,6 +38,10 @@ struct ArrayView {
   std::vector<int64_t> shape;
   std::vector<int64_t> strides;
 
+  std::optional<DType> view_dtype = std::nullopt;   // as in the ArrayRef it was made from
+
+  // The element type of the view: the ArrayRef's view_dtype, else the allocation's.
+  const DType& dtype() const { return view_dtype ? *view_dtype : alloc->dtype; }
   uint64_t element_count() const;
   char* data() const { return alloc->data() + byte_offset; }
   bool contiguous() const;
@@ -59,7 +68,8 @@ class ArrayName {
 };
 
 // Resolves `ref` against `alloc` and checks it: 1..4 dimensions, non-negative extents, offset
-// and strides aligned to the element's scalar size, every element inside the allocation.
+// and strides aligned to the element's scalar size, every element inside the allocation (with
+// the view's element type, ArrayRef::view_dtype, where one is given).
 // `what` names the view in messages ("dst", "argument 'a'").
 Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& ref,
                              const ArrayName& what);

@@ -91,7 +91,9 @@ struct Packer {
         }
         WEFT_ASSIGN_OR_RETURN(ArrayView v, ValidateArray(a.alloc, a.ref, req));
         abi.data = v.data();
-        abi.grad = (!adjoint && al.grad) ? al.grad->data() + v.byte_offset : nullptr;
+        // A view as another dtype has no gradient (Warp's array.view gives an array without one).
+        const bool viewed = a.ref.view_dtype.has_value();
+        abi.grad = (!adjoint && al.grad && !viewed) ? al.grad->data() + v.byte_offset : nullptr;
         if (!adjoint && a.ref.retain_grad) abi.flags = wp::ARRAY_FLAG_RETAIN_GRAD;
         // The primal array's own gradient (its .grad when packed) is consumed by stores'
         // adjoints, as Warp's adj_array_store does when adj_buf.data == buf.grad.
@@ -104,6 +106,7 @@ struct Packer {
         slot.alloc = a.alloc;
         slot.handle = al.handle;
         slot.byte_offset = v.byte_offset;
+        slot.viewed = viewed;
         out.keep_alive.push_back(a.alloc);
       }
       std::memcpy(out.block.data() + at, &abi, sizeof(abi));
@@ -177,7 +180,7 @@ Expected<PackedArgs> GradientArgs(const KernelLayout& kernel, const PackedArgs& 
     abi.flags = 0;
     abi.data = nullptr;
     abi.grad = nullptr;
-    if (a && a->grad) {
+    if (a && a->grad && !slot.viewed) {
       // The gradient goes through the same validation as every array: the recorded view
       // (offset, shape, strides) must lie inside the gradient allocation.
       const int nd = abi.ndim < 0 ? 0 : (abi.ndim > wp::ARRAY_MAX_DIMS ? wp::ARRAY_MAX_DIMS : abi.ndim);

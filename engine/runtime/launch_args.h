@@ -32,6 +32,7 @@ struct PackedArray {
   std::weak_ptr<Allocation> alloc;   // expired-check for tapes; empty for None
   uint64_t handle = 0;
   uint64_t byte_offset = 0;      // view offset (gradients share the array's layout)
+  bool viewed = false;           // the bytes read as another dtype (array.view): no gradient
 };
 
 // 64-byte aligned bytes.

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <random>
 
+#include "engine/runtime/array_validation.h"
 #include "engine/runtime/array_view.h"
 
 namespace weft {
@@ -178,6 +179,65 @@ TEST(ArrayView, CopyRejectsMismatchedSizesAndCounts) {
   Status s2 = CopyView(*MakeView(a, {}, "dst"), *MakeView(c, {}, "src"));
   EXPECT_EQ(s2.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(s2.message().find("elements"), std::string::npos);
+}
+
+// array.view(dtype): the bytes read as another element type, checked with that type's size and
+// alignment; structs, bool over wider types, invalid types and a view without a shape refused.
+TEST(ArrayView, ViewsAsAnotherDtypeAreCheckedWithThatType) {
+  Fixture f;
+  auto vecs = f.Make({4}, ScalarType::kFloat32, {3});   // 48 bytes
+  auto as = [](ScalarType s, std::vector<uint32_t> elem = {}) {
+    DType d;
+    d.scalar = s;
+    d.elem_shape = std::move(elem);
+    return d;
+  };
+  ArrayRef floats{vecs->handle, 0, {4, 3}, {12, 4}};
+  floats.view_dtype = as(ScalarType::kFloat32);
+  auto v = MakeView(vecs, floats, "x");
+  ASSERT_TRUE(v.ok()) << v.status().ToString();
+  EXPECT_EQ(v->dtype().Name(), "float32");
+  EXPECT_EQ(vecs->dtype.Name(), "vec(3,float32)");
+  EXPECT_TRUE(v->contiguous());   // (12, 4) is C order for float32 of shape (4, 3)
+  ArrayRef flat{vecs->handle, 0, {12}, {}};
+  flat.view_dtype = as(ScalarType::kUInt32);
+  auto w = MakeView(vecs, flat, "x");
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  EXPECT_TRUE(w->contiguous());
+  EXPECT_EQ(w->element_count(), 12u);
+
+  auto floats16 = f.Make({4});   // 16 bytes
+  ArrayRef too_far{floats16->handle, 0, {2}, {}};
+  too_far.view_dtype = as(ScalarType::kFloat32, {3});   // 24 bytes of vec3
+  EXPECT_EQ(MakeView(floats16, too_far, "x").status().code(), StatusCode::kOutOfRange);
+  ArrayRef misaligned{floats16->handle, 4, {1}, {}};
+  misaligned.view_dtype = as(ScalarType::kFloat64);
+  EXPECT_EQ(MakeView(floats16, misaligned, "x").status().code(), StatusCode::kInvalidArgument);
+  ArrayRef as_bool{floats16->handle, 0, {4}, {}};
+  as_bool.view_dtype = as(ScalarType::kBool);
+  EXPECT_EQ(MakeView(floats16, as_bool, "x").status().code(), StatusCode::kInvalidArgument);
+  ArrayRef unknown{floats16->handle, 0, {4}, {}};
+  unknown.view_dtype = as(static_cast<ScalarType>(99));
+  EXPECT_EQ(MakeView(floats16, unknown, "x").status().code(), StatusCode::kInvalidArgument);
+  ArrayRef structs{floats16->handle, 0, {1}, {}};
+  DType s;
+  s.type_name = "struct(m.S)";
+  s.struct_size = 16;
+  structs.view_dtype = s;
+  EXPECT_EQ(MakeView(floats16, structs, "x").status().code(), StatusCode::kInvalidArgument);
+  ArrayRef whole{floats16->handle, 0, {}, {}};
+  whole.view_dtype = as(ScalarType::kInt32);
+  EXPECT_EQ(MakeView(floats16, whole, "x").status().code(), StatusCode::kInvalidArgument);
+
+  // the one validation: a kernel parameter of the view's type accepts it, the allocation's does not
+  ArrayRequirement req;
+  req.what = "kernel 'k' parameter 'a'";
+  req.dtype = "uint32";
+  req.element_size = 4;
+  EXPECT_TRUE(ValidateArray(vecs, flat, req).ok());
+  req.dtype = "vec(3,float32)";
+  req.element_size = 12;
+  EXPECT_EQ(ValidateArray(vecs, flat, req).status().code(), StatusCode::kInvalidArgument);
 }
 
 }  // namespace

@@ -182,6 +182,68 @@ def test_adjoint_far_stride_and_foreign_handle_are_refused_raw(wp, weftd, victim
 # finding 4: struct_size
 
 
+@wp.kernel
+def hard_bits(a: wp.array(dtype=wp.uint32), out: wp.array(dtype=wp.uint32)):
+    i = wp.tid()
+    out[i] = a[i] >> wp.uint32(23)
+
+
+@wp.kernel
+def hard_vec_lengths(a: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = wp.length(a[i])
+
+
+def test_views_as_another_dtype_in_kernels_and_their_attacks(wp, victim, attacker):
+    """array.view(dtype) in a kernel reads the same bytes as the new type (Warp's semantics; the
+    view has no gradient); a raw ArrayRef whose view dtype would reach past the allocation, is
+    misaligned, a struct, or bool over floats is refused by the one validation, before any
+    byte is read."""
+    rng = np.random.default_rng()
+    f = rng.standard_normal(64).astype(np.float32) * np.float32(1e30) ** rng.uniform(-1, 1, 64).astype(np.float32)
+    a = wp.array(f, device="cpu", requires_grad=True)
+    out = wp.zeros(64, dtype=wp.uint32, device="cpu")
+    bits = a.view(wp.uint32)
+    assert bits.grad is None and not bits.requires_grad
+    wp.launch(hard_bits, dim=64, inputs=[bits, out], device="cpu")
+    np.testing.assert_array_equal(out.numpy(), f.view(np.uint32) >> 23)
+    g = (rng.standard_normal(63) * 10.0 ** rng.uniform(-6, 6, 63)).astype(np.float32)   # no float32 overflow
+    flat = wp.array(g.reshape(21, 3), device="cpu")
+    lengths = wp.zeros(21, dtype=float, device="cpu")
+    wp.launch(hard_vec_lengths, dim=21, inputs=[flat.view(wp.vec3), lengths], device="cpu")
+    np.testing.assert_allclose(lengths.numpy(), np.linalg.norm(g.reshape(21, 3).astype(np.float64), axis=1),
+                               rtol=1e-6)
+
+    compiled, info = module_mod.compile_kernel(hard_bits, "cpu")
+    src = create(attacker, np.ones(16))                       # 64 bytes
+    dst = create(attacker, shape=[64], dtype=types_pb2.DType(scalar=8, type_name="uint32"))
+    as_type = lambda name, scalar, elem=(): types_pb2.DType(scalar=scalar, elem_shape=list(elem), type_name=name)  # noqa: E731
+    cases = {
+        "past the end": types_pb2.ArrayRef(handle=src.handle, shape=[32], view_dtype=as_type("uint32", 8)),
+        "vec3 past the end": types_pb2.ArrayRef(handle=src.handle, shape=[6],
+                                                view_dtype=as_type("vec(3,float32)", 11, [3])),
+        "misaligned": types_pb2.ArrayRef(handle=src.handle, byte_offset=2, shape=[4],
+                                         view_dtype=as_type("uint32", 8)),
+        "struct": types_pb2.ArrayRef(handle=src.handle, shape=[1],
+                                     view_dtype=types_pb2.DType(type_name="struct(x.S)", struct_size=64)),
+        "bool over floats": types_pb2.ArrayRef(handle=src.handle, shape=[16], view_dtype=as_type("bool", 1)),
+        "foreign handle": types_pb2.ArrayRef(handle=victim.handle, shape=[16], view_dtype=as_type("uint32", 8)),
+    }
+    for name, bad in cases.items():
+        launch = exec_pb2.Command(launch=exec_pb2.LaunchCommand(
+            module_id=compiled.module_id, kernel=info.name or "hard_bits", dim=[16], device="cpu",
+            args=[exec_pb2.ArgValue(array=bad),
+                  exec_pb2.ArgValue(array=types_pb2.ArrayRef(handle=dst.handle))]))
+        sync = submit_and_sync(attacker, launch)
+        assert sync.error, f"{name}: must fail"
+        assert sync.error_code in (grpc.StatusCode.INVALID_ARGUMENT.value[0],
+                                   grpc.StatusCode.OUT_OF_RANGE.value[0],
+                                   grpc.StatusCode.NOT_FOUND.value[0]), (name, sync.error)
+    np.testing.assert_array_equal(np.frombuffer(read(attacker, dst.handle), np.uint32), np.zeros(64, np.uint32))
+    victim.unchanged()
+    still_serving(wp)
+
+
 def test_struct_array_smaller_than_the_kernel_struct_is_refused_raw(wp, victim, attacker):
     good = wp.zeros(4, dtype=HardBig, device="cpu")
     compiled, info = module_mod.compile_kernel(hard_struct_write, "cpu")

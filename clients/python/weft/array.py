@@ -686,7 +686,15 @@ class array:
         out._retain_grad = self._retain_grad
         out._grad = None
         out._view_of = self
+        out._base_dtype = self.dtype if self._base_dtype is None else self._base_dtype
         return out
+
+    # The dtype of the array this one is a view of (None: not a view); a view whose dtype
+    # differs reads the allocation's bytes as another type (array.view(dtype)).
+    _base_dtype = None
+
+    def _reinterpreted(self) -> bool:
+        return self._base_dtype is not None and type_str(self.dtype) != type_str(self._base_dtype)
 
     # -- wire reference (used by commands and by weft._kernel)
     def _ref(self):
@@ -694,6 +702,10 @@ class array:
                                           shape=list(self.shape), strides=list(self.strides))
         if self._retain_grad:
             ref.retain_grad = True
+        if self._base_dtype is not None and self._reinterpreted():
+            # the allocation's bytes read as another dtype (array.view): weftd checks the view
+            # with this element type
+            ref.view_dtype.CopyFrom(_dtype_proto(self.dtype))
         return ref
 
     # -- properties
@@ -776,6 +788,8 @@ class array:
     def grad(self):
         if self._grad is not None:
             return self._grad
+        if self._base_dtype is not None and self._reinterpreted():
+            return None   # a view as another dtype has no gradient (Warp's array.view)
         grad_handle = self._info.grad_handle if self._info is not None else 0
         if not grad_handle:
             return None
@@ -1177,7 +1191,10 @@ class array:
         else:
             raise TypeError(f"{what}: source dtype has size {own} bytes, but target dtype has "
                             f"size {size} bytes")
-        return self._make_view(self._byte_offset, shape, strides, dtype)
+        out = self._make_view(self._byte_offset, shape, strides, dtype)
+        if type_str(dtype) != type_str(self.dtype):
+            out._requires_grad = False   # as Warp's: the view has no gradient
+        return out
 
     def transpose(self, axes=None):
         if axes is None:
