@@ -387,14 +387,20 @@ WP_FUNC mat_t<N - 1, N - 1, T> minor_of(const mat_t<N, N, T>& m, unsigned i, uns
   }
   return r;
 }
-template <typename T>
-WP_FUNC T determinant(const mat_t<4, 4, T>& m) {
-  T s = T(0);
+// 4x4: expanded in float64 and rounded once to T, whatever T is: in float32 or float16 the 24
+// products cancel and lose most of the determinant's digits (and a finite difference of it
+// its meaning); Warp's 4x4 determinant keeps its 2x2 minors in double for the same reason.
+WP_FUNC float64 determinant_f64(const mat_t<4, 4, float64>& m) {
+  float64 s = 0.0;
   for (unsigned j = 0; j < 4; ++j) {
-    T c = T(m.data[0][j] * determinant(minor_of(m, 0, j)));
-    s = (j & 1u) ? T(s - c) : T(s + c);
+    const float64 c = m.data[0][j] * determinant(minor_of(m, 0, j));
+    s = (j & 1u) ? s - c : s + c;
   }
   return s;
+}
+template <typename T>
+WP_FUNC T determinant(const mat_t<4, 4, T>& m) {
+  return T(determinant_f64(mat_t<4, 4, float64>(m)));
 }
 // Cofactor matrix: cof[i][j] = (-1)^(i+j) det(minor(i, j)); d det(A)/dA = cof(A), valid also
 // for singular A. adjugate = transpose(cof).
@@ -416,6 +422,15 @@ WP_FUNC mat_t<N, N, T> inverse(const mat_t<N, N, T>& m) {
   T det = determinant(m);
   if (det == T(0)) return mat_t<N, N, T>();
   return div(transpose(cofactor(m)), det);
+}
+// 4x4 of float16/float32: in float64, rounded once (the determinant's reason, above).
+template <>
+WP_FUNC mat_t<4, 4, float32> inverse(const mat_t<4, 4, float32>& m) {
+  return mat_t<4, 4, float32>(inverse(mat_t<4, 4, float64>(m)));
+}
+template <>
+WP_FUNC mat_t<4, 4, half> inverse(const mat_t<4, 4, half>& m) {
+  return mat_t<4, 4, half>(inverse(mat_t<4, 4, float64>(m)));
 }
 template <unsigned N, typename T>
 WP_FUNC mat_t<N, N, T> inverse_approx(const mat_t<N, N, T>& m) { return inverse(m); }

@@ -141,3 +141,31 @@ def test_float64_matrices(wp, rng):
     wp.launch(mat_double, dim=100, inputs=[wp.array(a, dtype=wp.mat33d)], outputs=[out, det])
     np.testing.assert_allclose(out.numpy(), np.linalg.inv(a), rtol=1e-12, atol=1e-13)
     np.testing.assert_allclose(det.numpy(), np.linalg.det(a), rtol=1e-12)
+
+
+@wp.kernel
+def det_inv44(a: wp.array(dtype=wp.mat44), det: wp.array(dtype=float), inv: wp.array(dtype=wp.mat44)):
+    i = wp.tid()
+    det[i] = wp.determinant(a[i])
+    inv[i] = wp.inverse(a[i])
+
+
+def test_float32_4x4_determinant_and_inverse_are_rounded_once(wp, rng):
+    """A float32 4x4 determinant and inverse are computed in float64 and rounded once, so they
+    stay accurate where the cofactor expansion cancels: nearly singular matrices (a row almost a
+    combination of two others) and entries of very different magnitudes, against float64."""
+    n = 256
+    a = rng.standard_normal((n, 4, 4))
+    a[:, 3] = a[:, 0] * rng.uniform(0.5, 2, (n, 1)) + a[:, 1] * rng.uniform(0.5, 2, (n, 1)) \
+        + rng.standard_normal((n, 4)) * 10.0 ** rng.uniform(-5, -2, (n, 1))
+    a *= 10.0 ** rng.uniform(-3, 3, (n, 1, 1))
+    a32 = a.astype(np.float32)
+    ref = a32.astype(np.float64)
+    det, inv = wp.zeros(n, dtype=float), wp.zeros(n, dtype=wp.mat44)
+    wp.launch(det_inv44, dim=n, inputs=[wp.array(a32, dtype=wp.mat44), det, inv])
+    want = np.linalg.det(ref)
+    # one rounding to float32 of a float64 result whose own error is far below it
+    np.testing.assert_allclose(det.numpy(), want, rtol=2e-6)
+    want_inv = np.linalg.inv(ref)
+    scale = np.abs(want_inv).max(axis=(1, 2), keepdims=True)
+    assert (np.abs(inv.numpy() - want_inv) <= 2e-6 * scale).all()
