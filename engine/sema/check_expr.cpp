@@ -221,7 +221,9 @@ Expected<int> Checker::EvalCond(const ast::Expr& e) {
   const Type& t = TypeOf(v.var);
   if (t == Type::Bool()) return v.var;
   if (t.is_scalar() && IsInt(t.scalar)) return EmitRaw(Type::Bool(), "($0 != 0)", {v.var});
-  return Error(e.loc, "a condition must be bool or an integer, got " + TypeString(t));
+  // An array is true unless it is None (Warp's `if arr:` / `if not arr:`).
+  if (t.is_array() && !t.is_fixed_array()) return EmitRaw(Type::Bool(), "(!wp::is_null($0))", {v.var});
+  return Error(e.loc, "a condition must be bool, an integer or an array, got " + TypeString(t));
 }
 
 Expected<Value> Checker::EvalConstant(const ast::Constant& c) {

@@ -118,7 +118,7 @@ TEST(SemaErrors, UnknownBuiltin) {
 }
 
 TEST(SemaErrors, ConditionMustBeBoolOrInt) {
-  ExpectError(Compile("    if x:\n        a[0] = 1.0\n"), 11, "a condition must be bool or an integer, got float32");
+  ExpectError(Compile("    if x:\n        a[0] = 1.0\n"), 11, "a condition must be bool, an integer or an array, got float32");
 }
 
 TEST(SemaErrors, KernelsReturnNothing) { ExpectError(Compile("    return x\n"), 11, "kernels cannot return a value"); }

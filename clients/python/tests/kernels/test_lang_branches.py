@@ -69,3 +69,25 @@ def test_variables_assigned_in_branches(wp, rng):
     a64 = a.astype(np.float64)
     ref = np.where(a64 > 0, np.sqrt(np.abs(a64)), a64 * a64)
     np.testing.assert_allclose(out.numpy(), ref, rtol=1e-6)
+
+
+@wp.kernel
+def array_truth(maybe: wp.array(dtype=float), idx: wp.indexedarray(dtype=float), out: wp.array(dtype=int)):
+    out[0] = 1 if maybe else 0
+    if not maybe:
+        out[1] = 1
+    if idx:
+        out[2] = 1
+    out[3] = int(not idx)
+
+
+def test_an_array_is_true_unless_it_is_none(wp, rng, device):
+    """`if arr:` / `not arr` on array and indexed-array parameters, as Warp: None is false."""
+    data = wp.array(rng.uniform(-1, 1, 8).astype(np.float32), device=device)
+    idx = wp.indexedarray(data, [wp.array(np.array([1, 3], dtype=np.int32), device=device)])
+    out = wp.zeros(4, dtype=int, device=device)
+    wp.launch(array_truth, dim=1, inputs=[data, idx, out], device=device)
+    np.testing.assert_array_equal(out.numpy(), [1, 0, 1, 0])
+    out.zero_()
+    wp.launch(array_truth, dim=1, inputs=[None, None, out], device=device)
+    np.testing.assert_array_equal(out.numpy(), [0, 1, 0, 1])
