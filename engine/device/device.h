@@ -80,8 +80,7 @@ class Device {
   // Unimplemented where the device has no such path (the caller refits on the host).
   virtual Status RefitBvh(Session&, const geometry::BvhRefitJob&) { return Unimplemented(name() + " refits BVHs on the host"); }
   // Builds a hash grid on this device (cells, then the point ids sorted by cell), queued on the
-  // session's stream after its earlier work. Unimplemented where the device has no such path
-  // (the caller builds on the host).
+  // session's stream after its earlier work. GPUs only (a CPU grid is built by the caller).
   virtual Status BuildHashGrid(Session&, const geometry::HashGridBuildJob&) {
     return Unimplemented(name() + " builds hash grids on the host");
   }

@@ -484,30 +484,20 @@ Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float r
       job.sorted_groups = address(gpu_sorted_groups_);
       built = dev->build_hash_grid(device_, job);
     }
-    if (built.code() != StatusCode::kUnimplemented) {
-      cell_starts_.clear();
-      cell_ends_.clear();
-      sorted_ids_.clear();
-      sorted_groups_.clear();
-      if (!built.ok()) {   // the device memory may hold a partial build: the grid is empty
-        num_sorted_ = 0;
-        gpu_sorted_groups_.bytes = 0;
-        return built;
-      }
-      points_ = std::move(points);
-      num_points_ = n;
-      num_sorted_ = n;
-      cell_width_ = radius;
-      return Status::Ok();
+    cell_starts_.clear();
+    cell_ends_.clear();
+    sorted_ids_.clear();
+    sorted_groups_.clear();
+    if (!built.ok()) {   // the device memory may hold a partial build: the grid is empty
+      num_sorted_ = 0;
+      gpu_sorted_groups_.bytes = 0;
+      return built;
     }
-  }
-  if (groups && n > 0 && group_of.empty()) {   // the device had no build of its own
-    try {
-      group_of.resize(static_cast<size_t>(n));
-    } catch (const std::bad_alloc&) {
-      return ResourceExhausted("HashGrid.build: out of memory for a copy of the groups");
-    }
-    WEFT_RETURN_IF_ERROR(dev->download(*groups, group_of.data(), static_cast<uint64_t>(n) * sizeof(int32_t)));
+    points_ = std::move(points);
+    num_points_ = n;
+    num_sorted_ = n;
+    cell_width_ = radius;
+    return Status::Ok();
   }
   const char* bytes = points->data();
   std::vector<char> host;

@@ -42,7 +42,8 @@ struct DeviceAccess {
   std::function<Status(const Allocation& a, const void* src, uint64_t n)> upload;
   // Refits a BVH on `device` (Device::RefitBvh; may be empty: the host refits).
   std::function<Status(const std::string& device, const BvhRefitJob& job)> refit_bvh;
-  // Builds a hash grid on `device` (Device::BuildHashGrid; may be empty: the host builds).
+  // Builds a hash grid on `device` (Device::BuildHashGrid; may be empty: the host builds; the
+  // grids of a GPU are built there).
   std::function<Status(const std::string& device, const HashGridBuildJob& job)> build_hash_grid;
 };
 

@@ -28,7 +28,7 @@ Expected<ArrayView> ValidateArray(std::shared_ptr<Allocation> alloc, const Array
   WEFT_RETURN_IF_ERROR(CheckAllocationConsistent(a));
   // The element type the command reads: the view's (array.view(dtype), checked by MakeView
   // below before any byte is touched) or the allocation's.
-  const DType& dtype = ref.view_dtype ? *ref.view_dtype : a.dtype;
+  const DType& dtype = ViewDType(a, ref);
   if (!req.dtype.empty() && req.dtype != "any" && !dtype.MatchesParam(req.dtype))
     return InvalidArgument(name() + " has dtype " + dtype.Name() + ", expected " + req.dtype);
   if (req.element_size != 0 && dtype.ElementSize() != req.element_size)

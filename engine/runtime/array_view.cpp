@@ -37,7 +37,7 @@ Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& 
     if (ref.shape.empty()) return InvalidArgument(name() + ": a view as another dtype needs its shape and strides");
     v.view_dtype = d;
   }
-  const DType& dtype = ref.view_dtype ? *ref.view_dtype : alloc->dtype;
+  const DType& dtype = ViewDType(*alloc, ref);
   const uint64_t esize = dtype.ElementSize();
   if (ref.shape.empty()) {
     if (ref.byte_offset != 0 || !ref.strides.empty())

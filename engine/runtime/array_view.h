@@ -47,6 +47,11 @@ struct ArrayView {
   bool contiguous() const;
 };
 
+// The element type `ref` reads `alloc`'s bytes as: its view_dtype, else the allocation's.
+inline const DType& ViewDType(const Allocation& alloc, const ArrayRef& ref) {
+  return ref.view_dtype ? *ref.view_dtype : alloc.dtype;
+}
+
 // Names an array in error messages: fixed text, or a function that builds the text only when a
 // message needs it (a launch checks every array argument; most checks pass). Holds pointers:
 // what it names must outlive it.

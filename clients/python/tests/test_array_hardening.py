@@ -239,7 +239,14 @@ def test_views_as_another_dtype_in_kernels_and_their_attacks(wp, victim, attacke
         assert sync.error_code in (grpc.StatusCode.INVALID_ARGUMENT.value[0],
                                    grpc.StatusCode.OUT_OF_RANGE.value[0],
                                    grpc.StatusCode.NOT_FOUND.value[0]), (name, sync.error)
+    # copies and fills go through the same check
+    for bad in (cases["past the end"], cases["misaligned"], cases["foreign handle"]):
+        fill = exec_pb2.Command(fill=exec_pb2.FillCommand(dst=bad, value=b"\xff" * 4))
+        copy = exec_pb2.Command(copy=exec_pb2.CopyCommand(dst=bad, src=types_pb2.ArrayRef(handle=dst.handle)))
+        for cmd in (fill, copy):
+            assert submit_and_sync(attacker, cmd).error
     np.testing.assert_array_equal(np.frombuffer(read(attacker, dst.handle), np.uint32), np.zeros(64, np.uint32))
+    np.testing.assert_array_equal(np.frombuffer(read(attacker, src.handle), np.float32), np.ones(16, np.float32))
     victim.unchanged()
     still_serving(wp)
 

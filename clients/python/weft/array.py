@@ -687,14 +687,13 @@ class array:
         out._grad = None
         out._view_of = self
         out._base_dtype = self.dtype if self._base_dtype is None else self._base_dtype
+        out._reinterpreted = type_str(out.dtype) != type_str(out._base_dtype)
         return out
 
-    # The dtype of the array this one is a view of (None: not a view); a view whose dtype
-    # differs reads the allocation's bytes as another type (array.view(dtype)).
+    # Views: the dtype of the array they were taken from, and whether they read its bytes as
+    # another type (array.view(dtype)).
     _base_dtype = None
-
-    def _reinterpreted(self) -> bool:
-        return self._base_dtype is not None and type_str(self.dtype) != type_str(self._base_dtype)
+    _reinterpreted = False
 
     # -- wire reference (used by commands and by weft._kernel)
     def _ref(self):
@@ -702,7 +701,7 @@ class array:
                                           shape=list(self.shape), strides=list(self.strides))
         if self._retain_grad:
             ref.retain_grad = True
-        if self._base_dtype is not None and self._reinterpreted():
+        if self._reinterpreted:
             # the allocation's bytes read as another dtype (array.view): weftd checks the view
             # with this element type
             ref.view_dtype.CopyFrom(_dtype_proto(self.dtype))
@@ -788,7 +787,7 @@ class array:
     def grad(self):
         if self._grad is not None:
             return self._grad
-        if self._base_dtype is not None and self._reinterpreted():
+        if self._reinterpreted:
             return None   # a view as another dtype has no gradient (Warp's array.view)
         grad_handle = self._info.grad_handle if self._info is not None else 0
         if not grad_handle:
@@ -1192,7 +1191,7 @@ class array:
             raise TypeError(f"{what}: source dtype has size {own} bytes, but target dtype has "
                             f"size {size} bytes")
         out = self._make_view(self._byte_offset, shape, strides, dtype)
-        if type_str(dtype) != type_str(self.dtype):
+        if out._reinterpreted:
             out._requires_grad = False   # as Warp's: the view has no gradient
         return out
 
@@ -1488,9 +1487,14 @@ def _on_tape(dest, src) -> bool:
     return scalar in types.float_types
 
 
-def _check_copy_types(dest, src) -> None:
-    """Warp's rule: a copy moves bytes, between any two dtypes of one element size."""
-    if _elem_size(src.dtype) != _elem_size(dest.dtype):
+def _check_copy_types(dest, src, by_value=False) -> None:
+    """Warp's rule: a copy moves bytes, between any two dtypes of one element size; a copy by
+    value (indexed arrays) needs one dtype."""
+    if by_value:
+        differ = type_str(src.dtype) != type_str(dest.dtype)
+    else:
+        differ = _elem_size(src.dtype) != _elem_size(dest.dtype)
+    if differ:
         raise RuntimeError(f"Incompatible array data types: destination dtype={types.type_repr(dest.dtype)}, "
                            f"source dtype={types.type_repr(src.dtype)}")
 
@@ -1504,9 +1508,7 @@ def copy(dest, src, dest_offset=0, src_offset=0, count=0):
         if dest_offset or src_offset or count:
             raise RuntimeError("dest_offset, src_offset, and count are not supported when copying to/from "
                                "non-contiguous indexed or Fabric arrays")
-        if type_str(src.dtype) != type_str(dest.dtype):   # copied by value below: one dtype
-            raise RuntimeError(f"Incompatible array data types: destination dtype={types.type_repr(dest.dtype)}, "
-                               f"source dtype={types.type_repr(src.dtype)}")
+        _check_copy_types(dest, src, by_value=True)
         if tuple(src.shape) != tuple(dest.shape):
             raise RuntimeError(f"Incompatible array shapes: destination shape={tuple(dest.shape)}, "
                                f"source shape={tuple(src.shape)}")
