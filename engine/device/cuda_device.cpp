@@ -77,6 +77,25 @@ __device__ __forceinline__ void weft_grow(float* lo, float* hi, const float* l, 
     hi[k] = hi[k] < h[k] ? h[k] : hi[k];
   }
 }
+// Item `item`'s bounds: a wp.Bvh box, or the triangle of a wp.Mesh (`indices` set).
+__device__ __forceinline__ void weft_item_bounds(i64 item, const float* lowers, const float* uppers,
+                                                 const float* points, const int* indices, float* lo, float* hi) {
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = 3.0e38f;
+    hi[a] = -3.0e38f;
+  }
+  if (indices) {
+    for (int c = 0; c < 3; ++c) {
+      const float* v = points + 3 * (i64)indices[3 * item + c];
+      for (int a = 0; a < 3; ++a) {
+        if (v[a] < lo[a]) lo[a] = v[a];
+        if (v[a] > hi[a]) hi[a] = v[a];
+      }
+    }
+  } else {
+    weft_grow(lo, hi, lowers + 3 * item, uppers + 3 * item);
+  }
+}
 extern "C" __global__ void weft_bvh_refit_level(weft_bvh_node* nodes, const int* levels, i64 begin, i64 end,
                                                 const int* prim_ids, const float* lowers, const float* uppers,
                                                 const float* points, const int* indices) {
@@ -85,20 +104,9 @@ extern "C" __global__ void weft_bvh_refit_level(weft_bvh_node* nodes, const int*
     float lo[3] = {3.0e38f, 3.0e38f, 3.0e38f}, hi[3] = {-3.0e38f, -3.0e38f, -3.0e38f};
     if (n.right < 0) {
       for (int i = n.left; i < n.left - n.right; ++i) {
-        const i64 item = prim_ids[i];
-        if (indices) {
-          float l[3] = {3.0e38f, 3.0e38f, 3.0e38f}, h[3] = {-3.0e38f, -3.0e38f, -3.0e38f};
-          for (int c = 0; c < 3; ++c) {
-            const float* v = points + 3 * (i64)indices[3 * item + c];
-            for (int a = 0; a < 3; ++a) {
-              if (v[a] < l[a]) l[a] = v[a];
-              if (v[a] > h[a]) h[a] = v[a];
-            }
-          }
-          weft_grow(lo, hi, l, h);
-        } else {
-          weft_grow(lo, hi, lowers + 3 * item, uppers + 3 * item);
-        }
+        float l[3], h[3];
+        weft_item_bounds(prim_ids[i], lowers, uppers, points, indices, l, h);
+        weft_grow(lo, hi, l, h);
       }
     } else {
       weft_grow(lo, hi, nodes[n.left].lower, nodes[n.left].upper);
@@ -114,9 +122,13 @@ extern "C" __global__ void weft_bvh_refit_level(weft_bvh_node* nodes, const int*
 
 }  // namespace
 
+extern const char* kCudaSortSource;       // cuda_device_sort.cpp
 extern const char* kCudaHashGridSource;   // cuda_device_hash_grid.cpp
+extern const char* kCudaBvhSource;        // cuda_device_bvh.cpp
 
-std::string CudaBuiltinSource() { return std::string(kBuiltinSource) + kCudaHashGridSource; }
+std::string CudaBuiltinSource() {
+  return std::string(kBuiltinSource) + kCudaSortSource + kCudaHashGridSource + kCudaBvhSource;
+}
 
 namespace {
 
@@ -851,6 +863,7 @@ Status CudaDevice::RefitBvh(Session& s, const geometry::BvhRefitJob& job) {
   if (lost_.load()) return Unavailable(name_ + " was lost");
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  if (job.parents) return BvhBoundsUp(*st, job);   // a tree built on the device
   WEFT_ASSIGN_OR_RETURN(jit::CuFunction fn, Builtin("weft_bvh_refit_level"));
   jit::CuDevicePtr nodes = job.nodes, levels = job.levels, prim_ids = job.prim_ids, lowers = job.lowers,
                    uppers = job.uppers, points = job.points, indices = job.indices;

@@ -45,8 +45,8 @@ struct CudaDeviceOptions {
   std::function<Expected<std::string>(const std::string& source, const std::string& name, int sm)> compile;
 };
 
-// The CUDA source of the device's built-in kernels (strided copy and fill, BVH refit, hash grid
-// build), compiled by NVRTC on first use.
+// The CUDA source of the device's built-in kernels (strided copy and fill, radix sort, BVH build
+// and refit, hash grid build), compiled by NVRTC on first use.
 std::string CudaBuiltinSource();
 
 struct CudaDeviceStats {
@@ -82,6 +82,7 @@ class CudaDevice final : public Device {
   DeviceSyncResult Synchronize(Session& s) override;
   Status RefitBvh(Session& s, const geometry::BvhRefitJob& job) override;
   Status BuildHashGrid(Session& s, const geometry::HashGridBuildJob& job) override;   // cuda_device_hash_grid.cpp
+  Status BuildBvh(Session& s, const geometry::BvhBuildJob& job) override;             // cuda_device_bvh.cpp
   void CloseSession(Session& s) override;
 
   // CUDA IPC import of a client process's allocation (cuda_device_import.cpp): the open
@@ -244,6 +245,17 @@ class CudaDevice final : public Device {
   // back; a sticky error here resets (and, failing that, marks lost) this GPU too.
   void ProbeAfterFaultOn(const std::string& faulted);
   Status StridedCopyOnDevice(Stream& st, const ArrayView& dst, const ArrayView& src);
+  // A stable radix sort of n (key, id) pairs by the keys' low `bits` bits (cuda_device_sort.cpp):
+  // the pairs start in keys[*cur] / ids[*cur] and end in the buffers *cur names then; hist holds
+  // geometry::SortHistogramBytes(n).
+  struct SortBuffers {
+    jit::CuDevicePtr keys[2];
+    jit::CuDevicePtr ids[2];
+    jit::CuDevicePtr hist;
+  };
+  Status SortPairs(Stream& st, const SortBuffers& b, int64_t n, int bits, int* cur);
+  // Node bounds bottom-up from the leaves of a device-built BVH (cuda_device_bvh.cpp).
+  Status BvhBoundsUp(Stream& st, const geometry::BvhRefitJob& job);
   // The device address of the session's geometry table for a launch on `st` (0: the session
   // holds no geometry objects); uploaded on the stream when the objects changed.
   Expected<uint64_t> GeometryTable(Session& s, Stream& st);

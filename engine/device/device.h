@@ -75,8 +75,9 @@ class Device {
   // The session closed (its work already stopped and waited for): drop its stream.
   virtual void CloseSession(Session& s) = 0;
 
-  // Recomputes a BVH's node bounds on this device, one launch per level of `job` (deepest
-  // first), queued on the session's stream after its earlier work (a GPU geometry refit).
+  // Recomputes a BVH's node bounds on this device (one launch per level of `job`, deepest first;
+  // a tree built on the device: bottom-up along its parents), queued on the session's stream
+  // after its earlier work (a GPU geometry refit).
   // Unimplemented where the device has no such path (the caller refits on the host).
   virtual Status RefitBvh(Session&, const geometry::BvhRefitJob&) { return Unimplemented(name() + " refits BVHs on the host"); }
   // Builds a hash grid on this device (cells, then the point ids sorted by cell), queued on the
@@ -84,6 +85,9 @@ class Device {
   virtual Status BuildHashGrid(Session&, const geometry::HashGridBuildJob&) {
     return Unimplemented(name() + " builds hash grids on the host");
   }
+  // Builds a BVH on this device (bvh_build.h BvhBuildJob: a linear BVH), queued on the session's
+  // stream after its earlier work. GPUs only (the caller builds on the host where unimplemented).
+  virtual Status BuildBvh(Session&, const geometry::BvhBuildJob&) { return Unimplemented(name() + " builds BVHs on the host"); }
 };
 
 }  // namespace weft

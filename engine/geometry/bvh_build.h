@@ -10,6 +10,7 @@
 #include <functional>
 #include <vector>
 
+#include "engine/geometry/device_sort.h"
 #include "engine/native/geometry_abi.h"
 
 namespace weft::geometry {
@@ -32,11 +33,35 @@ struct BvhData {
 // order, the nodes level by level and the item arrays: lowers/uppers (a wp.Bvh) or points and
 // the checked face indices (a wp.Mesh), all on the device; levels[level_starts[k] ..
 // level_starts[k+1]) is one level, deepest first.
+// A tree built on the device (BvhBuildJob) has no levels: its refit goes bottom-up from the
+// num_items leaves along `parents`, with `arrivals` (num_items int32) as scratch.
 struct BvhRefitJob {
   uintptr_t nodes = 0, prim_ids = 0, levels = 0;
   uintptr_t lowers = 0, uppers = 0, points = 0, indices = 0;
   std::vector<int64_t> level_starts;
+  uintptr_t parents = 0, arrivals = 0;
+  int64_t num_items = 0;
 };
+
+// Device memory of one BVH build on a GPU (Device::BuildBvh): a linear BVH (Karras' binary radix
+// tree over the 30-bit Morton codes of the item centroids, ties by item id) with leaves of one
+// item. Nodes 0 .. n-2 are the inner nodes (0 the root), node n-1+k the leaf of the k-th item in
+// Morton order (left = k, right = -1). Items as in BvhRefitJob (lowers/uppers, or points and the
+// checked indices). Every address is device memory the session or the object owns.
+struct BvhBuildJob {
+  int64_t n = 0;   // items, 1 .. 2^31 - 1
+  uintptr_t lowers = 0, uppers = 0, points = 0, indices = 0;
+  uintptr_t nodes = 0;      // 2n - 1 wp::bvh_node_t
+  uintptr_t prim_ids = 0;   // n int32
+  uintptr_t parents = 0;    // 2n - 1 int32 (the root's: -1), kept for refits
+  uintptr_t scratch = 0;    // BvhBuildScratchBytes(n); its first n int32 are the refit's arrivals
+};
+
+// Scratch of a device build of n items: the arrival counters, two key buffers, a second id
+// buffer, the sort's digit counts and the centroid bounds, each 256-byte aligned.
+inline uint64_t BvhBuildScratchBytes(int64_t n) {
+  return 4 * RoundTo256(static_cast<uint64_t>(n) * 4) + SortHistogramBytes(n) + 256;
+}
 
 // Bounds of item i into lo[3], hi[3].
 using ItemBounds = std::function<void(int64_t i, float* lo, float* hi)>;

@@ -378,6 +378,12 @@ Status GeometryObject::Mirror(const DeviceAccess* dev) {
 Status GeometryObject::Rebuild(const DeviceAccess* dev) {
   if (kind_ == wp::GEOMETRY_HASH_GRID) return Status::Ok();
   if (kind_ == wp::GEOMETRY_VOLUME) return InvalidArgument("rebuild() is a Bvh or Mesh operation, not a Volume's");
+  if (on_gpu() && item_groups_.empty() && num_prims_ > 0) {
+    Status built = BuildBvhOnDevice(dev);
+    if (built.code() != StatusCode::kUnimplemented) return built;
+  }
+  device_built_ = false;
+  gpu_parents_.bytes = 0;
   std::vector<float> host;
   const float *lo, *hi, *p;
   WEFT_RETURN_IF_ERROR(HostArrays(dev, &host, &lo, &hi, &p));
@@ -387,6 +393,39 @@ Status GeometryObject::Rebuild(const DeviceAccess* dev) {
     return ResourceExhausted("out of memory building the BVH");
   }
   return Mirror(dev);
+}
+
+Status GeometryObject::BuildBvhOnDevice(const DeviceAccess* dev) {
+  if (!dev || !dev->build_bvh) return Unimplemented("no device BVH build");
+  const uint64_t n = static_cast<uint64_t>(num_prims_);
+  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, (2 * n - 1) * sizeof(wp::bvh_node_t), &gpu_nodes_));
+  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, n * sizeof(int32_t), &gpu_prim_ids_));
+  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, (2 * n - 1) * sizeof(int32_t), &gpu_parents_));
+  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, BvhBuildScratchBytes(num_prims_), &gpu_sort_scratch_));
+  if (kind_ == wp::GEOMETRY_MESH && gpu_indices_.bytes != indices_.size() * sizeof(int32_t))   // fixed at creation
+    WEFT_RETURN_IF_ERROR(MirrorOne(dev, indices_.data(), indices_.size() * sizeof(int32_t), &gpu_indices_));
+  auto address = [](const std::shared_ptr<Allocation>& a) { return a ? reinterpret_cast<uintptr_t>(a->data()) : uintptr_t{0}; };
+  BvhBuildJob job;
+  job.n = num_prims_;
+  if (kind_ == wp::GEOMETRY_BVH) {
+    job.lowers = address(lowers_);
+    job.uppers = address(uppers_);
+  } else {
+    job.points = address(points_);
+    job.indices = address(gpu_indices_.memory);
+  }
+  job.nodes = address(gpu_nodes_.memory);
+  job.prim_ids = address(gpu_prim_ids_.memory);
+  job.parents = address(gpu_parents_.memory);
+  job.scratch = address(gpu_sort_scratch_.memory);
+  Status built = dev->build_bvh(device_, job);
+  if (built.code() == StatusCode::kUnimplemented) return built;
+  // No host tree either way: a failed build leaves an empty tree (queries find nothing).
+  bvh_ = BvhData{};
+  gpu_levels_.bytes = gpu_group_ids_.bytes = gpu_group_roots_.bytes = 0;
+  device_built_ = built.ok();
+  if (!built.ok()) gpu_nodes_.bytes = gpu_prim_ids_.bytes = gpu_parents_.bytes = 0;
+  return built;
 }
 
 Status GeometryObject::Refit(const DeviceAccess* dev) {
@@ -402,6 +441,11 @@ Status GeometryObject::Refit(const DeviceAccess* dev) {
     job.prim_ids = address(gpu_prim_ids_.memory);
     job.levels = address(gpu_levels_.memory);
     job.level_starts = bvh_.level_starts;
+    if (device_built_) {
+      job.parents = address(gpu_parents_.memory);
+      job.arrivals = address(gpu_sort_scratch_.memory);
+      job.num_items = num_prims_;
+    }
     if (kind_ == wp::GEOMETRY_BVH) {
       job.lowers = address(lowers_);
       job.uppers = address(uppers_);
@@ -410,8 +454,9 @@ Status GeometryObject::Refit(const DeviceAccess* dev) {
       job.indices = address(gpu_indices_.memory);
     }
     Status refit = dev->refit_bvh(device_, job);
-    if (refit.code() != StatusCode::kUnimplemented) return refit;
+    if (refit.code() != StatusCode::kUnimplemented || device_built_) return refit;
   }
+  if (device_built_) return Status::Ok();   // the tree failed to build: nothing to refit
   std::vector<float> host;
   const float *lo, *hi, *p;
   WEFT_RETURN_IF_ERROR(HostArrays(dev, &host, &lo, &hi, &p));
@@ -582,7 +627,7 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
   d->num_prims = num_prims_;
   d->nodes = bvh_.nodes.empty() ? nullptr : bvh_.nodes.data();
   d->prim_ids = bvh_.prim_ids.empty() ? nullptr : bvh_.prim_ids.data();
-  d->num_nodes = static_cast<int64_t>(bvh_.nodes.size());
+  d->num_nodes = device_built_ ? 2 * num_prims_ - 1 : static_cast<int64_t>(bvh_.nodes.size());
   d->group_ids = bvh_.group_ids.empty() ? nullptr : bvh_.group_ids.data();
   d->group_roots = bvh_.group_roots.empty() ? nullptr : bvh_.group_roots.data();
   d->num_groups = static_cast<int64_t>(bvh_.group_ids.size());

@@ -3,11 +3,11 @@
 // the daemon's own build products (BVH nodes, the checked copy of a mesh's indices, the hash
 // grid's cells). Describe() writes the kernel-side descriptor (geometry_abi.h). Builds and refits
 // run on the session's executor, ordered with its launches.
-// On a GPU, hash grids (without groups) are built on the device and BVHs are refitted there;
-// the other builds run on the host: the arrays are downloaded (after the session's queued work
-// on the device), the tree or cells are built as on the CPU, and the products are uploaded into
-// device memory the object owns (counted in the session's quota); kernels read the user's
-// arrays in place.
+// On a GPU, hash grids and BVHs without groups are built on the device (a BVH as a linear BVH,
+// bvh_build.h BvhBuildJob), and every BVH is refitted there; grouped BVHs are built on the host:
+// the arrays are downloaded (after the session's queued work on the device), the tree is built
+// as on the CPU, and the products are uploaded into device memory the object owns (counted in
+// the session's quota); kernels read the user's arrays in place.
 #pragma once
 
 #include <cstdint>
@@ -45,6 +45,8 @@ struct DeviceAccess {
   // Builds a hash grid on `device` (Device::BuildHashGrid; may be empty: the host builds; the
   // grids of a GPU are built there).
   std::function<Status(const std::string& device, const HashGridBuildJob& job)> build_hash_grid;
+  // Builds a BVH on `device` (Device::BuildBvh; may be empty or Unimplemented: the host builds).
+  std::function<Status(const std::string& device, const BvhBuildJob& job)> build_bvh;
 };
 
 class GeometryObject {
@@ -117,6 +119,8 @@ class GeometryObject {
   Status MirrorOne(const DeviceAccess* dev, const void* src, uint64_t bytes, DeviceCopy* copy);
   // Device memory of at least `bytes` in `copy` (kept when large enough), contents undefined.
   Status EnsureDeviceMemory(const DeviceAccess* dev, uint64_t bytes, DeviceCopy* copy);
+  // GPU, no groups: builds the tree on the device (Unimplemented when the device cannot).
+  Status BuildBvhOnDevice(const DeviceAccess* dev);
   // Copies `groups` (one int32 per item) into item_groups_.
   Status TakeGroups(const std::shared_ptr<Allocation>& groups, const DeviceAccess* dev, const char* what);
 
@@ -143,7 +147,9 @@ class GeometryObject {
   DeviceCopy gpu_sorted_groups_, gpu_levels_;
   DeviceCopy gpu_group_ids_, gpu_group_roots_;
   DeviceCopy gpu_vol_table_, gpu_vol_masks_, gpu_vol_prefix_;
-  DeviceCopy gpu_sort_scratch_;   // a device hash grid build's sort buffers
+  DeviceCopy gpu_sort_scratch_;   // a device build's sort buffers (a BVH's refit arrivals first)
+  DeviceCopy gpu_parents_;        // a BVH built on the device: each node's parent
+  bool device_built_ = false;     // the BVH was built on the device: bvh_ holds no nodes
 };
 
 // Checks that `a` is a whole contiguous array of vec3 float32 (any number of dimensions, or

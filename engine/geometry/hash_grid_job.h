@@ -6,6 +6,8 @@
 
 #include <cstdint>
 
+#include "engine/geometry/device_sort.h"
+
 namespace weft::geometry {
 
 struct HashGridBuildJob {
@@ -23,15 +25,10 @@ struct HashGridBuildJob {
   uintptr_t scratch = 0;      // HashGridScratchBytes(n) bytes
 };
 
-// Radix sort tiles: 256 threads x 8 keys.
-constexpr int64_t kHashGridSortTile = 2048;
-
-// Scratch of a device build of n points: two key buffers, a second id buffer and the per-tile
-// digit counts (16 per tile), each 256-byte aligned.
+// Scratch of a device build of n points: two key buffers, a second id buffer and the sort's
+// per-tile digit counts, each 256-byte aligned.
 inline uint64_t HashGridScratchBytes(int64_t n) {
-  auto round = [](uint64_t v) { return (v + 255) / 256 * 256; };
-  const uint64_t tiles = static_cast<uint64_t>((n + kHashGridSortTile - 1) / kHashGridSortTile);
-  return 3 * round(static_cast<uint64_t>(n) * 4) + round(16 * tiles * 4 + 4);
+  return 3 * RoundTo256(static_cast<uint64_t>(n) * 4) + SortHistogramBytes(n);
 }
 
 }  // namespace weft::geometry

@@ -51,6 +51,11 @@ Expected<uint64_t> Engine::RunGeometryWith(Session& s, const geometry::GeometryR
     if (!d) return Internal("geometry object on unknown device '" + device + "'");
     return d->BuildHashGrid(s, job);
   };
+  access.build_bvh = [this, &s](const std::string& device, const geometry::BvhBuildJob& job) -> Status {
+    Device* d = devices_->Find(device);
+    if (!d) return Internal("geometry object on unknown device '" + device + "'");
+    return d->BuildBvh(s, job);
+  };
   if (!queued) return geometry::RunGeometryOpHere(s, r, &access);
   return geometry::RunGeometryOp(s, r, &access);
 }

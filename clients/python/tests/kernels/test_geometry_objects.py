@@ -842,6 +842,80 @@ def test_bvh_queries_match_brute_force(rng):
         assert (got2[i][sure] == 1).all()
 
 
+def _hard_boxes(rng, case):
+    """Boxes (lo, hi) float32 that stress a tree build: identical boxes (one Morton code for all),
+    exponentially spaced tiny boxes, magnitudes from 1e-30 to 1e30, two far clusters, a single
+    box, infinite and NaN bounds, and 100k boxes (many sort tiles, a deep tree)."""
+    if case == "identical":
+        lo = np.tile(np.float32([0.25, -1.0, 3.0]), (5000, 1))
+        return lo, lo + np.float32(0.5)
+    if case == "exponential":
+        x = np.float32(2.0) ** -np.arange(0, 120, dtype=np.float32)
+        lo = np.stack([x, x * 0.5, np.zeros_like(x)], 1).astype(np.float32)
+        return lo, (lo + x[:, None] * np.float32(0.25)).astype(np.float32)
+    if case == "magnitudes":
+        c = rng.choice([-1.0, 1.0], size=(3000, 3)) * 10.0 ** rng.uniform(-30, 30, size=(3000, 3))
+        h = np.abs(c) * rng.uniform(0.0, 0.5, size=(3000, 3))
+        return (c - h).astype(np.float32), (c + h).astype(np.float32)
+    if case == "clusters":
+        c = np.concatenate([rng.normal(size=(2000, 3)), 1e6 + rng.normal(size=(2000, 3))])
+        return (c - 0.05).astype(np.float32), (c + 0.05).astype(np.float32)
+    if case == "one":
+        return np.float32([[1.0, 2.0, 3.0]]), np.float32([[1.5, 2.5, 3.5]])
+    if case == "nonfinite":
+        c = rng.uniform(-5, 5, size=(4000, 3))
+        lo, hi = (c - 0.2).astype(np.float32), (c + 0.2).astype(np.float32)
+        lo[::97, 0], hi[::97, 0] = -np.inf, np.inf
+        lo[5::131, 1] = np.nan
+        hi[7::149, 2] = np.nan
+        return lo, hi
+    c = rng.uniform(-50, 50, size=(100_000, 3))
+    h = rng.uniform(0.01, 0.3, size=(100_000, 3))
+    return (c - h).astype(np.float32), (c + h).astype(np.float32)
+
+
+@pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")
+@pytest.mark.parametrize("case", ["identical", "exponential", "magnitudes", "clusters", "one", "nonfinite", "many"])
+def test_bvh_on_hard_inputs_finds_exactly_the_overlapping_boxes(rng, case):
+    """A box query reports every item whose box overlaps it exactly once (the float32 test of the
+    kernel, computed here in NumPy), after the build, a refit and a rebuild; items with a NaN
+    bound may go either way. On a GPU the tree is built on the device (docs/geometry.md)."""
+    lo, hi = _hard_boxes(rng, case)
+    m = len(lo)
+    lowers, uppers = wp.array(lo, dtype=wp.vec3, device=DEV), wp.array(hi, dtype=wp.vec3, device=DEV)
+    bvh = wp.Bvh(lowers, uppers)
+    fin = ~(np.isnan(lo).any(1) | np.isnan(hi).any(1))
+    picks = rng.integers(0, m, size=12)
+    grow = rng.uniform(0.0, 2.0, size=(12, 1)).astype(np.float32)
+    ql = np.concatenate([lo[picks] - grow * np.abs(lo[picks]) - np.float32(1e-3), np.float32([[-3e38] * 3])])
+    qu = np.concatenate([hi[picks] + grow * np.abs(hi[picks]) + np.float32(1e-3), np.float32([[3e38] * 3])])
+    ql = np.where(np.isnan(ql), np.float32(0), ql).astype(np.float32)
+    qu = np.where(np.isnan(qu), np.float32(1), qu).astype(np.float32)
+    n = len(ql)
+
+    def check(clo, chi):
+        hits = wp.zeros((n, m), dtype=int, device=DEV)
+        wp.launch(bvh_boxes, dim=n, inputs=[bvh.id, wp.array(ql, dtype=wp.vec3, device=DEV),
+                                            wp.array(qu, dtype=wp.vec3, device=DEV), hits], device=DEV)
+        got = hits.numpy()
+        assert got.max() <= 1, "an item was reported twice"
+        with np.errstate(invalid="ignore"):
+            for i in range(n):
+                want = ~((clo > qu[i]) | (chi < ql[i])).any(1)
+                assert (got[i][fin] == want[fin]).all(), (case, i, np.flatnonzero(got[i][fin] != want[fin])[:8])
+        assert (got[-1][fin] == 1).all()   # the query over everything finds every finite box
+
+    check(lo, hi)
+    shift = np.float32([0.5, -0.25, 2.0])
+    wp.launch(move_points, dim=m, inputs=[lowers, wp.vec3(*shift)], device=DEV)
+    wp.launch(move_points, dim=m, inputs=[uppers, wp.vec3(*shift)], device=DEV)
+    bvh.refit()
+    moved_lo, moved_hi = lowers.numpy(), uppers.numpy()
+    check(moved_lo, moved_hi)
+    bvh.rebuild()
+    check(moved_lo, moved_hi)
+
+
 @wp.kernel
 def bvh_group_boxes(bvh: wp.uint64, lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3),
                     groups: wp.array(dtype=int), hits: wp.array2d(dtype=int), roots: wp.array(dtype=int)):
