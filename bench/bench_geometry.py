@@ -1,5 +1,6 @@
-"""Geometry objects: wp.Mesh build, refit and closest-point queries on a UV sphere, weft against
-warp-lang on the same device in the same run.
+"""Geometry objects: wp.Mesh build, refit and closest-point queries on a UV sphere, and wp.Bvh
+build and box queries over random boxes, weft against warp-lang on the same device in the same
+run.
 
     python bench/bench_geometry.py [--device cpu|cuda:0] [--quick]
 
@@ -7,8 +8,12 @@ Per mesh size: the build (wp.Mesh(...), synchronized), a refit after moving ever
 launch of Q closest-point queries (mesh_query_point_no_sign + mesh_eval_position, launch +
 sync), median of several runs. The error column is the largest difference, over 64 of the
 queries, between the distance to the closest point found and the float64 brute-force distance
-to every triangle. Ratio = warp time / weft time (higher is better for weft). On a GPU weft
-builds on the host and refits on the device (docs/geometry.md), Warp does both on the device.
+to every triangle. Ratio = warp time / weft time (higher is better for weft). On a GPU both
+build and refit on the device (docs/geometry.md): a linear BVH, Warp's default there.
+
+Per Bvh size: the build (wp.Bvh(lowers, uppers), synchronized) and a launch of Q box queries
+counting the boxes each overlaps (launch + sync); the error column counts the queries, of 64,
+whose count differs from a NumPy brute force.
 """
 from __future__ import annotations
 
@@ -25,6 +30,18 @@ def closest(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), out: wp.array(dtyp
     q = wp.mesh_query_point_no_sign(mesh, points[tid], 1.0e6)
     if q.result:
         out[tid] = wp.mesh_eval_position(mesh, q.face, q.u, q.v)
+
+
+@wp.kernel
+def box_counts(bvh: wp.uint64, lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3),
+               counts: wp.array(dtype=int)):
+    tid = wp.tid()
+    query = wp.bvh_query_aabb(bvh, lowers[tid], uppers[tid])
+    item = int(0)
+    n = int(0)
+    while wp.bvh_query_next(query, item):
+        n += 1
+    counts[tid] = n
 
 
 @wp.kernel
@@ -117,6 +134,62 @@ def run(lib, mod, pts, idx, queries, device):
     return t_build, t_refit, t_query, err
 
 
+BVH_SIZES = [10_000, 1_000_000]
+BVH_QUERIES = 1 << 18
+
+
+def run_bvh(lib, mod, lo, hi, qlo, qhi, device):
+    lowers = lib.array(lo, dtype=lib.vec3, device=device)
+    uppers = lib.array(hi, dtype=lib.vec3, device=device)
+    ql = lib.array(qlo, dtype=lib.vec3, device=device)
+    qu = lib.array(qhi, dtype=lib.vec3, device=device)
+    counts = lib.zeros(len(qlo), dtype=int, device=device)
+    holder = {}
+
+    def build():
+        holder["bvh"] = lib.Bvh(lowers, uppers)
+        lib.synchronize_device(device)
+
+    t_build = bc.median_time(build, repeat=5)
+    bvh = holder["bvh"]
+
+    def query():
+        lib.launch(mod.box_counts, dim=len(qlo), inputs=[bvh.id, ql, qu, counts], device=device)
+        lib.synchronize_device(device)
+
+    query()
+    t_query = bc.median_time(query, repeat=5)
+    got = counts.numpy()
+    wrong = 0
+    for k in range(0, len(qlo), max(1, len(qlo) // 64)):
+        want = int((~((lo > qhi[k]) | (hi < qlo[k])).any(1)).sum())
+        wrong += int(got[k] != want)
+    return t_build, t_query, wrong
+
+
+def bvh_table(weft, weft_mod, warp, warp_mod, device, quick, rng):
+    rows = []
+    nq = BVH_QUERIES // 16 if quick else BVH_QUERIES
+    for n in BVH_SIZES[:1] if quick else BVH_SIZES:
+        print(f"  bvh {n:,} boxes ...", file=sys.stderr, flush=True)
+        side = np.cbrt(n) * 0.5
+        c = rng.uniform(0.0, side, size=(n, 3))
+        h = rng.uniform(0.05, 0.5, size=(n, 3))
+        lo, hi = (c - h).astype(np.float32), (c + h).astype(np.float32)
+        qc = rng.uniform(0.0, side, size=(nq, 3))
+        qlo, qhi = (qc - 0.5).astype(np.float32), (qc + 0.5).astype(np.float32)
+        wb, wq, we = run_bvh(weft, weft_mod, lo, hi, qlo, qhi, device)
+        xb = xq = xe = None
+        if warp is not None:
+            xb, xq, xe = run_bvh(warp, warp_mod, lo, hi, qlo, qhi, device)
+        rows.append([f"{n:,}", bc.fmt_time(wb), bc.fmt_time(xb), bc.fmt_ratio(wb, xb),
+                     bc.fmt_time(wq), f"{nq / wq / 1e6:,.1f} M/s", f"{we}/64",
+                     bc.fmt_time(xq), "n/a" if xe is None else f"{xe}/64", bc.fmt_ratio(wq, xq)])
+    header = ["boxes", "build weft", "warp", "ratio", f"{nq:,} queries weft", "throughput", "wrong counts",
+              "warp", "warp wrong", "ratio"]
+    bc.print_table(f"wp.Bvh on {device}: build, box queries counting overlaps (launch + sync)", header, rows)
+
+
 def main():
     import weft
 
@@ -149,6 +222,7 @@ def main():
               f"{nq:,} queries weft", "throughput", "abs err", "warp", "warp abs err", "ratio"]
     bc.print_table(f"wp.Mesh on {device}: build, refit (after a launch moving the points), "
                    "closest-point queries (launch + sync)", header, rows)
+    bvh_table(weft, weft_mod, warp, warp_mod, device, "--quick" in sys.argv, rng)
 
 
 if __name__ == "__main__":

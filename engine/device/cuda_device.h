@@ -83,6 +83,7 @@ class CudaDevice final : public Device {
   Status RefitBvh(Session& s, const geometry::BvhRefitJob& job) override;
   Status BuildHashGrid(Session& s, const geometry::HashGridBuildJob& job) override;   // cuda_device_hash_grid.cpp
   Status BuildBvh(Session& s, const geometry::BvhBuildJob& job) override;             // cuda_device_bvh.cpp
+  Status CheckMeshIndices(Session& s, const geometry::MeshIndicesJob& job) override;  // cuda_device_bvh.cpp
   void CloseSession(Session& s) override;
 
   // CUDA IPC import of a client process's allocation (cuda_device_import.cpp): the open

@@ -6,7 +6,8 @@
 // below 30 + 32 levels, inside the traversal stack), then the node bounds bottom-up: each leaf's
 // thread climbs while it is the second to arrive at a node (CudaDevice::BvhBoundsUp, which also
 // refits such a tree). Bounds use the host build's arithmetic (empty bounds +-3e38, a NaN never
-// wins a min/max, a NaN centroid counts as 0).
+// wins a min/max, a NaN centroid counts as 0). CudaDevice::CheckMeshIndices copies a mesh's
+// indices into the mesh's own memory and finds the first one out of range, on the device.
 #include <algorithm>
 #include <cstring>
 
@@ -163,6 +164,19 @@ extern "C" __global__ void weft_bvh_bounds_up(weft_bvh_node* nodes, const int* p
     }
   }
 }
+// A mesh's indices copied and checked: result[0] = the first position out of [0, limit) (preset
+// to ~0), then result[1] = the value there (a second launch).
+extern "C" __global__ void weft_mesh_indices_check(const int* src, i64 count, int limit, int* dst,
+                                                   unsigned long long* result) {
+  for (i64 k = (i64)blockIdx.x * blockDim.x + threadIdx.x; k < count; k += (i64)blockDim.x * gridDim.x) {
+    const int v = src[k];
+    dst[k] = v;
+    if (v < 0 || v >= limit) atomicMin(result, (unsigned long long)k);
+  }
+}
+extern "C" __global__ void weft_mesh_indices_value(const int* dst, unsigned long long* result) {
+  if (result[0] != ~0ull) result[1] = (unsigned long long)(unsigned)dst[result[0]];
+}
 )CUDA";
 
 namespace {
@@ -193,6 +207,28 @@ Status CudaDevice::BvhBoundsUp(Stream& st, const geometry::BvhRefitJob& job) {
   return driver_->Check(driver_->LaunchKernel(fn, Blocks(static_cast<uint64_t>(n), 256), 1, 1, 256, 1, 1, 0, st.stream,
                                               params, nullptr),
                         "cuLaunchKernel (BVH bounds)");
+}
+
+Status CudaDevice::CheckMeshIndices(Session& s, const geometry::MeshIndicesJob& job) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  if (lost_.load()) return Unavailable(name_ + " was lost");
+  if (job.count < 1) return Internal("mesh indices job out of range");
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  WEFT_ASSIGN_OR_RETURN(jit::CuFunction check_fn, Builtin("weft_mesh_indices_check"));
+  WEFT_ASSIGN_OR_RETURN(jit::CuFunction value_fn, Builtin("weft_mesh_indices_value"));
+  jit::CuDevicePtr src = job.src, dst = job.dst, result = job.result;
+  int64_t count = job.count;
+  int32_t limit = job.limit;
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemsetD32Async(result, 0xffffffffu, 4, st->stream),
+                                      "cuMemsetD32Async (mesh indices)"));
+  void* check_params[] = {&src, &count, &limit, &dst, &result};
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->LaunchKernel(check_fn, Blocks(static_cast<uint64_t>(count), 256), 1, 1, 256,
+                                                            1, 1, 0, st->stream, check_params, nullptr),
+                                      "cuLaunchKernel (mesh indices)"));
+  void* value_params[] = {&dst, &result};
+  return driver_->Check(driver_->LaunchKernel(value_fn, 1, 1, 1, 1, 1, 1, 0, st->stream, value_params, nullptr),
+                        "cuLaunchKernel (mesh indices)");
 }
 
 Status CudaDevice::BuildBvh(Session& s, const geometry::BvhBuildJob& job) {

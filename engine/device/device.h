@@ -88,6 +88,11 @@ class Device {
   // Builds a BVH on this device (bvh_build.h BvhBuildJob: a linear BVH), queued on the session's
   // stream after its earlier work. GPUs only (the caller builds on the host where unimplemented).
   virtual Status BuildBvh(Session&, const geometry::BvhBuildJob&) { return Unimplemented(name() + " builds BVHs on the host"); }
+  // Copies and range-checks a mesh's indices on this device (bvh_build.h MeshIndicesJob), queued
+  // on the session's stream; the caller reads the result back.
+  virtual Status CheckMeshIndices(Session&, const geometry::MeshIndicesJob&) {
+    return Unimplemented(name() + " checks mesh indices on the host");
+  }
 };
 
 }  // namespace weft

@@ -57,6 +57,15 @@ struct BvhBuildJob {
   uintptr_t scratch = 0;    // BvhBuildScratchBytes(n); its first n int32 are the refit's arrivals
 };
 
+// A mesh's indices checked on its GPU (Device::CheckMeshIndices): the count values at src (the
+// user's array) copied to dst (the mesh's own copy) and each compared with [0, limit); result
+// (two uint64) receives the first position out of range (~0: none) and the value there.
+struct MeshIndicesJob {
+  uintptr_t src = 0, dst = 0, result = 0;
+  int64_t count = 0;
+  int32_t limit = 0;
+};
+
 // Scratch of a device build of n items: the arrival counters, two key buffers, a second id
 // buffer, the sort's digit counts and the centroid bounds, each 256-byte aligned.
 inline uint64_t BvhBuildScratchBytes(int64_t n) {

@@ -72,6 +72,11 @@ float Coord(const char* p, ScalarType scalar, int64_t i, int k) {
   }
 }
 
+Status MeshIndexOutOfRange(uint64_t i, int64_t v, int64_t points) {
+  return InvalidArgument("Mesh indices: indices[" + std::to_string(i) + "] = " + std::to_string(v) +
+                         " is out of range for " + std::to_string(points) + " points");
+}
+
 Status NeedAccess(const std::string& device, const DeviceAccess* dev, const char* what) {
   if (device != "cpu" && !dev) return FailedPrecondition(std::string(what) + " on " + device + ": no device access");
   return Status::Ok();
@@ -145,24 +150,28 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_pt
     return InvalidArgument("Mesh indices: " + std::to_string(count) + " values is not a multiple of 3 (one triple per face)");
   if (count / 3 > static_cast<uint64_t>(kMaxGeometryItems)) return InvalidArgument("Mesh indices: too many faces");
   std::shared_ptr<GeometryObject> g(new GeometryObject());
-  try {
-    g->indices_.resize(count);
-  } catch (const std::bad_alloc&) {
-    return ResourceExhausted("Mesh: out of memory for the indices");
-  }
-  if (count && points->device != "cpu") {
-    WEFT_RETURN_IF_ERROR(dev->download(*indices, g->indices_.data(), count * sizeof(int32_t)));
-  } else if (count) {
-    std::memcpy(g->indices_.data(), iv.data(), count * sizeof(int32_t));
-  }
-  for (uint64_t i = 0; i < count; ++i) {
-    int32_t v = g->indices_[i];
-    if (v < 0 || v >= np)
-      return InvalidArgument("Mesh indices: indices[" + std::to_string(i) + "] = " + std::to_string(v) +
-                             " is out of range for " + std::to_string(np) + " points");
-  }
   g->kind_ = wp::GEOMETRY_MESH;
   g->device_ = points->device;
+  // A GPU mesh built on the device (no groups) checks its indices there: no download.
+  Status checked = Unimplemented("host check");
+  if (count && g->on_gpu() && !groups) checked = g->CheckIndicesOnDevice(indices, count, np, dev);
+  if (checked.code() != StatusCode::kUnimplemented) WEFT_RETURN_IF_ERROR(checked);
+  if (checked.code() == StatusCode::kUnimplemented) {
+    try {
+      g->indices_.resize(count);
+    } catch (const std::bad_alloc&) {
+      return ResourceExhausted("Mesh: out of memory for the indices");
+    }
+    if (count && points->device != "cpu") {
+      WEFT_RETURN_IF_ERROR(dev->download(*indices, g->indices_.data(), count * sizeof(int32_t)));
+    } else if (count) {
+      std::memcpy(g->indices_.data(), iv.data(), count * sizeof(int32_t));
+    }
+    for (uint64_t i = 0; i < count; ++i) {
+      int32_t v = g->indices_[i];
+      if (v < 0 || v >= np) return MeshIndexOutOfRange(i, v, np);
+    }
+  }
   g->points_ = std::move(points);
   g->velocities_ = std::move(velocities);
   g->user_indices_ = std::move(indices);
@@ -267,6 +276,29 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewVolume(std::shared_
   return g;
 }
 
+Status GeometryObject::CheckIndicesOnDevice(const std::shared_ptr<Allocation>& indices, uint64_t count,
+                                            int64_t num_points, const DeviceAccess* dev) {
+  if (!dev || !dev->check_mesh_indices || !dev->build_bvh) return Unimplemented("no device index check");
+  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, count * sizeof(int32_t), &gpu_indices_));
+  DeviceCopy result;
+  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, 2 * sizeof(uint64_t), &result));
+  MeshIndicesJob job;
+  job.src = reinterpret_cast<uintptr_t>(indices->data());
+  job.dst = reinterpret_cast<uintptr_t>(gpu_indices_.memory->data());
+  job.result = reinterpret_cast<uintptr_t>(result.memory->data());
+  job.count = static_cast<int64_t>(count);
+  job.limit = static_cast<int32_t>(num_points);   // points < 2^31 (CheckVec3Array)
+  Status queued = dev->check_mesh_indices(device_, job);
+  if (!queued.ok()) {
+    gpu_indices_ = DeviceCopy{};
+    return queued;
+  }
+  uint64_t found[2] = {0, 0};
+  WEFT_RETURN_IF_ERROR(dev->download(*result.memory, found, sizeof(found)));   // after the check
+  if (found[0] != ~uint64_t{0}) return MeshIndexOutOfRange(found[0], static_cast<int32_t>(found[1]), num_points);
+  return Status::Ok();
+}
+
 Status GeometryObject::TakeGroups(const std::shared_ptr<Allocation>& groups, const DeviceAccess* dev,
                                   const char* what) {
   item_groups_.clear();
@@ -361,7 +393,8 @@ Status GeometryObject::MirrorOne(const DeviceAccess* dev, const void* src, uint6
 Status GeometryObject::Mirror(const DeviceAccess* dev) {
   if (!on_gpu()) return Status::Ok();
   WEFT_RETURN_IF_ERROR(NeedAccess(device_, dev, "geometry object"));
-  WEFT_RETURN_IF_ERROR(MirrorOne(dev, indices_.data(), indices_.size() * sizeof(int32_t), &gpu_indices_));
+  if (!indices_.empty() && gpu_indices_.bytes != indices_.size() * sizeof(int32_t))   // fixed at creation
+    WEFT_RETURN_IF_ERROR(MirrorOne(dev, indices_.data(), indices_.size() * sizeof(int32_t), &gpu_indices_));
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.nodes.data(), bvh_.nodes.size() * sizeof(wp::bvh_node_t), &gpu_nodes_));
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.prim_ids.data(), bvh_.prim_ids.size() * sizeof(int32_t), &gpu_prim_ids_));
   WEFT_RETURN_IF_ERROR(MirrorOne(dev, bvh_.levels.data(), bvh_.levels.size() * sizeof(int32_t), &gpu_levels_));
@@ -384,6 +417,8 @@ Status GeometryObject::Rebuild(const DeviceAccess* dev) {
   }
   device_built_ = false;
   gpu_parents_.bytes = 0;
+  if (kind_ == wp::GEOMETRY_MESH && num_prims_ > 0 && indices_.empty())
+    return Internal("Mesh: the indices were checked on " + device_ + ", which cannot build the tree");
   std::vector<float> host;
   const float *lo, *hi, *p;
   WEFT_RETURN_IF_ERROR(HostArrays(dev, &host, &lo, &hi, &p));
@@ -402,7 +437,7 @@ Status GeometryObject::BuildBvhOnDevice(const DeviceAccess* dev) {
   WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, n * sizeof(int32_t), &gpu_prim_ids_));
   WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, (2 * n - 1) * sizeof(int32_t), &gpu_parents_));
   WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, BvhBuildScratchBytes(num_prims_), &gpu_sort_scratch_));
-  if (kind_ == wp::GEOMETRY_MESH && gpu_indices_.bytes != indices_.size() * sizeof(int32_t))   // fixed at creation
+  if (kind_ == wp::GEOMETRY_MESH && !indices_.empty() && gpu_indices_.bytes != indices_.size() * sizeof(int32_t))
     WEFT_RETURN_IF_ERROR(MirrorOne(dev, indices_.data(), indices_.size() * sizeof(int32_t), &gpu_indices_));
   auto address = [](const std::shared_ptr<Allocation>& a) { return a ? reinterpret_cast<uintptr_t>(a->data()) : uintptr_t{0}; };
   BvhBuildJob job;
@@ -613,7 +648,7 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
   d->points = Floats(points_);
   d->velocities = Floats(velocities_);
   d->indices = indices_.empty() ? nullptr : indices_.data();
-  d->user_indices = user_indices_ && !indices_.empty() ? reinterpret_cast<const int32_t*>(user_indices_->data()) : nullptr;
+  d->user_indices = user_indices_ && num_prims_ > 0 ? reinterpret_cast<const int32_t*>(user_indices_->data()) : nullptr;
   if (kind_ == wp::GEOMETRY_MESH && points_) {
     std::shared_ptr<Allocation> grad = points_->grad;
     if (grad && grad->byte_size >= points_->byte_size && grad->device == points_->device) {

@@ -47,6 +47,9 @@ struct DeviceAccess {
   std::function<Status(const std::string& device, const HashGridBuildJob& job)> build_hash_grid;
   // Builds a BVH on `device` (Device::BuildBvh; may be empty or Unimplemented: the host builds).
   std::function<Status(const std::string& device, const BvhBuildJob& job)> build_bvh;
+  // Copies and checks a mesh's indices on `device` (Device::CheckMeshIndices; may be empty or
+  // Unimplemented: they are downloaded and checked on the host).
+  std::function<Status(const std::string& device, const MeshIndicesJob& job)> check_mesh_indices;
 };
 
 class GeometryObject {
@@ -121,6 +124,10 @@ class GeometryObject {
   Status EnsureDeviceMemory(const DeviceAccess* dev, uint64_t bytes, DeviceCopy* copy);
   // GPU, no groups: builds the tree on the device (Unimplemented when the device cannot).
   Status BuildBvhOnDevice(const DeviceAccess* dev);
+  // GPU: copies the mesh's indices into gpu_indices_ and checks them there (Unimplemented when
+  // the device cannot).
+  Status CheckIndicesOnDevice(const std::shared_ptr<Allocation>& indices, uint64_t count, int64_t num_points,
+                              const DeviceAccess* dev);
   // Copies `groups` (one int32 per item) into item_groups_.
   Status TakeGroups(const std::shared_ptr<Allocation>& groups, const DeviceAccess* dev, const char* what);
 
@@ -129,7 +136,7 @@ class GeometryObject {
   std::shared_ptr<Allocation> points_, velocities_, lowers_, uppers_;
   int64_t num_points_ = 0;
   int64_t num_prims_ = 0;
-  std::vector<int32_t> indices_;   // mesh: checked copy
+  std::vector<int32_t> indices_;   // mesh: checked copy (on a GPU, only where the host builds)
   std::vector<int32_t> item_groups_;   // grouped Bvh / Mesh: the group of each item (face)
   std::shared_ptr<Allocation> user_indices_;   // mesh: the caller's array (mesh_get's indices)
   BvhData bvh_;

@@ -56,6 +56,11 @@ Expected<uint64_t> Engine::RunGeometryWith(Session& s, const geometry::GeometryR
     if (!d) return Internal("geometry object on unknown device '" + device + "'");
     return d->BuildBvh(s, job);
   };
+  access.check_mesh_indices = [this, &s](const std::string& device, const geometry::MeshIndicesJob& job) -> Status {
+    Device* d = devices_->Find(device);
+    if (!d) return Internal("geometry object on unknown device '" + device + "'");
+    return d->CheckMeshIndices(s, job);
+  };
   if (!queued) return geometry::RunGeometryOpHere(s, r, &access);
   return geometry::RunGeometryOp(s, r, &access);
 }

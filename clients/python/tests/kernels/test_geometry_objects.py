@@ -1111,6 +1111,13 @@ def test_bad_arrays_and_dims_are_refused(rng):
     for bad in ([0, 1, 4], [0, 1, -1], [0, 1, 2**31 - 1], [0, 1]):
         with pytest.raises(wp.WeftError, match="Mesh indices"):
             wp.Mesh(pts, wp.array(np.array(bad, dtype=np.int32), dtype=int, device=DEV))
+    # The first bad index of many is named, wherever the check runs (on a GPU: on the device,
+    # over thousands of blocks; with groups: on the host).
+    many = rng.integers(0, 4, size=3 * 1_000_000).astype(np.int32)
+    many[2_500_000], many[2_000_001], many[2_999_999] = 99, -7, 4
+    for groups in (None, wp.zeros(1_000_000, dtype=int, device=DEV)):
+        with pytest.raises(wp.WeftError, match=r"indices\[2000001\] = -7 is out of range for 4 points"):
+            wp.Mesh(pts, wp.array(many, dtype=int, device=DEV), groups=groups)
     with pytest.raises(wp.WeftError, match="vec3"):
         wp.Mesh(wp.zeros(5, dtype=float, device=DEV), wp.array([0, 1, 2], dtype=int, device=DEV))
     with pytest.raises(wp.WeftError, match="int32"):
