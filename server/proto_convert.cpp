@@ -257,9 +257,9 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
     case v1::Command::kGeometry: {
       WEFT_ASSIGN_OR_RETURN(geometry::GeometryRequest r, FromProto(p.geometry()));
       using Op = geometry::GeometryRequest::Op;
-      if (r.op != Op::kBuildHashGrid && r.op != Op::kRefit && r.op != Op::kRebuild)
+      if (r.op != Op::kBuildHashGrid && r.op != Op::kRefit && r.op != Op::kRebuild && r.op != Op::kFree)
         return InvalidArgument("command " + std::to_string(index) +
-                               ": a geometry command builds a HashGrid or refits / rebuilds a Bvh or Mesh (op " +
+                               ": a geometry command builds a HashGrid, refits / rebuilds a Bvh or Mesh, or frees one (op " +
                                std::to_string(static_cast<int>(r.op)) + " goes to GeometryService)");
       c.kind = GeometryCommand{std::move(r)};
       break;

@@ -143,6 +143,22 @@ WP_FUNC bool bvh_ray_box(const float32* lo, const float32* hi, const float32* s,
   return true;
 }
 
+// Node i's bounds and children: on a GPU two 16-byte loads through the read-only cache (nodes
+// are never written while a kernel runs: builds and refits are launches of their own).
+WP_FUNC void bvh_load_node(const geometry_desc_t* g, int32 i, float32* lo, float32* hi, int32& left, int32& right) {
+#if defined(__CUDA_ARCH__)
+  const float4* p = reinterpret_cast<const float4*>(g->nodes + i);
+  const float4 a = __ldg(p), b = __ldg(p + 1);
+  lo[0] = a.x; lo[1] = a.y; lo[2] = a.z; left = __float_as_int(a.w);
+  hi[0] = b.x; hi[1] = b.y; hi[2] = b.z; right = __float_as_int(b.w);
+#else
+  const bvh_node_t& n = g->nodes[i];
+  for (int k = 0; k < 3; ++k) { lo[k] = n.lower[k]; hi[k] = n.upper[k]; }
+  left = n.left;
+  right = n.right;
+#endif
+}
+
 // Item bounds: a Bvh's lowers/uppers, a Mesh's triangle from the current points.
 WP_FUNC void bvh_item_bounds(const geometry_desc_t* g, int32 item, float32* lo, float32* hi) {
   if (g->kind == GEOMETRY_BVH) {
@@ -220,14 +236,22 @@ inline WP_NOINLINE WP_CALLABLE bool bvh_walk_next(bvh_walk_t& w, int32& index) {
       continue;
     }
     if (w.count == 0) return false;
-    const bvh_node_t& n = g->nodes[w.stack[--w.count]];
-    if (!bvh_walk_test(w, n.lower, n.upper)) continue;
-    if (n.right < 0) {
-      w.leaf_cur = n.left;
-      w.leaf_end = n.left - n.right;
+    float32 lo[3], hi[3];
+    int32 left, right;
+    bvh_load_node(g, w.stack[--w.count], lo, hi, left, right);
+    if (!bvh_walk_test(w, lo, hi)) continue;
+    if (right == -1 && (w.mode != 2 || g->kind != GEOMETRY_MESH)) {
+      // A leaf of one item (device builds): its bounds are the item's, already tested. (The
+      // item test would also pass an item with a NaN bound, which no node bound holds.)
+      index = g->prim_ids[left];
+      return true;
+    }
+    if (right < 0) {
+      w.leaf_cur = left;
+      w.leaf_end = left - right;
     } else if (w.count + 2 <= BVH_STACK) {
-      w.stack[w.count++] = n.right;
-      w.stack[w.count++] = n.left;
+      w.stack[w.count++] = right;
+      w.stack[w.count++] = left;
     }
   }
 }

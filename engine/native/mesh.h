@@ -117,14 +117,27 @@ WP_FUNC void mesh_closest(const geometry_desc_t* g, const vec3& p, float32 max_d
   u = v = 0.0f;
   best = max_dist * max_dist;
   if (!g || g->num_nodes == 0) return;
+  // Each entry keeps its box distance (computed when its parent was opened): an entry farther
+  // than the best found since is dropped without loading the node again.
   int32 stack[BVH_STACK];
+  float32 dist[BVH_STACK];
   int32 count = 0;
-  stack[count++] = 0;
+  {
+    float32 lo[3], hi[3];
+    int32 l, r;
+    bvh_load_node(g, 0, lo, hi, l, r);
+    stack[0] = 0;
+    dist[0] = mesh_box_dist_sq(lo, hi, p);
+    count = 1;
+  }
   while (count > 0) {
-    const bvh_node_t& n = g->nodes[stack[--count]];
-    if (mesh_box_dist_sq(n.lower, n.upper, p) > best) continue;
-    if (n.right < 0) {
-      for (int32 i = n.left; i < n.left - n.right; ++i) {
+    --count;
+    if (dist[count] > best) continue;
+    float32 lo[3], hi[3];
+    int32 left, right;
+    bvh_load_node(g, stack[count], lo, hi, left, right);
+    if (right < 0) {
+      for (int32 i = left; i < left - right; ++i) {
         int32 f = g->prim_ids[i];
         vec3 a, b, c;
         mesh_face(g, f, a, b, c);
@@ -139,16 +152,17 @@ WP_FUNC void mesh_closest(const geometry_desc_t* g, const vec3& p, float32 max_d
         }
       }
     } else if (count + 2 <= BVH_STACK) {
-      const bvh_node_t& l = g->nodes[n.left];
-      const bvh_node_t& r = g->nodes[n.right];
-      // the nearer child is searched first
-      if (mesh_box_dist_sq(l.lower, l.upper, p) <= mesh_box_dist_sq(r.lower, r.upper, p)) {
-        stack[count++] = n.right;
-        stack[count++] = n.left;
-      } else {
-        stack[count++] = n.left;
-        stack[count++] = n.right;
-      }
+      float32 llo[3], lhi[3], rlo[3], rhi[3];
+      int32 a, b;
+      bvh_load_node(g, left, llo, lhi, a, b);
+      bvh_load_node(g, right, rlo, rhi, a, b);
+      const float32 dl = mesh_box_dist_sq(llo, lhi, p), dr = mesh_box_dist_sq(rlo, rhi, p);
+      // the nearer child is searched first (pushed last)
+      const bool left_first = dl <= dr;
+      const int32 far_node = left_first ? right : left, near_node = left_first ? left : right;
+      const float32 far_dist = left_first ? dr : dl, near_dist = left_first ? dl : dr;
+      if (far_dist <= best) { stack[count] = far_node; dist[count++] = far_dist; }
+      if (near_dist <= best) { stack[count] = near_node; dist[count++] = near_dist; }
     }
   }
 }

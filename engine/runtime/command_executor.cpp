@@ -143,6 +143,7 @@ bool RunsAfterFailure(const Command& c) {
   if (auto* t = std::get_if<TapeCommand>(&c.kind))
     return t->op == TapeCommand::Op::kEnd || t->op == TapeCommand::Op::kFree;
   if (auto* g = std::get_if<GraphCommand>(&c.kind)) return g->op == GraphCommand::Op::kDestroy;
+  if (auto* geo = std::get_if<GeometryCommand>(&c.kind)) return geo->request.op == geometry::GeometryRequest::Op::kFree;
   return false;
 }
 

@@ -66,7 +66,7 @@ void CollectHandles(const Command& c, std::vector<uint64_t>* out);
 // Whether the command still runs after an earlier command of the session failed: those that
 // release something the client will not ask for again (a cuda_value WRITE releases a client
 // stream waiting for it; a tape END stops the recording, as leaving `with tape:` does after an
-// error in Warp; a tape FREE and a graph DESTROY drop what the client dropped).
+// error in Warp; a tape FREE, a graph DESTROY and a geometry FREE drop what the client dropped).
 bool RunsAfterFailure(const Command& c);
 
 }  // namespace weft

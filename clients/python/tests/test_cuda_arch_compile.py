@@ -139,3 +139,24 @@ def test_raw_grpc_bad_arch_or_device_is_invalid_argument(weftd, arch, device):
         assert ok.cuda.arch == 90 and not ok.module_id
         assert ok.cuda.binary[:4] == b"\x7fELF" and len(ok.cuda.binary) == ok.cuda.binary_size
         assert [(k.kernel, k.adjoint) for k in ok.cuda.kernels] == [("k", False), ("k", True)]
+
+
+@pytest.mark.parametrize("arch", [75, 90])
+def test_geometry_queries_compile_for_the_gpu(wp, arch):
+    """The BVH walk and the mesh closest-point search (engine/native/bvh.h, mesh.h) take their
+    GPU-only paths (read-only-cache node loads) under NVRTC: compiled here for sm_75 and sm_90,
+    without a GPU; docs/cuda.md."""
+    @wp.kernel
+    def arch_geometry(mesh: wp.uint64, bvh: wp.uint64, p: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
+        i = wp.tid()
+        q = wp.mesh_query_point_no_sign(mesh, p[i], 10.0)
+        box = wp.bvh_query_aabb(bvh, p[i], p[i] + wp.vec3(1.0))
+        item = int(0)
+        n = int(0)
+        while wp.bvh_query_next(box, item):
+            n += 1
+        out[i] = q.u + float(n)
+
+    report = wp.compile(arch_geometry, device="cuda", arch=arch)
+    forward = report.kernel("arch_geometry")
+    assert report.arch == arch and 0 < forward.registers <= 255 and forward.code_bytes > 0, report

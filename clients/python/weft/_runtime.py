@@ -330,6 +330,7 @@ class Runtime:
         self._batch: list = []
         self._batch_bytes = 0
         self._pending_frees: collections.deque = collections.deque()
+        self._pending_geometry_frees: collections.deque = collections.deque()
         self._free_calls: list = []
         self._deferred_error: WeftError | None = None
         # Asynchronous Submits in flight, oldest first: one gRPC future, or up to
@@ -483,6 +484,8 @@ class Runtime:
             self.work_queued += 1
             if not self._batch:
                 self._batch_since = time.perf_counter()
+            if self._pending_geometry_frees:
+                self._queue_geometry_frees()
             self._batch.append(cmd)
             self._batch_bytes += cmd.ByteSize()
             full = len(self._batch) >= BATCH_MAX_COMMANDS or self._batch_bytes >= BATCH_MAX_BYTES
@@ -617,6 +620,8 @@ class Runtime:
         """Sends the batched commands (ExecService.Submit), then the deferred frees."""
         with self._lock:
             self._collect_inflight()
+            if self._pending_geometry_frees:
+                self._queue_geometry_frees()
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch:
                 self._exec("Submit", exec_pb2.SubmitRequest(commands=batch))
@@ -630,6 +635,8 @@ class Runtime:
             self._collect_inflight()
             self._pump_at = PUMP_FIRST
             self.pump_held = 0
+            if self._pending_geometry_frees:
+                self._queue_geometry_frees()
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch and _FUSED_SYNC:
                 response = self._exec("Submit",
@@ -684,6 +691,23 @@ class Runtime:
                     self._graph_freed.add(handle)
                     return
         self._pending_frees.append(handle)
+
+    def free_geometry_later(self, object_id: int) -> None:
+        """A geometry object the client released (its finalizer: no lock, no RPC here): freed
+        by a command of the next batch, after the commands queued before it."""
+        if not self.closed:
+            self._pending_geometry_frees.append(object_id)
+
+    def _queue_geometry_frees(self) -> None:
+        # Caller holds the lock; straight into the batch, never into a graph being captured.
+        from .v1 import geometry_pb2  # noqa: PLC0415
+
+        free = geometry_pb2.GeometryRequest.Op.FREE
+        while self._pending_geometry_frees:
+            cmd = exec_pb2.Command(geometry=geometry_pb2.GeometryRequest(
+                op=free, id=self._pending_geometry_frees.popleft()))
+            self._batch.append(cmd)
+            self._batch_bytes += cmd.ByteSize()
 
     def drain_frees(self) -> None:
         """Frees what finalizers released, if no command that may use them is unsent."""

@@ -38,7 +38,7 @@ def _pb2():
 _STUBS = {}
 
 
-def _call(rt, _lane=True, **fields) -> int:
+def _call(rt, **fields) -> int:
     pb2 = _pb2()
     stub = _STUBS.get(id(rt))
     if stub is None or stub[0] is not rt:
@@ -47,8 +47,6 @@ def _call(rt, _lane=True, **fields) -> int:
         _STUBS[id(rt)] = stub
     request = pb2.GeometryRequest(**fields)
     rt.flush()   # the operation runs after everything queued before it
-    if not _lane:   # a free from a finalizer: gRPC, as before the lane carried geometry
-        return rt.call(stub[1].Call, request).id
     return rt.geometry_call(stub[1].Call, request).id
 
 
@@ -77,11 +75,10 @@ class _Object:
         self._rt = None
 
     def _free(self):
+        # A command of the session's next batch (after the commands that may still use the
+        # object), never an RPC from a finalizer.
         if self.id and self._rt is not None and _runtime.current_runtime() is self._rt:
-            try:
-                _call(self._rt, _lane=False, op=_op().FREE, id=self.id)
-            except Exception:  # noqa: BLE001 - session already closed / interpreter shutdown
-                pass
+            self._rt.free_geometry_later(self.id)
         self.id = 0
 
     def __del__(self):

@@ -1071,6 +1071,32 @@ def test_id_of_freed_object_and_wrong_kind(rng):
     _daemon_still_serves(rng)
 
 
+def test_a_released_object_is_freed_by_the_next_batch_without_a_round_trip(rng, monkeypatch):
+    """Dropping the last reference to a geometry object makes no call to the daemon (a finalizer
+    may run anywhere): the free is a command of the session's next batch, after the launches
+    queued before it, which still see the object; a launch after it gets the stale-id error."""
+    rt = wp._runtime.get_runtime()
+    lo = rng.uniform(-1, 1, size=(500, 3)).astype(np.float32)
+    lowers = wp.array(lo, dtype=wp.vec3, device=DEV)
+    uppers = wp.array(lo + np.float32(0.1), dtype=wp.vec3, device=DEV)
+    bvh = wp.Bvh(lowers, uppers)
+    stale = bvh.id
+    hits = wp.zeros((1, 500), dtype=int, device=DEV)
+    big = wp.array(np.float32([[-5, -5, -5]]), dtype=wp.vec3, device=DEV)
+    wp.launch(bvh_boxes, dim=1, inputs=[stale, big, wp.array(np.float32([[5, 5, 5]]), dtype=wp.vec3, device=DEV),
+                                        hits], device=DEV)
+    calls = []
+    for name in ("call", "geometry_call"):
+        real = getattr(rt, name)
+        monkeypatch.setattr(rt, name, lambda *a, _real=real, **k: (calls.append(a), _real(*a, **k))[1])
+    del bvh
+    assert calls == []
+    monkeypatch.undo()
+    assert (hits.numpy() == 1).all()   # the launch queued before the free found every box
+    _expect_launch_error(bvh_boxes, [stale, big, big, hits], match="not a live Bvh")
+    _daemon_still_serves(rng)
+
+
 def test_checked_accessors_report_out_of_range(rng):
     mesh, _, tris, _ = make_mesh(rng)
     out = wp.zeros(1, dtype=wp.vec3, device=DEV)

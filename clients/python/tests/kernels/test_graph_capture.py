@@ -398,9 +398,10 @@ def ray_down(mesh: wp.uint64, lift: wp.array(dtype=float), hit: wp.array(dtype=i
 
 
 def test_geometry_commands_are_checked_like_any_command(device):
-    """Raw geometry commands as a hostile client sends them: a create (only builds, refits and
-    rebuilds are commands), an unknown object id, a HashGrid build with a handle the session
-    does not hold; each is refused with a clear error and the session goes on."""
+    """Raw geometry commands as a hostile client sends them: a create (only builds, refits,
+    rebuilds and frees are commands), an unknown object id, a HashGrid build with a handle the
+    session does not hold, a free of a forged id and a build after the object's free; each is
+    refused with a clear error and the session goes on."""
     from weft import geometry
     from weft.v1 import exec_pb2
     rt = wp._runtime.get_runtime()
@@ -410,10 +411,17 @@ def test_geometry_commands_are_checked_like_any_command(device):
                              (G(op=G.REFIT, id=grid.id ^ (1 << 40)), "names no live object"),
                              (G(op=G.BUILD_HASH_GRID, id=grid.id, points=0x7FFF_FFFF_0000, radius=1.0),
                               "unknown array handle"),
-                             (G(op=99), "unknown operation")):
+                             (G(op=99), "unknown operation"),
+                             (G(op=G.FREE, id=grid.id ^ (1 << 40)), "names no live object")):
         rt.submit(exec_pb2.Command(geometry=request))
         with pytest.raises(Exception, match=message):
             wp.synchronize()
+    other = wp.HashGrid(2, 2, 2, device=device)
+    rt.submit(exec_pb2.Command(geometry=G(op=G.FREE, id=other.id)))
+    rt.submit(exec_pb2.Command(geometry=G(op=G.REFIT, id=other.id)))
+    with pytest.raises(Exception, match="names no live object"):
+        wp.synchronize()
+    other.id = 0   # freed above
     x = wp.zeros(4, device=device)
     x.fill_(2.0)
     assert x.numpy()[0] == 2.0

@@ -60,7 +60,7 @@ class RawVolume:
 
     def __del__(self):
         try:
-            geometry._call(_rt(), _lane=False, op=geometry._op().FREE, id=self.id)
+            _rt().free_geometry_later(self.id)
         except Exception:  # noqa: BLE001 - session gone at interpreter exit
             pass
 
