@@ -1,8 +1,9 @@
 // CudaDevice::SortPairs: a stable LSD radix sort of (int key, int id) pairs on a session's
-// stream, shared by the device builds of hash grids (cells) and BVHs (Morton codes). One 4-bit
-// digit per pass over tiles of kSortTile keys: per-tile digit counts, one exclusive scan of all
-// counts, and a scatter that stages each tile in shared memory so that each digit's run is
-// written to consecutive addresses. Keys are sorted as unsigned by their low `bits` bits.
+// stream, shared by the device builds of hash grids (cells) and BVHs (Morton codes). One 8-bit
+// digit per pass over tiles of kSortTile keys: per-tile digit counts, a scan of each digit's
+// counts over the tiles, and a scatter that stages each tile in shared memory so that each
+// digit's run is written to consecutive addresses. Keys are sorted as unsigned by their low
+// `bits` bits, rounded up to whole digits.
 #include <algorithm>
 
 #include "engine/device/cuda_device.h"
@@ -11,59 +12,58 @@
 namespace weft {
 
 const char* kCudaSortSource = R"CUDA(
-// One 4-bit digit per pass over tiles of 2048 keys (256 threads x 8 consecutive).
-// Pass = per-tile digit counts (hist[digit * tiles + tile]), one exclusive scan of all counts
-// (digit-major: every key of digit d lands after every key of a smaller digit, and after the
-// keys of digit d of earlier tiles), and a scatter that ranks each tile's keys stably.
-// A thread's 16 digit counts are packed 16 bits each into 4 words (digit d: word d / 4, bits
-// 16 * (d % 4)); a tile's counts stay below 2^16, so sums of packed words never carry over.
+// One 8-bit digit per pass over tiles of 4096 keys: 256 threads, each warp 16 rounds of 32
+// consecutive keys. A pass is three launches: per-tile digit counts (hist[digit * tiles +
+// tile]), an exclusive scan of each digit's counts over the tiles (one block per digit, its
+// total into totals[digit]), and a scatter that ranks each tile's keys stably (warp by warp,
+// round by round: the lanes holding the same digit found with __match_any_sync), stages the
+// tile in shared memory in digit order and writes each digit's run to consecutive addresses
+// from digit base (the keys of smaller digits) + the tile's offset in its digit.
 #define WEFT_RS_THREADS 256
-#define WEFT_RS_ITEMS 8
-#define WEFT_RS_TILE 2048
-typedef unsigned long long u64;
-struct weft_digits { u64 w[4]; };
-__device__ __forceinline__ void weft_digit_add(weft_digits& c, int d, u64 v) {
-  const u64 x = v << (16 * (d & 3));
-  const int q = d >> 2;
-  c.w[0] += q == 0 ? x : 0;
-  c.w[1] += q == 1 ? x : 0;
-  c.w[2] += q == 2 ? x : 0;
-  c.w[3] += q == 3 ? x : 0;
-}
-__device__ __forceinline__ int weft_digit_get(const weft_digits& c, int d) {
-  const int q = d >> 2;
-  const u64 w = q == 0 ? c.w[0] : q == 1 ? c.w[1] : q == 2 ? c.w[2] : c.w[3];
-  return (int)((w >> (16 * (d & 3))) & 0xffffu);
-}
-__device__ __forceinline__ weft_digits weft_thread_digits(const int* keys, i64 base, i64 n, int shift) {
-  weft_digits c = {{0, 0, 0, 0}};
-  for (int j = 0; j < WEFT_RS_ITEMS; ++j)
-    if (base + j < n) weft_digit_add(c, (keys[base + j] >> shift) & 15, 1);
-  return c;
+#define WEFT_RS_WARPS 8
+#define WEFT_RS_ROUNDS 16
+#define WEFT_RS_TILE 4096
+#define WEFT_RS_BINS 256
+__device__ __forceinline__ int weft_digit(int key, int shift) { return (int)(((unsigned)key >> shift) & 255u); }
+// Exclusive scan of one value per thread over a block of 256 threads; `tmp` holds 8 ints.
+__device__ __forceinline__ int weft_block_scan256(int x, int* tmp) {
+  const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+  int inc = x;
+  for (int off = 1; off < 32; off <<= 1) {
+    const int y = __shfl_up_sync(0xffffffffu, inc, off);
+    if (lane >= off) inc += y;
+  }
+  if (lane == 31) tmp[warp] = inc;
+  __syncthreads();
+  int before = 0;
+  for (int w = 0; w < warp; ++w) before += tmp[w];
+  __syncthreads();
+  return before + inc - x;
 }
 extern "C" __global__ void weft_radix_counts(const int* keys, i64 n, int shift, int* hist, i64 tiles) {
-  __shared__ u64 warp_sums[WEFT_RS_THREADS / 32][4];
-  const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+  __shared__ int bins[WEFT_RS_BINS];
+  const unsigned lanes_below = (1u << (threadIdx.x & 31)) - 1u;
   for (i64 t = blockIdx.x; t < tiles; t += gridDim.x) {
-    weft_digits c = weft_thread_digits(keys, t * WEFT_RS_TILE + (i64)threadIdx.x * WEFT_RS_ITEMS, n, shift);
-    for (int off = 16; off > 0; off >>= 1)
-      for (int k = 0; k < 4; ++k) c.w[k] += __shfl_down_sync(0xffffffffu, c.w[k], off);
-    if (lane == 0)
-      for (int k = 0; k < 4; ++k) warp_sums[warp][k] = c.w[k];
+    bins[threadIdx.x] = 0;
     __syncthreads();
-    if (threadIdx.x < 16) {
-      const int d = threadIdx.x;
-      int total = 0;
-      for (int w = 0; w < WEFT_RS_THREADS / 32; ++w) total += (int)((warp_sums[w][d >> 2] >> (16 * (d & 3))) & 0xffffu);
-      hist[d * tiles + t] = total;
+    const i64 base = t * WEFT_RS_TILE;
+    for (int j = threadIdx.x; j < WEFT_RS_TILE; j += WEFT_RS_THREADS) {   // every lane takes each trip
+      const bool valid = base + j < n;
+      const int d = valid ? weft_digit(keys[base + j], shift) : WEFT_RS_BINS;
+      const unsigned peers = __match_any_sync(0xffffffffu, d);
+      if (valid && (peers & lanes_below) == 0) atomicAdd(&bins[d], __popc(peers));
     }
+    __syncthreads();
+    hist[(i64)threadIdx.x * tiles + t] = bins[threadIdx.x];
     __syncthreads();
   }
 }
-// Exclusive prefix sums of v[0, m) in place; one block of 1024 threads, in rounds of 4096
-// (4 consecutive values a thread, warp scans, then a scan of the 32 warp totals).
-extern "C" __global__ void weft_scan_exclusive(int* v, i64 m) {
+// Exclusive prefix sums of each segment v[s * m, (s + 1) * m) in place, one block of 1024
+// threads per segment (s = blockIdx.x), in rounds of 4096 (4 consecutive values a thread, warp
+// scans, then a scan of the 32 warp totals); totals[s] = the segment's sum.
+extern "C" __global__ void weft_scan_exclusive(int* v, i64 m, int* totals) {
   __shared__ int warp_totals[32];
+  v += (i64)blockIdx.x * m;
   const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5, warps = blockDim.x >> 5;
   int carry = 0;
   for (i64 round = 0; round < m; round += 4 * (i64)blockDim.x) {
@@ -95,61 +95,60 @@ extern "C" __global__ void weft_scan_exclusive(int* v, i64 m) {
     carry += warp_totals[warps - 1];
     __syncthreads();
   }
+  if (threadIdx.x == 0) totals[blockIdx.x] = carry;
 }
-// The scatter ranks each key within its tile (digit start in the tile + rank among the keys of
-// its digit before it), places the tile in shared memory in that order, then writes each
-// digit's run to its global place in consecutive addresses.
 extern "C" __global__ void weft_radix_scatter(const int* keys_in, const int* ids_in, int* keys_out, int* ids_out, i64 n,
-                                              int shift, const int* offsets, i64 tiles) {
-  __shared__ u64 warp_sums[WEFT_RS_THREADS / 32][4];
-  __shared__ int tile_offsets[16], tile_starts[16];
+                                              int shift, const int* offsets, const int* totals, i64 tiles) {
+  __shared__ int digit_base[WEFT_RS_BINS];   // keys of smaller digits, over all tiles
+  __shared__ int warp_counts[WEFT_RS_WARPS][WEFT_RS_BINS];
+  __shared__ int tile_starts[WEFT_RS_BINS], tile_offsets[WEFT_RS_BINS], tmp[WEFT_RS_WARPS];
   __shared__ int tile_keys[WEFT_RS_TILE], tile_ids[WEFT_RS_TILE];
   const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+  const unsigned lanes_below = (1u << lane) - 1u;
+  digit_base[threadIdx.x] = weft_block_scan256(totals[threadIdx.x], tmp);
   for (i64 t = blockIdx.x; t < tiles; t += gridDim.x) {
-    const i64 base = t * WEFT_RS_TILE + (i64)threadIdx.x * WEFT_RS_ITEMS;
-    const weft_digits mine = weft_thread_digits(keys_in, base, n, shift);
-    weft_digits inc = mine;   // inclusive scan over the warp's lanes
-    for (int off = 1; off < 32; off <<= 1)
-      for (int k = 0; k < 4; ++k) {
-        const u64 x = __shfl_up_sync(0xffffffffu, inc.w[k], off);
-        if (lane >= off) inc.w[k] += x;
-      }
-    if (lane == 31)
-      for (int k = 0; k < 4; ++k) warp_sums[warp][k] = inc.w[k];
-    if (threadIdx.x < 16) tile_offsets[threadIdx.x] = offsets[threadIdx.x * tiles + t];
+    for (int d = lane; d < WEFT_RS_BINS; d += 32) warp_counts[warp][d] = 0;
+    __syncwarp();
+    const i64 base = t * WEFT_RS_TILE + (i64)warp * (32 * WEFT_RS_ROUNDS);
+    int key[WEFT_RS_ROUNDS], id[WEFT_RS_ROUNDS], local[WEFT_RS_ROUNDS];
+    for (int r = 0; r < WEFT_RS_ROUNDS; ++r) {   // rank among the warp's earlier keys of its digit
+      const i64 k = base + r * 32 + lane;
+      const bool valid = k < n;
+      key[r] = valid ? keys_in[k] : 0;
+      id[r] = valid ? ids_in[k] : 0;
+      const int d = valid ? weft_digit(key[r], shift) : WEFT_RS_BINS;
+      const unsigned peers = __match_any_sync(0xffffffffu, d);
+      local[r] = valid ? warp_counts[warp][d] + __popc(peers & lanes_below) : 0;
+      __syncwarp();
+      if (valid && (peers & lanes_below) == 0) warp_counts[warp][d] += __popc(peers);
+      __syncwarp();
+    }
     __syncthreads();
-    if (threadIdx.x == 0) {   // where each digit's keys start within the tile
-      weft_digits total = {{0, 0, 0, 0}};
-      for (int w = 0; w < WEFT_RS_THREADS / 32; ++w)
-        for (int k = 0; k < 4; ++k) total.w[k] += warp_sums[w][k];
+    {   // per digit: each warp's start in the tile's run of the digit, and where each run starts
+      const int d = threadIdx.x;
       int run = 0;
-      for (int d = 0; d < 16; ++d) {
-        tile_starts[d] = run;
-        run += weft_digit_get(total, d);
+      for (int w = 0; w < WEFT_RS_WARPS; ++w) {
+        const int c = warp_counts[w][d];
+        warp_counts[w][d] = run;
+        run += c;
       }
-    }
-    weft_digits next;   // the rank of this thread's next key of each digit among the tile's
-    for (int k = 0; k < 4; ++k) {
-      u64 before = inc.w[k] - mine.w[k];
-      for (int w = 0; w < warp; ++w) before += warp_sums[w][k];
-      next.w[k] = before;
+      tile_offsets[d] = digit_base[d] + offsets[(i64)d * tiles + t];
+      tile_starts[d] = weft_block_scan256(run, tmp);
     }
     __syncthreads();
-    for (int j = 0; j < WEFT_RS_ITEMS; ++j) {
-      if (base + j >= n) break;
-      const int k = keys_in[base + j];
-      const int d = (k >> shift) & 15;
-      const int local = tile_starts[d] + weft_digit_get(next, d);
-      weft_digit_add(next, d, 1);
-      tile_keys[local] = k;
-      tile_ids[local] = ids_in[base + j];
+    for (int r = 0; r < WEFT_RS_ROUNDS; ++r) {
+      if (base + r * 32 + lane >= n) break;
+      const int d = weft_digit(key[r], shift);
+      const int at = tile_starts[d] + warp_counts[warp][d] + local[r];
+      tile_keys[at] = key[r];
+      tile_ids[at] = id[r];
     }
     __syncthreads();
     const i64 left = n - t * WEFT_RS_TILE;
     const int count = left < WEFT_RS_TILE ? (int)left : WEFT_RS_TILE;
-    for (int j = threadIdx.x; j < count; j += blockDim.x) {
+    for (int j = threadIdx.x; j < count; j += WEFT_RS_THREADS) {
       const int k = tile_keys[j];
-      const int d = (k >> shift) & 15;
+      const int d = weft_digit(k, shift);
       const int pos = tile_offsets[d] + j - tile_starts[d];
       keys_out[pos] = k;
       ids_out[pos] = tile_ids[j];
@@ -166,17 +165,17 @@ Status CudaDevice::SortPairs(Stream& st, const SortBuffers& b, int64_t n, int bi
   int64_t tiles = (n + geometry::kSortTile - 1) / geometry::kSortTile;
   const unsigned tile_blocks = static_cast<unsigned>(std::min<int64_t>(std::max<int64_t>(tiles, 1), 65536));
   jit::CuDevicePtr keys[2] = {b.keys[0], b.keys[1]}, ids[2] = {b.ids[0], b.ids[1]}, hist = b.hist;
+  jit::CuDevicePtr totals = hist + geometry::SortCountsBytes(n);
   auto launch = [&](jit::CuFunction fn, unsigned grid, unsigned block, void** params) {
     return driver_->Check(driver_->LaunchKernel(fn, grid, 1, 1, block, 1, 1, 0, st.stream, params, nullptr),
                           "cuLaunchKernel (radix sort)");
   };
-  for (int32_t shift = 0; shift < bits; shift += 4) {
-    int64_t hist_len = 16 * tiles;
+  for (int32_t shift = 0; shift < bits; shift += geometry::kSortDigitBits) {
     void* count_params[] = {&keys[*cur], &n, &shift, &hist, &tiles};
     WEFT_RETURN_IF_ERROR(launch(counts_fn, tile_blocks, 256, count_params));
-    void* scan_params[] = {&hist, &hist_len};
-    WEFT_RETURN_IF_ERROR(launch(scan_fn, 1, 1024, scan_params));
-    void* scatter_params[] = {&keys[*cur], &ids[*cur], &keys[1 - *cur], &ids[1 - *cur], &n, &shift, &hist, &tiles};
+    void* scan_params[] = {&hist, &tiles, &totals};
+    WEFT_RETURN_IF_ERROR(launch(scan_fn, geometry::kSortBins, 1024, scan_params));
+    void* scatter_params[] = {&keys[*cur], &ids[*cur], &keys[1 - *cur], &ids[1 - *cur], &n, &shift, &hist, &totals, &tiles};
     WEFT_RETURN_IF_ERROR(launch(scatter_fn, tile_blocks, 256, scatter_params));
     *cur = 1 - *cur;
   }

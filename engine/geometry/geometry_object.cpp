@@ -432,13 +432,22 @@ Status GeometryObject::Rebuild(const DeviceAccess* dev) {
 
 Status GeometryObject::BuildBvhOnDevice(const DeviceAccess* dev) {
   if (!dev || !dev->build_bvh) return Unimplemented("no device BVH build");
+  // From here on there is no host tree: a failure leaves an empty tree (queries find nothing).
+  bvh_ = BvhData{};
+  device_built_ = false;
+  gpu_levels_.bytes = gpu_group_ids_.bytes = gpu_group_roots_.bytes = 0;
   const uint64_t n = static_cast<uint64_t>(num_prims_);
-  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, (2 * n - 1) * sizeof(wp::bvh_node_t), &gpu_nodes_));
-  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, n * sizeof(int32_t), &gpu_prim_ids_));
-  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, (2 * n - 1) * sizeof(int32_t), &gpu_parents_));
-  WEFT_RETURN_IF_ERROR(EnsureDeviceMemory(dev, BvhBuildScratchBytes(num_prims_), &gpu_sort_scratch_));
-  if (kind_ == wp::GEOMETRY_MESH && !indices_.empty() && gpu_indices_.bytes != indices_.size() * sizeof(int32_t))
-    WEFT_RETURN_IF_ERROR(MirrorOne(dev, indices_.data(), indices_.size() * sizeof(int32_t), &gpu_indices_));
+  Status memory = EnsureDeviceMemory(dev, (2 * n - 1) * sizeof(wp::bvh_node_t), &gpu_nodes_);
+  if (memory.ok()) memory = EnsureDeviceMemory(dev, n * sizeof(int32_t), &gpu_prim_ids_);
+  if (memory.ok()) memory = EnsureDeviceMemory(dev, (2 * n - 1) * sizeof(int32_t), &gpu_parents_);
+  if (memory.ok()) memory = EnsureDeviceMemory(dev, BvhBuildScratchBytes(num_prims_), &gpu_sort_scratch_);
+  if (memory.ok() && kind_ == wp::GEOMETRY_MESH && !indices_.empty() &&
+      gpu_indices_.bytes != indices_.size() * sizeof(int32_t))   // checked on the host
+    memory = MirrorOne(dev, indices_.data(), indices_.size() * sizeof(int32_t), &gpu_indices_);
+  if (!memory.ok()) {
+    gpu_nodes_.bytes = gpu_prim_ids_.bytes = gpu_parents_.bytes = 0;
+    return memory;
+  }
   auto address = [](const std::shared_ptr<Allocation>& a) { return a ? reinterpret_cast<uintptr_t>(a->data()) : uintptr_t{0}; };
   BvhBuildJob job;
   job.n = num_prims_;
@@ -454,10 +463,6 @@ Status GeometryObject::BuildBvhOnDevice(const DeviceAccess* dev) {
   job.parents = address(gpu_parents_.memory);
   job.scratch = address(gpu_sort_scratch_.memory);
   Status built = dev->build_bvh(device_, job);
-  if (built.code() == StatusCode::kUnimplemented) return built;
-  // No host tree either way: a failed build leaves an empty tree (queries find nothing).
-  bvh_ = BvhData{};
-  gpu_levels_.bytes = gpu_group_ids_.bytes = gpu_group_roots_.bytes = 0;
   device_built_ = built.ok();
   if (!built.ok()) gpu_nodes_.bytes = gpu_prim_ids_.bytes = gpu_parents_.bytes = 0;
   return built;
@@ -707,6 +712,12 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
     d->cell_ends = DevicePtr<int32_t>(gpu_cell_ends_.memory, gpu_cell_ends_.bytes);
     d->sorted_ids = DevicePtr<int32_t>(gpu_sorted_ids_.memory, gpu_sorted_ids_.bytes);
     d->sorted_groups = DevicePtr<int32_t>(gpu_sorted_groups_.memory, gpu_sorted_groups_.bytes);
+    // Memory a failed build or upload left missing: the object reads as empty, never as a count
+    // over a null pointer.
+    if (!d->nodes || !d->prim_ids) d->num_nodes = 0;
+    if (!d->group_ids || !d->group_roots) d->num_groups = 0;
+    if (kind_ == wp::GEOMETRY_MESH && !d->indices) d->num_prims = 0;
+    if (!d->cell_starts || !d->cell_ends || !d->sorted_ids) d->num_sorted = 0;
   }
 }
 
