@@ -164,12 +164,6 @@ int WordOf(uint64_t esize, const std::vector<const ArrayView*>& views) {
   return 1;
 }
 
-unsigned GridFor(uint64_t n, unsigned block, uint64_t max_blocks) {
-  uint64_t g = (n + block - 1) / block;
-  if (max_blocks > 0 && g > max_blocks) g = max_blocks;
-  if (g > 0x7fffffffull) g = 0x7fffffffull;
-  return static_cast<unsigned>(g ? g : 1);
-}
 
 // A contiguous view over memory that belongs to no array (staging buffers).
 ArrayView ScratchView(const DType& dtype, uint64_t count, void* data, const std::string& device) {

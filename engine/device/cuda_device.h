@@ -49,6 +49,15 @@ struct CudaDeviceOptions {
 // and refit, hash grid build), compiled by NVRTC on first use.
 std::string CudaBuiltinSource();
 
+// Blocks of `block` threads for n items (at least 1, at most max_blocks when > 0: the built-in
+// kernels loop over the rest with a grid stride).
+inline unsigned GridFor(uint64_t n, unsigned block, uint64_t max_blocks) {
+  uint64_t g = (n + block - 1) / block;
+  if (max_blocks > 0 && g > max_blocks) g = max_blocks;
+  if (g > 0x7fffffffull) g = 0x7fffffffull;
+  return static_cast<unsigned>(g ? g : 1);
+}
+
 struct CudaDeviceStats {
   uint64_t resets = 0;
   double last_reset_ms = 0;

@@ -181,12 +181,6 @@ extern "C" __global__ void weft_mesh_indices_value(const int* dst, unsigned long
 
 namespace {
 
-unsigned Blocks(uint64_t n, unsigned block) {
-  uint64_t g = (n + block - 1) / block;
-  g = std::min<uint64_t>(g, 65536);
-  return static_cast<unsigned>(g ? g : 1);
-}
-
 int32_t FloatOrder(float f) {
   int32_t b;
   std::memcpy(&b, &f, 4);
@@ -204,7 +198,7 @@ Status CudaDevice::BvhBoundsUp(Stream& st, const geometry::BvhRefitJob& job) {
   WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemsetD32Async(arrivals, 0, static_cast<size_t>(n), st.stream),
                                       "cuMemsetD32Async (BVH bounds)"));
   void* params[] = {&nodes, &parents, &arrivals, &n, &prim_ids, &lowers, &uppers, &points, &indices};
-  return driver_->Check(driver_->LaunchKernel(fn, Blocks(static_cast<uint64_t>(n), 256), 1, 1, 256, 1, 1, 0, st.stream,
+  return driver_->Check(driver_->LaunchKernel(fn, GridFor(static_cast<uint64_t>(n), 256, 65536), 1, 1, 256, 1, 1, 0, st.stream,
                                               params, nullptr),
                         "cuLaunchKernel (BVH bounds)");
 }
@@ -223,7 +217,7 @@ Status CudaDevice::CheckMeshIndices(Session& s, const geometry::MeshIndicesJob& 
   WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemsetD32Async(result, 0xffffffffu, 4, st->stream),
                                       "cuMemsetD32Async (mesh indices)"));
   void* check_params[] = {&src, &count, &limit, &dst, &result};
-  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->LaunchKernel(check_fn, Blocks(static_cast<uint64_t>(count), 256), 1, 1, 256,
+  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->LaunchKernel(check_fn, GridFor(static_cast<uint64_t>(count), 256, 65536), 1, 1, 256,
                                                             1, 1, 0, st->stream, check_params, nullptr),
                                       "cuLaunchKernel (mesh indices)"));
   void* value_params[] = {&dst, &result};
@@ -250,7 +244,7 @@ Status CudaDevice::BuildBvh(Session& s, const geometry::BvhBuildJob& job) {
                 job.scratch + 4 * words};
   jit::CuDevicePtr box = b.hist + geometry::SortHistogramBytes(n);
   jit::CuDevicePtr lowers = job.lowers, uppers = job.uppers, points = job.points, indices = job.indices;
-  const unsigned item_blocks = Blocks(static_cast<uint64_t>(n), 256);
+  const unsigned item_blocks = GridFor(static_cast<uint64_t>(n), 256, 65536);
 
   WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemsetD32Async(box, static_cast<unsigned>(FloatOrder(3.0e38f)), 3, st->stream),
                                       "cuMemsetD32Async (BVH build)"));

@@ -74,16 +74,6 @@ extern "C" __global__ void weft_hash_grid_bounds(const int* keys, i64 n, int* st
 }
 )CUDA";
 
-namespace {
-
-unsigned Blocks(uint64_t n, unsigned block) {
-  uint64_t g = (n + block - 1) / block;
-  g = std::min<uint64_t>(g, 65536);
-  return static_cast<unsigned>(g ? g : 1);
-}
-
-}  // namespace
-
 Status CudaDevice::BuildHashGrid(Session& s, const geometry::HashGridBuildJob& job) {
   std::shared_lock<std::shared_mutex> reset(reset_mu_);
   if (lost_.load()) return Unavailable(name_ + " was lost");
@@ -108,7 +98,7 @@ Status CudaDevice::BuildHashGrid(Session& s, const geometry::HashGridBuildJob& j
   jit::CuDevicePtr ids[2] = {job.sorted_ids, job.scratch + 2 * words};
   jit::CuDevicePtr hist = job.scratch + 3 * words;
   SortBuffers sort_buffers{{keys[0], keys[1]}, {ids[0], ids[1]}, hist};
-  const unsigned item_blocks = Blocks(static_cast<uint64_t>(n), 256);
+  const unsigned item_blocks = GridFor(static_cast<uint64_t>(n), 256, 65536);
   int cur = 0;
   auto sort = [&](int bits) { return SortPairs(*st, sort_buffers, n, bits, &cur); };
 

@@ -15,6 +15,9 @@ const float* Floats(const std::shared_ptr<Allocation>& a) {
   return a ? reinterpret_cast<const float*>(a->data()) : nullptr;
 }
 
+// The device (or host) address of an array or object memory, 0 for none.
+uintptr_t AddressOf(const std::shared_ptr<Allocation>& a) { return a ? reinterpret_cast<uintptr_t>(a->data()) : uintptr_t{0}; }
+
 }  // namespace
 
 Expected<int64_t> CheckVec3Array(const std::shared_ptr<Allocation>& a, const std::string& what, bool any_float) {
@@ -430,6 +433,17 @@ Status GeometryObject::Rebuild(const DeviceAccess* dev) {
   return Mirror(dev);
 }
 
+void GeometryObject::ItemAddresses(uintptr_t* lowers, uintptr_t* uppers, uintptr_t* points, uintptr_t* indices) const {
+  *lowers = *uppers = *points = *indices = 0;
+  if (kind_ == wp::GEOMETRY_BVH) {
+    *lowers = AddressOf(lowers_);
+    *uppers = AddressOf(uppers_);
+  } else {
+    *points = AddressOf(points_);
+    *indices = AddressOf(gpu_indices_.memory);
+  }
+}
+
 Status GeometryObject::BuildBvhOnDevice(const DeviceAccess* dev) {
   if (!dev || !dev->build_bvh) return Unimplemented("no device BVH build");
   // From here on there is no host tree: a failure leaves an empty tree (queries find nothing).
@@ -448,20 +462,13 @@ Status GeometryObject::BuildBvhOnDevice(const DeviceAccess* dev) {
     gpu_nodes_.bytes = gpu_prim_ids_.bytes = gpu_parents_.bytes = 0;
     return memory;
   }
-  auto address = [](const std::shared_ptr<Allocation>& a) { return a ? reinterpret_cast<uintptr_t>(a->data()) : uintptr_t{0}; };
   BvhBuildJob job;
   job.n = num_prims_;
-  if (kind_ == wp::GEOMETRY_BVH) {
-    job.lowers = address(lowers_);
-    job.uppers = address(uppers_);
-  } else {
-    job.points = address(points_);
-    job.indices = address(gpu_indices_.memory);
-  }
-  job.nodes = address(gpu_nodes_.memory);
-  job.prim_ids = address(gpu_prim_ids_.memory);
-  job.parents = address(gpu_parents_.memory);
-  job.scratch = address(gpu_sort_scratch_.memory);
+  ItemAddresses(&job.lowers, &job.uppers, &job.points, &job.indices);
+  job.nodes = AddressOf(gpu_nodes_.memory);
+  job.prim_ids = AddressOf(gpu_prim_ids_.memory);
+  job.parents = AddressOf(gpu_parents_.memory);
+  job.scratch = AddressOf(gpu_sort_scratch_.memory);
   Status built = dev->build_bvh(device_, job);
   device_built_ = built.ok();
   if (!built.ok()) gpu_nodes_.bytes = gpu_prim_ids_.bytes = gpu_parents_.bytes = 0;
@@ -474,25 +481,16 @@ Status GeometryObject::Refit(const DeviceAccess* dev) {
   if (on_gpu() && dev && dev->refit_bvh && gpu_nodes_.bytes > 0) {
     // On the device, queued after the session's work: no download, no upload.
     BvhRefitJob job;
-    auto address = [](const std::shared_ptr<Allocation>& a) {
-      return a ? reinterpret_cast<uintptr_t>(a->data()) : uintptr_t{0};
-    };
-    job.nodes = address(gpu_nodes_.memory);
-    job.prim_ids = address(gpu_prim_ids_.memory);
-    job.levels = address(gpu_levels_.memory);
+    job.nodes = AddressOf(gpu_nodes_.memory);
+    job.prim_ids = AddressOf(gpu_prim_ids_.memory);
+    job.levels = AddressOf(gpu_levels_.memory);
     job.level_starts = bvh_.level_starts;
     if (device_built_) {
-      job.parents = address(gpu_parents_.memory);
-      job.arrivals = address(gpu_sort_scratch_.memory);
+      job.parents = AddressOf(gpu_parents_.memory);
+      job.arrivals = AddressOf(gpu_sort_scratch_.memory);
       job.num_items = num_prims_;
     }
-    if (kind_ == wp::GEOMETRY_BVH) {
-      job.lowers = address(lowers_);
-      job.uppers = address(uppers_);
-    } else {
-      job.points = address(points_);
-      job.indices = address(gpu_indices_.memory);
-    }
+    ItemAddresses(&job.lowers, &job.uppers, &job.points, &job.indices);
     Status refit = dev->refit_bvh(device_, job);
     if (refit.code() != StatusCode::kUnimplemented || device_built_) return refit;
   }
@@ -560,13 +558,12 @@ Status GeometryObject::BuildHashGrid(std::shared_ptr<Allocation> points, float r
     if (built.ok()) built = EnsureDeviceMemory(dev, HashGridScratchBytes(n), &gpu_sort_scratch_);
     if (built.ok()) built = EnsureDeviceMemory(dev, groups ? static_cast<uint64_t>(n) * 4 : 0, &gpu_sorted_groups_);
     if (built.ok()) {
-      auto address = [](const DeviceCopy& c) { return c.memory ? reinterpret_cast<uintptr_t>(c.memory->data()) : uintptr_t{0}; };
-      job.cell_starts = address(gpu_cell_starts_);
-      job.cell_ends = address(gpu_cell_ends_);
-      job.sorted_ids = address(gpu_sorted_ids_);
-      job.scratch = address(gpu_sort_scratch_);
+      job.cell_starts = AddressOf(gpu_cell_starts_.memory);
+      job.cell_ends = AddressOf(gpu_cell_ends_.memory);
+      job.sorted_ids = AddressOf(gpu_sorted_ids_.memory);
+      job.scratch = AddressOf(gpu_sort_scratch_.memory);
       job.groups = groups ? reinterpret_cast<uintptr_t>(groups->data()) : 0;
-      job.sorted_groups = address(gpu_sorted_groups_);
+      job.sorted_groups = AddressOf(gpu_sorted_groups_.memory);
       built = dev->build_hash_grid(device_, job);
     }
     cell_starts_.clear();

@@ -122,6 +122,9 @@ class GeometryObject {
   Status MirrorOne(const DeviceAccess* dev, const void* src, uint64_t bytes, DeviceCopy* copy);
   // Device memory of at least `bytes` in `copy` (kept when large enough), contents undefined.
   Status EnsureDeviceMemory(const DeviceAccess* dev, uint64_t bytes, DeviceCopy* copy);
+  // The device addresses of the items a BVH job reads: lowers/uppers (a Bvh) or points and the
+  // checked indices (a Mesh); the others 0.
+  void ItemAddresses(uintptr_t* lowers, uintptr_t* uppers, uintptr_t* points, uintptr_t* indices) const;
   // GPU, no groups: builds the tree on the device (Unimplemented when the device cannot).
   Status BuildBvhOnDevice(const DeviceAccess* dev);
   // GPU: copies the mesh's indices into gpu_indices_ and checks them there (Unimplemented when
