@@ -185,7 +185,9 @@ class Bvh(_Object):
         self.lowers = lowers
         self.uppers = uppers
         self.groups = groups
-        self.constructor = constructor or "median"
+        # What weftd builds, whatever was asked: a linear BVH on a GPU (without groups), as
+        # Warp's default there; a median split on the CPU (docs/geometry.md, "Devices").
+        self.constructor = "lbvh" if str(self.device).startswith("cuda") and groups is None else "median"
         if groups is not None:
             _check_groups(groups, lowers.device, lowers.shape[0], "lowers/uppers", "lowers/uppers")
         self.id = _call(self._rt, op=_op().CREATE_BVH, lowers=_handle_of(lowers, "Bvh lowers"),
@@ -234,7 +236,8 @@ class Mesh(_Object):
 
 
 def is_cubql_available() -> bool:
-    """Warp's optional cuBQL BVH builder: not part of weft (builds use a median split)."""
+    """Warp's optional cuBQL BVH builder: not part of weft (builds use a median split on the
+    CPU and a linear BVH on a GPU)."""
     return False
 
 
