@@ -255,7 +255,7 @@ Status CudaDevice::BuildBvh(Session& s, const geometry::BvhBuildJob& job) {
   void* morton_params[] = {&n, &lowers, &uppers, &points, &indices, &box, &b.keys[0], &b.ids[0]};
   WEFT_RETURN_IF_ERROR(launch(morton_fn, item_blocks, morton_params, "cuLaunchKernel (BVH Morton codes)"));
   int cur = 0;
-  WEFT_RETURN_IF_ERROR(SortPairs(*st, b, n, 30, &cur));   // 8 passes: the pairs end in buffers 0
+  WEFT_RETURN_IF_ERROR(SortPairs(*st, b, n, 30, &cur));   // 4 passes: the pairs end in buffers 0
   if (cur != 0) return Internal("BVH build: the sorted ids are not in the prim ids");
   jit::CuDevicePtr codes = b.keys[0], nodes = job.nodes, parents = job.parents;
   void* hierarchy_params[] = {&codes, &n, &nodes, &parents};

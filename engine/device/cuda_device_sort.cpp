@@ -25,14 +25,19 @@ const char* kCudaSortSource = R"CUDA(
 #define WEFT_RS_TILE 4096
 #define WEFT_RS_BINS 256
 __device__ __forceinline__ int weft_digit(int key, int shift) { return (int)(((unsigned)key >> shift) & 255u); }
+// Inclusive scan of one value per lane over a full warp.
+__device__ __forceinline__ int weft_warp_scan(int x) {
+  const int lane = threadIdx.x & 31;
+  for (int off = 1; off < 32; off <<= 1) {
+    const int y = __shfl_up_sync(0xffffffffu, x, off);
+    if (lane >= off) x += y;
+  }
+  return x;
+}
 // Exclusive scan of one value per thread over a block of 256 threads; `tmp` holds 8 ints.
 __device__ __forceinline__ int weft_block_scan256(int x, int* tmp) {
   const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
-  int inc = x;
-  for (int off = 1; off < 32; off <<= 1) {
-    const int y = __shfl_up_sync(0xffffffffu, inc, off);
-    if (lane >= off) inc += y;
-  }
+  const int inc = weft_warp_scan(x);
   if (lane == 31) tmp[warp] = inc;
   __syncthreads();
   int before = 0;
@@ -71,19 +76,11 @@ extern "C" __global__ void weft_scan_exclusive(int* v, i64 m, int* totals) {
     int x[4];
     for (int k = 0; k < 4; ++k) x[k] = b + k < m ? v[b + k] : 0;
     const int s = x[0] + x[1] + x[2] + x[3];
-    int inc = s;
-    for (int off = 1; off < 32; off <<= 1) {
-      const int y = __shfl_up_sync(0xffffffffu, inc, off);
-      if (lane >= off) inc += y;
-    }
+    const int inc = weft_warp_scan(s);
     if (lane == 31) warp_totals[warp] = inc;
     __syncthreads();
     if (warp == 0) {
-      int w = lane < warps ? warp_totals[lane] : 0;
-      for (int off = 1; off < 32; off <<= 1) {
-        const int y = __shfl_up_sync(0xffffffffu, w, off);
-        if (lane >= off) w += y;
-      }
+      const int w = weft_warp_scan(lane < warps ? warp_totals[lane] : 0);
       if (lane < warps) warp_totals[lane] = w;
     }
     __syncthreads();

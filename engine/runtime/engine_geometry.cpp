@@ -41,24 +41,26 @@ Expected<uint64_t> Engine::RunGeometryWith(Session& s, const geometry::GeometryR
     bytes_type.scalar = ScalarType::kUInt8;
     return NewAllocation(s, *d, bytes_type, {static_cast<int64_t>(bytes)}, false);
   };
-  access.refit_bvh = [this, &s](const std::string& device, const geometry::BvhRefitJob& job) -> Status {
+  // The device an object's job runs on (its name comes from the object, never the client).
+  auto device_of = [this](const std::string& device) -> Expected<Device*> {
     Device* d = devices_->Find(device);
     if (!d) return Internal("geometry object on unknown device '" + device + "'");
+    return d;
+  };
+  access.refit_bvh = [device_of, &s](const std::string& device, const geometry::BvhRefitJob& job) -> Status {
+    WEFT_ASSIGN_OR_RETURN(Device * d, device_of(device));
     return d->RefitBvh(s, job);
   };
-  access.build_hash_grid = [this, &s](const std::string& device, const geometry::HashGridBuildJob& job) -> Status {
-    Device* d = devices_->Find(device);
-    if (!d) return Internal("geometry object on unknown device '" + device + "'");
+  access.build_hash_grid = [device_of, &s](const std::string& device, const geometry::HashGridBuildJob& job) -> Status {
+    WEFT_ASSIGN_OR_RETURN(Device * d, device_of(device));
     return d->BuildHashGrid(s, job);
   };
-  access.build_bvh = [this, &s](const std::string& device, const geometry::BvhBuildJob& job) -> Status {
-    Device* d = devices_->Find(device);
-    if (!d) return Internal("geometry object on unknown device '" + device + "'");
+  access.build_bvh = [device_of, &s](const std::string& device, const geometry::BvhBuildJob& job) -> Status {
+    WEFT_ASSIGN_OR_RETURN(Device * d, device_of(device));
     return d->BuildBvh(s, job);
   };
-  access.check_mesh_indices = [this, &s](const std::string& device, const geometry::MeshIndicesJob& job) -> Status {
-    Device* d = devices_->Find(device);
-    if (!d) return Internal("geometry object on unknown device '" + device + "'");
+  access.check_mesh_indices = [device_of, &s](const std::string& device, const geometry::MeshIndicesJob& job) -> Status {
+    WEFT_ASSIGN_OR_RETURN(Device * d, device_of(device));
     return d->CheckMeshIndices(s, job);
   };
   if (!queued) return geometry::RunGeometryOpHere(s, r, &access);
