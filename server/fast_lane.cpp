@@ -21,6 +21,7 @@
 #include <google/protobuf/arena.h>
 #include <spdlog/spdlog.h>
 
+#include "engine/core/frame_trace.h"
 #include "engine/runtime/ipc_token.h"
 #include "server/services.h"
 #include "weft/v1/array.pb.h"
@@ -115,9 +116,63 @@ bool OnlyQueuesGpuWork(const v1::SubmitRequest& req) {
 // body that does not parse ends the connection; the handler's error is the reply and the lane
 // stays open. The session reference is released before the reply is sent, so a slow peer
 // never holds a closed session alive.
+// WEFT_LANE_TRACE: when each phase of a frame ended (frame_trace::NowNs).
+struct FrameTimes {
+  int64_t received = 0, parsed = 0, served = 0, replied = 0;
+};
+
+// WEFT_LANE_TRACE: the phases of one connection's frames, by kind, summarized when it ends.
+class LaneTrace {
+ public:
+  void Add(const char* kind, int64_t idle_ns, const FrameTimes& t, const frame_trace::Phases& p) {
+    Samples& s = by_kind_[kind];
+    s.idle.push_back(idle_ns);
+    s.parse.push_back(t.parsed - t.received);
+    s.serve.push_back(t.served - t.parsed);
+    s.device_sync.push_back(p.device_sync_ns);
+    s.stream_wait.push_back(p.stream_wait_ns);
+    s.polls.push_back(p.stream_polls);
+    s.reply.push_back(t.replied - t.served);
+  }
+  // One line per kind: medians (us) of each phase. Appended to the file WEFT_LANE_TRACE names.
+  void Write(const std::string& session) {
+    std::string out;
+    for (auto& [kind, s] : by_kind_) {
+      char line[512];
+      std::snprintf(line, sizeof(line),
+                    "lane-trace session=%s kind=%s frames=%zu median_us: before=%.1f parse=%.1f serve=%.1f "
+                    "(device_sync=%.1f stream_wait=%.1f polls=%.0f) reply=%.1f\n",
+                    session.c_str(), kind.c_str(), s.parse.size(), Median(s.idle) / 1e3, Median(s.parse) / 1e3,
+                    Median(s.serve) / 1e3, Median(s.device_sync) / 1e3, Median(s.stream_wait) / 1e3, Median(s.polls),
+                    Median(s.reply) / 1e3);
+      out += line;
+    }
+    if (out.empty()) return;
+    const char* path = std::getenv("WEFT_LANE_TRACE");
+    int f = open(path, O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0600);
+    if (f < 0) {
+      spdlog::info("{}", out);
+      return;
+    }
+    (void)!write(f, out.data(), out.size());
+    close(f);
+  }
+
+ private:
+  struct Samples {
+    std::vector<int64_t> idle, parse, serve, device_sync, stream_wait, polls, reply;
+  };
+  static double Median(std::vector<int64_t>& v) {
+    if (v.empty()) return 0;
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return static_cast<double>(v[v.size() / 2]);
+  }
+  std::map<std::string, Samples> by_kind_;
+};
+
 template <typename Req, typename Resp, typename Fn>
 FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
-                       Fn&& serve) {
+                       Fn&& serve, FrameTimes* times = nullptr) {
   // The request and response live on an arena: a Submit of many launches parses into a few
   // blocks (the first on this stack) instead of one heap allocation per message and string.
   alignas(16) char first_block[16384];
@@ -131,12 +186,20 @@ FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len,
     return FrameResult::kEnd;
   }
   Resp& resp = *google::protobuf::Arena::CreateMessage<Resp>(&arena);
+  if (times) times->parsed = frame_trace::NowNs();
   Status st = serve(*s, req, &resp);
   s.reset();
-  if (!st.ok()) return SendError(fd, st, /*closing=*/false) ? FrameResult::kContinue : FrameResult::kEnd;
-  std::string out;
-  resp.SerializeToString(&out);
-  return SendReply(fd, StatusCode::kOk, out) ? FrameResult::kContinue : FrameResult::kEnd;
+  if (times) times->served = frame_trace::NowNs();
+  FrameResult r;
+  if (!st.ok()) {
+    r = SendError(fd, st, /*closing=*/false) ? FrameResult::kContinue : FrameResult::kEnd;
+  } else {
+    std::string out;
+    resp.SerializeToString(&out);
+    r = SendReply(fd, StatusCode::kOk, out) ? FrameResult::kContinue : FrameResult::kEnd;
+  }
+  if (times) times->replied = frame_trace::NowNs();
+  return r;
 }
 
 }  // namespace
@@ -257,6 +320,18 @@ void FastLane::Serve(Conn* c) {
   std::vector<char> buf(kMaxHelloBytes + 1);
   std::string session_id;
   bool spin_next = false;   // the last reply answered a synchronizing or GPU-only request
+  const bool trace = frame_trace::Enabled();
+  std::unique_ptr<LaneTrace> lane_trace = trace ? std::make_unique<LaneTrace>() : nullptr;
+  struct WriteTrace {
+    std::unique_ptr<LaneTrace>& t;
+    std::string& id;
+    ~WriteTrace() {
+      if (t && !id.empty()) t->Write(id.substr(0, 8));
+    }
+  } write_trace{lane_trace, session_id};
+  int64_t last_replied = 0;
+  FrameTimes times;
+  const char* kind = nullptr;
   for (;;) {
     iovec iov{buf.data(), buf.size()};
     msghdr msg{};
@@ -270,6 +345,12 @@ void FastLane::Serve(Conn* c) {
       } while (n < 0 && errno == EINTR);
     }
     if (n <= 0) return;   // peer gone, shut down, or no hello in time
+    if (trace) {
+      times = FrameTimes{};
+      times.received = frame_trace::NowNs();
+      frame_trace::Reset();
+      kind = nullptr;
+    }
     const size_t limit = session_id.empty() ? kMaxHelloBytes : kMaxRequestBytes;
     if ((msg.msg_flags & MSG_TRUNC) || static_cast<size_t>(n) > limit) {
       SendError(fd, InvalidArgument("fast lane: frame larger than " + std::to_string(limit) + " bytes"));
@@ -331,13 +412,18 @@ void FastLane::Serve(Conn* c) {
               // cores) goes to the executor thread, and the lane then waits in recvmsg.
               const bool gpu_only = OnlyQueuesGpuWork(req);
               spin_next = req.synchronize() || req.run() || gpu_only;
+              if (trace)
+                kind = req.synchronize() ? (gpu_only ? "submit-gpu+sync" : "submit+sync")
+                                         : (gpu_only ? "submit-gpu" : "submit");
               return ExecSubmit(engine, ss, req, resp, gpu_only);
-            });
+            }, trace ? &times : nullptr);
         break;
       case kSynchronize:
         spin_next = true;
+        kind = "synchronize";
         r = ServeFrame<v1::SynchronizeRequest, v1::SynchronizeResponse>(fd, "Synchronize", body, body_len, s,
-            [&](Session& ss, const auto&, auto* resp) { ExecSynchronize(engine, ss, resp); return Status::Ok(); });
+            [&](Session& ss, const auto&, auto* resp) { ExecSynchronize(engine, ss, resp); return Status::Ok(); },
+            trace ? &times : nullptr);
         break;
       case kArrayCreate:
         r = ServeFrame<v1::CreateArrayRequest, v1::CreateArrayResponse>(fd, "ArrayService.Create", body, body_len, s,
@@ -367,6 +453,12 @@ void FastLane::Serve(Conn* c) {
       return;
     }
     if (r == FrameResult::kEnd) return;
+    if (trace && kind && times.replied) {
+      lane_trace->Add(kind, last_replied ? times.received - last_replied : 0, times, frame_trace::Current());
+      last_replied = times.replied;
+    } else if (trace) {
+      last_replied = frame_trace::NowNs();
+    }
   }
 }
 

@@ -12,6 +12,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "engine/core/frame_trace.h"
 #include "engine/device/cuda_print.h"
 #include "engine/native/launch_abi.h"
 #include "engine/runtime/cpu_launch.h"
@@ -474,9 +475,17 @@ void CudaDevice::CloseSession(Session& s) {
 jit::CuResult CudaDevice::WaitStream(Session& s, Stream& st, int* cancel_reason) {
   *cancel_reason = 0;
   const auto start = std::chrono::steady_clock::now();
+  const bool trace = frame_trace::Enabled();
+  const int64_t trace_start = trace ? frame_trace::NowNs() : 0;
   for (int polls = 0;; ++polls) {
     jit::CuResult r = driver_->StreamQuery(st.stream);
-    if (r != jit::kCuErrorNotReady) return r;
+    if (r != jit::kCuErrorNotReady) {
+      if (trace) {
+        frame_trace::Current().stream_wait_ns += frame_trace::NowNs() - trace_start;
+        frame_trace::Current().stream_polls += polls + 1;
+      }
+      return r;
+    }
     if (*cancel_reason == 0) {
       if (s.cancelled()) {
         *cancel_reason = 1;
@@ -557,6 +566,12 @@ DeviceSyncResult CudaDevice::Drain(Stream& st) {
 }
 
 DeviceSyncResult CudaDevice::Synchronize(Session& s) {
+  struct Timed {   // WEFT_LANE_TRACE: the whole of this call
+    int64_t start = frame_trace::Enabled() ? frame_trace::NowNs() : 0;
+    ~Timed() {
+      if (start) frame_trace::Current().device_sync_ns += frame_trace::NowNs() - start;
+    }
+  } timed;
   std::shared_lock<std::shared_mutex> reset(reset_mu_);
   DeviceSyncResult out;
   Stream* st = FindStream(s.id());

@@ -17,11 +17,11 @@ namespace weft {
 
 namespace {
 
-Expected<std::shared_ptr<Allocation>> Lookup(const HandleSnapshot& h, uint64_t handle, const std::string& what) {
-  if (handle == 0) return InvalidArgument(what + ": array handle 0 (None)");
+Expected<std::shared_ptr<Allocation>> Lookup(const HandleSnapshot& h, uint64_t handle, const ArrayName& what) {
+  if (handle == 0) return InvalidArgument(what.Text() + ": array handle 0 (None)");
   auto it = h.find(handle);
   if (it == h.end() || !it->second)
-    return NotFound(what + ": unknown array handle " + std::to_string(handle) +
+    return NotFound(what.Text() + ": unknown array handle " + std::to_string(handle) +
                     " (never created, already freed, or not held by this session)");
   return it->second;
 }
@@ -49,16 +49,29 @@ void CollectArg(const ArgValue& a, std::vector<uint64_t>* out) {
   for (const auto& f : a.fields) CollectArg(f, out);
 }
 
-Expected<ResolvedArg> ResolveArg(const ArgValue& a, const HandleSnapshot& h, const std::string& what) {
+// Where an argument sits ("kernel 'k' argument 2 field 1"), as text only for an error message.
+struct ArgPath {
+  const std::string* kernel;
+  size_t index;
+  const ArgPath* parent = nullptr;   // set for a struct field: `index` is the field's
+  std::string Text() const {
+    return parent ? parent->Text() + " field " + std::to_string(index)
+                  : "kernel '" + *kernel + "' argument " + std::to_string(index);
+  }
+};
+
+Expected<ResolvedArg> ResolveArg(const ArgValue& a, const HandleSnapshot& h, const ArgPath& path) {
   ResolvedArg r;
   r.kind = a.kind;
   r.raw = a.raw;
   r.ref = a.array;
   if (a.kind == ArgValue::Kind::kArray && a.array.handle != 0) {
+    ArrayName what([](const void* p) { return static_cast<const ArgPath*>(p)->Text(); }, &path);
     WEFT_ASSIGN_OR_RETURN(r.alloc, Lookup(h, a.array.handle, what));
   }
+  r.fields.reserve(a.fields.size());
   for (size_t i = 0; i < a.fields.size(); ++i) {
-    WEFT_ASSIGN_OR_RETURN(ResolvedArg f, ResolveArg(a.fields[i], h, what + " field " + std::to_string(i)));
+    WEFT_ASSIGN_OR_RETURN(ResolvedArg f, ResolveArg(a.fields[i], h, ArgPath{path.kernel, i, &path}));
     r.fields.push_back(std::move(f));
   }
   return r;
@@ -67,8 +80,9 @@ Expected<ResolvedArg> ResolveArg(const ArgValue& a, const HandleSnapshot& h, con
 Expected<std::vector<ResolvedArg>> ResolveArgs(const std::vector<ArgValue>& args, const HandleSnapshot& h,
                                                const std::string& kernel) {
   std::vector<ResolvedArg> out;
+  out.reserve(args.size());
   for (size_t i = 0; i < args.size(); ++i) {
-    WEFT_ASSIGN_OR_RETURN(ResolvedArg r, ResolveArg(args[i], h, "kernel '" + kernel + "' argument " + std::to_string(i)));
+    WEFT_ASSIGN_OR_RETURN(ResolvedArg r, ResolveArg(args[i], h, ArgPath{&kernel, i}));
     out.push_back(std::move(r));
   }
   return out;

@@ -1,6 +1,9 @@
 // DType: sizes, canonical names, validation and matching against kernel parameter types.
 #include "engine/runtime/dtype.h"
 
+#include <cstdio>
+#include <string_view>
+
 namespace weft {
 
 uint32_t ScalarSize(ScalarType s) {
@@ -81,9 +84,18 @@ Status DType::Validate() const {
 
 bool DType::MatchesParam(const std::string& param_dtype) const {
   if (param_dtype.empty() || param_dtype == "any") return true;
-  if (param_dtype == Name()) return true;
-  if (!is_struct() && param_dtype == StructuralName()) return true;
-  return false;
+  if (!type_name.empty() && param_dtype == type_name) return true;
+  if (is_struct()) return false;
+  // The structural name, formatted on the stack (every launch checks every array argument).
+  char buf[64];
+  const char* scalar_name = ScalarName(scalar);
+  int n;
+  if (elem_shape.empty()) return param_dtype == scalar_name;
+  if (elem_shape.size() == 1) n = std::snprintf(buf, sizeof(buf), "vec(%u,%s)", elem_shape[0], scalar_name);
+  else if (elem_shape.size() == 2)
+    n = std::snprintf(buf, sizeof(buf), "mat(%u,%u,%s)", elem_shape[0], elem_shape[1], scalar_name);
+  else return param_dtype == scalar_name;   // as StructuralName: more than 2 dimensions is refused by Validate
+  return n > 0 && static_cast<size_t>(n) < sizeof(buf) && param_dtype == std::string_view(buf, static_cast<size_t>(n));
 }
 
 }  // namespace weft

@@ -138,6 +138,8 @@ struct Packer {
 
   Status PackAll(const std::vector<ResolvedArg>& args) {
     out.block = ArgBlock(kernel.args_size);
+    out.arrays.reserve(kernel.params.size());
+    out.keep_alive.reserve(kernel.params.size());
     if (args.size() != kernel.params.size())
       return InvalidArgument("kernel '" + kernel.name + "'" + (adjoint ? " adjoint" : "") + " takes " +
                              std::to_string(kernel.params.size()) + " arguments, got " +

@@ -348,6 +348,50 @@ def test_fast_lane_keeps_order_of_early_submits(wp, monkeypatch):
     assert (SUBMIT, "send") in sent, f"early Submits went through the lane without waiting: {sent}"
 
 
+def test_fast_lane_starts_a_slow_loop_of_launches_before_pump_first(wp, monkeypatch, wait_for):
+    """Through the lane, two queued launches the older of which waited PUMP_AFTER_LANE_S go out
+    as an early Submit (the device starts before PUMP_FIRST launches were queued), and they
+    run before any sync point; a single launch then a sync stays one fused Submit."""
+    import time
+
+    rt = _runtime_with_lane(wp)
+    if not rt.local:
+        pytest.skip("needs a local session: numpy() of a CPU array is a view there")
+    calls = []
+    real_call, real_send = rt.fast_lane.call, rt.fast_lane.send
+
+    def logged_call(method, request, response_type):
+        calls.append((method, "call", len(getattr(request, "commands", ()))))
+        return real_call(method, request, response_type)
+
+    def logged_send(method, request, response_type):
+        calls.append((method, "send", len(request.commands)))
+        return real_send(method, request, response_type)
+
+    monkeypatch.setattr(rt.fast_lane, "call", logged_call)
+    monkeypatch.setattr(rt.fast_lane, "send", logged_send)
+    monkeypatch.setattr(rt, "pipelined", True)
+    rng = np.random.default_rng()
+    values = rng.standard_normal(64).astype(np.float32)
+    data = wp.array(values, dtype=float, device="cpu")
+    view = data.numpy()   # synchronized; a view of the daemon's memory from here on
+    calls.clear()
+    steps = [float(x) for x in rng.uniform(0.5, 2.0, size=2)]
+    wp.launch(lane_add, dim=64, inputs=[data, steps[0]], device="cpu")
+    time.sleep(max(2 * _runtime.PUMP_AFTER_LANE_S, 0.001))
+    wp.launch(lane_add, dim=64, inputs=[data, steps[1]], device="cpu")
+    assert calls == [(SUBMIT, "send", 2)], calls
+    expected = values.astype(np.float64) + np.float32(steps[0]) + np.float32(steps[1])
+    assert wait_for(lambda: np.allclose(view, expected, rtol=1e-5, atol=1e-5), 20), \
+        "the early Submit did not run before a sync point"
+    wp.synchronize()
+    calls.clear()
+    wp.launch(lane_add, dim=64, inputs=[data, 1.0], device="cpu")
+    wp.synchronize()
+    assert calls == [(SUBMIT, "call", 1)], calls
+    np.testing.assert_allclose(view, expected + 1.0, rtol=1e-5, atol=1e-5)
+
+
 def test_fast_lane_rejected_early_submit_raises_at_the_next_sync(wp, monkeypatch):
     """An early Submit the daemon refuses (sent through the lane without waiting) is raised by
     the next synchronize, as through gRPC, and the lane stays usable."""
@@ -355,6 +399,8 @@ def test_fast_lane_rejected_early_submit_raises_at_the_next_sync(wp, monkeypatch
 
     rt = _runtime_with_lane(wp)
     monkeypatch.setattr(rt, "pipelined", True)
+    # The refused batch is the first PUMP_FIRST commands, however slowly this machine queues them.
+    monkeypatch.setattr(_runtime, "PUMP_AFTER_LANE_S", 60.0)
     data = wp.zeros(4, dtype=float, device="cpu")
     wp.synchronize()
     with rt._lock:

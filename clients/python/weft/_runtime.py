@@ -34,7 +34,8 @@ BATCH_MAX_BYTES = 16 << 20
 PENDING_FREE_LIMIT = 4096
 LANE_IN_FLIGHT = 16     # asynchronous fast-lane Submits sent before the oldest reply is read
 PUMP_FIRST = 8         # commands queued before the first early Submit after a sync point
-PUMP_AFTER_S = 0.002   # or: two commands, the oldest queued this long ago
+PUMP_AFTER_S = 0.002   # or: two commands, the oldest queued this long ago (gRPC)
+PUMP_AFTER_LANE_S = 40e-6   # the same through the fast lane (an early Submit costs a send)
 DAEMON_START_TIMEOUT_S = 30.0
 RPC_TIMEOUT_S = None  # unary calls wait as long as the daemon needs (compiles can be slow)
 ATTACH_CONFIRM_S = 30.0   # how long a new session waits for the daemon to claim its Attach stream
@@ -535,7 +536,10 @@ class Runtime:
     def _pump(self) -> None:
         """Sends the batch as an asynchronous Submit when no Submit is in flight and the batch
         holds at least `_pump_at` commands, or two commands the oldest of which was queued
-        PUMP_AFTER_S ago (caller holds the lock). Without this a batch waited for the next
+        PUMP_AFTER_S ago (PUMP_AFTER_LANE_S when the fast lane carries it: sending costs a few
+        microseconds there, so a loop of launches starts the device after ~40 us instead of
+        after PUMP_FIRST launches, while a launch or two followed by a sync stays one fused
+        Submit) (caller holds the lock). Without this a batch waited for the next
         synchronize, and the device idled while the client queued launches (Warp's launches
         start at once). At most one Submit is in flight, so the daemon receives batches in
         order (send_now, for ordered GPU launches, may add fast-lane Submits behind it: the lane keeps
@@ -552,8 +556,13 @@ class Runtime:
             if self._inflight or self._deferred_error is not None:
                 return
         n = len(self._batch)
-        if n < self._pump_at and not (n >= 2 and time.perf_counter() - self._batch_since >= PUMP_AFTER_S):
-            return
+        if n < self._pump_at:
+            if n < 2:
+                return
+            lane = self.fast_lane
+            after = PUMP_AFTER_LANE_S if lane is not None and not lane.broken else PUMP_AFTER_S
+            if time.perf_counter() - self._batch_since < after:
+                return
         self._pump_at = min(2 * self._pump_at, BATCH_MAX_COMMANDS)
         self._send_batch()
 
