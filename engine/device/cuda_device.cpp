@@ -410,6 +410,13 @@ Expected<CudaDevice::Stream*> CudaDevice::StreamOf(const std::string& session_id
     *st->cancel_host = 1;   // the value a cancel copies into the device word
     s = driver_->Check(driver_->StreamCreate(&st->cancel_stream, jit::kCuStreamNonBlocking), "cuStreamCreate (cancel)");
   }
+  void* report = nullptr;
+  if (s.ok()) s = driver_->Check(driver_->MemHostAlloc(&report, 64, jit::kCuMemHostAllocMapped), "cuMemHostAlloc (report flag)");
+  if (s.ok()) {
+    st->report_host = static_cast<volatile int32_t*>(report);
+    *st->report_host = 0;
+    s = driver_->Check(driver_->MemHostGetDevicePointer(&st->report_device, report, 0), "cuMemHostGetDevicePointer");
+  }
   if (!s.ok()) {
     DestroyStream(*st);
     return s;
@@ -430,6 +437,9 @@ void CudaDevice::DestroyStream(Stream& st) {
   if (st.cancel_stream) driver_->StreamDestroy(st.cancel_stream);
   st.cancel_stream = nullptr;
   if (st.cancel_host) driver_->MemFreeHost(st.cancel_host);
+  if (st.report_host) driver_->MemFreeHost(const_cast<int32_t*>(st.report_host));
+  st.report_host = nullptr;
+  st.report_device = 0;
   if (st.readback) driver_->MemFreeHost(st.readback);
   st.readback = nullptr;
   st.errors_host = nullptr;
@@ -524,6 +534,24 @@ Status CudaDevice::QueueErrorReadback(Stream& st) {
                         "cuMemcpyDtoHAsync (launch errors)");
 }
 
+DeviceSyncResult CudaDevice::ReadBackAndDrain(Stream& st) {
+  if (!st.pending.empty() && __atomic_load_n(st.report_host, __ATOMIC_ACQUIRE) != 0) {
+    Status read = QueueErrorReadback(st);
+    if (read.ok()) read = driver_->Check(driver_->StreamSynchronize(st.stream), "cuStreamSynchronize (launch errors)");
+    if (!read.ok()) {
+      st.pending.clear();
+      ReleaseGeometry(st, false);
+      DeviceSyncResult out;
+      out.error = read;
+      return out;
+    }
+    *st.report_host = 0;   // the stream is idle: no kernel writes it now
+  }
+  // Not set: no launch since the last drain wrote a slot or a print record, so `readback`
+  // (zeroed by the last drain) is what a read-back would bring.
+  return Drain(st);
+}
+
 DeviceSyncResult CudaDevice::Drain(Stream& st) {
   const size_t n = st.pending.size();
   if (n == 0) return {};
@@ -592,14 +620,8 @@ DeviceSyncResult CudaDevice::Synchronize(Session& s) {
   (void)MakeCurrent();
   if (st->generation != generation_.load()) return out;
   int reason = 0;
-  Status queued = QueueErrorReadback(*st);
   jit::CuResult r = WaitStream(s, *st, &reason);
   if (r == 0) ForgetValueWaits(*st);   // the stream is idle: every wait was satisfied
-  if (r == 0 && !queued.ok()) {
-    st->pending.clear();
-    out.error = queued;
-    return out;
-  }
   if (r != 0) {
     const uint64_t gen = st->generation;
     std::string what = st->pending.empty() ? std::string("a copy or fill")
@@ -635,7 +657,7 @@ DeviceSyncResult CudaDevice::Synchronize(Session& s) {
                                                "are lost)"));
     return out;
   }
-  out = Drain(*st);
+  out = ReadBackAndDrain(*st);
   if (reason != 0) {
     Status cleared = ClearCancel(*st);
     if (out.error.ok() && !cleared.ok()) out.error = cleared;
@@ -1024,11 +1046,10 @@ Status CudaDevice::MakeRoom(Session& s, Stream& st, size_t n) {
   if (st.pending.size() + n <= kErrorSlots) return Status::Ok();
   // Not enough free error slots: wait for the stream and read them back.
   int reason = 0;
-  WEFT_RETURN_IF_ERROR(QueueErrorReadback(st));
   jit::CuResult r = WaitStream(s, st, &reason);
   if (r != 0) return driver_->Check(r, "cuStreamQuery");
   if (reason != 0) WEFT_RETURN_IF_ERROR(ClearCancel(st));
-  DeviceSyncResult drained = Drain(st);
+  DeviceSyncResult drained = ReadBackAndDrain(st);
   if (!drained.output.empty()) s.AppendOutput(drained.output);
   if (!drained.error.ok()) return Status(drained.error.code(), drained.error.message() + Where(drained.origin));
   return Status::Ok();
@@ -1074,6 +1095,7 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   ctx.cancel = reinterpret_cast<const wp::int32*>(static_cast<uintptr_t>(st->errors_base + kCancelOffset));
   WEFT_ASSIGN_OR_RETURN(uint64_t geometry, GeometryTable(s, *st));
   ctx.geometry = reinterpret_cast<const wp::geometry_table_t*>(static_cast<uintptr_t>(geometry));
+  ctx.report_flag = reinterpret_cast<wp::int32*>(static_cast<uintptr_t>(st->report_device));
   const unsigned block = l.block_dim ? l.block_dim : 256;
   const unsigned grid = GridFor(static_cast<uint64_t>(ctx.bounds.size), block, l.max_blocks);
   void* args = const_cast<char*>(l.args->block.data());

@@ -170,7 +170,8 @@ class CudaDevice final : public Device {
     uint64_t generation = 0;
     jit::CuStream stream = nullptr;
     // One device allocation: the print buffer's header (wp::print_buffer_t, kPrintHeader
-    // bytes) then kErrorSlots launch_error_t; read back together into `readback` (pinned).
+    // bytes) then kErrorSlots launch_error_t; read back together into `readback` (pinned) at a
+    // synchronize when a kernel set `report_host` (below).
     jit::CuDevicePtr errors_base = 0;
     jit::CuDevicePtr errors = 0;      // errors_base + kPrintHeader
     char* readback = nullptr;         // pinned: header, then the slots
@@ -183,6 +184,11 @@ class CudaDevice final : public Device {
     // the copy engine runs beside the kernel; it is cleared on the stream once the wait ends.
     int32_t* cancel_host = nullptr;
     jit::CuStream cancel_stream = nullptr;
+    // A word of mapped pinned memory the stream's kernels set (launch_context_t::report_flag)
+    // when they report an error or print: the slots and the print header are read back at a
+    // synchronize only then. Cleared by the daemon after a read-back, while the stream is idle.
+    volatile int32_t* report_host = nullptr;
+    jit::CuDevicePtr report_device = 0;
     bool cancel_set = false;
     std::string first_error_text;
     // The session's geometry table in device memory (cuda_device_geometry.cpp): reused while
@@ -244,6 +250,9 @@ class CudaDevice final : public Device {
   Status MakeRoom(Session& s, Stream& st, size_t n);
   // Queues the read-back of the pending launches' error slots (before waiting for the stream).
   Status QueueErrorReadback(Stream& st);
+  // After the stream went idle: reads the slots and the print header back when a kernel set
+  // the stream's report flag (else they are known to be clear), then drains them.
+  DeviceSyncResult ReadBackAndDrain(Stream& st);
   // After the wait: the first error of the pending launches (or Ok); their slots are cleared.
   DeviceSyncResult Drain(Stream& st);
   // After a sticky fault: a fresh context. Called without locks held. `cause` names the fault

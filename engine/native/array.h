@@ -130,6 +130,7 @@ WP_FUNC bool launch_failed(const launch_context_t* ctx) {
 WP_FUNC bool report_error(const launch_context_t* ctx, int32 kind, int32 function_id, int32 line, int32 array_param, int32 ndim,
                           const int64* idx, const int64* shape, const char* message) {
   if (!ctx || !ctx->error) return false;
+  if (ctx->report_flag) *(volatile int32*)ctx->report_flag = 1;   // read back at the synchronize
   launch_error_t* e = ctx->error;
   if (!claim_error(e, kind)) return false;
   e->line = line;

@@ -80,6 +80,10 @@ struct launch_context_t {
   // The launching session's geometry objects on the launch device (geometry_abi.h); null when
   // it has none (every geometry id is then an error).
   const geometry_table_t* geometry;
+  // Null on the CPU. On a GPU, a word of mapped host memory of the launching stream: a thread
+  // that reports an error or appends print output stores 1 there (a plain store), so at a
+  // synchronize the daemon reads the error slots and the print header back only when it is set.
+  int32* report_flag;
 };
 
 constexpr uint32 LAUNCH_FLAG_NO_BOUNDS_CHECK = 1u;

@@ -118,6 +118,7 @@ WP_FUNC void print_record_flush(const launch_context_t* ctx, print_record& r) {
   const char* src = r.bytes();
   const uint64 n = (uint64)r.size();
   const uint64 off = atomicAdd((unsigned long long*)&pb->used, (unsigned long long)n);
+  if (ctx->report_flag) *(volatile int32*)ctx->report_flag = 1;   // read back at the synchronize
   if (off >= pb->capacity || pb->capacity - off < 4) return;
   const uint64 m = pb->capacity - off < n ? 4 : n;
   for (uint64 i = 0; i < m; ++i) pb->data[off + i] = src[i];
