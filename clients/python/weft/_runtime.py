@@ -344,6 +344,7 @@ class Runtime:
         # > 0 while an ordered launch is being queued (WAIT, launch, RECORD go in one Submit).
         self.pump_held = 0
         self._pump_at = PUMP_FIRST
+        self._pump_after = PUMP_AFTER_LANE_S
         self._batch_since = 0.0   # when the oldest command of the batch was queued
         self._slabs = weakref.WeakValueDictionary()   # name -> _SlabMapping in use
         self._devices = None
@@ -536,10 +537,11 @@ class Runtime:
     def _pump(self) -> None:
         """Sends the batch as an asynchronous Submit when no Submit is in flight and the batch
         holds at least `_pump_at` commands, or two commands the oldest of which was queued
-        PUMP_AFTER_S ago (PUMP_AFTER_LANE_S when the fast lane carries it: sending costs a few
+        PUMP_AFTER_S ago (through the fast lane `_pump_after`: PUMP_AFTER_LANE_S after a sync
+        point, doubling with each early Submit up to PUMP_AFTER_S; sending costs a few
         microseconds there, so a loop of launches starts the device after ~40 us instead of
-        after PUMP_FIRST launches, while a launch or two followed by a sync stays one fused
-        Submit) (caller holds the lock). Without this a batch waited for the next
+        after PUMP_FIRST launches, a long loop still goes out in few frames, and a launch or
+        two followed by a sync stays one fused Submit) (caller holds the lock). Without this a batch waited for the next
         synchronize, and the device idled while the client queued launches (Warp's launches
         start at once). At most one Submit is in flight, so the daemon receives batches in
         order (send_now, for ordered GPU launches, may add fast-lane Submits behind it: the lane keeps
@@ -560,10 +562,11 @@ class Runtime:
             if n < 2:
                 return
             lane = self.fast_lane
-            after = PUMP_AFTER_LANE_S if lane is not None and not lane.broken else PUMP_AFTER_S
+            after = self._pump_after if lane is not None and not lane.broken else PUMP_AFTER_S
             if time.perf_counter() - self._batch_since < after:
                 return
         self._pump_at = min(2 * self._pump_at, BATCH_MAX_COMMANDS)
+        self._pump_after = min(2 * self._pump_after, PUMP_AFTER_S)
         self._send_batch()
 
     def send_now(self) -> None:
@@ -643,6 +646,7 @@ class Runtime:
         with self._lock:
             self._collect_inflight()
             self._pump_at = PUMP_FIRST
+            self._pump_after = PUMP_AFTER_LANE_S
             self.pump_held = 0
             if self._pending_geometry_frees:
                 self._queue_geometry_frees()
@@ -680,6 +684,7 @@ class Runtime:
                     raise deferred
                 return
             self._pump_at = PUMP_FIRST
+            self._pump_after = PUMP_AFTER_LANE_S
             self._drain_frees()
             self._unsynchronized = False
             response = response.sync
