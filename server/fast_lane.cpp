@@ -111,11 +111,6 @@ bool OnlyQueuesGpuWork(const v1::SubmitRequest& req) {
   return true;
 }
 
-// One request frame of a bound connection: parses the body as Req, serves it with
-// `serve(session, request, &response)` (the gRPC method's handler function), and replies. A
-// body that does not parse ends the connection; the handler's error is the reply and the lane
-// stays open. The session reference is released before the reply is sent, so a slow peer
-// never holds a closed session alive.
 // WEFT_LANE_TRACE: when each phase of a frame ended (frame_trace::NowNs).
 struct FrameTimes {
   int64_t received = 0, parsed = 0, served = 0, replied = 0;
@@ -124,15 +119,18 @@ struct FrameTimes {
 // WEFT_LANE_TRACE: the phases of one connection's frames, by kind, summarized when it ends.
 class LaneTrace {
  public:
+  // At most kMaxSamples frames of a kind are kept (the latest ones, in a ring).
+  static constexpr size_t kMaxSamples = 1u << 18;
   void Add(const char* kind, int64_t idle_ns, const FrameTimes& t, const frame_trace::Phases& p) {
     Samples& s = by_kind_[kind];
-    s.idle.push_back(idle_ns);
-    s.parse.push_back(t.parsed - t.received);
-    s.serve.push_back(t.served - t.parsed);
-    s.device_sync.push_back(p.device_sync_ns);
-    s.stream_wait.push_back(p.stream_wait_ns);
-    s.polls.push_back(p.stream_polls);
-    s.reply.push_back(t.replied - t.served);
+    const int64_t values[kPhases] = {idle_ns,           t.parsed - t.received, t.served - t.parsed,
+                                     p.device_sync_ns,  p.stream_wait_ns,      p.stream_polls,
+                                     t.replied - t.served};
+    for (int i = 0; i < kPhases; ++i) {
+      if (s.phase[i].size() < kMaxSamples) s.phase[i].push_back(values[i]);
+      else s.phase[i][s.frames % kMaxSamples] = values[i];
+    }
+    ++s.frames;
   }
   // One line per kind: medians (us) of each phase. Appended to the file WEFT_LANE_TRACE names.
   void Write(const std::string& session) {
@@ -142,9 +140,9 @@ class LaneTrace {
       std::snprintf(line, sizeof(line),
                     "lane-trace session=%s kind=%s frames=%zu median_us: before=%.1f parse=%.1f serve=%.1f "
                     "(device_sync=%.1f stream_wait=%.1f polls=%.0f) reply=%.1f\n",
-                    session.c_str(), kind.c_str(), s.parse.size(), Median(s.idle) / 1e3, Median(s.parse) / 1e3,
-                    Median(s.serve) / 1e3, Median(s.device_sync) / 1e3, Median(s.stream_wait) / 1e3, Median(s.polls),
-                    Median(s.reply) / 1e3);
+                    session.c_str(), kind.c_str(), s.frames, Median(s.phase[0]) / 1e3, Median(s.phase[1]) / 1e3,
+                    Median(s.phase[2]) / 1e3, Median(s.phase[3]) / 1e3, Median(s.phase[4]) / 1e3,
+                    Median(s.phase[5]), Median(s.phase[6]) / 1e3);
       out += line;
     }
     if (out.empty()) return;
@@ -159,8 +157,11 @@ class LaneTrace {
   }
 
  private:
+  // before (client time), parse, serve, device sync, stream wait, stream polls, reply
+  static constexpr int kPhases = 7;
   struct Samples {
-    std::vector<int64_t> idle, parse, serve, device_sync, stream_wait, polls, reply;
+    size_t frames = 0;
+    std::vector<int64_t> phase[kPhases];
   };
   static double Median(std::vector<int64_t>& v) {
     if (v.empty()) return 0;
@@ -170,6 +171,11 @@ class LaneTrace {
   std::map<std::string, Samples> by_kind_;
 };
 
+// One request frame of a bound connection: parses the body as Req, serves it with
+// `serve(session, request, &response)` (the gRPC method's handler function), and replies. A
+// body that does not parse ends the connection; the handler's error is the reply and the lane
+// stays open. The session reference is released before the reply is sent, so a slow peer
+// never holds a closed session alive. `times` (WEFT_LANE_TRACE) gets the phases' end times.
 template <typename Req, typename Resp, typename Fn>
 FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
                        Fn&& serve, FrameTimes* times = nullptr) {

@@ -722,3 +722,49 @@ print("ok", rt.fast_lane is not None and not rt.fast_lane.broken)
         channel.close()
     out = run_client(code, env={"WEFT_ADDRESS": daemon.address, "WEFT_FAST_LANE_SPIN_US": "0"})
     assert "ok True" in out.stdout, out.stdout + out.stderr
+
+
+def test_lane_trace_reports_each_kind_of_frame(start_weftd, run_client, monkeypatch, tmp_path):
+    """WEFT_LANE_TRACE: when a lane's connection ends, weftd appends one line per kind of frame
+    it served, with the frame count and the median of each phase; a launch + synchronize loop
+    shows as `submit+sync` frames, a bare synchronize as `synchronize`, and the numbers parse."""
+    import re
+
+    trace = tmp_path / "lane-trace.txt"
+    monkeypatch.setenv("WEFT_LANE_TRACE", str(trace))
+    daemon = start_weftd()
+    code = """
+import weft as wp
+from weft import _runtime
+assert _runtime.get_runtime().fast_lane is not None
+@wp.kernel
+def bump(x: wp.array(dtype=float)):
+    i = wp.tid()
+    x[i] = x[i] + 1.0
+x = wp.zeros(16, dtype=float)
+wp.synchronize()
+for _ in range(25):
+    wp.launch(bump, dim=16, inputs=[x])
+    wp.synchronize()
+wp.synchronize()
+assert x.numpy()[0] == 25.0
+_runtime.shutdown()
+print("done")
+"""
+    script = tmp_path / "trace_client.py"
+    script.write_text(code)
+    out = run_client(f"import runpy; runpy.run_path({str(script)!r})", env={"WEFT_ADDRESS": daemon.address})
+    assert "done" in out.stdout, out.stdout + out.stderr
+    import time
+
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline and "submit+sync" not in (trace.read_text() if trace.exists() else ""):
+        time.sleep(0.05)
+    text = trace.read_text()
+    line = re.search(r"kind=submit\+sync frames=(\d+) median_us: before=([\d.]+) parse=([\d.]+) "
+                     r"serve=([\d.]+) \(device_sync=([\d.]+) stream_wait=([\d.]+) polls=(\d+)\) reply=([\d.]+)", text)
+    assert line, text
+    assert int(line.group(1)) >= 25, text
+    assert all(float(v) >= 0 for v in line.groups()[1:]), text
+    assert float(line.group(4)) > 0, text       # the engine did run the launches
+    assert "kind=synchronize" in text, text
