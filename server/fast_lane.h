@@ -22,6 +22,8 @@
 // (SO_PEERCRED) is the session's principal; anything else ends the connection after an error
 // reply. A secret binds one connection; a wrong frame later (unknown method, garbage,
 // oversized) gets an error reply and ends that connection; the daemon keeps serving.
+// WEFT_LANE_TRACE=<file>: each connection times its frames' phases and appends their medians
+// per kind of frame to the file when it ends (docs/protocol.md "Fast lane").
 #pragma once
 
 #include <sys/types.h>
