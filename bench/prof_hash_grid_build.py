@@ -1,6 +1,8 @@
 """Device time of a hash grid build apart from the round trips: R builds queued back to back and
 one synchronize, per build (weft, and warp-lang beside it when importable), against one build +
-synchronize. Usage: WEFT_DAEMON=... python3 bench/prof_hash_grid_build.py [--device cuda:0] [-r 20]"""
+synchronize. Usage: WEFT_DAEMON=... python3 bench/prof_hash_grid_build.py [--device cuda:0] [-r 20]
+[--sizes 1e4,1e6,4e6] [--single K: only K build + synchronize pairs per size, one process each
+size under WEFT_LANE_TRACE shows weftd's phases of that case]"""
 from __future__ import annotations
 
 import argparse
@@ -43,10 +45,30 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--device", default="cpu")
     ap.add_argument("-r", type=int, default=20)
+    ap.add_argument("--sizes", default="1e4,1e6,4e6", help="point counts, comma-separated")
+    ap.add_argument("--single", type=int, default=0,
+                    help="only time this many build + synchronize pairs per size (weft; with "
+                         "WEFT_LANE_TRACE set, weftd's per-frame phases of exactly that case)")
     args = ap.parse_args()
     import weft
+    sizes = [int(float(s)) for s in args.sizes.split(",")]
+    if args.single:
+        for n in sizes:
+            rng = np.random.default_rng(2)
+            pts = weft.array(rng.uniform(0.0, np.cbrt(n / 8.0), size=(n, 3)).astype(np.float32),
+                             dtype=weft.vec3, device=args.device)
+            grid = weft.HashGrid(128, 128, 128, device=args.device)
+            times = []
+            for _ in range(args.single):
+                t = time.perf_counter()
+                grid.build(pts, 1.0)
+                weft.synchronize_device(args.device)
+                times.append(time.perf_counter() - t)
+            print(f"{n:>9,} points: weft build + sync {statistics.median(times) * 1e6:8.1f} us "
+                  f"(median of {args.single})", flush=True)
+        return
     warp = bc.import_warp()
-    for n in (10_000, 1_000_000, 4_000_000):
+    for n in sizes:
         wb, ws = per_build(weft, args.device, n, args.r)
         line = f"{n:>9,} points: weft {wb * 1e6:8.1f} us a build queued, {ws * 1e6:8.1f} us build + sync"
         if warp is not None:

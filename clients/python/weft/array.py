@@ -141,9 +141,21 @@ def _elem_layout(dtype):
     raise TypeError(f"Invalid array dtype {dtype!r}")
 
 
+_ELEM_SIZES: dict = {}   # dtype -> bytes per element (dtypes are long-lived type objects)
+
+
 def _elem_size(dtype) -> int:
+    try:
+        return _ELEM_SIZES[dtype]
+    except (KeyError, TypeError):
+        pass
     np_dtype, inner = _elem_layout(dtype)
-    return np_dtype.itemsize * int(np.prod(inner, dtype=np.int64))
+    size = np_dtype.itemsize * int(np.prod(inner, dtype=np.int64))
+    try:
+        _ELEM_SIZES[dtype] = size
+    except TypeError:   # an unhashable dtype object: computed each time
+        pass
+    return size
 
 
 def _inner_strides(np_dtype, inner) -> tuple:
@@ -839,8 +851,12 @@ class array:
         self._requires_grad = value is not None
 
     def _is_whole(self) -> bool:
-        return (self._info is not None and self._byte_offset == 0 and
-                self.shape == tuple(int(s) for s in self._info.shape) and self.is_contiguous)
+        if self._info is None or self._byte_offset != 0:
+            return False
+        info_shape = self.__dict__.get("_info_shape")
+        if info_shape is None or info_shape[0] is not self._info:
+            info_shape = self._info_shape = (self._info, tuple(int(s) for s in self._info.shape))
+        return self.shape == info_shape[1] and self.is_contiguous
 
     def _set_daemon_grad(self, value) -> None:
         """Tells the daemon when both are whole arrays (it keeps gradients per allocation); a

@@ -26,13 +26,19 @@ def _op():
     return _Op
 
 
+_PB2 = None
+
+
 def _pb2():
-    import importlib
-    try:
-        return importlib.import_module("weft.v1.geometry_pb2")
-    except ModuleNotFoundError:
-        _runtime._generate_stubs()
-        return importlib.import_module("weft.v1.geometry_pb2")
+    global _PB2
+    if _PB2 is None:
+        import importlib
+        try:
+            _PB2 = importlib.import_module("weft.v1.geometry_pb2")
+        except ModuleNotFoundError:
+            _runtime._generate_stubs()
+            _PB2 = importlib.import_module("weft.v1.geometry_pb2")
+    return _PB2
 
 
 _STUBS = {}
@@ -122,7 +128,8 @@ class HashGrid(_Object):
         if not (0.0 < radius < float("inf")):
             raise ValueError(f"HashGrid.build: radius must be a positive finite number, got {radius}")
         from ._kernel.typestr import type_string
-        if type_string(getattr(points, "dtype", None)) != type_string(self._point_dtype):
+        point_dtype = getattr(points, "dtype", None)
+        if point_dtype is not self._point_dtype and type_string(point_dtype) != type_string(self._point_dtype):
             raise TypeError(f"HashGrid.build: a grid of dtype {getattr(self.dtype, '__name__', self.dtype)} "
                             f"needs points of {getattr(self._point_dtype, '__name__', self._point_dtype)}, "
                             f"got {getattr(points, 'dtype', type(points).__name__)}")
