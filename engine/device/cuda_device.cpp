@@ -410,13 +410,19 @@ Expected<CudaDevice::Stream*> CudaDevice::StreamOf(const std::string& session_id
     *st->cancel_host = 1;   // the value a cancel copies into the device word
     s = driver_->Check(driver_->StreamCreate(&st->cancel_stream, jit::kCuStreamNonBlocking), "cuStreamCreate (cancel)");
   }
+  // The report flag (mapped pinned memory). Without it every synchronize reads the slots back.
   void* report = nullptr;
-  if (s.ok()) s = driver_->Check(driver_->MemHostAlloc(&report, 64, jit::kCuMemHostAllocMapped), "cuMemHostAlloc (report flag)");
-  if (s.ok()) {
-    st->report_host = static_cast<volatile int32_t*>(report);
-    *st->report_host = 0;
-    s = driver_->Check(driver_->MemHostGetDevicePointer(&st->report_device, report, 0), "cuMemHostGetDevicePointer");
+  if (s.ok() && driver_->MemHostAlloc(&report, 64, jit::kCuMemHostAllocMapped) == 0) {
+    jit::CuDevicePtr device_word = 0;
+    if (driver_->MemHostGetDevicePointer(&device_word, report, 0) == 0) {
+      st->report_host = static_cast<volatile int32_t*>(report);
+      *st->report_host = 0;
+      st->report_device = device_word;
+    } else {
+      driver_->MemFreeHost(report);
+    }
   }
+  if (s.ok() && !st->report_host) spdlog::warn("{}: no mapped host memory for the launch report flag; errors are read back at every synchronize", name_);
   if (!s.ok()) {
     DestroyStream(*st);
     return s;
@@ -535,7 +541,7 @@ Status CudaDevice::QueueErrorReadback(Stream& st) {
 }
 
 DeviceSyncResult CudaDevice::ReadBackAndDrain(Stream& st) {
-  if (!st.pending.empty() && __atomic_load_n(st.report_host, __ATOMIC_ACQUIRE) != 0) {
+  if (!st.pending.empty() && (!st.report_host || __atomic_load_n(st.report_host, __ATOMIC_ACQUIRE) != 0)) {
     Status read = QueueErrorReadback(st);
     if (read.ok()) read = driver_->Check(driver_->StreamSynchronize(st.stream), "cuStreamSynchronize (launch errors)");
     if (!read.ok()) {
@@ -545,7 +551,7 @@ DeviceSyncResult CudaDevice::ReadBackAndDrain(Stream& st) {
       out.error = read;
       return out;
     }
-    *st.report_host = 0;   // the stream is idle: no kernel writes it now
+    if (st.report_host) *st.report_host = 0;   // the stream is idle: no kernel writes it now
   }
   // Not set: no launch since the last drain wrote a slot or a print record, so `readback`
   // (zeroed by the last drain) is what a read-back would bring.

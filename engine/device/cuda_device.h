@@ -187,6 +187,7 @@ class CudaDevice final : public Device {
     // A word of mapped pinned memory the stream's kernels set (launch_context_t::report_flag)
     // when they report an error or print: the slots and the print header are read back at a
     // synchronize only then. Cleared by the daemon after a read-back, while the stream is idle.
+    // Null where mapped host memory could not be had: then every synchronize reads back.
     volatile int32_t* report_host = nullptr;
     jit::CuDevicePtr report_device = 0;
     bool cancel_set = false;
