@@ -727,7 +727,8 @@ print("ok", rt.fast_lane is not None and not rt.fast_lane.broken)
 def test_lane_trace_reports_each_kind_of_frame(start_weftd, run_client, monkeypatch, tmp_path):
     """WEFT_LANE_TRACE: when a lane's connection ends, weftd appends one line per kind of frame
     it served, with the frame count and the median of each phase; a launch + synchronize loop
-    shows as `submit+sync` frames, a bare synchronize as `synchronize`, and the numbers parse."""
+    shows as `submit+sync` frames (`submit-gpu+sync` where the default device is a GPU), a bare
+    synchronize as `synchronize`, and the numbers parse."""
     import re
 
     trace = tmp_path / "lane-trace.txt"
@@ -758,10 +759,10 @@ print("done")
     import time
 
     deadline = time.monotonic() + 20
-    while time.monotonic() < deadline and "submit+sync" not in (trace.read_text() if trace.exists() else ""):
+    while time.monotonic() < deadline and "+sync" not in (trace.read_text() if trace.exists() else ""):
         time.sleep(0.05)
     text = trace.read_text()
-    line = re.search(r"kind=submit\+sync frames=(\d+) median_us: before=([\d.]+) parse=([\d.]+) "
+    line = re.search(r"kind=submit(?:-gpu)?\+sync frames=(\d+) median_us: before=([\d.]+) parse=([\d.]+) "
                      r"serve=([\d.]+) \(device_sync=([\d.]+) stream_wait=([\d.]+) polls=(\d+)\) reply=([\d.]+)", text)
     assert line, text
     assert int(line.group(1)) >= 25, text
