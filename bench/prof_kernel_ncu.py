@@ -21,20 +21,10 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "clients" / "python"))
 
 import bench_common as bc  # noqa: E402
+import bench_cuda  # noqa: E402
 
-SOURCE = '''
-@wp.kernel
-def saxpy(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):
-    i = wp.tid()
-    y[i] = a * x[i] + y[i]
-
-@wp.kernel
-def integrate(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), g: wp.vec3, dt: float):
-    i = wp.tid()
-    vi = v[i] + g * dt
-    v[i] = vi
-    x[i] = x[i] + vi * dt
-'''
+# The kernels of bench/bench_cuda.py (saxpy, integrate), so both measure the same code.
+SOURCE = bench_cuda.SOURCE
 
 
 def run(lib, n: int, launches: int) -> None:

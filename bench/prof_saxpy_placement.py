@@ -18,13 +18,10 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "clients" / "python"))
 
 import bench_common as bc  # noqa: E402
+import bench_cuda  # noqa: E402
 
-SOURCE = '''
-@wp.kernel
-def saxpy(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):
-    i = wp.tid()
-    y[i] = a * x[i] + y[i]
-'''
+# The kernels of bench/bench_cuda.py (saxpy, integrate), so both measure the same code.
+SOURCE = bench_cuda.SOURCE
 
 
 def slope(lib, fn) -> float:
