@@ -541,12 +541,13 @@ class Runtime:
         point, doubling with each early Submit up to PUMP_AFTER_S; sending costs a few
         microseconds there, so a loop of launches starts the device after ~40 us instead of
         after PUMP_FIRST launches, a long loop still goes out in few frames, and a launch or
-        two followed by a sync stays one fused Submit) (caller holds the lock). Without this a batch waited for the next
-        synchronize, and the device idled while the client queued launches (Warp's launches
-        start at once). At most one Submit is in flight, so the daemon receives batches in
-        order (send_now, for ordered GPU launches, may add fast-lane Submits behind it: the lane keeps
-        frames in order); while one is on its way, commands accumulate. `_pump_at` starts at PUMP_FIRST
-        after each sync point and doubles with each asynchronous Submit, so a long run of
+        two followed by a sync stays one fused Submit) (caller holds the lock). Without this a
+        batch waited for the next synchronize, and the device idled while the client queued
+        launches (Warp's launches start at once). At most one Submit is in flight, so the
+        daemon receives batches in order (send_now, for ordered GPU launches, may add fast-lane
+        Submits behind it: the lane keeps frames in order); while one is on its way, commands
+        accumulate. `_pump_at` starts at PUMP_FIRST after each sync point and doubles with each
+        asynchronous Submit, so a long run of
         launches costs only a few extra round trips, while a short step (a few launches, then
         a sync) stays one fused Submit: an early Submit there would add a round trip. A failed
         asynchronous Submit (nothing of it was queued) is raised by the next synchronize, and
