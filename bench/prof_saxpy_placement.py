@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -19,25 +18,16 @@ sys.path.insert(0, str(HERE.parent / "clients" / "python"))
 
 import bench_common as bc  # noqa: E402
 import bench_cuda  # noqa: E402
+import bench_cuda_sync  # noqa: E402
 
 # The kernels of bench/bench_cuda.py (saxpy, integrate), so both measure the same code.
 SOURCE = bench_cuda.SOURCE
 
 
 def slope(lib, fn) -> float:
-    def rounds(r, k):
-        best = None
-        for _ in range(k):
-            lib.synchronize()
-            t = time.perf_counter()
-            for _ in range(r):
-                fn()
-            lib.synchronize()
-            dt = time.perf_counter() - t
-            best = dt if best is None else min(best, dt)
-        return best
+    """Seconds per launch: the slope between rounds of 4 and 32 launches (bench_cuda_sync's)."""
     fn()
-    return (rounds(32, 3) - rounds(4, 5)) / 28
+    return (bench_cuda_sync.round_time(lib, fn, 32, rounds=3) - bench_cuda_sync.round_time(lib, fn, 4)) / 28
 
 
 def cases(lib, n: int):

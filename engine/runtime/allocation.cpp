@@ -19,6 +19,17 @@ std::vector<int64_t> ContiguousStrides(const std::vector<int64_t>& shape, uint64
   return s;
 }
 
+bool HasContiguousStrides(const std::vector<int64_t>& shape, const std::vector<int64_t>& strides,
+                          uint64_t elem_size) {
+  if (strides.size() != shape.size()) return false;
+  int64_t step = static_cast<int64_t>(elem_size);
+  for (size_t i = shape.size(); i-- > 0;) {
+    if (strides[i] != step) return false;
+    if (__builtin_mul_overflow(step, shape[i] > 0 ? shape[i] : 1, &step)) return false;
+  }
+  return true;
+}
+
 std::string ShapeString(const std::vector<int64_t>& shape) {
   std::string s = "(";
   for (size_t i = 0; i < shape.size(); ++i) {

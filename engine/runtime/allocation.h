@@ -55,6 +55,10 @@ struct Allocation {
 
 // C-contiguous byte strides for `shape` with elements of `elem_size` bytes.
 std::vector<int64_t> ContiguousStrides(const std::vector<int64_t>& shape, uint64_t elem_size);
+// strides == ContiguousStrides(shape, elem_size), without building them (every launch checks
+// every array argument); false where the strides would overflow.
+bool HasContiguousStrides(const std::vector<int64_t>& shape, const std::vector<int64_t>& strides,
+                          uint64_t elem_size);
 std::string ShapeString(const std::vector<int64_t>& shape);   // "(2, 3)"
 
 }  // namespace weft

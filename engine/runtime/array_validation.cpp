@@ -8,19 +8,9 @@ namespace weft {
 Status CheckAllocationConsistent(const Allocation& a) {
   WEFT_RETURN_IF_ERROR(a.dtype.Validate());
   uint64_t bytes = 0;
-  // C-contiguous strides (ContiguousStrides), compared without building them; asked only once
-  // the shape's byte count is known not to overflow.
-  auto contiguous = [&] {
-    if (a.strides.size() != a.shape.size()) return false;
-    int64_t step = static_cast<int64_t>(a.dtype.ElementSize());
-    for (size_t i = a.shape.size(); i-- > 0;) {
-      if (a.strides[i] != step) return false;
-      if (__builtin_mul_overflow(step, a.shape[i] > 0 ? a.shape[i] : 1, &step)) return false;
-    }
-    return true;
-  };
   if (a.shape.empty() || a.shape.size() > static_cast<size_t>(kMaxArrayDims) ||
-      !CheckedShapeProduct(a.shape, a.dtype.ElementSize(), &bytes) || bytes != a.byte_size || !contiguous() ||
+      !CheckedShapeProduct(a.shape, a.dtype.ElementSize(), &bytes) || bytes != a.byte_size ||
+      !HasContiguousStrides(a.shape, a.strides, a.dtype.ElementSize()) ||
       a.byte_size > a.block.size || (a.byte_size > 0 && a.block.data == nullptr))
     return Internal("array " + std::to_string(a.handle) + " has an inconsistent layout (shape " +
                     ShapeString(a.shape) + ", " + std::to_string(a.byte_size) + " bytes); this is a daemon bug");

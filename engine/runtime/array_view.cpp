@@ -16,7 +16,7 @@ uint64_t ArrayView::element_count() const {
 }
 
 bool ArrayView::contiguous() const {
-  return strides == ContiguousStrides(shape, dtype().ElementSize());
+  return HasContiguousStrides(shape, strides, dtype().ElementSize());
 }
 
 Expected<ArrayView> MakeView(std::shared_ptr<Allocation> alloc, const ArrayRef& ref,

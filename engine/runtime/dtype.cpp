@@ -49,12 +49,20 @@ uint64_t DType::ElementSize() const {
 
 uint32_t DType::ComponentSize() const { return is_struct() ? 1 : ScalarSize(scalar); }
 
+// The structural name into `buf` (on the stack of the callers: MatchesParam runs for every array
+// argument of every launch); its length, or 0 when it does not fit.
+size_t DType::FormatStructuralName(char* buf, size_t size) const {
+  const char* s = ScalarName(scalar);
+  int n;
+  if (elem_shape.size() == 1) n = std::snprintf(buf, size, "vec(%u,%s)", elem_shape[0], s);
+  else if (elem_shape.size() == 2) n = std::snprintf(buf, size, "mat(%u,%u,%s)", elem_shape[0], elem_shape[1], s);
+  else n = std::snprintf(buf, size, "%s", s);
+  return n > 0 && static_cast<size_t>(n) < size ? static_cast<size_t>(n) : 0;
+}
+
 std::string DType::StructuralName() const {
-  std::string s = ScalarName(scalar);
-  if (elem_shape.size() == 1) return "vec(" + std::to_string(elem_shape[0]) + "," + s + ")";
-  if (elem_shape.size() == 2)
-    return "mat(" + std::to_string(elem_shape[0]) + "," + std::to_string(elem_shape[1]) + "," + s + ")";
-  return s;
+  char buf[kStructuralNameMax];
+  return std::string(buf, FormatStructuralName(buf, sizeof(buf)));
 }
 
 std::string DType::Name() const {
@@ -86,16 +94,8 @@ bool DType::MatchesParam(const std::string& param_dtype) const {
   if (param_dtype.empty() || param_dtype == "any") return true;
   if (!type_name.empty() && param_dtype == type_name) return true;
   if (is_struct()) return false;
-  // The structural name, formatted on the stack (every launch checks every array argument).
-  char buf[64];
-  const char* scalar_name = ScalarName(scalar);
-  int n;
-  if (elem_shape.empty()) return param_dtype == scalar_name;
-  if (elem_shape.size() == 1) n = std::snprintf(buf, sizeof(buf), "vec(%u,%s)", elem_shape[0], scalar_name);
-  else if (elem_shape.size() == 2)
-    n = std::snprintf(buf, sizeof(buf), "mat(%u,%u,%s)", elem_shape[0], elem_shape[1], scalar_name);
-  else return param_dtype == scalar_name;   // as StructuralName: more than 2 dimensions is refused by Validate
-  return n > 0 && static_cast<size_t>(n) < sizeof(buf) && param_dtype == std::string_view(buf, static_cast<size_t>(n));
+  char buf[kStructuralNameMax];
+  return param_dtype == std::string_view(buf, FormatStructuralName(buf, sizeof(buf)));
 }
 
 }  // namespace weft

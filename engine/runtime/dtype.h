@@ -49,6 +49,9 @@ struct DType {
   std::string Name() const;
   // The name built from scalar + elem_shape only (ignores type_name).
   std::string StructuralName() const;
+  // The same into buf without allocating: its length (0 when it does not fit).
+  static constexpr size_t kStructuralNameMax = 48;   // "mat(64,64,float64)" fits
+  size_t FormatStructuralName(char* buf, size_t size) const;
   // Checks the dtype describes a real element type.
   Status Validate() const;
   // True when a kernel parameter declared with element type `param_dtype` accepts this dtype

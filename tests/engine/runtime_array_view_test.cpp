@@ -240,5 +240,54 @@ TEST(ArrayView, ViewsAsAnotherDtypeAreCheckedWithThatType) {
   EXPECT_EQ(ValidateArray(vecs, flat, req).status().code(), StatusCode::kInvalidArgument);
 }
 
+// HasContiguousStrides answers exactly `strides == ContiguousStrides(shape, size)` on random
+// shapes (zero extents included) with one stride changed or not, and refuses strides whose
+// product would overflow instead of wrapping.
+TEST(ArrayView, ContiguityCheckMatchesTheBuiltStrides) {
+  std::mt19937_64 rng(std::random_device{}());
+  for (int trial = 0; trial < 2000; ++trial) {
+    std::vector<int64_t> shape(1 + rng() % 4);
+    for (auto& d : shape) d = static_cast<int64_t>(rng() % 6);   // 0..5
+    const uint64_t size = 1ull << (rng() % 5);
+    std::vector<int64_t> strides = ContiguousStrides(shape, size);
+    if (rng() % 2) strides[rng() % strides.size()] += 1 + static_cast<int64_t>(rng() % 3);
+    EXPECT_EQ(HasContiguousStrides(shape, strides, size), strides == ContiguousStrides(shape, size));
+  }
+  EXPECT_FALSE(HasContiguousStrides({2, 3}, {12}, 4));   // rank mismatch
+  const int64_t big = int64_t{1} << 40;
+  EXPECT_FALSE(HasContiguousStrides({big, big, 4}, {0, 16, 4}, 4));   // would overflow
+  EXPECT_TRUE(HasContiguousStrides({big, 4}, {16, 4}, 4));
+}
+
+// A kernel parameter's element type matches an allocation's dtype by its type name or by the
+// structural name formatted on the stack; every other name is refused, including the largest
+// matrix's name and near misses.
+TEST(ArrayView, DtypeMatchesParametersByNameOrStructure) {
+  DType f;
+  f.scalar = ScalarType::kFloat32;
+  EXPECT_TRUE(f.MatchesParam("float32"));
+  EXPECT_TRUE(f.MatchesParam("any"));
+  EXPECT_FALSE(f.MatchesParam("float64"));
+  DType v = f;
+  v.elem_shape = {3};
+  EXPECT_TRUE(v.MatchesParam("vec(3,float32)"));
+  EXPECT_FALSE(v.MatchesParam("vec(4,float32)"));
+  EXPECT_FALSE(v.MatchesParam("vec(3,float32"));
+  v.type_name = "vec3f";
+  EXPECT_TRUE(v.MatchesParam("vec3f"));
+  EXPECT_TRUE(v.MatchesParam("vec(3,float32)"));
+  DType m;
+  m.scalar = ScalarType::kFloat64;
+  m.elem_shape = {64, 64};
+  EXPECT_EQ(m.StructuralName(), "mat(64,64,float64)");
+  EXPECT_TRUE(m.MatchesParam("mat(64,64,float64)"));
+  EXPECT_FALSE(m.MatchesParam("mat(64,64,float32)"));
+  DType st;
+  st.struct_size = 12;
+  st.type_name = "struct(P)";
+  EXPECT_TRUE(st.MatchesParam("struct(P)"));
+  EXPECT_FALSE(st.MatchesParam("struct(Q)"));
+}
+
 }  // namespace
 }  // namespace weft
