@@ -7,7 +7,8 @@ Rows (each for weft and Warp, same kernel source):
   1e8 elements: time per launch (R launches, one sync), the rate in GB/s of bytes the kernel
   must move, that rate in % of the device-to-device copy rate (Torch's `copy_` of a 1e8-float
   array when Torch is there, else Warp's wp.copy), and the kernel-time ratio (Warp time / weft
-  time: >= 1.0 means weft is as fast or faster);
+  time: >= 1.0 means weft is as fast or faster); "saxpy lean" is the same saxpy declared
+  @wp.kernel(grid_stride=False) in both libraries (one index per thread, no loop);
 - cold compile (a kernel never seen: compile + load + first launch + sync);
 - warm module load from a second client process (the module compiled by the first one:
   weft's daemon holds it; Warp's comes from its kernel cache on disk);
@@ -57,6 +58,11 @@ def init_vec3(x: wp.array(dtype=wp.vec3), seed: int, scale: float):
 
 @wp.kernel
 def saxpy(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):
+    i = wp.tid()
+    y[i] = a * x[i] + y[i]
+
+@wp.kernel(grid_stride=False)
+def saxpy_lean(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):
     i = wp.tid()
     y[i] = a * x[i] + y[i]
 
@@ -171,6 +177,14 @@ def kernel_rows(lib, mod, sizes, reps_for):
         t = best_of(lib, lambda: lib.launch(mod.saxpy, dim=n, inputs=[x, y, alpha],
                                             device=dev), reps)
         out[("saxpy", n)] = (t, err)
+        # the same with the lean entry (@wp.kernel(grid_stride=False), both libraries)
+        lib.launch(mod.init_random, dim=n, inputs=[y, 2, 4.0], device=dev)
+        lib.launch(mod.saxpy_lean, dim=n, inputs=[x, y, alpha], device=dev)
+        got = y[:m].numpy().astype(np.float64)
+        lerr = float(np.max(np.abs(got - ref) / np.maximum(np.abs(ref), 1e-3)))
+        t = best_of(lib, lambda: lib.launch(mod.saxpy_lean, dim=n, inputs=[x, y, alpha],
+                                            device=dev), reps)
+        out[("saxpy lean", n)] = (t, lerr)
         del x, y
         px = lib.empty(n, dtype=lib.vec3, device=dev)
         pv = lib.empty(n, dtype=lib.vec3, device=dev)
@@ -371,7 +385,7 @@ def main():
                 "3-arg launch, sync each"):
         a, b = weft_r.get(key), warp_r.get(key)
         rows.append([key, bc.fmt_time(a), bc.fmt_time(b), bc.fmt_ratio(a, b), "", "", "", ""])
-    bytes_per = {"saxpy": 12, "integrate": 48}
+    bytes_per = {"saxpy": 12, "saxpy lean": 12, "integrate": 48}
     for (kname, n), (t, err) in sorted(weft_r.get("kernels", {}).items()):
         wt = warp_r.get("kernels", {}).get((kname, n))
         gbs = bytes_per[kname] * n / t

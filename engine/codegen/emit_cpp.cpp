@@ -183,7 +183,9 @@ class FnEmitter {
     fail_ = "return;";
     Line("// " + CommentText(BaseName(f_.file)) + ":" + std::to_string(f_.def_line) + ": @wp.kernel " + CommentText(f_.name) +
          (backward ? " (backward)" : ""));
-    std::string sig = "static inline WP_CALLABLE void " + name + "(const wp::launch_context_t* __ctx, const " +
+    // Forced inline: a body left out of line would take the kernel parameters' addresses
+    // across a call.
+    std::string sig = "static WP_FORCEINLINE WP_CALLABLE void " + name + "(const wp::launch_context_t* __ctx, const " +
                       args_struct + "& __args, ";
     if (backward) sig += "const " + args_struct + "& __adj_args, ";
     Line(sig + "wp::int64 __tid_flat) {");
@@ -1012,14 +1014,28 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
              "  const " + args_struct + "& __adj = *static_cast<const " + args_struct + "*>(__adj_args);\n"
              "  for (wp::int64 __i = __begin; __i < __end; ++__i) " + bwd + "(__ctx, __a, __adj, __i);\n}\n\n";
     } else {
-      std::string loop = "  for (wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x; __i < __ctx.bounds.size;"
-                         " __i += (wp::int64)blockDim.x * gridDim.x)\n";
-      o += "extern \"C\" __global__ void " + kl.forward_symbol + "(wp::launch_context_t __ctx, " + args_struct +
-           " __args) {\n" + loop + "    " + fwd + "(&__ctx, __args, __i);\n}\n\n";
+      // Grid-stride (the default, as Warp's): any grid, max_blocks allowed. Lean
+      // (grid_stride=False): one index per thread and an early return; the grid must cover the
+      // launch. Measured (bench/kernel_variants, saxpy 1e8 on an H100): 2.6% less time lean.
+      kl.grid_stride = options.grid_stride;
+      auto entry = [&](const std::string& symbol, const std::string& params, const std::string& call) {
+        o += "extern \"C\" __global__ void " + symbol + "(" + params + ") {\n";
+        if (options.grid_stride)
+          o += "  const wp::int64 __stride = (wp::int64)blockDim.x * gridDim.x;\n"
+               "  for (wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x; __i < __ctx.bounds.size; "
+               "__i += __stride)\n"
+               "    " + call + ";\n";
+        else
+          o += "  const wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;\n"
+               "  if (__i < __ctx.bounds.size) " + call + ";\n";
+        o += "}\n\n";
+      };
+      const std::string ctx_param = "const WP_GRID_CONSTANT wp::launch_context_t __ctx";
+      auto args_param = [&](const char* name) { return "const WP_GRID_CONSTANT " + args_struct + " " + name; };
+      entry(kl.forward_symbol, ctx_param + ", " + args_param("__args"), fwd + "(&__ctx, __args, __i)");
       if (options.enable_backward)
-        o += "extern \"C\" __global__ void " + kl.backward_symbol + "(wp::launch_context_t __ctx, " + args_struct +
-             " __args, " + args_struct + " __adj_args) {\n" + loop + "    " + bwd +
-             "(&__ctx, __args, __adj_args, __i);\n}\n\n";
+        entry(kl.backward_symbol, ctx_param + ", " + args_param("__args") + ", " + args_param("__adj_args"),
+              bwd + "(&__ctx, __args, __adj_args, __i)");
     }
     o.replace(entry_start, std::string::npos, MapToDefLine(f, o.substr(entry_start)));
     gm.kernels.push_back(std::move(kl));

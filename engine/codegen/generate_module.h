@@ -41,6 +41,9 @@ struct KernelLayout {
   // Why the kernel has no adjoint (code it reaches whose adjoint cannot be generated, such as a
   // differentiable `a[i].x *= v`): the located error that generating it gives; empty if none.
   std::string adjoint_refused;
+  // The CUDA entries stride over the grid (CodegenOptions::grid_stride); false: the launch
+  // must use a grid that covers its size, and max_blocks is refused.
+  bool grid_stride = true;
 };
 
 struct GeneratedModule {
@@ -57,6 +60,10 @@ struct CodegenOptions {
   int max_block_depth = 100;
   int max_expression_depth = 1000;
   bool loop_cancel_poll = true;   // loops poll the launch's cancel word (wp::cg_loop_poll)
+  // CUDA entries: a grid-stride loop (any grid size, max_blocks) or, false, one index per
+  // thread with an early return (Warp's grid_stride=False: fewer registers and instructions,
+  // the grid must cover the launch). No effect on CPU entries.
+  bool grid_stride = true;
 };
 
 // On failure returns InvalidArgument and appends the user-facing diagnostics to *diags.

@@ -1103,6 +1103,17 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   ctx.geometry = reinterpret_cast<const wp::geometry_table_t*>(static_cast<uintptr_t>(geometry));
   ctx.report_flag = reinterpret_cast<wp::int32*>(static_cast<uintptr_t>(st->report_device));
   const unsigned block = l.block_dim ? l.block_dim : 256;
+  if (!l.kernel->layout.grid_stride) {   // one index per thread: the grid must cover the launch
+    if (l.max_blocks > 0)
+      return InvalidArgument("kernel '" + l.kernel->layout.name + "' was launched with max_blocks=" +
+                             std::to_string(l.max_blocks) +
+                             ", but it was compiled without a grid-stride loop (grid_stride=False); capping the block "
+                             "count requires @wp.kernel(grid_stride=True)");
+    if ((static_cast<uint64_t>(ctx.bounds.size) + block - 1) / block > 0x7fffffffull)
+      return InvalidArgument("kernel '" + l.kernel->layout.name + "': launch of " + std::to_string(ctx.bounds.size) +
+                             " threads needs more blocks than one grid holds without a grid-stride loop; use "
+                             "@wp.kernel(grid_stride=True)");
+  }
   const unsigned grid = GridFor(static_cast<uint64_t>(ctx.bounds.size), block, l.max_blocks);
   void* args = const_cast<char*>(l.args->block.data());
   void* adj = adjoint ? const_cast<char*>(l.adj_args->block.data()) : nullptr;

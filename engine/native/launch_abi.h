@@ -8,9 +8,24 @@
 // Cold paths (error reports) kept out of line: inlined at every call site they multiply the
 // code NVRTC optimizes (a geometry query's failure message cost ~10 s of NVRTC per kernel).
 #define WP_NOINLINE __noinline__
+#define WP_FORCEINLINE __forceinline__
 #else
 #define WP_CALLABLE
 #define WP_NOINLINE __attribute__((noinline))
+#define WP_FORCEINLINE inline __attribute__((always_inline))
+#endif
+
+// On a CUDA kernel's parameters (the launch context and the argument block), whose addresses the
+// kernel body takes: with __grid_constant__ (sm_70 and later) a pointer to them points into the
+// parameter space; without it, a pointer that reaches a call not inlined (the out-of-line error
+// and geometry paths above) makes every thread copy the parameters into local memory first.
+// (-DWP_GRID_CONSTANT= turns it off; a test measures what it saves.)
+#ifndef WP_GRID_CONSTANT
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 700
+#define WP_GRID_CONSTANT
+#else
+#define WP_GRID_CONSTANT __grid_constant__
+#endif
 #endif
 
 namespace wp {
@@ -126,6 +141,7 @@ struct array_abi_t {
 //         runs flat indices [begin, end) of the launch grid.
 //         void weft_K_cpu_backward(const wp::launch_context_t* ctx, const void* args,
 //                                  const void* adj_args, wp::int64 begin, wp::int64 end);
-//   CUDA: extern "C" __global__ void weft_K_cuda_forward(wp::launch_context_t ctx, <args struct> args);
+//   CUDA: extern "C" __global__ void weft_K_cuda_forward(const WP_GRID_CONSTANT wp::launch_context_t ctx,
+//                                                       const WP_GRID_CONSTANT <args struct> args);
 // `args` points at the packed argument block whose layout the compiler reports per parameter
 // (KernelInfo: offset, size); arrays occupy sizeof(wp::array_abi_t) = 88 bytes, 8-aligned.

@@ -383,6 +383,9 @@ class ModuleStoreImpl final : public ModuleStore {
     auto poll = source.options.find("cancel_poll");
     variant.codegen.loop_cancel_poll =
         poll == source.options.end() || (poll->second != "false" && poll->second != "False" && poll->second != "0");
+    auto stride = source.options.find("grid_stride");
+    variant.codegen.grid_stride =
+        stride == source.options.end() || (stride->second != "false" && stride->second != "False" && stride->second != "0");
     return variant;
   }
 

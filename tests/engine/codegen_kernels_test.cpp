@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "engine/codegen/generate_module.h"
+#include "engine/native/launch_abi.h"
 
 #if WEFT_WITH_CUDA
 #include "engine/jit/cuda/nvrtc_compiler.h"
@@ -112,6 +113,65 @@ void ExpectCompiles(const ModuleSource& m, bool cuda = false) {
       o.target = Target::kCuda;
       EXPECT_EQ(CompileWith(m, o), "") << "cuda backward=" << backward;
     }
+  }
+}
+
+// CUDA entries take the launch context and the argument block as __grid_constant__ parameters:
+// a kernel whose body hands their address to an out-of-line path (here the geometry error
+// report of wp.mesh_get_point) addresses them in the parameter space (cvta.param) instead of
+// making every thread copy them to local memory first. The entries stride over the grid by
+// default; grid_stride=false gives one index per thread (no loop) and says so in the layout.
+TEST(CodegenKernels, CudaEntriesUseGridConstantParametersAndOptionalGridStride) {
+  ModuleSource m;
+  m.name = "entry_mod";
+  m.symbols.push_back(Wp());
+  m.functions.push_back(Fn("points",
+                           "def points(mesh: wp.uint64, out: wp.array(dtype=wp.vec3)):\n"
+                           "    i = wp.tid()\n"
+                           "    out[i] = wp.mesh_get_point(mesh, i)\n",
+                           {"uint64", "array(vec(3,float32),1)"}, {"mesh", "out"}));
+  for (bool stride : {true, false}) {
+    CodegenOptions o;
+    o.target = Target::kCuda;
+    o.enable_backward = true;
+    o.grid_stride = stride;
+    std::vector<Diagnostic> diags;
+    auto gm = GenerateModule(m, o, &diags);
+    ASSERT_TRUE(gm.ok()) << gm.status().message();
+    const std::string& src = gm->source;
+    const size_t entry = src.find("void weft_points_cuda_forward(");
+    ASSERT_NE(entry, std::string::npos) << src;
+    const std::string fwd = src.substr(entry, src.find("\n}\n", entry) - entry);
+    EXPECT_NE(fwd.find("const WP_GRID_CONSTANT wp::launch_context_t __ctx, const WP_GRID_CONSTANT"), std::string::npos) << fwd;
+    EXPECT_EQ(fwd.find("for (") != std::string::npos, stride) << fwd;
+    ASSERT_EQ(gm->kernels.size(), 1u);
+    EXPECT_EQ(gm->kernels[0].grid_stride, stride);
+    EXPECT_EQ(CompileWith(m, o), "") << "grid_stride=" << stride;
+#if WEFT_WITH_CUDA
+    if (!jit::NvrtcVersion().ok()) continue;
+    // The entry's own local memory (PTX), with the parameters as generated and with
+    // __grid_constant__ turned off.
+    auto entry_local_bytes = [&](bool grid_constant) -> long {
+      jit::NvrtcOptions n;
+      n.sm = 90;
+      n.cubin = false;   // PTX, to read the entry
+      n.include_dirs = {WEFT_NATIVE_DIR};
+      n.extra_flags = {"--fmad=false"};
+      if (!grid_constant) n.extra_flags.push_back("-DWP_GRID_CONSTANT=");
+      auto ptx = jit::NvrtcCompile(src, "entry_mod.cu", n);
+      EXPECT_TRUE(ptx.ok()) << ptx.status().message();
+      if (!ptx.ok()) return -1;
+      const std::string text(ptx->image.begin(), ptx->image.end());
+      const size_t at = text.find(".entry weft_points_cuda_forward(");
+      EXPECT_NE(at, std::string::npos);
+      const std::string body = text.substr(at, text.find("\n}\n", at) - at);
+      const size_t depot = body.find("__local_depot0[");
+      return depot == std::string::npos ? 0 : std::stol(body.substr(depot + 15));
+    };
+    const long with = entry_local_bytes(true), without = entry_local_bytes(false);
+    EXPECT_GE(without - with, static_cast<long>(sizeof(wp::launch_context_t)))
+        << "per-thread local memory of the entry: " << with << " bytes with __grid_constant__, " << without << " without";
+#endif
   }
 }
 

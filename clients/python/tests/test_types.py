@@ -198,9 +198,10 @@ def test_array_annotations_need_no_daemon():
 
 def test_bracket_array_annotations():
     alias = wp.array[wp.vec3]
-    assert alias.__origin__ is wp.array and alias.__args__ == (wp.vec3,)
+    assert alias.dtype is wp.vec3 and alias.ndim == 1
     alias2 = wp.array2d[float]
-    assert alias2.__origin__._default_ndim_ == 2 and alias2.__args__ == (float,)
+    assert alias2.dtype is wp.float32 and alias2.ndim == 2
+    assert types.type_str(alias2) == "array(float32,2)"
     assert types.type_str(wp.array4d(dtype=wp.mat22)) == "array(mat(2,2,float32),4)"
 
 

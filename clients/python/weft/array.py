@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import ctypes
 import math
-import types as _types_module
 import warnings
 import weakref
 from typing import Any
@@ -22,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from . import _cuda_ipc, _runtime, types
+from . import array_annotations as _array_annotations
 from . import config as _config
 from .device import Device, get_device
 from .errors import WeftError
@@ -459,9 +459,9 @@ class array:
 
     _default_ndim_ = 1
 
-    def __class_getitem__(cls, dtype):
-        # wp.array[float] as an annotation: a typing alias (origin array, args (dtype,)).
-        return _types_module.GenericAlias(cls, (dtype,))
+    def __class_getitem__(cls, params):
+        # wp.array[float], wp.array[float, Literal[2]]: an annotation object (dtype, ndim).
+        return _array_annotations.subscript("array", params)
 
     # -- construction
     def __init__(self, data=None, dtype: Any = Any, shape=None, strides=None, length=None,
@@ -1259,7 +1259,7 @@ def _struct_bytes(dtype, value) -> bytes:
 
 class _ArrayOfDim:
     """wp.array1d..array4d: call like wp.array with that ndim, or subscript for annotations
-    (wp.array2d[float] is a typing alias with origin array2d and args (float,))."""
+    (wp.array2d[float] is the annotation wp.array[float, Literal[2]], weft.array_annotations)."""
 
     def __init__(self, ndim: int):
         self._default_ndim_ = ndim
@@ -1271,8 +1271,8 @@ class _ArrayOfDim:
         kwargs["ndim"] = self._default_ndim_
         return array(*args, **kwargs)
 
-    def __getitem__(self, dtype):
-        return _types_module.GenericAlias(self, (dtype,))
+    def __getitem__(self, params):
+        return _array_annotations.subscript_fixed_ndim("array", self.__name__, self.ndim, params)
 
     def __repr__(self):
         return f"<weft {self.__name__}>"

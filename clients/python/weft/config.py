@@ -85,7 +85,7 @@ deterministic_debug = False
 
 
 _COMPILE_SETTINGS = ("mode", "verify_fp", "enable_vector_component_overwrites",
-                     "optimization_level", "max_unroll", "enable_backward")
+                     "optimization_level", "max_unroll", "enable_backward", "default_grid_stride")
 
 
 class _ConfigModule(_types.ModuleType):

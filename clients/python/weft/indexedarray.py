@@ -10,13 +10,13 @@ the generated code checks every index value against the data array at each acces
 """
 from __future__ import annotations
 
-import types as _types_module
 import typing
 
 import numpy as np
 
 import sys
 
+from . import array_annotations as _array_annotations
 from . import types
 from .array import array as _array_cls  # noqa: F401 - the module is weft.array
 
@@ -59,10 +59,8 @@ class indexedarray:
     _indexed_ = True
 
     def __class_getitem__(cls, params):
-        # wp.indexedarray[float] / wp.indexedarray[float, Literal[2]] as annotations.
-        if not isinstance(params, tuple):
-            params = (params,)
-        return _types_module.GenericAlias(cls, params)
+        # wp.indexedarray[float] / wp.indexedarray[float, Literal[2]]: annotation objects.
+        return _array_annotations.subscript("indexedarray", params)
 
     def __init__(self, data=None, indices=None, dtype=typing.Any, ndim=None):
         self.indices = []
@@ -241,8 +239,8 @@ class _IndexedOfDim:
     def __call__(self, data=None, indices=None, dtype=typing.Any, ndim=None):
         return indexedarray(data, indices, dtype, self._default_ndim_)
 
-    def __getitem__(self, dtype):
-        return _types_module.GenericAlias(self, (dtype,))
+    def __getitem__(self, params):
+        return _array_annotations.subscript_fixed_ndim("indexedarray", self.__name__, self.ndim, params)
 
     def __repr__(self):
         return f"<weft {self.__name__}>"

@@ -661,7 +661,8 @@ def vector(length, dtype):
 def matrix(shape, dtype):
     """The matrix type of `shape` (rows, cols) of `dtype` (Warp's wp.types.matrix)."""
     if len(shape) != 2:
-        raise ValueError(f"Matrix shape must have two dimensions, got {shape}")
+        raise ValueError(f"Matrix shape must have exactly two dimensions, got {len(shape)} "
+                         f"dimension{'' if len(shape) == 1 else 's'} in shape {tuple(shape)}")
     pattern = _scalar_pattern(dtype)
     if Any in tuple(shape) or pattern is not None:
         scalar = pattern or _composite_scalar(dtype)._type_str
@@ -796,6 +797,66 @@ vector_types = tuple(_typed.values())
 
 
 # ------------------------------------------------------------------------------------------
+# Subscript generics (Warp 1.19): Vector[float, Literal[3]] is vector(3, float32),
+# Matrix[float, 3, 3] matrix((3, 3), float32), Quaternion[T] quaternion(T),
+# Transformation[T] transformation(T): the same cached classes.
+
+
+def _positive_extent(value, what: str) -> int:
+    from .array_annotations import single_literal
+
+    value = single_literal(value, what)
+    if isinstance(value, _py_bool) or not isinstance(value, _py_int) or value <= 0:
+        raise TypeError(f"{what} must be a positive integer, got {value!r}")
+    return value
+
+
+def _subscript_params(params, count: int, name: str, usage: str) -> tuple:
+    params = params if isinstance(params, tuple) else (params,)
+    if len(params) != count:
+        raise TypeError(f"{name}[...] requires {count} parameters ({usage}), got {len(params)}")
+    return params
+
+
+class Vector:
+    """Vector[dtype, length]: the vector type vector(length, dtype)."""
+
+    def __class_getitem__(cls, params):
+        dtype, length = _subscript_params(params, 2, "Vector", "dtype, length")
+        return vector(_positive_extent(length, "Vector length"), dtype)
+
+
+class Matrix:
+    """Matrix[dtype, rows, cols]: the matrix type matrix((rows, cols), dtype)."""
+
+    def __class_getitem__(cls, params):
+        dtype, rows, cols = _subscript_params(params, 3, "Matrix", "dtype, rows, cols")
+        return matrix((_positive_extent(rows, "Matrix rows"), _positive_extent(cols, "Matrix cols")),
+                      dtype)
+
+
+class Quaternion:
+    """Quaternion[dtype]: the quaternion type quaternion(dtype)."""
+
+    def __class_getitem__(cls, dtype):
+        return quaternion(dtype)
+
+
+class Transformation:
+    """Transformation[dtype]: the transform type transformation(dtype)."""
+
+    def __class_getitem__(cls, dtype):
+        return transformation(dtype)
+
+
+# The generic each composite class belongs to (Warp's type_is_vector & co. read it).
+_Vector._wp_generic_type_hint_ = Vector
+_Matrix._wp_generic_type_hint_ = Matrix
+_Quaternion._wp_generic_type_hint_ = Quaternion
+_Transformation._wp_generic_type_hint_ = Transformation
+
+
+# ------------------------------------------------------------------------------------------
 # Type queries and type strings
 
 
@@ -832,9 +893,46 @@ def is_value(x) -> _py_bool:
 
 
 def is_array(x) -> _py_bool:
+    """True for an array of any family (array, indexedarray) and for an array annotation
+    (wp.array[float], wp.indexedarray(dtype=float), wp.fabricarray[float]), as Warp's."""
+    import importlib
+
+    from . import array_annotations
+
+    return isinstance(x, (array_annotations._ArrayAnnotationBase,
+                          importlib.import_module("weft.array").array,
+                          importlib.import_module("weft.indexedarray").indexedarray))
+
+
+def is_array_instance(x) -> _py_bool:
+    """True for a weft.array (memory in weftd, or a null array used as an annotation)."""
     import importlib
 
     return isinstance(x, importlib.import_module("weft.array").array)
+
+
+def type_is_vector(t) -> _py_bool:
+    """True for a vector type (not a quaternion or transform), as Warp's."""
+    return isinstance(t, type) and getattr(t, "_wp_generic_type_hint_", None) is Vector
+
+
+def type_is_matrix(t) -> _py_bool:
+    return isinstance(t, type) and getattr(t, "_wp_generic_type_hint_", None) is Matrix
+
+
+def type_is_quaternion(t) -> _py_bool:
+    return isinstance(t, type) and getattr(t, "_wp_generic_type_hint_", None) is Quaternion
+
+
+def type_is_transformation(t) -> _py_bool:
+    return isinstance(t, type) and getattr(t, "_wp_generic_type_hint_", None) is Transformation
+
+
+def is_tile(t) -> _py_bool:
+    """True for a tile annotation (wp.tile[float, 8, 4]; weft.tile)."""
+    from .tile import is_tile as _is_tile
+
+    return _is_tile(t)
 
 
 def is_dtype(t) -> _py_bool:
@@ -1030,10 +1128,26 @@ def value_to_bytes(dtype, value) -> bytes:
     return np.ascontiguousarray(arr, dtype=dtype._np_dtype_).tobytes()
 
 
+_LAZY_ATTRIBUTES = {
+    # wp.types.array & co. live in modules that import this one: looked up when first used.
+    **{n: "weft.array" for n in ("array", "array1d", "array2d", "array3d", "array4d")},
+    **{n: "weft.fabricarray" for n in ("fabricarray", "indexedfabricarray")},
+    **{n: "weft.array_annotations" for n in (
+        "ARRAY_TYPE_REGULAR", "ARRAY_TYPE_INDEXED", "ARRAY_TYPE_FABRIC", "ARRAY_TYPE_FABRIC_INDEXED",
+        "_ArrayAnnotationBase", "_ArrayAnnotation", "_IndexedArrayAnnotation",
+        "_FabricArrayAnnotation", "_IndexedFabricArrayAnnotation", "array_type_id",
+        "concrete_array_type", "matches_array_class", "get_type_code")},
+}
+
+
 def __getattr__(name):
-    # wp.types.array & co. live in weft.array (imported lazily: it imports this module).
-    if name in ("array", "array1d", "array2d", "array3d", "array4d"):
+    module = _LAZY_ATTRIBUTES.get(name)
+    if module is not None:
         import importlib
 
-        return getattr(importlib.import_module("weft.array"), name)
+        return getattr(importlib.import_module(module), name)
     raise AttributeError(f"module 'weft.types' has no attribute '{name}'")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY_ATTRIBUTES))

@@ -113,5 +113,6 @@ def test_launch_argument_errors(wp):
     with pytest.raises(Exception, match="not contiguous"):
         wp.launch(vec_norms, dim=4, inputs=[np.zeros((4, 6), np.float32)[:, ::2], y],
                   device="cpu")
-    with pytest.raises(Exception, match="expected an array of float32 with 1 dimension"):
+    with pytest.raises(RuntimeError, match=r"expects an array of type array\(ndim=1, dtype=float32\), "
+                                           r"but passed value has type object"):
         wp.launch(scale_add, dim=4, inputs=[object(), y, 1.0], device="cpu")

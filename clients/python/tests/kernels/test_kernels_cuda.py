@@ -22,6 +22,12 @@ def saxpy(a: float, x: wp.array(dtype=float), y: wp.array(dtype=float)):
     y[i] = a * x[i] + y[i]
 
 
+@wp.kernel(grid_stride=False)
+def saxpy_lean(a: float, x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = a * x[i] + y[i]
+
+
 @wp.kernel
 def integrate(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), g: wp.vec3, dt: float):
     i = wp.tid()
@@ -84,6 +90,38 @@ def test_block_dim_and_max_blocks(wp, gpu, rng, block_dim, max_blocks):
     y = wp.zeros(n, dtype=float, device=gpu)
     wp.launch(saxpy, dim=n, inputs=[2.0, x, y], device=gpu, block_dim=block_dim, max_blocks=max_blocks)
     np.testing.assert_allclose(y.numpy(), 2.0 * x0.astype(np.float64), rtol=1e-6)
+
+
+@pytest.mark.parametrize("n,block_dim", [(1, 256), (100_003, 256), (65_537, 32), (1 << 20, 1024)])
+def test_lean_kernels_cover_every_index(wp, gpu, rng, n, block_dim):
+    """grid_stride=False: one index per thread; the runtime's grid covers the launch exactly."""
+    x0 = rng.standard_normal(n).astype(np.float32) * np.float32(1e20)
+    y0 = rng.standard_normal(n).astype(np.float32) * np.float32(1e-20)
+    x = wp.array(x0, dtype=float, device=gpu)
+    y = wp.array(y0, dtype=float, device=gpu)
+    wp.launch(saxpy_lean, dim=n, inputs=[-0.5, x, y], device=gpu, block_dim=block_dim)
+    ref = -0.5 * x0.astype(np.float64) + y0.astype(np.float64)
+    np.testing.assert_allclose(y.numpy(), ref, rtol=1e-6)
+
+
+def test_lean_kernels_refuse_max_blocks(wp, gpu, monkeypatch):
+    x = wp.zeros(1000, dtype=float, device=gpu)
+    with pytest.raises(RuntimeError, match=r"max_blocks=4, but it was compiled without a grid-stride loop"):
+        wp.launch(saxpy_lean, dim=1000, inputs=[1.0, x, x], device=gpu, max_blocks=4)
+    with pytest.raises(RuntimeError, match=r"max_blocks=4, but it was compiled without a grid-stride loop"):
+        wp.launch(saxpy_lean, dim=1000, inputs=[1.0, x, x], device=gpu, max_blocks=4, record_cmd=True)
+    # a client that skips its own check is refused by the daemon (at the next sync)
+    import weft._kernel.module as module_mod
+
+    monkeypatch.setattr(module_mod, "grid_stride_of", lambda kernel: True)
+    with pytest.raises(RuntimeError, match=r"kernel 'saxpy_lean' was launched with max_blocks=4, but it was "
+                                           r"compiled without a grid-stride loop"):
+        wp.launch(saxpy_lean, dim=1000, inputs=[1.0, x, x], device=gpu, max_blocks=4)
+        wp.synchronize_device(gpu)
+    monkeypatch.undo()
+    # the session goes on
+    wp.launch(saxpy_lean, dim=1000, inputs=[1.0, x, x], device=gpu)
+    wp.synchronize_device(gpu)
 
 
 def test_out_of_bounds_is_reported_like_the_cpu(wp, gpu):

@@ -2,6 +2,7 @@
 tuple), strided views (slices), .shape and len(), arrays of vectors, and NumPy arrays passed
 directly on a CPU launch with in-place writes copied back into the caller's array."""
 import numpy as np
+import pytest
 
 import weft as wp
 
@@ -104,8 +105,11 @@ def test_numpy_arguments_are_copied_back(wp, rng):
     expected = a * 3.0
     wp.launch(scale_inplace, dim=len(a), inputs=[a, 3.0], device="cpu")
     np.testing.assert_allclose(a, expected, rtol=1e-6)
-    # a list is accepted (no place to copy back to)
-    wp.launch(scale_inplace, dim=3, inputs=[[1.0, 2.0, 3.0], 2.0], device="cpu")
+    # a list is no array (as in Warp): refused before anything is sent
+    with pytest.raises(RuntimeError, match=r"argument 'a'.*expects an array of type "
+                                           r"array\(ndim=1, dtype=float32\), but passed value "
+                                           r"has type list"):
+        wp.launch(scale_inplace, dim=3, inputs=[[1.0, 2.0, 3.0], 2.0], device="cpu")
     wp.synchronize()
 
 

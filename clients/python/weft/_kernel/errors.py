@@ -55,5 +55,6 @@ def compile_error(message: str, diagnostics=()) -> WeftCompileError:
     return _BY_KIND.get(kind, WeftCompileError)(message, diagnostics)
 
 
-class WeftLaunchError(TypeError):
-    """Wrong arguments to wp.launch (count, type, dtype, ndim), found before sending."""
+class WeftLaunchError(TypeError, RuntimeError):
+    """Wrong arguments to wp.launch (count, type, dtype, ndim), found before sending. A
+    TypeError, and a RuntimeError as Warp raises for an array argument that does not match."""

@@ -9,6 +9,7 @@ import re
 import textwrap
 import typing
 
+from ..tile import is_tile
 from . import typestr
 from .errors import WeftCompileError
 from .structs import canonical_name
@@ -54,6 +55,14 @@ class FunctionDefinition:
                     f"'{self.name}' needs a type annotation")
             ann = hints[name]
             self.annotations[name] = ann
+            if is_tile(ann):
+                # Defined, as in Warp; building a kernel that calls it fails (see static_error).
+                self.param_types.append(f"tile:{ann!r}")
+                if self.static_error is None:
+                    self.static_error = (f"{self.file}:{self.first_line}: error: parameter '{name}' "
+                                         f"of '{self.name}' is a tile ({ann!r}): weft does not "
+                                         f"implement tile programming")
+                continue
             try:
                 self.param_types.append(typestr.type_string(ann))
             except TypeError as err:

@@ -220,13 +220,15 @@ class ArgPacker:
         if value is None:
             return types_pb2.ArrayRef(handle=0), None
         if not is_weft_array(value):
-            if isinstance(value, (np.ndarray, list, tuple)) or any(
+            if isinstance(value, np.ndarray) or any(
                     hasattr(value, attr) for attr in ("__array__", "__array_interface__",
                                                       "__dlpack__", "__cuda_array_interface__")):
                 value = self._temporary(name, desc, annotation, value)
             else:
-                self._fail(name, f"expected an array of {desc.elem.text} with {desc.ndim} "
-                                 f"dimension(s), got {type(value).__name__}")
+                # Warp's message; a list or tuple is no array either (as in Warp)
+                self._fail(name, f"expects an array of type "
+                                 f"array(ndim={desc.ndim}, dtype={desc.elem.text}), but passed "
+                                 f"value has type {type(value).__name__}")
         got = _dtype_text(value.dtype)
         if desc.elem.kind != "any" and got != desc.elem.text:
             self._fail(name, f"expected an array of dtype {desc.elem.text}, got an array of "
@@ -717,6 +719,12 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         dims = normalize_dim(dim)
     args = [*inputs, *outputs] if outputs else list(inputs or [])
     device = _launch_device(device, args)
+    if max_blocks and max_blocks > 0 and device.startswith("cuda") and not module_mod.grid_stride_of(kernel):
+        raise WeftLaunchError(
+            f"Kernel '{kernel.key}' was launched with max_blocks={max_blocks}, but it was compiled "
+            f"without a grid-stride loop (grid_stride=False); capping the block count requires a "
+            f"grid-stride loop: @wp.kernel(grid_stride=True), the \"default_grid_stride\" module "
+            f"option or wp.config.default_grid_stride=True")
     if record_cmd:
         return Launch(kernel, device, dims, args,
                       list(adj_inputs or []) + list(adj_outputs or []), adjoint,
@@ -944,4 +952,5 @@ class Launch:
     def launch(self, stream=None) -> None:
         launch(self.kernel, self.dim, inputs=self.fwd_args,
                adj_inputs=self.adj_args if self.adjoint else (), adjoint=self.adjoint,
-               device=self.device, record_tape=False)
+               device=self.device, record_tape=False, max_blocks=self.max_blocks,
+               block_dim=self.block_dim)

@@ -161,6 +161,11 @@ def register_function(definition: FunctionDefinition) -> Function:
         return existing
 
 
+def grid_stride_of(kernel: Kernel) -> bool:
+    """Whether the kernel's CUDA entries stride over the grid (see build_options)."""
+    return build_options(kernel).get("grid_stride", True) is not False
+
+
 def build_options(kernel: Kernel) -> dict:
     """The options a kernel's module is compiled with: wp.config's compile settings, then the
     global and module options, then the kernel's own; unset (None) values are left out."""
@@ -171,6 +176,14 @@ def build_options(kernel: Kernel) -> dict:
         if value is not None:
             options[key] = value
     options.update({k: v for k, v in kernel.options.items() if k != "module" and v is not None})
+    # CUDA entries: a grid-stride loop unless the kernel, then the module ("default_grid_stride"),
+    # then wp.config.default_grid_stride says otherwise; sent only when off (the daemon's default).
+    default_stride = options.pop("default_grid_stride", None)
+    stride = options.pop("grid_stride", None)
+    if stride is None:
+        stride = config.default_grid_stride if default_stride is None else default_stride
+    if not stride:
+        options["grid_stride"] = False
     if options.get("mode") not in ("release", "debug"):
         raise ValueError(f"module option 'mode' must be 'release' or 'debug', got "
                          f"{options.get('mode')!r}")

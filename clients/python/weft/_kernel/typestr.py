@@ -247,6 +247,11 @@ def type_string(obj) -> str:
         return "any"
     if getattr(obj, "_weft_function_type_", False) and isinstance(obj, type):
         return "function"      # wp.Function: a parameter taking a @wp.func or builtin
+    if getattr(obj, "_fabric_", False) is True:
+        raise TypeError(f"{obj!r}: weft does not support Fabric arrays in kernels")
+    if typing.get_origin(obj) is typing.Union or type(obj).__name__ == "UnionType":
+        raise TypeError("Union type annotations are only supported at Python scope and are "
+                        "invalid in Warp kernels/functions")
     if getattr(typing.get_origin(obj), "__name__", "") == "ref" and \
             getattr(typing.get_origin(obj), "__module__", "").startswith("weft."):
         return f"ref({type_string(typing.get_args(obj)[0])})"

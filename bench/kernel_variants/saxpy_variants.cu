@@ -1,0 +1,263 @@
+// saxpy kernel variants timed side by side on one GPU: the kernel weft generated before
+// __grid_constant__ (its entry loop and bounds-checked body, copied from WEFT_DUMP_IR output of
+// `y[i] = a * x[i] + y[i]`), and variants that each change one thing (no grid-stride loop, as
+// weft's grid_stride=False; the error report out of line, with and without __grid_constant__
+// parameters; no checks; a lean kernel with int32 shape and strides), beside a device copy of
+// the same bytes. Built by bench/kernel_variants/build.sh with the flags weft's NVRTC uses
+// (-std=c++17 --fmad=false) and run on the GPU machine (scripts/gpu-run's WEFT_GPU_BENCH).
+// Prints one row per variant and size: time per launch (median of 7 rounds), GB/s (12 bytes
+// per element), share of the copy rate, and the max error against a float64 reference.
+#include <cuda_runtime.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <vector>
+
+#include "weft.h"
+#include "codegen_support.h"
+
+struct alignas(8) saxpy_args {
+  wp::array_t<wp::float32> p0;  // x
+  wp::array_t<wp::float32> p1;  // y
+  wp::float32 p2;               // a
+};
+
+// The body weft generates (forward, bounds-checked), as emitted.
+static inline __device__ void saxpy_body(const wp::launch_context_t* __ctx, const saxpy_args& __args,
+                                         wp::int64 __tid_flat) {
+  wp::array_t<wp::float32> var_0 = __args.p0;
+  wp::array_t<wp::float32> var_1 = __args.p1;
+  wp::float32 var_2 = __args.p2;
+  wp::int32 var_4 = wp::int32(__tid_flat);
+  if (!wp::cg_check(__ctx, 0, 5, 0, "x", var_0, var_4, 0, 0, 0, 1)) return;
+  if (!wp::cg_check(__ctx, 0, 5, 1, "y", var_1, var_4, 0, 0, 0, 1)) return;
+  wp::float32 var_5 = wp::load(var_0, var_4);
+  wp::float32 var_6 = wp::mul(var_2, var_5);
+  wp::float32 var_7 = wp::load(var_1, var_4);
+  wp::float32 var_8 = wp::add(var_6, var_7);
+  wp::store(var_1, var_4, var_8);
+}
+
+// The failure path of a check, out of line: the hot path keeps only compares and a branch.
+template <typename T>
+__device__ __noinline__ void report_check_failure(const wp::launch_context_t* ctx, wp::int32 line, wp::int32 param,
+                                                  const char* name, const wp::array_t<T>& a, wp::int64 i) {
+  const wp::int64 idx[wp::ARRAY_MAX_DIMS] = {i, 0, 0, 0};
+  wp::report_error(ctx, a.data ? wp::LAUNCH_OUT_OF_BOUNDS : wp::LAUNCH_NULL_ARRAY, 0, line, param, 1, idx, a.shape, name);
+}
+template <typename T>
+static inline __device__ bool check_cold(const wp::launch_context_t* ctx, wp::int32 line, wp::int32 param, const char* name,
+                                         const wp::array_t<T>& a, wp::int64 i) {
+  if (ctx->flags & wp::LAUNCH_FLAG_NO_BOUNDS_CHECK) return true;
+  if (a.data != nullptr && wp::in_range(i, a.shape[0])) return true;
+  report_check_failure(ctx, line, param, name, a, i);
+  return false;
+}
+static inline __device__ void saxpy_body_cold(const wp::launch_context_t* __ctx, const saxpy_args& __args,
+                                              wp::int64 __tid_flat) {
+  wp::int32 i = wp::int32(__tid_flat);
+  if (!check_cold(__ctx, 5, 0, "x", __args.p0, i)) return;
+  if (!check_cold(__ctx, 5, 1, "y", __args.p1, i)) return;
+  wp::float32 x = wp::load(__args.p0, i);
+  wp::float32 y = wp::load(__args.p1, i);
+  wp::store(__args.p1, i, wp::add(wp::mul(__args.p2, x), y));
+}
+static inline __device__ void saxpy_body_unchecked(const saxpy_args& __args, wp::int64 __tid_flat) {
+  wp::int32 i = wp::int32(__tid_flat);
+  wp::float32 x = wp::load(__args.p0, i);
+  wp::float32 y = wp::load(__args.p1, i);
+  wp::store(__args.p1, i, wp::add(wp::mul(__args.p2, x), y));
+}
+
+#define GRID_STRIDE_LOOP(BODY)                                                                                     \
+  for (wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x; __i < __ctx.bounds.size;                 \
+       __i += (wp::int64)blockDim.x * gridDim.x)                                                                   \
+  BODY
+
+extern "C" __global__ void weft_now(wp::launch_context_t __ctx, saxpy_args __args) {
+  GRID_STRIDE_LOOP(saxpy_body(&__ctx, __args, __i);)
+}
+extern "C" __global__ void no_loop(wp::launch_context_t __ctx, saxpy_args __args) {
+  const wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
+  if (__i < __ctx.bounds.size) saxpy_body(&__ctx, __args, __i);
+}
+extern "C" __global__ void cold_report(wp::launch_context_t __ctx, saxpy_args __args) {
+  GRID_STRIDE_LOOP(saxpy_body_cold(&__ctx, __args, __i);)
+}
+extern "C" __global__ void cold_report_no_loop(wp::launch_context_t __ctx, saxpy_args __args) {
+  const wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
+  if (__i < __ctx.bounds.size) saxpy_body_cold(&__ctx, __args, __i);
+}
+// One entry for both cases: a grid that covers the launch runs the body once per thread without a
+// loop; a smaller grid (max_blocks) strides.
+extern "C" __global__ void once_or_loop(wp::launch_context_t __ctx, saxpy_args __args) {
+  wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
+  const wp::int64 __stride = (wp::int64)blockDim.x * gridDim.x;
+  if (__stride >= __ctx.bounds.size) {
+    if (__i < __ctx.bounds.size) saxpy_body(&__ctx, __args, __i);
+    return;
+  }
+  for (; __i < __ctx.bounds.size; __i += __stride) saxpy_body(&__ctx, __args, __i);
+}
+// One loop, left after the first pass when the grid covers the launch (the body inlined once).
+extern "C" __global__ void loop_break_once(wp::launch_context_t __ctx, saxpy_args __args) {
+  wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
+  const wp::int64 __stride = (wp::int64)blockDim.x * gridDim.x;
+  const bool __once = __stride >= __ctx.bounds.size;
+  if (__i >= __ctx.bounds.size) return;
+  do {
+    saxpy_body(&__ctx, __args, __i);
+    if (__once) break;
+    __i += __stride;
+  } while (__i < __ctx.bounds.size);
+}
+extern "C" __global__ void no_loop_unchecked(wp::launch_context_t __ctx, saxpy_args __args) {
+  const wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
+  if (__i < __ctx.bounds.size) saxpy_body_unchecked(__args, __i);
+}
+// The same out-of-line report with the parameters __grid_constant__ (what weft's entries use):
+// the pointers point into the parameter space, nothing is copied.
+extern "C" __global__ void cold_report_grid_constant(const __grid_constant__ wp::launch_context_t __ctx,
+                                                     const __grid_constant__ saxpy_args __args) {
+  GRID_STRIDE_LOOP(saxpy_body_cold(&__ctx, __args, __i);)
+}
+extern "C" __global__ void unchecked(wp::launch_context_t __ctx, saxpy_args __args) {
+  GRID_STRIDE_LOOP(saxpy_body_unchecked(__args, __i);)
+}
+
+// A lean kernel over arrays with int32 shape and strides (Warp's array_t layout), unchecked.
+struct warp_array_t {
+  float* data;
+  float* grad;
+  int shape[4];
+  int strides[4];
+  int ndim;
+};
+extern "C" __global__ void warp_style(wp::int64 n, warp_array_t x, warp_array_t y, float a) {
+  const wp::int64 i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= n) return;
+  float* px = (float*)((char*)x.data + (int)i * x.strides[0]);
+  float* py = (float*)((char*)y.data + (int)i * y.strides[0]);
+  *py = a * *px + *py;
+}
+
+#define CHECK(call)                                                                    \
+  do {                                                                                 \
+    cudaError_t e_ = (call);                                                           \
+    if (e_ != cudaSuccess) {                                                           \
+      std::fprintf(stderr, "%s:%d: %s\n", __FILE__, __LINE__, cudaGetErrorString(e_)); \
+      std::exit(1);                                                                    \
+    }                                                                                  \
+  } while (0)
+
+template <typename Launch>
+static double time_us(Launch launch, int reps) {
+  cudaEvent_t start, stop;
+  CHECK(cudaEventCreate(&start));
+  CHECK(cudaEventCreate(&stop));
+  std::vector<double> rounds;
+  for (int r = 0; r < 7; ++r) {
+    CHECK(cudaEventRecord(start));
+    for (int k = 0; k < reps; ++k) launch();
+    CHECK(cudaEventRecord(stop));
+    CHECK(cudaEventSynchronize(stop));
+    float ms = 0;
+    CHECK(cudaEventElapsedTime(&ms, start, stop));
+    rounds.push_back(ms * 1000.0 / reps);
+  }
+  std::sort(rounds.begin(), rounds.end());
+  CHECK(cudaEventDestroy(start));
+  CHECK(cudaEventDestroy(stop));
+  return rounds[rounds.size() / 2];
+}
+
+int main(int argc, char** argv) {
+  std::vector<long long> sizes = {10000000LL, 100000000LL};
+  if (argc > 1) sizes = {std::atoll(argv[1])};
+  std::printf("| n | variant | time per launch (us) | GB/s | of copy rate | max rel. error vs float64 |\n");
+  std::printf("| --- | --- | --- | --- | --- | --- |\n");
+  for (long long n : sizes) {
+    const size_t bytes = size_t(n) * sizeof(float);
+    std::vector<float> hx(n), hy(n);
+    unsigned s = 12345u;
+    for (long long i = 0; i < n; ++i) {
+      s = s * 1664525u + 1013904223u;
+      hx[i] = float((s >> 8) * (1.0 / 16777216.0) - 0.5) * 1e3f;
+      s = s * 1664525u + 1013904223u;
+      hy[i] = float((s >> 8) * (1.0 / 16777216.0) - 0.5) * 1e-3f;
+    }
+    float *x, *y, *copy_dst;
+    wp::launch_error_t* err;
+    CHECK(cudaMalloc(&x, bytes));
+    CHECK(cudaMalloc(&y, bytes));
+    CHECK(cudaMalloc(&copy_dst, 2 * bytes));
+    CHECK(cudaMalloc(&err, sizeof(wp::launch_error_t)));
+    CHECK(cudaMemset(err, 0, sizeof(wp::launch_error_t)));
+    CHECK(cudaMemcpy(x, hx.data(), bytes, cudaMemcpyHostToDevice));
+
+    wp::launch_context_t ctx{};
+    ctx.bounds.ndim = 1;
+    ctx.bounds.shape[0] = n;
+    ctx.bounds.size = n;
+    ctx.error = err;
+    saxpy_args args{};
+    args.p0.data = x;
+    args.p0.shape[0] = n;
+    args.p0.strides[0] = 4;
+    args.p0.ndim = 1;
+    args.p1 = args.p0;
+    args.p1.data = y;
+    args.p2 = 1.75f;
+    warp_array_t wx{x, nullptr, {int(n), 0, 0, 0}, {4, 0, 0, 0}, 1};
+    warp_array_t wy{y, nullptr, {int(n), 0, 0, 0}, {4, 0, 0, 0}, 1};
+    const unsigned grid = unsigned((n + 255) / 256);
+    const int reps = n >= 100000000LL ? 20 : 100;
+
+    const double copy_us = time_us([&] { CHECK(cudaMemcpyAsync(copy_dst, copy_dst + n, bytes, cudaMemcpyDeviceToDevice)); }, reps);
+    const double copy_rate = 2.0 * bytes / (copy_us * 1e-6) / 1e9;   // read + write
+    std::printf("| %lld | device copy (%zu MB read + written) | %.1f | %.0f | 100%% | |\n", n, 2 * bytes / 1000000, copy_us, copy_rate);
+
+    struct Variant {
+      const char* name;
+      void (*run)(unsigned, const wp::launch_context_t&, const saxpy_args&, const warp_array_t&, const warp_array_t&, long long);
+    };
+    const Variant variants[] = {
+        {"grid-stride loop, checks inline (weft default)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { weft_now<<<g, 256>>>(c, a); }},
+        {"no loop (if i < n), checks inline (grid_stride=False)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { no_loop<<<g, 256>>>(c, a); }},
+        {"one entry: once when the grid covers, else loop", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { once_or_loop<<<g, 256>>>(c, a); }},
+        {"one loop, left after one pass when the grid covers", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { loop_break_once<<<g, 256>>>(c, a); }},
+        {"no loop, no checks", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { no_loop_unchecked<<<g, 256>>>(c, a); }},
+        {"loop, error report out of line (parameters copied to local memory)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { cold_report<<<g, 256>>>(c, a); }},
+        {"loop, error report out of line, parameters __grid_constant__", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { cold_report_grid_constant<<<g, 256>>>(c, a); }},
+        {"no loop, error report out of line", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { cold_report_no_loop<<<g, 256>>>(c, a); }},
+        {"loop, no checks", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { unchecked<<<g, 256>>>(c, a); }},
+        {"lean, no checks, int32 shape and strides", [](unsigned g, const wp::launch_context_t&, const saxpy_args& a, const warp_array_t& wx, const warp_array_t& wy, long long n) { warp_style<<<g, 256>>>(n, wx, wy, a.p2); }},
+    };
+    for (const Variant& v : variants) {
+      CHECK(cudaMemcpy(y, hy.data(), bytes, cudaMemcpyHostToDevice));
+      v.run(grid, ctx, args, wx, wy, n);   // one launch: checked against float64 below
+      CHECK(cudaGetLastError());
+      std::vector<float> out(n);
+      CHECK(cudaMemcpy(out.data(), y, bytes, cudaMemcpyDeviceToHost));
+      double max_rel = 0;
+      for (long long i = 0; i < n; ++i) {
+        const double ref = 1.75 * double(hx[i]) + double(hy[i]);
+        max_rel = std::max(max_rel, std::fabs(double(out[i]) - ref) / std::max(std::fabs(ref), 1e-30));
+      }
+      const double us = time_us([&] { v.run(grid, ctx, args, wx, wy, n); }, reps);
+      CHECK(cudaGetLastError());
+      const double rate = 3.0 * bytes / (us * 1e-6) / 1e9;
+      std::printf("| %lld | %s | %.1f | %.0f | %.1f%% | %.1e |\n", n, v.name, us, rate, 100.0 * rate / copy_rate, max_rel);
+    }
+    wp::launch_error_t herr{};
+    CHECK(cudaMemcpy(&herr, err, sizeof(herr), cudaMemcpyDeviceToHost));
+    if (herr.kind != 0) std::printf("unexpected launch error kind %d\n", herr.kind);
+    CHECK(cudaFree(x));
+    CHECK(cudaFree(y));
+    CHECK(cudaFree(copy_dst));
+    CHECK(cudaFree(err));
+  }
+  return 0;
+}

@@ -1,0 +1,57 @@
+"""wp.tile[dtype, M, N]: Warp's tile annotation type (a block-cooperative 2-D value).
+
+weft does not implement tile programming (wp.launch_tiled, wp.tile_load and the other tile
+builtins). The annotation exists so that code written for Warp 1.19 imports: a @wp.func whose
+signature uses a tile is defined, and building a kernel that calls it reports that tiles are not
+supported, at the function's line (weft._kernel.functions)."""
+from __future__ import annotations
+
+import typing
+
+from . import array_annotations as _annotations
+
+
+def _extent(value) -> int:
+    value = _annotations.single_literal(value, "a tile dimension")
+    if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+        raise TypeError(f"wp.tile dimensions must be a positive integer, got {value!r}")
+    return value
+
+
+class tile:
+    """A tile type: dtype, shape (a tuple of extents, or typing.Any) and storage."""
+
+    __slots__ = ("dtype", "shape", "storage")
+
+    def __init__(self, dtype, shape=typing.Any, storage: str = "register"):
+        if storage not in ("register", "shared"):
+            raise ValueError(f"wp.tile storage must be 'register' or 'shared', got {storage!r}")
+        self.dtype = _annotations._canonical_dtype(dtype)
+        self.shape = shape if shape is typing.Any else tuple(_extent(n) for n in shape)
+        self.storage = storage
+
+    def __class_getitem__(cls, params):
+        params = params if isinstance(params, tuple) else (params,)
+        if not params:
+            raise TypeError("wp.tile[...] requires at least a dtype")
+        dtype, dims = params[0], params[1:]
+        if len(dims) == 1 and isinstance(dims[0], tuple):
+            dims = dims[0]
+        return cls(dtype, tuple(dims) if dims else typing.Any)
+
+    def __eq__(self, other):
+        if not isinstance(other, tile):
+            return NotImplemented
+        return (self.dtype, self.shape, self.storage) == (other.dtype, other.shape, other.storage)
+
+    def __hash__(self):
+        return hash((self.dtype, self.shape, self.storage))
+
+    def __repr__(self):
+        dims = "" if self.shape is typing.Any else ", " + ", ".join(str(n) for n in self.shape)
+        return f"wp.tile[{getattr(self.dtype, '__name__', self.dtype)}{dims}]"
+
+
+def is_tile(t) -> bool:
+    """True for a tile annotation."""
+    return isinstance(t, tile)
