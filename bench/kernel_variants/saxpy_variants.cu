@@ -90,6 +90,23 @@ extern "C" __global__ void cold_report_no_loop(wp::launch_context_t __ctx, saxpy
   const wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
   if (__i < __ctx.bounds.size) saxpy_body_cold(&__ctx, __args, __i);
 }
+// The grid-stride entry as weft generates it now: __grid_constant__ parameters, the stride
+// computed once before the loop; and the two halves of that change alone.
+extern "C" __global__ void gc_hoisted_stride(const __grid_constant__ wp::launch_context_t __ctx,
+                                             const __grid_constant__ saxpy_args __args) {
+  const wp::int64 __stride = (wp::int64)blockDim.x * gridDim.x;
+  for (wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x; __i < __ctx.bounds.size; __i += __stride)
+    saxpy_body(&__ctx, __args, __i);
+}
+extern "C" __global__ void gc_only(const __grid_constant__ wp::launch_context_t __ctx,
+                                   const __grid_constant__ saxpy_args __args) {
+  GRID_STRIDE_LOOP(saxpy_body(&__ctx, __args, __i);)
+}
+extern "C" __global__ void hoisted_stride_only(wp::launch_context_t __ctx, saxpy_args __args) {
+  const wp::int64 __stride = (wp::int64)blockDim.x * gridDim.x;
+  for (wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x; __i < __ctx.bounds.size; __i += __stride)
+    saxpy_body(&__ctx, __args, __i);
+}
 // One entry for both cases: a grid that covers the launch runs the body once per thread without a
 // loop; a smaller grid (max_blocks) strides.
 extern "C" __global__ void once_or_loop(wp::launch_context_t __ctx, saxpy_args __args) {
@@ -224,7 +241,10 @@ int main(int argc, char** argv) {
       void (*run)(unsigned, const wp::launch_context_t&, const saxpy_args&, const warp_array_t&, const warp_array_t&, long long);
     };
     const Variant variants[] = {
-        {"grid-stride loop, checks inline (weft default)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { weft_now<<<g, 256>>>(c, a); }},
+        {"grid-stride loop, checks inline (generated before)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { weft_now<<<g, 256>>>(c, a); }},
+        {"grid-stride loop, __grid_constant__, stride hoisted (generated now)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gc_hoisted_stride<<<g, 256>>>(c, a); }},
+        {"grid-stride loop, __grid_constant__ only", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gc_only<<<g, 256>>>(c, a); }},
+        {"grid-stride loop, stride hoisted only", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { hoisted_stride_only<<<g, 256>>>(c, a); }},
         {"no loop (if i < n), checks inline (grid_stride=False)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { no_loop<<<g, 256>>>(c, a); }},
         {"one entry: once when the grid covers, else loop", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { once_or_loop<<<g, 256>>>(c, a); }},
         {"one loop, left after one pass when the grid covers", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { loop_break_once<<<g, 256>>>(c, a); }},

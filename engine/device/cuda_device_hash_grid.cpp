@@ -99,29 +99,31 @@ Status CudaDevice::BuildHashGrid(Session& s, const geometry::HashGridBuildJob& j
   jit::CuDevicePtr hist = job.scratch + 3 * words;
   SortBuffers sort_buffers{{keys[0], keys[1]}, {ids[0], ids[1]}, hist};
   const unsigned item_blocks = GridFor(static_cast<uint64_t>(n), 256, 65536);
-  int cur = 0;
-  auto sort = [&](int bits) { return SortPairs(*st, sort_buffers, n, bits, &cur); };
+  int bits = 0;
+  while ((uint64_t{1} << bits) < cells) ++bits;
+  // Each radix pass moves the pairs to the other buffer: start in the buffer from which the
+  // passes (the group sort's, then the cell sort's) end in ids[0], the grid's sorted ids, so
+  // that no copy is needed after.
+  auto passes = [](int b) { return (b + geometry::kSortDigitBits - 1) / geometry::kSortDigitBits; };
+  int cur = (passes(bits) + (job.groups ? passes(32) : 0)) % 2;
+  auto sort = [&](int b) { return SortPairs(*st, sort_buffers, n, b, &cur); };
 
   jit::CuDevicePtr points = job.points, groups = job.groups, no_order = 0;
   int32_t scalar_size = job.scalar_size, dx = job.dim[0], dy = job.dim[1], dz = job.dim[2];
   float width = job.cell_width;
   if (groups) {
     WEFT_ASSIGN_OR_RETURN(jit::CuFunction group_keys_fn, Builtin("weft_hash_grid_group_keys"));
-    void* params[] = {&groups, &n, &keys[0], &ids[0]};
+    void* params[] = {&groups, &n, &keys[cur], &ids[cur]};
     WEFT_RETURN_IF_ERROR(launch(group_keys_fn, item_blocks, 256, params, "cuLaunchKernel (hash grid groups)"));
     WEFT_RETURN_IF_ERROR(sort(32));
     void* cell_params[] = {&points, &scalar_size, &n, &width, &dx, &dy, &dz, &ids[cur], &keys[cur], &ids[cur]};
     WEFT_RETURN_IF_ERROR(launch(keys_fn, item_blocks, 256, cell_params, "cuLaunchKernel (hash grid keys)"));
   } else {
-    void* params[] = {&points, &scalar_size, &n, &width, &dx, &dy, &dz, &no_order, &keys[0], &ids[0]};
+    void* params[] = {&points, &scalar_size, &n, &width, &dx, &dy, &dz, &no_order, &keys[cur], &ids[cur]};
     WEFT_RETURN_IF_ERROR(launch(keys_fn, item_blocks, 256, params, "cuLaunchKernel (hash grid keys)"));
   }
-  int bits = 0;
-  while ((uint64_t{1} << bits) < cells) ++bits;
   WEFT_RETURN_IF_ERROR(sort(bits));
-  if (cur == 1)
-    WEFT_RETURN_IF_ERROR(driver_->Check(
-        driver_->MemcpyDtoDAsync(ids[0], ids[1], static_cast<size_t>(n) * 4, st->stream), "cuMemcpyDtoDAsync (hash grid)"));
+  if (cur != 0) return Internal("hash grid build: the sorted ids ended in the scratch buffer (weft bug)");
   if (groups) {
     WEFT_ASSIGN_OR_RETURN(jit::CuFunction gather_fn, Builtin("weft_gather_int"));
     jit::CuDevicePtr sorted_groups = job.sorted_groups;

@@ -118,8 +118,8 @@ void ExpectCompiles(const ModuleSource& m, bool cuda = false) {
 
 // CUDA entries take the launch context and the argument block as __grid_constant__ parameters:
 // a kernel whose body hands their address to an out-of-line path (here the geometry error
-// report of wp.mesh_get_point) addresses them in the parameter space (cvta.param) instead of
-// making every thread copy them to local memory first. The entries stride over the grid by
+// report of wp.mesh_get_point) addresses them in the parameter space instead of making every
+// thread copy them to local memory first (the entry's PTX local memory, with and without). The entries stride over the grid by
 // default; grid_stride=false gives one index per thread (no loop) and says so in the layout.
 TEST(CodegenKernels, CudaEntriesUseGridConstantParametersAndOptionalGridStride) {
   ModuleSource m;

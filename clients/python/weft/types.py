@@ -993,7 +993,12 @@ def type_str(t) -> str:
     if isinstance(type_string, str) and type_string:
         return type_string
     if is_array(t):
-        return f"array({type_str(t.dtype)},{t.ndim})"
+        # arrays and annotations of both families (an indexed one is no plain array: its
+        # kernels take the index arrays too)
+        if getattr(t, "_fabric_", False):
+            raise TypeError(f"No weft type string for {t!r}: weft does not support Fabric arrays")
+        family = "indexedarray" if getattr(t, "_indexed_", False) else "array"
+        return f"{family}({'any' if t.dtype is Any else type_str(t.dtype)},{t.ndim})"
     if isinstance(t, (np.dtype,)) or (isinstance(t, type) and issubclass(t, np.generic)):
         return dtype_from_numpy(t)._type_str
     raise TypeError(f"No weft type string for {t!r}")
@@ -1006,7 +1011,7 @@ def type_repr(t) -> str:
     if t is Any or t is typing.Any:
         return "Any"
     if is_array(t):
-        cls = type(t).__name__
+        cls = getattr(t, "_family", None) or type(t).__name__   # an annotation: its array class
         if getattr(t, "device", None) is None:
             return f"{cls}(ndim={t.ndim}, dtype={type_repr(t.dtype)})"
         return f"{cls}(shape={tuple(t.shape)}, dtype={type_repr(t.dtype)})"
