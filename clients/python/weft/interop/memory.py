@@ -31,12 +31,14 @@ def note_range(alloc, space: str, start: int, nbytes: int) -> None:
     with _lock:
         starts, entries = _spaces.setdefault(space, ([], {}))
 
-    def forget(ref, start=start):
-        with _lock:
+    def forget(ref, start=start, lock=_lock, bisect_left=bisect.bisect_left):
+        # what it uses is bound now: at interpreter exit the module's globals may already be
+        # None when the last allocations die
+        with lock:
             entry = entries.get(start)
             if entry is not None and entry[1] is ref:
                 del entries[start]
-                i = bisect.bisect_left(starts, start)
+                i = bisect_left(starts, start)
                 if i < len(starts) and starts[i] == start:
                     del starts[i]
 
