@@ -16,14 +16,18 @@ void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows) {
     bool diff;
   };
   const Atomic atomics[] = {
-      {"atomic_add", "arr[i] += value atomically; returns the old value. Adjoint: adj_value += arr.grad[i].", true},
-      {"atomic_sub", "arr[i] -= value atomically; returns the old value. Adjoint: adj_value -= arr.grad[i].", true},
-      {"atomic_min", "arr[i] = min(arr[i], value) atomically; returns the old value.", true},
-      {"atomic_max", "arr[i] = max(arr[i], value) atomically; returns the old value.", true},
-      {"atomic_exch", "arr[i] = value atomically; returns the old value.", false},
-      {"atomic_and", "arr[i] &= value atomically (integers); returns the old value.", false},
-      {"atomic_or", "arr[i] |= value atomically (integers); returns the old value.", false},
-      {"atomic_xor", "arr[i] ^= value atomically (integers); returns the old value.", false},
+      {"atomic_add", "arr[i] += value atomically; returns the old value. Adjoint: adj_value += arr.grad[i]. Scalar types: "
+       "[u]int32, [u]int64, float16, bfloat16, float32, float64.", true},
+      {"atomic_sub", "arr[i] -= value atomically; returns the old value. Adjoint: adj_value -= arr.grad[i]. Scalar types: "
+       "[u]int32, [u]int64, float16, bfloat16, float32, float64.", true},
+      {"atomic_min", "arr[i] = min(arr[i], value) atomically; returns the old value. Scalar types: [u]int32, [u]int64, "
+       "bfloat16, float32, float64.", true},
+      {"atomic_max", "arr[i] = max(arr[i], value) atomically; returns the old value. Scalar types: [u]int32, [u]int64, "
+       "bfloat16, float32, float64.", true},
+      {"atomic_exch", "arr[i] = value atomically; returns the old value. Scalar types: [u]int32, [u]int64, float32, float64.", false},
+      {"atomic_and", "arr[i] &= value atomically ([u]int32, [u]int64); returns the old value.", false},
+      {"atomic_or", "arr[i] |= value atomically ([u]int32, [u]int64); returns the old value.", false},
+      {"atomic_xor", "arr[i] ^= value atomically ([u]int32, [u]int64); returns the old value.", false},
   };
   for (const auto& a : atomics) {
     for (int d = 1; d <= 4; ++d) {
@@ -36,7 +40,8 @@ void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows) {
   for (int d = 1; d <= 4; ++d) {
     std::string sig = "atomic_cas(arr: array(X," + std::to_string(d) + "), " + idx[d - 1] +
                       ", compare: X, value: X) -> X";
-    rows->push_back(Builtin("Atomics", sig.c_str(), "If arr[i] == compare set it to value; returns the old value.",
+    rows->push_back(Builtin("Atomics", sig.c_str(), "If arr[i] == compare set it to value; returns the old value. Scalar types: [u]int32, "
+                            "[u]int64, float32, float64.",
                             kBuiltinSideEffect | kBuiltinArrayAccess | kBuiltinNotDiff));
   }
 

@@ -1143,6 +1143,39 @@ Expected<Value> Checker::EvalCall(const ast::Call& c) {
   }
 }
 
+// The element scalar types an atomic builtin works on (Warp's rule, the same words): add and
+// sub [u]int32, [u]int64, float16, bfloat16, float32, float64; min and max the same without
+// float16; cas and exch [u]int32, [u]int64, float32, float64; and, or, xor [u]int32, [u]int64.
+// `arr[i] += v` and the other augmented assignments on array elements go through it too.
+static Status CheckAtomicElement(const std::string& name, const Type& arr) {
+  if (name.rfind("atomic_", 0) != 0 || !arr.is_array()) return Status::Ok();
+  const std::string op = name.substr(7);
+  const Type elem = arr.elem();
+  const ScalarKind s = elem.scalar;
+  const bool wide_int = s == ScalarKind::kInt32 || s == ScalarKind::kUInt32 || s == ScalarKind::kInt64 ||
+                        s == ScalarKind::kUInt64;
+  const bool wide_float = s == ScalarKind::kFloat32 || s == ScalarKind::kFloat64;
+  bool ok = true;
+  const char* allowed = "";
+  if (op == "add" || op == "sub") {
+    ok = wide_int || wide_float || s == ScalarKind::kFloat16 || s == ScalarKind::kBFloat16;
+    allowed = "[u]int32, [u]int64, float16, bfloat16, float32, or float64";
+  } else if (op == "min" || op == "max") {
+    ok = wide_int || wide_float || s == ScalarKind::kBFloat16;
+    allowed = "[u]int32, [u]int64, bfloat16, float32, or float64";
+  } else if (op == "cas" || op == "exch") {
+    ok = wide_int || wide_float;
+    allowed = "[u]int32, [u]int64, float32, or float64";
+  } else if (op == "and" || op == "or" || op == "xor") {
+    ok = wide_int;
+    allowed = "[u]int32 or [u]int64";
+  }
+  if (ok || elem.generic != GenericScalar::kNone) return Status::Ok();
+  return InvalidArgument(name + "() operations only work on arrays with " + allowed +
+                         " as the underlying scalar types, but got " + WarpTypeRepr(elem) + " (with scalar type " +
+                         ScalarName(s) + ")");
+}
+
 Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vector<Value> args,
                                                const SourceLocation& loc, int array_param,
                                                const std::string& array_name) {
@@ -1163,6 +1196,10 @@ Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vec
   if (!m.ok()) {
     std::string msg = m.status().message();
     return Error(loc, msg);
+  }
+  if (!types.empty()) {
+    Status atomic = CheckAtomicElement(name, types[0]);
+    if (!atomic.ok()) return Error(loc, atomic.message());
   }
   Stmt s;
   s.op.kind = OpKind::kCall;
@@ -1269,16 +1306,9 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
       if (result.elems.size() != 2) return Error(loc, "wp." + name + "(): internal result shape");
       if (grad_arg.kind == Value::Kind::kVar && result.elems[1].kind == Value::Kind::kVar &&
           TypeOf(grad_arg.var) != TypeOf(result.elems[1].var)) {
-        // Warp's short names: vec3f, mat43d, ...
-        auto short_name = [](const Type& t) {
-          const char* s = t.scalar == ScalarKind::kFloat64 ? "d" : t.scalar == ScalarKind::kFloat16 ? "h" : "f";
-          if (t.is_vector()) return "vec" + std::to_string(t.rows) + s;
-          if (t.is_matrix()) return "mat" + std::to_string(t.rows) + std::to_string(t.cols) + s;
-          return TypeString(t);
-        };
         return Error(call->args.back()->loc, "Incompatible gradient type, expected " +
-                                                 short_name(TypeOf(result.elems[1].var)) + ", got " +
-                                                 short_name(TypeOf(grad_arg.var)));
+                                                 WarpTypeRepr(TypeOf(result.elems[1].var)) + ", got " +
+                                                 WarpTypeRepr(TypeOf(grad_arg.var)));
       }
       WEFT_RETURN_IF_ERROR(LowerAssignTo(*call->args.back(), result.elems[1]));
       return result.elems[0];

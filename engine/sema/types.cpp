@@ -391,6 +391,40 @@ bool IsDifferentiable(const Type& t) {
   }
 }
 
+std::string WarpTypeRepr(const Type& t) {
+  if (t.generic != GenericScalar::kNone) return TypeString(t);
+  const char* suffix = nullptr;
+  switch (t.scalar) {
+    case ScalarKind::kFloat16: suffix = "h"; break;
+    case ScalarKind::kFloat32: suffix = "f"; break;
+    case ScalarKind::kFloat64: suffix = "d"; break;
+    case ScalarKind::kInt8: suffix = "b"; break;
+    case ScalarKind::kUInt8: suffix = "ub"; break;
+    case ScalarKind::kInt16: suffix = "s"; break;
+    case ScalarKind::kUInt16: suffix = "us"; break;
+    case ScalarKind::kInt32: suffix = "i"; break;
+    case ScalarKind::kUInt32: suffix = "ui"; break;
+    case ScalarKind::kInt64: suffix = "l"; break;
+    case ScalarKind::kUInt64: suffix = "ul"; break;
+    default: break;
+  }
+  const std::string scalar = ScalarName(t.scalar);
+  switch (t.kind) {
+    case TypeKind::kScalar: return scalar;
+    case TypeKind::kVector:
+      if (suffix && t.rows >= 1 && t.rows <= 4) return "vec" + std::to_string(t.rows) + suffix;
+      return "vector(length=" + std::to_string(t.rows) + ", dtype=" + scalar + ")";
+    case TypeKind::kMatrix:
+      if (suffix && t.rows >= 1 && t.rows <= 4 && t.cols >= 1 && t.cols <= 4)
+        return "mat" + std::to_string(t.rows) + std::to_string(t.cols) + suffix;
+      return "matrix(shape=(" + std::to_string(t.rows) + ", " + std::to_string(t.cols) + "), dtype=" + scalar + ")";
+    case TypeKind::kQuat: return suffix && IsFloat(t.scalar) ? std::string("quat") + suffix : "quat(dtype=" + scalar + ")";
+    case TypeKind::kTransform:
+      return suffix && IsFloat(t.scalar) ? std::string("transform") + suffix : "transform(dtype=" + scalar + ")";
+    default: return TypeString(t);
+  }
+}
+
 std::string TypeString(const Type& t) {
   // A composite's element scalar or its pattern; an extent, or "any" in a pattern.
   auto elem = [&]() -> std::string {

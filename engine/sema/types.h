@@ -154,6 +154,10 @@ bool IsDifferentiable(const Type& t);
 
 // Canonical string (docs/protocol.md), e.g. "array(vec(3,float32),1)".
 std::string TypeString(const Type& t);
+// The name Warp's messages give a type (its type_repr): float32, vec3f, vec3ub, mat22d, quatf,
+// transformd, vector(length=5, dtype=float32), matrix(shape=(2, 5), dtype=float64); other
+// types: TypeString.
+std::string WarpTypeRepr(const Type& t);
 // Parses a canonical type string. Accepts the aliases spatial_vector(S) / spatial_matrix(S)
 // and Warp's short names (vec3, vec3d, mat33, quatf, transformd, float, int, ...).
 Expected<Type> ParseType(std::string_view text);

@@ -2,6 +2,7 @@
 float32 and vec3 arrays with heavy contention (every thread hits few slots), 1-d and 2-d
 indices; the returned old values form a permutation for exch/add counters."""
 import numpy as np
+import pytest
 
 import weft as wp
 
@@ -175,3 +176,34 @@ def test_component_updates_of_array_elements_are_atomic(wp, rng):
         wp.launch(component_square, dim=64, inputs=[xs, out])
     tape.backward(grads={out: wp.array(np.array([[0.5, 3.0, -2.0]], np.float32), dtype=wp.vec3)})
     np.testing.assert_allclose(xs.grad.numpy(), 3.0 * 2.0 * x32[:64], rtol=1e-6)
+
+
+@pytest.mark.parametrize("op,dtype,scalar", [
+    ("atomic_add", "wp.int8", "int8"), ("atomic_add", "wp.vec3us", "uint16"),
+    ("atomic_sub", "wp.uint8", "uint8"), ("atomic_min", "wp.float16", "float16"),
+    ("atomic_max", "wp.vec2s", "int16"), ("atomic_exch", "wp.float16", "float16"),
+])
+def test_atomics_refuse_the_element_types_warp_refuses(kernel_module, op, dtype, scalar):
+    """Warp's rule and words: atomics work on [u]int32, [u]int64, float32, float64 (add/sub also
+    float16 and bfloat16, min/max bfloat16) as the scalar type; others are a compile error at
+    the call's line, and so is `arr[i] += v` on such an array."""
+    mod = kernel_module(f"""
+        @wp.kernel
+        def k(arr: wp.array(dtype={dtype})):
+            wp.{op}(arr, 0, arr[1])
+
+        @wp.kernel
+        def aug(arr: wp.array(dtype={dtype})):
+            arr[0] += arr[1]
+    """)
+    import weft.types as wt
+
+    t = eval(dtype, {"wp": wp})
+    a = wp.zeros(2, dtype=t)
+    pattern = (rf"\.py:\d+:\d+: error: {op}\(\) operations only work on arrays with .* as the "
+               rf"underlying scalar types, but got {wt.type_repr(t)} \(with scalar type {scalar}\)")
+    with pytest.raises(RuntimeError, match=pattern):
+        wp.launch(mod.k, dim=1, inputs=[a])
+    if op == "atomic_add":
+        with pytest.raises(RuntimeError, match=pattern):
+            wp.launch(mod.aug, dim=1, inputs=[a])
