@@ -1,6 +1,7 @@
 """Python values the client resolves into kernel constants: members of Python enums
 (IntEnum, IntFlag: MyEnum.A, MyEnum.A.value) and wp.static(expr) (evaluated in the function's
-globals and closure when it is defined: constants, vectors, @wp.func objects, enum members),
+globals and closure when it is defined: constants, vectors, @wp.func objects, enum members,
+struct values rebuilt field by field; what a kernel cannot hold is an error at its line),
 against float64 references on random data; and `for i in reversed(range(...))` against
 Python's own reversed(), with the gradient of a loop-carried sum."""
 import enum
@@ -113,6 +114,97 @@ def test_static_of_a_kernel_variable_is_an_error_at_its_line(wp, device):
     with pytest.raises(wp.WeftCompileError, match=r"test_lang_enum_static\.py:\d+"):
         wp.launch(uses_local, dim=4, inputs=[out], device=device)
     assert wp.static(5) == 5          # Python scope: the value itself
+
+
+@wp.struct
+class StaticInner:
+    m: wp.mat33d
+    k: int
+
+
+@wp.struct
+class StaticOuter:
+    inner: StaticInner
+    q: wp.quatd
+    s: float
+
+
+@wp.func
+def make_outer(m: wp.mat33d, k: int, q: wp.quatd, s: float):
+    inner = StaticInner()
+    inner.m = m
+    inner.k = k
+    o = StaticOuter()
+    o.inner = inner
+    o.q = q
+    o.s = s
+    return o
+
+
+_STATIC_M = np.random.default_rng(7).standard_normal((3, 3)) * 1e12
+
+
+@wp.kernel
+def static_struct(out: wp.array(dtype=StaticOuter), mats: wp.array(dtype=wp.mat33d)):
+    value = wp.static(make_outer(wp.mat33d(_STATIC_M), 42, wp.quat_rpy(0.1, -0.2, 0.3), 1.0e-30))
+    out[0] = value
+    mats[0] = value.inner.m * wp.float64(2.0)
+
+
+def test_static_struct_values_are_rebuilt_in_the_kernel(wp, device):
+    """wp.static(expr) returning a struct (nested structs, matrices, quaternions): the kernel
+    gets the same field values, bit for bit, as the Python value."""
+    out = wp.zeros(1, dtype=StaticOuter, device=device)
+    mats = wp.zeros(1, dtype=wp.mat33d, device=device)
+    wp.launch(static_struct, dim=1, inputs=[out, mats], device=device)
+    got = out.numpy()[0]
+    expected = make_outer(wp.mat33d(_STATIC_M), 42, wp.quat_rpy(0.1, -0.2, 0.3), 1.0e-30)
+    np.testing.assert_array_equal(got["inner"]["m"], _STATIC_M)
+    assert got["inner"]["k"] == 42
+    np.testing.assert_array_equal(got["q"], np.asarray(expected.q, dtype=np.float64))
+    assert got["s"] == np.float32(1.0e-30)
+    np.testing.assert_array_equal(mats.numpy()[0], _STATIC_M * 2.0)
+
+
+def test_static_values_a_kernel_cannot_hold_are_errors_at_their_line(wp, device, kernel_module):
+    mod = kernel_module("""
+        @wp.struct
+        class Holder:
+            data: wp.array(dtype=int)
+            x: int
+
+        def holder():
+            h = Holder()
+            h.data = wp.zeros(3, dtype=int, device="cpu")
+            h.x = 1
+            return h
+
+        class Plain:
+            pass
+
+        def nothing():
+            pass
+
+        @wp.kernel(module="unique")
+        def with_array(out: wp.array(dtype=int)):
+            out[0] = wp.static(holder()).x
+
+        @wp.kernel(module="unique")
+        def with_object(out: wp.array(dtype=int)):
+            v = wp.static(Plain())
+
+        @wp.kernel(module="unique")
+        def with_none(out: wp.array(dtype=int)):
+            v = wp.static(nothing())
+    """)
+    out = wp.zeros(1, dtype=int, device=device)
+    for kernel, pattern in ((mod.with_array, r"unsupported value: the returned Warp struct contains a data type that cannot be "
+                                              r"constructed inside Warp kernels: a Warp array cannot be created "
+                                              r"inside Warp kernels at Holder\.data"),
+                            (mod.with_object, r"unsupported value: value of type .*Plain"),
+                            (mod.with_none, r"unsupported value: None is returned")):
+        with pytest.raises(wp.WeftCompileError, match=r"\.py:\d+:\d+: error: Static expression returns an " + pattern):
+            wp.launch(kernel, dim=1, inputs=[out], device=device)
 
 
 @wp.kernel

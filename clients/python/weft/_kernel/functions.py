@@ -12,7 +12,7 @@ import typing
 from ..tile import is_tile
 from . import typestr
 from .errors import WeftCompileError
-from .structs import canonical_name
+from .structs import StructInstance, canonical_name
 
 
 class FunctionDefinition:
@@ -113,6 +113,7 @@ class FunctionDefinition:
         local_names = {a.arg for a in self.tree.args.args}
         local_names |= {n.id for n in ast.walk(self.tree) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
         lines = [ln.encode() for ln in self.source.splitlines(keepends=True)]
+        attribute_bases = {id(n.value) for n in ast.walk(self.tree) if isinstance(n, ast.Attribute)}
         edits = []
         for call in calls:
             if len(call.args) != 1 or call.keywords:
@@ -131,6 +132,26 @@ class FunctionDefinition:
                 self._static_error(call, "Static expression returns an unsupported value: a Warp array cannot be "
                                          "created inside Warp kernels")
                 continue
+            if value is None:
+                self._static_error(call, "Static expression returns an unsupported value: None is returned")
+                continue
+            if id(call) not in attribute_bases and _is_plain_object(value):
+                # an object that means nothing in kernel code (its attributes might: kept when
+                # the expression reads one)
+                self._static_error(call, f"Static expression returns an unsupported value: value of type "
+                                         f"{type(value)}")
+                continue
+            if isinstance(value, StructInstance):
+                # a struct value: rebuilt in the kernel by its constructor, one bound name per
+                # field value (nested structs likewise); a struct holding an array cannot be
+                path = _struct_array_path(value, value._struct_type.key.rsplit(".", 1)[-1])
+                if path is not None:
+                    self._static_error(call, "Static expression returns an unsupported value: the returned Warp "
+                                             "struct contains a data type that cannot be constructed inside Warp "
+                                             f"kernels: a Warp array cannot be created inside Warp kernels at {path}")
+                    continue
+                edits.append((call, self._static_struct_text(value)))
+                continue
             name = f"_wp_static_{len(self.static_values)}"
             self.static_values[name] = value
             edits.append((call, name))
@@ -146,6 +167,29 @@ class FunctionDefinition:
             self.source = b"".join(lines).decode()
             self.tree = next(n for n in ast.parse(self.source).body
                              if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)))
+
+    def _static_struct_text(self, value) -> str:
+        """`T(field=v, ...)` for a struct value, each type and leaf value bound to a new static
+        name (field names are the struct's, validated identifiers)."""
+        from weft.types import _Composite  # noqa: PLC0415 - weft.types imports the kernel API
+
+        def bind(v) -> str:
+            name = f"_wp_static_{len(self.static_values)}"
+            self.static_values[name] = v
+            return name
+
+        def field_text(f) -> str:
+            v = value._values[f.name]
+            if isinstance(v, StructInstance):
+                return self._static_struct_text(v)
+            ann = f.annotation
+            if isinstance(ann, type) and issubclass(ann, _Composite) and not isinstance(v, ann):
+                v = ann(v)        # Python scope keeps what was assigned (a quatf in a quatd field)
+            return bind(v)
+
+        st = value._struct_type
+        fields = ", ".join(f"{f.name}={field_text(f)}" for f in st.fields)
+        return f"{bind(st)}({fields})"
 
     def _static_error(self, call, message: str) -> None:
         """A wp.static expression that fails here: the error is raised when a module using this
@@ -224,6 +268,26 @@ def static(expr):
     the kernel or func is defined (see FunctionDefinition._expand_static). In Python scope it
     returns expr."""
     return expr
+
+
+def _is_plain_object(value) -> bool:
+    """An instance of a user class that is nothing in kernel code (see symbols._opaque)."""
+    from .symbols import _opaque  # noqa: PLC0415 - symbols imports this module
+
+    return not isinstance(value, type) and _opaque(value)
+
+
+def _struct_array_path(value, path: str):
+    """The dotted path of the first array inside a struct value (Foo.bar.baz), else None."""
+    for f in value._struct_type.fields:
+        v = value._values.get(f.name)
+        if _is_runtime_array(v):
+            return path + "." + f.name
+        if isinstance(v, StructInstance):
+            inner = _struct_array_path(v, path + "." + f.name)
+            if inner is not None:
+                return inner
+    return None
 
 
 def _return_type_string(ret) -> str:
