@@ -1146,7 +1146,8 @@ Expected<Value> Checker::EvalCall(const ast::Call& c) {
 // The element scalar types an atomic builtin works on (Warp's rule, the same words): add and
 // sub [u]int32, [u]int64, float16, bfloat16, float32, float64; min and max the same without
 // float16; cas and exch [u]int32, [u]int64, float32, float64; and, or, xor [u]int32, [u]int64.
-// `arr[i] += v` and the other augmented assignments on array elements go through it too.
+// Explicit wp.atomic_* calls only: `arr[i] += v` on other element types stays allowed (Warp
+// does a non-atomic read-modify-write there; weft's stays atomic).
 static Status CheckAtomicElement(const std::string& name, const Type& arr) {
   if (name.rfind("atomic_", 0) != 0 || !arr.is_array()) return Status::Ok();
   const std::string op = name.substr(7);
@@ -1197,10 +1198,6 @@ Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vec
     std::string msg = m.status().message();
     return Error(loc, msg);
   }
-  if (!types.empty()) {
-    Status atomic = CheckAtomicElement(name, types[0]);
-    if (!atomic.ok()) return Error(loc, atomic.message());
-  }
   Stmt s;
   s.op.kind = OpKind::kCall;
   s.op.builtin = m->overload;
@@ -1236,6 +1233,10 @@ Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vec
 
 Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
                                      const ast::Call* call) {
+  if (!args.empty() && args[0].kind == Value::Kind::kVar) {
+    Status atomic = CheckAtomicElement(name, TypeOf(args[0].var));
+    if (!atomic.ok()) return Error(loc, atomic.message());
+  }
   auto kwarg = [&](const std::string& k) -> const ast::Expr* {
     if (!call) return nullptr;
     for (const auto& kw : call->keywords)
