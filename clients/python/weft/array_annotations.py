@@ -49,6 +49,14 @@ def single_literal(value, what: str):
     return value
 
 
+def positive_extent(value, what: str) -> int:
+    """A length or dimension written as N or Literal[N]: a positive integer, else TypeError."""
+    value = single_literal(value, what)
+    if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+        raise TypeError(f"{what} must be a positive integer, got {value!r}")
+    return value
+
+
 def parse_ndim(value, cls_name: str):
     """The number of dimensions written in an annotation's second parameter: 1 to 4, or
     typing.Any (any number; Python-scope annotations only, kernels need a number)."""

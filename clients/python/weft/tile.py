@@ -11,13 +11,6 @@ import typing
 from . import array_annotations as _annotations
 
 
-def _extent(value) -> int:
-    value = _annotations.single_literal(value, "a tile dimension")
-    if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
-        raise TypeError(f"wp.tile dimensions must be a positive integer, got {value!r}")
-    return value
-
-
 class tile:
     """A tile type: dtype, shape (a tuple of extents, or typing.Any) and storage."""
 
@@ -27,7 +20,7 @@ class tile:
         if storage not in ("register", "shared"):
             raise ValueError(f"wp.tile storage must be 'register' or 'shared', got {storage!r}")
         self.dtype = _annotations._canonical_dtype(dtype)
-        self.shape = shape if shape is typing.Any else tuple(_extent(n) for n in shape)
+        self.shape = shape if shape is typing.Any else tuple(_annotations.positive_extent(n, "a wp.tile dimension") for n in shape)
         self.storage = storage
 
     def __class_getitem__(cls, params):

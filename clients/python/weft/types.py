@@ -803,12 +803,9 @@ vector_types = tuple(_typed.values())
 
 
 def _positive_extent(value, what: str) -> int:
-    from .array_annotations import single_literal
+    from .array_annotations import positive_extent
 
-    value = single_literal(value, what)
-    if isinstance(value, _py_bool) or not isinstance(value, _py_int) or value <= 0:
-        raise TypeError(f"{what} must be a positive integer, got {value!r}")
-    return value
+    return positive_extent(value, what)
 
 
 def _subscript_params(params, count: int, name: str, usage: str) -> tuple:

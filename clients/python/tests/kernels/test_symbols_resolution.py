@@ -14,7 +14,6 @@ import weft as wp
 from weft import types as wtypes
 from weft._kernel import api
 from weft._kernel import module as module_mod
-from weft._kernel.annotations import array2d_type, array_type
 from weft._kernel.errors import WeftCompileError
 
 alias_of_weft = weft
@@ -29,7 +28,7 @@ vec5 = wtypes.vector(5, wtypes.float32)
 @api.struct
 class Inner:
     weight: float
-    values: array_type(dtype=float)
+    values: wp.array(dtype=float)
 
 
 @api.struct
@@ -54,7 +53,7 @@ def twice(x: typing.Any):
 
 
 @api.kernel
-def uses_everything(a: array_type(dtype=float), b: array2d_type(dtype=wtypes.vec3), o: Outer,
+def uses_everything(a: wp.array(dtype=float), b: wp.array2d(dtype=wtypes.vec3), o: Outer,
                     s: float):
     i = wp.tid()
     v = vec5()
@@ -163,7 +162,7 @@ def test_closure_constants_resolve():
     local_n = 42
 
     @api.kernel
-    def closure_kernel(a: array_type(dtype=int)):
+    def closure_kernel(a: wp.array(dtype=int)):
         a[0] = local_n
 
     msg, _ = module_mod.build_module_source(closure_kernel)

@@ -219,10 +219,10 @@ class ArgPacker:
 
         if value is None:
             return types_pb2.ArrayRef(handle=0), None
-        if getattr(value, "_indexed_", False):   # an indexed view is no plain array (as in Warp)
-            self._fail(name, f"expects an array of type array(ndim={desc.ndim}, dtype={desc.elem.text}), "
-                             f"but passed value has type {type(value).__name__}")
         if not is_weft_array(value):
+            if getattr(value, "_indexed_", False):   # an indexed view is no plain array (as in Warp)
+                self._fail(name, f"expects an array of type array(ndim={desc.ndim}, dtype={desc.elem.text}), "
+                                 f"but passed value has type {type(value).__name__}")
             if isinstance(value, np.ndarray) or any(
                     hasattr(value, attr) for attr in ("__array__", "__array_interface__",
                                                       "__dlpack__", "__cuda_array_interface__")):
