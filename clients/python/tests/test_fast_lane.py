@@ -769,3 +769,69 @@ print("done")
     assert all(float(v) >= 0 for v in line.groups()[1:]), text
     assert float(line.group(4)) > 0, text       # the engine did run the launches
     assert "kind=synchronize" in text, text
+
+
+def test_finalizers_inside_the_runtime_do_not_disturb_it(wp, monkeypatch):
+    """A captured graph refers to itself (Warp's `graph.graph`), so the garbage collector
+    finalizes it, at whatever allocation it runs: inside the runtime too, while the runtime
+    walks its Submits in flight or its frees. Here a collector callback drops a graph, a
+    daemon tape, a geometry object or an array whenever a collection starts inside the
+    runtime's own code (weft/_runtime.py on the stack), late (replies arrive meanwhile), so
+    their finalizers run at its allocation points during bursts of pipelined launches and
+    array calls. They only queue their commands (the next batch takes them): nothing of the
+    runtime changes under its own iteration, and every launch still runs, in order."""
+    import gc
+    import sys
+    import time
+
+    rt = _runtime_with_lane(wp)
+    monkeypatch.setattr(rt, "pipelined", True)
+    rng = np.random.default_rng(int.from_bytes(os.urandom(4), "little"))
+    data = wp.array(rng.uniform(-1, 1, 64).astype(np.float32), dtype=float, device="cpu")
+    start = data.numpy().astype(np.float64)
+    pool = []
+    for _ in range(60):
+        with wp.ScopedCapture(device="cpu") as capture:
+            wp.launch(lane_add, dim=64, inputs=[data, 0.0], device="cpu")
+        tape = wp.Tape()
+        with tape:
+            wp.launch(lane_add, dim=64, inputs=[data, 0.0], device="cpu")
+        pool += [wp.zeros(16, dtype=float, device="cpu"), wp.HashGrid(2, 2, 2, device="cpu"),
+                 tape, capture.graph]
+    del capture, tape
+    wp.synchronize()
+    runtime_file = _runtime.__file__
+    dropped = []
+
+    def drop_one(phase, info):
+        if phase != "start" or not pool:
+            return
+        frame = sys._getframe(1)
+        while frame is not None and frame.f_code.co_filename != runtime_file:
+            frame = frame.f_back
+        if frame is None:
+            return
+        time.sleep(0.0005)                    # a late finalizer: replies arrive meanwhile
+        obj = pool.pop()
+        if isinstance(obj, wp.Graph):
+            obj.graph = None                  # no cycle left: finalized right here
+        dropped.append((type(obj).__name__, frame.f_code.co_name))
+        del obj
+
+    total = 0.0
+    thresholds = gc.get_threshold()
+    gc.set_threshold(1, 1, 1)
+    gc.callbacks.append(drop_one)
+    try:
+        for k in range(40):
+            for _ in range(10):
+                wp.launch(lane_add, dim=64, inputs=[data, float(k + 1)], device="cpu")
+                total += k + 1
+            wp.zeros(8, dtype=float, device="cpu")
+    finally:
+        gc.callbacks.remove(drop_one)
+        gc.set_threshold(*thresholds)
+    assert len(dropped) > 100, f"finalizers ran inside the runtime {len(dropped)} times"
+    got = data.numpy().astype(np.float64)
+    np.testing.assert_allclose(got, start + total, rtol=1e-6, atol=1e-3)
+    assert not rt.fast_lane.broken

@@ -243,7 +243,7 @@ def _open(slab_id, handle, ordinal, size):
     # freed one, and refuses a second open of a handle (ALREADY_MAPPED). A mapping of this
     # process with the same handle and no live array is such a freed slab: close it first. One
     # with live arrays is the same memory (a live slab is never freed under them): share it.
-    for other in list(_mappings.values()):
+    for other in _mappings.copy().values():   # a copy: finalizers may release meanwhile
         if other.handle == handle and other.ordinal == ordinal:
             if other.users > 0 and other.size == size:
                 _mappings[slab_id] = other
@@ -273,7 +273,8 @@ def _open(slab_id, handle, ordinal, size):
 
 def _forget(mapping) -> None:
     """Closes `mapping` and drops every slab id that names it."""
-    for key in [k for k, m in _mappings.items() if m is mapping]:
+    # Over a copy: an array finalizer may run at any allocation here and release a mapping.
+    for key in [k for k, m in _mappings.copy().items() if m is mapping]:
         del _mappings[key]
         _idle.pop(key, None)
     _close(mapping)

@@ -331,7 +331,11 @@ class Runtime:
         self._batch: list = []
         self._batch_bytes = 0
         self._pending_frees: collections.deque = collections.deque()
-        self._pending_geometry_frees: collections.deque = collections.deque()
+        # Commands that finalizers queued (geometry frees, tape frees, graph destroys): a
+        # finalizer may run inside any allocation of this thread, even while the lock is held
+        # and a deque is being walked, so it only appends here, without the lock; the next
+        # batch takes them, after the commands queued before them.
+        self._finalizer_commands: collections.deque = collections.deque()
         self._free_calls: list = []
         self._deferred_error: WeftError | None = None
         # Asynchronous Submits in flight, oldest first: one gRPC future, or up to
@@ -486,8 +490,8 @@ class Runtime:
             self.work_queued += 1
             if not self._batch:
                 self._batch_since = time.perf_counter()
-            if self._pending_geometry_frees:
-                self._queue_geometry_frees()
+            if self._finalizer_commands:
+                self._queue_finalizer_commands()
             self._batch.append(cmd)
             self._batch_bytes += cmd.ByteSize()
             full = len(self._batch) >= BATCH_MAX_COMMANDS or self._batch_bytes >= BATCH_MAX_BYTES
@@ -633,8 +637,8 @@ class Runtime:
         """Sends the batched commands (ExecService.Submit), then the deferred frees."""
         with self._lock:
             self._collect_inflight()
-            if self._pending_geometry_frees:
-                self._queue_geometry_frees()
+            if self._finalizer_commands:
+                self._queue_finalizer_commands()
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch:
                 self._exec("Submit", exec_pb2.SubmitRequest(commands=batch))
@@ -649,8 +653,8 @@ class Runtime:
             self._pump_at = PUMP_FIRST
             self._pump_after = PUMP_AFTER_LANE_S
             self.pump_held = 0
-            if self._pending_geometry_frees:
-                self._queue_geometry_frees()
+            if self._finalizer_commands:
+                self._queue_finalizer_commands()
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch and _FUSED_SYNC:
                 response = self._exec("Submit",
@@ -710,17 +714,21 @@ class Runtime:
     def free_geometry_later(self, object_id: int) -> None:
         """A geometry object the client released (its finalizer: no lock, no RPC here): freed
         by a command of the next batch, after the commands queued before it."""
-        if not self.closed:
-            self._pending_geometry_frees.append(object_id)
-
-    def _queue_geometry_frees(self) -> None:
-        # Caller holds the lock; straight into the batch, never into a graph being captured.
         from .v1 import geometry_pb2  # noqa: PLC0415
 
-        free = geometry_pb2.GeometryRequest.Op.FREE
-        while self._pending_geometry_frees:
-            cmd = exec_pb2.Command(geometry=geometry_pb2.GeometryRequest(
-                op=free, id=self._pending_geometry_frees.popleft()))
+        self.submit_from_finalizer(exec_pb2.Command(geometry=geometry_pb2.GeometryRequest(
+            op=geometry_pb2.GeometryRequest.Op.FREE, id=object_id)))
+
+    def submit_from_finalizer(self, cmd) -> None:
+        """submit() for a finalizer: no lock, no RPC, no walk of the batch or of the Submits
+        in flight (the finalizer may have interrupted one); the next batch takes `cmd`."""
+        if not self.closed:
+            self._finalizer_commands.append(cmd)
+
+    def _queue_finalizer_commands(self) -> None:
+        # Caller holds the lock; straight into the batch, never into a graph being captured.
+        while self._finalizer_commands:
+            cmd = self._finalizer_commands.popleft()
             self._batch.append(cmd)
             self._batch_bytes += cmd.ByteSize()
 
@@ -743,8 +751,10 @@ class Runtime:
         self._free_calls = [call for call in self._free_calls if not call.done()]
         lane = self._lane_free() if self._pending_frees and self.lane_arrays else None
         if lane is not None:
-            requests = [array_pb2.FreeArrayRequest(handle=h) for h in self._pending_frees]
-            self._pending_frees.clear()
+            # Popped one by one: a finalizer may append to the deque while this runs.
+            requests = []
+            while self._pending_frees:
+                requests.append(array_pb2.FreeArrayRequest(handle=self._pending_frees.popleft()))
             try:
                 lane.call_many(_fast_lane.ARRAY_FREE, requests)
                 return

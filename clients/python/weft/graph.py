@@ -111,7 +111,7 @@ class Graph:
             if self._graph_ids:
                 from .v1 import exec_pb2  # noqa: PLC0415
                 for graph_id in self._graph_ids:
-                    rt.submit(exec_pb2.Command(graph=exec_pb2.GraphCommand(
+                    rt.submit_from_finalizer(exec_pb2.Command(graph=exec_pb2.GraphCommand(
                         op=exec_pb2.GraphCommand.DESTROY, graph_id=graph_id)))
             if self._retained:
                 rt.release_handles(self._retained)

@@ -210,7 +210,7 @@ class Tape:
             if self._mode == "daemon" and self._runtime is not None and not self._runtime.closed:
                 from weft.v1 import exec_pb2  # noqa: PLC0415
 
-                self._runtime.submit(exec_pb2.Command(tape=exec_pb2.TapeCommand(
+                self._runtime.submit_from_finalizer(exec_pb2.Command(tape=exec_pb2.TapeCommand(
                     op=exec_pb2.TapeCommand.FREE, tape_id=self.tape_id)))
         except Exception:  # noqa: BLE001 - finalizer: never raise
             pass
