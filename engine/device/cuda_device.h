@@ -274,6 +274,10 @@ class CudaDevice final : public Device {
     jit::CuDevicePtr hist;
   };
   Status SortPairs(Stream& st, const SortBuffers& b, int64_t n, int bits, int* cur);
+  // A grouped device BVH build's group step (cuda_device_bvh.cpp): the items (ids[0], in code
+  // order) sorted stably by group, keys[1] = their codes in that order, ids[1] = the dense rank
+  // of each one's group, and job.group_ids filled (ascending, the rest INT32_MAX).
+  Status GroupRanks(Stream& st, const geometry::BvhBuildJob& job, const SortBuffers& b, jit::CuDevicePtr codes_by_item);
   // Node bounds bottom-up from the leaves of a device-built BVH (cuda_device_bvh.cpp).
   Status BvhBoundsUp(Stream& st, const geometry::BvhRefitJob& job);
   // The device address of the session's geometry table for a launch on `st` (0: the session

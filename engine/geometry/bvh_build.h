@@ -48,6 +48,10 @@ struct BvhRefitJob {
 // item. Nodes 0 .. n-2 are the inner nodes (0 the root), node n-1+k the leaf of the k-th item in
 // Morton order (left = k, right = -1). Items as in BvhRefitJob (lowers/uppers, or points and the
 // checked indices). Every address is device memory the session or the object owns.
+// A grouped build (item_groups != 0) orders the items by (dense rank of the group, code,
+// position) instead, so each group's items are one subtree; group_ids (n int32) receives the
+// groups present, ascending, then INT32_MAX, and group_roots (n int32) each group's subtree root
+// at the same position, then -1 (the kernel-side lookup searches all n entries).
 struct BvhBuildJob {
   int64_t n = 0;   // items, 1 .. 2^31 - 1
   uintptr_t lowers = 0, uppers = 0, points = 0, indices = 0;
@@ -55,6 +59,10 @@ struct BvhBuildJob {
   uintptr_t prim_ids = 0;   // n int32
   uintptr_t parents = 0;    // 2n - 1 int32 (the root's: -1), kept for refits
   uintptr_t scratch = 0;    // BvhBuildScratchBytes(n); its first n int32 are the refit's arrivals
+  // Grouped builds: the object's copy of the group ids (n int32), filled from groups_src first
+  // when that is another address (the user's array, at creation); 0: not grouped.
+  uintptr_t item_groups = 0, groups_src = 0;
+  uintptr_t group_ids = 0, group_roots = 0;   // n int32 each
 };
 
 // A mesh's indices checked on its GPU (Device::CheckMeshIndices): the count values at src (the

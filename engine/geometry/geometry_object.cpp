@@ -155,9 +155,9 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_pt
   std::shared_ptr<GeometryObject> g(new GeometryObject());
   g->kind_ = wp::GEOMETRY_MESH;
   g->device_ = points->device;
-  // A GPU mesh built on the device (no groups) checks its indices there: no download.
+  // A GPU mesh is built on the device and checks its indices there: no download.
   Status checked = Unimplemented("host check");
-  if (count && g->on_gpu() && !groups) checked = g->CheckIndicesOnDevice(indices, count, np, dev);
+  if (count && g->on_gpu()) checked = g->CheckIndicesOnDevice(indices, count, np, dev);
   if (checked.code() != StatusCode::kUnimplemented) WEFT_RETURN_IF_ERROR(checked);
   if (checked.code() == StatusCode::kUnimplemented) {
     try {
@@ -305,6 +305,7 @@ Status GeometryObject::CheckIndicesOnDevice(const std::shared_ptr<Allocation>& i
 Status GeometryObject::TakeGroups(const std::shared_ptr<Allocation>& groups, const DeviceAccess* dev,
                                   const char* what) {
   item_groups_.clear();
+  grouped_ = groups != nullptr;
   if (!groups) return Status::Ok();
   if (groups->device != device_)
     return InvalidArgument(std::string(what) + ": the groups live on " + groups->device + ", the object on " + device_);
@@ -318,9 +319,26 @@ Status GeometryObject::TakeGroups(const std::shared_ptr<Allocation>& groups, con
     return ResourceExhausted(std::string(what) + ": out of host memory");
   }
   if (count == 0) return Status::Ok();
-  if (on_gpu()) return dev->download(*groups, item_groups_.data(), count * sizeof(int32_t));
+  if (on_gpu()) {   // read by the device build (or downloaded where the host builds)
+    item_groups_.clear();
+    groups_ = groups;
+    return Status::Ok();
+  }
   std::memcpy(item_groups_.data(), groups->data(), count * sizeof(int32_t));
   return Status::Ok();
+}
+
+Status GeometryObject::DownloadGroups(const DeviceAccess* dev) {
+  if (!grouped_ || !item_groups_.empty() || num_prims_ == 0) return Status::Ok();
+  const uint64_t bytes = static_cast<uint64_t>(num_prims_) * sizeof(int32_t);
+  try {
+    item_groups_.resize(static_cast<size_t>(num_prims_));
+  } catch (const std::bad_alloc&) {
+    return ResourceExhausted("out of host memory for the groups");
+  }
+  if (gpu_item_groups_.memory && gpu_item_groups_.bytes >= bytes) return dev->download(*gpu_item_groups_.memory, item_groups_.data(), bytes);
+  if (groups_) return dev->download(*groups_, item_groups_.data(), bytes);
+  return Internal("the groups of this object are gone");
 }
 
 ItemBounds GeometryObject::Bounds(const float* lo, const float* hi, const float* p) const {
@@ -414,9 +432,10 @@ Status GeometryObject::Mirror(const DeviceAccess* dev) {
 Status GeometryObject::Rebuild(const DeviceAccess* dev) {
   if (kind_ == wp::GEOMETRY_HASH_GRID) return Status::Ok();
   if (kind_ == wp::GEOMETRY_VOLUME) return InvalidArgument("rebuild() is a Bvh or Mesh operation, not a Volume's");
-  if (on_gpu() && item_groups_.empty() && num_prims_ > 0) {
+  if (on_gpu() && num_prims_ > 0) {
     Status built = BuildBvhOnDevice(dev);
     if (built.code() != StatusCode::kUnimplemented) return built;
+    WEFT_RETURN_IF_ERROR(DownloadGroups(dev));
   }
   device_built_ = false;
   gpu_parents_.bytes = 0;
@@ -455,11 +474,19 @@ Status GeometryObject::BuildBvhOnDevice(const DeviceAccess* dev) {
   if (memory.ok()) memory = EnsureDeviceMemory(dev, n * sizeof(int32_t), &gpu_prim_ids_);
   if (memory.ok()) memory = EnsureDeviceMemory(dev, (2 * n - 1) * sizeof(int32_t), &gpu_parents_);
   if (memory.ok()) memory = EnsureDeviceMemory(dev, BvhBuildScratchBytes(num_prims_), &gpu_sort_scratch_);
+  const bool copied = gpu_item_groups_.memory && gpu_item_groups_.bytes == n * sizeof(int32_t);
+  if (grouped_) {
+    if (memory.ok() && !copied) memory = EnsureDeviceMemory(dev, n * sizeof(int32_t), &gpu_item_groups_);
+    if (memory.ok()) memory = EnsureDeviceMemory(dev, n * sizeof(int32_t), &gpu_group_ids_);
+    if (memory.ok()) memory = EnsureDeviceMemory(dev, n * sizeof(int32_t), &gpu_group_roots_);
+  }
   if (memory.ok() && kind_ == wp::GEOMETRY_MESH && !indices_.empty() &&
       gpu_indices_.bytes != indices_.size() * sizeof(int32_t))   // checked on the host
     memory = MirrorOne(dev, indices_.data(), indices_.size() * sizeof(int32_t), &gpu_indices_);
   if (!memory.ok()) {
     gpu_nodes_.bytes = gpu_prim_ids_.bytes = gpu_parents_.bytes = 0;
+    gpu_group_ids_.bytes = gpu_group_roots_.bytes = 0;
+    if (!copied) gpu_item_groups_.bytes = 0;
     return memory;
   }
   BvhBuildJob job;
@@ -469,9 +496,21 @@ Status GeometryObject::BuildBvhOnDevice(const DeviceAccess* dev) {
   job.prim_ids = AddressOf(gpu_prim_ids_.memory);
   job.parents = AddressOf(gpu_parents_.memory);
   job.scratch = AddressOf(gpu_sort_scratch_.memory);
+  if (grouped_) {
+    job.item_groups = AddressOf(gpu_item_groups_.memory);
+    job.groups_src = copied ? job.item_groups : AddressOf(groups_);   // the user's array, once
+    job.group_ids = AddressOf(gpu_group_ids_.memory);
+    job.group_roots = AddressOf(gpu_group_roots_.memory);
+  }
   Status built = dev->build_bvh(device_, job);
   device_built_ = built.ok();
-  if (!built.ok()) gpu_nodes_.bytes = gpu_prim_ids_.bytes = gpu_parents_.bytes = 0;
+  if (!built.ok()) {
+    gpu_nodes_.bytes = gpu_prim_ids_.bytes = gpu_parents_.bytes = 0;
+    gpu_group_ids_.bytes = gpu_group_roots_.bytes = 0;
+    if (!copied) gpu_item_groups_.bytes = 0;
+  } else if (grouped_) {
+    groups_.reset();   // copied: a rebuild reads the object's copy
+  }
   return built;
 }
 
@@ -667,7 +706,8 @@ void GeometryObject::Describe(wp::geometry_desc_t* d, std::vector<std::shared_pt
   d->num_nodes = device_built_ ? 2 * num_prims_ - 1 : static_cast<int64_t>(bvh_.nodes.size());
   d->group_ids = bvh_.group_ids.empty() ? nullptr : bvh_.group_ids.data();
   d->group_roots = bvh_.group_roots.empty() ? nullptr : bvh_.group_roots.data();
-  d->num_groups = static_cast<int64_t>(bvh_.group_ids.size());
+  // A grouped tree built on the device lists its groups in n entries (the rest INT32_MAX, -1).
+  d->num_groups = device_built_ && grouped_ ? num_prims_ : static_cast<int64_t>(bvh_.group_ids.size());
   if (kind_ == wp::GEOMETRY_HASH_GRID) {
     d->cell_starts = cell_starts_.empty() ? nullptr : cell_starts_.data();
     d->cell_ends = cell_ends_.empty() ? nullptr : cell_ends_.data();

@@ -3,11 +3,11 @@
 // the daemon's own build products (BVH nodes, the checked copy of a mesh's indices, the hash
 // grid's cells). Describe() writes the kernel-side descriptor (geometry_abi.h). Builds and refits
 // run on the session's executor, ordered with its launches.
-// On a GPU, hash grids and BVHs without groups are built on the device (a BVH as a linear BVH,
-// bvh_build.h BvhBuildJob), and every BVH is refitted there; grouped BVHs are built on the host:
-// the arrays are downloaded (after the session's queued work on the device), the tree is built
-// as on the CPU, and the products are uploaded into device memory the object owns (counted in
-// the session's quota); kernels read the user's arrays in place.
+// On a GPU, hash grids and BVHs (grouped or not) are built on the device (a BVH as a linear BVH,
+// bvh_build.h BvhBuildJob), and every BVH is refitted there. Where a device cannot build, the
+// arrays are downloaded (after the session's queued work on the device), the tree is built as
+// on the CPU, and the products are uploaded into device memory the object owns (counted in the
+// session's quota); kernels read the user's arrays in place.
 #pragma once
 
 #include <cstdint>
@@ -125,14 +125,18 @@ class GeometryObject {
   // The device addresses of the items a BVH job reads: lowers/uppers (a Bvh) or points and the
   // checked indices (a Mesh); the others 0.
   void ItemAddresses(uintptr_t* lowers, uintptr_t* uppers, uintptr_t* points, uintptr_t* indices) const;
-  // GPU, no groups: builds the tree on the device (Unimplemented when the device cannot).
+  // GPU: builds the tree on the device (Unimplemented when the device cannot).
   Status BuildBvhOnDevice(const DeviceAccess* dev);
   // GPU: copies the mesh's indices into gpu_indices_ and checks them there (Unimplemented when
   // the device cannot).
   Status CheckIndicesOnDevice(const std::shared_ptr<Allocation>& indices, uint64_t count, int64_t num_points,
                               const DeviceAccess* dev);
-  // Copies `groups` (one int32 per item) into item_groups_.
+  // Checks `groups` (one int32 per item) and keeps them: copied into item_groups_ on the CPU; on
+  // a GPU the device build copies them into gpu_item_groups_ (groups_ until then).
   Status TakeGroups(const std::shared_ptr<Allocation>& groups, const DeviceAccess* dev, const char* what);
+  // GPU, grouped, where the device cannot build: item_groups_ from the device copy (or the
+  // user's array before the first device build).
+  Status DownloadGroups(const DeviceAccess* dev);
 
   uint32_t kind_ = wp::GEOMETRY_NONE;
   std::string device_;
@@ -141,6 +145,8 @@ class GeometryObject {
   int64_t num_prims_ = 0;
   std::vector<int32_t> indices_;   // mesh: checked copy (on a GPU, only where the host builds)
   std::vector<int32_t> item_groups_;   // grouped Bvh / Mesh: the group of each item (face)
+  bool grouped_ = false;                  // built with groups
+  std::shared_ptr<Allocation> groups_;    // GPU: the user's groups, until the device copied them
   std::shared_ptr<Allocation> user_indices_;   // mesh: the caller's array (mesh_get's indices)
   BvhData bvh_;
   // hash grid
@@ -156,6 +162,7 @@ class GeometryObject {
   DeviceCopy gpu_indices_, gpu_nodes_, gpu_prim_ids_, gpu_cell_starts_, gpu_cell_ends_, gpu_sorted_ids_;
   DeviceCopy gpu_sorted_groups_, gpu_levels_;
   DeviceCopy gpu_group_ids_, gpu_group_roots_;
+  DeviceCopy gpu_item_groups_;    // a grouped BVH built on the device: the group of each item
   DeviceCopy gpu_vol_table_, gpu_vol_masks_, gpu_vol_prefix_;
   DeviceCopy gpu_sort_scratch_;   // a device build's sort buffers (a BVH's refit arrivals first)
   DeviceCopy gpu_parents_;        // a BVH built on the device: each node's parent

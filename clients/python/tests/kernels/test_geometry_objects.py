@@ -980,6 +980,84 @@ def test_grouped_bvh_queries_visit_only_their_group(rng):
     np.testing.assert_array_equal(hits.numpy(), got)
 
 
+@wp.kernel
+def bvh_group_all(bvh: wp.uint64, groups: wp.array(dtype=int), lower: wp.vec3, upper: wp.vec3,
+                  hits: wp.array2d(dtype=int), roots: wp.array(dtype=int)):
+    tid = wp.tid()
+    root = wp.bvh_get_group_root(bvh, groups[tid])
+    roots[tid] = root
+    query = wp.bvh_query_aabb(bvh, lower, upper, root)
+    item = int(0)
+    while wp.bvh_query_next(query, item):
+        hits[tid, item] = hits[tid, item] + 1
+
+
+@pytest.mark.parametrize("case", ["powers_of_two", "one_group", "each_its_own", "one_box_each"])
+def test_grouped_bvh_on_hard_inputs(rng, case):
+    """Grouped trees (built on the device on a GPU: a linear BVH over (group rank, Morton code,
+    position) keys) on hostile group ids: ids that are powers of two and both int32 extremes (a
+    deep tree if the raw ids were the keys), one group for everything, every item its own group,
+    and boxes that all coincide within a group (one Morton code). For every group present, the
+    query over everything from its root reports exactly its items, each once; from the whole
+    tree's root (-1, an absent group) every item once; after a refit of moved boxes and after a
+    rebuild (the groups were read once, at creation: later writes to them change nothing)."""
+    n = 20_000 if case != "each_its_own" else 3_000
+    centers = rng.uniform(-50, 50, size=(n, 3))
+    if case == "powers_of_two":
+        ids = np.array([-2**31, 2**31 - 1] + [1 << k for k in range(31)] + [-(1 << k) for k in range(31)],
+                       dtype=np.int64).astype(np.int32)
+        groups_np = ids[rng.integers(0, len(ids), size=n)]
+        groups_np[:len(ids)] = ids
+        centers[groups_np == 4] = centers[np.flatnonzero(groups_np == 4)[0]]   # one Morton code
+    elif case == "one_group":
+        groups_np = np.full(n, -123456, dtype=np.int32)
+    elif case == "each_its_own":
+        groups_np = rng.permutation(np.arange(n, dtype=np.int32) * 7919 - 2**30).astype(np.int32)
+    else:
+        groups_np = rng.integers(-3, 3, size=n).astype(np.int32)
+        centers[:] = centers[0]                       # every box the same: one code everywhere
+    half = rng.uniform(0.01, 1.0, size=(n, 3))
+    lo, hi = (centers - half).astype(np.float32), (centers + half).astype(np.float32)
+    lowers = wp.array(lo, dtype=wp.vec3, device=DEV)
+    uppers = wp.array(hi, dtype=wp.vec3, device=DEV)
+    groups = wp.array(groups_np, dtype=int, device=DEV)
+    bvh = wp.Bvh(lowers, uppers, groups=groups)
+    present = np.unique(groups_np)
+    if len(present) > 40:
+        present = rng.choice(present, 40, replace=False)
+    absent = np.int32(2**31 - 1) if (groups_np != 2**31 - 1).all() else np.int32(5)
+    assert (groups_np != absent).all()
+    query_groups = np.concatenate([present, [absent]]).astype(np.int32)
+    big = wp.vec3(1e6, 1e6, 1e6)
+
+    def check(tag):
+        hits = wp.zeros((len(query_groups), n), dtype=int, device=DEV)
+        roots = wp.zeros(len(query_groups), dtype=int, device=DEV)
+        wp.launch(bvh_group_all, dim=len(query_groups),
+                  inputs=[bvh.id, wp.array(query_groups, dtype=int, device=DEV), -big, big, hits, roots],
+                  device=DEV)
+        got, r = hits.numpy(), roots.numpy()
+        for q, g in enumerate(query_groups):
+            if g == absent:
+                assert r[q] == -1, (tag, case)
+                want = np.ones(n, dtype=bool)
+            else:
+                assert r[q] >= 0, (tag, case, g)
+                want = groups_np == g
+            wrong = np.flatnonzero(got[q] != want.astype(int))
+            assert wrong.size == 0, (tag, case, int(g), wrong[:8], got[q][wrong[:8]])
+
+    check("built")
+    groups.fill_(0)                                   # read once, at creation
+    shift = np.float32([3.0, -1.5, 0.25])
+    wp.launch(move_points, dim=n, inputs=[lowers, wp.vec3(*shift)], device=DEV)
+    wp.launch(move_points, dim=n, inputs=[uppers, wp.vec3(*shift)], device=DEV)
+    bvh.refit()
+    check("refit")
+    bvh.rebuild()
+    check("rebuilt")
+
+
 def test_grouped_mesh_rays_hit_only_their_group(rng):
     # two unit squares facing -z at z = 1 (group 5) and z = 2 (group -1), under the same rays
     pts = np.array([[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1], [0, 0, 2], [1, 0, 2], [1, 1, 2], [0, 1, 2]],
