@@ -13,7 +13,8 @@ build and refit on the device (docs/geometry.md): a linear BVH, Warp's default t
 
 Per Bvh size: the build (wp.Bvh(lowers, uppers), synchronized) and a launch of Q box queries
 counting the boxes each overlaps (launch + sync); the error column counts the queries, of 64,
-whose count differs from a NumPy brute force.
+whose count differs from a NumPy brute force. Each size also as a grouped build (a random group
+of BVH_GROUPS per box; the queries walk the whole tree).
 """
 from __future__ import annotations
 
@@ -137,18 +138,20 @@ def run(lib, mod, pts, idx, queries, device):
 
 BVH_SIZES = [10_000, 1_000_000]
 BVH_QUERIES = 1 << 18
+BVH_GROUPS = 64
 
 
-def run_bvh(lib, mod, lo, hi, qlo, qhi, device):
+def run_bvh(lib, mod, lo, hi, qlo, qhi, device, groups=None):
     lowers = lib.array(lo, dtype=lib.vec3, device=device)
     uppers = lib.array(hi, dtype=lib.vec3, device=device)
+    garr = None if groups is None else lib.array(groups, dtype=lib.int32, device=device)
     ql = lib.array(qlo, dtype=lib.vec3, device=device)
     qu = lib.array(qhi, dtype=lib.vec3, device=device)
     counts = lib.zeros(len(qlo), dtype=int, device=device)
     holder = {}
 
     def build():
-        holder["bvh"] = lib.Bvh(lowers, uppers)
+        holder["bvh"] = lib.Bvh(lowers, uppers) if garr is None else lib.Bvh(lowers, uppers, groups=garr)
         lib.synchronize_device(device)
 
     build()
@@ -180,13 +183,15 @@ def bvh_table(weft, weft_mod, warp, warp_mod, device, quick, rng):
         lo, hi = (c - h).astype(np.float32), (c + h).astype(np.float32)
         qc = rng.uniform(0.0, side, size=(nq, 3))
         qlo, qhi = (qc - 0.5).astype(np.float32), (qc + 0.5).astype(np.float32)
-        wb, wq, we = run_bvh(weft, weft_mod, lo, hi, qlo, qhi, device)
-        xb = xq = xe = None
-        if warp is not None:
-            xb, xq, xe = run_bvh(warp, warp_mod, lo, hi, qlo, qhi, device)
-        rows.append([f"{n:,}", bc.fmt_time(wb), bc.fmt_time(xb), bc.fmt_ratio(wb, xb),
-                     bc.fmt_time(wq), f"{nq / wq / 1e6:,.1f} M/s", f"{we}/64",
-                     bc.fmt_time(xq), "n/a" if xe is None else f"{xe}/64", bc.fmt_ratio(wq, xq)])
+        for groups in (None, rng.integers(0, BVH_GROUPS, size=n).astype(np.int32)):
+            label = f"{n:,}" if groups is None else f"{n:,}, {BVH_GROUPS} groups"
+            wb, wq, we = run_bvh(weft, weft_mod, lo, hi, qlo, qhi, device, groups)
+            xb = xq = xe = None
+            if warp is not None:
+                xb, xq, xe = run_bvh(warp, warp_mod, lo, hi, qlo, qhi, device, groups)
+            rows.append([label, bc.fmt_time(wb), bc.fmt_time(xb), bc.fmt_ratio(wb, xb),
+                         bc.fmt_time(wq), f"{nq / wq / 1e6:,.1f} M/s", f"{we}/64",
+                         bc.fmt_time(xq), "n/a" if xe is None else f"{xe}/64", bc.fmt_ratio(wq, xq)])
     header = ["boxes", "build weft", "warp", "ratio", f"{nq:,} queries weft", "throughput", "wrong counts",
               "warp", "warp wrong", "ratio"]
     bc.print_table(f"wp.Bvh on {device}: build, box queries counting overlaps (launch + sync)", header, rows)

@@ -6,7 +6,9 @@
 // below 30 + 32 levels, inside the traversal stack), then the node bounds bottom-up: each leaf's
 // thread climbs while it is the second to arrive at a node (CudaDevice::BvhBoundsUp, which also
 // refits such a tree). Bounds use the host build's arithmetic (empty bounds +-3e38, a NaN never
-// wins a min/max, a NaN centroid counts as 0). CudaDevice::CheckMeshIndices copies a mesh's
+// wins a min/max, a NaN centroid counts as 0). Grouped builds (CudaDevice::GroupRanks) sort the
+// items stably by group after the code sort and build over (dense group rank, code, position),
+// so each group is one subtree; its root and id are found on the device. CudaDevice::CheckMeshIndices copies a mesh's
 // indices into the mesh's own memory and finds the first one out of range, on the device.
 #include <algorithm>
 #include <cstring>
@@ -301,9 +303,9 @@ Status CudaDevice::GroupRanks(Stream& st, const geometry::BvhBuildJob& job, cons
   int64_t seg = geometry::kSortTile;
   int64_t segments = (n + seg - 1) / seg;
   jit::CuDevicePtr sums = b.hist, total = b.hist + geometry::RoundTo256(static_cast<uint64_t>(segments) * 4);
-  void* scan_params[] = {&ranks, &seg, &sums};
+  void* scan_params[] = {&ranks, &seg, &n, &sums};   // the last segment holds the rest of n
   WEFT_RETURN_IF_ERROR(launch(scan_fn, static_cast<unsigned>(segments), 1024, scan_params, "cuLaunchKernel (BVH group scan)"));
-  void* sums_params[] = {&sums, &segments, &total};
+  void* sums_params[] = {&sums, &segments, &segments, &total};
   WEFT_RETURN_IF_ERROR(launch(scan_fn, 1, 1024, sums_params, "cuLaunchKernel (BVH group scan)"));
   void* ranks_params[] = {&gkeys, &n, &seg, &sums, &ranks, &group_ids};
   return launch(ranks_fn, item_blocks, 256, ranks_params, "cuLaunchKernel (BVH group ranks)");

@@ -65,10 +65,13 @@ extern "C" __global__ void weft_radix_counts(const int* keys, i64 n, int shift, 
 }
 // Exclusive prefix sums of each segment v[s * m, (s + 1) * m) in place, one block of 1024
 // threads per segment (s = blockIdx.x), in rounds of 4096 (4 consecutive values a thread, warp
-// scans, then a scan of the 32 warp totals); totals[s] = the segment's sum.
-extern "C" __global__ void weft_scan_exclusive(int* v, i64 m, int* totals) {
+// scans, then a scan of the 32 warp totals); totals[s] = the segment's sum. v holds `count`
+// values: the last segment may be shorter than m.
+extern "C" __global__ void weft_scan_exclusive(int* v, i64 m, i64 count, int* totals) {
   __shared__ int warp_totals[32];
   v += (i64)blockIdx.x * m;
+  const i64 left = count - (i64)blockIdx.x * m;
+  if (left < m) m = left > 0 ? left : 0;
   const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5, warps = blockDim.x >> 5;
   int carry = 0;
   for (i64 round = 0; round < m; round += 4 * (i64)blockDim.x) {
@@ -170,7 +173,8 @@ Status CudaDevice::SortPairs(Stream& st, const SortBuffers& b, int64_t n, int bi
   for (int32_t shift = 0; shift < bits; shift += geometry::kSortDigitBits) {
     void* count_params[] = {&keys[*cur], &n, &shift, &hist, &tiles};
     WEFT_RETURN_IF_ERROR(launch(counts_fn, tile_blocks, 256, count_params));
-    void* scan_params[] = {&hist, &tiles, &totals};
+    int64_t counts = tiles * geometry::kSortBins;
+    void* scan_params[] = {&hist, &tiles, &counts, &totals};
     WEFT_RETURN_IF_ERROR(launch(scan_fn, geometry::kSortBins, 1024, scan_params));
     void* scatter_params[] = {&keys[*cur], &ids[*cur], &keys[1 - *cur], &ids[1 - *cur], &n, &shift, &hist, &totals, &tiles};
     WEFT_RETURN_IF_ERROR(launch(scatter_fn, tile_blocks, 256, scatter_params));

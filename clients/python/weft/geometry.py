@@ -192,9 +192,9 @@ class Bvh(_Object):
         self.lowers = lowers
         self.uppers = uppers
         self.groups = groups
-        # What weftd builds, whatever was asked: a linear BVH on a GPU (without groups), as
+        # What weftd builds, whatever was asked: a linear BVH on a GPU (grouped or not), as
         # Warp's default there; a median split on the CPU (docs/geometry.md, "Devices").
-        self.constructor = "lbvh" if str(self.device).startswith("cuda") and groups is None else "median"
+        self.constructor = "lbvh" if str(self.device).startswith("cuda") else "median"
         if groups is not None:
             _check_groups(groups, lowers.device, lowers.shape[0], "lowers/uppers", "lowers/uppers")
         self.id = _call(self._rt, op=_op().CREATE_BVH, lowers=_handle_of(lowers, "Bvh lowers"),
