@@ -442,9 +442,13 @@ class FnEmitter {
         if (Links(T(op.dst[0]))) Line("wp::cg_link(" + A(op.dst[0]) + ", " + A(op.args[0]) + ");");
         return;
       case OpKind::kRaw: {
+        const std::string at = "__ctx, " + std::to_string(f_.function_id) + ", " + std::to_string(line);
         std::string text;
         for (size_t i = 0; i < op.text.size(); ++i) {
-          if (op.text[i] == '$' && i + 1 < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[i + 1]))) {
+          if (op.text[i] == '$' && i + 1 < op.text.size() && op.text[i + 1] == '@') {   // where it runs
+            text += at;
+            ++i;
+          } else if (op.text[i] == '$' && i + 1 < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[i + 1]))) {
             size_t j = i + 1;
             int k = 0;
             while (j < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[j]))) k = k * 10 + (op.text[j++] - '0');
@@ -460,7 +464,10 @@ class FnEmitter {
           // expression of the arguments' adjoint arrays
           std::string adj;
           for (size_t i = 0; i < op.text.size(); ++i) {
-            if (op.text[i] == '$' && i + 1 < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[i + 1]))) {
+            if (op.text[i] == '$' && i + 1 < op.text.size() && op.text[i + 1] == '@') {
+              adj += at;
+              ++i;
+            } else if (op.text[i] == '$' && i + 1 < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[i + 1]))) {
               size_t j = i + 1;
               int k = 0;
               while (j < op.text.size() && std::isdigit(static_cast<unsigned char>(op.text[j]))) k = k * 10 + (op.text[j++] - '0');

@@ -186,8 +186,9 @@ WP_FUNC T* checked_address(const launch_context_t* ctx, int32 function_id, int32
 // ---------------------------------------------------------------------------------------------
 // Slices (a[1:3], a[:2, 1:], a[i, ::2]): a view with Python's slice rules. kinds[d]: 1 a slice
 // (bounds[d] = start, stop, step; cg_slice_none for a missing bound), 0 an integer index
-// (bounds[d][0]; negative counts from the end). An index outside its dimension or a step of 0
-// gives a None view (its accesses report a None array); bounds clamp to the extent. A negative
+// (bounds[d][0]; negative counts from the end). An index outside its dimension gives a None view
+// (its accesses report a None array); a step of 0 is a launch error at the slice's line ("slice
+// step cannot be zero", Warp's words) and gives a None view; bounds clamp to the extent. A negative
 // step walks backward from start (default: the last element) down to stop, exclusive
 // (default: before the first element), with a negative stride.
 constexpr int64 cg_slice_none = (int64)(-9223372036854775807LL - 1);
@@ -210,7 +211,8 @@ WP_FUNC int64 cg_slice_bound_back(int64 v, int64 ext, int64 dflt) {
   return v < 0 ? -1 : (v > ext - 1 ? ext - 1 : v);
 }
 template <typename T>
-WP_FUNC array_t<T> cg_slice(const array_t<T>& a, int32 n, cg_slice_kinds_t kinds, cg_slice_bounds_t b) {
+WP_FUNC array_t<T> cg_slice(const launch_context_t* ctx, int32 function_id, int32 line, const array_t<T>& a, int32 n,
+                            cg_slice_kinds_t kinds, cg_slice_bounds_t b) {
   array_t<T> r;
   int64 offset = 0;
   int out = 0;
@@ -225,7 +227,10 @@ WP_FUNC array_t<T> cg_slice(const array_t<T>& a, int32 n, cg_slice_kinds_t kinds
       continue;
     }
     const int64 step = b.b[d][2];
-    if (step == 0) valid = false;
+    if (step == 0) {
+      valid = false;
+      report_error(ctx, LAUNCH_BAD_VALUE, function_id, line, -1, 0, nullptr, nullptr, "slice step cannot be zero");
+    }
     int64 lo = 0, count = 0;
     if (step > 0) {
       lo = cg_slice_bound(b.b[d][0], ext, 0);

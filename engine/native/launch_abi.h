@@ -58,6 +58,7 @@ enum launch_error_kind : int32 {
   LAUNCH_NULL_ARRAY = 2,      // access to an empty (None) array
   LAUNCH_EXPECT_FAILED = 3,   // wp.expect_eq and friends
   LAUNCH_BAD_GEOMETRY = 4,    // a geometry id that names no live object of this kind (message)
+  LAUNCH_BAD_VALUE = 5,       // a value the operation cannot take, e.g. a slice step of 0 (message)
 };
 
 // First error of a launch wins (the writer sets `kind` with an atomic CAS from 0).

@@ -80,6 +80,7 @@ Status FormatLaunchError(const LoadedModule& module, const LoadedKernel& kernel,
       return Status(StatusCode::kAborted, where + ": " + in + ": expect failed" +
                                               (text.empty() ? std::string() : ": " + text));
     case wp::LAUNCH_BAD_GEOMETRY:
+    case wp::LAUNCH_BAD_VALUE:
       return InvalidArgument(where + ": " + in + ": " + text);
     default:
       return Internal(where + ": " + in + ": runtime error kind " + std::to_string(e.kind) +

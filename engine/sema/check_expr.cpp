@@ -549,7 +549,8 @@ Expected<Value> Checker::EvalArraySlice(const ast::Subscript& s, const Value& ba
   if (out_ndim < 1) return Error(s.loc, "a slice of '" + ExprText(*s.value) + "' keeps no dimension");
   for (size_t d = s.indices.size(); d < 4; ++d) kinds += "0, ";
   kinds.resize(kinds.size() - 2);
-  const std::string text = "wp::cg_slice(wp::as_array($0), " + std::to_string(s.indices.size()) + ", wp::cg_slice_kinds_t{{" +
+  // $@: the launch context, function id and line (a zero step is reported there).
+  const std::string text = "wp::cg_slice($@, wp::as_array($0), " + std::to_string(s.indices.size()) + ", wp::cg_slice_kinds_t{{" +
                            kinds + "}}, wp::cg_slice_bounds_t{{" + vals + "}})";
   int v = EmitRaw(Type::Array(bt.elem(), out_ndim), text, vars);
   if (ArrayParamOf(base.var) >= 0) st_->array_param[v] = ArrayParamOf(base.var);

@@ -156,6 +156,46 @@ def test_slices(wp, rng):
 
 
 @wp.kernel
+def runtime_step_slice(a: wp.array2d(dtype=wp.float64), start: int, stop: int, step: int,
+                       out: wp.array(dtype=wp.float64)):
+    view = a[start:stop:step, 1]
+    out[0] = wp.float64(view.shape[0])
+    for k in range(view.shape[0]):
+        out[k + 1] = view[k]
+
+
+@pytest.mark.parametrize("start,stop,step", [(1, 6, 2), (5, 0, -2), (-1, -7, -1), (0, 6, 4), (4, 2, 1)])
+def test_slices_with_runtime_steps(wp, rng, start, stop, step):
+    """Array slices whose bounds and step are kernel arguments follow Python's rules (NumPy as
+    the reference, on random values): positive and negative steps, negative bounds, an empty
+    result."""
+    x = rng.standard_normal((6, 3))
+    out = wp.full(8, -1.0, dtype=wp.float64)
+    wp.launch(runtime_step_slice, dim=1, inputs=[wp.array(x, dtype=wp.float64), start, stop, step, out])
+    want = x[start:stop:step, 1]
+    got = out.numpy()
+    assert got[0] == len(want)
+    np.testing.assert_array_equal(got[1:1 + len(want)], want)
+
+
+def test_slice_with_a_zero_runtime_step_is_a_launch_error(wp, rng):
+    """A step of 0 cannot be checked at compile time when it is an argument: the launch fails
+    with Warp's words at the slice's line, nothing is read through the slice, and the session
+    keeps working."""
+    x = rng.standard_normal((6, 3))
+    a = wp.array(x, dtype=wp.float64)
+    out = wp.full(8, -1.0, dtype=wp.float64)
+    line = runtime_step_slice.func.__code__.co_firstlineno + 3
+    with pytest.raises(wp.WeftError, match=rf"test_lang_fixed_arrays.py:{line}: kernel 'runtime_step_slice'"
+                                           r".*slice step cannot be zero"):
+        wp.launch(runtime_step_slice, dim=1, inputs=[a, 0, 6, 0, out])
+        wp.synchronize()
+    assert (out.numpy()[1:] == -1.0).all()
+    wp.launch(runtime_step_slice, dim=1, inputs=[a, 0, 6, 3, out])
+    np.testing.assert_array_equal(out.numpy()[:3], [2.0, x[0, 1], x[3, 1]])
+
+
+@wp.kernel
 def slice_grad(a: wp.array(dtype=float), y: wp.array(dtype=float)):
     s = a[1::2]
     i = wp.tid()
