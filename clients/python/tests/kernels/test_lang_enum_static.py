@@ -242,3 +242,44 @@ def test_reversed_range_matches_python(wp, rng, device):
         np.testing.assert_allclose(acc.numpy()[0], coeff * float(w.numpy()[0]), rtol=1e-5, atol=1e-5)
         tape.backward(loss=acc)
         np.testing.assert_allclose(w.grad.numpy()[0], coeff, rtol=1e-5, atol=1e-5)
+
+
+def _unique_scaler(v):
+    @wp.kernel(module="unique")
+    def scale(a: wp.array(dtype=wp.float64)):
+        tid = wp.tid()
+        a[tid] = a[tid] * wp.static(v * 2.0)
+
+    return scale
+
+
+def test_unique_kernels_redeclared_with_the_same_values_are_one_kernel(wp, rng, device):
+    """module="unique" kernels declared from one code object bake their own wp.static values;
+    declaring the same code with the same captured values again gives the same kernel (Warp's
+    behaviour), a captured mutable object never does (its contents could differ)."""
+    x = rng.uniform(0.5, 2.0, 4)
+    k1, k2 = _unique_scaler(1.5), _unique_scaler(-0.75)
+    assert k1 is not k2
+    assert _unique_scaler(1.5) is k1 and _unique_scaler(-0.75) is k2
+    assert _unique_scaler(1) is not _unique_scaler(1.0)          # an int is another value
+    for k, factor in ((k1, 3.0), (k2, -1.5)):
+        a = wp.array(x, dtype=wp.float64, device=device)
+        wp.launch(k, dim=4, inputs=[a], device=device)
+        np.testing.assert_allclose(a.numpy(), x * factor, rtol=1e-15)
+    holder = [2.0]
+
+    def mutable_capture():
+        @wp.kernel(module="unique")
+        def k(a: wp.array(dtype=wp.float64)):
+            tid = wp.tid()
+            a[tid] = a[tid] * wp.float64(wp.static(holder[0]))
+
+        return k
+
+    first = mutable_capture()
+    holder[0] = 5.0
+    second = mutable_capture()
+    assert first is not second
+    a = wp.array(x, dtype=wp.float64, device=device)
+    wp.launch(second, dim=4, inputs=[a], device=device)
+    np.testing.assert_allclose(a.numpy(), x * 5.0, rtol=1e-15)

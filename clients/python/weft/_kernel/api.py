@@ -7,6 +7,7 @@ import inspect
 import sys
 import types
 import typing
+import weakref
 
 from . import cuda_compile
 from . import module as module_mod
@@ -61,10 +62,61 @@ __all__ = [
 ]
 
 
+# module="unique" kernels by what they were declared from (_unique_declaration): declaring the
+# same code again with the same captured values gives the same kernel, as in Warp, while it lives.
+_UNIQUE_KERNELS = weakref.WeakValueDictionary()
+
+
+def _stable_value(v) -> bool:
+    """A value that a kernel declaration may be keyed by: immutable data (held in the key, so it
+    is compared by value and never outlived), or a module, class or function (by identity)."""
+    if v is None or isinstance(v, (bool, int, float, complex, str, bytes, types.ModuleType, type,
+                                   types.FunctionType, types.BuiltinFunctionType, Function, Kernel)):
+        return True
+    return isinstance(v, tuple) and all(_stable_value(x) for x in v)
+
+
+def _unique_declaration(function, name, opts):
+    """The key of a module="unique" declaration: the code object (by identity: code compiled
+    from other text can compare equal), the annotations, the key name, the options and the
+    values of the closure cells and of the globals the code names; None (no reuse) when one of
+    them is mutable or unhashable, whose value could change what the kernel is."""
+    code = function.__code__
+    if function.__defaults__ or function.__kwdefaults__:
+        return None
+    captured = [(id(code), code)]
+    for arg, annotation in function.__annotations__.items():
+        if type(annotation).__name__ == "array" and type(annotation).__module__.startswith("weft"):
+            # wp.array(dtype=T, ndim=N) written as a type: a new object per declaration
+            annotation = ("array", annotation.dtype, annotation.ndim)
+        captured.append((arg, annotation))
+    for cell in function.__closure__ or ():
+        try:
+            value = cell.cell_contents
+        except ValueError:          # a cell not assigned yet
+            return None
+        if not _stable_value(value):
+            return None
+        captured.append((type(value), value))
+    for global_name in code.co_names:
+        if global_name in function.__globals__:
+            value = function.__globals__[global_name]
+            if not _stable_value(value):
+                return None
+            captured.append((global_name, type(value), value))
+    try:
+        key = (code, name, tuple(sorted(opts.items())), tuple(captured))
+        hash(key)
+    except TypeError:
+        return None
+    return key
+
+
 def kernel(f=None, *, enable_backward: typing.Optional[bool] = None, module=None, name=None, **options):
     """@wp.kernel or @wp.kernel(enable_backward=..., module="unique"|name, name=key): declares a
     kernel of its Python module (or of the named module), named `name` when given (Warp's
-    kernel key; several kernels may then come from one function)."""
+    kernel key; several kernels may then come from one function). A module="unique" kernel
+    declared again from the same code with the same captured values is the same kernel."""
 
     def wrap(function):
         opts = dict(options)
@@ -73,7 +125,15 @@ def kernel(f=None, *, enable_backward: typing.Optional[bool] = None, module=None
         target = None
         if module == "unique":
             opts["module"] = "unique"
-        elif module:
+            declared = _unique_declaration(function, name, opts)
+            earlier = _UNIQUE_KERNELS.get(declared) if declared is not None else None
+            if earlier is not None and not earlier.broken:
+                return earlier
+            made = Kernel(func=function, key=name, module=target, options=opts)
+            if declared is not None:
+                _UNIQUE_KERNELS[declared] = made
+            return made
+        if module:
             target = module
         return Kernel(func=function, key=name, module=target, options=opts)
 
