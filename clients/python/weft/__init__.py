@@ -38,7 +38,7 @@ from .constants import *  # noqa: F401,F403
 from .types import *  # noqa: F401,F403
 from .types import (Any, dtype_from_numpy, dtype_to_numpy, matrix, quaternion,  # noqa: F401
                     transformation, type_size_in_bytes, type_str, vector)
-from .utils import ScopedTimer  # noqa: F401
+from .utils import ScopedTimer, transform_expand  # noqa: F401
 from .geometry import (Bvh, BvhQuery, HashGrid, HashGridQuery, Mesh, MeshQuery, MeshQueryAABB,  # noqa: F401
                        MeshQueryPoint, MeshQueryRay, bvh_query_t, hash_grid_query_t,
                        is_cubql_available, mesh_query_aabb_t, mesh_query_point_t,
@@ -60,9 +60,11 @@ from ._kernel.api import *  # noqa: F401,F403,E402
 from ._kernel.transform_funcs import (transform_compose, transform_decompose,  # noqa: F401,E402
                                       transform_from_matrix, transform_to_matrix)
 from ._kernel.math_funcs import (norm_huber, norm_l1, norm_l2, norm_pseudo_huber,  # noqa: F401,E402
-                                 quat_from_euler, quat_to_euler, quat_to_rpy, quat_twist,
+                                 quat_between_vectors, quat_from_euler, quat_to_euler, quat_to_rpy, quat_twist,
                                  quat_twist_angle, quat_twist_angle_signed, smooth_normalize,
                                  transform_twist, transform_wrench, velocity_at_point)
+
+utils.quat_between_vectors = quat_between_vectors   # warp.utils has it too
 
 from .interop.dlpack import from_dlpack, to_dlpack  # noqa: F401,E402
 from .interop.jax import (device_from_jax, device_to_jax, dtype_from_jax,  # noqa: F401,E402

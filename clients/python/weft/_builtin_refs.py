@@ -32,14 +32,15 @@ _KERNEL_ONLY = ("clamp", "outer", "transpose",
 
 
 def _vector_type(value):
+    """The vector (or quaternion: length, dot and normalize take them too) type of value."""
     from . import types as _types   # noqa: PLC0415 - types imports this module's names lazily
     t = type(value)
-    return t if _types.is_vector(t) else None
+    return t if _types.is_vector(t) or _types.type_is_quaternion(t) else None
 
 
 def _vector_builtin(name: str, args):
-    """length/length_sq/dot/normalize/cross on weft vectors, in float64; NotImplemented when the
-    arguments are not vectors of one type (and of length 3 for cross)."""
+    """length/length_sq/dot/normalize/cross on weft vectors (and quaternions), in float64;
+    NotImplemented when the arguments are not vectors of one type (and of length 3 for cross)."""
     vt = _vector_type(args[0]) if args else None
     if vt is None or any(type(a) is not vt for a in args):
         return NotImplemented

@@ -1,4 +1,4 @@
-"""wp.utils: Warp's Python-scope helpers: ScopedTimer, and the array algorithms array_scan,
+"""wp.utils: Warp's Python-scope helpers: ScopedTimer, transform_expand, and the array algorithms array_scan,
 array_sum, array_inner, array_cast, radix_sort_pairs, segmented_sort_pairs and
 runlength_encode. The algorithms wait for the arrays' pending commands, compute on the arrays'
 contents (zero-copy NumPy views for local CPU arrays) and write the results back into the
@@ -11,7 +11,18 @@ import time
 import numpy as np
 
 __all__ = ["ScopedTimer", "array_cast", "array_inner", "array_scan", "array_sum",
-           "radix_sort_pairs", "runlength_encode", "segmented_sort_pairs"]
+           "radix_sort_pairs", "runlength_encode", "segmented_sort_pairs", "transform_expand"]
+
+
+def transform_expand(t):
+    """A transform (float32) from a flat sequence of 7 values: position, then quaternion
+    (x, y, z, w), as Warp's helper."""
+    from .types import transformf  # noqa: PLC0415 - weft.types imports this module's package
+
+    values = [float(x) for x in t]
+    if len(values) != 7:
+        raise ValueError(f"transform_expand expects 7 values (position, quaternion), got {len(values)}")
+    return transformf(p=values[0:3], q=values[3:7])
 
 
 class ScopedTimer:

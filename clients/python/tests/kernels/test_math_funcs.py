@@ -127,3 +127,51 @@ def test_frames_twists_and_angles(wp, rng):
     np.testing.assert_allclose(vel.numpy(), np.cross(x[:, :3], r) + x[:, 3:], rtol=1e-5, atol=1e-5)
     np.testing.assert_allclose(rpy.numpy(), r, atol=2e-5)
     np.testing.assert_allclose(twist.numpy(), 0.0, atol=2e-6)
+
+
+@wp.kernel
+def between(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.quat),
+            rotated: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    q = wp.quat_between_vectors(a[i], b[i])
+    out[i] = q
+    rotated[i] = wp.quat_rotate(q, wp.normalize(a[i]))
+
+
+def test_quat_between_vectors_against_float64(wp, rng):
+    """wp.quat_between_vectors (a warp.utils @wp.func in Warp) in a kernel and from Python: the
+    unit shortest-arc rotation taking normalize(a) onto normalize(b), against the float64 rotation
+    on random directions of magnitudes 1e-15..1e15, nearly parallel pairs and perpendicular pairs
+    (opposite directions are excluded: Warp does not handle them either)."""
+    n = 96
+    a = rng.standard_normal((n, 3)) * 10.0 ** rng.uniform(-15, 15, size=(n, 1))
+    b = rng.standard_normal((n, 3)) * 10.0 ** rng.uniform(-15, 15, size=(n, 1))
+    b[:16] = a[:16] * 3.0 + rng.standard_normal((16, 3)) * 1e-4 * np.abs(a[:16])   # nearly parallel
+    for k in range(16, 32):                                                          # perpendicular
+        b[k] = np.cross(a[k], rng.standard_normal(3))
+    ua = a / np.linalg.norm(a, axis=1, keepdims=True)
+    ub = b / np.linalg.norm(b, axis=1, keepdims=True)
+    keep = (ua * ub).sum(axis=1) > -0.9
+    a, b, ua, ub = a[keep], b[keep], ua[keep], ub[keep]
+    n = len(a)
+    out = wp.zeros(n, dtype=wp.quat)
+    rotated = wp.zeros(n, dtype=wp.vec3)
+    wp.launch(between, dim=n, inputs=[wp.array(a.astype(np.float32), dtype=wp.vec3),
+                                      wp.array(b.astype(np.float32), dtype=wp.vec3), out, rotated])
+    c = np.cross(ua, ub)
+    q64 = np.concatenate([c, 1.0 + (ua * ub).sum(axis=1, keepdims=True)], axis=1)
+    q64 /= np.linalg.norm(q64, axis=1, keepdims=True)
+    np.testing.assert_allclose(out.numpy(), q64, atol=2e-6)
+    np.testing.assert_allclose(rotated.numpy(), ub, atol=5e-6)
+    q = wp.quat_between_vectors(wp.vec3(*a[0].astype(np.float32)), wp.vec3(*b[0].astype(np.float32)))
+    np.testing.assert_allclose(np.array(q, dtype=np.float64), q64[0], atol=2e-6)
+
+
+def test_transform_expand():
+    t = wp.transform_expand((1.0, 2.0, 3.0, 4.0, 3.0, 2.0, 1.0))
+    assert t == wp.transformf(p=(1.0, 2.0, 3.0), q=(4.0, 3.0, 2.0, 1.0))
+    assert isinstance(t, wp.transformf)
+    import pytest
+
+    with pytest.raises(ValueError, match="7 values"):
+        wp.transform_expand((1.0, 2.0))

@@ -1,6 +1,7 @@
 """Warp's math helpers that are @wp.func in Warp itself (warp.math), written in the kernel
 language: vector norms (L1, L2, Huber, pseudo-Huber) and smooth normalization; swing-twist
-helpers and Euler angles of quaternions (roll-pitch-yaw, any axis sequence); twists and wrenches
+helpers, Euler angles of quaternions (roll-pitch-yaw, any axis sequence) and the rotation between
+two directions (quat_between_vectors, a warp.utils helper in Warp); twists and wrenches
 moved between frames; the velocity of a point of a rigid body. Kernels reach them as wp.<name>
 (sent with the module like any @wp.func, so the daemon differentiates them); Python calls them
 like other @wp.func (eager evaluation where the client supports it)."""
@@ -154,6 +155,17 @@ def transform_wrench(t: _transform, x: _spatial_vector) -> _spatial_vector:
     return _wp.spatial_vector(tau, f)
 
 
+def quat_between_vectors(a: _vec3, b: _vec3) -> _quat:
+    """The shortest-arc rotation taking the direction of a onto the direction of b (Warp's
+    warp.utils helper; opposite directions are not handled, as in Warp)."""
+    a = _wp.normalize(a)
+    b = _wp.normalize(b)
+    c = _wp.cross(a, b)
+    d = _wp.dot(a, b)
+    q = _wp.quat(c[0], c[1], c[2], 1.0 + d)
+    return _wp.normalize(q)
+
+
 def velocity_at_point(qd: _spatial_vector, r: _vec3) -> _vec3:
     """Velocity of the point at offset r of a body moving with twist qd = (angular, linear)."""
     return _wp.cross(_wp.spatial_top(qd), r) + _wp.spatial_bottom(qd)
@@ -162,8 +174,9 @@ def velocity_at_point(qd: _spatial_vector, r: _vec3) -> _vec3:
 import weft as _wp  # noqa: E402 - the kernel code above names builtins as _wp.<name>
 
 (norm_l1, norm_l2, norm_huber, norm_pseudo_huber, smooth_normalize, quat_twist, quat_twist_angle,
- quat_twist_angle_signed, quat_to_rpy, quat_from_euler, quat_to_euler, transform_twist,
- transform_wrench, velocity_at_point) = (
+ quat_twist_angle_signed, quat_to_rpy, quat_from_euler, quat_to_euler, quat_between_vectors,
+ transform_twist, transform_wrench, velocity_at_point) = (
     func(f) for f in (norm_l1, norm_l2, norm_huber, norm_pseudo_huber, smooth_normalize, quat_twist,
                       quat_twist_angle, quat_twist_angle_signed, quat_to_rpy, quat_from_euler,
-                      quat_to_euler, transform_twist, transform_wrench, velocity_at_point))
+                      quat_to_euler, quat_between_vectors, transform_twist, transform_wrench,
+                      velocity_at_point))
