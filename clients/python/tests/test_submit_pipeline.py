@@ -21,7 +21,11 @@ def pipe_add(data: wp_module.array(dtype=float), x: float):
 
 
 @pytest.fixture
-def runtime(wp):
+def runtime(wp, monkeypatch):
+    # Batches go out by count (PUMP_FIRST commands, then doubling), never early by age: on a
+    # busy machine a few launches may take longer than PUMP_AFTER_S, and an early Submit would
+    # change the batches these tests count.
+    monkeypatch.setattr(_runtime, "PUMP_AFTER_S", 60.0)
     wp.synchronize()
     rt = _runtime.get_runtime()
     if not rt.local:
@@ -113,12 +117,9 @@ def test_a_short_step_then_sync_is_one_round_trip(wp, runtime):
     np.testing.assert_array_equal(got, 4.5)
 
 
-def test_rejected_asynchronous_submit_raises_at_the_next_sync(wp, runtime, monkeypatch):
+def test_rejected_asynchronous_submit_raises_at_the_next_sync(wp, runtime):
     from weft.v1 import exec_pb2
 
-    # The batch goes out by count (PUMP_FIRST commands), never early by age: on a busy machine
-    # the 7 launches may take longer than PUMP_AFTER_S, and an early Submit would split them.
-    monkeypatch.setattr(_runtime, "PUMP_AFTER_S", 60.0)
     data = wp.zeros(4, dtype=float, device="cpu")
     wp.synchronize()
     bad = exec_pb2.Command()   # no command in it: the daemon refuses the whole batch
