@@ -8,8 +8,9 @@
 // refits such a tree). Bounds use the host build's arithmetic (empty bounds +-3e38, a NaN never
 // wins a min/max, a NaN centroid counts as 0). Grouped builds (CudaDevice::GroupRanks) sort the
 // items stably by group after the code sort and build over (dense group rank, code, position),
-// so each group is one subtree; its root and id are found on the device. CudaDevice::CheckMeshIndices copies a mesh's
-// indices into the mesh's own memory and finds the first one out of range, on the device.
+// so each group is one subtree; its root and id are found on the device.
+// CudaDevice::CheckMeshIndices copies a mesh's indices into the mesh's own memory and finds the
+// first one out of range, on the device.
 #include <algorithm>
 #include <cstring>
 

@@ -121,7 +121,7 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewBvh(std::shared_ptr
   g->lowers_ = std::move(lowers);
   g->uppers_ = std::move(uppers);
   g->num_prims_ = nl;
-  WEFT_RETURN_IF_ERROR(g->TakeGroups(groups, dev, "Bvh groups"));
+  WEFT_RETURN_IF_ERROR(g->TakeGroups(groups, "Bvh groups"));
   WEFT_RETURN_IF_ERROR(g->Rebuild(dev));
   return g;
 }
@@ -180,7 +180,7 @@ Expected<std::shared_ptr<GeometryObject>> GeometryObject::NewMesh(std::shared_pt
   g->user_indices_ = std::move(indices);
   g->num_points_ = np;
   g->num_prims_ = static_cast<int64_t>(count / 3);
-  WEFT_RETURN_IF_ERROR(g->TakeGroups(groups, dev, "Mesh groups"));
+  WEFT_RETURN_IF_ERROR(g->TakeGroups(groups, "Mesh groups"));
   WEFT_RETURN_IF_ERROR(g->Rebuild(dev));
   return g;
 }
@@ -302,8 +302,7 @@ Status GeometryObject::CheckIndicesOnDevice(const std::shared_ptr<Allocation>& i
   return Status::Ok();
 }
 
-Status GeometryObject::TakeGroups(const std::shared_ptr<Allocation>& groups, const DeviceAccess* dev,
-                                  const char* what) {
+Status GeometryObject::TakeGroups(const std::shared_ptr<Allocation>& groups, const char* what) {
   item_groups_.clear();
   grouped_ = groups != nullptr;
   if (!groups) return Status::Ok();
@@ -313,16 +312,15 @@ Status GeometryObject::TakeGroups(const std::shared_ptr<Allocation>& groups, con
   if (count != static_cast<uint64_t>(num_prims_))
     return InvalidArgument(std::string(what) + ": " + std::to_string(count) + " group ids for " +
                            std::to_string(num_prims_) + " items (one per item)");
+  if (count == 0) return Status::Ok();
+  if (on_gpu()) {   // read by the device build (or downloaded where the host builds)
+    groups_ = groups;
+    return Status::Ok();
+  }
   try {
     item_groups_.resize(count);
   } catch (const std::bad_alloc&) {
     return ResourceExhausted(std::string(what) + ": out of host memory");
-  }
-  if (count == 0) return Status::Ok();
-  if (on_gpu()) {   // read by the device build (or downloaded where the host builds)
-    item_groups_.clear();
-    groups_ = groups;
-    return Status::Ok();
   }
   std::memcpy(item_groups_.data(), groups->data(), count * sizeof(int32_t));
   return Status::Ok();

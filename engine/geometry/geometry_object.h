@@ -133,7 +133,7 @@ class GeometryObject {
                               const DeviceAccess* dev);
   // Checks `groups` (one int32 per item) and keeps them: copied into item_groups_ on the CPU; on
   // a GPU the device build copies them into gpu_item_groups_ (groups_ until then).
-  Status TakeGroups(const std::shared_ptr<Allocation>& groups, const DeviceAccess* dev, const char* what);
+  Status TakeGroups(const std::shared_ptr<Allocation>& groups, const char* what);
   // GPU, grouped, where the device cannot build: item_groups_ from the device copy (or the
   // user's array before the first device build).
   Status DownloadGroups(const DeviceAccess* dev);
