@@ -694,7 +694,16 @@ class FnEmitter {
           Line("wp::adj_print(__ctx, " + V(op.args[0]) + ", " + A(op.args[0]) + ");");
           return;
         }
-        if (!b->differentiable() || op.dst.empty()) return;
+        if (!b->differentiable()) return;
+        if (op.dst.empty()) {
+          // A builtin without a result whose arguments still get gradients (tile_store: the
+          // stored tile's adjoint reads the array's gradient).
+          if (!(b->flags & kBuiltinVoidAdjoint)) return;
+          bool diff = false;
+          for (int v : op.args) diff |= Diff(T(v));
+          if (diff) Line("wp::" + b->adjoint + "(" + Args(op.args) + ", " + Args(op.args, 0, std::string::npos, true) + ");");
+          return;
+        }
         if ((b->flags & kBuiltinArrayAccess) && (!Diff(T(op.args.back())) || T(op.args.back()).is_struct())) return;
         bool any = false;
         for (int v : op.dst) any |= Diff(T(v));

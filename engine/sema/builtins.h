@@ -34,6 +34,7 @@ enum BuiltinFlags : unsigned {
   kBuiltinArrayAccess = 1u << 3,  // first param is an array indexed by the following Index params
   kBuiltinNeedsLoc = 1u << 4,     // native takes (ctx, function id, line) first: it reports launch errors
   kBuiltinWritesArgs = 1u << 5,   // writes local variables passed as arguments (query iterators, out-parameters)
+  kBuiltinVoidAdjoint = 1u << 6,  // no result, yet an adjoint: adj(args..., adj_args...) (tile_store)
 };
 
 struct BuiltinPattern;  // parsed form of a parameter/result pattern (builtins_registry.cpp)
@@ -67,6 +68,7 @@ void AddLinalgBuiltins(std::vector<BuiltinOverload>* rows);
 void AddRuntimeBuiltins(std::vector<BuiltinOverload>* rows);
 void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows);
 void AddVolumeBuiltins(std::vector<BuiltinOverload>* rows);
+void AddTileBuiltins(std::vector<BuiltinOverload>* rows);
 
 // The query types of the geometry builtins (HashGridQuery, BvhQuery, MeshQueryPoint,
 // MeshQueryRay, MeshQueryAABB): structs defined by engine/native (not emitted per module),

@@ -112,6 +112,12 @@ bool Match(std::string_view pattern, const Type& arg, Bindings* b) {
     return arg.kind == TypeKind::kTransform && MatchScalarPattern(args[0], arg.scalar, b);
   if (head == "array" && args.size() == 2)
     return arg.is_array() && MatchDim(args[1], arg.ndim, b) && Match(args[0], arg.elem(), b);
+  if (head == "tile" && args.size() >= 2) {
+    if (!arg.is_tile() || arg.fixed_shape.size() + 1 != args.size()) return false;
+    for (size_t d = 0; d + 1 < args.size(); ++d)
+      if (!MatchDim(args[d + 1], arg.fixed_shape[d], b)) return false;
+    return Match(args[0], arg.elem(), b);
+  }
   auto concrete = ParseType(pattern);
   return concrete.ok() && *concrete == arg;
 }
@@ -175,6 +181,15 @@ Expected<Type> Substitute(std::string_view pattern, const Bindings& b) {
     WEFT_ASSIGN_OR_RETURN(int d, dim_of(args[1]));
     return Type::Array(std::move(e), d);
   }
+  if (head == "tile" && args.size() >= 2) {
+    WEFT_ASSIGN_OR_RETURN(Type e, Substitute(args[0], b));
+    std::vector<int> shape;
+    for (size_t d = 1; d < args.size(); ++d) {
+      WEFT_ASSIGN_OR_RETURN(int n, dim_of(args[d]));
+      shape.push_back(n);
+    }
+    return Type::Tile(std::move(e), std::move(shape));
+  }
   return ParseType(pattern);
 }
 
@@ -209,6 +224,7 @@ BuiltinRegistry::BuiltinRegistry() {
   AddRuntimeBuiltins(&rows_);
   AddGeometryBuiltins(&rows_);
   AddVolumeBuiltins(&rows_);
+  AddTileBuiltins(&rows_);
   for (size_t i = 0; i < rows_.size(); ++i) by_name_[rows_[i].name].push_back(i);
 }
 

@@ -55,7 +55,10 @@ bool IsSpecialBuiltin(const std::string& n) {
                                                "matrix",       "identity",      "quat_identity",
                                                "transform_identity", "quaternion", "transformation",
                                                "zeros",        "cast",          "static",
-                                               "adjoint"};
+                                               "adjoint",      "tile_zeros",    "tile_ones",
+                                               "tile_full",    "tile_arange",   "tile_view",
+                                               "tile_map",     "tile_reduce",   "tile_empty",
+                                               "tile_squeeze"};
   return kNames.count(n) != 0;
 }
 
@@ -748,6 +751,11 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
     WEFT_ASSIGN_OR_RETURN(int slot, AdjointSlot(s));
     return Value::OfVar(slot);
   }
+  if (base.kind == Value::Kind::kVar && TypeOf(base.var).is_tile()) {
+    // t[i, j], t[i], t[a:b, :] (reads; writing a tile element is not supported yet).
+    if (store_target_) return Error(s.loc, "assigning to a tile element is not supported in weft kernels yet");
+    return TileSubscript(s, base);
+  }
   if (base.kind == Value::Kind::kVar && !TypeOf(base.var).is_array()) {
     // v[a:b:c], m[i, a:b], m[a:b, c:d]: the selected components as a vector or matrix
     const Type bt = TypeOf(base.var);
@@ -1234,6 +1242,11 @@ Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vec
 
 Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
                                      const ast::Call* call) {
+  if (name.rfind("tile", 0) == 0 || name == "untile") {
+    bool handled = false;
+    auto r = CallTile(name, args, loc, call, &handled);
+    if (handled) return r;
+  }
   if (!args.empty() && args[0].kind == Value::Kind::kVar) {
     Status atomic = CheckAtomicElement(name, TypeOf(args[0].var));
     if (!atomic.ok()) return Error(loc, atomic.message());
@@ -1371,7 +1384,7 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
   if (name == "len") {
     if (args.size() != 1 || args[0].kind != Value::Kind::kVar) return Error(loc, "len() takes one value");
     const Type& t = TypeOf(args[0].var);
-    if (t.is_fixed_array())
+    if (t.is_fixed_array() || t.is_tile())
       return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.fixed_shape[0]) + ")"));
     if (t.is_indexed_array()) return Value::OfVar(EmitRaw(Type::Int32(), "wp::len($0)", {args[0].var}));
     if (t.is_array()) return Value::OfVar(EmitRaw(Type::Int32(), "wp::int32($0.shape[0])", {args[0].var}));

@@ -129,6 +129,14 @@ class Checker {
   Expected<Value> LookupGlobal(const std::string& name, const SourceLocation& loc, bool* found);
   Expected<Value> CallBuiltin(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
                               const ast::Call* call);
+  // check_tile.cpp: the tile builtins with constant or tuple arguments; *handled false: not one.
+  Expected<Value> CallTile(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
+                           const ast::Call* call, bool* handled);
+  // A copy of the sub-tile of `base` at `offsets` (int64 vars, one per dimension) keeping the
+  // dimensions `kept` with `extents`; t[...] on a tile.
+  Expected<Value> TileView(int base, std::vector<int> offsets, const std::vector<int>& kept,
+                           const std::vector<int>& extents, const SourceLocation& loc);
+  Expected<Value> TileSubscript(const ast::Subscript& s, const Value& base);
   Expected<Value> CallConstructor(const Type& t, std::vector<Value> args, const SourceLocation& loc,
                                   const ast::Call& call);
   Expected<Value> CallUserFunc(const std::string& name, std::vector<Value> args, const SourceLocation& loc,

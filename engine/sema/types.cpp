@@ -170,6 +170,23 @@ class TypeReader {
       if (elem.is_array() || elem.is_void() || elem.is_tuple() || elem.is_any()) return Error("bad array element type");
       return Type::FixedArray(std::move(elem), std::move(shape));
     }
+    if (id == "tile") {
+      if (!Eat('(')) return Error("expected '('");
+      WEFT_ASSIGN_OR_RETURN(Type elem, Read());
+      std::vector<int> shape;
+      int64_t total = 1;
+      while (Eat(',')) {
+        WEFT_ASSIGN_OR_RETURN(int n, Int());
+        if (n < 1 || n > kMaxTileElements) return Error("tile extent out of range");
+        total *= n;
+        if (total > kMaxTileElements) return Error("tile too large");
+        shape.push_back(n);
+      }
+      if (!Eat(')')) return Error("expected ')'");
+      if (shape.empty() || shape.size() > 4) return Error("tiles have 1 to 4 dimensions");
+      if (!elem.is_scalar() && !elem.is_composite()) return Error("bad tile element type");
+      return Type::Tile(std::move(elem), std::move(shape));
+    }
     if (id == "struct") {
       if (!Eat('(')) return Error("expected '('");
       std::string name = Ident();
@@ -276,6 +293,7 @@ bool Type::operator==(const Type& o) const {
     case TypeKind::kArray: return ndim == o.ndim && indexed == o.indexed && fixed_shape == o.fixed_shape && sub == o.sub;
     case TypeKind::kStruct: return struct_name == o.struct_name;
     case TypeKind::kTuple: return sub == o.sub;
+    case TypeKind::kTile: return fixed_shape == o.fixed_shape && sub == o.sub;
   }
   return false;
 }
@@ -360,6 +378,7 @@ bool GenericAccepts(const Type& p, const Type& a) {
   if (p.kind != a.kind) return false;
   if (p.is_array())
     return p.ndim == a.ndim && GenericAccepts(p.elem(), a.elem());
+  if (p.is_tile()) return p.fixed_shape == a.fixed_shape && GenericAccepts(p.elem(), a.elem());
   if (p.is_composite()) {
     if (p.generic == GenericScalar::kNone ? p.scalar != a.scalar : !ScalarInCategory(p.generic, a.scalar)) return false;
     if ((p.is_vector() || p.is_matrix()) && p.rows != kAnyExtent && p.rows != a.rows) return false;
@@ -383,6 +402,7 @@ bool IsDifferentiable(const Type& t) {
     case TypeKind::kQuat:
     case TypeKind::kTransform: return IsFloat(t.scalar);
     case TypeKind::kStruct: return true;
+    case TypeKind::kTile: return IsDifferentiable(t.elem());
     case TypeKind::kTuple:
       for (const auto& s : t.sub)
         if (IsDifferentiable(s)) return true;
@@ -450,6 +470,11 @@ std::string TypeString(const Type& t) {
       return (t.indexed ? "indexedarray(" : "array(") + TypeString(t.elem()) + "," + std::to_string(t.ndim) + ")";
     }
     case TypeKind::kStruct: return "struct(" + t.struct_name + ")";
+    case TypeKind::kTile: {
+      std::string r = "tile(" + TypeString(t.elem());
+      for (int n : t.fixed_shape) r += "," + std::to_string(n);
+      return r + ")";
+    }
     case TypeKind::kTuple: {
       std::string s = "tuple(";
       for (size_t i = 0; i < t.sub.size(); ++i) s += (i ? "," : "") + TypeString(t.sub[i]);
@@ -499,6 +524,11 @@ std::string CppType(const Type& t) {
       return (t.indexed ? "wp::indexedarray_t<" : "wp::array_t<") + CppType(t.elem()) + ">";
     }
     case TypeKind::kStruct: return "wp::" + StructCppName(t.struct_name);
+    case TypeKind::kTile: {
+      std::string r = "wp::tile_t<" + CppType(t.elem());
+      for (int d = 0; d < 4; ++d) r += "," + std::to_string(d < static_cast<int>(t.fixed_shape.size()) ? t.fixed_shape[d] : 0);
+      return r + ">";
+    }
     case TypeKind::kTuple: return "/*tuple*/void";
   }
   return "void";
@@ -537,6 +567,7 @@ Expected<TypeLayout> LayoutOf(const Type& t, const StructTable& structs) {
       if (it->second.fields.empty()) off = 1;  // C++: an empty struct has size 1
       return TypeLayout{RoundUp(off, align), align};
     }
+    case TypeKind::kTile: return InvalidArgument("tiles live inside kernels and functions: they cannot be kernel arguments, struct fields or array elements");
     default: return InvalidArgument("type " + TypeString(t) + " cannot be a kernel argument");
   }
 }

@@ -44,6 +44,8 @@ enum class TypeKind : uint8_t {
   kAny,        // typing.Any in generic funcs (`generic` narrows it to a scalar category); never reaches codegen
   kTuple,      // sub = element types (multiple return values)
   kString,     // a string literal (printf format); not a storable value
+  kTile,       // a tile (Warp's tile programming): sub[0] = element type, fixed_shape = extents
+               // (1 to 4, known while compiling); a kernel-local value, never an argument
   kFunction,   // a wp.Function parameter: struct_name = its target ("func:<name>" / "builtin:<name>"),
                // empty in a declaration (any function); a compile-time value, never stored
 };
@@ -56,6 +58,9 @@ enum class GenericScalar : uint8_t { kNone, kAny, kInt, kFloat, kScalar };
 
 // Elements of one fixed-size array (a kernel-local value on the thread's stack).
 constexpr int kMaxFixedArrayElements = 4096;
+
+// Elements of one tile (a kernel-local value: the thread's own on every device).
+constexpr int kMaxTileElements = 1 << 16;
 
 // The extent of a vector or matrix pattern that takes any length ("vec(any,float32)").
 constexpr int kAnyExtent = -1;
@@ -98,6 +103,14 @@ struct Type {
     t.fixed_shape = std::move(shape);
     return t;
   }
+  static Type Tile(Type elem, std::vector<int> shape) {
+    Type t;
+    t.kind = TypeKind::kTile;
+    t.ndim = static_cast<int>(shape.size());
+    t.sub.push_back(std::move(elem));
+    t.fixed_shape = std::move(shape);
+    return t;
+  }
   static Type Struct(std::string name) { Type t; t.kind = TypeKind::kStruct; t.struct_name = std::move(name); return t; }
   static Type Function(std::string target = "") {
     Type t;
@@ -118,12 +131,13 @@ struct Type {
   bool is_tuple() const { return kind == TypeKind::kTuple; }
   bool is_any() const { return kind == TypeKind::kAny; }
   bool is_function() const { return kind == TypeKind::kFunction; }
+  bool is_tile() const { return kind == TypeKind::kTile; }
   // vec, mat, quat, transform: fixed-size aggregates of one scalar type
   bool is_composite() const {
     return kind == TypeKind::kVector || kind == TypeKind::kMatrix || kind == TypeKind::kQuat ||
            kind == TypeKind::kTransform;
   }
-  const Type& elem() const { return sub.at(0); }  // array element type
+  const Type& elem() const { return sub.at(0); }  // array or tile element type
   // Number of scalar components of a composite (vec N, mat R*C, quat 4, transform 7).
   int component_count() const;
 

@@ -1,9 +1,7 @@
-"""wp.tile[dtype, M, N]: Warp's tile annotation type (a block-cooperative 2-D value).
-
-weft does not implement tile programming (wp.launch_tiled, wp.tile_load and the other tile
-builtins). The annotation exists so that code written for Warp 1.19 imports: a @wp.func whose
-signature uses a tile is defined, and building a kernel that calls it reports that tiles are not
-supported, at the function's line (weft._kernel.functions)."""
+"""wp.tile[dtype, M, N]: Warp's tile annotation type, for @wp.func parameters. A parameter
+annotated wp.tile[float, 8, 4] takes tiles of that element type and shape (the daemon type
+"tile(float32,8,4)"); wp.tile[float] (no shape) takes any tile, as a generic parameter. Tiles
+themselves live in kernels (docs/tiles.md)."""
 from __future__ import annotations
 
 import typing

@@ -25,7 +25,7 @@ from .errors import (
 )
 from .functions import (Function, FunctionDefinition, Kernel, NativeSnippet, attach_gradient, attach_replay,
                         static)
-from .launch import Launch, launch
+from .launch import Launch, launch, launch_tiled
 from .structs import StructInstance, StructType, struct
 from .tape import Tape
 
@@ -54,6 +54,7 @@ __all__ = [
     "get_module_options",
     "kernel",
     "launch",
+    "launch_tiled",
     "load_module",
     "overload",
     "set_module_options",

@@ -56,12 +56,17 @@ class FunctionDefinition:
             ann = hints[name]
             self.annotations[name] = ann
             if is_tile(ann):
-                # Defined, as in Warp; building a kernel that calls it fails (see static_error).
-                self.param_types.append(f"tile:{ann!r}")
-                if self.static_error is None:
-                    self.static_error = (f"{self.file}:{self.first_line}: error: parameter '{name}' "
-                                         f"of '{self.name}' is a tile ({ann!r}): weft does not "
-                                         f"implement tile programming")
+                # wp.tile[dtype, M, N]: "tile(dtype,M,N)"; a tile of any shape is generic ("any").
+                try:
+                    if ann.shape is typing.Any:
+                        self.param_types.append("any")
+                    else:
+                        self.param_types.append("tile(" + typestr.type_string(ann.dtype) + "," +
+                                                ",".join(str(int(n)) for n in ann.shape) + ")")
+                except TypeError as err:
+                    raise WeftCompileError(
+                        f"{self.file}:{self.first_line}: error: parameter '{name}' of "
+                        f"'{self.name}': {err}") from err
                 continue
             try:
                 self.param_types.append(typestr.type_string(ann))

@@ -808,6 +808,20 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     return None
 
 
+
+def launch_tiled(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), device=None,
+                 stream=None, adjoint=False, record_tape=True, record_cmd=False, max_blocks=0,
+                 block_dim=256):
+    """wp.launch_tiled: a launch of one block per tile, `dim` counting tiles. weft runs each
+    block as one thread on every device (Warp's rule on the CPU: tiles belong to the thread
+    computing them, docs/tiles.md), so wp.tid() in the kernel gives the tile's index and
+    `block_dim` is the launch's thread-block size on a GPU."""
+    if type(dim) is int:
+        dim = [dim]
+    return launch(kernel, dim, inputs, outputs, adj_inputs, adj_outputs, device=device, stream=stream,
+                  adjoint=adjoint, record_tape=record_tape, record_cmd=record_cmd,
+                  max_blocks=max_blocks, block_dim=block_dim)
+
 def _order_framework_gpu(rt, values):
     """Makes a launch in the daemon see this process's GPU work (Torch, CuPy, ... streams) on
     the devices of the shared weft GPU arrays among `values`. With interprocess events

@@ -1,0 +1,630 @@
+// Native library: tiles (Warp's tile programming). Owns tile_t (a value holding its elements,
+// row-major, extents D0..D3 known at compile time, 0 past ndim) and the tile builtins with
+// their adjoints: construction, loads and stores between tiles and arrays, element-wise
+// arithmetic, element access, reductions, transpose, broadcast and matrix products.
+//
+// A tile belongs to the thread that computes it, on every device: a tiled launch runs each
+// block as one thread (block_dim 1, Warp's rule on the CPU), so a tile op is a loop over the
+// tile's elements and no op waits for other threads.
+//
+// Every access of an array element from a tile op goes through tile_slot, the one check:
+// an element outside the array (or an array without data) is not touched; loads read it as
+// zero, stores and atomics skip it (Warp's bounds-checked tile loads and stores).
+#pragma once
+
+// Included at the end of codegen_support.h.
+#include "codegen_support.h"
+
+namespace wp {
+
+template <typename T, int D0, int D1, int D2, int D3>
+struct tile_t {
+  static constexpr int NDIM = D1 == 0 ? 1 : (D2 == 0 ? 2 : (D3 == 0 ? 3 : 4));
+  static constexpr int E0 = D0, E1 = D1 ? D1 : 1, E2 = D2 ? D2 : 1, E3 = D3 ? D3 : 1;
+  static constexpr int SIZE = E0 * E1 * E2 * E3;
+  using value_type = T;
+  T data[SIZE];
+  // Extent of dimension d (1 past ndim).
+  static WP_FUNC constexpr int extent(int d) { return d == 0 ? E0 : d == 1 ? E1 : d == 2 ? E2 : E3; }
+  // The coordinates of flat element k (row-major).
+  static WP_FUNC void coord(int k, int64 (&c)[4]) {
+    c[3] = k % E3; k /= E3;
+    c[2] = k % E2; k /= E2;
+    c[1] = k % E1; k /= E1;
+    c[0] = k;
+  }
+};
+
+#define WP_TILE_TEMPLATE template <typename T, int D0, int D1, int D2, int D3>
+#define WP_TILE tile_t<T, D0, D1, D2, D3>
+
+// The one check of a tile op's array access: the element of `a` at at[0..ndim), or nullptr
+// when `a` has no data, another number of dimensions, or the element lies outside its shape.
+template <typename T>
+WP_FUNC T* tile_slot(const array_t<T>& a, int ndim, const int64 (&at)[4]) {
+  if (!a.data || a.ndim != ndim) return nullptr;
+  char* p = (char*)a.data;
+  for (int d = 0; d < ndim; ++d) {
+    if (!in_range(at[d], a.shape[d])) return nullptr;
+    p += at[d] * a.strides[d];
+  }
+  return (T*)p;
+}
+
+// The array position of tile element k placed at `off`.
+WP_TILE_TEMPLATE WP_FUNC void tile_position(int k, const int64 (&off)[4], int64 (&at)[4]) {
+  WP_TILE::coord(k, at);
+  for (int d = 0; d < 4; ++d) at[d] += off[d];
+}
+
+// ---- loads, stores and atomic adds: forms for 1 to 4 offsets -------------------------------
+
+WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_load_at(const array_t<T>& a, const int64 (&off)[4]) {
+  WP_TILE r;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 at[4];
+    tile_position<T, D0, D1, D2, D3>(k, off, at);
+    const T* p = tile_slot(a, WP_TILE::NDIM, at);
+    r.data[k] = p ? *p : cg_zeros<T>();
+  }
+  return r;
+}
+// adj_a[off + c] += adj_ret[c] (the gradient array; nothing without one).
+WP_TILE_TEMPLATE WP_FUNC void tile_scatter_add_at(const array_t<T>& adj_a, const int64 (&off)[4], const WP_TILE& t) {
+  if (!adj_a.data) return;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 at[4];
+    tile_position<T, D0, D1, D2, D3>(k, off, at);
+    if (T* p = tile_slot(adj_a, WP_TILE::NDIM, at)) atomic_add_ptr(p, t.data[k]);
+  }
+}
+WP_TILE_TEMPLATE WP_FUNC void tile_store_at(const array_t<T>& a, const int64 (&off)[4], const WP_TILE& t) {
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 at[4];
+    tile_position<T, D0, D1, D2, D3>(k, off, at);
+    if (T* p = tile_slot(a, WP_TILE::NDIM, at)) *p = t.data[k];
+  }
+}
+WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_atomic_add_at(const array_t<T>& a, const int64 (&off)[4], const WP_TILE& t) {
+  WP_TILE old;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 at[4];
+    tile_position<T, D0, D1, D2, D3>(k, off, at);
+    T* p = tile_slot(a, WP_TILE::NDIM, at);
+    old.data[k] = p ? atomic_add_ptr(p, t.data[k]) : cg_zeros<T>();
+  }
+  return old;
+}
+// adj_t[c] += adj_a[off + c] (the adjoint of a store or an atomic add of t).
+WP_TILE_TEMPLATE WP_FUNC void tile_gather_add_at(const array_t<T>& adj_a, const int64 (&off)[4], WP_TILE& adj_t) {
+  if (!adj_a.data) return;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 at[4];
+    tile_position<T, D0, D1, D2, D3>(k, off, at);
+    if (const T* p = tile_slot(adj_a, WP_TILE::NDIM, at)) adj_t.data[k] = add(adj_t.data[k], *p);
+  }
+}
+
+// The rows' forms: `like` (a tile of the result's type, never read) comes first, then the
+// array and its offsets (as many as the tile has dimensions).
+#define WP_TILE_IO_FORMS(OFFSET_PARAMS, ADJ_OFFSET_PARAMS, OFFSETS)                                                  \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC WP_TILE tile_load(const WP_TILE&, const array_t<T>& a, OFFSET_PARAMS) {                                   \
+    const int64 off[4] = OFFSETS;                                                                                   \
+    return tile_load_at<T, D0, D1, D2, D3>(a, off);                                                                 \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC void adj_tile_load(const WP_TILE&, const array_t<T>&, OFFSET_PARAMS, WP_TILE&, const array_t<T>& adj_a,  \
+                             ADJ_OFFSET_PARAMS, const WP_TILE& adj_ret) {                                           \
+    const int64 off[4] = OFFSETS;                                                                                   \
+    tile_scatter_add_at(adj_a, off, adj_ret);                                                                       \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC void tile_store(const array_t<T>& a, OFFSET_PARAMS, const WP_TILE& t) {                                   \
+    const int64 off[4] = OFFSETS;                                                                                   \
+    tile_store_at(a, off, t);                                                                                       \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC void adj_tile_store(const array_t<T>&, OFFSET_PARAMS, const WP_TILE&, const array_t<T>& adj_a,           \
+                              ADJ_OFFSET_PARAMS, WP_TILE& adj_t) {                                                  \
+    const int64 off[4] = OFFSETS;                                                                                   \
+    tile_gather_add_at(adj_a, off, adj_t);                                                                          \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC WP_TILE tile_atomic_add(const array_t<T>& a, OFFSET_PARAMS, const WP_TILE& t) {                           \
+    const int64 off[4] = OFFSETS;                                                                                   \
+    return tile_atomic_add_at(a, off, t);                                                                           \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC void adj_tile_atomic_add(const array_t<T>&, OFFSET_PARAMS, const WP_TILE&, const array_t<T>& adj_a,      \
+                                   ADJ_OFFSET_PARAMS, WP_TILE& adj_t, const WP_TILE&) {                             \
+    const int64 off[4] = OFFSETS;                                                                                   \
+    tile_gather_add_at(adj_a, off, adj_t);                                                                          \
+  }
+
+#define WP_COMMA ,
+WP_TILE_IO_FORMS(I i0, I&, {int64(i0) WP_COMMA 0 WP_COMMA 0 WP_COMMA 0})
+WP_TILE_IO_FORMS(I i0 WP_COMMA I i1, I& WP_COMMA I&, {int64(i0) WP_COMMA int64(i1) WP_COMMA 0 WP_COMMA 0})
+WP_TILE_IO_FORMS(I i0 WP_COMMA I i1 WP_COMMA I i2, I& WP_COMMA I& WP_COMMA I&,
+                 {int64(i0) WP_COMMA int64(i1) WP_COMMA int64(i2) WP_COMMA 0})
+WP_TILE_IO_FORMS(I i0 WP_COMMA I i1 WP_COMMA I i2 WP_COMMA I i3, I& WP_COMMA I& WP_COMMA I& WP_COMMA I&,
+                 {int64(i0) WP_COMMA int64(i1) WP_COMMA int64(i2) WP_COMMA int64(i3)})
+#undef WP_COMMA
+#undef WP_TILE_IO_FORMS
+
+// ---- construction -------------------------------------------------------------------------
+
+template <typename R, typename V> WP_FUNC R tile_full(V value) {
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = value;
+  return r;
+}
+// start, start + step, ... (R's element type), as many as R has elements.
+template <typename R, typename V> WP_FUNC R tile_arange(V start, V step) {
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = start + V(k) * step;
+  return r;
+}
+// wp.tile(x) of one thread: a tile of shape (1,) holding x; untile: its element.
+template <typename T> WP_FUNC tile_t<T, 1, 0, 0, 0> tile(T x) {
+  tile_t<T, 1, 0, 0, 0> r;
+  r.data[0] = x;
+  return r;
+}
+template <typename T> WP_FUNC void adj_tile(T, T& adj_x, const tile_t<T, 1, 0, 0, 0>& adj_ret) { adj_x = add(adj_x, adj_ret.data[0]); }
+template <typename T> WP_FUNC T untile(const tile_t<T, 1, 0, 0, 0>& t) { return t.data[0]; }
+template <typename T> WP_FUNC void adj_untile(const tile_t<T, 1, 0, 0, 0>&, tile_t<T, 1, 0, 0, 0>& adj_t, T adj_ret) {
+  adj_t.data[0] = add(adj_t.data[0], adj_ret);
+}
+
+// ---- element access -------------------------------------------------------------------------
+
+// Flat position of (i, j, k, l) in t, or -1 (and a launch error at the call's line) outside it.
+WP_TILE_TEMPLATE WP_FUNC int tile_flat(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE&, int n,
+                                       int64 i, int64 j, int64 k, int64 l) {
+  const int64 c[4] = {i, j, k, l};
+  int64 flat = 0;
+  for (int d = 0; d < 4; ++d) {
+    const int64 e = WP_TILE::extent(d);
+    const int64 v = d < n ? c[d] : 0;
+    if (!in_range(v, e) || (d >= n && d < WP_TILE::NDIM)) {
+      int64 shape[4] = {WP_TILE::extent(0), WP_TILE::extent(1), WP_TILE::extent(2), WP_TILE::extent(3)};
+      report_error(ctx, LAUNCH_BAD_VALUE, fid, line, -1, n, c, shape, "tile index out of range");
+      return -1;
+    }
+    flat = flat * e + v;
+  }
+  return (int)flat;
+}
+#define WP_TILE_EXTRACT_FORMS(PARAMS, ADJ_PARAMS, N, IDX)                                                             \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC T tile_extract(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS) {            \
+    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
+    return f < 0 ? cg_zeros<T>() : t.data[f];                                                                        \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC void adj_tile_extract(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,       \
+                                WP_TILE& adj_t, ADJ_PARAMS, const T& adj_ret) {                                     \
+    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
+    if (f >= 0) adj_t.data[f] = add(adj_t.data[f], adj_ret);                                                         \
+  }
+#define WP_COMMA ,
+WP_TILE_EXTRACT_FORMS(I i, I&, 1, i WP_COMMA 0 WP_COMMA 0 WP_COMMA 0)
+WP_TILE_EXTRACT_FORMS(I i WP_COMMA I j, I& WP_COMMA I&, 2, i WP_COMMA j WP_COMMA 0 WP_COMMA 0)
+WP_TILE_EXTRACT_FORMS(I i WP_COMMA I j WP_COMMA I k, I& WP_COMMA I& WP_COMMA I&, 3, i WP_COMMA j WP_COMMA k WP_COMMA 0)
+WP_TILE_EXTRACT_FORMS(I i WP_COMMA I j WP_COMMA I k WP_COMMA I l, I& WP_COMMA I& WP_COMMA I& WP_COMMA I&, 4,
+                      i WP_COMMA j WP_COMMA k WP_COMMA l)
+#undef WP_COMMA
+#undef WP_TILE_EXTRACT_FORMS
+
+// ---- element-wise arithmetic --------------------------------------------------------------
+
+#define WP_TILE_BINARY(op)                                                                                          \
+  WP_TILE_TEMPLATE WP_FUNC WP_TILE op(const WP_TILE& a, const WP_TILE& b) {                                         \
+    WP_TILE r;                                                                                                      \
+    for (int k = 0; k < WP_TILE::SIZE; ++k) r.data[k] = op(a.data[k], b.data[k]);                                   \
+    return r;                                                                                                       \
+  }                                                                                                                 \
+  WP_TILE_TEMPLATE WP_FUNC void adj_##op(const WP_TILE& a, const WP_TILE& b, WP_TILE& adj_a, WP_TILE& adj_b,        \
+                                         const WP_TILE& adj_ret) {                                                  \
+    for (int k = 0; k < WP_TILE::SIZE; ++k) adj_##op(a.data[k], b.data[k], adj_a.data[k], adj_b.data[k], adj_ret.data[k]); \
+  }
+WP_TILE_BINARY(add)
+WP_TILE_BINARY(sub)
+WP_TILE_BINARY(mul)
+WP_TILE_BINARY(div)
+#undef WP_TILE_BINARY
+
+// tile op scalar and scalar op tile (mul, div).
+#define WP_TILE_SCALAR(op)                                                                                          \
+  WP_TILE_TEMPLATE WP_FUNC WP_TILE op(const WP_TILE& a, T s) {                                                       \
+    WP_TILE r;                                                                                                      \
+    for (int k = 0; k < WP_TILE::SIZE; ++k) r.data[k] = op(a.data[k], s);                                           \
+    return r;                                                                                                       \
+  }                                                                                                                 \
+  WP_TILE_TEMPLATE WP_FUNC void adj_##op(const WP_TILE& a, T s, WP_TILE& adj_a, T& adj_s, const WP_TILE& adj_ret) {  \
+    for (int k = 0; k < WP_TILE::SIZE; ++k) adj_##op(a.data[k], s, adj_a.data[k], adj_s, adj_ret.data[k]);          \
+  }                                                                                                                 \
+  WP_TILE_TEMPLATE WP_FUNC WP_TILE op(T s, const WP_TILE& a) {                                                       \
+    WP_TILE r;                                                                                                      \
+    for (int k = 0; k < WP_TILE::SIZE; ++k) r.data[k] = op(s, a.data[k]);                                           \
+    return r;                                                                                                       \
+  }                                                                                                                 \
+  WP_TILE_TEMPLATE WP_FUNC void adj_##op(T s, const WP_TILE& a, T& adj_s, WP_TILE& adj_a, const WP_TILE& adj_ret) {  \
+    for (int k = 0; k < WP_TILE::SIZE; ++k) adj_##op(s, a.data[k], adj_s, adj_a.data[k], adj_ret.data[k]);          \
+  }
+WP_TILE_SCALAR(mul)
+WP_TILE_SCALAR(div)
+#undef WP_TILE_SCALAR
+
+WP_TILE_TEMPLATE WP_FUNC WP_TILE neg(const WP_TILE& a) {
+  WP_TILE r;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) r.data[k] = neg(a.data[k]);
+  return r;
+}
+WP_TILE_TEMPLATE WP_FUNC void adj_neg(const WP_TILE& a, WP_TILE& adj_a, const WP_TILE& adj_ret) {
+  for (int k = 0; k < WP_TILE::SIZE; ++k) adj_neg(a.data[k], adj_a.data[k], adj_ret.data[k]);
+}
+WP_TILE_TEMPLATE WP_FUNC WP_TILE pos(const WP_TILE& a) { return a; }
+WP_TILE_TEMPLATE WP_FUNC void adj_pos(const WP_TILE&, WP_TILE& adj_a, const WP_TILE& adj_ret) {
+  for (int k = 0; k < WP_TILE::SIZE; ++k) adj_a.data[k] = add(adj_a.data[k], adj_ret.data[k]);
+}
+
+// ---- reductions -----------------------------------------------------------------------------
+
+WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_sum(const WP_TILE& a) {
+  T s = cg_zeros<T>();
+  for (int k = 0; k < WP_TILE::SIZE; ++k) s = add(s, a.data[k]);
+  tile_t<T, 1, 0, 0, 0> r;
+  r.data[0] = s;
+  return r;
+}
+WP_TILE_TEMPLATE WP_FUNC void adj_tile_sum(const WP_TILE&, WP_TILE& adj_a, const tile_t<T, 1, 0, 0, 0>& adj_ret) {
+  for (int k = 0; k < WP_TILE::SIZE; ++k) adj_a.data[k] = add(adj_a.data[k], adj_ret.data[0]);
+}
+// Sum along `axis` (a constant the compiler checked): R is the tile without that dimension.
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void tile_sum_axis_into(const WP_TILE& a, int axis, R& r) {
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = cg_zeros<T>();
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 c[4];
+    WP_TILE::coord(k, c);
+    int64 flat = 0;
+    for (int d = 0, o = 0; d < WP_TILE::NDIM; ++d) {
+      if (d == axis) continue;
+      flat = flat * R::extent(o++) + c[d];
+    }
+    r.data[flat] = add(r.data[flat], a.data[k]);
+  }
+}
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC R tile_sum_axis(const R&, const WP_TILE& a, int32 axis) {
+  R r;
+  tile_sum_axis_into(a, axis, r);
+  return r;
+}
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_sum_axis(const R&, const WP_TILE&, int32 axis, R&, WP_TILE& adj_a, int32&, const R& adj_ret) {
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 c[4];
+    WP_TILE::coord(k, c);
+    int64 flat = 0;
+    for (int d = 0, o = 0; d < WP_TILE::NDIM; ++d) {
+      if (d == axis) continue;
+      flat = flat * R::extent(o++) + c[d];
+    }
+    adj_a.data[k] = add(adj_a.data[k], adj_ret.data[flat]);
+  }
+}
+
+// Position of the largest (smallest) element, the first one among equals.
+WP_TILE_TEMPLATE WP_FUNC int tile_arg_extreme(const WP_TILE& a, bool largest) {
+  int best = 0;
+  for (int k = 1; k < WP_TILE::SIZE; ++k)
+    if (largest ? a.data[k] > a.data[best] : a.data[k] < a.data[best]) best = k;
+  return best;
+}
+WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_max(const WP_TILE& a) {
+  tile_t<T, 1, 0, 0, 0> r;
+  r.data[0] = a.data[tile_arg_extreme(a, true)];
+  return r;
+}
+WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_min(const WP_TILE& a) {
+  tile_t<T, 1, 0, 0, 0> r;
+  r.data[0] = a.data[tile_arg_extreme(a, false)];
+  return r;
+}
+WP_TILE_TEMPLATE WP_FUNC void adj_tile_max(const WP_TILE& a, WP_TILE& adj_a, const tile_t<T, 1, 0, 0, 0>& adj_ret) {
+  const int k = tile_arg_extreme(a, true);
+  adj_a.data[k] = add(adj_a.data[k], adj_ret.data[0]);
+}
+WP_TILE_TEMPLATE WP_FUNC void adj_tile_min(const WP_TILE& a, WP_TILE& adj_a, const tile_t<T, 1, 0, 0, 0>& adj_ret) {
+  const int k = tile_arg_extreme(a, false);
+  adj_a.data[k] = add(adj_a.data[k], adj_ret.data[0]);
+}
+WP_TILE_TEMPLATE WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_argmax(const WP_TILE& a) {
+  tile_t<int32, 1, 0, 0, 0> r;
+  r.data[0] = tile_arg_extreme(a, true);
+  return r;
+}
+WP_TILE_TEMPLATE WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_argmin(const WP_TILE& a) {
+  tile_t<int32, 1, 0, 0, 0> r;
+  r.data[0] = tile_arg_extreme(a, false);
+  return r;
+}
+
+// ---- shape ----------------------------------------------------------------------------------
+
+template <typename T, int M, int N> WP_FUNC tile_t<T, N, M, 0, 0> tile_transpose(const tile_t<T, M, N, 0, 0>& a) {
+  tile_t<T, N, M, 0, 0> r;
+  for (int i = 0; i < M; ++i)
+    for (int j = 0; j < N; ++j) r.data[j * M + i] = a.data[i * N + j];
+  return r;
+}
+template <typename T, int M, int N>
+WP_FUNC void adj_tile_transpose(const tile_t<T, M, N, 0, 0>&, tile_t<T, M, N, 0, 0>& adj_a, const tile_t<T, N, M, 0, 0>& adj_ret) {
+  for (int i = 0; i < M; ++i)
+    for (int j = 0; j < N; ++j) adj_a.data[i * N + j] = add(adj_a.data[i * N + j], adj_ret.data[j * M + i]);
+}
+
+// Broadcast a to R's shape (numpy rules, trailing dimensions aligned; the compiler checked
+// that every extent of a is 1 or R's).
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC int tile_broadcast_source(int k) {
+  int64 c[4];
+  R::coord(k, c);
+  const int shift = R::NDIM - WP_TILE::NDIM;
+  int64 flat = 0;
+  for (int d = 0; d < WP_TILE::NDIM; ++d) {
+    const int e = WP_TILE::extent(d);
+    flat = flat * e + (e == 1 ? 0 : c[d + shift]);
+  }
+  return (int)flat;
+}
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC R tile_broadcast(const R&, const WP_TILE& a) {
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = a.data[tile_broadcast_source<R, T, D0, D1, D2, D3>(k)];
+  return r;
+}
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_broadcast(const R&, const WP_TILE&, R&, WP_TILE& adj_a, const R& adj_ret) {
+  for (int k = 0; k < R::SIZE; ++k) {
+    const int s = tile_broadcast_source<R, T, D0, D1, D2, D3>(k);
+    adj_a.data[s] = add(adj_a.data[s], adj_ret.data[k]);
+  }
+}
+
+// Element type conversion (R: the same shape, another scalar type).
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC R tile_astype(const R&, const WP_TILE& a) {
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = typename R::value_type(a.data[k]);
+  return r;
+}
+
+// ---- matrix products ------------------------------------------------------------------------
+
+// alpha * a @ b + beta * c (c: a tile of the result's shape).
+template <typename T, int M, int K, int N>
+WP_FUNC tile_t<T, M, N, 0, 0> tile_matmul_acc(const tile_t<T, M, K, 0, 0>& a, const tile_t<T, K, N, 0, 0>& b,
+                                              const tile_t<T, M, N, 0, 0>& c, T alpha, T beta) {
+  tile_t<T, M, N, 0, 0> r;
+  for (int i = 0; i < M; ++i)
+    for (int j = 0; j < N; ++j) {
+      T s = T(0);
+      for (int k = 0; k < K; ++k) s += a.data[i * K + k] * b.data[k * N + j];
+      r.data[i * N + j] = alpha * s + beta * c.data[i * N + j];
+    }
+  return r;
+}
+template <typename T, int M, int K, int N>
+WP_FUNC void adj_tile_matmul_acc(const tile_t<T, M, K, 0, 0>& a, const tile_t<T, K, N, 0, 0>& b,
+                                 const tile_t<T, M, N, 0, 0>& c, T alpha, T beta, tile_t<T, M, K, 0, 0>& adj_a,
+                                 tile_t<T, K, N, 0, 0>& adj_b, tile_t<T, M, N, 0, 0>& adj_c, T& adj_alpha, T& adj_beta,
+                                 const tile_t<T, M, N, 0, 0>& adj_ret) {
+  for (int i = 0; i < M; ++i)
+    for (int k = 0; k < K; ++k) {
+      T s = T(0);
+      for (int j = 0; j < N; ++j) s += adj_ret.data[i * N + j] * b.data[k * N + j];
+      adj_a.data[i * K + k] += alpha * s;
+    }
+  for (int k = 0; k < K; ++k)
+    for (int j = 0; j < N; ++j) {
+      T s = T(0);
+      for (int i = 0; i < M; ++i) s += a.data[i * K + k] * adj_ret.data[i * N + j];
+      adj_b.data[k * N + j] += alpha * s;
+    }
+  for (int i = 0; i < M; ++i)
+    for (int j = 0; j < N; ++j) {
+      T s = T(0);
+      for (int k = 0; k < K; ++k) s += a.data[i * K + k] * b.data[k * N + j];
+      adj_alpha += s * adj_ret.data[i * N + j];
+      adj_beta += c.data[i * N + j] * adj_ret.data[i * N + j];
+      adj_c.data[i * N + j] += beta * adj_ret.data[i * N + j];
+    }
+}
+
+#undef WP_TILE
+#undef WP_TILE_TEMPLATE
+
+}  // namespace wp
+
+namespace wp {
+
+#define WP_TILE_TEMPLATE template <typename T, int D0, int D1, int D2, int D3>
+#define WP_TILE tile_t<T, D0, D1, D2, D3>
+
+// Adjoint accumulation (copies and assignments of tiles in reverse code).
+WP_TILE_TEMPLATE WP_FUNC void cg_accum(WP_TILE& a, const WP_TILE& b) {
+  for (int k = 0; k < WP_TILE::SIZE; ++k) cg_accum(a.data[k], b.data[k]);
+}
+
+// The same elements in row-major order under another shape (tile_reshape, tile_squeeze; the
+// compiler checked that the sizes agree).
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC R tile_reshape(const R&, const WP_TILE& a) {
+  static_assert(R::SIZE == WP_TILE::SIZE, "tile_reshape keeps the size");
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = a.data[k];
+  return r;
+}
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_reshape(const R&, const WP_TILE&, R&, WP_TILE& adj_a, const R& adj_ret) {
+  for (int k = 0; k < R::SIZE; ++k) adj_a.data[k] = add(adj_a.data[k], adj_ret.data[k]);
+}
+
+// The sum of a[k] * b[k] as a tile of shape (1,).
+WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_dot(const WP_TILE& a, const WP_TILE& b) {
+  T s = cg_zeros<T>();
+  for (int k = 0; k < WP_TILE::SIZE; ++k) s = add(s, mul(a.data[k], b.data[k]));
+  tile_t<T, 1, 0, 0, 0> r;
+  r.data[0] = s;
+  return r;
+}
+WP_TILE_TEMPLATE WP_FUNC void adj_tile_dot(const WP_TILE& a, const WP_TILE& b, WP_TILE& adj_a, WP_TILE& adj_b,
+                                           const tile_t<T, 1, 0, 0, 0>& adj_ret) {
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    adj_a.data[k] = add(adj_a.data[k], mul(b.data[k], adj_ret.data[0]));
+    adj_b.data[k] = add(adj_b.data[k], mul(a.data[k], adj_ret.data[0]));
+  }
+}
+
+// dest + alpha * src (wp.tile_axpy assigns it to dest).
+WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_axpy(T alpha, const WP_TILE& src, const WP_TILE& dest) {
+  WP_TILE r;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) r.data[k] = add(dest.data[k], mul(alpha, src.data[k]));
+  return r;
+}
+WP_TILE_TEMPLATE WP_FUNC void adj_tile_axpy(T alpha, const WP_TILE& src, const WP_TILE&, T& adj_alpha, WP_TILE& adj_src,
+                                            WP_TILE& adj_dest, const WP_TILE& adj_ret) {
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    adj_alpha = add(adj_alpha, mul(src.data[k], adj_ret.data[k]));
+    adj_src.data[k] = add(adj_src.data[k], mul(alpha, adj_ret.data[k]));
+    adj_dest.data[k] = add(adj_dest.data[k], adj_ret.data[k]);
+  }
+}
+
+// Scans over the elements in row-major order.
+enum tile_scan_kind { TILE_SCAN_SUM_INCLUSIVE, TILE_SCAN_SUM_EXCLUSIVE, TILE_SCAN_MAX, TILE_SCAN_MIN };
+template <int KIND, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC WP_TILE tile_scan(const WP_TILE& a) {
+  WP_TILE r;
+  T acc = a.data[0];
+  if (KIND == TILE_SCAN_SUM_EXCLUSIVE) acc = cg_zeros<T>();
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    if (KIND == TILE_SCAN_SUM_EXCLUSIVE) {
+      r.data[k] = acc;
+      acc = add(acc, a.data[k]);
+      continue;
+    }
+    if (k > 0) {
+      if (KIND == TILE_SCAN_SUM_INCLUSIVE) acc = add(acc, a.data[k]);
+      else if (KIND == TILE_SCAN_MAX) acc = a.data[k] > acc ? a.data[k] : acc;
+      else acc = a.data[k] < acc ? a.data[k] : acc;
+    }
+    r.data[k] = acc;
+  }
+  return r;
+}
+WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_scan_inclusive(const WP_TILE& a) { return tile_scan<TILE_SCAN_SUM_INCLUSIVE>(a); }
+WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_scan_exclusive(const WP_TILE& a) { return tile_scan<TILE_SCAN_SUM_EXCLUSIVE>(a); }
+WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_scan_max_inclusive(const WP_TILE& a) { return tile_scan<TILE_SCAN_MAX>(a); }
+WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_scan_min_inclusive(const WP_TILE& a) { return tile_scan<TILE_SCAN_MIN>(a); }
+// adj_a[k] += the sum of adj_ret over the outputs element k reaches.
+WP_TILE_TEMPLATE WP_FUNC void adj_tile_scan_inclusive(const WP_TILE&, WP_TILE& adj_a, const WP_TILE& adj_ret) {
+  T acc = cg_zeros<T>();
+  for (int k = WP_TILE::SIZE - 1; k >= 0; --k) {
+    acc = add(acc, adj_ret.data[k]);
+    adj_a.data[k] = add(adj_a.data[k], acc);
+  }
+}
+WP_TILE_TEMPLATE WP_FUNC void adj_tile_scan_exclusive(const WP_TILE&, WP_TILE& adj_a, const WP_TILE& adj_ret) {
+  T acc = cg_zeros<T>();
+  for (int k = WP_TILE::SIZE - 1; k >= 0; --k) {
+    adj_a.data[k] = add(adj_a.data[k], acc);
+    acc = add(acc, adj_ret.data[k]);
+  }
+}
+
+// A sub-tile: R's extents starting at o0..o3 (tile_view, t[i], t[a:b, :]). `dims` maps R's
+// dimension d to a's dimension (dims >> 4d) & 0xf; a's other dimensions are fixed at their
+// offset (an integer index drops a dimension).
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC int tile_view_source(int k, const int64 (&o)[4], int32 dims) {
+  int64 c[4];
+  R::coord(k, c);
+  int64 src[4] = {o[0], o[1], o[2], o[3]};
+  for (int d = 0; d < R::NDIM; ++d) src[(dims >> (4 * d)) & 0xf] += c[d];
+  int64 flat = 0;
+  for (int d = 0; d < WP_TILE::NDIM; ++d) flat = flat * WP_TILE::extent(d) + src[d];
+  return (int)flat;
+}
+// Does R placed at o (through dims) lie inside a? If not, a launch error at the call's line.
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC bool tile_view_fits(const launch_context_t* ctx, int32 fid, int32 line, const int64 (&o)[4], int32 dims) {
+  int64 last[4] = {o[0], o[1], o[2], o[3]};
+  for (int d = 0; d < R::NDIM; ++d) last[(dims >> (4 * d)) & 0xf] += R::extent(d) - 1;
+  for (int d = 0; d < WP_TILE::NDIM; ++d) {
+    if (!in_range(o[d], WP_TILE::extent(d)) || !in_range(last[d], WP_TILE::extent(d))) {
+      const int64 shape[4] = {WP_TILE::extent(0), WP_TILE::extent(1), WP_TILE::extent(2), WP_TILE::extent(3)};
+      report_error(ctx, LAUNCH_BAD_VALUE, fid, line, -1, WP_TILE::NDIM, o, shape, "tile view or assignment out of bounds");
+      return false;
+    }
+  }
+  return true;
+}
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC R tile_view(const launch_context_t* ctx, int32 fid, int32 line, const R&, const WP_TILE& a, int64 o0, int64 o1,
+                    int64 o2, int64 o3, int32 dims) {
+  const int64 o[4] = {o0, o1, o2, o3};
+  R r;
+  if (!tile_view_fits<R, T, D0, D1, D2, D3>(ctx, fid, line, o, dims)) return cg_zeros<R>();
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = a.data[tile_view_source<R, T, D0, D1, D2, D3>(k, o, dims)];
+  return r;
+}
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_view(const launch_context_t* ctx, int32 fid, int32 line, const R&, const WP_TILE&, int64 o0, int64 o1,
+                           int64 o2, int64 o3, int32 dims, R&, WP_TILE& adj_a, int64&, int64&, int64&, int64&, int32&,
+                           const R& adj_ret) {
+  const int64 o[4] = {o0, o1, o2, o3};
+  if (!tile_view_fits<R, T, D0, D1, D2, D3>(ctx, fid, line, o, dims)) return;
+  for (int k = 0; k < R::SIZE; ++k) {
+    const int s = tile_view_source<R, T, D0, D1, D2, D3>(k, o, dims);
+    adj_a.data[s] = add(adj_a.data[s], adj_ret.data[k]);
+  }
+}
+// dst with src written at the offset (wp.tile_assign assigns it to dst).
+template <typename S, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC WP_TILE tile_assign(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& dst, const S& src, int64 o0,
+                            int64 o1, int64 o2, int64 o3) {
+  const int64 o[4] = {o0, o1, o2, o3};
+  WP_TILE r = dst;
+  if (!tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, o, 0x3210)) return r;
+  for (int k = 0; k < S::SIZE; ++k) r.data[tile_view_source<S, T, D0, D1, D2, D3>(k, o, 0x3210)] = src.data[k];
+  return r;
+}
+template <typename S, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE&, const S&, int64 o0, int64 o1,
+                             int64 o2, int64 o3, WP_TILE& adj_dst, S& adj_src, int64&, int64&, int64&, int64&,
+                             const WP_TILE& adj_ret) {
+  const int64 o[4] = {o0, o1, o2, o3};
+  const bool fits = tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, o, 0x3210);
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {   // positions src did not overwrite pass to dst
+    int64 c[4];
+    WP_TILE::coord(k, c);
+    bool inside = fits;
+    for (int d = 0; inside && d < WP_TILE::NDIM; ++d) inside = c[d] >= o[d] && c[d] < o[d] + S::extent(d);
+    if (!inside) adj_dst.data[k] = add(adj_dst.data[k], adj_ret.data[k]);
+  }
+  if (!fits) return;
+  for (int k = 0; k < S::SIZE; ++k) {
+    const int s = tile_view_source<S, T, D0, D1, D2, D3>(k, o, 0x3210);
+    adj_src.data[k] = add(adj_src.data[k], adj_ret.data[s]);
+  }
+}
+
+#undef WP_TILE
+#undef WP_TILE_TEMPLATE
+
+}  // namespace wp

@@ -1,0 +1,91 @@
+// Registry rows: tiles (Warp's tile programming; engine/native/tile.h). Data only; see
+// builtins.h. The forms that take a shape (tile_zeros, tile_load, tile_broadcast, tile_sum
+// along an axis, ...) are rewritten by sema/check_tile.cpp into these rows: a `like` argument
+// (a tile of the result's type, never read) carries the shape the call asked for, and a tuple
+// offset becomes one index argument per dimension.
+#include <string>
+
+#include "engine/sema/builtins.h"
+
+namespace weft::sema {
+
+void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
+  const char* dims[] = {"M", "M,N", "M,N,K", "M,N,K,L"};
+  const char* idx[] = {"i: Index", "i: Index, j: Index", "i: Index, j: Index, k: Index",
+                       "i: Index, j: Index, k: Index, l: Index"};
+  auto row = [rows](const std::string& sig, const char* doc, unsigned flags = kBuiltinNone, const char* native = "") {
+    rows->push_back(Builtin("Tiles", sig.c_str(), doc, flags, native));
+  };
+  for (int d = 1; d <= 4; ++d) {
+    const std::string t = std::string("tile(X,") + dims[d - 1] + ")";
+    const std::string ts = std::string("tile(Scalar,") + dims[d - 1] + ")";
+    const std::string a = "array(X," + std::to_string(d) + ")";
+    row("tile_load(like: " + t + ", a: " + a + ", " + idx[d - 1] + ") -> " + t,
+        "Called as wp.tile_load(a, shape=..., offset=...): the tile of a at the offset; elements outside a read as zero. "
+        "Adjoint: adds the tile's gradient into a's gradient array.");
+    row("tile_store(a: " + a + ", " + idx[d - 1] + ", t: " + t + ") -> None",
+        "Called as wp.tile_store(a, t, offset=...): writes t into a at the offset; elements outside a are skipped.",
+        kBuiltinSideEffect | kBuiltinVoidAdjoint);
+    row("tile_atomic_add(a: " + a + ", " + idx[d - 1] + ", t: " + t + ") -> " + t,
+        "Called as wp.tile_atomic_add(a, t, offset=...): adds t into a at the offset atomically; returns the old "
+        "values (zero outside a).", kBuiltinSideEffect);
+    row("tile_extract(a: " + t + ", " + idx[d - 1] + ") -> X",
+        "The element of a at the indices (also a[i, j]); an index outside the tile is a launch error.", kBuiltinNeedsLoc);
+    for (const char* op : {"add", "sub", "mul", "div"})
+      row(std::string(op) + "(a: " + t + ", b: " + t + ") -> " + t, "Element-wise on two tiles of one shape.");
+    row("mul(a: " + ts + ", b: Scalar) -> " + ts, "Each element times b.");
+    row("mul(a: Scalar, b: " + ts + ") -> " + ts, "a times each element.");
+    row("div(a: " + ts + ", b: Scalar) -> " + ts, "Each element divided by b.");
+    row("div(a: Scalar, b: " + ts + ") -> " + ts, "a divided by each element.");
+    row("neg(x: " + t + ") -> " + t, "Element-wise negation.");
+    row("pos(x: " + t + ") -> " + t, "The tile itself (unary +).");
+    row("tile_sum(a: " + t + ") -> tile(X,1)", "The sum of all elements, as a tile of shape (1,).");
+    row("tile_max(a: " + ts + ") -> tile(Scalar,1)", "The largest element, as a tile of shape (1,). Adjoint: to the first largest.");
+    row("tile_min(a: " + ts + ") -> tile(Scalar,1)", "The smallest element, as a tile of shape (1,). Adjoint: to the first smallest.");
+    row("tile_argmax(a: " + ts + ") -> tile(int32,1)", "The flat position of the first largest element.", kBuiltinNotDiff);
+    row("tile_argmin(a: " + ts + ") -> tile(int32,1)", "The flat position of the first smallest element.", kBuiltinNotDiff);
+    row("tile_dot(a: " + ts + ", b: " + ts + ") -> tile(Scalar,1)", "The sum of a[k] * b[k], as a tile of shape (1,).");
+    row("tile_axpy(alpha: Scalar, src: " + ts + ", dest: " + ts + ") -> " + ts,
+        "Called as wp.tile_axpy(alpha, src, dest): dest + alpha * src, assigned to dest.");
+    row("tile_scan_inclusive(a: " + ts + ") -> " + ts, "Running sums over the elements in row-major order.");
+    row("tile_scan_exclusive(a: " + ts + ") -> " + ts, "Running sums of the elements before each one (the first: 0).");
+    row("tile_scan_max_inclusive(a: " + ts + ") -> " + ts, "Running maxima in row-major order.", kBuiltinNotDiff);
+    row("tile_scan_min_inclusive(a: " + ts + ") -> " + ts, "Running minima in row-major order.", kBuiltinNotDiff);
+  }
+  const char* like_forms[] = {"A)", "A,B)", "A,B,C)", "A,B,C,E)"};
+  for (int r = 1; r <= 4; ++r) {
+    for (int d = 1; d <= 4; ++d) {
+      const std::string t = std::string("tile(X,") + dims[d - 1] + ")";
+      const std::string like = std::string("tile(X,") + like_forms[r - 1];
+      const std::string like_other = std::string("tile(Y,") + like_forms[r - 1];
+      if (d <= r)
+        row("tile_broadcast(like: " + like + ", a: " + t + ") -> " + like,
+            "Called as wp.tile_broadcast(a, shape=...): a repeated along its extents of 1 (trailing dimensions aligned).");
+      if (r == d - 1)
+        row("tile_sum_axis(like: " + like + ", a: " + t + ", axis: int32) -> " + like,
+            "Called as wp.tile_sum(a, axis=k): sums along a constant axis.");
+      if (r == d) {
+        row("tile_astype(like: " + like_other + ", a: " + t + ") -> " + like_other,
+            "Called as wp.tile_astype(a, dtype): each element converted.", kBuiltinNotDiff);
+        row("tile_assign(dst: " + t + ", src: " + like + ", o0: int64, o1: int64, o2: int64, o3: int64) -> " + t,
+            "Called as wp.tile_assign(dst, src, offset=...): dst with src written at the offset (assigned to dst); "
+            "an offset that does not fit is a launch error.", kBuiltinNeedsLoc);
+      }
+      row("tile_reshape(like: " + like + ", a: " + t + ") -> " + like,
+          "Called as wp.tile_reshape(a, shape) or wp.tile_squeeze(a[, axis]): the elements in row-major order "
+          "under another shape of the same size.");
+      if (r <= d)
+        row("tile_view(like: " + like + ", a: " + t + ", o0: int64, o1: int64, o2: int64, o3: int64, dims: int32) -> " + like,
+            "Called as wp.tile_view(a, offset, shape) or a[i], a[i:j, :]: a copy of the sub-tile at the offset; an "
+            "offset that does not fit is a launch error.", kBuiltinNeedsLoc);
+    }
+  }
+  row("tile(x: X) -> tile(X,1)", "The thread's value as a tile of shape (1,) (one thread per block).");
+  row("untile(a: tile(X,1)) -> X", "The value of a tile of shape (1,) (one thread per block).");
+  row("tile_transpose(a: tile(X,M,N)) -> tile(X,N,M)", "The transpose of a 2-D tile.");
+  row("tile_matmul(a: tile(Float,M,K), b: tile(Float,K,N), c: tile(Float,M,N), alpha: Float, beta: Float) -> tile(Float,M,N)",
+      "alpha * a @ b + beta * c. wp.tile_matmul(a, b) is alpha 1 over zeros; wp.tile_matmul(a, b, out[, alpha, beta]) "
+      "assigns the result to out (alpha, beta default 1).", kBuiltinNone, "tile_matmul_acc");
+}
+
+}  // namespace weft::sema

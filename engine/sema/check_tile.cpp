@@ -1,0 +1,520 @@
+// Tile builtins in kernels and funcs (Warp's tile programming): the calls whose result type
+// depends on constant arguments (a shape, an axis, a dtype) or whose arguments are tuples
+// (offsets). Each is checked here and rewritten into a row of builtins_tile.cpp: a `like`
+// variable (a tile of the result's type, zero and never read) carries the shape, and a tuple
+// offset becomes one int64 index per dimension. Tiles belong to the thread computing them
+// (engine/native/tile.h; docs/tiles.md).
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "engine/sema/check_impl.h"
+
+namespace weft::sema {
+namespace {
+
+bool IsTileCall(const std::string& n) {
+  static const char* kNames[] = {"tile_zeros", "tile_ones", "tile_full", "tile_arange", "tile_load", "tile_store",
+                                 "tile_atomic_add", "tile_sum", "tile_broadcast", "tile_astype", "tile_matmul",
+                                 "tile_extract", "tile", "untile", "tile_transpose", "tile_max", "tile_min",
+                                 "tile_argmax", "tile_argmin", "tile_view", "tile_map", "tile_reduce",
+                                 "tile_empty", "tile_axpy", "tile_assign", "tile_reshape", "tile_squeeze"};
+  for (const char* k : kNames)
+    if (n == k) return true;
+  return false;
+}
+
+std::string ShapeText(const std::vector<int>& s) {
+  std::string r = "(";
+  for (size_t i = 0; i < s.size(); ++i) r += (i ? ", " : "") + std::to_string(s[i]);
+  return r + (s.size() == 1 ? ",)" : ")");
+}
+
+}  // namespace
+
+Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
+                                  const ast::Call* call, bool* handled) {
+  *handled = IsTileCall(name);
+  if (!*handled) return Value();
+  if (name == "tile_map" || name == "tile_reduce")
+    return Error(loc, "wp." + name + "() is not supported in weft kernels yet (docs/tiles.md lists the tile builtins)");
+
+  // Parameters by name: positional arguments first, then keywords.
+  auto bind = [&](std::vector<std::string> names, std::vector<Value>* out) -> Status {
+    out->assign(names.size(), Value());
+    if (args.size() > names.size())
+      return Error(loc, "wp." + name + "() takes at most " + std::to_string(names.size()) + " arguments");
+    for (size_t i = 0; i < args.size(); ++i) (*out)[i] = args[i];
+    if (!call) return Status::Ok();
+    for (const auto& kw : call->keywords) {
+      size_t k = 0;
+      while (k < names.size() && names[k] != kw.name) ++k;
+      if (k == names.size()) return Error(kw.loc, "wp." + name + "() has no parameter '" + kw.name + "'");
+      if ((*out)[k].kind != Value::Kind::kNone) return Error(kw.loc, "wp." + name + "() got '" + kw.name + "' twice");
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*kw.value));
+      (*out)[k] = v;
+    }
+    return Status::Ok();
+  };
+  auto value_of = [&](const Value& v, const char* what) -> Expected<int> {
+    if (v.kind != Value::Kind::kVar) return Error(loc, "wp." + name + "(): " + what + " must be a value");
+    return v.var;
+  };
+  auto tile_arg = [&](const Value& v, const char* what) -> Expected<int> {
+    WEFT_ASSIGN_OR_RETURN(int var, value_of(v, what));
+    if (!TypeOf(var).is_tile())
+      return Error(loc, "wp." + name + "(): " + what + " must be a tile, got " + TypeString(TypeOf(var)));
+    return var;
+  };
+  auto const_int = [&](const Value& v, const char* what) -> Expected<int64_t> {
+    if (v.kind != Value::Kind::kVar || v.literal_text.empty() || !(v.literal || v.const_local) ||
+        v.literal_text.find_first_not_of("-0123456789") != std::string::npos || v.literal_text.size() > 12)
+      return Error(loc, "wp." + name + "(): " + what + " must be an integer constant");
+    return std::stoll(v.literal_text);
+  };
+  // A shape: an integer constant or a tuple of them, each 1 or more, at most kMaxTileElements
+  // elements in all.
+  auto shape_of = [&](const Value& v) -> Expected<std::vector<int>> {
+    std::vector<Value> dims = v.kind == Value::Kind::kTuple ? v.elems : std::vector<Value>{v};
+    if (v.kind == Value::Kind::kNone) return Error(loc, "wp." + name + "() needs a shape");
+    if (dims.empty() || dims.size() > 4) return Error(loc, "wp." + name + "(): a tile has 1 to 4 dimensions");
+    std::vector<int> shape;
+    int64_t total = 1;
+    for (const Value& d : dims) {
+      WEFT_ASSIGN_OR_RETURN(int64_t n, const_int(d, "each extent of the shape"));
+      if (n < 1) return Error(loc, "wp." + name + "(): tile extents must be positive, got " + std::to_string(n));
+      total *= n;
+      if (total > kMaxTileElements)
+        return Error(loc, "wp." + name + "(): a tile holds at most " + std::to_string(kMaxTileElements) + " elements");
+      shape.push_back(static_cast<int>(n));
+    }
+    return shape;
+  };
+  auto dtype_of = [&](const Value& v, Type def) -> Expected<Type> {
+    if (v.kind == Value::Kind::kNone) return def;
+    if (v.kind != Value::Kind::kType) return Error(loc, "wp." + name + "(): dtype must be a type");
+    if (!v.type.is_scalar() && !v.type.is_composite())
+      return Error(loc, "wp." + name + "(): tile elements are scalars, vectors, matrices, quaternions or transforms");
+    return v.type;
+  };
+  // The offset of a load or store: one int64 per dimension (zeros when left out).
+  auto offsets_of = [&](const Value& v, int ndim) -> Expected<std::vector<Value>> {
+    std::vector<Value> parts;
+    if (v.kind == Value::Kind::kNone) {
+      for (int d = 0; d < ndim; ++d) parts.push_back(Value::OfVar(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)")));
+      return parts;
+    }
+    std::vector<Value> given = v.kind == Value::Kind::kTuple ? v.elems : std::vector<Value>{v};
+    if (static_cast<int>(given.size()) != ndim)
+      return Error(loc, "wp." + name + "(): the offset has " + std::to_string(given.size()) + " entries for a " +
+                            std::to_string(ndim) + "-D array");
+    for (const Value& g : given) {
+      if (g.kind != Value::Kind::kVar || !TypeOf(g.var).is_scalar() || !IsInt(TypeOf(g.var).scalar))
+        return Error(loc, "wp." + name + "(): offsets must be integers");
+      parts.push_back(Value::OfVar(EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::int64($0)", {g.var})));
+    }
+    return parts;
+  };
+  // A zero tile of type t (never assigned: declared zero at the function's entry).
+  auto like = [&](const Type& t) { return Value::OfVar(NewVar(t, "tile shape")); };
+  auto flag_true = [&](const Value& v) { return v.kind == Value::Kind::kNone || v.literal_text != "False"; };
+
+  std::vector<Value> p;
+  if (name == "tile_zeros" || name == "tile_empty" || name == "tile_ones" || name == "tile_full") {
+    const bool full = name == "tile_full";
+    if (full) {
+      WEFT_RETURN_IF_ERROR(bind({"shape", "value", "dtype", "storage"}, &p));
+    } else {
+      WEFT_RETURN_IF_ERROR(bind({"shape", "dtype", "storage"}, &p));
+    }
+    WEFT_ASSIGN_OR_RETURN(std::vector<int> shape, shape_of(p[0]));
+    Type def = Type::Float32();
+    if (full && p[1].kind == Value::Kind::kVar && !p[1].literal) def = TypeOf(p[1].var);
+    WEFT_ASSIGN_OR_RETURN(Type elem, dtype_of(p[full ? 2 : 1], def));
+    const Type tt = Type::Tile(elem, shape);
+    if (name == "tile_zeros" || name == "tile_empty") {   // tile_empty: zeros as well
+      Stmt st;
+      st.op.kind = OpKind::kConstruct;
+      st.op.mode = ConstructMode::kZero;
+      const int d = NewVar(tt);
+      st.op.dst.push_back(d);
+      Push(std::move(st));
+      return Value::OfVar(d);
+    }
+    int v;
+    if (full) {
+      if (p[1].kind != Value::Kind::kVar) return Error(loc, "wp.tile_full() needs a value");
+      WEFT_ASSIGN_OR_RETURN(v, Coerce(p[1], elem, loc, "value"));
+    } else {
+      v = EmitRaw(elem, CppType(elem) + "(1)", {});
+    }
+    return Value::OfVar(EmitRaw(tt, "wp::tile_full<" + CppType(tt) + ">($0)", {v}));
+  }
+  if (name == "tile_arange") {
+    // tile_arange(stop), (start, stop) or (start, stop, step): constants, as the shape depends on them.
+    std::vector<Value> pos = args;
+    Value dtype_v;
+    if (call)
+      for (const auto& kw : call->keywords) {
+        if (kw.name == "dtype") {
+          WEFT_ASSIGN_OR_RETURN(dtype_v, Eval(*kw.value));
+        } else if (kw.name != "storage") {
+          return Error(kw.loc, "wp.tile_arange() has no parameter '" + kw.name + "'");
+        }
+      }
+    if (pos.empty() || pos.size() > 3) return Error(loc, "wp.tile_arange() takes stop, (start, stop) or (start, stop, step)");
+    std::vector<double> num;
+    bool ints = true;
+    for (const Value& a : pos) {
+      if (a.kind != Value::Kind::kVar || a.literal_text.empty() || !(a.literal || a.const_local))
+        return Error(loc, "wp.tile_arange(): its arguments must be constants");
+      ints &= a.literal_text.find_first_not_of("-0123456789") == std::string::npos;
+      num.push_back(std::stod(a.literal_text));
+    }
+    const double start = pos.size() >= 2 ? num[0] : 0.0;
+    const double stop = pos.size() >= 2 ? num[1] : num[0];
+    const double step = pos.size() == 3 ? num[2] : 1.0;
+    if (step == 0) return Error(loc, "wp.tile_arange(): step must not be zero");
+    const double count = std::ceil((stop - start) / step);
+    if (!(count >= 1) || count > kMaxTileElements)
+      return Error(loc, "wp.tile_arange(): the range must hold 1 to " + std::to_string(kMaxTileElements) + " elements");
+    WEFT_ASSIGN_OR_RETURN(Type elem, dtype_of(dtype_v, ints ? Type::Int32() : Type::Float32()));
+    if (!elem.is_scalar()) return Error(loc, "wp.tile_arange(): dtype must be a scalar type");
+    const Type tt = Type::Tile(elem, {static_cast<int>(count)});
+    auto lit = [&](double x) { return CppType(elem) + "(" + std::to_string(x) + ")"; };
+    return Value::OfVar(EmitRaw(tt, "wp::tile_arange<" + CppType(tt) + ">(" + lit(start) + ", " + lit(step) + ")", {}));
+  }
+  if (name == "tile_load") {
+    WEFT_RETURN_IF_ERROR(bind({"a", "shape", "offset", "storage", "bounds_check", "aligned"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int a, value_of(p[0], "a"));
+    const Type at = TypeOf(a);
+    if (!at.is_array() || at.is_indexed_array() || at.is_fixed_array())
+      return Error(loc, "wp.tile_load() loads from an array, got " + TypeString(at));
+    WEFT_ASSIGN_OR_RETURN(std::vector<int> shape, shape_of(p[1]));
+    if (static_cast<int>(shape.size()) != at.ndim)
+      return Error(loc, "wp.tile_load(): the tile shape " + ShapeText(shape) + " has " + std::to_string(shape.size()) +
+                            " dimensions, the array " + std::to_string(at.ndim));
+    if (!flag_true(p[4])) {
+      // bounds_check=False: weft checks every access all the same (docs/tiles.md).
+    }
+    WEFT_ASSIGN_OR_RETURN(std::vector<Value> off, offsets_of(p[2], at.ndim));
+    std::vector<Value> full{like(Type::Tile(at.elem(), shape)), p[0]};
+    full.insert(full.end(), off.begin(), off.end());
+    return ResolveAndEmitBuiltin("tile_load", std::move(full), loc);
+  }
+  if (name == "tile_store" || name == "tile_atomic_add") {
+    WEFT_RETURN_IF_ERROR(bind({"a", "t", "offset", "bounds_check", "aligned"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int a, value_of(p[0], "a"));
+    WEFT_ASSIGN_OR_RETURN(int t, tile_arg(p[1], "t"));
+    const Type at = TypeOf(a), tt = TypeOf(t);
+    if (!at.is_array() || at.is_indexed_array() || at.is_fixed_array())
+      return Error(loc, "wp." + name + "() writes into an array, got " + TypeString(at));
+    if (at.ndim != tt.ndim)
+      return Error(loc, "wp." + name + "(): a " + std::to_string(tt.ndim) + "-D tile into a " + std::to_string(at.ndim) +
+                            "-D array");
+    if (at.elem() != tt.elem())
+      return Error(loc, "wp." + name + "(): the tile holds " + TypeString(tt.elem()) + ", the array " + TypeString(at.elem()));
+    WEFT_ASSIGN_OR_RETURN(std::vector<Value> off, offsets_of(p[2], at.ndim));
+    std::vector<Value> full{p[0]};
+    full.insert(full.end(), off.begin(), off.end());
+    full.push_back(p[1]);
+    return ResolveAndEmitBuiltin(name, std::move(full), loc);
+  }
+  if (name == "tile_sum" || name == "tile_max" || name == "tile_min" || name == "tile_argmax" || name == "tile_argmin") {
+    WEFT_RETURN_IF_ERROR(bind({"a", "axis"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int a, tile_arg(p[0], "a"));
+    if (p[1].kind == Value::Kind::kNone) return ResolveAndEmitBuiltin(name, {p[0]}, loc);
+    if (name != "tile_sum") return Error(loc, "wp." + name + "(axis=...) is not supported in weft kernels yet");
+    WEFT_ASSIGN_OR_RETURN(int64_t axis, const_int(p[1], "axis"));
+    const Type tt = TypeOf(a);
+    if (axis < 0) axis += tt.ndim;
+    if (axis < 0 || axis >= tt.ndim)
+      return Error(loc, "wp.tile_sum(): axis " + p[1].literal_text + " is outside a " + std::to_string(tt.ndim) + "-D tile");
+    if (tt.ndim == 1) return ResolveAndEmitBuiltin("tile_sum", {p[0]}, loc);
+    std::vector<int> shape = tt.fixed_shape;
+    shape.erase(shape.begin() + axis);
+    Value ax = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(axis) + ")"));
+    return ResolveAndEmitBuiltin("tile_sum_axis", {like(Type::Tile(tt.elem(), shape)), p[0], ax}, loc);
+  }
+  if (name == "tile_broadcast") {
+    WEFT_RETURN_IF_ERROR(bind({"a", "shape", "storage"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int a, tile_arg(p[0], "a"));
+    WEFT_ASSIGN_OR_RETURN(std::vector<int> shape, shape_of(p[1]));
+    const Type tt = TypeOf(a);
+    bool ok = shape.size() >= tt.fixed_shape.size();
+    for (size_t d = 0; ok && d < tt.fixed_shape.size(); ++d) {
+      const int have = tt.fixed_shape[tt.fixed_shape.size() - 1 - d], want = shape[shape.size() - 1 - d];
+      ok = have == 1 || have == want;
+    }
+    if (!ok) return Error(loc, "wp.tile_broadcast(): cannot broadcast a tile of shape " + ShapeText(tt.fixed_shape) +
+                                   " to " + ShapeText(shape));
+    return ResolveAndEmitBuiltin("tile_broadcast", {like(Type::Tile(tt.elem(), shape)), p[0]}, loc);
+  }
+  if (name == "tile_astype") {
+    WEFT_RETURN_IF_ERROR(bind({"t", "dtype"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int a, tile_arg(p[0], "t"));
+    const Type tt = TypeOf(a);
+    WEFT_ASSIGN_OR_RETURN(Type elem, dtype_of(p[1], tt.elem()));
+    if (!elem.is_scalar() || !tt.elem().is_scalar()) return Error(loc, "wp.tile_astype() converts tiles of scalars");
+    return ResolveAndEmitBuiltin("tile_astype", {like(Type::Tile(elem, tt.fixed_shape)), p[0]}, loc);
+  }
+  if (name == "tile_matmul") {
+    WEFT_RETURN_IF_ERROR(bind({"a", "b", "out", "alpha", "beta"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int a, tile_arg(p[0], "a"));
+    WEFT_ASSIGN_OR_RETURN(int b, tile_arg(p[1], "b"));
+    const Type ta = TypeOf(a), tb = TypeOf(b);
+    if (ta.ndim != 2 || tb.ndim != 2 || ta.fixed_shape[1] != tb.fixed_shape[0])
+      return Error(loc, "wp.tile_matmul(): shapes " + ShapeText(ta.fixed_shape) + " and " + ShapeText(tb.fixed_shape) +
+                            " do not multiply");
+    const Type elem = ta.elem();
+    const Type out_t = Type::Tile(elem, {ta.fixed_shape[0], tb.fixed_shape[1]});
+    auto scalar = [&](const Value& v, const char* dflt, const char* what) -> Expected<Value> {
+      if (v.kind == Value::Kind::kNone) return Value::OfVar(EmitConst(elem, CppType(elem) + "(" + dflt + ")"));
+      WEFT_ASSIGN_OR_RETURN(int s, Coerce(v, elem, loc, what));
+      return Value::OfVar(s);
+    };
+    const bool has_out = p[2].kind != Value::Kind::kNone;
+    WEFT_ASSIGN_OR_RETURN(Value alpha, scalar(p[3], "1", "alpha"));
+    WEFT_ASSIGN_OR_RETURN(Value beta, scalar(p[4], has_out ? "1" : "0", "beta"));
+    Value c = like(out_t);
+    if (has_out) {
+      WEFT_ASSIGN_OR_RETURN(int o, tile_arg(p[2], "out"));
+      if (TypeOf(o) != out_t)
+        return Error(loc, "wp.tile_matmul(): out is " + TypeString(TypeOf(o)) + ", the product " + TypeString(out_t));
+      c = p[2];
+    }
+    WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_matmul", {p[0], p[1], c, alpha, beta}, loc));
+    if (!has_out) return r;
+    // The out form assigns the product to its `out` argument (a name, field or element).
+    const ast::Expr* target = nullptr;
+    if (call && call->args.size() > 2) target = call->args[2].get();
+    if (call)
+      for (const auto& kw : call->keywords)
+        if (kw.name == "out") target = kw.value.get();
+    if (!target) return Error(loc, "wp.tile_matmul(): out must name a tile");
+    WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, r));
+    return Value();
+  }
+  // The forms that update a tile argument assign their result to it (a name, field or element).
+  auto assign_to_arg = [&](size_t position, const char* param, const Value& r) -> Expected<Value> {
+    const ast::Expr* target = nullptr;
+    if (call && call->args.size() > position) target = call->args[position].get();
+    if (call)
+      for (const auto& kw : call->keywords)
+        if (kw.name == param) target = kw.value.get();
+    if (!target) return Error(loc, "wp." + name + "(): " + param + " must name a tile");
+    WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, r));
+    return Value();
+  };
+  if (name == "tile_axpy") {
+    WEFT_RETURN_IF_ERROR(bind({"alpha", "src", "dest"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int src, tile_arg(p[1], "src"));
+    WEFT_ASSIGN_OR_RETURN(int dest, tile_arg(p[2], "dest"));
+    if (TypeOf(src) != TypeOf(dest))
+      return Error(loc, "wp.tile_axpy(): src is " + TypeString(TypeOf(src)) + ", dest " + TypeString(TypeOf(dest)));
+    if (p[0].kind != Value::Kind::kVar) return Error(loc, "wp.tile_axpy(): alpha must be a value");
+    WEFT_ASSIGN_OR_RETURN(int alpha, Coerce(p[0], TypeOf(src).elem(), loc, "alpha"));
+    WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_axpy", {Value::OfVar(alpha), p[1], p[2]}, loc));
+    return assign_to_arg(2, "dest", r);
+  }
+  if (name == "tile_assign") {
+    WEFT_RETURN_IF_ERROR(bind({"dst", "src", "offset"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int dst, tile_arg(p[0], "dst"));
+    WEFT_ASSIGN_OR_RETURN(int src, tile_arg(p[1], "src"));
+    const Type dt = TypeOf(dst), st = TypeOf(src);
+    if (dt.ndim != st.ndim || dt.elem() != st.elem())
+      return Error(loc, "wp.tile_assign(): cannot assign a " + TypeString(st) + " into a " + TypeString(dt));
+    WEFT_ASSIGN_OR_RETURN(std::vector<Value> off, offsets_of(p[2], dt.ndim));
+    std::vector<Value> full{p[0], p[1]};
+    full.insert(full.end(), off.begin(), off.end());
+    while (full.size() < 6) full.push_back(Value::OfVar(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)")));
+    WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_assign", std::move(full), loc));
+    return assign_to_arg(0, "dst", r);
+  }
+  if (name == "tile_reshape" || name == "tile_squeeze") {
+    const bool squeeze = name == "tile_squeeze";
+    WEFT_RETURN_IF_ERROR(bind({"t", squeeze ? "axis" : "shape"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int a, tile_arg(p[0], "t"));
+    const Type tt = TypeOf(a);
+    int64_t size = 1;
+    for (int n : tt.fixed_shape) size *= n;
+    std::vector<int> shape;
+    if (!squeeze) {
+      // One extent may be -1: what the others leave.
+      std::vector<Value> dims = p[1].kind == Value::Kind::kTuple ? p[1].elems : std::vector<Value>{p[1]};
+      if (p[1].kind == Value::Kind::kNone) return Error(loc, "wp.tile_reshape() needs a shape");
+      if (dims.empty() || dims.size() > 4) return Error(loc, "wp.tile_reshape(): a tile has 1 to 4 dimensions");
+      int64_t known = 1;
+      int infer = -1;
+      for (size_t d = 0; d < dims.size(); ++d) {
+        WEFT_ASSIGN_OR_RETURN(int64_t n, const_int(dims[d], "each extent of the shape"));
+        if (n == -1 && infer < 0) {
+          infer = static_cast<int>(d);
+          shape.push_back(1);
+          continue;
+        }
+        if (n < 1 || n > kMaxTileElements) return Error(loc, "wp.tile_reshape(): bad extent " + std::to_string(n));
+        known *= n;
+        shape.push_back(static_cast<int>(n));
+      }
+      if (infer >= 0 && known > 0 && size % known == 0) shape[infer] = static_cast<int>(size / known);
+      int64_t got = 1;
+      for (int n : shape) got *= n;
+      if (got != size)
+        return Error(loc, "wp.tile_reshape(): cannot reshape a tile of shape " + ShapeText(tt.fixed_shape) + " to " +
+                              ShapeText(shape));
+    } else {
+      std::vector<bool> drop(tt.fixed_shape.size(), false);
+      if (p[1].kind == Value::Kind::kNone) {
+        for (size_t d = 0; d < drop.size(); ++d) drop[d] = tt.fixed_shape[d] == 1;
+      } else {
+        std::vector<Value> axes = p[1].kind == Value::Kind::kTuple ? p[1].elems : std::vector<Value>{p[1]};
+        for (const Value& ax : axes) {
+          WEFT_ASSIGN_OR_RETURN(int64_t k, const_int(ax, "axis"));
+          if (k < 0) k += tt.ndim;
+          if (k < 0 || k >= tt.ndim || tt.fixed_shape[k] != 1)
+            return Error(loc, "wp.tile_squeeze(): axis " + ax.literal_text + " is not an extent of 1 of a tile of shape " +
+                                  ShapeText(tt.fixed_shape));
+          drop[k] = true;
+        }
+      }
+      for (size_t d = 0; d < drop.size(); ++d)
+        if (!drop[d]) shape.push_back(tt.fixed_shape[d]);
+      if (shape.empty()) shape.push_back(1);
+    }
+    return ResolveAndEmitBuiltin("tile_reshape", {like(Type::Tile(tt.elem(), shape)), p[0]}, loc);
+  }
+  if (name == "tile_view") {
+    WEFT_RETURN_IF_ERROR(bind({"t", "offset", "shape"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int a, tile_arg(p[0], "t"));
+    const Type tt = TypeOf(a);
+    std::vector<Value> given = p[1].kind == Value::Kind::kTuple ? p[1].elems : std::vector<Value>{p[1]};
+    if (p[1].kind == Value::Kind::kNone || given.empty() || static_cast<int>(given.size()) > tt.ndim)
+      return Error(loc, "wp.tile_view(): the offset has 1 to " + std::to_string(tt.ndim) + " entries");
+    std::vector<int> offsets;
+    for (const Value& g : given) {
+      if (g.kind != Value::Kind::kVar || !TypeOf(g.var).is_scalar() || !IsInt(TypeOf(g.var).scalar))
+        return Error(loc, "wp.tile_view(): offsets must be integers");
+      offsets.push_back(EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::int64($0)", {g.var}));
+    }
+    std::vector<int> kept, extents;
+    if (p[2].kind == Value::Kind::kNone) {
+      for (int d = static_cast<int>(given.size()); d < tt.ndim; ++d) {
+        kept.push_back(d);
+        extents.push_back(tt.fixed_shape[d]);
+      }
+      if (kept.empty()) return Error(loc, "wp.tile_view(): an offset for every dimension needs a shape");
+    } else {
+      WEFT_ASSIGN_OR_RETURN(std::vector<int> shape, shape_of(p[2]));
+      if (static_cast<int>(shape.size()) > tt.ndim)
+        return Error(loc, "wp.tile_view(): the shape has more dimensions than the tile");
+      for (size_t d = 0; d < shape.size(); ++d) {
+        kept.push_back(tt.ndim - static_cast<int>(shape.size()) + static_cast<int>(d));
+        extents.push_back(shape[d]);
+      }
+    }
+    while (static_cast<int>(offsets.size()) < tt.ndim)
+      offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)"));
+    return TileView(a, offsets, kept, extents, loc);
+  }
+  if (name == "tile") {
+    WEFT_RETURN_IF_ERROR(bind({"x", "preserve_type"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int x, value_of(p[0], "x"));
+    const Type xt = TypeOf(x);
+    if (!xt.is_scalar() && !(xt.is_composite() && p[1].literal_text == "True"))
+      return Error(loc, "wp.tile(x) of a " + TypeString(xt) +
+                            " is not supported in weft kernels yet (scalars, or preserve_type=True)");
+    return ResolveAndEmitBuiltin("tile", {p[0]}, loc);
+  }
+  if (name == "tile_extract") {
+    WEFT_ASSIGN_OR_RETURN(int a, tile_arg(args.empty() ? Value() : args[0], "a"));
+    if (static_cast<int>(args.size()) - 1 != TypeOf(a).ndim)
+      return Error(loc, "wp.tile_extract() takes one index per dimension of the tile (" + std::to_string(TypeOf(a).ndim) + ")");
+    for (size_t k = 1; k < args.size(); ++k) {
+      if (args[k].kind != Value::Kind::kVar || !TypeOf(args[k].var).is_scalar() || !IsInt(TypeOf(args[k].var).scalar))
+        return Error(loc, "wp.tile_extract(): indices must be integers");
+      args[k] = Value::OfVar(EmitRaw(Type::Int32(), "wp::int32($0)", {args[k].var}));
+    }
+    return ResolveAndEmitBuiltin(name, std::move(args), loc);
+  }
+  // untile, tile_transpose: rows as they are.
+  if (call && !call->keywords.empty()) return Error(loc, "wp." + name + "() takes no keyword arguments");
+  return ResolveAndEmitBuiltin(name, std::move(args), loc);
+}
+
+}  // namespace weft::sema
+
+namespace weft::sema {
+
+Expected<Value> Checker::TileView(int base, std::vector<int> offsets, const std::vector<int>& kept,
+                                  const std::vector<int>& extents, const SourceLocation& loc) {
+  const Type tt = TypeOf(base);
+  for (size_t d = 0; d < kept.size(); ++d)
+    if (extents[d] > tt.fixed_shape[kept[d]])
+      return Error(loc, "a view of extent " + std::to_string(extents[d]) + " in dimension " + std::to_string(kept[d]) +
+                            " of a tile of shape " + ShapeText(tt.fixed_shape));
+  std::vector<Value> args{Value::OfVar(NewVar(Type::Tile(tt.elem(), extents), "tile shape")), Value::OfVar(base)};
+  while (offsets.size() < 4) offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)"));
+  for (int o : offsets) args.push_back(Value::OfVar(o));
+  int dims = 0;
+  for (size_t d = 0; d < kept.size(); ++d) dims |= kept[d] << (4 * d);
+  args.push_back(Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(dims) + ")")));
+  return ResolveAndEmitBuiltin("tile_view", std::move(args), loc);
+}
+
+// t[i, j] (one element), t[i] (the sub-tile of the remaining dimensions), t[a:b, :] (a
+// sub-tile; slice bounds are constants, the step 1).
+Expected<Value> Checker::TileSubscript(const ast::Subscript& s, const Value& base) {
+  const Type tt = TypeOf(base.var);
+  if (static_cast<int>(s.indices.size()) > tt.ndim)
+    return Error(s.loc, "a " + std::to_string(tt.ndim) + "-D tile takes at most " + std::to_string(tt.ndim) + " indices");
+  bool any_slice = false;
+  for (const auto& e : s.indices) any_slice |= ast::As<ast::Slice>(e.get()) != nullptr;
+  if (!any_slice && static_cast<int>(s.indices.size()) == tt.ndim) {
+    std::vector<Value> args{base};
+    for (const auto& e : s.indices) {
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
+      args.push_back(v);
+    }
+    return CallBuiltin("tile_extract", std::move(args), s.loc, nullptr);
+  }
+  auto const_bound = [&](const ast::Expr* e, int64_t dflt, int extent) -> Expected<int64_t> {
+    if (!e) return dflt;
+    WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
+    if (v.kind != Value::Kind::kVar || v.literal_text.empty() || !(v.literal || v.const_local) ||
+        v.literal_text.find_first_not_of("-0123456789") != std::string::npos || v.literal_text.size() > 12)
+      return Error(e->loc, "tile slice bounds must be integer constants");
+    int64_t n = std::stoll(v.literal_text);
+    if (n < 0) n += extent;
+    return n < 0 ? 0 : (n > extent ? extent : n);
+  };
+  std::vector<int> offsets, kept, extents;
+  for (int d = 0; d < tt.ndim; ++d) {
+    const int extent = tt.fixed_shape[d];
+    const ast::Expr* e = d < static_cast<int>(s.indices.size()) ? s.indices[d].get() : nullptr;
+    const auto* sl = e ? ast::As<ast::Slice>(e) : nullptr;
+    if (e && !sl) {
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
+      if (v.kind != Value::Kind::kVar || !TypeOf(v.var).is_scalar() || !IsInt(TypeOf(v.var).scalar))
+        return Error(e->loc, "tile indices must be integers or slices");
+      offsets.push_back(EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::int64($0)", {v.var}));
+      continue;
+    }
+    int64_t lo = 0, hi = extent;
+    if (sl) {
+      if (sl->step) {
+        WEFT_ASSIGN_OR_RETURN(int64_t step, const_bound(sl->step.get(), 1, 1 << 30));
+        if (step != 1) return Error(sl->loc, "tile slices with a step other than 1 are not supported in weft kernels yet");
+      }
+      WEFT_ASSIGN_OR_RETURN(lo, const_bound(sl->lower.get(), 0, extent));
+      WEFT_ASSIGN_OR_RETURN(hi, const_bound(sl->upper.get(), extent, extent));
+      if (hi <= lo) return Error(sl->loc, "an empty tile slice");
+    }
+    offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(" + std::to_string(lo) + ")"));
+    kept.push_back(d);
+    extents.push_back(static_cast<int>(hi - lo));
+  }
+  return TileView(base.var, offsets, kept, extents, s.loc);
+}
+
+}  // namespace weft::sema
