@@ -332,7 +332,9 @@ class FnEmitter {
     switch (op.kind) {
       case OpKind::kStore:
       case OpKind::kFuncCall:
-      case OpKind::kPrintf: return false;
+      case OpKind::kPrintf:
+      case OpKind::kTileMap:
+      case OpKind::kTileReduce: return false;
       case OpKind::kCall:
         return !(op.builtin->side_effect() || op.builtin->needs_ctx() ||
                  (op.builtin->flags & (kBuiltinArrayAccess | kBuiltinNeedsLoc | kBuiltinWritesArgs)));
@@ -568,7 +570,26 @@ class FnEmitter {
         if (replay) return;
         Line("wp::printf(__ctx, " + CppStringLiteral(op.text) + (op.args.empty() ? "" : ", ") + Args(op.args) + ");");
         return;
+      case OpKind::kTileMap:
+        Line(d() + " = wp::tile_map<" + CppType(T(op.dst[0])) + ">(" + ElementFn(op, replay) + ", " + Args(op.args) + ");");
+        return;
+      case OpKind::kTileReduce:
+        Line(d() + " = wp::tile_reduce(" + ElementFn(op, replay) + ", " + Args(op.args) + ");");
+        return;
     }
+  }
+
+  // The element function of a tile map or reduce as a C++ lambda: forward (replay: the func's
+  // replay twin) or, `adjoint`, its adjoint taking (args..., adj_args..., adj_ret).
+  std::string ElementFn(const Op& op, bool replay, bool adjoint = false) const {
+    std::string call;
+    if (op.builtin) {
+      call = "wp::" + (adjoint ? op.builtin->adjoint : op.builtin->native) + "(x...)";
+    } else {
+      const Function& callee = m_.functions.at(op.callee);
+      call = (adjoint ? "adj_" : replay ? "replay_" : "") + callee.cpp_name + "(__ctx, __tid_flat, x...)";
+    }
+    return adjoint ? "[&](auto&&... x) { " + call + "; }" : "[&](const auto&... x) { return " + call + "; }";
   }
 
   // Adjoint of a block: statements in reverse order.
@@ -683,6 +704,19 @@ class FnEmitter {
       case OpKind::kRaw:
       case OpKind::kView:
       case OpKind::kPrintf: return;
+      case OpKind::kTileMap:
+      case OpKind::kTileReduce: {
+        if (!Diff(dt()) || (op.builtin && !op.builtin->differentiable())) return;
+        if (op.kind == OpKind::kTileReduce) {
+          Line("wp::adj_tile_reduce(" + ElementFn(op, true, true) + ", " + ElementFn(op, true) + ", " + V(op.args[0]) +
+               ", " + A(op.args[0]) + ", " + A(op.dst[0]) + ");");
+          return;
+        }
+        std::string refs;
+        for (int a : op.args) refs += ", wp::tile_ref(" + V(a) + ", " + A(a) + ")";
+        Line("wp::adj_tile_map(" + ElementFn(op, true, true) + ", " + A(op.dst[0]) + refs + ");");
+        return;
+      }
       case OpKind::kCopy:
         if (!Diff(dt())) return;
         Line("wp::cg_accum(" + A(op.args[0]) + ", " + A(op.dst[0]) + ");");
@@ -927,7 +961,7 @@ std::string AdjointRefused(const Module& m, const Function& f) {
     std::function<std::string(const std::vector<Stmt>&)> walk = [&](const std::vector<Stmt>& stmts) -> std::string {
       for (const auto& s : stmts) {
         std::string r;
-        if (s.kind == Stmt::Kind::kOp && s.op.kind == OpKind::kFuncCall && seen.insert(s.op.callee).second)
+        if (s.kind == Stmt::Kind::kOp && s.op.callee >= 0 && seen.insert(s.op.callee).second)
           r = visit(m.functions.at(s.op.callee));
         if (r.empty()) r = walk(s.then_body);
         if (r.empty()) r = walk(s.else_body);

@@ -624,6 +624,55 @@ WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line,
   }
 }
 
+// ---- tile_map and tile_reduce ---------------------------------------------------------------
+
+// Element k of a tile argument; any other argument is the same value for every element.
+template <typename V> WP_FUNC const V& tile_elem(const V& v, int) { return v; }
+WP_TILE_TEMPLATE WP_FUNC const T& tile_elem(const WP_TILE& t, int k) { return t.data[k]; }
+template <typename V> WP_FUNC V& tile_elem_adj(V& v, int) { return v; }
+WP_TILE_TEMPLATE WP_FUNC T& tile_elem_adj(WP_TILE& t, int k) { return t.data[k]; }
+
+// f over the elements of the tile arguments (all of R's shape; the compiler checked).
+template <typename R, typename F, typename... A> WP_FUNC R tile_map(F f, const A&... a) {
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = f(tile_elem(a, k)...);
+  return r;
+}
+// An argument of a tile map's adjoint: its value and its adjoint.
+template <typename V> struct tile_ref_t {
+  const V& v;
+  V& adj;
+};
+template <typename V> WP_FUNC tile_ref_t<V> tile_ref(const V& v, V& adj) { return tile_ref_t<V>{v, adj}; }
+template <typename F, typename R, typename... P> WP_FUNC void adj_tile_map(F adj_f, const R& adj_ret, P... p) {
+  for (int k = 0; k < R::SIZE; ++k) adj_f(tile_elem(p.v, k)..., tile_elem_adj(p.adj, k)..., adj_ret.data[k]);
+}
+
+// f(...f(f(a[0], a[1]), a[2])..., a[n-1]) as a tile of shape (1,).
+template <typename F, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC tile_t<T, 1, 0, 0, 0> tile_reduce(F f, const WP_TILE& a) {
+  T acc = a.data[0];
+  for (int k = 1; k < WP_TILE::SIZE; ++k) acc = f(acc, a.data[k]);
+  tile_t<T, 1, 0, 0, 0> r;
+  r.data[0] = acc;
+  return r;
+}
+// Reverse of the fold: the partial results are computed again, then each step's adjoint runs
+// from the last step back.
+template <typename G, typename F, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_reduce(G adj_f, F f, const WP_TILE& a, WP_TILE& adj_a, const tile_t<T, 1, 0, 0, 0>& adj_ret) {
+  T acc[WP_TILE::SIZE];
+  acc[0] = a.data[0];
+  for (int k = 1; k < WP_TILE::SIZE; ++k) acc[k] = f(acc[k - 1], a.data[k]);
+  T adj_acc = adj_ret.data[0];
+  for (int k = WP_TILE::SIZE - 1; k >= 1; --k) {
+    T adj_prev = cg_zeros<T>();
+    adj_f(acc[k - 1], a.data[k], adj_prev, adj_a.data[k], adj_acc);
+    adj_acc = adj_prev;
+  }
+  adj_a.data[0] = add(adj_a.data[0], adj_acc);
+}
+
 #undef WP_TILE
 #undef WP_TILE_TEMPLATE
 

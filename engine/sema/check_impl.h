@@ -137,6 +137,8 @@ class Checker {
   Expected<Value> TileView(int base, std::vector<int> offsets, const std::vector<int>& kept,
                            const std::vector<int>& extents, const SourceLocation& loc);
   Expected<Value> TileSubscript(const ast::Subscript& s, const Value& base);
+  Expected<Value> TileMap(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
+                          const ast::Call* call);
   Expected<Value> CallConstructor(const Type& t, std::vector<Value> args, const SourceLocation& loc,
                                   const ast::Call& call);
   Expected<Value> CallUserFunc(const std::string& name, std::vector<Value> args, const SourceLocation& loc,

@@ -36,8 +36,7 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
                                   const ast::Call* call, bool* handled) {
   *handled = IsTileCall(name);
   if (!*handled) return Value();
-  if (name == "tile_map" || name == "tile_reduce")
-    return Error(loc, "wp." + name + "() is not supported in weft kernels yet (docs/tiles.md lists the tile builtins)");
+  if (name == "tile_map" || name == "tile_reduce") return TileMap(name, std::move(args), loc, call);
 
   // Parameters by name: positional arguments first, then keywords.
   auto bind = [&](std::vector<std::string> names, std::vector<Value>* out) -> Status {
@@ -515,6 +514,96 @@ Expected<Value> Checker::TileSubscript(const ast::Subscript& s, const Value& bas
     extents.push_back(static_cast<int>(hi - lo));
   }
   return TileView(base.var, offsets, kept, extents, s.loc);
+}
+
+}  // namespace weft::sema
+
+namespace weft::sema {
+
+// wp.tile_map(f, a, b, ...) and wp.tile_reduce(f, a): f (a builtin or a @wp.func) is resolved
+// for the element types as an ordinary call would be, in a scratch block, and must come out as
+// one call taking the element values as they are.
+Expected<Value> Checker::TileMap(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
+                                 const ast::Call* call) {
+  const bool reduce = name == "tile_reduce";
+  if (call && !call->keywords.empty())
+    return Error(loc, reduce ? "wp.tile_reduce(op, a, axis=...) is not supported in weft kernels yet"
+                             : "wp.tile_map() takes no keyword arguments");
+  if (args.size() < 2 || (reduce && args.size() != 2))
+    return Error(loc, reduce ? "wp.tile_reduce() takes (op, a)" : "wp.tile_map() takes (op, a, ...)");
+  const Value f = args[0];
+  if (f.kind != Value::Kind::kBuiltin && f.kind != Value::Kind::kFunc)
+    return Error(loc, "wp." + name + "(): the first argument must be a builtin or a @wp.func");
+  std::vector<int> shape;
+  std::vector<Value> inputs(args.begin() + 1, args.end());
+  std::vector<Value> elems;
+  std::vector<bool> is_tile;
+  for (const Value& a : inputs) {
+    if (a.kind != Value::Kind::kVar) return Error(loc, "wp." + name + "(): arguments must be values");
+    const Type t = TypeOf(a.var);
+    if (!t.is_tile()) {
+      if (reduce) return Error(loc, "wp.tile_reduce(): a must be a tile, got " + TypeString(t));
+      elems.push_back(a);
+      is_tile.push_back(false);
+      continue;
+    }
+    if (shape.empty()) shape = t.fixed_shape;
+    if (t.fixed_shape != shape)
+      return Error(loc, "wp." + name + "(): tiles of different shapes (" + TypeString(TypeOf(inputs[0].var)) + ", " +
+                            TypeString(t) + ")");
+    elems.push_back(Value::OfVar(NewVar(t.elem(), "tile element")));
+    is_tile.push_back(true);
+  }
+  if (shape.empty()) return Error(loc, "wp." + name + "() needs a tile argument");
+  if (reduce) elems.push_back(Value::OfVar(NewVar(TypeOf(elems[0].var), "tile element")));
+
+  std::vector<Stmt> scratch;
+  std::vector<Stmt>* saved = st_->block;
+  st_->block = &scratch;
+  auto r = f.kind == Value::Kind::kBuiltin ? CallBuiltin(f.name, elems, loc, nullptr) : CallUserFunc(f.name, elems, loc);
+  st_->block = saved;
+  if (!r.ok()) return r.status();
+  const std::string what = "wp." + name + "(" + f.name + ", ...)";
+  if (scratch.empty() || scratch.back().kind != Stmt::Kind::kOp ||
+      (scratch.back().op.kind != OpKind::kCall && scratch.back().op.kind != OpKind::kFuncCall) ||
+      scratch.back().op.dst.size() != 1 || scratch.back().op.args.size() != elems.size())
+    return Error(loc, what + ": the function must return one value per element");
+  const Op elem_call = scratch.back().op;
+  if (elem_call.builtin && (elem_call.builtin->needs_ctx() ||
+                            (elem_call.builtin->flags & (kBuiltinNeedsLoc | kBuiltinArrayAccess | kBuiltinWritesArgs |
+                                                         kBuiltinSideEffect))))
+    return Error(loc, what + ": this builtin cannot be applied element-wise");
+  // Elements pass as they are; a non-tile argument may have been converted (a literal).
+  std::vector<int> op_args;
+  for (size_t k = 0; k < inputs.size(); ++k) {
+    if (is_tile[k] && elem_call.args[k] != elems[k].var)
+      return Error(loc, what + ": the function must take the tiles' element type " + TypeString(TypeOf(elems[k].var)) +
+                            " as it is");
+    op_args.push_back(is_tile[k] ? inputs[k].var : elem_call.args[k]);
+  }
+  if (reduce && (elem_call.args[0] != elems[0].var || elem_call.args[1] != elems[1].var))
+    return Error(loc, what + ": the function must take two elements as they are");
+  const Type result = TypeOf(elem_call.dst[0]);
+  if (reduce && result != TypeOf(elems[0].var))
+    return Error(loc, what + " returns " + TypeString(result) + ", the tile holds " + TypeString(TypeOf(elems[0].var)));
+  if (!result.is_scalar() && !result.is_composite())
+    return Error(loc, what + ": tile elements are scalars, vectors, matrices, quaternions or transforms");
+  for (size_t k = 0; k + 1 < scratch.size(); ++k) {   // conversions of non-tile arguments
+    for (int a : scratch[k].op.args)
+      for (const Value& e : elems)
+        if (a == e.var) return Error(loc, what + ": the function must take the tiles' elements as they are");
+    st_->block->push_back(scratch[k]);
+  }
+  Stmt s;
+  s.op.kind = reduce ? OpKind::kTileReduce : OpKind::kTileMap;
+  s.op.builtin = elem_call.builtin;
+  s.op.callee = elem_call.callee;
+  s.op.args = op_args;
+  const int d = NewVar(Type::Tile(result, reduce ? std::vector<int>{1} : shape));
+  s.op.dst.push_back(d);
+  if (elem_call.callee >= 0) st_->fn.may_fail |= module_.functions[elem_call.callee].may_fail;
+  Push(std::move(s));
+  return Value::OfVar(d);
 }
 
 }  // namespace weft::sema

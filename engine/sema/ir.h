@@ -47,7 +47,9 @@ enum class ConstructMode {
   X(GetField)   /* dst = args[0].text */                                                 \
   X(SetField)   /* dst = args[0] with .text = args[1] */                                 \
   X(Phi)        /* dst = args[0] ? args[1] : args[2] */                                  \
-  X(Printf)     /* wp::printf(ctx, text, args...); text checked by CheckPrintfFormat */
+  X(Printf)     /* wp::printf(ctx, text, args...); text checked by CheckPrintfFormat */ \
+  X(TileMap)    /* dst = tile of f(elements of args) (f: `builtin` or func `callee`) */    \
+  X(TileReduce) /* dst = tile(1) folding args[0]'s elements with f(acc, x) */
 
 enum class OpKind {
 #define WEFT_IR_ENUM(N) k##N,
@@ -61,8 +63,8 @@ struct Op {
   std::vector<int> dst;   // 0..n variables
   std::vector<int> args;
   std::string text;
-  const BuiltinOverload* builtin = nullptr;  // kCall
-  int callee = -1;                           // kFuncCall: index into Module::functions
+  const BuiltinOverload* builtin = nullptr;  // kCall; kTileMap / kTileReduce: the element function
+  int callee = -1;                           // kFuncCall; kTileMap / kTileReduce: the element func
   ConstructMode mode = ConstructMode::kZero;
   int field_index = -1;                      // kGetField / kSetField
   // array accesses (kLoad, kStore, kCall with kBuiltinArrayAccess): for error reports

@@ -45,6 +45,9 @@ Expected<NvrtcOutput> NvrtcCompile(std::string_view source, std::string_view nam
       std::string("--gpu-architecture=") + (options.cubin ? "sm_" : "compute_") +
           std::to_string(options.sm),
       "-std=c++17",
+      // Lambdas (the element functions of tile_map / tile_reduce) carry no execution space
+      // annotation; every other function of the native library and of generated code does.
+      "-default-device",
   };
   for (const auto& dir : options.include_dirs) flags.push_back("-I" + dir);
   for (const auto& flag : options.extra_flags) flags.push_back(flag);
