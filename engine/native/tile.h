@@ -217,59 +217,6 @@ WP_TILE_EXTRACT_FORMS(I i WP_COMMA I j WP_COMMA I k WP_COMMA I l, I& WP_COMMA I&
 #undef WP_COMMA
 #undef WP_TILE_EXTRACT_FORMS
 
-// ---- element-wise arithmetic --------------------------------------------------------------
-
-#define WP_TILE_BINARY(op)                                                                                          \
-  WP_TILE_TEMPLATE WP_FUNC WP_TILE op(const WP_TILE& a, const WP_TILE& b) {                                         \
-    WP_TILE r;                                                                                                      \
-    for (int k = 0; k < WP_TILE::SIZE; ++k) r.data[k] = op(a.data[k], b.data[k]);                                   \
-    return r;                                                                                                       \
-  }                                                                                                                 \
-  WP_TILE_TEMPLATE WP_FUNC void adj_##op(const WP_TILE& a, const WP_TILE& b, WP_TILE& adj_a, WP_TILE& adj_b,        \
-                                         const WP_TILE& adj_ret) {                                                  \
-    for (int k = 0; k < WP_TILE::SIZE; ++k) adj_##op(a.data[k], b.data[k], adj_a.data[k], adj_b.data[k], adj_ret.data[k]); \
-  }
-WP_TILE_BINARY(add)
-WP_TILE_BINARY(sub)
-WP_TILE_BINARY(mul)
-WP_TILE_BINARY(div)
-#undef WP_TILE_BINARY
-
-// tile op scalar and scalar op tile (mul, div).
-#define WP_TILE_SCALAR(op)                                                                                          \
-  WP_TILE_TEMPLATE WP_FUNC WP_TILE op(const WP_TILE& a, T s) {                                                       \
-    WP_TILE r;                                                                                                      \
-    for (int k = 0; k < WP_TILE::SIZE; ++k) r.data[k] = op(a.data[k], s);                                           \
-    return r;                                                                                                       \
-  }                                                                                                                 \
-  WP_TILE_TEMPLATE WP_FUNC void adj_##op(const WP_TILE& a, T s, WP_TILE& adj_a, T& adj_s, const WP_TILE& adj_ret) {  \
-    for (int k = 0; k < WP_TILE::SIZE; ++k) adj_##op(a.data[k], s, adj_a.data[k], adj_s, adj_ret.data[k]);          \
-  }                                                                                                                 \
-  WP_TILE_TEMPLATE WP_FUNC WP_TILE op(T s, const WP_TILE& a) {                                                       \
-    WP_TILE r;                                                                                                      \
-    for (int k = 0; k < WP_TILE::SIZE; ++k) r.data[k] = op(s, a.data[k]);                                           \
-    return r;                                                                                                       \
-  }                                                                                                                 \
-  WP_TILE_TEMPLATE WP_FUNC void adj_##op(T s, const WP_TILE& a, T& adj_s, WP_TILE& adj_a, const WP_TILE& adj_ret) {  \
-    for (int k = 0; k < WP_TILE::SIZE; ++k) adj_##op(s, a.data[k], adj_s, adj_a.data[k], adj_ret.data[k]);          \
-  }
-WP_TILE_SCALAR(mul)
-WP_TILE_SCALAR(div)
-#undef WP_TILE_SCALAR
-
-WP_TILE_TEMPLATE WP_FUNC WP_TILE neg(const WP_TILE& a) {
-  WP_TILE r;
-  for (int k = 0; k < WP_TILE::SIZE; ++k) r.data[k] = neg(a.data[k]);
-  return r;
-}
-WP_TILE_TEMPLATE WP_FUNC void adj_neg(const WP_TILE& a, WP_TILE& adj_a, const WP_TILE& adj_ret) {
-  for (int k = 0; k < WP_TILE::SIZE; ++k) adj_neg(a.data[k], adj_a.data[k], adj_ret.data[k]);
-}
-WP_TILE_TEMPLATE WP_FUNC WP_TILE pos(const WP_TILE& a) { return a; }
-WP_TILE_TEMPLATE WP_FUNC void adj_pos(const WP_TILE&, WP_TILE& adj_a, const WP_TILE& adj_ret) {
-  for (int k = 0; k < WP_TILE::SIZE; ++k) adj_a.data[k] = add(adj_a.data[k], adj_ret.data[k]);
-}
-
 // ---- reductions -----------------------------------------------------------------------------
 
 WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_sum(const WP_TILE& a) {
@@ -594,35 +541,58 @@ WP_FUNC void adj_tile_view(const launch_context_t* ctx, int32 fid, int32 line, c
     adj_a.data[s] = add(adj_a.data[s], adj_ret.data[k]);
   }
 }
-// dst with src written at the offset (wp.tile_assign assigns it to dst).
+// dst with src written at o0..o3 through `dims` (as tile_view places a sub-tile): wp.tile_assign,
+// t[i] = row, t[a:b, :] = block; the result is assigned to dst.
 template <typename S, typename T, int D0, int D1, int D2, int D3>
 WP_FUNC WP_TILE tile_assign(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& dst, const S& src, int64 o0,
-                            int64 o1, int64 o2, int64 o3) {
+                            int64 o1, int64 o2, int64 o3, int32 dims) {
   const int64 o[4] = {o0, o1, o2, o3};
   WP_TILE r = dst;
-  if (!tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, o, 0x3210)) return r;
-  for (int k = 0; k < S::SIZE; ++k) r.data[tile_view_source<S, T, D0, D1, D2, D3>(k, o, 0x3210)] = src.data[k];
+  if (!tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, o, dims)) return r;
+  for (int k = 0; k < S::SIZE; ++k) r.data[tile_view_source<S, T, D0, D1, D2, D3>(k, o, dims)] = src.data[k];
   return r;
 }
 template <typename S, typename T, int D0, int D1, int D2, int D3>
 WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE&, const S&, int64 o0, int64 o1,
-                             int64 o2, int64 o3, WP_TILE& adj_dst, S& adj_src, int64&, int64&, int64&, int64&,
-                             const WP_TILE& adj_ret) {
+                             int64 o2, int64 o3, int32 dims, WP_TILE& adj_dst, S& adj_src, int64&, int64&, int64&, int64&,
+                             int32&, const WP_TILE& adj_ret) {
   const int64 o[4] = {o0, o1, o2, o3};
-  const bool fits = tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, o, 0x3210);
-  for (int k = 0; k < WP_TILE::SIZE; ++k) {   // positions src did not overwrite pass to dst
-    int64 c[4];
-    WP_TILE::coord(k, c);
-    bool inside = fits;
-    for (int d = 0; inside && d < WP_TILE::NDIM; ++d) inside = c[d] >= o[d] && c[d] < o[d] + S::extent(d);
-    if (!inside) adj_dst.data[k] = add(adj_dst.data[k], adj_ret.data[k]);
+  WP_TILE pass = adj_ret;   // positions src did not overwrite pass their adjoint to dst
+  if (tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, o, dims)) {
+    for (int k = 0; k < S::SIZE; ++k) {
+      const int s = tile_view_source<S, T, D0, D1, D2, D3>(k, o, dims);
+      adj_src.data[k] = add(adj_src.data[k], adj_ret.data[s]);
+      pass.data[s] = cg_zeros<T>();
+    }
   }
-  if (!fits) return;
-  for (int k = 0; k < S::SIZE; ++k) {
-    const int s = tile_view_source<S, T, D0, D1, D2, D3>(k, o, 0x3210);
-    adj_src.data[k] = add(adj_src.data[k], adj_ret.data[s]);
-  }
+  cg_accum(adj_dst, pass);
 }
+
+// t with element (i, j, ...) replaced by v (t[i, j] = v); an index outside t is a launch error.
+#define WP_TILE_INSERT_FORMS(PARAMS, ADJ_PARAMS, N, IDX)                                                              \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC WP_TILE tile_insert(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS, T v) {  \
+    WP_TILE r = t;                                                                                                  \
+    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
+    if (f >= 0) r.data[f] = v;                                                                                      \
+    return r;                                                                                                       \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC void adj_tile_insert(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS, T,     \
+                               WP_TILE& adj_t, ADJ_PARAMS, T& adj_v, const WP_TILE& adj_ret) {                      \
+    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
+    for (int k = 0; k < WP_TILE::SIZE; ++k)                                                                         \
+      if (k != f) adj_t.data[k] = add(adj_t.data[k], adj_ret.data[k]);                                              \
+    if (f >= 0) adj_v = add(adj_v, adj_ret.data[f]);                                                                 \
+  }
+#define WP_COMMA ,
+WP_TILE_INSERT_FORMS(I i, I&, 1, i WP_COMMA 0 WP_COMMA 0 WP_COMMA 0)
+WP_TILE_INSERT_FORMS(I i WP_COMMA I j, I& WP_COMMA I&, 2, i WP_COMMA j WP_COMMA 0 WP_COMMA 0)
+WP_TILE_INSERT_FORMS(I i WP_COMMA I j WP_COMMA I k, I& WP_COMMA I& WP_COMMA I&, 3, i WP_COMMA j WP_COMMA k WP_COMMA 0)
+WP_TILE_INSERT_FORMS(I i WP_COMMA I j WP_COMMA I k WP_COMMA I l, I& WP_COMMA I& WP_COMMA I& WP_COMMA I&, 4,
+                     i WP_COMMA j WP_COMMA k WP_COMMA l)
+#undef WP_COMMA
+#undef WP_TILE_INSERT_FORMS
 
 // ---- tile_map and tile_reduce ---------------------------------------------------------------
 

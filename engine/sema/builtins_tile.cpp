@@ -1,5 +1,6 @@
 // Registry rows: tiles (Warp's tile programming; engine/native/tile.h). Data only; see
-// builtins.h. The forms that take a shape (tile_zeros, tile_load, tile_broadcast, tile_sum
+// builtins.h. Operators on tiles (+ - * / % // ** << >> & | ^, unary - + ~) apply element-wise
+// through tile_map (sema/check_tile.cpp), so every element type the scalar builtin takes works. The forms that take a shape (tile_zeros, tile_load, tile_broadcast, tile_sum
 // along an axis, ...) are rewritten by sema/check_tile.cpp into these rows: a `like` argument
 // (a tile of the result's type, never read) carries the shape the call asked for, and a tuple
 // offset becomes one index argument per dimension.
@@ -29,16 +30,10 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
     row("tile_atomic_add(a: " + a + ", " + idx[d - 1] + ", t: " + t + ") -> " + t,
         "Called as wp.tile_atomic_add(a, t, offset=...): adds t into a at the offset atomically; returns the old "
         "values (zero outside a).", kBuiltinSideEffect);
+    row("tile_insert(a: " + t + ", " + idx[d - 1] + ", value: X) -> " + t,
+        "a with one element replaced (t[i, j] = value); an index outside the tile is a launch error.", kBuiltinNeedsLoc);
     row("tile_extract(a: " + t + ", " + idx[d - 1] + ") -> X",
         "The element of a at the indices (also a[i, j]); an index outside the tile is a launch error.", kBuiltinNeedsLoc);
-    for (const char* op : {"add", "sub", "mul", "div"})
-      row(std::string(op) + "(a: " + t + ", b: " + t + ") -> " + t, "Element-wise on two tiles of one shape.");
-    row("mul(a: " + ts + ", b: Scalar) -> " + ts, "Each element times b.");
-    row("mul(a: Scalar, b: " + ts + ") -> " + ts, "a times each element.");
-    row("div(a: " + ts + ", b: Scalar) -> " + ts, "Each element divided by b.");
-    row("div(a: Scalar, b: " + ts + ") -> " + ts, "a divided by each element.");
-    row("neg(x: " + t + ") -> " + t, "Element-wise negation.");
-    row("pos(x: " + t + ") -> " + t, "The tile itself (unary +).");
     row("tile_sum(a: " + t + ") -> tile(X,1)", "The sum of all elements, as a tile of shape (1,).");
     row("tile_max(a: " + ts + ") -> tile(Scalar,1)", "The largest element, as a tile of shape (1,). Adjoint: to the first largest.");
     row("tile_min(a: " + ts + ") -> tile(Scalar,1)", "The smallest element, as a tile of shape (1,). Adjoint: to the first smallest.");
@@ -67,13 +62,14 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
       if (r == d) {
         row("tile_astype(like: " + like_other + ", a: " + t + ") -> " + like_other,
             "Called as wp.tile_astype(a, dtype): each element converted.", kBuiltinNotDiff);
-        row("tile_assign(dst: " + t + ", src: " + like + ", o0: int64, o1: int64, o2: int64, o3: int64) -> " + t,
-            "Called as wp.tile_assign(dst, src, offset=...): dst with src written at the offset (assigned to dst); "
-            "an offset that does not fit is a launch error.", kBuiltinNeedsLoc);
       }
       row("tile_reshape(like: " + like + ", a: " + t + ") -> " + like,
           "Called as wp.tile_reshape(a, shape) or wp.tile_squeeze(a[, axis]): the elements in row-major order "
           "under another shape of the same size.");
+      if (r <= d)
+        row("tile_assign(dst: " + t + ", src: " + like + ", o0: int64, o1: int64, o2: int64, o3: int64, dims: int32) -> " + t,
+            "Called as wp.tile_assign(dst, src, offset=...), t[i] = row or t[a:b, :] = block: dst with src written at "
+            "the offset (assigned to dst); an offset that does not fit is a launch error.", kBuiltinNeedsLoc);
       if (r <= d)
         row("tile_view(like: " + like + ", a: " + t + ", o0: int64, o1: int64, o2: int64, o3: int64, dims: int32) -> " + like,
             "Called as wp.tile_view(a, offset, shape) or a[i], a[i:j, :]: a copy of the sub-tile at the offset; an "

@@ -851,6 +851,10 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
       return AssignAdjoint(*sub, value);
     if (base.kind != Value::Kind::kVar) return Error(loc, "cannot assign to an element of '" + ExprText(*sub->value) + "'");
     const Type bt = TypeOf(base.var);
+    if (bt.is_tile()) {   // t[i, j] = v, t[i] = row, t[a:b, :] = block
+      WEFT_ASSIGN_OR_RETURN(int updated, TileUpdate(*sub, base, value));
+      return assign_updated(*sub->value, updated);
+    }
     SliceRegion region;
     if (!bt.is_array()) {
       WEFT_ASSIGN_OR_RETURN(bool sliced, SliceRegionOf(*sub, bt, &region));

@@ -752,8 +752,7 @@ Expected<Value> Checker::EvalSubscript(const ast::Subscript& s) {
     return Value::OfVar(slot);
   }
   if (base.kind == Value::Kind::kVar && TypeOf(base.var).is_tile()) {
-    // t[i, j], t[i], t[a:b, :] (reads; writing a tile element is not supported yet).
-    if (store_target_) return Error(s.loc, "assigning to a tile element is not supported in weft kernels yet");
+    // t[i, j], t[i], t[a:b, :]
     return TileSubscript(s, base);
   }
   if (base.kind == Value::Kind::kVar && !TypeOf(base.var).is_array()) {
@@ -858,6 +857,11 @@ Expected<Value> Checker::EvalBinOp(const ast::BinOp& b) {
   WEFT_ASSIGN_OR_RETURN(Value l, Eval(*b.left));
   WEFT_ASSIGN_OR_RETURN(Value r, Eval(*b.right));
   const std::string& name = BinaryBuiltins().at(b.op);
+  auto is_tile = [this](const Value& v) { return v.kind == Value::Kind::kVar && TypeOf(v.var).is_tile(); };
+  if (b.op == ast::BinaryOperator::kMatMul && is_tile(l) && is_tile(r)) {   // a @ b of tiles: tile_matmul
+    bool handled = false;
+    return CallTile("tile_matmul", {l, r}, b.loc, nullptr, &handled);
+  }
   // An operator on a struct is the user's @wp.func of the operator's builtin name (`add` for +,
   // `mul` for *, ...), as in Warp: no builtin takes a struct.
   auto is_struct = [this](const Value& v) { return v.kind == Value::Kind::kVar && TypeOf(v.var).is_struct(); };
@@ -1189,6 +1193,20 @@ static Status CheckAtomicElement(const std::string& name, const Type& arr) {
 Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vector<Value> args,
                                                const SourceLocation& loc, int array_param,
                                                const std::string& array_name) {
+  // An operator with a tile operand applies element-wise (Warp's tile arithmetic).
+  static const std::set<std::string> kTileOperators = {"add",    "sub",    "mul",     "div",     "floordiv",
+                                                       "mod",    "pow",    "lshift",  "rshift",  "bit_or",
+                                                       "bit_xor", "bit_and", "neg",   "pos",     "invert"};
+  if (kTileOperators.count(name)) {
+    for (const Value& a : args) {
+      if (a.kind != Value::Kind::kVar || !TypeOf(a.var).is_tile()) continue;
+      Value f;
+      f.kind = Value::Kind::kBuiltin;
+      f.name = name;
+      args.insert(args.begin(), f);
+      return TileMap("tile_map", std::move(args), loc, nullptr);
+    }
+  }
   std::vector<Type> types;
   std::vector<int> literals;
   for (const auto& a : args) {

@@ -136,7 +136,14 @@ class Checker {
   // dimensions `kept` with `extents`; t[...] on a tile.
   Expected<Value> TileView(int base, std::vector<int> offsets, const std::vector<int>& kept,
                            const std::vector<int>& extents, const SourceLocation& loc);
+  struct TileRegion {
+    bool element = false;              // every dimension indexed by an integer
+    std::vector<int> indices;          // element: int32 vars
+    std::vector<int> offsets, kept, extents;   // a sub-tile (see TileView)
+  };
+  Expected<TileRegion> TileRegionOf(const ast::Subscript& s, const Type& tile_type);
   Expected<Value> TileSubscript(const ast::Subscript& s, const Value& base);
+  Expected<int> TileUpdate(const ast::Subscript& s, const Value& base, const Value& value);
   Expected<Value> TileMap(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
                           const ast::Call* call);
   Expected<Value> CallConstructor(const Type& t, std::vector<Value> args, const SourceLocation& loc,

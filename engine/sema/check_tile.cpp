@@ -321,12 +321,18 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     WEFT_ASSIGN_OR_RETURN(int dst, tile_arg(p[0], "dst"));
     WEFT_ASSIGN_OR_RETURN(int src, tile_arg(p[1], "src"));
     const Type dt = TypeOf(dst), st = TypeOf(src);
-    if (dt.ndim != st.ndim || dt.elem() != st.elem())
+    Value srcv = p[1];
+    if (dt.ndim == st.ndim && dt.elem() != st.elem() && dt.elem().is_scalar() && st.elem().is_scalar()) {
+      // another scalar type: converted, as Warp does
+      WEFT_ASSIGN_OR_RETURN(srcv, ResolveAndEmitBuiltin("tile_astype", {like(Type::Tile(dt.elem(), st.fixed_shape)), p[1]}, loc));
+    } else if (dt.ndim != st.ndim || dt.elem() != st.elem()) {
       return Error(loc, "wp.tile_assign(): cannot assign a " + TypeString(st) + " into a " + TypeString(dt));
+    }
     WEFT_ASSIGN_OR_RETURN(std::vector<Value> off, offsets_of(p[2], dt.ndim));
-    std::vector<Value> full{p[0], p[1]};
+    std::vector<Value> full{p[0], srcv};
     full.insert(full.end(), off.begin(), off.end());
     while (full.size() < 6) full.push_back(Value::OfVar(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)")));
+    full.push_back(Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(0x3210) + ")")));
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_assign", std::move(full), loc));
     return assign_to_arg(0, "dst", r);
   }
@@ -441,10 +447,6 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
   return ResolveAndEmitBuiltin(name, std::move(args), loc);
 }
 
-}  // namespace weft::sema
-
-namespace weft::sema {
-
 Expected<Value> Checker::TileView(int base, std::vector<int> offsets, const std::vector<int>& kept,
                                   const std::vector<int>& extents, const SourceLocation& loc) {
   const Type tt = TypeOf(base);
@@ -461,22 +463,16 @@ Expected<Value> Checker::TileView(int base, std::vector<int> offsets, const std:
   return ResolveAndEmitBuiltin("tile_view", std::move(args), loc);
 }
 
-// t[i, j] (one element), t[i] (the sub-tile of the remaining dimensions), t[a:b, :] (a
-// sub-tile; slice bounds are constants, the step 1).
-Expected<Value> Checker::TileSubscript(const ast::Subscript& s, const Value& base) {
-  const Type tt = TypeOf(base.var);
+// The part of a tile a subscript names: t[i, j] (one element: `element`, its int32 indices),
+// t[i] (the sub-tile of the remaining dimensions), t[a:b, :] (a sub-tile; slice bounds are
+// constants, the step 1): int64 offsets per dimension, the dimensions kept and their extents.
+Expected<Checker::TileRegion> Checker::TileRegionOf(const ast::Subscript& s, const Type& tt) {
+  TileRegion r;
   if (static_cast<int>(s.indices.size()) > tt.ndim)
     return Error(s.loc, "a " + std::to_string(tt.ndim) + "-D tile takes at most " + std::to_string(tt.ndim) + " indices");
   bool any_slice = false;
   for (const auto& e : s.indices) any_slice |= ast::As<ast::Slice>(e.get()) != nullptr;
-  if (!any_slice && static_cast<int>(s.indices.size()) == tt.ndim) {
-    std::vector<Value> args{base};
-    for (const auto& e : s.indices) {
-      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
-      args.push_back(v);
-    }
-    return CallBuiltin("tile_extract", std::move(args), s.loc, nullptr);
-  }
+  r.element = !any_slice && static_cast<int>(s.indices.size()) == tt.ndim;
   auto const_bound = [&](const ast::Expr* e, int64_t dflt, int extent) -> Expected<int64_t> {
     if (!e) return dflt;
     WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
@@ -487,7 +483,6 @@ Expected<Value> Checker::TileSubscript(const ast::Subscript& s, const Value& bas
     if (n < 0) n += extent;
     return n < 0 ? 0 : (n > extent ? extent : n);
   };
-  std::vector<int> offsets, kept, extents;
   for (int d = 0; d < tt.ndim; ++d) {
     const int extent = tt.fixed_shape[d];
     const ast::Expr* e = d < static_cast<int>(s.indices.size()) ? s.indices[d].get() : nullptr;
@@ -496,7 +491,11 @@ Expected<Value> Checker::TileSubscript(const ast::Subscript& s, const Value& bas
       WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
       if (v.kind != Value::Kind::kVar || !TypeOf(v.var).is_scalar() || !IsInt(TypeOf(v.var).scalar))
         return Error(e->loc, "tile indices must be integers or slices");
-      offsets.push_back(EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::int64($0)", {v.var}));
+      if (r.element) {
+        r.indices.push_back(EmitRaw(Type::Int32(), "wp::int32($0)", {v.var}));
+        continue;
+      }
+      r.offsets.push_back(EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::int64($0)", {v.var}));
       continue;
     }
     int64_t lo = 0, hi = extent;
@@ -509,16 +508,56 @@ Expected<Value> Checker::TileSubscript(const ast::Subscript& s, const Value& bas
       WEFT_ASSIGN_OR_RETURN(hi, const_bound(sl->upper.get(), extent, extent));
       if (hi <= lo) return Error(sl->loc, "an empty tile slice");
     }
-    offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(" + std::to_string(lo) + ")"));
-    kept.push_back(d);
-    extents.push_back(static_cast<int>(hi - lo));
+    r.offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(" + std::to_string(lo) + ")"));
+    r.kept.push_back(d);
+    r.extents.push_back(static_cast<int>(hi - lo));
   }
-  return TileView(base.var, offsets, kept, extents, s.loc);
+  return r;
 }
 
-}  // namespace weft::sema
+Expected<Value> Checker::TileSubscript(const ast::Subscript& s, const Value& base) {
+  WEFT_ASSIGN_OR_RETURN(TileRegion r, TileRegionOf(s, TypeOf(base.var)));
+  if (r.element) {
+    std::vector<Value> args{base};
+    for (int i : r.indices) args.push_back(Value::OfVar(i));
+    return ResolveAndEmitBuiltin("tile_extract", std::move(args), s.loc);
+  }
+  return TileView(base.var, r.offsets, r.kept, r.extents, s.loc);
+}
 
-namespace weft::sema {
+// t[i, j] = v (an element), t[i] = row, t[a:b, :] = block (a tile of the part's shape): the
+// updated tile, which the caller assigns to t.
+Expected<int> Checker::TileUpdate(const ast::Subscript& s, const Value& base, const Value& value) {
+  const Type tt = TypeOf(base.var);
+  WEFT_ASSIGN_OR_RETURN(TileRegion r, TileRegionOf(s, tt));
+  if (r.element) {
+    WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, tt.elem(), s.loc, "the tile element"));
+    std::vector<Value> args{base};
+    for (int i : r.indices) args.push_back(Value::OfVar(i));
+    args.push_back(Value::OfVar(v));
+    WEFT_ASSIGN_OR_RETURN(Value u, ResolveAndEmitBuiltin("tile_insert", std::move(args), s.loc));
+    return u.var;
+  }
+  const Type vt = TypeOf(value.var);
+  if (!vt.is_tile() || vt.fixed_shape != r.extents)
+    return ErrorOf("value", s.loc, "assigning to a tile view requires a tile of matching shape " +
+                                       ShapeText(r.extents) + ", got " + TypeString(vt));
+  Value src = value;
+  if (vt.elem() != tt.elem()) {
+    if (!vt.elem().is_scalar() || !tt.elem().is_scalar())
+      return Error(s.loc, "cannot assign a " + TypeString(vt) + " into a " + TypeString(tt));
+    WEFT_ASSIGN_OR_RETURN(src, ResolveAndEmitBuiltin("tile_astype", {Value::OfVar(NewVar(Type::Tile(tt.elem(), vt.fixed_shape), "tile shape")), value}, s.loc));
+  }
+  std::vector<Value> args{base, src};
+  std::vector<int> offsets = r.offsets;
+  while (offsets.size() < 4) offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)"));
+  for (int o : offsets) args.push_back(Value::OfVar(o));
+  int dims = 0;
+  for (size_t d = 0; d < r.kept.size(); ++d) dims |= r.kept[d] << (4 * d);
+  args.push_back(Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(dims) + ")")));
+  WEFT_ASSIGN_OR_RETURN(Value u, ResolveAndEmitBuiltin("tile_assign", std::move(args), s.loc));
+  return u.var;
+}
 
 // wp.tile_map(f, a, b, ...) and wp.tile_reduce(f, a): f (a builtin or a @wp.func) is resolved
 // for the element types as an ordinary call would be, in a scratch block, and must come out as
