@@ -494,73 +494,86 @@ WP_TILE_TEMPLATE WP_FUNC void adj_tile_scan_exclusive(const WP_TILE&, WP_TILE& a
   }
 }
 
-// A sub-tile: R's extents starting at o0..o3 (tile_view, t[i], t[a:b, :]). `dims` maps R's
-// dimension d to a's dimension (dims >> 4d) & 0xf; a's other dimensions are fixed at their
-// offset (an integer index drops a dimension).
+// A sub-tile: R's extents starting at o0..o3 and stepping s0..s3 (by a's dimension; tile_view,
+// t[i], t[a:b, :], t[::2], t[::-1]). `dims` maps R's dimension d to a's dimension
+// (dims >> 4d) & 0xf; a's other dimensions stay at their offset (an integer index drops a
+// dimension).
+struct tile_region_t {
+  int64 o[4];
+  int64 s[4];
+  int32 dims;
+};
+// The region's parameters as builtins take them (offsets, steps, dims), and their adjoints.
+#define WP_TILE_REGION_PARAMS int64 o0, int64 o1, int64 o2, int64 o3, int64 s0, int64 s1, int64 s2, int64 s3, int32 dims
+#define WP_TILE_REGION_ADJ_PARAMS int64&, int64&, int64&, int64&, int64&, int64&, int64&, int64&, int32&
+#define WP_TILE_REGION (tile_region_t{{o0, o1, o2, o3}, {s0, s1, s2, s3}, dims})
 template <typename R, typename T, int D0, int D1, int D2, int D3>
-WP_FUNC int tile_view_source(int k, const int64 (&o)[4], int32 dims) {
+WP_FUNC int tile_view_source(int k, const tile_region_t& g) {
   int64 c[4];
   R::coord(k, c);
-  int64 src[4] = {o[0], o[1], o[2], o[3]};
-  for (int d = 0; d < R::NDIM; ++d) src[(dims >> (4 * d)) & 0xf] += c[d];
+  int64 src[4] = {g.o[0], g.o[1], g.o[2], g.o[3]};
+  for (int d = 0; d < R::NDIM; ++d) {
+    const int a = (g.dims >> (4 * d)) & 0xf;
+    src[a] += c[d] * g.s[a];
+  }
   int64 flat = 0;
   for (int d = 0; d < WP_TILE::NDIM; ++d) flat = flat * WP_TILE::extent(d) + src[d];
   return (int)flat;
 }
-// Does R placed at o (through dims) lie inside a? If not, a launch error at the call's line.
+// Does R placed by g lie inside a? If not, a launch error at the call's line.
 template <typename R, typename T, int D0, int D1, int D2, int D3>
-WP_FUNC bool tile_view_fits(const launch_context_t* ctx, int32 fid, int32 line, const int64 (&o)[4], int32 dims) {
-  int64 last[4] = {o[0], o[1], o[2], o[3]};
-  for (int d = 0; d < R::NDIM; ++d) last[(dims >> (4 * d)) & 0xf] += R::extent(d) - 1;
-  for (int d = 0; d < WP_TILE::NDIM; ++d) {
-    if (!in_range(o[d], WP_TILE::extent(d)) || !in_range(last[d], WP_TILE::extent(d))) {
-      const int64 shape[4] = {WP_TILE::extent(0), WP_TILE::extent(1), WP_TILE::extent(2), WP_TILE::extent(3)};
-      report_error(ctx, LAUNCH_BAD_VALUE, fid, line, -1, WP_TILE::NDIM, o, shape, "tile view or assignment out of bounds");
-      return false;
-    }
+WP_FUNC bool tile_view_fits(const launch_context_t* ctx, int32 fid, int32 line, const tile_region_t& g) {
+  int64 last[4] = {g.o[0], g.o[1], g.o[2], g.o[3]};
+  bool ok = true;
+  for (int d = 0; d < R::NDIM; ++d) {
+    const int a = (g.dims >> (4 * d)) & 0xf;
+    ok = ok && a < WP_TILE::NDIM;
+    if (a < 4) last[a] += (R::extent(d) - 1) * g.s[a];
   }
-  return true;
+  for (int d = 0; ok && d < WP_TILE::NDIM; ++d) ok = in_range(g.o[d], WP_TILE::extent(d)) && in_range(last[d], WP_TILE::extent(d));
+  if (!ok) {
+    const int64 shape[4] = {WP_TILE::extent(0), WP_TILE::extent(1), WP_TILE::extent(2), WP_TILE::extent(3)};
+    report_error(ctx, LAUNCH_BAD_VALUE, fid, line, -1, WP_TILE::NDIM, g.o, shape, "tile view or assignment out of bounds");
+  }
+  return ok;
 }
 template <typename R, typename T, int D0, int D1, int D2, int D3>
-WP_FUNC R tile_view(const launch_context_t* ctx, int32 fid, int32 line, const R&, const WP_TILE& a, int64 o0, int64 o1,
-                    int64 o2, int64 o3, int32 dims) {
-  const int64 o[4] = {o0, o1, o2, o3};
+WP_FUNC R tile_view(const launch_context_t* ctx, int32 fid, int32 line, const R&, const WP_TILE& a, WP_TILE_REGION_PARAMS) {
+  const tile_region_t g = WP_TILE_REGION;
   R r;
-  if (!tile_view_fits<R, T, D0, D1, D2, D3>(ctx, fid, line, o, dims)) return cg_zeros<R>();
-  for (int k = 0; k < R::SIZE; ++k) r.data[k] = a.data[tile_view_source<R, T, D0, D1, D2, D3>(k, o, dims)];
+  if (!tile_view_fits<R, T, D0, D1, D2, D3>(ctx, fid, line, g)) return cg_zeros<R>();
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = a.data[tile_view_source<R, T, D0, D1, D2, D3>(k, g)];
   return r;
 }
 template <typename R, typename T, int D0, int D1, int D2, int D3>
-WP_FUNC void adj_tile_view(const launch_context_t* ctx, int32 fid, int32 line, const R&, const WP_TILE&, int64 o0, int64 o1,
-                           int64 o2, int64 o3, int32 dims, R&, WP_TILE& adj_a, int64&, int64&, int64&, int64&, int32&,
-                           const R& adj_ret) {
-  const int64 o[4] = {o0, o1, o2, o3};
-  if (!tile_view_fits<R, T, D0, D1, D2, D3>(ctx, fid, line, o, dims)) return;
+WP_FUNC void adj_tile_view(const launch_context_t* ctx, int32 fid, int32 line, const R&, const WP_TILE&, WP_TILE_REGION_PARAMS,
+                           R&, WP_TILE& adj_a, WP_TILE_REGION_ADJ_PARAMS, const R& adj_ret) {
+  const tile_region_t g = WP_TILE_REGION;
+  if (!tile_view_fits<R, T, D0, D1, D2, D3>(ctx, fid, line, g)) return;
   for (int k = 0; k < R::SIZE; ++k) {
-    const int s = tile_view_source<R, T, D0, D1, D2, D3>(k, o, dims);
+    const int s = tile_view_source<R, T, D0, D1, D2, D3>(k, g);
     adj_a.data[s] = add(adj_a.data[s], adj_ret.data[k]);
   }
 }
-// dst with src written at o0..o3 through `dims` (as tile_view places a sub-tile): wp.tile_assign,
+// dst with src written where g places it (as tile_view reads a sub-tile): wp.tile_assign,
 // t[i] = row, t[a:b, :] = block; the result is assigned to dst.
 template <typename S, typename T, int D0, int D1, int D2, int D3>
-WP_FUNC WP_TILE tile_assign(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& dst, const S& src, int64 o0,
-                            int64 o1, int64 o2, int64 o3, int32 dims) {
-  const int64 o[4] = {o0, o1, o2, o3};
+WP_FUNC WP_TILE tile_assign(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& dst, const S& src,
+                            WP_TILE_REGION_PARAMS) {
+  const tile_region_t g = WP_TILE_REGION;
   WP_TILE r = dst;
-  if (!tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, o, dims)) return r;
-  for (int k = 0; k < S::SIZE; ++k) r.data[tile_view_source<S, T, D0, D1, D2, D3>(k, o, dims)] = src.data[k];
+  if (!tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, g)) return r;
+  for (int k = 0; k < S::SIZE; ++k) r.data[tile_view_source<S, T, D0, D1, D2, D3>(k, g)] = src.data[k];
   return r;
 }
 template <typename S, typename T, int D0, int D1, int D2, int D3>
-WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE&, const S&, int64 o0, int64 o1,
-                             int64 o2, int64 o3, int32 dims, WP_TILE& adj_dst, S& adj_src, int64&, int64&, int64&, int64&,
-                             int32&, const WP_TILE& adj_ret) {
-  const int64 o[4] = {o0, o1, o2, o3};
+WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE&, const S&, WP_TILE_REGION_PARAMS,
+                             WP_TILE& adj_dst, S& adj_src, WP_TILE_REGION_ADJ_PARAMS, const WP_TILE& adj_ret) {
+  const tile_region_t g = WP_TILE_REGION;
   WP_TILE pass = adj_ret;   // positions src did not overwrite pass their adjoint to dst
-  if (tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, o, dims)) {
+  if (tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, g)) {
     for (int k = 0; k < S::SIZE; ++k) {
-      const int s = tile_view_source<S, T, D0, D1, D2, D3>(k, o, dims);
+      const int s = tile_view_source<S, T, D0, D1, D2, D3>(k, g);
       adj_src.data[k] = add(adj_src.data[k], adj_ret.data[s]);
       pass.data[s] = cg_zeros<T>();
     }

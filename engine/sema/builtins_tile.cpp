@@ -47,6 +47,8 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
     row("tile_scan_max_inclusive(a: " + ts + ") -> " + ts, "Running maxima in row-major order.", kBuiltinNotDiff);
     row("tile_scan_min_inclusive(a: " + ts + ") -> " + ts, "Running minima in row-major order.", kBuiltinNotDiff);
   }
+  // A sub-tile's place: offsets and steps by dimension, and which dimensions it keeps.
+  const std::string region = "o0: int64, o1: int64, o2: int64, o3: int64, s0: int64, s1: int64, s2: int64, s3: int64, dims: int32";
   const char* like_forms[] = {"A)", "A,B)", "A,B,C)", "A,B,C,E)"};
   for (int r = 1; r <= 4; ++r) {
     for (int d = 1; d <= 4; ++d) {
@@ -67,11 +69,11 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
           "Called as wp.tile_reshape(a, shape) or wp.tile_squeeze(a[, axis]): the elements in row-major order "
           "under another shape of the same size.");
       if (r <= d)
-        row("tile_assign(dst: " + t + ", src: " + like + ", o0: int64, o1: int64, o2: int64, o3: int64, dims: int32) -> " + t,
+        row("tile_assign(dst: " + t + ", src: " + like + ", " + region + ") -> " + t,
             "Called as wp.tile_assign(dst, src, offset=...), t[i] = row or t[a:b, :] = block: dst with src written at "
             "the offset (assigned to dst); an offset that does not fit is a launch error.", kBuiltinNeedsLoc);
       if (r <= d)
-        row("tile_view(like: " + like + ", a: " + t + ", o0: int64, o1: int64, o2: int64, o3: int64, dims: int32) -> " + like,
+        row("tile_view(like: " + like + ", a: " + t + ", " + region + ") -> " + like,
             "Called as wp.tile_view(a, offset, shape) or a[i], a[i:j, :]: a copy of the sub-tile at the offset; an "
             "offset that does not fit is a launch error.", kBuiltinNeedsLoc);
     }

@@ -1135,6 +1135,21 @@ void CountNamesWrittenByCall(const ast::Expr* e, std::map<std::string, int>* out
   std::string name;
   if (const auto* n = ast::As<ast::Name>(call->func.get())) name = n->id;
   else if (const auto* a = ast::As<ast::Attribute>(call->func.get())) name = a->attr;
+  // The tile forms that assign their result to an argument (sema/check_tile.cpp).
+  static const std::map<std::string, std::pair<size_t, std::string>> kTileOut = {
+      {"tile_matmul", {2, "out"}}, {"tile_axpy", {2, "dest"}}, {"tile_assign", {0, "dst"}}};
+  if (auto it = kTileOut.find(name); it != kTileOut.end()) {
+    const ast::Expr* target = call->args.size() > it->second.first ? call->args[it->second.first].get() : nullptr;
+    for (const auto& kw : call->keywords)
+      if (kw.name == it->second.second) target = kw.value.get();
+    while (target && !ast::As<ast::Name>(target)) {
+      if (const auto* sub = ast::As<ast::Subscript>(target)) target = sub->value.get();
+      else if (const auto* at = ast::As<ast::Attribute>(target)) target = at->value.get();
+      else target = nullptr;
+    }
+    if (target) ++(*out)[ast::As<ast::Name>(target)->id];
+    return;
+  }
   bool writes = false;
   for (const auto* o : BuiltinRegistry::Get().Overloads(name)) writes = writes || (o->flags & kBuiltinWritesArgs);
   if (!writes) return;

@@ -135,11 +135,15 @@ class Checker {
   // A copy of the sub-tile of `base` at `offsets` (int64 vars, one per dimension) keeping the
   // dimensions `kept` with `extents`; t[...] on a tile.
   Expected<Value> TileView(int base, std::vector<int> offsets, const std::vector<int>& kept,
-                           const std::vector<int>& extents, const SourceLocation& loc);
+                           const std::vector<int>& extents, const SourceLocation& loc,
+                           const std::vector<int64_t>& steps = {});
+  std::vector<Value> TileRegionArgs(std::vector<int> offsets, const std::vector<int64_t>& steps,
+                                    const std::vector<int>& kept);
   struct TileRegion {
     bool element = false;              // every dimension indexed by an integer
     std::vector<int> indices;          // element: int32 vars
     std::vector<int> offsets, kept, extents;   // a sub-tile (see TileView)
+    std::vector<int64_t> steps;        // by dimension (1 where absent)
   };
   Expected<TileRegion> TileRegionOf(const ast::Subscript& s, const Type& tile_type);
   Expected<Value> TileSubscript(const ast::Subscript& s, const Value& base);

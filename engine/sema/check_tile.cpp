@@ -330,9 +330,12 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     }
     WEFT_ASSIGN_OR_RETURN(std::vector<Value> off, offsets_of(p[2], dt.ndim));
     std::vector<Value> full{p[0], srcv};
-    full.insert(full.end(), off.begin(), off.end());
-    while (full.size() < 6) full.push_back(Value::OfVar(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)")));
-    full.push_back(Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(0x3210) + ")")));
+    std::vector<int> off_vars, kept;
+    for (int d = 0; d < dt.ndim; ++d) {
+      off_vars.push_back(off[d].var);
+      kept.push_back(d);
+    }
+    for (const Value& v : TileRegionArgs(off_vars, {}, kept)) full.push_back(v);
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_assign", std::move(full), loc));
     return assign_to_arg(0, "dst", r);
   }
@@ -448,19 +451,33 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
 }
 
 Expected<Value> Checker::TileView(int base, std::vector<int> offsets, const std::vector<int>& kept,
-                                  const std::vector<int>& extents, const SourceLocation& loc) {
+                                  const std::vector<int>& extents, const SourceLocation& loc,
+                                  const std::vector<int64_t>& steps) {
   const Type tt = TypeOf(base);
   for (size_t d = 0; d < kept.size(); ++d)
-    if (extents[d] > tt.fixed_shape[kept[d]])
+    if (steps.empty() && extents[d] > tt.fixed_shape[kept[d]])
       return Error(loc, "a view of extent " + std::to_string(extents[d]) + " in dimension " + std::to_string(kept[d]) +
                             " of a tile of shape " + ShapeText(tt.fixed_shape));
   std::vector<Value> args{Value::OfVar(NewVar(Type::Tile(tt.elem(), extents), "tile shape")), Value::OfVar(base)};
+  for (const Value& v : TileRegionArgs(std::move(offsets), steps, kept)) args.push_back(v);
+  return ResolveAndEmitBuiltin("tile_view", std::move(args), loc);
+}
+
+// The region arguments of tile_view / tile_assign: 4 int64 offsets and 4 steps by the tile's
+// dimension (missing ones 0 and 1) and the dims code of the kept dimensions.
+std::vector<Value> Checker::TileRegionArgs(std::vector<int> offsets, const std::vector<int64_t>& steps,
+                                           const std::vector<int>& kept) {
+  std::vector<Value> out;
   while (offsets.size() < 4) offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)"));
-  for (int o : offsets) args.push_back(Value::OfVar(o));
+  for (int o : offsets) out.push_back(Value::OfVar(o));
+  for (size_t d = 0; d < 4; ++d) {
+    const int64_t st = d < steps.size() ? steps[d] : 1;
+    out.push_back(Value::OfVar(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(" + std::to_string(st) + ")")));
+  }
   int dims = 0;
   for (size_t d = 0; d < kept.size(); ++d) dims |= kept[d] << (4 * d);
-  args.push_back(Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(dims) + ")")));
-  return ResolveAndEmitBuiltin("tile_view", std::move(args), loc);
+  out.push_back(Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(dims) + ")")));
+  return out;
 }
 
 // The part of a tile a subscript names: t[i, j] (one element: `element`, its int32 indices),
@@ -498,19 +515,43 @@ Expected<Checker::TileRegion> Checker::TileRegionOf(const ast::Subscript& s, con
       r.offsets.push_back(EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::int64($0)", {v.var}));
       continue;
     }
-    int64_t lo = 0, hi = extent;
+    // Python's slice rules with constant bounds: the first element and the count.
+    int64_t step = 1, first = 0, count = extent;
     if (sl) {
       if (sl->step) {
-        WEFT_ASSIGN_OR_RETURN(int64_t step, const_bound(sl->step.get(), 1, 1 << 30));
-        if (step != 1) return Error(sl->loc, "tile slices with a step other than 1 are not supported in weft kernels yet");
+        WEFT_ASSIGN_OR_RETURN(Value sv, Eval(*sl->step));
+        if (sv.kind != Value::Kind::kVar || sv.literal_text.empty() || !(sv.literal || sv.const_local) ||
+            sv.literal_text.find_first_not_of("-0123456789") != std::string::npos || sv.literal_text.size() > 12)
+          return Error(sl->step->loc, "tile slice steps must be integer constants");
+        step = std::stoll(sv.literal_text);
+        if (step == 0) return ErrorOf("value", sl->step->loc, "slice step cannot be zero");
       }
-      WEFT_ASSIGN_OR_RETURN(lo, const_bound(sl->lower.get(), 0, extent));
-      WEFT_ASSIGN_OR_RETURN(hi, const_bound(sl->upper.get(), extent, extent));
-      if (hi <= lo) return Error(sl->loc, "an empty tile slice");
+      if (step > 0) {
+        WEFT_ASSIGN_OR_RETURN(int64_t lo, const_bound(sl->lower.get(), 0, extent));
+        WEFT_ASSIGN_OR_RETURN(int64_t hi, const_bound(sl->upper.get(), extent, extent));
+        first = lo;
+        count = hi > lo ? (hi - lo + step - 1) / step : 0;
+      } else {
+        auto back = [&](const ast::Expr* e, int64_t dflt) -> Expected<int64_t> {   // clamped to [-1, extent - 1]
+          if (!e) return dflt;
+          WEFT_ASSIGN_OR_RETURN(int64_t n, const_bound(e, dflt, extent));
+          WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
+          const int64_t raw = std::stoll(v.literal_text);
+          if (raw < 0 && raw + extent < 0) return int64_t{-1};
+          return n > extent - 1 ? extent - 1 : n;
+        };
+        WEFT_ASSIGN_OR_RETURN(int64_t lo, back(sl->lower.get(), extent - 1));
+        WEFT_ASSIGN_OR_RETURN(int64_t hi, back(sl->upper.get(), -1));
+        first = lo;
+        count = lo > hi ? (lo - hi + (-step) - 1) / (-step) : 0;
+      }
+      if (count <= 0) return Error(sl->loc, "an empty tile slice");
     }
-    r.offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(" + std::to_string(lo) + ")"));
+    r.offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(" + std::to_string(first) + ")"));
+    r.steps.resize(static_cast<size_t>(d) + 1, 1);
+    r.steps[static_cast<size_t>(d)] = step;
     r.kept.push_back(d);
-    r.extents.push_back(static_cast<int>(hi - lo));
+    r.extents.push_back(static_cast<int>(count));
   }
   return r;
 }
@@ -522,7 +563,7 @@ Expected<Value> Checker::TileSubscript(const ast::Subscript& s, const Value& bas
     for (int i : r.indices) args.push_back(Value::OfVar(i));
     return ResolveAndEmitBuiltin("tile_extract", std::move(args), s.loc);
   }
-  return TileView(base.var, r.offsets, r.kept, r.extents, s.loc);
+  return TileView(base.var, r.offsets, r.kept, r.extents, s.loc, r.steps);
 }
 
 // t[i, j] = v (an element), t[i] = row, t[a:b, :] = block (a tile of the part's shape): the
@@ -549,12 +590,7 @@ Expected<int> Checker::TileUpdate(const ast::Subscript& s, const Value& base, co
     WEFT_ASSIGN_OR_RETURN(src, ResolveAndEmitBuiltin("tile_astype", {Value::OfVar(NewVar(Type::Tile(tt.elem(), vt.fixed_shape), "tile shape")), value}, s.loc));
   }
   std::vector<Value> args{base, src};
-  std::vector<int> offsets = r.offsets;
-  while (offsets.size() < 4) offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)"));
-  for (int o : offsets) args.push_back(Value::OfVar(o));
-  int dims = 0;
-  for (size_t d = 0; d < r.kept.size(); ++d) dims |= r.kept[d] << (4 * d);
-  args.push_back(Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(dims) + ")")));
+  for (const Value& v : TileRegionArgs(r.offsets, r.steps, r.kept)) args.push_back(v);
   WEFT_ASSIGN_OR_RETURN(Value u, ResolveAndEmitBuiltin("tile_assign", std::move(args), s.loc));
   return u.var;
 }

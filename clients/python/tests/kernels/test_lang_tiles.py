@@ -1,0 +1,244 @@
+"""Tiles (Warp's tile programming, docs/tiles.md): wp.launch_tiled, tile_load / tile_store /
+tile_atomic_add with offsets at and past the array's edges, element-wise operators on scalar and
+vector tiles, tile_map / tile_reduce with builtins and @wp.funcs, sums, extrema, scans,
+tile_matmul (both forms and `@`), transpose, broadcast, views, slices (steps of any sign) and
+assignment, each forward against a float64 NumPy reference on fresh random data of mixed
+magnitudes and backward against the analytic gradient. Attacks: offsets far outside the array
+(nothing read or written there), element indices and view offsets outside the tile at run time
+(a launch error at the line, the session goes on), shapes that are not constants, tiles too
+large, tiles as kernel arguments, mismatched shapes and dtypes."""
+import numpy as np
+import pytest
+
+import weft as wp
+
+TM = wp.constant(8)
+TN = wp.constant(4)
+
+
+@wp.func
+def soft(x: float):
+    return x * x + wp.sin(x)
+
+
+@wp.func
+def larger(a: float, b: float):
+    return wp.max(a, b)
+
+
+@wp.kernel
+def tile_math(a: wp.array2d[float], b: wp.array2d[float], out: wp.array2d[float], sums: wp.array[float],
+              maxes: wp.array[float], scans: wp.array2d[float]):
+    i, j = wp.tid()
+    x = wp.tile_load(a, shape=(TM, TN), offset=(i * TM, j * TN))
+    y = wp.tile_load(b, shape=(TM, TN), offset=(i * TM, j * TN))
+    z = wp.tile_map(soft, x) * 2.0 - y / 4.0 + wp.tile_map(wp.mul, x, y)
+    wp.tile_store(out, z, offset=(i * TM, j * TN))
+    wp.tile_atomic_add(sums, wp.tile_sum(x * y))
+    wp.tile_atomic_add(maxes, wp.tile_reduce(larger, y), offset=i * 2 + j)
+    row = wp.tile_scan_inclusive(x[1])
+    wp.tile_store(scans, wp.tile_reshape(row, shape=(1, TN)), offset=(i * 2 + j, 0))
+
+
+def test_tile_math_forward_and_backward(device, rng):
+    m, n = 3 * 8, 2 * 4
+    a0 = (rng.standard_normal((m, n)) * np.exp(rng.uniform(-4, 4, (m, n)))).astype(np.float32)
+    b0 = rng.standard_normal((m, n)).astype(np.float32)
+    a = wp.array(a0, requires_grad=True)
+    b = wp.array(b0, requires_grad=True)
+    out = wp.zeros((m, n), dtype=float, requires_grad=True)
+    sums = wp.zeros(1, dtype=float, requires_grad=True)
+    maxes = wp.zeros(6, dtype=float, requires_grad=True)
+    scans = wp.zeros((6, 4), dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_math, dim=[3, 2], inputs=[a, b, out, sums, maxes, scans], block_dim=64)
+    x, y = a0.astype(np.float64), b0.astype(np.float64)
+    want = (x * x + np.sin(x)) * 2 - y / 4 + x * y
+    np.testing.assert_allclose(out.numpy(), want, rtol=2e-6, atol=1e-6 * np.abs(want).max())
+    np.testing.assert_allclose(sums.numpy()[0], (x * y).sum(), rtol=1e-5, atol=1e-5 * np.abs(x * y).sum())
+    blocks = y.reshape(3, 8, 2, 4).transpose(0, 2, 1, 3).reshape(6, 32)
+    np.testing.assert_array_equal(maxes.numpy(), blocks.max(axis=1).astype(np.float32))
+    rows = x.reshape(3, 8, 2, 4).transpose(0, 2, 1, 3)[:, :, 1, :].reshape(6, 4)
+    np.testing.assert_allclose(scans.numpy(), np.cumsum(rows, axis=1), rtol=1e-5, atol=1e-6 * np.abs(rows).max())
+    # backward: d out / d a = 2 (2x + cos x) + y, d out / d b = -1/4 + x
+    out.grad = wp.ones_like(out)
+    tape.backward()
+    np.testing.assert_allclose(a.grad.numpy(), 2 * (2 * x + np.cos(x)) + y, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(b.grad.numpy(), x - 0.25, rtol=1e-5, atol=1e-6)
+    tape.zero()
+    sums.grad = wp.ones_like(sums)
+    maxes.grad = wp.ones_like(maxes)
+    tape.backward()
+    g = y.copy()
+    np.testing.assert_allclose(a.grad.numpy(), g, rtol=1e-6)
+    hit = np.zeros((6, 32))
+    hit[np.arange(6), blocks.argmax(axis=1)] = 1
+    gb = x + hit.reshape(3, 2, 8, 4).transpose(0, 2, 1, 3).reshape(m, n)
+    np.testing.assert_allclose(b.grad.numpy(), gb, rtol=1e-6)
+
+
+@wp.kernel
+def tile_gemm(a: wp.array2d[wp.float64], b: wp.array2d[wp.float64], c: wp.array2d[wp.float64],
+              d: wp.array2d[wp.float64]):
+    i, j = wp.tid()
+    acc = wp.tile_zeros(shape=(4, 4), dtype=wp.float64)
+    for k in range(3):
+        ta = wp.tile_load(a, shape=(4, 5), offset=(i * 4, k * 5))
+        tb = wp.tile_load(b, shape=(5, 4), offset=(k * 5, j * 4))
+        wp.tile_matmul(ta, tb, acc)
+    wp.tile_store(c, acc, offset=(i * 4, j * 4))
+    t = wp.tile_load(a, shape=(4, 5), offset=(i * 4, 0))
+    wp.tile_store(d, wp.tile_matmul(t, wp.tile_transpose(t), alpha=wp.float64(0.5)) + t @ wp.tile_transpose(t),
+                  offset=(i * 4, j * 4))
+
+
+def test_tile_matmul_against_float64(device, rng):
+    # near-singular factors with magnitudes over six decades
+    u = rng.standard_normal((8, 15)) * np.logspace(-3, 3, 15)
+    v = rng.standard_normal((15, 8))
+    v[:, 1] = v[:, 0] * (1 + 1e-12)
+    a = wp.array(u, dtype=wp.float64, requires_grad=True)
+    b = wp.array(v, dtype=wp.float64, requires_grad=True)
+    c = wp.zeros((8, 8), dtype=wp.float64, requires_grad=True)
+    d = wp.zeros((8, 8), dtype=wp.float64)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_gemm, dim=[2, 2], inputs=[a, b, c, d])
+    np.testing.assert_allclose(c.numpy(), u @ v, rtol=1e-12, atol=1e-12 * np.abs(u @ v).max())
+    blocks = [u[i * 4:(i + 1) * 4, :5] for i in range(2)]
+    want = np.block([[1.5 * blk @ blk.T] * 2 for blk in blocks])
+    np.testing.assert_allclose(d.numpy(), want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    w = rng.standard_normal((8, 8))
+    c.grad = wp.array(w, dtype=wp.float64)
+    tape.backward()
+    np.testing.assert_allclose(a.grad.numpy(), w @ v.T, rtol=1e-11, atol=1e-11 * np.abs(w @ v.T).max())
+    np.testing.assert_allclose(b.grad.numpy(), u.T @ w, rtol=1e-11, atol=1e-11 * np.abs(u.T @ w).max())
+
+
+@wp.kernel
+def tile_edges(a: wp.array[float], out: wp.array[float], shift: int):
+    t = wp.tile_load(a, shape=16, offset=shift)
+    wp.tile_store(out, t + 1.0, offset=shift)
+
+
+def test_tile_loads_and_stores_stop_at_the_array_edges(device, rng):
+    """Elements outside the array read as zero and are never written, whatever the offset
+    (negative, past the end, near the int64 limit)."""
+    x = rng.standard_normal(20).astype(np.float32)
+    for shift in (-10, 12, 19, 20, -16, 2**31 - 5, -(2**31) + 3):
+        a = wp.array(x)
+        out = wp.full(20, -7.0, dtype=float)
+        wp.launch_tiled(tile_edges, dim=1, inputs=[a, out, shift])
+        want = np.full(20, -7.0, dtype=np.float32)
+        lo, hi = max(shift, 0), min(shift + 16, 20)
+        if lo < hi:
+            want[lo:hi] = x[lo:hi] + 1
+        np.testing.assert_array_equal(out.numpy(), want)
+
+
+@wp.kernel
+def tile_views(a: wp.array2d[float], out: wp.array2d[float], rev: wp.array2d[float], vec_out: wp.array[wp.vec3],
+               vecs: wp.array[wp.vec3]):
+    t = wp.tile_load(a, shape=(6, 8))
+    t[1, 2] = 5.0
+    t[0] = wp.tile_ones(shape=8, dtype=float) * 3.0
+    t[2:4, 4:8] = wp.tile_zeros(shape=(2, 4), dtype=float)
+    wp.tile_store(out, t)
+    r = t[::-2, 1::3]
+    wp.tile_store(rev, r)
+    v = wp.tile_load(vecs, shape=4)
+    s = wp.tile_load(a, shape=(1, 4))
+    wp.tile_store(vec_out, v * 2.0 + v / wp.tile_reshape(s, shape=4))
+
+
+def test_tile_views_slices_and_assignment(device, rng):
+    x = rng.standard_normal((6, 8)).astype(np.float32)
+    vx = rng.standard_normal((4, 3)).astype(np.float32)
+    a = wp.array(x, requires_grad=True)
+    out = wp.zeros((6, 8), dtype=float, requires_grad=True)
+    rev = wp.zeros((3, 3), dtype=float)
+    vecs = wp.array(vx, dtype=wp.vec3)
+    vec_out = wp.zeros(4, dtype=wp.vec3)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_views, dim=1, inputs=[a, out, rev, vec_out, vecs])
+    e = x.copy()
+    e[1, 2] = 5
+    e[0] = 3
+    e[2:4, 4:8] = 0
+    np.testing.assert_array_equal(out.numpy(), e)
+    np.testing.assert_array_equal(rev.numpy(), e[::-2, 1::3])
+    np.testing.assert_allclose(vec_out.numpy(), vx * 2 + vx / x[0, :4, None], rtol=1e-6)
+    out.grad = wp.ones_like(out)
+    tape.backward()
+    g = np.ones((6, 8))
+    g[1, 2] = 0
+    g[0] = 0
+    g[2:4, 4:8] = 0
+    np.testing.assert_array_equal(a.grad.numpy(), g)
+
+
+@wp.kernel
+def tile_bad_index(a: wp.array[float], out: wp.array[float], k: int):
+    t = wp.tile_load(a, shape=8)
+    out[0] = t[k]
+    v = wp.tile_view(t, offset=(k,), shape=(4,))
+    wp.tile_store(out, v, offset=1)
+
+
+def test_tile_indices_outside_the_tile_are_launch_errors(device, rng):
+    a = wp.array(rng.standard_normal(8).astype(np.float32))
+    out = wp.zeros(8, dtype=float)
+    wp.launch_tiled(tile_bad_index, dim=1, inputs=[a, out, 3])
+    np.testing.assert_array_equal(out.numpy()[:5], np.concatenate([[a.numpy()[3]], a.numpy()[3:7]]))
+    line = tile_bad_index.func.__code__.co_firstlineno + 3
+    for k in (8, -1, 2**31 - 1):
+        with pytest.raises(wp.WeftError, match=rf"test_lang_tiles.py:{line}: kernel 'tile_bad_index'.*tile index out of range"):
+            wp.launch_tiled(tile_bad_index, dim=1, inputs=[a, out, k])
+            wp.synchronize()
+    line += 1
+    with pytest.raises(wp.WeftError, match=rf"test_lang_tiles.py:{line}: kernel 'tile_bad_index'.*tile view or assignment "
+                                           r"out of bounds"):
+        wp.launch_tiled(tile_bad_index, dim=1, inputs=[a, out, 5])   # 5 + 4 > 8
+        wp.synchronize()
+    wp.launch_tiled(tile_bad_index, dim=1, inputs=[a, out, 4])   # the session goes on
+    np.testing.assert_array_equal(out.numpy()[1:5], a.numpy()[4:8])
+
+
+@pytest.mark.parametrize("body, message", [
+    ("n = a.shape[0]\nt = wp.tile_load(a, shape=n)", r"shape.*must be an integer constant"),
+    ("t = wp.tile_zeros(shape=(512, 512), dtype=float)", r"a tile holds at most 65536 elements"),
+    ("t = wp.tile_zeros(shape=(4, 0), dtype=float)", r"tile extents must be positive"),
+    ("t = wp.tile_load(a, shape=(4, 4))", r"has 2 dimensions, the array 1"),
+    ("t = wp.tile_zeros(shape=4, dtype=float) + wp.tile_zeros(shape=5, dtype=float)", r"tiles of different shapes"),
+    ("t = wp.tile_matmul(wp.tile_zeros(shape=(2, 3), dtype=float), wp.tile_zeros(shape=(2, 3), dtype=float))",
+     r"do not multiply"),
+    ("wp.tile_store(a, wp.tile_zeros(shape=4, dtype=int))", r"the tile holds int32, the array float32"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = t[0:2, 1]\nt[0:2] = u", r"requires a tile of matching shape"),
+    ("t = wp.tile_load(a, shape=4, offset=1.5)", r"offsets must be integers"),
+])
+def test_tile_misuse_is_a_compile_error(kernel_module, device, body, message):
+    lines = "".join("    " + line.strip() + "\n" for line in body.split("\n"))
+    mod = kernel_module("@wp.kernel\ndef k(a: wp.array[float]):\n" + lines)
+    with pytest.raises(RuntimeError, match=message):
+        wp.launch_tiled(mod.k, dim=1, inputs=[wp.zeros(4, dtype=float)])
+
+
+def test_tiles_cannot_be_kernel_arguments(kernel_module, device):
+    mod = kernel_module("""
+        @wp.kernel
+        def k(t: wp.tile[float, 4]):
+            pass
+    """)
+    with pytest.raises(RuntimeError, match=r"tile"):
+        wp.launch_tiled(mod.k, dim=1, inputs=[wp.zeros(4, dtype=float)])
+
+
+def test_tile_kernels_compile_for_the_gpu_without_one():
+    """NVRTC compiles every tile kernel of this file, forward and adjoint, for sm_90 (no GPU
+    needed)."""
+    report = wp.compile(tile_math, device="cuda", arch=90)   # the whole module
+    text = str(report)
+    for name in ("tile_math", "tile_gemm", "tile_edges", "tile_views", "tile_bad_index"):
+        assert name in text
