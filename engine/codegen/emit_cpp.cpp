@@ -708,8 +708,8 @@ class FnEmitter {
       case OpKind::kTileReduce: {
         if (!Diff(dt()) || (op.builtin && !op.builtin->differentiable())) return;
         if (op.kind == OpKind::kTileReduce) {
-          Line("wp::adj_tile_reduce(" + ElementFn(op, true, true) + ", " + ElementFn(op, true) + ", " + V(op.args[0]) +
-               ", " + A(op.args[0]) + ", " + A(op.dst[0]) + ");");
+          Line("wp::adj_tile_reduce(" + ElementFn(op, true, true) + ", " + ElementFn(op, true) + ", " + Args(op.args) +
+               ", " + Args(op.args, 0, std::string::npos, true) + ", " + A(op.dst[0]) + ");");
           return;
         }
         std::string refs;

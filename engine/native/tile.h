@@ -177,6 +177,50 @@ template <typename T> WP_FUNC void adj_untile(const tile_t<T, 1, 0, 0, 0>&, tile
   adj_t.data[0] = add(adj_t.data[0], adj_ret);
 }
 
+// wp.tile(v) of a vector or matrix on one thread: its components as a tile of shape (n, 1) or
+// (rows, cols, 1) (the last extent is the block's one thread); untile reverses it.
+template <unsigned N, typename T> WP_FUNC tile_t<T, (int)N, 1, 0, 0> tile_split(const vec_t<N, T>& v) {
+  tile_t<T, (int)N, 1, 0, 0> r;
+  for (unsigned i = 0; i < N; ++i) r.data[i] = v.c[i];
+  return r;
+}
+template <unsigned N, typename T>
+WP_FUNC void adj_tile_split(const vec_t<N, T>&, vec_t<N, T>& adj_v, const tile_t<T, (int)N, 1, 0, 0>& adj_ret) {
+  for (unsigned i = 0; i < N; ++i) adj_v.c[i] = add(adj_v.c[i], adj_ret.data[i]);
+}
+template <unsigned R, unsigned C, typename T> WP_FUNC tile_t<T, (int)R, (int)C, 1, 0> tile_split(const mat_t<R, C, T>& m) {
+  tile_t<T, (int)R, (int)C, 1, 0> r;
+  for (unsigned i = 0; i < R; ++i)
+    for (unsigned j = 0; j < C; ++j) r.data[i * C + j] = m.data[i][j];
+  return r;
+}
+template <unsigned R, unsigned C, typename T>
+WP_FUNC void adj_tile_split(const mat_t<R, C, T>&, mat_t<R, C, T>& adj_m, const tile_t<T, (int)R, (int)C, 1, 0>& adj_ret) {
+  for (unsigned i = 0; i < R; ++i)
+    for (unsigned j = 0; j < C; ++j) adj_m.data[i][j] = add(adj_m.data[i][j], adj_ret.data[i * C + j]);
+}
+template <typename T, int N> WP_FUNC vec_t<(unsigned)N, T> untile(const tile_t<T, N, 1, 0, 0>& t) {
+  vec_t<(unsigned)N, T> v;
+  for (int i = 0; i < N; ++i) v.c[i] = t.data[i];
+  return v;
+}
+template <typename T, int N>
+WP_FUNC void adj_untile(const tile_t<T, N, 1, 0, 0>&, tile_t<T, N, 1, 0, 0>& adj_t, const vec_t<(unsigned)N, T>& adj_ret) {
+  for (int i = 0; i < N; ++i) adj_t.data[i] = add(adj_t.data[i], adj_ret.c[i]);
+}
+template <typename T, int R, int C> WP_FUNC mat_t<(unsigned)R, (unsigned)C, T> untile(const tile_t<T, R, C, 1, 0>& t) {
+  mat_t<(unsigned)R, (unsigned)C, T> m;
+  for (int i = 0; i < R; ++i)
+    for (int j = 0; j < C; ++j) m.data[i][j] = t.data[i * C + j];
+  return m;
+}
+template <typename T, int R, int C>
+WP_FUNC void adj_untile(const tile_t<T, R, C, 1, 0>&, tile_t<T, R, C, 1, 0>& adj_t,
+                        const mat_t<(unsigned)R, (unsigned)C, T>& adj_ret) {
+  for (int i = 0; i < R; ++i)
+    for (int j = 0; j < C; ++j) adj_t.data[i * C + j] = add(adj_t.data[i * C + j], adj_ret.data[i][j]);
+}
+
 // ---- element access -------------------------------------------------------------------------
 
 // Flat position of (i, j, k, l) in t, or -1 (and a launch error at the call's line) outside it.
@@ -654,6 +698,58 @@ WP_FUNC void adj_tile_reduce(G adj_f, F f, const WP_TILE& a, WP_TILE& adj_a, con
     adj_acc = adj_prev;
   }
   adj_a.data[0] = add(adj_a.data[0], adj_acc);
+}
+
+// Position in R (a without `axis`) of a's element k, and k's coordinate along the axis.
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC int tile_axis_target(int k, int axis, int* along) {
+  int64 c[4];
+  WP_TILE::coord(k, c);
+  int64 flat = 0;
+  for (int d = 0, o = 0; d < WP_TILE::NDIM; ++d) {
+    if (d == axis) continue;
+    flat = flat * R::extent(o++) + c[d];
+  }
+  *along = (int)c[axis];
+  return (int)flat;
+}
+// tile_reduce(f, a, axis): a fold along the axis for each position of the others.
+template <typename F, typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC R tile_reduce(F f, const R&, const WP_TILE& a, int32 axis) {
+  R r;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int j;
+    const int o = tile_axis_target<R, T, D0, D1, D2, D3>(k, axis, &j);
+    r.data[o] = j == 0 ? a.data[k] : f(r.data[o], a.data[k]);
+  }
+  return r;
+}
+template <typename G, typename F, typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_reduce(G adj_f, F f, const R&, const WP_TILE& a, int32 axis, R&, WP_TILE& adj_a, int32&, const R& adj_ret) {
+  T before[WP_TILE::SIZE];   // the partial result each element is folded into
+  R acc;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int j;
+    const int o = tile_axis_target<R, T, D0, D1, D2, D3>(k, axis, &j);
+    if (j == 0) {
+      acc.data[o] = a.data[k];
+    } else {
+      before[k] = acc.data[o];
+      acc.data[o] = f(acc.data[o], a.data[k]);
+    }
+  }
+  R adj_acc = adj_ret;
+  for (int k = WP_TILE::SIZE - 1; k >= 0; --k) {
+    int j;
+    const int o = tile_axis_target<R, T, D0, D1, D2, D3>(k, axis, &j);
+    if (j == 0) {
+      adj_a.data[k] = add(adj_a.data[k], adj_acc.data[o]);
+      continue;
+    }
+    T adj_prev = cg_zeros<T>();
+    adj_f(before[k], a.data[k], adj_prev, adj_a.data[k], adj_acc.data[o]);
+    adj_acc.data[o] = adj_prev;
+  }
 }
 
 #undef WP_TILE

@@ -80,6 +80,12 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
   }
   row("tile(x: X) -> tile(X,1)", "The thread's value as a tile of shape (1,) (one thread per block).");
   row("untile(a: tile(X,1)) -> X", "The value of a tile of shape (1,) (one thread per block).");
+  row("tile_split(x: vec(N,Scalar)) -> tile(Scalar,N,1)",
+      "Called as wp.tile(v) of a vector: its components as a tile of shape (n, 1) (one thread per block).");
+  row("tile_split(x: mat(N,M,Scalar)) -> tile(Scalar,N,M,1)",
+      "Called as wp.tile(m) of a matrix: its components as a tile of shape (rows, cols, 1).");
+  row("untile(a: tile(Scalar,N,1)) -> vec(N,Scalar)", "The vector a tile of shape (n, 1) holds (wp.tile(v) reversed).");
+  row("untile(a: tile(Scalar,N,M,1)) -> mat(N,M,Scalar)", "The matrix a tile of shape (rows, cols, 1) holds.");
   row("tile_transpose(a: tile(X,M,N)) -> tile(X,N,M)", "The transpose of a 2-D tile.");
   row("tile_matmul(a: tile(Float,M,K), b: tile(Float,K,N), c: tile(Float,M,N), alpha: Float, beta: Float) -> tile(Float,M,N)",
       "alpha * a @ b + beta * c. wp.tile_matmul(a, b) is alpha 1 over zeros; wp.tile_matmul(a, b, out[, alpha, beta]) "

@@ -4,7 +4,10 @@
 // variable (a tile of the result's type, zero and never read) carries the shape, and a tuple
 // offset becomes one int64 index per dimension. Tiles belong to the thread computing them
 // (engine/native/tile.h; docs/tiles.md).
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -66,7 +69,7 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     return var;
   };
   auto const_int = [&](const Value& v, const char* what) -> Expected<int64_t> {
-    if (v.kind != Value::Kind::kVar || v.literal_text.empty() || !(v.literal || v.const_local) ||
+    if (v.kind != Value::Kind::kVar || v.literal_text.empty() ||
         v.literal_text.find_first_not_of("-0123456789") != std::string::npos || v.literal_text.size() > 12)
       return Error(loc, "wp." + name + "(): " + what + " must be an integer constant");
     return std::stoll(v.literal_text);
@@ -92,8 +95,8 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
   auto dtype_of = [&](const Value& v, Type def) -> Expected<Type> {
     if (v.kind == Value::Kind::kNone) return def;
     if (v.kind != Value::Kind::kType) return Error(loc, "wp." + name + "(): dtype must be a type");
-    if (!v.type.is_scalar() && !v.type.is_composite())
-      return Error(loc, "wp." + name + "(): tile elements are scalars, vectors, matrices, quaternions or transforms");
+    if (!v.type.is_scalar() && !v.type.is_composite() && !v.type.is_struct())
+      return Error(loc, "wp." + name + "(): tile elements are scalars, vectors, matrices, quaternions, transforms or structs");
     return v.type;
   };
   // The offset of a load or store: one int64 per dimension (zeros when left out).
@@ -150,37 +153,105 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     return Value::OfVar(EmitRaw(tt, "wp::tile_full<" + CppType(tt) + ">($0)", {v}));
   }
   if (name == "tile_arange") {
-    // tile_arange(stop), (start, stop) or (start, stop, step): constants, as the shape depends on them.
-    std::vector<Value> pos = args;
+    // tile_arange(stop), (start, stop) or (start, stop, step): constants, as the shape depends
+    // on them; integers exactly (int64), floats as float64, numpy's count ceil((stop - start) / step).
     Value dtype_v;
     if (call)
       for (const auto& kw : call->keywords) {
         if (kw.name == "dtype") {
           WEFT_ASSIGN_OR_RETURN(dtype_v, Eval(*kw.value));
         } else if (kw.name != "storage") {
-          return Error(kw.loc, "wp.tile_arange() has no parameter '" + kw.name + "'");
+          return Error(kw.loc, "tile_arange() has no parameter '" + kw.name + "'");
         }
       }
-    if (pos.empty() || pos.size() > 3) return Error(loc, "wp.tile_arange() takes stop, (start, stop) or (start, stop, step)");
-    std::vector<double> num;
-    bool ints = true;
-    for (const Value& a : pos) {
-      if (a.kind != Value::Kind::kVar || a.literal_text.empty() || !(a.literal || a.const_local))
-        return Error(loc, "wp.tile_arange(): its arguments must be constants");
-      ints &= a.literal_text.find_first_not_of("-0123456789") == std::string::npos;
-      num.push_back(std::stod(a.literal_text));
+    if (args.empty() || args.size() > 3)
+      return ErrorOf("type", loc, "tile_arange() accepts at most 3 positional arguments, got " + std::to_string(args.size()));
+    static const char* kOne[] = {"stop"};
+    static const char* kMore[] = {"start", "stop", "step"};
+    struct Bound {
+      const char* name;
+      std::string text;
+      bool is_int;
+      long long i;
+      double f;
+    };
+    std::vector<Bound> b;
+    for (size_t k = 0; k < args.size(); ++k) {
+      const char* pname = args.size() == 1 ? kOne[0] : kMore[k];
+      const Value& a = args[k];
+      if (a.kind != Value::Kind::kVar || a.literal_text.empty())
+        return ErrorOf("value", loc, std::string("tile_arange() arguments must be compile time constants, but ") + pname +
+                                         " is not");
+      Bound x{pname, a.literal_text, false, 0, 0.0};
+      const std::string& t = a.literal_text;
+      x.is_int = t.find_first_not_of("-0123456789") == std::string::npos;
+      errno = 0;
+      char* end = nullptr;
+      if (x.is_int) {
+        x.i = std::strtoll(t.c_str(), &end, 10);
+        if (errno == ERANGE)
+          return ErrorOf("value", loc, std::string("tile_arange() ") + pname + "=" + t + " is too wide to use as an integer bound");
+        x.f = static_cast<double>(x.i);
+      } else {
+        x.f = std::strtod(t.c_str(), &end);
+        if (errno == ERANGE || !std::isfinite(x.f))
+          return ErrorOf("value", loc, std::string("tile_arange() ") + pname + "=" + t + " is out of range");
+      }
+      if (!end || *end) return ErrorOf("value", loc, std::string("tile_arange() ") + pname + "=" + t + " is not a number");
+      b.push_back(x);
     }
-    const double start = pos.size() >= 2 ? num[0] : 0.0;
-    const double stop = pos.size() >= 2 ? num[1] : num[0];
-    const double step = pos.size() == 3 ? num[2] : 1.0;
-    if (step == 0) return Error(loc, "wp.tile_arange(): step must not be zero");
-    const double count = std::ceil((stop - start) / step);
-    if (!(count >= 1) || count > kMaxTileElements)
-      return Error(loc, "wp.tile_arange(): the range must hold 1 to " + std::to_string(kMaxTileElements) + " elements");
+    bool ints = true;
+    for (const Bound& x : b) ints &= x.is_int;
     WEFT_ASSIGN_OR_RETURN(Type elem, dtype_of(dtype_v, ints ? Type::Int32() : Type::Float32()));
-    if (!elem.is_scalar()) return Error(loc, "wp.tile_arange(): dtype must be a scalar type");
+    if (!elem.is_scalar() || elem.scalar == ScalarKind::kBool)
+      return ErrorOf("type", loc, "tile_arange() requires a numeric scalar dtype, got " + TypeString(elem));
+    const bool int_dtype = IsInt(elem.scalar);
+    if (int_dtype) {   // every bound an integer of the dtype
+      const int bits = ScalarSize(elem.scalar) * 8;
+      const bool is_signed = IsSigned(elem.scalar);
+      for (Bound& x : b) {
+        if (!x.is_int) {
+          if (x.f != std::floor(x.f))
+            return ErrorOf("value", loc, std::string("tile_arange() ") + x.name + "=" + x.text + " has a fractional part");
+          if (std::fabs(x.f) >= 9.2e18)
+            return ErrorOf("value", loc, std::string("tile_arange() ") + x.name + "=" + x.text + " is out of range");
+          x.i = static_cast<long long>(x.f);
+        }
+        const long double lo = is_signed ? -std::ldexp(1.0L, bits - 1) : 0.0L;
+        const long double hi = is_signed ? std::ldexp(1.0L, bits - 1) - 1 : std::ldexp(1.0L, bits) - 1;
+        if (static_cast<long double>(x.i) < lo || static_cast<long double>(x.i) > hi)
+          return ErrorOf("value", loc, std::string("tile_arange() ") + x.name + "=" + x.text + " is out of range for " +
+                                           TypeString(elem));
+      }
+    }
+    const bool one = b.size() == 1;
+    auto at = [&](int k, long long di, double df) { return b.size() > static_cast<size_t>(k) ? b[k] : Bound{"", "", true, di, df}; };
+    const Bound start = one ? Bound{"start", "0", true, 0, 0.0} : b[0];
+    const Bound stop = one ? b[0] : b[1];
+    const Bound step = b.size() == 3 ? b[2] : at(9, 1, 1.0);
+    if ((int_dtype && step.i == 0) || (!int_dtype && step.f == 0.0))
+      return ErrorOf("value", loc, "tile_arange() step cannot be zero");
+    long double count;
+    if (int_dtype) {
+      const __int128 span = static_cast<__int128>(stop.i) - start.i;
+      const __int128 st = step.i;
+      __int128 n = (span > 0) == (st > 0) && span != 0 ? (span + st - (st > 0 ? 1 : -1)) / st : 0;
+      count = static_cast<long double>(n);
+    } else {
+      count = std::ceil((static_cast<long double>(stop.f) - start.f) / step.f);
+    }
+    if (!(count >= 1))
+      return ErrorOf("value", loc, "tile_arange() requires a non-empty range: a zero-length tile cannot be built");
+    if (count > kMaxTileElements)
+      return ErrorOf("value", loc, "tile_arange() spans more elements than can be counted in one tile (at most " +
+                                       std::to_string(kMaxTileElements) + ")");
     const Type tt = Type::Tile(elem, {static_cast<int>(count)});
-    auto lit = [&](double x) { return CppType(elem) + "(" + std::to_string(x) + ")"; };
+    auto lit = [&](const Bound& x) {
+      if (int_dtype) return CppType(elem) + "(" + std::to_string(x.i) + "LL)";
+      char buf[64];
+      std::snprintf(buf, sizeof(buf), "%.17g", x.f);
+      return CppType(elem) + "(" + buf + ")";
+    };
     return Value::OfVar(EmitRaw(tt, "wp::tile_arange<" + CppType(tt) + ">(" + lit(start) + ", " + lit(step) + ")", {}));
   }
   if (name == "tile_load") {
@@ -429,9 +500,10 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     WEFT_RETURN_IF_ERROR(bind({"x", "preserve_type"}, &p));
     WEFT_ASSIGN_OR_RETURN(int x, value_of(p[0], "x"));
     const Type xt = TypeOf(x);
-    if (!xt.is_scalar() && !(xt.is_composite() && p[1].literal_text == "True"))
-      return Error(loc, "wp.tile(x) of a " + TypeString(xt) +
-                            " is not supported in weft kernels yet (scalars, or preserve_type=True)");
+    const bool preserve = p[1].kind == Value::Kind::kVar && p[1].literal_text == "True";
+    if ((xt.is_vector() || xt.is_matrix()) && !preserve) return ResolveAndEmitBuiltin("tile_split", {p[0]}, loc);
+    if (!xt.is_scalar() && !xt.is_composite() && !xt.is_struct())
+      return Error(loc, "wp.tile(x) takes a scalar, vector, matrix, quaternion, transform or struct, got " + TypeString(xt));
     return ResolveAndEmitBuiltin("tile", {p[0]}, loc);
   }
   if (name == "tile_extract") {
@@ -493,7 +565,7 @@ Expected<Checker::TileRegion> Checker::TileRegionOf(const ast::Subscript& s, con
   auto const_bound = [&](const ast::Expr* e, int64_t dflt, int extent) -> Expected<int64_t> {
     if (!e) return dflt;
     WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
-    if (v.kind != Value::Kind::kVar || v.literal_text.empty() || !(v.literal || v.const_local) ||
+    if (v.kind != Value::Kind::kVar || v.literal_text.empty() ||
         v.literal_text.find_first_not_of("-0123456789") != std::string::npos || v.literal_text.size() > 12)
       return Error(e->loc, "tile slice bounds must be integer constants");
     int64_t n = std::stoll(v.literal_text);
@@ -520,7 +592,7 @@ Expected<Checker::TileRegion> Checker::TileRegionOf(const ast::Subscript& s, con
     if (sl) {
       if (sl->step) {
         WEFT_ASSIGN_OR_RETURN(Value sv, Eval(*sl->step));
-        if (sv.kind != Value::Kind::kVar || sv.literal_text.empty() || !(sv.literal || sv.const_local) ||
+        if (sv.kind != Value::Kind::kVar || sv.literal_text.empty() ||
             sv.literal_text.find_first_not_of("-0123456789") != std::string::npos || sv.literal_text.size() > 12)
           return Error(sl->step->loc, "tile slice steps must be integer constants");
         step = std::stoll(sv.literal_text);
@@ -601,11 +673,19 @@ Expected<int> Checker::TileUpdate(const ast::Subscript& s, const Value& base, co
 Expected<Value> Checker::TileMap(const std::string& name, std::vector<Value> args, const SourceLocation& loc,
                                  const ast::Call* call) {
   const bool reduce = name == "tile_reduce";
-  if (call && !call->keywords.empty())
-    return Error(loc, reduce ? "wp.tile_reduce(op, a, axis=...) is not supported in weft kernels yet"
-                             : "wp.tile_map() takes no keyword arguments");
+  // tile_reduce(op, a, axis): a constant axis (positional or keyword).
+  Value axis_v;
+  if (call)
+    for (const auto& kw : call->keywords) {
+      if (!reduce || kw.name != "axis") return Error(kw.loc, "wp." + name + "() has no parameter '" + kw.name + "'");
+      WEFT_ASSIGN_OR_RETURN(axis_v, Eval(*kw.value));
+    }
+  if (reduce && args.size() == 3 && axis_v.kind == Value::Kind::kNone) {
+    axis_v = args[2];
+    args.pop_back();
+  }
   if (args.size() < 2 || (reduce && args.size() != 2))
-    return Error(loc, reduce ? "wp.tile_reduce() takes (op, a)" : "wp.tile_map() takes (op, a, ...)");
+    return Error(loc, reduce ? "wp.tile_reduce() takes (op, a[, axis])" : "wp.tile_map() takes (op, a, ...)");
   const Value f = args[0];
   if (f.kind != Value::Kind::kBuiltin && f.kind != Value::Kind::kFunc)
     return Error(loc, "wp." + name + "(): the first argument must be a builtin or a @wp.func");
@@ -661,8 +741,8 @@ Expected<Value> Checker::TileMap(const std::string& name, std::vector<Value> arg
   const Type result = TypeOf(elem_call.dst[0]);
   if (reduce && result != TypeOf(elems[0].var))
     return Error(loc, what + " returns " + TypeString(result) + ", the tile holds " + TypeString(TypeOf(elems[0].var)));
-  if (!result.is_scalar() && !result.is_composite())
-    return Error(loc, what + ": tile elements are scalars, vectors, matrices, quaternions or transforms");
+  if (!result.is_scalar() && !result.is_composite() && !result.is_struct())
+    return Error(loc, what + ": tile elements are scalars, vectors, matrices, quaternions, transforms or structs");
   for (size_t k = 0; k + 1 < scratch.size(); ++k) {   // conversions of non-tile arguments
     for (int a : scratch[k].op.args)
       for (const Value& e : elems)
@@ -674,7 +754,24 @@ Expected<Value> Checker::TileMap(const std::string& name, std::vector<Value> arg
   s.op.builtin = elem_call.builtin;
   s.op.callee = elem_call.callee;
   s.op.args = op_args;
-  const int d = NewVar(Type::Tile(result, reduce ? std::vector<int>{1} : shape));
+  std::vector<int> out_shape = reduce ? std::vector<int>{1} : shape;
+  if (reduce && axis_v.kind != Value::Kind::kNone) {
+    if (axis_v.kind != Value::Kind::kVar || axis_v.literal_text.empty() ||
+        axis_v.literal_text.find_first_not_of("-0123456789") != std::string::npos || axis_v.literal_text.size() > 3)
+      return Error(loc, "wp.tile_reduce(): axis must be an integer constant");
+    int axis = std::stoi(axis_v.literal_text);
+    const int nd = static_cast<int>(shape.size());
+    if (axis < 0) axis += nd;
+    if (axis < 0 || axis >= nd)
+      return Error(loc, "wp.tile_reduce(): axis " + axis_v.literal_text + " is outside a " + std::to_string(nd) + "-D tile");
+    if (nd > 1) {
+      out_shape = shape;
+      out_shape.erase(out_shape.begin() + axis);
+      const int like = NewVar(Type::Tile(result, out_shape), "tile shape");
+      s.op.args = {like, op_args[0], EmitConst(Type::Int32(), "wp::int32(" + std::to_string(axis) + ")")};
+    }
+  }
+  const int d = NewVar(Type::Tile(result, out_shape));
   s.op.dst.push_back(d);
   if (elem_call.callee >= 0) st_->fn.may_fail |= module_.functions[elem_call.callee].may_fail;
   Push(std::move(s));

@@ -184,7 +184,7 @@ class TypeReader {
       }
       if (!Eat(')')) return Error("expected ')'");
       if (shape.empty() || shape.size() > 4) return Error("tiles have 1 to 4 dimensions");
-      if (!elem.is_scalar() && !elem.is_composite()) return Error("bad tile element type");
+      if (!elem.is_scalar() && !elem.is_composite() && !elem.is_struct()) return Error("bad tile element type");
       return Type::Tile(std::move(elem), std::move(shape));
     }
     if (id == "struct") {
