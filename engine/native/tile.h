@@ -752,6 +752,45 @@ WP_FUNC void adj_tile_reduce(G adj_f, F f, const R&, const WP_TILE& a, int32 axi
   }
 }
 
+// t[idx, :] with idx a 1-D tile of integers: the slices of a along `axis` that idx names, in
+// its order (R: a's shape with idx's length on the axis). An index outside a is a launch error.
+template <typename R, typename T, int D0, int D1, int D2, int D3, typename I, int N>
+WP_FUNC int tile_gather_source(const launch_context_t* ctx, int32 fid, int32 line, int k, const tile_t<I, N, 0, 0, 0>& idx,
+                               int32 axis) {
+  int64 c[4];
+  R::coord(k, c);
+  const int64 pick = (int64)idx.data[c[axis]];
+  if (!in_range(pick, WP_TILE::extent(axis))) {
+    const int64 at[1] = {pick};
+    const int64 shape[1] = {WP_TILE::extent(axis)};
+    report_error(ctx, LAUNCH_BAD_VALUE, fid, line, -1, 1, at, shape, "tile index out of range");
+    return -1;
+  }
+  c[axis] = pick;
+  int64 flat = 0;
+  for (int d = 0; d < WP_TILE::NDIM; ++d) flat = flat * WP_TILE::extent(d) + c[d];
+  return (int)flat;
+}
+template <typename R, typename T, int D0, int D1, int D2, int D3, typename I, int N>
+WP_FUNC R tile_gather(const launch_context_t* ctx, int32 fid, int32 line, const R&, const WP_TILE& a,
+                      const tile_t<I, N, 0, 0, 0>& idx, int32 axis) {
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) {
+    const int s = tile_gather_source<R, T, D0, D1, D2, D3>(ctx, fid, line, k, idx, axis);
+    r.data[k] = s < 0 ? cg_zeros<T>() : a.data[s];
+  }
+  return r;
+}
+template <typename R, typename T, int D0, int D1, int D2, int D3, typename I, int N>
+WP_FUNC void adj_tile_gather(const launch_context_t* ctx, int32 fid, int32 line, const R&, const WP_TILE&,
+                             const tile_t<I, N, 0, 0, 0>& idx, int32 axis, R&, WP_TILE& adj_a, tile_t<I, N, 0, 0, 0>&, int32&,
+                             const R& adj_ret) {
+  for (int k = 0; k < R::SIZE; ++k) {
+    const int s = tile_gather_source<R, T, D0, D1, D2, D3>(ctx, fid, line, k, idx, axis);
+    if (s >= 0) adj_a.data[s] = add(adj_a.data[s], adj_ret.data[k]);
+  }
+}
+
 #undef WP_TILE
 #undef WP_TILE_TEMPLATE
 

@@ -68,6 +68,10 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
       row("tile_reshape(like: " + like + ", a: " + t + ") -> " + like,
           "Called as wp.tile_reshape(a, shape) or wp.tile_squeeze(a[, axis]): the elements in row-major order "
           "under another shape of the same size.");
+      if (r == d)
+        row("tile_gather(like: " + like + ", a: " + t + ", idx: tile(Int,G), axis: int32) -> " + like,
+            "Called as t[idx, :] with idx a 1-D tile of integers: the slices along the axis idx names; an index "
+            "outside the tile is a launch error.", kBuiltinNeedsLoc);
       if (r <= d)
         row("tile_assign(dst: " + t + ", src: " + like + ", " + region + ") -> " + t,
             "Called as wp.tile_assign(dst, src, offset=...), t[i] = row or t[a:b, :] = block: dst with src written at "

@@ -1203,6 +1203,14 @@ Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vec
       Value f;
       f.kind = Value::Kind::kBuiltin;
       f.name = name;
+      // vector or matrix elements of one type multiply and divide component-wise (Warp's tiles)
+      auto elem_of = [&](const Value& v) {
+        const Type t = v.kind == Value::Kind::kVar ? TypeOf(v.var) : Type::Void();
+        return t.is_tile() ? t.elem() : t;
+      };
+      if ((name == "mul" || name == "div") && args.size() == 2 && elem_of(args[0]) == elem_of(args[1]) &&
+          (elem_of(args[0]).is_vector() || elem_of(args[0]).is_matrix()))
+        f.name = name == "mul" ? "cw_mul" : "cw_div";
       args.insert(args.begin(), f);
       return TileMap("tile_map", std::move(args), loc, nullptr);
     }

@@ -629,6 +629,27 @@ Expected<Checker::TileRegion> Checker::TileRegionOf(const ast::Subscript& s, con
 }
 
 Expected<Value> Checker::TileSubscript(const ast::Subscript& s, const Value& base) {
+  const Type bt = TypeOf(base.var);
+  // t[idx, :]: a 1-D tile of integers on one axis, ':' on the others (a gather).
+  for (size_t d = 0; d < s.indices.size(); ++d) {
+    if (ast::As<ast::Slice>(s.indices[d].get())) continue;
+    WEFT_ASSIGN_OR_RETURN(Value iv, Eval(*s.indices[d]));
+    if (iv.kind != Value::Kind::kVar || !TypeOf(iv.var).is_tile()) continue;
+    const Type it = TypeOf(iv.var);
+    if (it.ndim != 1 || !it.elem().is_scalar() || !IsInt(it.elem().scalar))
+      return ErrorOf("type", s.indices[d]->loc, "a tile index must be a 1-D integer index tile, got " + TypeString(it));
+    for (size_t o = 0; o < s.indices.size(); ++o) {
+      if (o == d) continue;
+      const auto* sl = ast::As<ast::Slice>(s.indices[o].get());
+      if (!sl || sl->lower || sl->upper || sl->step)
+        return ErrorOf("value", s.indices[o]->loc, "indexing a tile with an index tile requires ':' on all other axes");
+    }
+    std::vector<int> shape = bt.fixed_shape;
+    shape[d] = it.fixed_shape[0];
+    const int like = NewVar(Type::Tile(bt.elem(), shape), "tile shape");
+    const int axis = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(d) + ")");
+    return ResolveAndEmitBuiltin("tile_gather", {Value::OfVar(like), base, iv, Value::OfVar(axis)}, s.loc);
+  }
   WEFT_ASSIGN_OR_RETURN(TileRegion r, TileRegionOf(s, TypeOf(base.var)));
   if (r.element) {
     std::vector<Value> args{base};
