@@ -12,7 +12,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 BENCHES = ["bench_compile.py", "bench_launch.py", "bench_kernels.py", "bench_foundation.py",
            "bench_bounds_checks.py", "bench_lazy_adjoint.py", "bench_interop.py",
-           "bench_cancel_poll.py", "bench_many_clients.py"]
+           "bench_cancel_poll.py", "bench_many_clients.py", "bench_tiles.py"]
 
 
 def main() -> int:
