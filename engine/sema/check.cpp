@@ -386,6 +386,35 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
       fs.return_type != "None")
     return finish_error(Error(pf.def->loc, "'" + fs.name + "' declares a return type but never returns"));
 
+  // Tiles and fixed-size arrays live in the thread's memory (the CPU thread's stack): bounded,
+  // with the funcs this one calls.
+  {
+    int64_t own = 0, callees = 0;
+    for (const auto& v : fn.vars) {
+      if (!v.type.is_tile() && !v.type.is_fixed_array()) continue;
+      auto layout = LayoutOf(v.type.elem(), module_.structs);
+      int64_t n = layout.ok() ? layout->size : 8;
+      for (int e : v.type.fixed_shape) n *= e;
+      own += 2 * n;
+    }
+    std::function<void(const std::vector<Stmt>&)> walk = [&](const std::vector<Stmt>& stmts) {
+      for (const auto& s : stmts) {
+        if (s.kind == Stmt::Kind::kOp && s.op.callee >= 0 && s.op.callee < static_cast<int>(module_.functions.size()))
+          callees = std::max(callees, module_.functions[s.op.callee].local_value_bytes);
+        walk(s.then_body);
+        walk(s.else_body);
+        walk(s.cond_body);
+        walk(s.body);
+      }
+    };
+    walk(fn.body);
+    fn.local_value_bytes = own + callees;
+    if (fn.local_value_bytes > kMaxLocalValueBytes)
+      return finish_error(Error(pf.def->loc, "the tiles and fixed-size arrays of '" + fs.name + "' and the funcs it calls take " +
+                                                 std::to_string(fn.local_value_bytes) + " bytes of the thread's memory, "
+                                                 "adjoints included (at most " + std::to_string(kMaxLocalValueBytes) + ")"));
+  }
+
   st_ = saved;
   in_progress_.erase(inst);
   fn.function_id = static_cast<int>(module_.functions.size());

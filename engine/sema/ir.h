@@ -135,6 +135,9 @@ struct Function {
   // module's adjoints is then this error (Warp's); its forward code compiles.
   Diagnostic no_adjoint;
   bool may_fail = false;                 // contains bounds checks (directly or through calls)
+  // Bytes of the thread's memory its tiles and fixed-size arrays take, twice (their adjoints),
+  // plus the largest such total of the functions it calls (kMaxLocalValueBytes bounds it).
+  int64_t local_value_bytes = 0;
   bool uses_tid = false;
   std::vector<Var> vars;
   std::vector<Stmt> body;

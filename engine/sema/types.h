@@ -62,6 +62,10 @@ constexpr int kMaxFixedArrayElements = 4096;
 // Elements of one tile (a kernel-local value: the thread's own on every device).
 constexpr int kMaxTileElements = 1 << 16;
 
+// Thread memory (stack on the CPU) that the tiles and fixed-size arrays of a kernel and the
+// funcs it calls may take, adjoints included: a kernel over it is a compile error.
+constexpr int64_t kMaxLocalValueBytes = int64_t{2} << 20;
+
 // The extent of a vector or matrix pattern that takes any length ("vec(any,float32)").
 constexpr int kAnyExtent = -1;
 
