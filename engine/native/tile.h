@@ -38,6 +38,10 @@ struct tile_t {
 #define WP_TILE_TEMPLATE template <typename T, int D0, int D1, int D2, int D3>
 #define WP_TILE tile_t<T, D0, D1, D2, D3>
 
+// Atomic accumulation of a gradient element: fieldwise for structs (their cg_atomic_accum is
+// generated with each struct and found at instantiation), atomic_add_ptr otherwise.
+template <typename T> WP_FUNC void cg_atomic_accum(T* p, const T& v) { atomic_add_ptr(p, v); }
+
 // The one check of a tile op's array access: the element of `a` at at[0..ndim), or nullptr
 // when `a` has no data, another number of dimensions, or the element lies outside its shape.
 template <typename T>
@@ -75,7 +79,7 @@ WP_TILE_TEMPLATE WP_FUNC void tile_scatter_add_at(const array_t<T>& adj_a, const
   for (int k = 0; k < WP_TILE::SIZE; ++k) {
     int64 at[4];
     tile_position<T, D0, D1, D2, D3>(k, off, at);
-    if (T* p = tile_slot(adj_a, WP_TILE::NDIM, at)) atomic_add_ptr(p, t.data[k]);
+    if (T* p = tile_slot(adj_a, WP_TILE::NDIM, at)) cg_atomic_accum(p, t.data[k]);
   }
 }
 WP_TILE_TEMPLATE WP_FUNC void tile_store_at(const array_t<T>& a, const int64 (&off)[4], const WP_TILE& t) {
@@ -101,7 +105,7 @@ WP_TILE_TEMPLATE WP_FUNC void tile_gather_add_at(const array_t<T>& adj_a, const 
   for (int k = 0; k < WP_TILE::SIZE; ++k) {
     int64 at[4];
     tile_position<T, D0, D1, D2, D3>(k, off, at);
-    if (const T* p = tile_slot(adj_a, WP_TILE::NDIM, at)) adj_t.data[k] = add(adj_t.data[k], *p);
+    if (const T* p = tile_slot(adj_a, WP_TILE::NDIM, at)) cg_accum(adj_t.data[k], *p);
   }
 }
 
@@ -171,10 +175,10 @@ template <typename T> WP_FUNC tile_t<T, 1, 0, 0, 0> tile(T x) {
   r.data[0] = x;
   return r;
 }
-template <typename T> WP_FUNC void adj_tile(T, T& adj_x, const tile_t<T, 1, 0, 0, 0>& adj_ret) { adj_x = add(adj_x, adj_ret.data[0]); }
+template <typename T> WP_FUNC void adj_tile(T, T& adj_x, const tile_t<T, 1, 0, 0, 0>& adj_ret) { cg_accum(adj_x, adj_ret.data[0]); }
 template <typename T> WP_FUNC T untile(const tile_t<T, 1, 0, 0, 0>& t) { return t.data[0]; }
 template <typename T> WP_FUNC void adj_untile(const tile_t<T, 1, 0, 0, 0>&, tile_t<T, 1, 0, 0, 0>& adj_t, T adj_ret) {
-  adj_t.data[0] = add(adj_t.data[0], adj_ret);
+  cg_accum(adj_t.data[0], adj_ret);
 }
 
 // wp.tile(v) of a vector or matrix on one thread: its components as a tile of shape (n, 1) or
@@ -186,7 +190,7 @@ template <unsigned N, typename T> WP_FUNC tile_t<T, (int)N, 1, 0, 0> tile_split(
 }
 template <unsigned N, typename T>
 WP_FUNC void adj_tile_split(const vec_t<N, T>&, vec_t<N, T>& adj_v, const tile_t<T, (int)N, 1, 0, 0>& adj_ret) {
-  for (unsigned i = 0; i < N; ++i) adj_v.c[i] = add(adj_v.c[i], adj_ret.data[i]);
+  for (unsigned i = 0; i < N; ++i) cg_accum(adj_v.c[i], adj_ret.data[i]);
 }
 template <unsigned R, unsigned C, typename T> WP_FUNC tile_t<T, (int)R, (int)C, 1, 0> tile_split(const mat_t<R, C, T>& m) {
   tile_t<T, (int)R, (int)C, 1, 0> r;
@@ -197,7 +201,7 @@ template <unsigned R, unsigned C, typename T> WP_FUNC tile_t<T, (int)R, (int)C, 
 template <unsigned R, unsigned C, typename T>
 WP_FUNC void adj_tile_split(const mat_t<R, C, T>&, mat_t<R, C, T>& adj_m, const tile_t<T, (int)R, (int)C, 1, 0>& adj_ret) {
   for (unsigned i = 0; i < R; ++i)
-    for (unsigned j = 0; j < C; ++j) adj_m.data[i][j] = add(adj_m.data[i][j], adj_ret.data[i * C + j]);
+    for (unsigned j = 0; j < C; ++j) cg_accum(adj_m.data[i][j], adj_ret.data[i * C + j]);
 }
 template <typename T, int N> WP_FUNC vec_t<(unsigned)N, T> untile(const tile_t<T, N, 1, 0, 0>& t) {
   vec_t<(unsigned)N, T> v;
@@ -206,7 +210,7 @@ template <typename T, int N> WP_FUNC vec_t<(unsigned)N, T> untile(const tile_t<T
 }
 template <typename T, int N>
 WP_FUNC void adj_untile(const tile_t<T, N, 1, 0, 0>&, tile_t<T, N, 1, 0, 0>& adj_t, const vec_t<(unsigned)N, T>& adj_ret) {
-  for (int i = 0; i < N; ++i) adj_t.data[i] = add(adj_t.data[i], adj_ret.c[i]);
+  for (int i = 0; i < N; ++i) cg_accum(adj_t.data[i], adj_ret.c[i]);
 }
 template <typename T, int R, int C> WP_FUNC mat_t<(unsigned)R, (unsigned)C, T> untile(const tile_t<T, R, C, 1, 0>& t) {
   mat_t<(unsigned)R, (unsigned)C, T> m;
@@ -218,7 +222,7 @@ template <typename T, int R, int C>
 WP_FUNC void adj_untile(const tile_t<T, R, C, 1, 0>&, tile_t<T, R, C, 1, 0>& adj_t,
                         const mat_t<(unsigned)R, (unsigned)C, T>& adj_ret) {
   for (int i = 0; i < R; ++i)
-    for (int j = 0; j < C; ++j) adj_t.data[i * C + j] = add(adj_t.data[i * C + j], adj_ret.data[i][j]);
+    for (int j = 0; j < C; ++j) cg_accum(adj_t.data[i * C + j], adj_ret.data[i][j]);
 }
 
 // ---- element access -------------------------------------------------------------------------
@@ -250,7 +254,7 @@ WP_TILE_TEMPLATE WP_FUNC int tile_flat(const launch_context_t* ctx, int32 fid, i
   WP_FUNC void adj_tile_extract(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,       \
                                 WP_TILE& adj_t, ADJ_PARAMS, const T& adj_ret) {                                     \
     const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
-    if (f >= 0) adj_t.data[f] = add(adj_t.data[f], adj_ret);                                                         \
+    if (f >= 0) cg_accum(adj_t.data[f], adj_ret);                                                         \
   }
 #define WP_COMMA ,
 WP_TILE_EXTRACT_FORMS(I i, I&, 1, i WP_COMMA 0 WP_COMMA 0 WP_COMMA 0)
@@ -265,13 +269,13 @@ WP_TILE_EXTRACT_FORMS(I i WP_COMMA I j WP_COMMA I k WP_COMMA I l, I& WP_COMMA I&
 
 WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_sum(const WP_TILE& a) {
   T s = cg_zeros<T>();
-  for (int k = 0; k < WP_TILE::SIZE; ++k) s = add(s, a.data[k]);
+  for (int k = 0; k < WP_TILE::SIZE; ++k) cg_accum(s, a.data[k]);
   tile_t<T, 1, 0, 0, 0> r;
   r.data[0] = s;
   return r;
 }
 WP_TILE_TEMPLATE WP_FUNC void adj_tile_sum(const WP_TILE&, WP_TILE& adj_a, const tile_t<T, 1, 0, 0, 0>& adj_ret) {
-  for (int k = 0; k < WP_TILE::SIZE; ++k) adj_a.data[k] = add(adj_a.data[k], adj_ret.data[0]);
+  for (int k = 0; k < WP_TILE::SIZE; ++k) cg_accum(adj_a.data[k], adj_ret.data[0]);
 }
 // Sum along `axis` (a constant the compiler checked): R is the tile without that dimension.
 template <typename R, typename T, int D0, int D1, int D2, int D3>
@@ -285,7 +289,7 @@ WP_FUNC void tile_sum_axis_into(const WP_TILE& a, int axis, R& r) {
       if (d == axis) continue;
       flat = flat * R::extent(o++) + c[d];
     }
-    r.data[flat] = add(r.data[flat], a.data[k]);
+    cg_accum(r.data[flat], a.data[k]);
   }
 }
 template <typename R, typename T, int D0, int D1, int D2, int D3>
@@ -304,7 +308,7 @@ WP_FUNC void adj_tile_sum_axis(const R&, const WP_TILE&, int32 axis, R&, WP_TILE
       if (d == axis) continue;
       flat = flat * R::extent(o++) + c[d];
     }
-    adj_a.data[k] = add(adj_a.data[k], adj_ret.data[flat]);
+    cg_accum(adj_a.data[k], adj_ret.data[flat]);
   }
 }
 
@@ -327,11 +331,11 @@ WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_min(const WP_TILE& a) {
 }
 WP_TILE_TEMPLATE WP_FUNC void adj_tile_max(const WP_TILE& a, WP_TILE& adj_a, const tile_t<T, 1, 0, 0, 0>& adj_ret) {
   const int k = tile_arg_extreme(a, true);
-  adj_a.data[k] = add(adj_a.data[k], adj_ret.data[0]);
+  cg_accum(adj_a.data[k], adj_ret.data[0]);
 }
 WP_TILE_TEMPLATE WP_FUNC void adj_tile_min(const WP_TILE& a, WP_TILE& adj_a, const tile_t<T, 1, 0, 0, 0>& adj_ret) {
   const int k = tile_arg_extreme(a, false);
-  adj_a.data[k] = add(adj_a.data[k], adj_ret.data[0]);
+  cg_accum(adj_a.data[k], adj_ret.data[0]);
 }
 WP_TILE_TEMPLATE WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_argmax(const WP_TILE& a) {
   tile_t<int32, 1, 0, 0, 0> r;
@@ -355,7 +359,7 @@ template <typename T, int M, int N> WP_FUNC tile_t<T, N, M, 0, 0> tile_transpose
 template <typename T, int M, int N>
 WP_FUNC void adj_tile_transpose(const tile_t<T, M, N, 0, 0>&, tile_t<T, M, N, 0, 0>& adj_a, const tile_t<T, N, M, 0, 0>& adj_ret) {
   for (int i = 0; i < M; ++i)
-    for (int j = 0; j < N; ++j) adj_a.data[i * N + j] = add(adj_a.data[i * N + j], adj_ret.data[j * M + i]);
+    for (int j = 0; j < N; ++j) cg_accum(adj_a.data[i * N + j], adj_ret.data[j * M + i]);
 }
 
 // Broadcast a to R's shape (numpy rules, trailing dimensions aligned; the compiler checked
@@ -382,7 +386,7 @@ template <typename R, typename T, int D0, int D1, int D2, int D3>
 WP_FUNC void adj_tile_broadcast(const R&, const WP_TILE&, R&, WP_TILE& adj_a, const R& adj_ret) {
   for (int k = 0; k < R::SIZE; ++k) {
     const int s = tile_broadcast_source<R, T, D0, D1, D2, D3>(k);
-    adj_a.data[s] = add(adj_a.data[s], adj_ret.data[k]);
+    cg_accum(adj_a.data[s], adj_ret.data[k]);
   }
 }
 
@@ -462,13 +466,13 @@ WP_FUNC R tile_reshape(const R&, const WP_TILE& a) {
 }
 template <typename R, typename T, int D0, int D1, int D2, int D3>
 WP_FUNC void adj_tile_reshape(const R&, const WP_TILE&, R&, WP_TILE& adj_a, const R& adj_ret) {
-  for (int k = 0; k < R::SIZE; ++k) adj_a.data[k] = add(adj_a.data[k], adj_ret.data[k]);
+  for (int k = 0; k < R::SIZE; ++k) cg_accum(adj_a.data[k], adj_ret.data[k]);
 }
 
 // The sum of a[k] * b[k] as a tile of shape (1,).
 WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_dot(const WP_TILE& a, const WP_TILE& b) {
   T s = cg_zeros<T>();
-  for (int k = 0; k < WP_TILE::SIZE; ++k) s = add(s, mul(a.data[k], b.data[k]));
+  for (int k = 0; k < WP_TILE::SIZE; ++k) cg_accum(s, mul(a.data[k], b.data[k]));
   tile_t<T, 1, 0, 0, 0> r;
   r.data[0] = s;
   return r;
@@ -476,8 +480,8 @@ WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_dot(const WP_TILE& a, const 
 WP_TILE_TEMPLATE WP_FUNC void adj_tile_dot(const WP_TILE& a, const WP_TILE& b, WP_TILE& adj_a, WP_TILE& adj_b,
                                            const tile_t<T, 1, 0, 0, 0>& adj_ret) {
   for (int k = 0; k < WP_TILE::SIZE; ++k) {
-    adj_a.data[k] = add(adj_a.data[k], mul(b.data[k], adj_ret.data[0]));
-    adj_b.data[k] = add(adj_b.data[k], mul(a.data[k], adj_ret.data[0]));
+    cg_accum(adj_a.data[k], mul(b.data[k], adj_ret.data[0]));
+    cg_accum(adj_b.data[k], mul(a.data[k], adj_ret.data[0]));
   }
 }
 
@@ -490,9 +494,9 @@ WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_axpy(T alpha, const WP_TILE& src, const WP
 WP_TILE_TEMPLATE WP_FUNC void adj_tile_axpy(T alpha, const WP_TILE& src, const WP_TILE&, T& adj_alpha, WP_TILE& adj_src,
                                             WP_TILE& adj_dest, const WP_TILE& adj_ret) {
   for (int k = 0; k < WP_TILE::SIZE; ++k) {
-    adj_alpha = add(adj_alpha, mul(src.data[k], adj_ret.data[k]));
-    adj_src.data[k] = add(adj_src.data[k], mul(alpha, adj_ret.data[k]));
-    adj_dest.data[k] = add(adj_dest.data[k], adj_ret.data[k]);
+    cg_accum(adj_alpha, mul(src.data[k], adj_ret.data[k]));
+    cg_accum(adj_src.data[k], mul(alpha, adj_ret.data[k]));
+    cg_accum(adj_dest.data[k], adj_ret.data[k]);
   }
 }
 
@@ -506,11 +510,11 @@ WP_FUNC WP_TILE tile_scan(const WP_TILE& a) {
   for (int k = 0; k < WP_TILE::SIZE; ++k) {
     if (KIND == TILE_SCAN_SUM_EXCLUSIVE) {
       r.data[k] = acc;
-      acc = add(acc, a.data[k]);
+      cg_accum(acc, a.data[k]);
       continue;
     }
     if (k > 0) {
-      if (KIND == TILE_SCAN_SUM_INCLUSIVE) acc = add(acc, a.data[k]);
+      if (KIND == TILE_SCAN_SUM_INCLUSIVE) cg_accum(acc, a.data[k]);
       else if (KIND == TILE_SCAN_MAX) acc = a.data[k] > acc ? a.data[k] : acc;
       else acc = a.data[k] < acc ? a.data[k] : acc;
     }
@@ -526,15 +530,15 @@ WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_scan_min_inclusive(const WP_TILE& a) { ret
 WP_TILE_TEMPLATE WP_FUNC void adj_tile_scan_inclusive(const WP_TILE&, WP_TILE& adj_a, const WP_TILE& adj_ret) {
   T acc = cg_zeros<T>();
   for (int k = WP_TILE::SIZE - 1; k >= 0; --k) {
-    acc = add(acc, adj_ret.data[k]);
-    adj_a.data[k] = add(adj_a.data[k], acc);
+    cg_accum(acc, adj_ret.data[k]);
+    cg_accum(adj_a.data[k], acc);
   }
 }
 WP_TILE_TEMPLATE WP_FUNC void adj_tile_scan_exclusive(const WP_TILE&, WP_TILE& adj_a, const WP_TILE& adj_ret) {
   T acc = cg_zeros<T>();
   for (int k = WP_TILE::SIZE - 1; k >= 0; --k) {
-    adj_a.data[k] = add(adj_a.data[k], acc);
-    acc = add(acc, adj_ret.data[k]);
+    cg_accum(adj_a.data[k], acc);
+    cg_accum(acc, adj_ret.data[k]);
   }
 }
 
@@ -596,7 +600,7 @@ WP_FUNC void adj_tile_view(const launch_context_t* ctx, int32 fid, int32 line, c
   if (!tile_view_fits<R, T, D0, D1, D2, D3>(ctx, fid, line, g)) return;
   for (int k = 0; k < R::SIZE; ++k) {
     const int s = tile_view_source<R, T, D0, D1, D2, D3>(k, g);
-    adj_a.data[s] = add(adj_a.data[s], adj_ret.data[k]);
+    cg_accum(adj_a.data[s], adj_ret.data[k]);
   }
 }
 // dst with src written where g places it (as tile_view reads a sub-tile): wp.tile_assign,
@@ -618,7 +622,7 @@ WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line,
   if (tile_view_fits<S, T, D0, D1, D2, D3>(ctx, fid, line, g)) {
     for (int k = 0; k < S::SIZE; ++k) {
       const int s = tile_view_source<S, T, D0, D1, D2, D3>(k, g);
-      adj_src.data[k] = add(adj_src.data[k], adj_ret.data[s]);
+      cg_accum(adj_src.data[k], adj_ret.data[s]);
       pass.data[s] = cg_zeros<T>();
     }
   }
@@ -639,8 +643,8 @@ WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line,
                                WP_TILE& adj_t, ADJ_PARAMS, T& adj_v, const WP_TILE& adj_ret) {                      \
     const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
     for (int k = 0; k < WP_TILE::SIZE; ++k)                                                                         \
-      if (k != f) adj_t.data[k] = add(adj_t.data[k], adj_ret.data[k]);                                              \
-    if (f >= 0) adj_v = add(adj_v, adj_ret.data[f]);                                                                 \
+      if (k != f) cg_accum(adj_t.data[k], adj_ret.data[k]);                                              \
+    if (f >= 0) cg_accum(adj_v, adj_ret.data[f]);                                                                 \
   }
 #define WP_COMMA ,
 WP_TILE_INSERT_FORMS(I i, I&, 1, i WP_COMMA 0 WP_COMMA 0 WP_COMMA 0)
@@ -697,7 +701,7 @@ WP_FUNC void adj_tile_reduce(G adj_f, F f, const WP_TILE& a, WP_TILE& adj_a, con
     adj_f(acc[k - 1], a.data[k], adj_prev, adj_a.data[k], adj_acc);
     adj_acc = adj_prev;
   }
-  adj_a.data[0] = add(adj_a.data[0], adj_acc);
+  cg_accum(adj_a.data[0], adj_acc);
 }
 
 // Position in R (a without `axis`) of a's element k, and k's coordinate along the axis.
@@ -743,7 +747,7 @@ WP_FUNC void adj_tile_reduce(G adj_f, F f, const R&, const WP_TILE& a, int32 axi
     int j;
     const int o = tile_axis_target<R, T, D0, D1, D2, D3>(k, axis, &j);
     if (j == 0) {
-      adj_a.data[k] = add(adj_a.data[k], adj_acc.data[o]);
+      cg_accum(adj_a.data[k], adj_acc.data[o]);
       continue;
     }
     T adj_prev = cg_zeros<T>();
@@ -787,7 +791,7 @@ WP_FUNC void adj_tile_gather(const launch_context_t* ctx, int32 fid, int32 line,
                              const R& adj_ret) {
   for (int k = 0; k < R::SIZE; ++k) {
     const int s = tile_gather_source<R, T, D0, D1, D2, D3>(ctx, fid, line, k, idx, axis);
-    if (s >= 0) adj_a.data[s] = add(adj_a.data[s], adj_ret.data[k]);
+    if (s >= 0) cg_accum(adj_a.data[s], adj_ret.data[k]);
   }
 }
 

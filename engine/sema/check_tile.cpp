@@ -134,6 +134,8 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     if (full && p[1].kind == Value::Kind::kVar && !p[1].literal) def = TypeOf(p[1].var);
     WEFT_ASSIGN_OR_RETURN(Type elem, dtype_of(p[full ? 2 : 1], def));
     const Type tt = Type::Tile(elem, shape);
+    if (elem.is_struct() && name == "tile_ones")
+      return ErrorOf("type", loc, "wp.tile_ones() does not support Warp struct types (" + TypeString(elem) + ")");
     if (name == "tile_zeros" || name == "tile_empty") {   // tile_empty: zeros as well
       Stmt st;
       st.op.kind = OpKind::kConstruct;
@@ -293,6 +295,9 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
   if (name == "tile_sum" || name == "tile_max" || name == "tile_min" || name == "tile_argmax" || name == "tile_argmin") {
     WEFT_RETURN_IF_ERROR(bind({"a", "axis"}, &p));
     WEFT_ASSIGN_OR_RETURN(int a, tile_arg(p[0], "a"));
+    if (TypeOf(a).elem().is_struct())
+      return ErrorOf("type", loc, "wp." + name + "() does not support tiles of Warp struct elements (" +
+                                      TypeString(TypeOf(a).elem()) + ")");
     if (p[1].kind == Value::Kind::kNone) return ResolveAndEmitBuiltin(name, {p[0]}, loc);
     if (name != "tile_sum") return Error(loc, "wp." + name + "(axis=...) is not supported in weft kernels yet");
     WEFT_ASSIGN_OR_RETURN(int64_t axis, const_int(p[1], "axis"));

@@ -242,3 +242,52 @@ def test_tile_kernels_compile_for_the_gpu_without_one():
     text = str(report)
     for name in ("tile_math", "tile_gemm", "tile_edges", "tile_views", "tile_bad_index"):
         assert name in text
+
+
+@wp.struct
+class Particle:
+    m: float
+    v: wp.vec3
+
+
+@wp.func
+def push(p: Particle, f: wp.vec3):
+    q = Particle()
+    q.m = p.m
+    q.v = p.v + f / p.m
+    return q
+
+
+@wp.kernel
+def tile_structs(ps: wp.array[Particle], f: wp.vec3, out: wp.array[Particle]):
+    i = wp.tid()
+    t = wp.tile_load(ps, shape=4, offset=i * 4)
+    wp.tile_store(out, wp.tile_map(push, t, f), offset=i * 4)
+
+
+def test_tiles_of_structs_with_gradients(device, rng):
+    n = 8
+    m0 = rng.uniform(0.5, 2.0, n).astype(np.float32)
+    v0 = rng.standard_normal((n, 3)).astype(np.float32)
+    host = []
+    for k in range(n):
+        p = Particle()
+        p.m = float(m0[k])
+        p.v = wp.vec3(*v0[k])
+        host.append(p)
+    ps = wp.array(host, dtype=Particle, requires_grad=True)
+    out = wp.zeros(n, dtype=Particle, requires_grad=True)
+    f = wp.vec3(1.0, -2.0, 0.5)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_structs, dim=2, inputs=[ps, f, out])
+    got = out.numpy()
+    np.testing.assert_allclose(got["v"], v0 + np.array([1.0, -2.0, 0.5]) / m0[:, None], rtol=1e-6)
+    np.testing.assert_array_equal(got["m"], m0)
+    g = np.zeros(n, dtype=out.numpy().dtype)
+    g["v"] = 1.0
+    out.grad = wp.array(g, dtype=Particle)
+    tape.backward()
+    grad = ps.grad.numpy()
+    np.testing.assert_allclose(grad["v"], np.ones((n, 3)), rtol=1e-6)
+    np.testing.assert_allclose(grad["m"], -(1.0 - 2.0 + 0.5) / m0 ** 2, rtol=1e-5)
