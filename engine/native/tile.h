@@ -795,6 +795,145 @@ WP_FUNC void adj_tile_gather(const launch_context_t* ctx, int32 fid, int32 line,
   }
 }
 
+// ---- linear algebra: Cholesky factorization and triangular solves -----------------------------
+// Right-hand sides are tiles of shape (n,) or (n, k) (k columns), read as n x k.
+template <typename Y> struct tile_rhs {
+  static constexpr int K = Y::NDIM == 1 ? 1 : Y::E1;
+};
+// Solves E x = b in place for each column of b (n x k), E = M or M^T (M n x n, row-major);
+// `lower`: E is lower triangular (else upper).
+template <typename T, int N, typename Y> WP_FUNC void tile_tri_solve(const T* m, Y& b, bool lower, bool transpose) {
+  constexpr int K = tile_rhs<Y>::K;
+  auto e = [&](int i, int j) { return transpose ? m[j * N + i] : m[i * N + j]; };
+  for (int c = 0; c < K; ++c) {
+    for (int s = 0; s < N; ++s) {
+      const int i = lower ? s : N - 1 - s;
+      T acc = b.data[i * K + c];
+      if (lower) {
+        for (int j = 0; j < i; ++j) acc -= e(i, j) * b.data[j * K + c];
+      } else {
+        for (int j = i + 1; j < N; ++j) acc -= e(i, j) * b.data[j * K + c];
+      }
+      b.data[i * K + c] = acc / e(i, i);
+    }
+  }
+}
+// A = L L^T (L lower) or, `upper`, A = U^T U (U = L^T); the other triangle zero. A matrix that
+// is not positive definite gives NaN entries (a square root of a negative number).
+template <typename T, int N> WP_FUNC tile_t<T, N, N, 0, 0> tile_cholesky(const tile_t<T, N, N, 0, 0>& a, bool upper) {
+  tile_t<T, N, N, 0, 0> l = cg_zeros<tile_t<T, N, N, 0, 0>>();
+  for (int j = 0; j < N; ++j) {
+    T d = a.data[j * N + j];
+    for (int k = 0; k < j; ++k) d -= l.data[j * N + k] * l.data[j * N + k];
+    const T ljj = sqrt(d);
+    l.data[j * N + j] = ljj;
+    for (int i = j + 1; i < N; ++i) {
+      T s = a.data[i * N + j];
+      for (int k = 0; k < j; ++k) s -= l.data[i * N + k] * l.data[j * N + k];
+      l.data[i * N + j] = s / ljj;
+    }
+  }
+  return upper ? tile_transpose(l) : l;
+}
+// Warp's adjoint (lower): P = tril(L^T adj_L) with half its diagonal, S = P + P^T,
+// adj_A += tril(L^-T S L^-1) with half its diagonal; upper mirrored.
+template <typename T, int N>
+WP_FUNC void adj_tile_cholesky(const tile_t<T, N, N, 0, 0>& a, bool upper, tile_t<T, N, N, 0, 0>& adj_a, bool&,
+                               const tile_t<T, N, N, 0, 0>& adj_ret) {
+  const tile_t<T, N, N, 0, 0> f = tile_cholesky(a, upper);
+  // work with L (lower) and adj_L either way: U = L^T, adj_U = adj_L^T
+  const tile_t<T, N, N, 0, 0> l = upper ? tile_transpose(f) : f;
+  const tile_t<T, N, N, 0, 0> al = upper ? tile_transpose(adj_ret) : adj_ret;
+  tile_t<T, N, N, 0, 0> s;
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j) {
+      T p = T(0);
+      const int r = i >= j ? i : j, c = i >= j ? j : i;   // P is lower: P(r, c)
+      for (int k = 0; k < N; ++k) p += l.data[k * N + r] * al.data[k * N + c];
+      if (r == c) p *= T(0.5);
+      s.data[i * N + j] = (i == j) ? T(2) * p : p;
+    }
+  // B = L^-T S L^-1: solve L^T X = S, then L^T B = X^T
+  tile_tri_solve<T, N>(l.data, s, false, true);
+  tile_t<T, N, N, 0, 0> b = tile_transpose(s);
+  tile_tri_solve<T, N>(l.data, b, false, true);
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j <= i; ++j) {
+      const T g = i == j ? T(0.5) * b.data[i * N + j] : b.data[i * N + j];
+      if (upper) adj_a.data[j * N + i] += g;
+      else adj_a.data[i * N + j] += g;
+    }
+}
+// z with L z = y (L lower), and its adjoint: adj_y += L^-T adj_z, adj_L -= tril(adj_y z^T).
+template <typename T, int N, typename Y> WP_FUNC Y tile_lower_solve(const tile_t<T, N, N, 0, 0>& l, const Y& y) {
+  Y z = y;
+  tile_tri_solve<T, N>(l.data, z, true, false);
+  return z;
+}
+template <typename T, int N, typename Y> WP_FUNC Y tile_upper_solve(const tile_t<T, N, N, 0, 0>& u, const Y& y) {
+  Y x = y;
+  tile_tri_solve<T, N>(u.data, x, false, false);
+  return x;
+}
+template <typename T, int N, typename Y>
+WP_FUNC void tile_tri_solve_adjoint(const tile_t<T, N, N, 0, 0>& m, const Y& x, bool lower, tile_t<T, N, N, 0, 0>& adj_m,
+                                    Y& adj_y, const Y& adj_x) {
+  constexpr int K = tile_rhs<Y>::K;
+  Y w = adj_x;
+  tile_tri_solve<T, N>(m.data, w, !lower, true);   // M^T w = adj_x
+  for (int k = 0; k < Y::SIZE; ++k) adj_y.data[k] += w.data[k];
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j) {
+      if (lower ? j > i : j < i) continue;
+      T g = T(0);
+      for (int c = 0; c < K; ++c) g += w.data[i * K + c] * x.data[j * K + c];
+      adj_m.data[i * N + j] -= g;
+    }
+}
+template <typename T, int N, typename Y>
+WP_FUNC void adj_tile_lower_solve(const tile_t<T, N, N, 0, 0>& l, const Y& y, tile_t<T, N, N, 0, 0>& adj_l, Y& adj_y,
+                                  const Y& adj_z) {
+  tile_tri_solve_adjoint(l, tile_lower_solve(l, y), true, adj_l, adj_y, adj_z);
+}
+template <typename T, int N, typename Y>
+WP_FUNC void adj_tile_upper_solve(const tile_t<T, N, N, 0, 0>& u, const Y& y, tile_t<T, N, N, 0, 0>& adj_u, Y& adj_y,
+                                  const Y& adj_x) {
+  tile_tri_solve_adjoint(u, tile_upper_solve(u, y), false, adj_u, adj_y, adj_x);
+}
+// x with A x = y, A = L L^T (or U^T U): two triangular solves.
+template <typename T, int N, typename Y>
+WP_FUNC Y tile_cholesky_solve(const tile_t<T, N, N, 0, 0>& f, const Y& y, bool upper) {
+  Y x = y;
+  tile_tri_solve<T, N>(f.data, x, !upper, upper);    // L w = y (or U^T w = y)
+  tile_tri_solve<T, N>(f.data, x, upper, !upper);    // L^T x = w (or U x = w)
+  return x;
+}
+// adj_y += A^-1 adj_x; with A_bar = -adj_y x^T: adj_L += tril((A_bar + A_bar^T) L), or
+// adj_U += triu(U (A_bar + A_bar^T)).
+template <typename T, int N, typename Y>
+WP_FUNC void adj_tile_cholesky_solve(const tile_t<T, N, N, 0, 0>& f, const Y& y, bool upper, tile_t<T, N, N, 0, 0>& adj_f,
+                                     Y& adj_y, bool&, const Y& adj_x) {
+  constexpr int K = tile_rhs<Y>::K;
+  const Y x = tile_cholesky_solve(f, y, upper);
+  const Y w = tile_cholesky_solve(f, adj_x, upper);
+  for (int k = 0; k < Y::SIZE; ++k) adj_y.data[k] += w.data[k];
+  tile_t<T, N, N, 0, 0> sym;   // A_bar + A_bar^T = -(w x^T + x w^T)
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j) {
+      T s = T(0);
+      for (int c = 0; c < K; ++c) s += w.data[i * K + c] * x.data[j * K + c] + x.data[i * K + c] * w.data[j * K + c];
+      sym.data[i * N + j] = -s;
+    }
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j) {
+      if (upper ? j < i : j > i) continue;
+      T g = T(0);
+      for (int k = 0; k < N; ++k)
+        g += upper ? f.data[i * N + k] * sym.data[k * N + j] : sym.data[i * N + k] * f.data[k * N + j];
+      adj_f.data[i * N + j] += g;
+    }
+}
+
 #undef WP_TILE
 #undef WP_TILE_TEMPLATE
 

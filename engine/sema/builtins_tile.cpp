@@ -91,6 +91,19 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
   row("untile(a: tile(Scalar,N,1)) -> vec(N,Scalar)", "The vector a tile of shape (n, 1) holds (wp.tile(v) reversed).");
   row("untile(a: tile(Scalar,N,M,1)) -> mat(N,M,Scalar)", "The matrix a tile of shape (rows, cols, 1) holds.");
   row("tile_transpose(a: tile(X,M,N)) -> tile(X,N,M)", "The transpose of a 2-D tile.");
+  row("tile_cholesky(A: tile(Float,N,N), upper: bool) -> tile(Float,N,N)",
+      "Called as wp.tile_cholesky(A[, fill_mode]): L with A = L L^T (\"lower\", the default) or U with A = U^T U "
+      "(\"upper\"), the other triangle zero; wp.tile_cholesky_inplace(A) assigns it to A. Adjoint: Warp's.");
+  for (const char* y : {"tile(Float,N)", "tile(Float,N,K)"}) {
+    const std::string ys = y;
+    row("tile_lower_solve(L: tile(Float,N,N), y: " + ys + ") -> " + ys,
+        "z with L z = y (L lower triangular; y a vector or columns); wp.tile_lower_solve_inplace(L, y) assigns it to y.");
+    row("tile_upper_solve(U: tile(Float,N,N), z: " + ys + ") -> " + ys,
+        "x with U x = z (U upper triangular); wp.tile_upper_solve_inplace(U, z) assigns it to z.");
+    row("tile_cholesky_solve(L: tile(Float,N,N), y: " + ys + ", upper: bool) -> " + ys,
+        "Called as wp.tile_cholesky_solve(L, y[, fill_mode]): x with A x = y for the factor of tile_cholesky; "
+        "wp.tile_cholesky_solve_inplace(L, y) assigns it to y.");
+  }
   row("tile_matmul(a: tile(Float,M,K), b: tile(Float,K,N), c: tile(Float,M,N), alpha: Float, beta: Float) -> tile(Float,M,N)",
       "alpha * a @ b + beta * c. wp.tile_matmul(a, b) is alpha 1 over zeros; wp.tile_matmul(a, b, out[, alpha, beta]) "
       "assigns the result to out (alpha, beta default 1).", kBuiltinNone, "tile_matmul_acc");

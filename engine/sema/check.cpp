@@ -1166,7 +1166,11 @@ void CountNamesWrittenByCall(const ast::Expr* e, std::map<std::string, int>* out
   else if (const auto* a = ast::As<ast::Attribute>(call->func.get())) name = a->attr;
   // The tile forms that assign their result to an argument (sema/check_tile.cpp).
   static const std::map<std::string, std::pair<size_t, std::string>> kTileOut = {
-      {"tile_matmul", {2, "out"}}, {"tile_axpy", {2, "dest"}}, {"tile_assign", {0, "dst"}}};
+      {"tile_matmul", {2, "out"}},           {"tile_axpy", {2, "dest"}},
+      {"tile_assign", {0, "dst"}},           {"tile_cholesky_inplace", {0, "A"}},
+      {"tile_cholesky_solve_inplace", {1, "y"}}, {"tile_lower_solve_inplace", {1, "y"}},
+      {"tile_upper_solve_inplace", {1, "z"}}, {"tile_fft", {0, "inout"}},
+      {"tile_ifft", {0, "inout"}}};
   if (auto it = kTileOut.find(name); it != kTileOut.end()) {
     const ast::Expr* target = call->args.size() > it->second.first ? call->args[it->second.first].get() : nullptr;
     for (const auto& kw : call->keywords)

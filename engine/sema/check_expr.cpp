@@ -58,7 +58,9 @@ bool IsSpecialBuiltin(const std::string& n) {
                                                "adjoint",      "tile_zeros",    "tile_ones",
                                                "tile_full",    "tile_arange",   "tile_view",
                                                "tile_map",     "tile_reduce",   "tile_empty",
-                                               "tile_squeeze"};
+                                               "tile_squeeze",  "tile_cholesky_inplace",
+                                               "tile_cholesky_solve_inplace", "tile_lower_solve_inplace",
+                                               "tile_upper_solve_inplace"};
   return kNames.count(n) != 0;
 }
 

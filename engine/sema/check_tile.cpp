@@ -21,7 +21,9 @@ bool IsTileCall(const std::string& n) {
                                  "tile_atomic_add", "tile_sum", "tile_broadcast", "tile_astype", "tile_matmul",
                                  "tile_extract", "tile", "untile", "tile_transpose", "tile_max", "tile_min",
                                  "tile_argmax", "tile_argmin", "tile_view", "tile_map", "tile_reduce",
-                                 "tile_empty", "tile_axpy", "tile_assign", "tile_reshape", "tile_squeeze"};
+                                 "tile_empty", "tile_axpy", "tile_assign", "tile_reshape", "tile_squeeze",
+                                 "tile_cholesky", "tile_cholesky_inplace", "tile_cholesky_solve",
+                                 "tile_cholesky_solve_inplace", "tile_lower_solve_inplace", "tile_upper_solve_inplace"};
   for (const char* k : kNames)
     if (n == k) return true;
   return false;
@@ -500,6 +502,36 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     while (static_cast<int>(offsets.size()) < tt.ndim)
       offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)"));
     return TileView(a, offsets, kept, extents, loc);
+  }
+  if (name == "tile_cholesky" || name == "tile_cholesky_inplace" || name == "tile_cholesky_solve" ||
+      name == "tile_cholesky_solve_inplace") {
+    const bool solve = name.find("solve") != std::string::npos;
+    const bool inplace = name.find("inplace") != std::string::npos;
+    if (solve) {
+      WEFT_RETURN_IF_ERROR(bind({"L", "y", "fill_mode"}, &p));
+    } else {
+      WEFT_RETURN_IF_ERROR(bind({"A", "fill_mode"}, &p));
+    }
+    const Value& mode = p[solve ? 2 : 1];
+    bool upper = false;
+    if (mode.kind != Value::Kind::kNone) {
+      if (mode.kind != Value::Kind::kString || (mode.name != "lower" && mode.name != "upper"))
+        return ErrorOf("value", loc, "wp." + name + "(): fill_mode must be \"lower\" or \"upper\"");
+      upper = mode.name == "upper";
+    }
+    Value up = Value::OfVar(EmitConst(Type::Bool(), upper ? "true" : "false"));
+    std::vector<Value> call_args{p[0]};
+    if (solve) call_args.push_back(p[1]);
+    call_args.push_back(up);
+    WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(solve ? "tile_cholesky_solve" : "tile_cholesky", call_args, loc));
+    if (!inplace) return r;
+    return assign_to_arg(solve ? 1 : 0, solve ? "y" : "A", r);
+  }
+  if (name == "tile_lower_solve_inplace" || name == "tile_upper_solve_inplace") {
+    const bool lower = name == "tile_lower_solve_inplace";
+    WEFT_RETURN_IF_ERROR(bind({lower ? "L" : "U", lower ? "y" : "z"}, &p));
+    WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(lower ? "tile_lower_solve" : "tile_upper_solve", {p[0], p[1]}, loc));
+    return assign_to_arg(1, lower ? "y" : "z", r);
   }
   if (name == "tile") {
     WEFT_RETURN_IF_ERROR(bind({"x", "preserve_type"}, &p));
