@@ -934,6 +934,80 @@ WP_FUNC void adj_tile_cholesky_solve(const tile_t<T, N, N, 0, 0>& f, const Y& y,
     }
 }
 
+// ---- FFT of complex tiles (vec2: real, imaginary) along the last dimension --------------------
+// Unnormalized in both directions (cuFFT's convention, Warp's): ifft(fft(x)) = n x. A length
+// that is a power of two takes the radix-2 algorithm in place, others the direct sum; twiddle
+// factors are computed in float64.
+template <bool INVERSE, typename S, int D0, int D1, int D2, int D3>
+WP_FUNC tile_t<vec_t<2, S>, D0, D1, D2, D3> tile_dft(const tile_t<vec_t<2, S>, D0, D1, D2, D3>& a) {
+  using TT = tile_t<vec_t<2, S>, D0, D1, D2, D3>;
+  constexpr int N = TT::extent(TT::NDIM - 1);
+  constexpr int ROWS = TT::SIZE / N;
+  constexpr bool POW2 = (N & (N - 1)) == 0;
+  const float64 sign = INVERSE ? 1.0 : -1.0;
+  const float64 tau = 6.283185307179586476925286766559;
+  TT r;
+  for (int row = 0; row < ROWS; ++row) {
+    const vec_t<2, S>* x = a.data + row * N;
+    vec_t<2, S>* y = r.data + row * N;
+    if (!POW2) {
+      for (int k = 0; k < N; ++k) {
+        float64 re = 0.0, im = 0.0;
+        for (int j = 0; j < N; ++j) {
+          const float64 ang = sign * tau * (float64)((int64)j * k % N) / N;
+          const float64 c = cos(ang), s = sin(ang);
+          re += (float64)x[j].c[0] * c - (float64)x[j].c[1] * s;
+          im += (float64)x[j].c[0] * s + (float64)x[j].c[1] * c;
+        }
+        y[k].c[0] = S(re);
+        y[k].c[1] = S(im);
+      }
+      continue;
+    }
+    for (int j = 0, rev = 0; j < N; ++j) {   // bit-reversed copy
+      y[rev] = x[j];
+      for (int bit = N >> 1; bit; bit >>= 1) {
+        rev ^= bit;
+        if (rev & bit) break;
+      }
+    }
+    for (int len = 2; len <= N; len <<= 1) {
+      for (int i = 0; i < N; i += len) {
+        for (int j = 0; j < len / 2; ++j) {
+          const float64 ang = sign * tau * j / len;
+          const S c = S(cos(ang)), s = S(sin(ang));
+          const vec_t<2, S> u = y[i + j], v = y[i + j + len / 2];
+          const S vr = v.c[0] * c - v.c[1] * s, vi = v.c[0] * s + v.c[1] * c;
+          y[i + j].c[0] = u.c[0] + vr;
+          y[i + j].c[1] = u.c[1] + vi;
+          y[i + j + len / 2].c[0] = u.c[0] - vr;
+          y[i + j + len / 2].c[1] = u.c[1] - vi;
+        }
+      }
+    }
+  }
+  return r;
+}
+template <typename S, int D0, int D1, int D2, int D3>
+WP_FUNC tile_t<vec_t<2, S>, D0, D1, D2, D3> tile_fft(const tile_t<vec_t<2, S>, D0, D1, D2, D3>& a) {
+  return tile_dft<false>(a);
+}
+template <typename S, int D0, int D1, int D2, int D3>
+WP_FUNC tile_t<vec_t<2, S>, D0, D1, D2, D3> tile_ifft(const tile_t<vec_t<2, S>, D0, D1, D2, D3>& a) {
+  return tile_dft<true>(a);
+}
+// The adjoint of the unnormalized transform is the unnormalized transform the other way.
+template <typename S, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_fft(const tile_t<vec_t<2, S>, D0, D1, D2, D3>&, tile_t<vec_t<2, S>, D0, D1, D2, D3>& adj_a,
+                          const tile_t<vec_t<2, S>, D0, D1, D2, D3>& adj_ret) {
+  cg_accum(adj_a, tile_dft<true>(adj_ret));
+}
+template <typename S, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_ifft(const tile_t<vec_t<2, S>, D0, D1, D2, D3>&, tile_t<vec_t<2, S>, D0, D1, D2, D3>& adj_a,
+                           const tile_t<vec_t<2, S>, D0, D1, D2, D3>& adj_ret) {
+  cg_accum(adj_a, tile_dft<false>(adj_ret));
+}
+
 #undef WP_TILE
 #undef WP_TILE_TEMPLATE
 

@@ -91,6 +91,14 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
   row("untile(a: tile(Scalar,N,1)) -> vec(N,Scalar)", "The vector a tile of shape (n, 1) holds (wp.tile(v) reversed).");
   row("untile(a: tile(Scalar,N,M,1)) -> mat(N,M,Scalar)", "The matrix a tile of shape (rows, cols, 1) holds.");
   row("tile_transpose(a: tile(X,M,N)) -> tile(X,N,M)", "The transpose of a 2-D tile.");
+  for (int d = 1; d <= 4; ++d) {
+    const std::string t = std::string("tile(vec(2,Float),") + dims[d - 1] + ")";
+    row("tile_fft(inout: " + t + ") -> " + t,
+        "Called as wp.tile_fft(t): the unnormalized discrete Fourier transform of each row (last dimension) of a "
+        "complex tile (vec2: real, imaginary), assigned to t.", kBuiltinNone);
+    row("tile_ifft(inout: " + t + ") -> " + t,
+        "Called as wp.tile_ifft(t): the unnormalized inverse transform (ifft(fft(x)) = n x), assigned to t.");
+  }
   row("tile_cholesky(A: tile(Float,N,N), upper: bool) -> tile(Float,N,N)",
       "Called as wp.tile_cholesky(A[, fill_mode]): L with A = L L^T (\"lower\", the default) or U with A = U^T U "
       "(\"upper\"), the other triangle zero; wp.tile_cholesky_inplace(A) assigns it to A. Adjoint: Warp's.");

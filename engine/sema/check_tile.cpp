@@ -23,7 +23,8 @@ bool IsTileCall(const std::string& n) {
                                  "tile_argmax", "tile_argmin", "tile_view", "tile_map", "tile_reduce",
                                  "tile_empty", "tile_axpy", "tile_assign", "tile_reshape", "tile_squeeze",
                                  "tile_cholesky", "tile_cholesky_inplace", "tile_cholesky_solve",
-                                 "tile_cholesky_solve_inplace", "tile_lower_solve_inplace", "tile_upper_solve_inplace"};
+                                 "tile_cholesky_solve_inplace", "tile_lower_solve_inplace", "tile_upper_solve_inplace",
+                                 "tile_fft", "tile_ifft"};
   for (const char* k : kNames)
     if (n == k) return true;
   return false;
@@ -526,6 +527,15 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(solve ? "tile_cholesky_solve" : "tile_cholesky", call_args, loc));
     if (!inplace) return r;
     return assign_to_arg(solve ? 1 : 0, solve ? "y" : "A", r);
+  }
+  if (name == "tile_fft" || name == "tile_ifft") {   // in place: the transform is assigned to the argument
+    WEFT_RETURN_IF_ERROR(bind({"inout"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int t, tile_arg(p[0], "inout"));
+    const Type tt = TypeOf(t);
+    if (!tt.elem().is_vector() || tt.elem().rows != 2 || !IsFloat(tt.elem().scalar))
+      return ErrorOf("type", loc, "wp." + name + "() transforms tiles of complex values (vec2 of floats), got " + TypeString(tt));
+    WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(name, {p[0]}, loc));
+    return assign_to_arg(0, "inout", r);
   }
   if (name == "tile_lower_solve_inplace" || name == "tile_upper_solve_inplace") {
     const bool lower = name == "tile_lower_solve_inplace";

@@ -291,3 +291,85 @@ def test_tiles_of_structs_with_gradients(device, rng):
     grad = ps.grad.numpy()
     np.testing.assert_allclose(grad["v"], np.ones((n, 3)), rtol=1e-6)
     np.testing.assert_allclose(grad["m"], -(1.0 - 2.0 + 0.5) / m0 ** 2, rtol=1e-5)
+
+
+@wp.kernel
+def tile_linalg(ga: wp.array2d[wp.float64], gl: wp.array2d[wp.float64], gy: wp.array[wp.float64],
+                gx: wp.array[wp.float64], gz: wp.array2d[wp.float64], gu: wp.array2d[wp.float64]):
+    a = wp.tile_load(ga, shape=(6, 6))
+    l = wp.tile_cholesky(a)
+    wp.tile_store(gl, l)
+    wp.tile_store(gx, wp.tile_cholesky_solve(l, wp.tile_load(gy, shape=6)))
+    z = wp.tile_load(gz, shape=(6, 3))
+    wp.tile_lower_solve_inplace(l, z)
+    wp.tile_store(gz, z)
+    u = wp.tile_cholesky(a, fill_mode="upper")
+    wp.tile_store(gu, wp.tile_upper_solve(u, wp.tile_load(gz, shape=(6, 3))))
+
+
+def test_tile_cholesky_and_solves(device, rng):
+    """A near-singular SPD matrix (condition ~1e8): factors and solves against float64 NumPy;
+    the Cholesky adjoint in Warp's convention and the solve adjoints against their formulas."""
+    q, _ = np.linalg.qr(rng.standard_normal((6, 6)))
+    a0 = q @ np.diag(np.logspace(-4, 4, 6)) @ q.T
+    a0 = 0.5 * (a0 + a0.T)
+    y0 = rng.standard_normal(6)
+    z0 = rng.standard_normal((6, 3))
+    ga = wp.array(a0, dtype=wp.float64, requires_grad=True)
+    gl = wp.zeros((6, 6), dtype=wp.float64, requires_grad=True)
+    gy = wp.array(y0, dtype=wp.float64, requires_grad=True)
+    gx = wp.zeros(6, dtype=wp.float64, requires_grad=True)
+    gz = wp.array(z0, dtype=wp.float64)
+    gu = wp.zeros((6, 3), dtype=wp.float64)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_linalg, dim=1, inputs=[ga, gl, gy, gx, gz, gu])
+    l0 = np.linalg.cholesky(a0)
+    np.testing.assert_allclose(gl.numpy(), l0, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(gx.numpy(), np.linalg.solve(a0, y0), rtol=1e-6)
+    zl = np.linalg.solve(l0, z0)
+    np.testing.assert_allclose(gz.numpy(), zl, rtol=1e-9, atol=1e-9 * np.abs(zl).max())
+    np.testing.assert_allclose(gu.numpy(), np.linalg.solve(l0.T, zl), rtol=1e-7, atol=1e-7 * np.abs(zl).max())
+    adj_l = rng.standard_normal((6, 6))
+    tape.backward(grads={gl: wp.array(adj_l, dtype=wp.float64)})
+    p = np.tril(l0.T @ adj_l)
+    p[np.diag_indices(6)] *= 0.5
+    s = p + p.T
+    b = np.linalg.solve(l0.T, np.linalg.solve(l0.T, s).T)
+    want = np.tril(b)
+    want[np.diag_indices(6)] *= 0.5
+    np.testing.assert_allclose(ga.grad.numpy(), want, rtol=1e-6, atol=1e-6 * np.abs(want).max())
+    tape.zero()
+    adj_x = rng.standard_normal(6)
+    tape.backward(grads={gx: wp.array(adj_x, dtype=wp.float64)})
+    np.testing.assert_allclose(gy.grad.numpy(), np.linalg.solve(a0, adj_x), rtol=1e-6)
+
+
+@wp.kernel
+def tile_spectra(gx: wp.array2d[wp.vec2d], gy: wp.array2d[wp.vec2d], gz: wp.array2d[wp.vec2d]):
+    t = wp.tile_load(gx, shape=(3, 16))
+    wp.tile_fft(t)
+    wp.tile_store(gy, t)
+    u = wp.tile_load(gx, shape=(3, 12))   # not a power of two: the direct sum
+    wp.tile_ifft(u)
+    wp.tile_store(gz, u)
+
+
+def test_tile_fft_and_ifft(device, rng):
+    x = rng.standard_normal((3, 16, 2)) * np.exp(rng.uniform(-3, 3, (3, 16, 1)))
+    gx = wp.array(x, dtype=wp.vec2d, requires_grad=True)
+    gy = wp.zeros((3, 16), dtype=wp.vec2d, requires_grad=True)
+    gz = wp.zeros((3, 16), dtype=wp.vec2d, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_spectra, dim=1, inputs=[gx, gy, gz])
+    xc = x[..., 0] + 1j * x[..., 1]
+    as_c = lambda a: a[..., 0] + 1j * a[..., 1]   # noqa: E731
+    want = np.fft.fft(xc, axis=-1)
+    np.testing.assert_allclose(as_c(gy.numpy()), want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    want_i = np.fft.ifft(xc[:, :12], axis=-1) * 12
+    np.testing.assert_allclose(as_c(gz.numpy())[:, :12], want_i, rtol=1e-12, atol=1e-12 * np.abs(want_i).max())
+    adj = rng.standard_normal((3, 16, 2))
+    tape.backward(grads={gy: wp.array(adj, dtype=wp.vec2d)})
+    g = np.fft.ifft(as_c(adj), axis=-1) * 16
+    np.testing.assert_allclose(as_c(gx.grad.numpy()), g, rtol=1e-12, atol=1e-12 * np.abs(g).max())
