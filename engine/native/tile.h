@@ -1008,6 +1008,141 @@ WP_FUNC void adj_tile_ifft(const tile_t<vec_t<2, S>, D0, D1, D2, D3>&, tile_t<ve
   cg_accum(adj_a, tile_dft<false>(adj_ret));
 }
 
+// ---- indexed loads, stores and atomic adds ---------------------------------------------------
+// Element c of the tile sits at off + c in the array, except along `axis`, where it sits at
+// off[axis] + idx[c[axis]]. Elements outside the array (tile_slot) read as zero and are skipped.
+template <typename T, int D0, int D1, int D2, int D3, int NI>
+WP_FUNC void tile_indexed_position(int k, const tile_t<int32, NI, 0, 0, 0>& idx, int32 axis, const int64 (&off)[4],
+                                   int64 (&at)[4]) {
+  WP_TILE::coord(k, at);
+  if (axis >= 0 && axis < 4 && at[axis] < NI) at[axis] = idx.data[at[axis]];
+  for (int d = 0; d < 4; ++d) at[d] += off[d];
+}
+#define WP_TILE_OFF int64 o0, int64 o1, int64 o2, int64 o3
+#define WP_TILE_ADJ_OFF int64&, int64&, int64&, int64&
+template <typename T, int D0, int D1, int D2, int D3, int NI>
+WP_FUNC WP_TILE tile_load_indexed(const WP_TILE&, const array_t<T>& a, const tile_t<int32, NI, 0, 0, 0>& idx, int32 axis,
+                                  WP_TILE_OFF) {
+  const int64 off[4] = {o0, o1, o2, o3};
+  WP_TILE r;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 at[4];
+    tile_indexed_position<T, D0, D1, D2, D3>(k, idx, axis, off, at);
+    const T* p = tile_slot(a, WP_TILE::NDIM, at);
+    r.data[k] = p ? *p : cg_zeros<T>();
+  }
+  return r;
+}
+template <typename T, int D0, int D1, int D2, int D3, int NI>
+WP_FUNC void adj_tile_load_indexed(const WP_TILE&, const array_t<T>&, const tile_t<int32, NI, 0, 0, 0>& idx, int32 axis,
+                                   WP_TILE_OFF, WP_TILE&, const array_t<T>& adj_a, tile_t<int32, NI, 0, 0, 0>&, int32&,
+                                   WP_TILE_ADJ_OFF, const WP_TILE& adj_ret) {
+  if (!adj_a.data) return;
+  const int64 off[4] = {o0, o1, o2, o3};
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 at[4];
+    tile_indexed_position<T, D0, D1, D2, D3>(k, idx, axis, off, at);
+    if (T* p = tile_slot(adj_a, WP_TILE::NDIM, at)) cg_atomic_accum(p, adj_ret.data[k]);
+  }
+}
+template <typename T, int D0, int D1, int D2, int D3, int NI>
+WP_FUNC void tile_store_indexed(const array_t<T>& a, const tile_t<int32, NI, 0, 0, 0>& idx, const WP_TILE& t, int32 axis,
+                                WP_TILE_OFF) {
+  const int64 off[4] = {o0, o1, o2, o3};
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 at[4];
+    tile_indexed_position<T, D0, D1, D2, D3>(k, idx, axis, off, at);
+    if (T* p = tile_slot(a, WP_TILE::NDIM, at)) *p = t.data[k];
+  }
+}
+template <typename T, int D0, int D1, int D2, int D3, int NI>
+WP_FUNC WP_TILE tile_atomic_add_indexed(const array_t<T>& a, const tile_t<int32, NI, 0, 0, 0>& idx, const WP_TILE& t,
+                                        int32 axis, WP_TILE_OFF) {
+  const int64 off[4] = {o0, o1, o2, o3};
+  WP_TILE old;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 at[4];
+    tile_indexed_position<T, D0, D1, D2, D3>(k, idx, axis, off, at);
+    T* p = tile_slot(a, WP_TILE::NDIM, at);
+    old.data[k] = p ? atomic_add_ptr(p, t.data[k]) : cg_zeros<T>();
+  }
+  return old;
+}
+// Both adjoints: adj_t[c] += adj_a[position of c].
+template <typename T, int D0, int D1, int D2, int D3, int NI>
+WP_FUNC void tile_indexed_gather_add(const array_t<T>& adj_a, const tile_t<int32, NI, 0, 0, 0>& idx, int32 axis,
+                                     const int64 (&off)[4], WP_TILE& adj_t) {
+  if (!adj_a.data) return;
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int64 at[4];
+    tile_indexed_position<T, D0, D1, D2, D3>(k, idx, axis, off, at);
+    if (const T* p = tile_slot(adj_a, WP_TILE::NDIM, at)) cg_accum(adj_t.data[k], *p);
+  }
+}
+template <typename T, int D0, int D1, int D2, int D3, int NI>
+WP_FUNC void adj_tile_store_indexed(const array_t<T>&, const tile_t<int32, NI, 0, 0, 0>& idx, const WP_TILE&, int32 axis,
+                                    WP_TILE_OFF, const array_t<T>& adj_a, tile_t<int32, NI, 0, 0, 0>&, WP_TILE& adj_t,
+                                    int32&, WP_TILE_ADJ_OFF) {
+  const int64 off[4] = {o0, o1, o2, o3};
+  tile_indexed_gather_add(adj_a, idx, axis, off, adj_t);
+}
+template <typename T, int D0, int D1, int D2, int D3, int NI>
+WP_FUNC void adj_tile_atomic_add_indexed(const array_t<T>&, const tile_t<int32, NI, 0, 0, 0>& idx, const WP_TILE&,
+                                         int32 axis, WP_TILE_OFF, const array_t<T>& adj_a, tile_t<int32, NI, 0, 0, 0>&,
+                                         WP_TILE& adj_t, int32&, WP_TILE_ADJ_OFF, const WP_TILE&) {
+  const int64 off[4] = {o0, o1, o2, o3};
+  tile_indexed_gather_add(adj_a, idx, axis, off, adj_t);
+}
+#undef WP_TILE_OFF
+#undef WP_TILE_ADJ_OFF
+
+// tile_sort(keys, values): both sorted by key, ascending, stably (insertion into a run of
+// sorted keys; tiles are small).
+template <typename K, typename V, int N>
+WP_FUNC void tile_sort_pairs(tile_t<K, N, 0, 0, 0>& keys, tile_t<V, N, 0, 0, 0>& values) {
+  for (int i = 1; i < N; ++i) {
+    const K k = keys.data[i];
+    const V v = values.data[i];
+    int j = i - 1;
+    while (j >= 0 && k < keys.data[j]) {
+      keys.data[j + 1] = keys.data[j];
+      values.data[j + 1] = values.data[j];
+      --j;
+    }
+    keys.data[j + 1] = k;
+    values.data[j + 1] = v;
+  }
+}
+template <typename K, typename V, int N>
+WP_FUNC tile_t<K, N, 0, 0, 0> tile_sort_keys(const tile_t<K, N, 0, 0, 0>& keys, const tile_t<V, N, 0, 0, 0>& values) {
+  tile_t<K, N, 0, 0, 0> k = keys;
+  tile_t<V, N, 0, 0, 0> v = values;
+  tile_sort_pairs(k, v);
+  return k;
+}
+template <typename K, typename V, int N>
+WP_FUNC tile_t<V, N, 0, 0, 0> tile_sort_values(const tile_t<K, N, 0, 0, 0>& keys, const tile_t<V, N, 0, 0, 0>& values) {
+  tile_t<K, N, 0, 0, 0> k = keys;
+  tile_t<V, N, 0, 0, 0> v = values;
+  tile_sort_pairs(k, v);
+  return v;
+}
+
+// a with d added to its diagonal.
+template <typename T, int N, int M>
+WP_FUNC tile_t<T, N, M, 0, 0> tile_diag_add(const tile_t<T, N, M, 0, 0>& a, const tile_t<T, (N < M ? N : M), 0, 0, 0>& d) {
+  tile_t<T, N, M, 0, 0> r = a;
+  for (int i = 0; i < (N < M ? N : M); ++i) r.data[i * M + i] = add(r.data[i * M + i], d.data[i]);
+  return r;
+}
+template <typename T, int N, int M>
+WP_FUNC void adj_tile_diag_add(const tile_t<T, N, M, 0, 0>&, const tile_t<T, (N < M ? N : M), 0, 0, 0>&,
+                               tile_t<T, N, M, 0, 0>& adj_a, tile_t<T, (N < M ? N : M), 0, 0, 0>& adj_d,
+                               const tile_t<T, N, M, 0, 0>& adj_ret) {
+  cg_accum(adj_a, adj_ret);
+  for (int i = 0; i < (N < M ? N : M); ++i) cg_accum(adj_d.data[i], adj_ret.data[i * M + i]);
+}
+
 #undef WP_TILE
 #undef WP_TILE_TEMPLATE
 

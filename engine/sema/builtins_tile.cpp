@@ -32,6 +32,16 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
         "values (zero outside a).", kBuiltinSideEffect);
     row("tile_insert(a: " + t + ", " + idx[d - 1] + ", value: X) -> " + t,
         "a with one element replaced (t[i, j] = value); an index outside the tile is a launch error.", kBuiltinNeedsLoc);
+    const std::string off4 = "o0: int64, o1: int64, o2: int64, o3: int64";
+    row("tile_load_indexed(like: " + t + ", a: " + a + ", indices: tile(int32,G), axis: int32, " + off4 + ") -> " + t,
+        "Called as wp.tile_load_indexed(a, indices, shape, offset, axis): tile_load where the coordinate along the "
+        "axis is offset + indices[c]; elements outside a read as zero.");
+    row("tile_store_indexed(a: " + a + ", indices: tile(int32,G), t: " + t + ", axis: int32, " + off4 + ") -> None",
+        "Called as wp.tile_store_indexed(a, indices, t, offset, axis): tile_store through the index tile.",
+        kBuiltinSideEffect | kBuiltinVoidAdjoint);
+    row("tile_atomic_add_indexed(a: " + a + ", indices: tile(int32,G), t: " + t + ", axis: int32, " + off4 + ") -> " + t,
+        "Called as wp.tile_atomic_add_indexed(a, indices, t, offset, axis): tile_atomic_add through the index tile.",
+        kBuiltinSideEffect);
     row("tile_extract(a: " + t + ", " + idx[d - 1] + ") -> X",
         "The element of a at the indices (also a[i, j]); an index outside the tile is a launch error.", kBuiltinNeedsLoc);
     row("tile_sum(a: " + t + ") -> tile(X,1)", "The sum of all elements, as a tile of shape (1,).");
@@ -91,6 +101,11 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
   row("untile(a: tile(Scalar,N,1)) -> vec(N,Scalar)", "The vector a tile of shape (n, 1) holds (wp.tile(v) reversed).");
   row("untile(a: tile(Scalar,N,M,1)) -> mat(N,M,Scalar)", "The matrix a tile of shape (rows, cols, 1) holds.");
   row("tile_transpose(a: tile(X,M,N)) -> tile(X,N,M)", "The transpose of a 2-D tile.");
+  row("tile_diag_add(a: tile(X,N,N), d: tile(X,N)) -> tile(X,N,N)", "a with d added to its diagonal.");
+  row("tile_sort_keys(keys: tile(Scalar,N), values: tile(X,N)) -> tile(Scalar,N)",
+      "Called as wp.tile_sort(keys, values): the keys sorted ascending (stable), assigned to keys.", kBuiltinNotDiff);
+  row("tile_sort_values(keys: tile(Scalar,N), values: tile(X,N)) -> tile(X,N)",
+      "Called as wp.tile_sort(keys, values): the values in the keys' sorted order, assigned to values.", kBuiltinNotDiff);
   for (int d = 1; d <= 4; ++d) {
     const std::string t = std::string("tile(vec(2,Float),") + dims[d - 1] + ")";
     row("tile_fft(inout: " + t + ") -> " + t,

@@ -60,7 +60,7 @@ bool IsSpecialBuiltin(const std::string& n) {
                                                "tile_map",     "tile_reduce",   "tile_empty",
                                                "tile_squeeze",  "tile_cholesky_inplace",
                                                "tile_cholesky_solve_inplace", "tile_lower_solve_inplace",
-                                               "tile_upper_solve_inplace"};
+                                               "tile_upper_solve_inplace", "tile_sort"};
   return kNames.count(n) != 0;
 }
 

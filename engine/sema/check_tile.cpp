@@ -24,7 +24,8 @@ bool IsTileCall(const std::string& n) {
                                  "tile_empty", "tile_axpy", "tile_assign", "tile_reshape", "tile_squeeze",
                                  "tile_cholesky", "tile_cholesky_inplace", "tile_cholesky_solve",
                                  "tile_cholesky_solve_inplace", "tile_lower_solve_inplace", "tile_upper_solve_inplace",
-                                 "tile_fft", "tile_ifft"};
+                                 "tile_fft", "tile_ifft", "tile_load_indexed", "tile_store_indexed",
+                                 "tile_atomic_add_indexed", "tile_sort"};
   for (const char* k : kNames)
     if (n == k) return true;
   return false;
@@ -527,6 +528,59 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(solve ? "tile_cholesky_solve" : "tile_cholesky", call_args, loc));
     if (!inplace) return r;
     return assign_to_arg(solve ? 1 : 0, solve ? "y" : "A", r);
+  }
+  if (name == "tile_load_indexed" || name == "tile_store_indexed" || name == "tile_atomic_add_indexed") {
+    const bool load = name == "tile_load_indexed";
+    if (load) {
+      WEFT_RETURN_IF_ERROR(bind({"a", "indices", "shape", "offset", "axis", "storage"}, &p));
+    } else {
+      WEFT_RETURN_IF_ERROR(bind({"a", "indices", "t", "offset", "axis"}, &p));
+    }
+    WEFT_ASSIGN_OR_RETURN(int a, value_of(p[0], "a"));
+    const Type at = TypeOf(a);
+    if (!at.is_array() || at.is_indexed_array() || at.is_fixed_array())
+      return Error(loc, "wp." + name + "() takes an array, got " + TypeString(at));
+    WEFT_ASSIGN_OR_RETURN(int ix, tile_arg(p[1], "indices"));
+    const Type it = TypeOf(ix);
+    if (it.ndim != 1 || it.elem() != Type::Int32())
+      return ErrorOf("type", loc, "wp." + name + "(): indices must be a 1-D tile of int32, got " + TypeString(it));
+    Type tt;
+    if (load) {
+      WEFT_ASSIGN_OR_RETURN(std::vector<int> shape, shape_of(p[2]));
+      tt = Type::Tile(at.elem(), shape);
+    } else {
+      WEFT_ASSIGN_OR_RETURN(int t, tile_arg(p[2], "t"));
+      tt = TypeOf(t);
+      if (tt.elem() != at.elem())
+        return Error(loc, "wp." + name + "(): the tile holds " + TypeString(tt.elem()) + ", the array " + TypeString(at.elem()));
+    }
+    if (tt.ndim != at.ndim)
+      return Error(loc, "wp." + name + "(): a " + std::to_string(tt.ndim) + "-D tile and a " + std::to_string(at.ndim) +
+                            "-D array");
+    int64_t axis = 0;
+    if (p[4].kind != Value::Kind::kNone) {
+      WEFT_ASSIGN_OR_RETURN(axis, const_int(p[4], "axis"));
+    }
+    if (axis < 0) axis += tt.ndim;
+    if (axis < 0 || axis >= tt.ndim)
+      return Error(loc, "wp." + name + "(): axis is outside a " + std::to_string(tt.ndim) + "-D tile");
+    if (it.fixed_shape[0] < tt.fixed_shape[axis])
+      return Error(loc, "wp." + name + "(): " + std::to_string(it.fixed_shape[0]) + " indices for an axis of extent " +
+                            std::to_string(tt.fixed_shape[axis]));
+    WEFT_ASSIGN_OR_RETURN(std::vector<Value> off, offsets_of(p[3], at.ndim));
+    while (off.size() < 4) off.push_back(Value::OfVar(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(0)")));
+    Value ax = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(axis) + ")"));
+    std::vector<Value> full = load ? std::vector<Value>{like(tt), p[0], p[1], ax} : std::vector<Value>{p[0], p[1], p[2], ax};
+    full.insert(full.end(), off.begin(), off.end());
+    return ResolveAndEmitBuiltin(name, std::move(full), loc);
+  }
+  if (name == "tile_sort") {
+    WEFT_RETURN_IF_ERROR(bind({"keys", "values"}, &p));
+    WEFT_ASSIGN_OR_RETURN(Value k, ResolveAndEmitBuiltin("tile_sort_keys", {p[0], p[1]}, loc));
+    WEFT_ASSIGN_OR_RETURN(Value v, ResolveAndEmitBuiltin("tile_sort_values", {p[0], p[1]}, loc));
+    WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, "keys", k));
+    (void)unused;
+    return assign_to_arg(1, "values", v);
   }
   if (name == "tile_fft" || name == "tile_ifft") {   // in place: the transform is assigned to the argument
     WEFT_RETURN_IF_ERROR(bind({"inout"}, &p));
