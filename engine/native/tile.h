@@ -41,6 +41,15 @@ struct tile_t {
 // Atomic accumulation of a gradient element: fieldwise for structs (their cg_atomic_accum is
 // generated with each struct and found at instantiation), atomic_add_ptr otherwise.
 template <typename T> WP_FUNC void cg_atomic_accum(T* p, const T& v) { atomic_add_ptr(p, v); }
+// tile_atomic_add of one element: the old value. Types without an atomic add (structs) add
+// their differentiable fields atomically and give the value read before.
+template <typename T>
+WP_FUNC auto tile_atomic_add_elem(T* p, const T& v, int) -> decltype(atomic_add_ptr(p, v)) { return atomic_add_ptr(p, v); }
+template <typename T> WP_FUNC T tile_atomic_add_elem(T* p, const T& v, long) {
+  const T old = *p;
+  cg_atomic_accum(p, v);
+  return old;
+}
 
 // The one check of a tile op's array access: the element of `a` at at[0..ndim), or nullptr
 // when `a` has no data, another number of dimensions, or the element lies outside its shape.
@@ -95,7 +104,7 @@ WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_atomic_add_at(const array_t<T>& a, const i
     int64 at[4];
     tile_position<T, D0, D1, D2, D3>(k, off, at);
     T* p = tile_slot(a, WP_TILE::NDIM, at);
-    old.data[k] = p ? atomic_add_ptr(p, t.data[k]) : cg_zeros<T>();
+    old.data[k] = p ? tile_atomic_add_elem(p, t.data[k], 0) : cg_zeros<T>();
   }
   return old;
 }
@@ -1064,7 +1073,7 @@ WP_FUNC WP_TILE tile_atomic_add_indexed(const array_t<T>& a, const tile_t<int32,
     int64 at[4];
     tile_indexed_position<T, D0, D1, D2, D3>(k, idx, axis, off, at);
     T* p = tile_slot(a, WP_TILE::NDIM, at);
-    old.data[k] = p ? atomic_add_ptr(p, t.data[k]) : cg_zeros<T>();
+    old.data[k] = p ? tile_atomic_add_elem(p, t.data[k], 0) : cg_zeros<T>();
   }
   return old;
 }
