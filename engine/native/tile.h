@@ -234,6 +234,33 @@ WP_FUNC void adj_untile(const tile_t<T, R, C, 1, 0>&, tile_t<T, R, C, 1, 0>& adj
     for (int j = 0; j < C; ++j) cg_accum(adj_t.data[i * C + j], adj_ret.data[i][j]);
 }
 
+// tile_randi / tile_randf of one thread (Warp's lane 0): the state is rng advanced once, then
+// each element is the next draw, in row-major order. `rng` itself is not changed.
+template <typename R> WP_FUNC R tile_randi(uint32 rng) {
+  uint32 s = rand_pcg(rng);
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randi(s);
+  return r;
+}
+template <typename R> WP_FUNC R tile_randi(uint32 rng, int32 lo, int32 hi) {
+  uint32 s = rand_pcg(rng);
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randi(s, lo, hi);
+  return r;
+}
+template <typename R> WP_FUNC R tile_randf(uint32 rng) {
+  uint32 s = rand_pcg(rng);
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randf(s);
+  return r;
+}
+template <typename R> WP_FUNC R tile_randf(uint32 rng, float32 lo, float32 hi) {
+  uint32 s = rand_pcg(rng);
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randf(s, lo, hi);
+  return r;
+}
+
 // ---- element access -------------------------------------------------------------------------
 
 // Flat position of (i, j, k, l) in t, or -1 (and a launch error at the call's line) outside it.

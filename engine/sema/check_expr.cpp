@@ -60,7 +60,8 @@ bool IsSpecialBuiltin(const std::string& n) {
                                                "tile_map",     "tile_reduce",   "tile_empty",
                                                "tile_squeeze",  "tile_cholesky_inplace",
                                                "tile_cholesky_solve_inplace", "tile_lower_solve_inplace",
-                                               "tile_upper_solve_inplace", "tile_sort"};
+                                               "tile_upper_solve_inplace", "tile_sort", "tile_randi",
+                                               "tile_randf"};
   return kNames.count(n) != 0;
 }
 

@@ -25,7 +25,7 @@ bool IsTileCall(const std::string& n) {
                                  "tile_cholesky", "tile_cholesky_inplace", "tile_cholesky_solve",
                                  "tile_cholesky_solve_inplace", "tile_lower_solve_inplace", "tile_upper_solve_inplace",
                                  "tile_fft", "tile_ifft", "tile_load_indexed", "tile_store_indexed",
-                                 "tile_atomic_add_indexed", "tile_sort"};
+                                 "tile_atomic_add_indexed", "tile_sort", "tile_randi", "tile_randf"};
   for (const char* k : kNames)
     if (n == k) return true;
   return false;
@@ -157,6 +157,22 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
       v = EmitRaw(elem, CppType(elem) + "(1)", {});
     }
     return Value::OfVar(EmitRaw(tt, "wp::tile_full<" + CppType(tt) + ">($0)", {v}));
+  }
+  if (name == "tile_randi" || name == "tile_randf") {
+    const bool ints = name == "tile_randi";
+    WEFT_RETURN_IF_ERROR(bind({"shape", "rng", "min", "max", "storage"}, &p));
+    WEFT_ASSIGN_OR_RETURN(std::vector<int> shape, shape_of(p[0]));
+    if (p[1].kind != Value::Kind::kVar) return Error(loc, "wp." + name + "() needs rng (a wp.rand_init state)");
+    WEFT_ASSIGN_OR_RETURN(int rng, Coerce(p[1], Type::Scalar(ScalarKind::kUInt32), loc, "rng"));
+    const Type elem = ints ? Type::Int32() : Type::Float32();
+    const Type tt = Type::Tile(elem, shape);
+    const bool ranged = p[2].kind != Value::Kind::kNone || p[3].kind != Value::Kind::kNone;
+    if (!ranged) return Value::OfVar(EmitRaw(tt, "wp::" + name + "<" + CppType(tt) + ">($0)", {rng}));
+    if (p[2].kind != Value::Kind::kVar || p[3].kind != Value::Kind::kVar)
+      return Error(loc, "wp." + name + "() takes both min and max");
+    WEFT_ASSIGN_OR_RETURN(int lo, Coerce(p[2], elem, loc, "min"));
+    WEFT_ASSIGN_OR_RETURN(int hi, Coerce(p[3], elem, loc, "max"));
+    return Value::OfVar(EmitRaw(tt, "wp::" + name + "<" + CppType(tt) + ">($0, $1, $2)", {rng, lo, hi}));
   }
   if (name == "tile_arange") {
     // tile_arange(stop), (start, stop) or (start, stop, step): constants, as the shape depends
