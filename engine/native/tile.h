@@ -433,6 +433,12 @@ WP_FUNC R tile_astype(const R&, const WP_TILE& a) {
   for (int k = 0; k < R::SIZE; ++k) r.data[k] = typename R::value_type(a.data[k]);
   return r;
 }
+// The gradient converted back to a's element type (float elements only; integers carry none).
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_astype(const R&, const WP_TILE&, R&, WP_TILE& adj_a, const R& adj_ret) {
+  if constexpr (is_float_t<T>::value)
+    for (int k = 0; k < R::SIZE; ++k) cg_accum(adj_a.data[k], T(adj_ret.data[k]));
+}
 
 // ---- matrix products ------------------------------------------------------------------------
 

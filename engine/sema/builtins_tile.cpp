@@ -73,7 +73,8 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
             "Called as wp.tile_sum(a, axis=k): sums along a constant axis.");
       if (r == d) {
         row("tile_astype(like: " + like_other + ", a: " + t + ") -> " + like_other,
-            "Called as wp.tile_astype(a, dtype): each element converted.", kBuiltinNotDiff);
+            "Called as wp.tile_astype(a, dtype): each element converted; the gradient converts back (float "
+            "elements).");
       }
       row("tile_reshape(like: " + like + ", a: " + t + ") -> " + like,
           "Called as wp.tile_reshape(a, shape) or wp.tile_squeeze(a[, axis]): the elements in row-major order "

@@ -1206,14 +1206,15 @@ Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vec
       Value f;
       f.kind = Value::Kind::kBuiltin;
       f.name = name;
-      // vector or matrix elements of one type multiply and divide component-wise (Warp's tiles)
+      // Warp's rule for tile products and quotients: one side's element is a scalar
       auto elem_of = [&](const Value& v) {
         const Type t = v.kind == Value::Kind::kVar ? TypeOf(v.var) : Type::Void();
         return t.is_tile() ? t.elem() : t;
       };
-      if ((name == "mul" || name == "div") && args.size() == 2 && elem_of(args[0]) == elem_of(args[1]) &&
-          (elem_of(args[0]).is_vector() || elem_of(args[0]).is_matrix()))
-        f.name = name == "mul" ? "cw_mul" : "cw_div";
+      if ((name == "mul" || name == "div") && args.size() == 2 && !elem_of(args[0]).is_scalar() &&
+          !elem_of(args[1]).is_scalar())
+        return ErrorOf("type", loc, "tile " + name + ": one operand's element type must be scalar, got " +
+                                        TypeString(elem_of(args[0])) + " and " + TypeString(elem_of(args[1])));
       args.insert(args.begin(), f);
       return TileMap("tile_map", std::move(args), loc, nullptr);
     }
@@ -1413,8 +1414,12 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
   if (name == "len") {
     if (args.size() != 1 || args[0].kind != Value::Kind::kVar) return Error(loc, "len() takes one value");
     const Type& t = TypeOf(args[0].var);
-    if (t.is_fixed_array() || t.is_tile())
-      return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.fixed_shape[0]) + ")"));
+    if (t.is_fixed_array() || t.is_tile()) {   // a constant (wp.static(len(t)) reads it)
+      Value n = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.fixed_shape[0]) + ")"));
+      n.literal = true;
+      n.literal_text = std::to_string(t.fixed_shape[0]);
+      return n;
+    }
     if (t.is_indexed_array()) return Value::OfVar(EmitRaw(Type::Int32(), "wp::len($0)", {args[0].var}));
     if (t.is_array()) return Value::OfVar(EmitRaw(Type::Int32(), "wp::int32($0.shape[0])", {args[0].var}));
     if (t.is_vector() || t.kind == TypeKind::kQuat || t.kind == TypeKind::kTransform)
