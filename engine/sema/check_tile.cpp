@@ -25,7 +25,8 @@ bool IsTileCall(const std::string& n) {
                                  "tile_cholesky", "tile_cholesky_inplace", "tile_cholesky_solve",
                                  "tile_cholesky_solve_inplace", "tile_lower_solve_inplace", "tile_upper_solve_inplace",
                                  "tile_fft", "tile_ifft", "tile_load_indexed", "tile_store_indexed",
-                                 "tile_atomic_add_indexed", "tile_sort", "tile_randi", "tile_randf"};
+                                 "tile_atomic_add_indexed", "tile_sort", "tile_randi", "tile_randf",
+                                 "tile_from_thread"};
   for (const char* k : kNames)
     if (n == k) return true;
   return false;
@@ -156,6 +157,16 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     } else {
       v = EmitRaw(elem, CppType(elem) + "(1)", {});
     }
+    return Value::OfVar(EmitRaw(tt, "wp::tile_full<" + CppType(tt) + ">($0)", {v}));
+  }
+  if (name == "tile_from_thread") {
+    // One thread per block: the value of "thread thread_idx" is this thread's value.
+    WEFT_RETURN_IF_ERROR(bind({"shape", "value", "thread_idx", "storage"}, &p));
+    WEFT_ASSIGN_OR_RETURN(std::vector<int> shape, shape_of(p[0]));
+    WEFT_ASSIGN_OR_RETURN(int v, value_of(p[1], "value"));
+    const Type tt = Type::Tile(TypeOf(v), shape);
+    if (!TypeOf(v).is_scalar() && !TypeOf(v).is_composite() && !TypeOf(v).is_struct())
+      return Error(loc, "wp.tile_from_thread(): value must be a scalar, vector, matrix, quaternion, transform or struct");
     return Value::OfVar(EmitRaw(tt, "wp::tile_full<" + CppType(tt) + ">($0)", {v}));
   }
   if (name == "tile_randi" || name == "tile_randf") {
