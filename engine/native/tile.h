@@ -1185,6 +1185,40 @@ WP_FUNC void adj_tile_diag_add(const tile_t<T, N, M, 0, 0>&, const tile_t<T, (N 
   for (int i = 0; i < (N < M ? N : M); ++i) cg_accum(adj_d.data[i], adj_ret.data[i * M + i]);
 }
 
+// ---- tile stacks (wp.tile_stack) -------------------------------------------------------------
+// A stack of at most C values; with one thread per block a push or pop is the thread's own.
+template <typename T, int C> struct tile_stack_t {
+  T data[C];
+  int32 count;
+};
+// The slot a push writes (-1: full, or nothing to push), and the stack after it.
+template <typename T, int C> WP_FUNC int32 tile_stack_push_slot(const tile_stack_t<T, C>& s, const T&, bool has_value) {
+  return has_value && s.count < C ? s.count : -1;
+}
+template <typename T, int C>
+WP_FUNC tile_stack_t<T, C> tile_stack_pushed(const tile_stack_t<T, C>& s, const T& v, bool has_value) {
+  tile_stack_t<T, C> r = s;
+  if (has_value && r.count >= 0 && r.count < C) r.data[r.count++] = v;
+  return r;
+}
+// The top value and its slot (zero and -1 when empty), and the stack after the pop.
+template <typename T, int C> WP_FUNC void tile_stack_top(const tile_stack_t<T, C>& s, T& value, int32& slot) {
+  const bool any = s.count > 0 && s.count <= C;
+  value = any ? s.data[s.count - 1] : cg_zeros<T>();
+  slot = any ? s.count - 1 : -1;
+}
+template <typename T, int C> WP_FUNC tile_stack_t<T, C> tile_stack_popped(const tile_stack_t<T, C>& s) {
+  tile_stack_t<T, C> r = s;
+  if (r.count > 0) --r.count;
+  return r;
+}
+template <typename T, int C> WP_FUNC tile_stack_t<T, C> tile_stack_cleared(const tile_stack_t<T, C>& s) {
+  tile_stack_t<T, C> r = s;
+  r.count = 0;
+  return r;
+}
+template <typename T, int C> WP_FUNC int32 tile_stack_count(const tile_stack_t<T, C>& s) { return s.count; }
+
 #undef WP_TILE
 #undef WP_TILE_TEMPLATE
 

@@ -112,6 +112,8 @@ bool Match(std::string_view pattern, const Type& arg, Bindings* b) {
     return arg.kind == TypeKind::kTransform && MatchScalarPattern(args[0], arg.scalar, b);
   if (head == "array" && args.size() == 2)
     return arg.is_array() && MatchDim(args[1], arg.ndim, b) && Match(args[0], arg.elem(), b);
+  if (head == "tile_stack" && args.size() == 2)
+    return arg.is_tile_stack() && MatchDim(args[1], arg.rows, b) && Match(args[0], arg.elem(), b);
   if (head == "tile" && args.size() >= 2) {
     if (!arg.is_tile() || arg.fixed_shape.size() + 1 != args.size()) return false;
     for (size_t d = 0; d + 1 < args.size(); ++d)
@@ -180,6 +182,11 @@ Expected<Type> Substitute(std::string_view pattern, const Bindings& b) {
     WEFT_ASSIGN_OR_RETURN(Type e, Substitute(args[0], b));
     WEFT_ASSIGN_OR_RETURN(int d, dim_of(args[1]));
     return Type::Array(std::move(e), d);
+  }
+  if (head == "tile_stack" && args.size() == 2) {
+    WEFT_ASSIGN_OR_RETURN(Type e, Substitute(args[0], b));
+    WEFT_ASSIGN_OR_RETURN(int n, dim_of(args[1]));
+    return Type::TileStack(std::move(e), n);
   }
   if (head == "tile" && args.size() >= 2) {
     WEFT_ASSIGN_OR_RETURN(Type e, Substitute(args[0], b));

@@ -102,6 +102,18 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
   row("untile(a: tile(Scalar,N,1)) -> vec(N,Scalar)", "The vector a tile of shape (n, 1) holds (wp.tile(v) reversed).");
   row("untile(a: tile(Scalar,N,M,1)) -> mat(N,M,Scalar)", "The matrix a tile of shape (rows, cols, 1) holds.");
   row("tile_transpose(a: tile(X,M,N)) -> tile(X,N,M)", "The transpose of a 2-D tile.");
+  row("tile_stack_push_slot(s: tile_stack(X,N), value: X, has_value: bool) -> int32",
+      "Called as wp.tile_stack_push(s, value, has_value): the slot the value goes to (-1 when the stack is full or "
+      "has_value is False); the pushed stack is assigned to s.", kBuiltinNotDiff);
+  row("tile_stack_pushed(s: tile_stack(X,N), value: X, has_value: bool) -> tile_stack(X,N)",
+      "The stack after wp.tile_stack_push.", kBuiltinNotDiff);
+  row("tile_stack_top(s: tile_stack(X,N)) -> tuple(X,int32)",
+      "Called as value, slot = wp.tile_stack_pop(s): the top value and its slot (zero and -1 when empty); the "
+      "popped stack is assigned to s.", kBuiltinNotDiff);
+  row("tile_stack_popped(s: tile_stack(X,N)) -> tile_stack(X,N)", "The stack after wp.tile_stack_pop.", kBuiltinNotDiff);
+  row("tile_stack_cleared(s: tile_stack(X,N)) -> tile_stack(X,N)",
+      "Called as wp.tile_stack_clear(s): the empty stack, assigned to s.", kBuiltinNotDiff);
+  row("tile_stack_count(s: tile_stack(X,N)) -> int32", "The number of values on the stack.", kBuiltinNotDiff);
   row("tile_diag_add(a: tile(X,N,N), d: tile(X,N)) -> tile(X,N,N)", "a with d added to its diagonal.");
   row("tile_sort_keys(keys: tile(Scalar,N), values: tile(X,N)) -> tile(Scalar,N)",
       "Called as wp.tile_sort(keys, values): the keys sorted ascending (stable), assigned to keys.", kBuiltinNotDiff);

@@ -1170,7 +1170,9 @@ void CountNamesWrittenByCall(const ast::Expr* e, std::map<std::string, int>* out
       {"tile_assign", {{0, "dst"}}},           {"tile_cholesky_inplace", {{0, "A"}}},
       {"tile_cholesky_solve_inplace", {{1, "y"}}}, {"tile_lower_solve_inplace", {{1, "y"}}},
       {"tile_upper_solve_inplace", {{1, "z"}}}, {"tile_fft", {{0, "inout"}}},
-      {"tile_ifft", {{0, "inout"}}},            {"tile_sort", {{0, "keys"}, {1, "values"}}}};
+      {"tile_ifft", {{0, "inout"}}},            {"tile_sort", {{0, "keys"}, {1, "values"}}},
+      {"tile_stack_push", {{0, "s"}}},          {"tile_stack_pop", {{0, "s"}}},
+      {"tile_stack_clear", {{0, "s"}}}};
   if (auto it = kTileOut.find(name); it != kTileOut.end()) {
     for (const auto& [position, param] : it->second) {
       const ast::Expr* target = call->args.size() > position ? call->args[position].get() : nullptr;

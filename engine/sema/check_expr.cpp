@@ -61,7 +61,8 @@ bool IsSpecialBuiltin(const std::string& n) {
                                                "tile_squeeze",  "tile_cholesky_inplace",
                                                "tile_cholesky_solve_inplace", "tile_lower_solve_inplace",
                                                "tile_upper_solve_inplace", "tile_sort", "tile_randi",
-                                               "tile_randf",    "tile_from_thread"};
+                                               "tile_randf",    "tile_from_thread", "tile_stack",
+                                               "tile_stack_push", "tile_stack_pop", "tile_stack_clear"};
   return kNames.count(n) != 0;
 }
 

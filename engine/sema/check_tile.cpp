@@ -26,7 +26,8 @@ bool IsTileCall(const std::string& n) {
                                  "tile_cholesky_solve_inplace", "tile_lower_solve_inplace", "tile_upper_solve_inplace",
                                  "tile_fft", "tile_ifft", "tile_load_indexed", "tile_store_indexed",
                                  "tile_atomic_add_indexed", "tile_sort", "tile_randi", "tile_randf",
-                                 "tile_from_thread"};
+                                 "tile_from_thread", "tile_stack", "tile_stack_push", "tile_stack_pop",
+                                 "tile_stack_clear"};
   for (const char* k : kNames)
     if (n == k) return true;
   return false;
@@ -126,6 +127,17 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
   auto like = [&](const Type& t) { return Value::OfVar(NewVar(t, "tile shape")); };
   auto flag_true = [&](const Value& v) { return v.kind == Value::Kind::kNone || v.literal_text != "False"; };
 
+  // The forms that update a tile argument assign their result to it (a name, field or element).
+  auto assign_to_arg = [&](size_t position, const char* param, const Value& r) -> Expected<Value> {
+    const ast::Expr* target = nullptr;
+    if (call && call->args.size() > position) target = call->args[position].get();
+    if (call)
+      for (const auto& kw : call->keywords)
+        if (kw.name == param) target = kw.value.get();
+    if (!target) return Error(loc, "wp." + name + "(): " + param + " must name a tile");
+    WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, r));
+    return Value();
+  };
   std::vector<Value> p;
   if (name == "tile_zeros" || name == "tile_empty" || name == "tile_ones" || name == "tile_full") {
     const bool full = name == "tile_full";
@@ -158,6 +170,53 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
       v = EmitRaw(elem, CppType(elem) + "(1)", {});
     }
     return Value::OfVar(EmitRaw(tt, "wp::tile_full<" + CppType(tt) + ">($0)", {v}));
+  }
+  if (name == "tile_stack") {   // an empty stack
+    WEFT_RETURN_IF_ERROR(bind({"capacity", "dtype"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int64_t cap, const_int(p[0], "capacity"));
+    if (cap < 1 || cap > kMaxTileElements)
+      return ErrorOf("value", loc, "wp.tile_stack(): capacity must be 1 to " + std::to_string(kMaxTileElements) + ", got " +
+                                      std::to_string(cap));
+    WEFT_ASSIGN_OR_RETURN(Type elem, dtype_of(p[1], Type::Float32()));
+    Stmt st;
+    st.op.kind = OpKind::kConstruct;
+    st.op.mode = ConstructMode::kZero;
+    const int d = NewVar(Type::TileStack(elem, static_cast<int>(cap)));
+    st.op.dst.push_back(d);
+    Push(std::move(st));
+    return Value::OfVar(d);
+  }
+  if (name == "tile_stack_push" || name == "tile_stack_pop" || name == "tile_stack_clear") {
+    if (name == "tile_stack_push") {
+      WEFT_RETURN_IF_ERROR(bind({"s", "value", "has_value"}, &p));
+    } else {
+      WEFT_RETURN_IF_ERROR(bind({"s"}, &p));
+    }
+    WEFT_ASSIGN_OR_RETURN(int sv, value_of(p[0], "s"));
+    const Type stt = TypeOf(sv);
+    if (!stt.is_tile_stack()) return Error(loc, "wp." + name + "(): s must be a wp.tile_stack, got " + TypeString(stt));
+    if (name == "tile_stack_clear") {
+      WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_stack_cleared", {p[0]}, loc));
+      return assign_to_arg(0, "s", r);
+    }
+    if (name == "tile_stack_pop") {
+      WEFT_ASSIGN_OR_RETURN(Value top, ResolveAndEmitBuiltin("tile_stack_top", {p[0]}, loc));
+      WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_stack_popped", {p[0]}, loc));
+      WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, "s", r));
+      (void)unused;
+      return top;
+    }
+    if (p[1].kind != Value::Kind::kVar) return Error(loc, "wp.tile_stack_push() needs a value");
+    WEFT_ASSIGN_OR_RETURN(int v, Coerce(p[1], stt.elem(), loc, "value"));
+    Value has = p[2].kind == Value::Kind::kNone ? Value::OfVar(EmitConst(Type::Bool(), "true")) : p[2];
+    if (has.kind != Value::Kind::kVar) return Error(loc, "wp.tile_stack_push(): has_value must be a bool");
+    WEFT_ASSIGN_OR_RETURN(int hv, Coerce(has, Type::Bool(), loc, "has_value"));
+    std::vector<Value> a{p[0], Value::OfVar(v), Value::OfVar(hv)};
+    WEFT_ASSIGN_OR_RETURN(Value slot, ResolveAndEmitBuiltin("tile_stack_push_slot", a, loc));
+    WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_stack_pushed", a, loc));
+    WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, "s", r));
+    (void)unused;
+    return slot;
   }
   if (name == "tile_from_thread") {
     // One thread per block: the value of "thread thread_idx" is this thread's value.
@@ -401,17 +460,6 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, r));
     return Value();
   }
-  // The forms that update a tile argument assign their result to it (a name, field or element).
-  auto assign_to_arg = [&](size_t position, const char* param, const Value& r) -> Expected<Value> {
-    const ast::Expr* target = nullptr;
-    if (call && call->args.size() > position) target = call->args[position].get();
-    if (call)
-      for (const auto& kw : call->keywords)
-        if (kw.name == param) target = kw.value.get();
-    if (!target) return Error(loc, "wp." + name + "(): " + param + " must name a tile");
-    WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, r));
-    return Value();
-  };
   if (name == "tile_axpy") {
     WEFT_RETURN_IF_ERROR(bind({"alpha", "src", "dest"}, &p));
     WEFT_ASSIGN_OR_RETURN(int src, tile_arg(p[1], "src"));

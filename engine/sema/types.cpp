@@ -187,6 +187,16 @@ class TypeReader {
       if (!elem.is_scalar() && !elem.is_composite() && !elem.is_struct()) return Error("bad tile element type");
       return Type::Tile(std::move(elem), std::move(shape));
     }
+    if (id == "tile_stack") {
+      if (!Eat('(')) return Error("expected '('");
+      WEFT_ASSIGN_OR_RETURN(Type elem, Read());
+      if (!Eat(',')) return Error("expected ','");
+      WEFT_ASSIGN_OR_RETURN(int n, Int());
+      if (!Eat(')')) return Error("expected ')'");
+      if (n < 1 || n > kMaxTileElements) return Error("tile stack capacity out of range");
+      if (!elem.is_scalar() && !elem.is_composite() && !elem.is_struct()) return Error("bad tile stack element type");
+      return Type::TileStack(std::move(elem), n);
+    }
     if (id == "struct") {
       if (!Eat('(')) return Error("expected '('");
       std::string name = Ident();
@@ -294,6 +304,7 @@ bool Type::operator==(const Type& o) const {
     case TypeKind::kStruct: return struct_name == o.struct_name;
     case TypeKind::kTuple: return sub == o.sub;
     case TypeKind::kTile: return fixed_shape == o.fixed_shape && sub == o.sub;
+    case TypeKind::kTileStack: return rows == o.rows && sub == o.sub;
   }
   return false;
 }
@@ -475,6 +486,7 @@ std::string TypeString(const Type& t) {
       for (int n : t.fixed_shape) r += "," + std::to_string(n);
       return r + ")";
     }
+    case TypeKind::kTileStack: return "tile_stack(" + TypeString(t.elem()) + "," + std::to_string(t.rows) + ")";
     case TypeKind::kTuple: {
       std::string s = "tuple(";
       for (size_t i = 0; i < t.sub.size(); ++i) s += (i ? "," : "") + TypeString(t.sub[i]);
@@ -529,6 +541,7 @@ std::string CppType(const Type& t) {
       for (int d = 0; d < 4; ++d) r += "," + std::to_string(d < static_cast<int>(t.fixed_shape.size()) ? t.fixed_shape[d] : 0);
       return r + ">";
     }
+    case TypeKind::kTileStack: return "wp::tile_stack_t<" + CppType(t.elem()) + "," + std::to_string(t.rows) + ">";
     case TypeKind::kTuple: return "/*tuple*/void";
   }
   return "void";

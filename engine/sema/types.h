@@ -46,6 +46,7 @@ enum class TypeKind : uint8_t {
   kString,     // a string literal (printf format); not a storable value
   kTile,       // a tile (Warp's tile programming): sub[0] = element type, fixed_shape = extents
                // (1 to 4, known while compiling); a kernel-local value, never an argument
+  kTileStack,  // a tile stack (wp.tile_stack): sub[0] = element type, rows = capacity; a kernel-local value
   kFunction,   // a wp.Function parameter: struct_name = its target ("func:<name>" / "builtin:<name>"),
                // empty in a declaration (any function); a compile-time value, never stored
 };
@@ -115,6 +116,13 @@ struct Type {
     t.fixed_shape = std::move(shape);
     return t;
   }
+  static Type TileStack(Type elem, int capacity) {
+    Type t;
+    t.kind = TypeKind::kTileStack;
+    t.rows = capacity;
+    t.sub.push_back(std::move(elem));
+    return t;
+  }
   static Type Struct(std::string name) { Type t; t.kind = TypeKind::kStruct; t.struct_name = std::move(name); return t; }
   static Type Function(std::string target = "") {
     Type t;
@@ -136,6 +144,7 @@ struct Type {
   bool is_any() const { return kind == TypeKind::kAny; }
   bool is_function() const { return kind == TypeKind::kFunction; }
   bool is_tile() const { return kind == TypeKind::kTile; }
+  bool is_tile_stack() const { return kind == TypeKind::kTileStack; }
   // vec, mat, quat, transform: fixed-size aggregates of one scalar type
   bool is_composite() const {
     return kind == TypeKind::kVector || kind == TypeKind::kMatrix || kind == TypeKind::kQuat ||

@@ -14,7 +14,7 @@ from .fixedarray import fixedarray  # noqa: F401
 from .indexedarray import (indexedarray, indexedarray1d, indexedarray2d,  # noqa: F401
                            indexedarray3d, indexedarray4d)
 from .fabricarray import fabricarray, indexedfabricarray  # noqa: F401
-from .tile import tile  # noqa: F401
+from .tile import tile, tile_stack  # noqa: F401
 from .device import (Device, ScopedDevice, get_cuda_device, get_cuda_device_count,  # noqa: F401
                      get_cuda_devices, get_cuda_driver_version, get_cuda_toolkit_version,
                      get_device, get_devices, get_preferred_device, init, is_cpu_available,

@@ -46,3 +46,24 @@ class tile:
 def is_tile(t) -> bool:
     """True for a tile annotation."""
     return isinstance(t, tile)
+
+
+class tile_stack:
+    """wp.tile_stack(capacity=..., dtype=...) as an annotation: a @wp.func parameter taking a tile
+    stack of that element type and capacity (daemon type "tile_stack(dtype,capacity)"). In a
+    kernel the same call makes an empty stack (docs/tiles.md)."""
+
+    __slots__ = ("capacity", "dtype")
+
+    def __init__(self, capacity: int, dtype=float):
+        self.capacity = _annotations.positive_extent(capacity, "a wp.tile_stack capacity")
+        self.dtype = _annotations._canonical_dtype(dtype)
+
+    def __eq__(self, other):
+        return isinstance(other, tile_stack) and (self.capacity, self.dtype) == (other.capacity, other.dtype)
+
+    def __hash__(self):
+        return hash((self.capacity, self.dtype))
+
+    def __repr__(self):
+        return f"wp.tile_stack(capacity={self.capacity}, dtype={getattr(self.dtype, '__name__', self.dtype)})"

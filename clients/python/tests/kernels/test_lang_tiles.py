@@ -413,3 +413,28 @@ def test_tile_random_tiles_follow_warps_draw_order(device):
 def tile_random_warp_check(x: wp.array2d[int]):
     rng = wp.rand_init(42, 0)
     wp.tile_store(x, wp.tile_reshape(wp.tile_randi(shape=(2, 2), rng=rng), shape=(1, 4)))
+
+
+@wp.kernel
+def tile_stack_ops(out: wp.array[int], vals: wp.array[float]):
+    s = wp.tile_stack(capacity=4, dtype=float)
+    for q in range(6):
+        out[q] = wp.tile_stack_push(s, float(q) * 1.5, q != 2)
+    out[6] = wp.tile_stack_count(s)
+    v, slot = wp.tile_stack_pop(s)
+    vals[0] = v
+    out[7] = slot
+    wp.tile_stack_clear(s)
+    out[8] = wp.tile_stack_count(s)
+    e, none = wp.tile_stack_pop(s)
+    vals[1] = e
+    out[9] = none
+
+
+def test_tile_stacks_push_pop_clear_within_capacity(device):
+    out = wp.full(10, -7, dtype=int)
+    vals = wp.full(2, -7.0, dtype=float)
+    wp.launch_tiled(tile_stack_ops, dim=1, inputs=[out, vals])
+    # pushes of 0, 1, 3, 4 fill the 4 slots (2: has_value False), 5 finds the stack full
+    np.testing.assert_array_equal(out.numpy(), [0, 1, -1, 2, 3, -1, 4, 3, 0, -1])
+    np.testing.assert_array_equal(vals.numpy(), [6.0, 0.0])

@@ -9,7 +9,7 @@ import re
 import textwrap
 import typing
 
-from ..tile import is_tile
+from ..tile import is_tile, tile_stack
 from . import typestr
 from .errors import WeftCompileError
 from .structs import StructInstance, canonical_name
@@ -55,6 +55,14 @@ class FunctionDefinition:
                     f"'{self.name}' needs a type annotation")
             ann = hints[name]
             self.annotations[name] = ann
+            if isinstance(ann, tile_stack):
+                try:
+                    self.param_types.append(f"tile_stack({typestr.type_string(ann.dtype)},{int(ann.capacity)})")
+                except TypeError as err:
+                    raise WeftCompileError(
+                        f"{self.file}:{self.first_line}: error: parameter '{name}' of "
+                        f"'{self.name}': {err}") from err
+                continue
             if is_tile(ann):
                 # wp.tile[dtype, M, N]: "tile(dtype,M,N)"; a tile of any shape is generic ("any").
                 try:
