@@ -55,15 +55,8 @@ bool IsSpecialBuiltin(const std::string& n) {
                                                "matrix",       "identity",      "quat_identity",
                                                "transform_identity", "quaternion", "transformation",
                                                "zeros",        "cast",          "static",
-                                               "adjoint",      "tile_zeros",    "tile_ones",
-                                               "tile_full",    "tile_arange",   "tile_view",
-                                               "tile_map",     "tile_reduce",   "tile_empty",
-                                               "tile_squeeze",  "tile_cholesky_inplace",
-                                               "tile_cholesky_solve_inplace", "tile_lower_solve_inplace",
-                                               "tile_upper_solve_inplace", "tile_sort", "tile_randi",
-                                               "tile_randf",    "tile_from_thread", "tile_stack",
-                                               "tile_stack_push", "tile_stack_pop", "tile_stack_clear"};
-  return kNames.count(n) != 0;
+                                               "adjoint"};
+  return kNames.count(n) != 0 || IsTileCall(n);
 }
 
 }  // namespace
@@ -1415,7 +1408,9 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
   if (name == "len") {
     if (args.size() != 1 || args[0].kind != Value::Kind::kVar) return Error(loc, "len() takes one value");
     const Type& t = TypeOf(args[0].var);
-    if (t.is_fixed_array() || t.is_tile()) {   // a constant (wp.static(len(t)) reads it)
+    if (t.is_fixed_array())
+      return Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.fixed_shape[0]) + ")"));
+    if (t.is_tile()) {   // a constant (wp.static(len(t)) reads it)
       Value n = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(t.fixed_shape[0]) + ")"));
       n.literal = true;
       n.literal_text = std::to_string(t.fixed_shape[0]);

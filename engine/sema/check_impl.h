@@ -208,6 +208,8 @@ class Checker {
   bool slot_store_emitted_ = false;   // a slot store was emitted (since the flag was last cleared)
 };
 
+// The tile builtins whose calls sema/check_tile.cpp checks (some have no registry row).
+bool IsTileCall(const std::string& name);
 // A wp.ref[T] parameter's type string "ref(T)": true, with *inner set to "T".
 bool RefTypeInner(const std::string& type_string, std::string* inner);
 // C++ text of a Python literal in type t ("1.5" as float32 -> "wp::float32(1.5)").

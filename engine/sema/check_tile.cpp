@@ -14,7 +14,6 @@
 #include "engine/sema/check_impl.h"
 
 namespace weft::sema {
-namespace {
 
 bool IsTileCall(const std::string& n) {
   static const char* kNames[] = {"tile_zeros", "tile_ones", "tile_full", "tile_arange", "tile_load", "tile_store",
@@ -32,6 +31,8 @@ bool IsTileCall(const std::string& n) {
     if (n == k) return true;
   return false;
 }
+
+namespace {
 
 std::string ShapeText(const std::vector<int>& s) {
   std::string r = "(";
