@@ -65,9 +65,10 @@ WP_FUNC T* tile_slot(const array_t<T>& a, int ndim, const int64 (&at)[4]) {
 }
 
 // The array position of tile element k placed at `off`.
+// (Sums wrap in uint64: an offset near the int64 limit lands outside the array, never UB.)
 WP_TILE_TEMPLATE WP_FUNC void tile_position(int k, const int64 (&off)[4], int64 (&at)[4]) {
   WP_TILE::coord(k, at);
-  for (int d = 0; d < 4; ++d) at[d] += off[d];
+  for (int d = 0; d < 4; ++d) at[d] = (int64)((uint64)at[d] + (uint64)off[d]);
 }
 
 // ---- loads, stores and atomic adds: forms for 1 to 4 offsets -------------------------------
@@ -1058,7 +1059,7 @@ WP_FUNC void tile_indexed_position(int k, const tile_t<int32, NI, 0, 0, 0>& idx,
                                    int64 (&at)[4]) {
   WP_TILE::coord(k, at);
   if (axis >= 0 && axis < 4 && at[axis] < NI) at[axis] = idx.data[at[axis]];
-  for (int d = 0; d < 4; ++d) at[d] += off[d];
+  for (int d = 0; d < 4; ++d) at[d] = (int64)((uint64)at[d] + (uint64)off[d]);
 }
 #define WP_TILE_OFF int64 o0, int64 o1, int64 o2, int64 o3
 #define WP_TILE_ADJ_OFF int64&, int64&, int64&, int64&

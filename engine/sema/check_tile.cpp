@@ -34,6 +34,10 @@ bool IsTileCall(const std::string& n) {
 
 namespace {
 
+// Work bounds of the tile ops whose cost grows with the square of a length.
+constexpr int kMaxDirectDftLength = 4096;
+constexpr int kMaxTileSortLength = 4096;
+
 std::string ShapeText(const std::vector<int>& s) {
   std::string r = "(";
   for (size_t i = 0; i < s.size(); ++i) r += (i ? ", " : "") + std::to_string(s[i]);
@@ -652,6 +656,10 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
   }
   if (name == "tile_sort") {
     WEFT_RETURN_IF_ERROR(bind({"keys", "values"}, &p));
+    WEFT_ASSIGN_OR_RETURN(int kt, tile_arg(p[0], "keys"));
+    if (TypeOf(kt).ndim == 1 && TypeOf(kt).fixed_shape[0] > kMaxTileSortLength)   // an insertion sort: n^2 work
+      return ErrorOf("value", loc, "wp.tile_sort() sorts at most " + std::to_string(kMaxTileSortLength) + " elements, got " +
+                                       std::to_string(TypeOf(kt).fixed_shape[0]));
     WEFT_ASSIGN_OR_RETURN(Value k, ResolveAndEmitBuiltin("tile_sort_keys", {p[0], p[1]}, loc));
     WEFT_ASSIGN_OR_RETURN(Value v, ResolveAndEmitBuiltin("tile_sort_values", {p[0], p[1]}, loc));
     WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, "keys", k));
@@ -664,6 +672,11 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     const Type tt = TypeOf(t);
     if (!tt.elem().is_vector() || tt.elem().rows != 2 || !IsFloat(tt.elem().scalar))
       return ErrorOf("type", loc, "wp." + name + "() transforms tiles of complex values (vec2 of floats), got " + TypeString(tt));
+    // Lengths that are not powers of two take the direct sum (n^2 work per row): bounded.
+    const int n = tt.fixed_shape.back();
+    if ((n & (n - 1)) != 0 && n > kMaxDirectDftLength)
+      return ErrorOf("value", loc, "wp." + name + "(): a transform length that is not a power of two may be at most " +
+                                       std::to_string(kMaxDirectDftLength) + ", got " + std::to_string(n));
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(name, {p[0]}, loc));
     return assign_to_arg(0, "inout", r);
   }

@@ -219,6 +219,12 @@ def test_tile_indices_outside_the_tile_are_launch_errors(device, rng):
     ("wp.tile_store(a, wp.tile_zeros(shape=4, dtype=int))", r"the tile holds int32, the array float32"),
     ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = t[0:2, 1]\nt[0:2] = u", r"requires a tile of matching shape"),
     ("t = wp.tile_load(a, shape=4, offset=1.5)", r"offsets must be integers"),
+    # work bounds: the ops whose cost grows with the square of a length
+    ("t = wp.tile_zeros(shape=5000, dtype=wp.vec2)\nwp.tile_fft(t)", r"not a power of two may be at most 4096"),
+    ("k = wp.tile_zeros(shape=8192, dtype=float)\nv = wp.tile_zeros(shape=8192, dtype=int)\nwp.tile_sort(k, v)",
+     r"sorts at most 4096 elements"),
+    # thread memory: tiles and their adjoints over 2 MiB
+    ("t = wp.tile_zeros(shape=(256, 256), dtype=wp.float64)\nu = t * 2.0 + t", r"take \d+ bytes of the thread's memory"),
 ])
 def test_tile_misuse_is_a_compile_error(kernel_module, device, body, message):
     lines = "".join("    " + line.strip() + "\n" for line in body.split("\n"))
