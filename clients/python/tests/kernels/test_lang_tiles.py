@@ -448,3 +448,28 @@ def test_tile_stacks_push_pop_clear_within_capacity(device):
     # pushes of 0, 1, 3, 4 fill the 4 slots (2: has_value False), 5 finds the stack full
     np.testing.assert_array_equal(out.numpy(), [0, 1, -1, 2, 3, -1, 4, 3, 0, -1])
     np.testing.assert_array_equal(vals.numpy(), [6.0, 0.0])
+
+
+@wp.kernel
+def tile_big_local(a: wp.array2d[float], out: wp.array2d[float]):
+    t = wp.tile_load(a, shape=(256, 256))
+    wp.tile_store(out, t * 2.0 - t)
+
+
+def test_a_tile_kernel_with_large_thread_memory_runs_or_fails_cleanly(device, rng):
+    """768 KiB of tiles per thread (within weft's 2 MiB bound): the CPU runs it; on a GPU,
+    whose threads hold at most 512 KiB of local memory, the launch is refused with a clear error
+    and the session goes on."""
+    x = rng.standard_normal((256, 256)).astype(np.float32)
+    a = wp.array(x)
+    out = wp.zeros((256, 256), dtype=float)
+    try:
+        wp.launch_tiled(tile_big_local, dim=1, inputs=[a, out])
+        wp.synchronize()
+        np.testing.assert_array_equal(out.numpy(), x)
+    except wp.WeftError as err:
+        assert device.startswith("cuda"), err
+        print("GPU refused:", err)
+    small = wp.zeros(4, dtype=float)
+    wp.launch_tiled(tile_edges, dim=1, inputs=[wp.array(np.ones(4, dtype=np.float32)), small, 0])
+    np.testing.assert_array_equal(small.numpy(), np.full(4, 2.0, dtype=np.float32))
