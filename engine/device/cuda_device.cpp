@@ -1121,7 +1121,19 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   void* params_adj[] = {&ctx, args, adj};
   const jit::CuResult launched =
       driver_->LaunchKernel(fn, grid, 1, 1, block, 1, 1, 0, st->stream, adjoint ? params_adj : params_fwd, nullptr);
-  if (launched != 0) return driver_->Check(launched, ("cuLaunchKernel " + symbol).c_str());
+  if (launched != 0) {
+    // A kernel whose threads need more local memory than the GPU gives one (large tiles or
+    // fixed-size arrays) is refused at launch: say so rather than pass on the driver's code.
+    constexpr int kLocalSizeBytes = 3;   // CU_FUNC_ATTRIBUTE_LOCAL_SIZE_BYTES
+    constexpr int kMaxLocalBytes = 512 * 1024;
+    int local = 0;
+    if (driver_->FuncGetAttribute && driver_->FuncGetAttribute(&local, kLocalSizeBytes, fn) == 0 && local > kMaxLocalBytes)
+      return ResourceExhausted("kernel '" + l.kernel->layout.name + "' needs " + std::to_string(local) +
+                               " bytes of local memory per GPU thread, more than a GPU thread holds (" +
+                               std::to_string(kMaxLocalBytes) + "): its tiles or fixed-size arrays are too large "
+                               "for the GPU (use smaller tiles)");
+    return driver_->Check(launched, ("cuLaunchKernel " + symbol).c_str());
+  }
   (st->capture ? st->capture->launches : st->pending).push_back(Pending{l.module, l.kernel, adjoint, l.origin});
   return Status::Ok();
 }
