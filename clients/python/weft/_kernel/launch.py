@@ -808,7 +808,6 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     return None
 
 
-
 def launch_tiled(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), device=None,
                  stream=None, adjoint=False, record_tape=True, record_cmd=False, max_blocks=0,
                  block_dim=256):
@@ -821,6 +820,7 @@ def launch_tiled(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=
     return launch(kernel, dim, inputs, outputs, adj_inputs, adj_outputs, device=device, stream=stream,
                   adjoint=adjoint, record_tape=record_tape, record_cmd=record_cmd,
                   max_blocks=max_blocks, block_dim=block_dim)
+
 
 def _order_framework_gpu(rt, values):
     """Makes a launch in the daemon see this process's GPU work (Torch, CuPy, ... streams) on
