@@ -43,7 +43,8 @@ std::string BuildModuleSource(const std::string& fl, ModuleSource* m, int* count
     // parameters; test_geometry_objects.py and test_lang_tiles.py run those rows, the latter
     // on the CPU and through NVRTC)
     for (const auto& p : row.param_patterns)
-      skip |= p == "str" || p.rfind("struct(", 0) == 0 || p.find("tile(") != std::string::npos;
+      skip |= p == "str" || p.rfind("struct(", 0) == 0 || p.find("tile(") != std::string::npos ||
+              p.find("tile_stack(") != std::string::npos;
     if (skip) continue;
     bool int_only = kIntOnly.count(row.name) != 0;
     if (int_only && fl == "float64") continue;
