@@ -254,6 +254,7 @@ class FnEmitter {
           case TypeKind::kMatrix:
           case TypeKind::kQuat:
           case TypeKind::kTransform: init = "{wp::cg_uninit}"; break;
+          case TypeKind::kTile: init = ""; break;   // written before any read (a `like` tile is never read)
           default: break;
         }
       }

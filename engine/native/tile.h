@@ -237,28 +237,17 @@ WP_FUNC void adj_untile(const tile_t<T, R, C, 1, 0>&, tile_t<T, R, C, 1, 0>& adj
 
 // tile_randi / tile_randf of one thread (Warp's lane 0): the state is rng advanced once, then
 // each element is the next draw, in row-major order. `rng` itself is not changed.
-template <typename R> WP_FUNC R tile_randi(uint32 rng) {
+// `bounds`: none, or (min, max) as randi / randf take them.
+template <typename R, typename... B> WP_FUNC R tile_randi(uint32 rng, B... bounds) {
   uint32 s = rand_pcg(rng);
   R r;
-  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randi(s);
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randi(s, bounds...);
   return r;
 }
-template <typename R> WP_FUNC R tile_randi(uint32 rng, int32 lo, int32 hi) {
+template <typename R, typename... B> WP_FUNC R tile_randf(uint32 rng, B... bounds) {
   uint32 s = rand_pcg(rng);
   R r;
-  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randi(s, lo, hi);
-  return r;
-}
-template <typename R> WP_FUNC R tile_randf(uint32 rng) {
-  uint32 s = rand_pcg(rng);
-  R r;
-  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randf(s);
-  return r;
-}
-template <typename R> WP_FUNC R tile_randf(uint32 rng, float32 lo, float32 hi) {
-  uint32 s = rand_pcg(rng);
-  R r;
-  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randf(s, lo, hi);
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randf(s, bounds...);
   return r;
 }
 
@@ -293,13 +282,15 @@ WP_TILE_TEMPLATE WP_FUNC int tile_flat(const launch_context_t* ctx, int32 fid, i
     const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
     if (f >= 0) cg_accum(adj_t.data[f], adj_ret);                                                         \
   }
+// Expands FORMS(params, adjoint params, count, the 4 indices) for 1 to 4 element indices.
 #define WP_COMMA ,
-WP_TILE_EXTRACT_FORMS(I i, I&, 1, i WP_COMMA 0 WP_COMMA 0 WP_COMMA 0)
-WP_TILE_EXTRACT_FORMS(I i WP_COMMA I j, I& WP_COMMA I&, 2, i WP_COMMA j WP_COMMA 0 WP_COMMA 0)
-WP_TILE_EXTRACT_FORMS(I i WP_COMMA I j WP_COMMA I k, I& WP_COMMA I& WP_COMMA I&, 3, i WP_COMMA j WP_COMMA k WP_COMMA 0)
-WP_TILE_EXTRACT_FORMS(I i WP_COMMA I j WP_COMMA I k WP_COMMA I l, I& WP_COMMA I& WP_COMMA I& WP_COMMA I&, 4,
-                      i WP_COMMA j WP_COMMA k WP_COMMA l)
-#undef WP_COMMA
+#define WP_TILE_FOR_EACH_INDEX_COUNT(FORMS)                                                                            \
+  FORMS(I i, I&, 1, i WP_COMMA 0 WP_COMMA 0 WP_COMMA 0)                                                              \
+  FORMS(I i WP_COMMA I j, I& WP_COMMA I&, 2, i WP_COMMA j WP_COMMA 0 WP_COMMA 0)                                     \
+  FORMS(I i WP_COMMA I j WP_COMMA I k, I& WP_COMMA I& WP_COMMA I&, 3, i WP_COMMA j WP_COMMA k WP_COMMA 0)            \
+  FORMS(I i WP_COMMA I j WP_COMMA I k WP_COMMA I l, I& WP_COMMA I& WP_COMMA I& WP_COMMA I&, 4,                      \
+        i WP_COMMA j WP_COMMA k WP_COMMA l)
+WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_EXTRACT_FORMS)
 #undef WP_TILE_EXTRACT_FORMS
 
 // ---- reductions -----------------------------------------------------------------------------
@@ -314,41 +305,6 @@ WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_sum(const WP_TILE& a) {
 WP_TILE_TEMPLATE WP_FUNC void adj_tile_sum(const WP_TILE&, WP_TILE& adj_a, const tile_t<T, 1, 0, 0, 0>& adj_ret) {
   for (int k = 0; k < WP_TILE::SIZE; ++k) cg_accum(adj_a.data[k], adj_ret.data[0]);
 }
-// Sum along `axis` (a constant the compiler checked): R is the tile without that dimension.
-template <typename R, typename T, int D0, int D1, int D2, int D3>
-WP_FUNC void tile_sum_axis_into(const WP_TILE& a, int axis, R& r) {
-  for (int k = 0; k < R::SIZE; ++k) r.data[k] = cg_zeros<T>();
-  for (int k = 0; k < WP_TILE::SIZE; ++k) {
-    int64 c[4];
-    WP_TILE::coord(k, c);
-    int64 flat = 0;
-    for (int d = 0, o = 0; d < WP_TILE::NDIM; ++d) {
-      if (d == axis) continue;
-      flat = flat * R::extent(o++) + c[d];
-    }
-    cg_accum(r.data[flat], a.data[k]);
-  }
-}
-template <typename R, typename T, int D0, int D1, int D2, int D3>
-WP_FUNC R tile_sum_axis(const R&, const WP_TILE& a, int32 axis) {
-  R r;
-  tile_sum_axis_into(a, axis, r);
-  return r;
-}
-template <typename R, typename T, int D0, int D1, int D2, int D3>
-WP_FUNC void adj_tile_sum_axis(const R&, const WP_TILE&, int32 axis, R&, WP_TILE& adj_a, int32&, const R& adj_ret) {
-  for (int k = 0; k < WP_TILE::SIZE; ++k) {
-    int64 c[4];
-    WP_TILE::coord(k, c);
-    int64 flat = 0;
-    for (int d = 0, o = 0; d < WP_TILE::NDIM; ++d) {
-      if (d == axis) continue;
-      flat = flat * R::extent(o++) + c[d];
-    }
-    cg_accum(adj_a.data[k], adj_ret.data[flat]);
-  }
-}
-
 // Position of the largest (smallest) element, the first one among equals.
 WP_TILE_TEMPLATE WP_FUNC int tile_arg_extreme(const WP_TILE& a, bool largest) {
   int best = 0;
@@ -689,14 +645,10 @@ WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line,
       if (k != f) cg_accum(adj_t.data[k], adj_ret.data[k]);                                              \
     if (f >= 0) cg_accum(adj_v, adj_ret.data[f]);                                                                 \
   }
-#define WP_COMMA ,
-WP_TILE_INSERT_FORMS(I i, I&, 1, i WP_COMMA 0 WP_COMMA 0 WP_COMMA 0)
-WP_TILE_INSERT_FORMS(I i WP_COMMA I j, I& WP_COMMA I&, 2, i WP_COMMA j WP_COMMA 0 WP_COMMA 0)
-WP_TILE_INSERT_FORMS(I i WP_COMMA I j WP_COMMA I k, I& WP_COMMA I& WP_COMMA I&, 3, i WP_COMMA j WP_COMMA k WP_COMMA 0)
-WP_TILE_INSERT_FORMS(I i WP_COMMA I j WP_COMMA I k WP_COMMA I l, I& WP_COMMA I& WP_COMMA I& WP_COMMA I&, 4,
-                     i WP_COMMA j WP_COMMA k WP_COMMA l)
-#undef WP_COMMA
+WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_INSERT_FORMS)
 #undef WP_TILE_INSERT_FORMS
+#undef WP_TILE_FOR_EACH_INDEX_COUNT
+#undef WP_COMMA
 
 // ---- tile_map and tile_reduce ---------------------------------------------------------------
 
@@ -760,6 +712,26 @@ WP_FUNC int tile_axis_target(int k, int axis, int* along) {
   *along = (int)c[axis];
   return (int)flat;
 }
+// Sum along `axis` (a constant the compiler checked): R is the tile without that dimension.
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC R tile_sum_axis(const R&, const WP_TILE& a, int32 axis) {
+  R r;
+  for (int k = 0; k < R::SIZE; ++k) r.data[k] = cg_zeros<T>();
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int j;
+    const int o = tile_axis_target<R, T, D0, D1, D2, D3>(k, axis, &j);
+    r.data[o] = add(r.data[o], a.data[k]);
+  }
+  return r;
+}
+template <typename R, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_sum_axis(const R&, const WP_TILE&, int32 axis, R&, WP_TILE& adj_a, int32&, const R& adj_ret) {
+  for (int k = 0; k < WP_TILE::SIZE; ++k) {
+    int j;
+    cg_accum(adj_a.data[k], adj_ret.data[tile_axis_target<R, T, D0, D1, D2, D3>(k, axis, &j)]);
+  }
+}
+
 // tile_reduce(f, a, axis): a fold along the axis for each position of the others.
 template <typename F, typename R, typename T, int D0, int D1, int D2, int D3>
 WP_FUNC R tile_reduce(F f, const R&, const WP_TILE& a, int32 axis) {
@@ -1156,19 +1128,13 @@ WP_FUNC void tile_sort_pairs(tile_t<K, N, 0, 0, 0>& keys, tile_t<V, N, 0, 0, 0>&
     values.data[j + 1] = v;
   }
 }
+// tile_sort(keys, values): both results at once (the compiler assigns them to the arguments).
 template <typename K, typename V, int N>
-WP_FUNC tile_t<K, N, 0, 0, 0> tile_sort_keys(const tile_t<K, N, 0, 0, 0>& keys, const tile_t<V, N, 0, 0, 0>& values) {
-  tile_t<K, N, 0, 0, 0> k = keys;
-  tile_t<V, N, 0, 0, 0> v = values;
-  tile_sort_pairs(k, v);
-  return k;
-}
-template <typename K, typename V, int N>
-WP_FUNC tile_t<V, N, 0, 0, 0> tile_sort_values(const tile_t<K, N, 0, 0, 0>& keys, const tile_t<V, N, 0, 0, 0>& values) {
-  tile_t<K, N, 0, 0, 0> k = keys;
-  tile_t<V, N, 0, 0, 0> v = values;
-  tile_sort_pairs(k, v);
-  return v;
+WP_FUNC void tile_sort(const tile_t<K, N, 0, 0, 0>& keys, const tile_t<V, N, 0, 0, 0>& values, tile_t<K, N, 0, 0, 0>& sorted_keys,
+                       tile_t<V, N, 0, 0, 0>& sorted_values) {
+  sorted_keys = keys;
+  sorted_values = values;
+  tile_sort_pairs(sorted_keys, sorted_values);
 }
 
 // a with d added to its diagonal.

@@ -115,10 +115,9 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
       "Called as wp.tile_stack_clear(s): the empty stack, assigned to s.", kBuiltinNotDiff);
   row("tile_stack_count(s: tile_stack(X,N)) -> int32", "The number of values on the stack.", kBuiltinNotDiff);
   row("tile_diag_add(a: tile(X,N,N), d: tile(X,N)) -> tile(X,N,N)", "a with d added to its diagonal.");
-  row("tile_sort_keys(keys: tile(Scalar,N), values: tile(X,N)) -> tile(Scalar,N)",
-      "Called as wp.tile_sort(keys, values): the keys sorted ascending (stable), assigned to keys.", kBuiltinNotDiff);
-  row("tile_sort_values(keys: tile(Scalar,N), values: tile(X,N)) -> tile(X,N)",
-      "Called as wp.tile_sort(keys, values): the values in the keys' sorted order, assigned to values.", kBuiltinNotDiff);
+  row("tile_sort(keys: tile(Scalar,N), values: tile(X,N)) -> tuple(tile(Scalar,N),tile(X,N))",
+      "Called as wp.tile_sort(keys, values): keys sorted ascending (stable) and values in their order, assigned to "
+      "the arguments.", kBuiltinNotDiff);
   for (int d = 1; d <= 4; ++d) {
     const std::string t = std::string("tile(vec(2,Float),") + dims[d - 1] + ")";
     row("tile_fft(inout: " + t + ") -> " + t,

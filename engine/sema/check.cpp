@@ -1164,20 +1164,9 @@ void CountNamesWrittenByCall(const ast::Expr* e, std::map<std::string, int>* out
   std::string name;
   if (const auto* n = ast::As<ast::Name>(call->func.get())) name = n->id;
   else if (const auto* a = ast::As<ast::Attribute>(call->func.get())) name = a->attr;
-  // The tile forms that assign their results to arguments (sema/check_tile.cpp).
-  static const std::map<std::string, std::vector<std::pair<size_t, std::string>>> kTileOut = {
-      {"tile_matmul", {{2, "out"}}},           {"tile_axpy", {{2, "dest"}}},
-      {"tile_assign", {{0, "dst"}}},           {"tile_cholesky_inplace", {{0, "A"}}},
-      {"tile_cholesky_solve_inplace", {{1, "y"}}}, {"tile_lower_solve_inplace", {{1, "y"}}},
-      {"tile_upper_solve_inplace", {{1, "z"}}}, {"tile_fft", {{0, "inout"}}},
-      {"tile_ifft", {{0, "inout"}}},            {"tile_sort", {{0, "keys"}, {1, "values"}}},
-      {"tile_stack_push", {{0, "s"}}},          {"tile_stack_pop", {{0, "s"}}},
-      {"tile_stack_clear", {{0, "s"}}}};
-  if (auto it = kTileOut.find(name); it != kTileOut.end()) {
-    for (const auto& [position, param] : it->second) {
-      const ast::Expr* target = call->args.size() > position ? call->args[position].get() : nullptr;
-      for (const auto& kw : call->keywords)
-        if (kw.name == param) target = kw.value.get();
+  if (const auto* written = TileWrittenArgs(name)) {   // tile forms that assign to arguments
+    for (const auto& arg : *written) {
+      const ast::Expr* target = TileWrittenTarget(*call, arg);
       while (target && !ast::As<ast::Name>(target)) {
         if (const auto* sub = ast::As<ast::Subscript>(target)) target = sub->value.get();
         else if (const auto* at = ast::As<ast::Attribute>(target)) target = at->value.get();

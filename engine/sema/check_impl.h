@@ -210,6 +210,16 @@ class Checker {
 
 // The tile builtins whose calls sema/check_tile.cpp checks (some have no registry row).
 bool IsTileCall(const std::string& name);
+// The arguments a tile call assigns its results to (tile_matmul's `out`, the `_inplace` forms,
+// tile_sort's keys and values, ...), by position and keyword; nullptr for other calls. The one
+// table both the lowering (check_tile.cpp) and the loop-carry analysis (check.cpp) read.
+struct TileWrittenArg {
+  size_t position;
+  std::string param;
+};
+const std::vector<TileWrittenArg>* TileWrittenArgs(const std::string& name);
+// That argument's expression in `call` (positional or keyword), or nullptr.
+const ast::Expr* TileWrittenTarget(const ast::Call& call, const TileWrittenArg& arg);
 // A wp.ref[T] parameter's type string "ref(T)": true, with *inner set to "T".
 bool RefTypeInner(const std::string& type_string, std::string* inner);
 // C++ text of a Python literal in type t ("1.5" as float32 -> "wp::float32(1.5)").

@@ -1,13 +1,14 @@
 // Tile builtins in kernels and funcs (Warp's tile programming): the calls whose result type
 // depends on constant arguments (a shape, an axis, a dtype) or whose arguments are tuples
 // (offsets). Each is checked here and rewritten into a row of builtins_tile.cpp: a `like`
-// variable (a tile of the result's type, zero and never read) carries the shape, and a tuple
+// variable (a tile of the result's type, never written or read) carries the shape, and a tuple
 // offset becomes one int64 index per dimension. Tiles belong to the thread computing them
 // (engine/native/tile.h; docs/tiles.md).
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,33 @@ bool IsTileCall(const std::string& n) {
   for (const char* k : kNames)
     if (n == k) return true;
   return false;
+}
+
+const std::vector<TileWrittenArg>* TileWrittenArgs(const std::string& name) {
+  static const std::map<std::string, std::vector<TileWrittenArg>> kTable = {
+      {"tile_matmul", {{2, "out"}}},
+      {"tile_axpy", {{2, "dest"}}},
+      {"tile_assign", {{0, "dst"}}},
+      {"tile_cholesky_inplace", {{0, "A"}}},
+      {"tile_cholesky_solve_inplace", {{1, "y"}}},
+      {"tile_lower_solve_inplace", {{1, "y"}}},
+      {"tile_upper_solve_inplace", {{1, "z"}}},
+      {"tile_fft", {{0, "inout"}}},
+      {"tile_ifft", {{0, "inout"}}},
+      {"tile_sort", {{0, "keys"}, {1, "values"}}},
+      {"tile_stack_push", {{0, "s"}}},
+      {"tile_stack_pop", {{0, "s"}}},
+      {"tile_stack_clear", {{0, "s"}}},
+  };
+  auto it = kTable.find(name);
+  return it == kTable.end() ? nullptr : &it->second;
+}
+
+const ast::Expr* TileWrittenTarget(const ast::Call& call, const TileWrittenArg& arg) {
+  const ast::Expr* target = call.args.size() > arg.position ? call.args[arg.position].get() : nullptr;
+  for (const auto& kw : call.keywords)
+    if (kw.name == arg.param) target = kw.value.get();
+  return target;
 }
 
 namespace {
@@ -128,18 +156,18 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     }
     return parts;
   };
-  // A zero tile of type t (never assigned: declared zero at the function's entry).
+  // A tile of type t that only carries its type to a native: never written, never read.
   auto like = [&](const Type& t) { return Value::OfVar(NewVar(t, "tile shape")); };
   auto flag_true = [&](const Value& v) { return v.kind == Value::Kind::kNone || v.literal_text != "False"; };
 
   // The forms that update a tile argument assign their result to it (a name, field or element).
-  auto assign_to_arg = [&](size_t position, const char* param, const Value& r) -> Expected<Value> {
-    const ast::Expr* target = nullptr;
-    if (call && call->args.size() > position) target = call->args[position].get();
-    if (call)
-      for (const auto& kw : call->keywords)
-        if (kw.name == param) target = kw.value.get();
-    if (!target) return Error(loc, "wp." + name + "(): " + param + " must name a tile");
+  // The forms that update arguments assign their results to them (TileWrittenArgs: the `which`-th
+  // written argument of this call; a name, field or element).
+  auto assign_to_arg = [&](size_t which, const Value& r) -> Expected<Value> {
+    const auto* written = TileWrittenArgs(name);
+    const ast::Expr* target = call && written ? TileWrittenTarget(*call, written->at(which)) : nullptr;
+    if (!target) return Error(loc, "wp." + name + "(): " + (written ? written->at(which).param : "the argument") +
+                                       " must name a tile");
     WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, r));
     return Value();
   };
@@ -202,12 +230,12 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     if (!stt.is_tile_stack()) return Error(loc, "wp." + name + "(): s must be a wp.tile_stack, got " + TypeString(stt));
     if (name == "tile_stack_clear") {
       WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_stack_cleared", {p[0]}, loc));
-      return assign_to_arg(0, "s", r);
+      return assign_to_arg(0, r);
     }
     if (name == "tile_stack_pop") {
       WEFT_ASSIGN_OR_RETURN(Value top, ResolveAndEmitBuiltin("tile_stack_top", {p[0]}, loc));
       WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_stack_popped", {p[0]}, loc));
-      WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, "s", r));
+      WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, r));
       (void)unused;
       return top;
     }
@@ -219,7 +247,7 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     std::vector<Value> a{p[0], Value::OfVar(v), Value::OfVar(hv)};
     WEFT_ASSIGN_OR_RETURN(Value slot, ResolveAndEmitBuiltin("tile_stack_push_slot", a, loc));
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_stack_pushed", a, loc));
-    WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, "s", r));
+    WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, r));
     (void)unused;
     return slot;
   }
@@ -446,7 +474,15 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     const bool has_out = p[2].kind != Value::Kind::kNone;
     WEFT_ASSIGN_OR_RETURN(Value alpha, scalar(p[3], "1", "alpha"));
     WEFT_ASSIGN_OR_RETURN(Value beta, scalar(p[4], has_out ? "1" : "0", "beta"));
-    Value c = like(out_t);
+    Value c;   // the value form: alpha a b + 0 * zeros (a zero tile, since it is read)
+    if (!has_out) {
+      Stmt zero;
+      zero.op.kind = OpKind::kConstruct;
+      zero.op.mode = ConstructMode::kZero;
+      zero.op.dst.push_back(NewVar(out_t));
+      c = Value::OfVar(zero.op.dst[0]);
+      Push(std::move(zero));
+    }
     if (has_out) {
       WEFT_ASSIGN_OR_RETURN(int o, tile_arg(p[2], "out"));
       if (TypeOf(o) != out_t)
@@ -455,15 +491,7 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     }
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_matmul", {p[0], p[1], c, alpha, beta}, loc));
     if (!has_out) return r;
-    // The out form assigns the product to its `out` argument (a name, field or element).
-    const ast::Expr* target = nullptr;
-    if (call && call->args.size() > 2) target = call->args[2].get();
-    if (call)
-      for (const auto& kw : call->keywords)
-        if (kw.name == "out") target = kw.value.get();
-    if (!target) return Error(loc, "wp.tile_matmul(): out must name a tile");
-    WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, r));
-    return Value();
+    return assign_to_arg(0, r);   // the out form assigns the product to `out`
   }
   if (name == "tile_axpy") {
     WEFT_RETURN_IF_ERROR(bind({"alpha", "src", "dest"}, &p));
@@ -474,7 +502,7 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     if (p[0].kind != Value::Kind::kVar) return Error(loc, "wp.tile_axpy(): alpha must be a value");
     WEFT_ASSIGN_OR_RETURN(int alpha, Coerce(p[0], TypeOf(src).elem(), loc, "alpha"));
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_axpy", {Value::OfVar(alpha), p[1], p[2]}, loc));
-    return assign_to_arg(2, "dest", r);
+    return assign_to_arg(0, r);
   }
   if (name == "tile_assign") {
     WEFT_RETURN_IF_ERROR(bind({"dst", "src", "offset"}, &p));
@@ -497,7 +525,7 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     }
     for (const Value& v : TileRegionArgs(off_vars, {}, kept)) full.push_back(v);
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_assign", std::move(full), loc));
-    return assign_to_arg(0, "dst", r);
+    return assign_to_arg(0, r);
   }
   if (name == "tile_reshape" || name == "tile_squeeze") {
     const bool squeeze = name == "tile_squeeze";
@@ -607,7 +635,7 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     call_args.push_back(up);
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(solve ? "tile_cholesky_solve" : "tile_cholesky", call_args, loc));
     if (!inplace) return r;
-    return assign_to_arg(solve ? 1 : 0, solve ? "y" : "A", r);
+    return assign_to_arg(0, r);
   }
   if (name == "tile_load_indexed" || name == "tile_store_indexed" || name == "tile_atomic_add_indexed") {
     const bool load = name == "tile_load_indexed";
@@ -660,11 +688,10 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     if (TypeOf(kt).ndim == 1 && TypeOf(kt).fixed_shape[0] > kMaxTileSortLength)   // an insertion sort: n^2 work
       return ErrorOf("value", loc, "wp.tile_sort() sorts at most " + std::to_string(kMaxTileSortLength) + " elements, got " +
                                        std::to_string(TypeOf(kt).fixed_shape[0]));
-    WEFT_ASSIGN_OR_RETURN(Value k, ResolveAndEmitBuiltin("tile_sort_keys", {p[0], p[1]}, loc));
-    WEFT_ASSIGN_OR_RETURN(Value v, ResolveAndEmitBuiltin("tile_sort_values", {p[0], p[1]}, loc));
-    WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, "keys", k));
+    WEFT_ASSIGN_OR_RETURN(Value sorted, ResolveAndEmitBuiltin("tile_sort", {p[0], p[1]}, loc));
+    WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, sorted.elems.at(0)));
     (void)unused;
-    return assign_to_arg(1, "values", v);
+    return assign_to_arg(1, sorted.elems.at(1));
   }
   if (name == "tile_fft" || name == "tile_ifft") {   // in place: the transform is assigned to the argument
     WEFT_RETURN_IF_ERROR(bind({"inout"}, &p));
@@ -678,13 +705,13 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
       return ErrorOf("value", loc, "wp." + name + "(): a transform length that is not a power of two may be at most " +
                                        std::to_string(kMaxDirectDftLength) + ", got " + std::to_string(n));
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(name, {p[0]}, loc));
-    return assign_to_arg(0, "inout", r);
+    return assign_to_arg(0, r);
   }
   if (name == "tile_lower_solve_inplace" || name == "tile_upper_solve_inplace") {
     const bool lower = name == "tile_lower_solve_inplace";
     WEFT_RETURN_IF_ERROR(bind({lower ? "L" : "U", lower ? "y" : "z"}, &p));
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(lower ? "tile_lower_solve" : "tile_upper_solve", {p[0], p[1]}, loc));
-    return assign_to_arg(1, lower ? "y" : "z", r);
+    return assign_to_arg(0, r);
   }
   if (name == "tile") {
     WEFT_RETURN_IF_ERROR(bind({"x", "preserve_type"}, &p));

@@ -66,6 +66,21 @@ class TypeReader {
     if (b == pos_ || pos_ - b > 6) return Error("expected a small integer");
     return std::stoi(std::string(s_.substr(b, pos_ - b)));
   }
+  // ",n1,n2,...)" after an element type: 1 to 4 extents, each at least 1, at most `max`
+  // elements in all (`what`: "tiles", "fixed arrays" for the messages).
+  Expected<std::vector<int>> Extents(int64_t max, const std::string& what) {
+    std::vector<int> shape;
+    int64_t total = 1;
+    while (Eat(',')) {
+      WEFT_ASSIGN_OR_RETURN(int n, Int());
+      total *= n;
+      if (n < 1 || total > max) return Error(what + " hold 1 to " + std::to_string(max) + " elements");
+      shape.push_back(n);
+    }
+    if (!Eat(')')) return Error("expected ')'");
+    if (shape.empty() || shape.size() > 4) return Error(what + " have 1 to 4 dimensions");
+    return shape;
+  }
   Expected<ScalarKind> Scalar() {
     std::string id = Ident();
     ScalarKind k;
@@ -156,34 +171,14 @@ class TypeReader {
     if (id == "fixedarray") {
       if (!Eat('(')) return Error("expected '('");
       WEFT_ASSIGN_OR_RETURN(Type elem, Read());
-      std::vector<int> shape;
-      int64_t total = 1;
-      while (Eat(',')) {
-        WEFT_ASSIGN_OR_RETURN(int n, Int());
-        if (n < 1 || n > kMaxFixedArrayElements) return Error("fixed array extent out of range");
-        total *= n;
-        if (total > kMaxFixedArrayElements) return Error("fixed array too large");
-        shape.push_back(n);
-      }
-      if (!Eat(')')) return Error("expected ')'");
-      if (shape.empty() || shape.size() > 4) return Error("fixed arrays have 1 to 4 dimensions");
+      WEFT_ASSIGN_OR_RETURN(std::vector<int> shape, Extents(kMaxFixedArrayElements, "fixed arrays"));
       if (elem.is_array() || elem.is_void() || elem.is_tuple() || elem.is_any()) return Error("bad array element type");
       return Type::FixedArray(std::move(elem), std::move(shape));
     }
     if (id == "tile") {
       if (!Eat('(')) return Error("expected '('");
       WEFT_ASSIGN_OR_RETURN(Type elem, Read());
-      std::vector<int> shape;
-      int64_t total = 1;
-      while (Eat(',')) {
-        WEFT_ASSIGN_OR_RETURN(int n, Int());
-        if (n < 1 || n > kMaxTileElements) return Error("tile extent out of range");
-        total *= n;
-        if (total > kMaxTileElements) return Error("tile too large");
-        shape.push_back(n);
-      }
-      if (!Eat(')')) return Error("expected ')'");
-      if (shape.empty() || shape.size() > 4) return Error("tiles have 1 to 4 dimensions");
+      WEFT_ASSIGN_OR_RETURN(std::vector<int> shape, Extents(kMaxTileElements, "tiles"));
       if (!elem.is_scalar() && !elem.is_composite() && !elem.is_struct()) return Error("bad tile element type");
       return Type::Tile(std::move(elem), std::move(shape));
     }
