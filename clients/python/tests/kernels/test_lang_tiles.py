@@ -473,3 +473,23 @@ def test_a_tile_kernel_with_large_thread_memory_runs_or_fails_cleanly(device, rn
     small = wp.zeros(4, dtype=float)
     wp.launch_tiled(tile_edges, dim=1, inputs=[wp.array(np.ones(4, dtype=np.float32)), small, 0])
     np.testing.assert_array_equal(small.numpy(), np.full(4, 2.0, dtype=np.float32))
+
+
+@wp.kernel
+def tile_sorting(keys: wp.array[float], vals: wp.array[int]):
+    k = wp.tile_load(keys, shape=16)
+    v = wp.tile_load(vals, shape=16)
+    for _ in range(2):   # sorting twice changes nothing: the pair is carried through the loop
+        wp.tile_sort(k, v)
+    wp.tile_store(keys, k)
+    wp.tile_store(vals, v)
+
+
+def test_tile_sort_is_stable_and_carries_values(device, rng):
+    k0 = rng.integers(-4, 4, 16).astype(np.float32)   # many equal keys: stability shows
+    keys = wp.array(k0)
+    vals = wp.array(np.arange(16, dtype=np.int32))
+    wp.launch_tiled(tile_sorting, dim=1, inputs=[keys, vals])
+    order = np.argsort(k0, kind="stable")
+    np.testing.assert_array_equal(keys.numpy(), k0[order])
+    np.testing.assert_array_equal(vals.numpy(), order)
