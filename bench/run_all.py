@@ -1,5 +1,5 @@
 """Runs every weft benchmark (compile, launch overhead, kernels, foundation, bounds checks,
-lazy adjoint, the loops' cancellation poll, 64 concurrent clients) and prints their tables.
+lazy adjoint, the loops' cancellation poll, 64 concurrent clients, tiles, marching cubes) and prints their tables.
 Arguments are passed to every benchmark.
 `make bench` installs warp-lang first so each table has a warp-lang ratio column."""
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 BENCHES = ["bench_compile.py", "bench_launch.py", "bench_kernels.py", "bench_foundation.py",
            "bench_bounds_checks.py", "bench_lazy_adjoint.py", "bench_interop.py",
-           "bench_cancel_poll.py", "bench_many_clients.py", "bench_tiles.py"]
+           "bench_cancel_poll.py", "bench_many_clients.py", "bench_tiles.py", "bench_iso_surface.py"]
 
 
 def main() -> int:

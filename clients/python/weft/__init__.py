@@ -74,3 +74,13 @@ from .interop.paddle import (device_from_paddle, device_to_paddle,  # noqa: F401
 from .interop.torch import (device_from_torch, device_to_torch, dtype_from_torch,  # noqa: F401,E402
                             dtype_to_torch, from_torch, stream_from_torch, stream_to_torch,
                             to_torch)
+
+
+def __getattr__(name):
+    if name == "MarchingCubes":  # Warp's deprecated alias, resolved on first use
+        from ._log import log_warning  # noqa: PLC0415
+        log_warning("wp.MarchingCubes is deprecated and will be removed in a future version of Warp. "
+                    "Use wp.geometry.IsoSurfaceMarchingCubes instead.", DeprecationWarning)
+        from .iso_surface import IsoSurfaceMarchingCubes  # noqa: PLC0415
+        return IsoSurfaceMarchingCubes
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -14,7 +14,16 @@ from .device import get_device
 
 __all__ = ["is_cubql_available", "HashGrid", "Bvh", "Mesh", "HashGridQuery", "BvhQuery", "MeshQueryPoint", "MeshQueryRay",
            "MeshQueryAABB", "MeshQuery", "hash_grid_query_t", "bvh_query_t", "mesh_query_point_t", "mesh_query_ray_t",
-           "mesh_query_aabb_t"]
+           "mesh_query_aabb_t", "IsoSurfaceBase", "IsoSurfaceMarchingCubes"]
+
+
+def __getattr__(name):
+    """The iso-surface classes (weft/iso_surface.py) load on first use: their kernels need the
+    whole weft package, which imports this module."""
+    if name in ("IsoSurfaceBase", "IsoSurfaceMarchingCubes"):
+        from . import iso_surface  # noqa: PLC0415
+        return getattr(iso_surface, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 _Op = None
 
