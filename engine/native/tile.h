@@ -44,12 +44,18 @@ template <typename T> WP_FUNC void cg_atomic_accum(T* p, const T& v) { atomic_ad
 // tile_atomic_add of one element: the old value. Types without an atomic add (structs) add
 // their differentiable fields atomically and give the value read before.
 template <typename T>
-WP_FUNC auto tile_atomic_add_elem(T* p, const T& v, int) -> decltype(atomic_add_ptr(p, v)) { return atomic_add_ptr(p, v); }
+WP_FUNC auto tile_atomic_add_elem(T* p, const T& v, int) -> decltype(add(*p, v), atomic_add_ptr(p, v)) {
+  return atomic_add_ptr(p, v);
+}
 template <typename T> WP_FUNC T tile_atomic_add_elem(T* p, const T& v, long) {
   const T old = *p;
   cg_atomic_accum(p, v);
   return old;
 }
+
+// A subscript's integer index as NumPy reads it: a negative one counts from the end (what is
+// still outside the extent stays so, and the op using it reports it).
+WP_FUNC int64 tile_wrap_index(int64 i, int64 extent) { return i < 0 ? i + extent : i; }
 
 // The one check of a tile op's array access: the element of `a` at at[0..ndim), or nullptr
 // when `a` has no data, another number of dimensions, or the element lies outside its shape.
@@ -484,16 +490,64 @@ WP_TILE_TEMPLATE WP_FUNC void adj_tile_dot(const WP_TILE& a, const WP_TILE& b, W
   }
 }
 
-// dest + alpha * src (wp.tile_axpy assigns it to dest).
-WP_TILE_TEMPLATE WP_FUNC WP_TILE tile_axpy(T alpha, const WP_TILE& src, const WP_TILE& dest) {
+// Tiles of vectors or matrices: the full contraction, sum over k of dot(a[k], b[k]) (ddot for
+// matrices), a scalar tile of shape (1,).
+template <unsigned N, typename S> WP_FUNC S tile_inner(const vec_t<N, S>& a, const vec_t<N, S>& b) { return dot(a, b); }
+template <unsigned R, unsigned C, typename S> WP_FUNC S tile_inner(const mat_t<R, C, S>& a, const mat_t<R, C, S>& b) {
+  return ddot(a, b);
+}
+template <unsigned N, typename S, int D0, int D1, int D2, int D3>
+WP_FUNC tile_t<S, 1, 0, 0, 0> tile_dot(const tile_t<vec_t<N, S>, D0, D1, D2, D3>& a,
+                                       const tile_t<vec_t<N, S>, D0, D1, D2, D3>& b) {
+  tile_t<S, 1, 0, 0, 0> r;
+  r.data[0] = S(0);
+  for (int k = 0; k < tile_t<vec_t<N, S>, D0, D1, D2, D3>::SIZE; ++k) r.data[0] += tile_inner(a.data[k], b.data[k]);
+  return r;
+}
+template <unsigned R, unsigned C, typename S, int D0, int D1, int D2, int D3>
+WP_FUNC tile_t<S, 1, 0, 0, 0> tile_dot(const tile_t<mat_t<R, C, S>, D0, D1, D2, D3>& a,
+                                       const tile_t<mat_t<R, C, S>, D0, D1, D2, D3>& b) {
+  tile_t<S, 1, 0, 0, 0> r;
+  r.data[0] = S(0);
+  for (int k = 0; k < tile_t<mat_t<R, C, S>, D0, D1, D2, D3>::SIZE; ++k) r.data[0] += tile_inner(a.data[k], b.data[k]);
+  return r;
+}
+template <typename E, typename S, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_dot_composite(const tile_t<E, D0, D1, D2, D3>& a, const tile_t<E, D0, D1, D2, D3>& b,
+                                    tile_t<E, D0, D1, D2, D3>& adj_a, tile_t<E, D0, D1, D2, D3>& adj_b,
+                                    const tile_t<S, 1, 0, 0, 0>& adj_ret) {
+  for (int k = 0; k < tile_t<E, D0, D1, D2, D3>::SIZE; ++k) {
+    cg_accum(adj_a.data[k], mul(b.data[k], adj_ret.data[0]));
+    cg_accum(adj_b.data[k], mul(a.data[k], adj_ret.data[0]));
+  }
+}
+template <unsigned N, typename S, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_dot(const tile_t<vec_t<N, S>, D0, D1, D2, D3>& a, const tile_t<vec_t<N, S>, D0, D1, D2, D3>& b,
+                          tile_t<vec_t<N, S>, D0, D1, D2, D3>& adj_a, tile_t<vec_t<N, S>, D0, D1, D2, D3>& adj_b,
+                          const tile_t<S, 1, 0, 0, 0>& adj_ret) {
+  adj_tile_dot_composite(a, b, adj_a, adj_b, adj_ret);
+}
+template <unsigned R, unsigned C, typename S, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_dot(const tile_t<mat_t<R, C, S>, D0, D1, D2, D3>& a, const tile_t<mat_t<R, C, S>, D0, D1, D2, D3>& b,
+                          tile_t<mat_t<R, C, S>, D0, D1, D2, D3>& adj_a, tile_t<mat_t<R, C, S>, D0, D1, D2, D3>& adj_b,
+                          const tile_t<S, 1, 0, 0, 0>& adj_ret) {
+  adj_tile_dot_composite(a, b, adj_a, adj_b, adj_ret);
+}
+
+// dest + alpha * src (wp.tile_axpy assigns it to dest); the elements may be vectors or matrices
+// with a scalar alpha.
+template <typename S> WP_FUNC S tile_inner(const S& a, const S& b) { return mul(a, b); }
+template <typename A, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC WP_TILE tile_axpy(A alpha, const WP_TILE& src, const WP_TILE& dest) {
   WP_TILE r;
   for (int k = 0; k < WP_TILE::SIZE; ++k) r.data[k] = add(dest.data[k], mul(alpha, src.data[k]));
   return r;
 }
-WP_TILE_TEMPLATE WP_FUNC void adj_tile_axpy(T alpha, const WP_TILE& src, const WP_TILE&, T& adj_alpha, WP_TILE& adj_src,
-                                            WP_TILE& adj_dest, const WP_TILE& adj_ret) {
+template <typename A, typename T, int D0, int D1, int D2, int D3>
+WP_FUNC void adj_tile_axpy(A alpha, const WP_TILE& src, const WP_TILE&, A& adj_alpha, WP_TILE& adj_src,
+                           WP_TILE& adj_dest, const WP_TILE& adj_ret) {
   for (int k = 0; k < WP_TILE::SIZE; ++k) {
-    cg_accum(adj_alpha, mul(src.data[k], adj_ret.data[k]));
+    cg_accum(adj_alpha, tile_inner(src.data[k], adj_ret.data[k]));
     cg_accum(adj_src.data[k], mul(alpha, adj_ret.data[k]));
     cg_accum(adj_dest.data[k], adj_ret.data[k]);
   }
@@ -778,7 +832,7 @@ WP_FUNC int tile_gather_source(const launch_context_t* ctx, int32 fid, int32 lin
                                int32 axis) {
   int64 c[4];
   R::coord(k, c);
-  const int64 pick = (int64)idx.data[c[axis]];
+  const int64 pick = tile_wrap_index((int64)idx.data[c[axis]], WP_TILE::extent(axis));   // NumPy's negative indices
   if (!in_range(pick, WP_TILE::extent(axis))) {
     const int64 at[1] = {pick};
     const int64 shape[1] = {WP_TILE::extent(axis)};

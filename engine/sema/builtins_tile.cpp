@@ -50,8 +50,18 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
     row("tile_argmax(a: " + ts + ") -> tile(int32,1)", "The flat position of the first largest element.", kBuiltinNotDiff);
     row("tile_argmin(a: " + ts + ") -> tile(int32,1)", "The flat position of the first smallest element.", kBuiltinNotDiff);
     row("tile_dot(a: " + ts + ", b: " + ts + ") -> tile(Scalar,1)", "The sum of a[k] * b[k], as a tile of shape (1,).");
+    const std::string tv = std::string("tile(vec(P,Float),") + dims[d - 1] + ")";
+    const std::string tm = std::string("tile(mat(P,Q,Float),") + dims[d - 1] + ")";
+    row("tile_dot(a: " + tv + ", b: " + tv + ") -> tile(Float,1)",
+        "Tiles of vectors: the sum of dot(a[k], b[k]), as a scalar tile of shape (1,).");
+    row("tile_dot(a: " + tm + ", b: " + tm + ") -> tile(Float,1)",
+        "Tiles of matrices: the sum of ddot(a[k], b[k]) (every element product), as a scalar tile of shape (1,).");
     row("tile_axpy(alpha: Scalar, src: " + ts + ", dest: " + ts + ") -> " + ts,
         "Called as wp.tile_axpy(alpha, src, dest): dest + alpha * src, assigned to dest.");
+    row("tile_axpy(alpha: Float, src: " + tv + ", dest: " + tv + ") -> " + tv,
+        "Tiles of vectors, a scalar alpha: dest + alpha * src, assigned to dest.");
+    row("tile_axpy(alpha: Float, src: " + tm + ", dest: " + tm + ") -> " + tm,
+        "Tiles of matrices, a scalar alpha: dest + alpha * src, assigned to dest.");
     row("tile_scan_inclusive(a: " + ts + ") -> " + ts, "Running sums over the elements in row-major order.");
     row("tile_scan_exclusive(a: " + ts + ") -> " + ts, "Running sums of the elements before each one (the first: 0).");
     row("tile_scan_max_inclusive(a: " + ts + ") -> " + ts, "Running maxima in row-major order.", kBuiltinNotDiff);

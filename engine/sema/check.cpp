@@ -268,6 +268,7 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
     return finish_error(Error(pf.def->loc, "'" + fs.name + "' takes " + std::to_string(params.size()) +
                                                " parameters but " + std::to_string(param_types.size()) +
                                                " types were given"));
+  std::vector<int> param_vars(params.size(), -1);   // the variable each plain parameter starts as
   for (size_t i = 0; i < params.size(); ++i) {
     const Type& t = param_types[i];
     const Type& base = t.is_array() ? t.elem() : t;
@@ -307,6 +308,7 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
     fn.params.push_back(v);
     fn.param_names.push_back(params[i].name);
     state.scope[params[i].name] = v;
+    param_vars[i] = v;
     if (fs.is_kernel && (t.is_array() || t.is_struct())) state.array_param[v] = static_cast<int>(i);
   }
   if (grad_of_params >= 0) {
@@ -364,7 +366,21 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
   // are guarded by its flag), and the caller writes them back to its arguments.
   for (size_t i = 0; i < params.size() && i < fs.param_types.size(); ++i) {
     std::string inner;
-    if (!RefTypeInner(fs.param_types[i], &inner)) continue;
+    if (!RefTypeInner(fs.param_types[i], &inner)) {
+      // A tile or tile stack the body assigns (`t += ...`, a push) is a reference too (Warp
+      // passes tiles by reference): its final value goes back to the caller's variable.
+      const Type& t = param_types[i];
+      auto cur = state.scope.find(params[i].name);
+      if (fs.is_kernel || !(t.is_tile() || t.is_tile_stack()) || cur == state.scope.end() ||
+          cur->second == param_vars[i] || TypeOf(cur->second) != t)
+        continue;
+      int slot = NewVar(t, "ref_" + params[i].name, true);
+      EmitCopy(slot, cur->second);
+      fn.returns.push_back(t);
+      fn.return_slots.push_back(slot);
+      fn.ref_params.push_back(static_cast<int>(i));
+      continue;
+    }
     if (fs.is_kernel) return finish_error(Error(params[i].loc, "kernel parameters cannot be wp.ref[T]"));
     if (grad_of_params >= 0)
       return finish_error(Error(params[i].loc, "a gradient function (wp.func_grad) cannot take wp.ref[T] parameters"));
@@ -678,6 +694,13 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
       // &=, |=, ^= on integer elements (scalars, integer vectors/matrices) are atomic and/or/xor.
       if (const auto* sub = ast::As<ast::Subscript>(a.target.get())) {
         WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
+        if (base.kind == Value::Kind::kVar && TypeOf(base.var).is_tile()) {   // t[i, j] += v only (Warp)
+          bool any_slice = false;
+          for (const auto& e : sub->indices) any_slice |= ast::As<ast::Slice>(e.get()) != nullptr;
+          if (any_slice || static_cast<int>(sub->indices.size()) != TypeOf(base.var).ndim)
+            return ErrorOf("value", a.loc, "Compound assignment to a tile view is not supported: write t[...] = t[...] " +
+                                               std::string("+ v, or update the whole tile"));
+        }
         const bool bitwise = a.op == ast::BinaryOperator::kBitAnd || a.op == ast::BinaryOperator::kBitOr ||
                              a.op == ast::BinaryOperator::kBitXor;
         const bool integer_elem = base.kind == Value::Kind::kVar && TypeOf(base.var).is_array() &&

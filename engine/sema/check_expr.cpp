@@ -248,7 +248,10 @@ Expected<Value> Checker::EvalConstant(const ast::Constant& c) {
       v.literal_text = text;
       return v;
     }
-    case ast::Constant::Type::kBool: return Value::OfVar(EmitConst(Type::Bool(), c.bool_value ? "true" : "false"));
+    case ast::Constant::Type::kBool:   // the text lets constant flags be read (tile_load's bounds_check=False)
+      v = Value::OfVar(EmitConst(Type::Bool(), c.bool_value ? "true" : "false"));
+      v.literal_text = c.bool_value ? "True" : "False";
+      return v;
     case ast::Constant::Type::kString:
       v.kind = Value::Kind::kString;
       v.name = c.string_value;
@@ -1206,9 +1209,16 @@ Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vec
         return t.is_tile() ? t.elem() : t;
       };
       if ((name == "mul" || name == "div") && args.size() == 2 && !elem_of(args[0]).is_scalar() &&
-          !elem_of(args[1]).is_scalar())
-        return ErrorOf("type", loc, "tile " + name + ": one operand's element type must be scalar, got " +
-                                        TypeString(elem_of(args[0])) + " and " + TypeString(elem_of(args[1])));
+          !elem_of(args[1]).is_scalar()) {
+        auto operand = [&](const Value& v) {
+          if (v.kind != Value::Kind::kVar) return v.source;
+          const Type t = TypeOf(v.var);
+          return t.is_tile() ? "tile<" + WarpTypeRepr(t.elem()) + ">" : WarpTypeRepr(t);
+        };
+        return ErrorOf("type", loc, std::string(name == "mul" ? "Cannot multiply " : "Cannot divide ") +
+                                        operand(args[0]) + " by " + operand(args[1]) +
+                                        ": at least one operand must be a scalar type");
+      }
       args.insert(args.begin(), f);
       return TileMap("tile_map", std::move(args), loc, nullptr);
     }
@@ -1988,6 +1998,16 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
         WEFT_RETURN_IF_ERROR(CheckRefArgument(e, params[i].name, name, loc));
         ref_targets[i] = e;
       }
+      // Tiles and tile stacks are passed by reference (Warp): what the function does to one
+      // reaches the caller's variable. A temporary argument has no place and is not written.
+      if (call && call->args.size() == args.size())
+        for (size_t i = 0; i < slots.size() && i < call->args.size(); ++i) {
+          if (c.refs[i] || !slots[i] || slots[i]->kind != Value::Kind::kVar) continue;
+          const Type t = TypeOf(slots[i]->var);
+          const auto* n = ast::As<ast::Name>(call->args[i].get());
+          if ((t.is_tile() || t.is_tile_stack()) && n && st_->scope.count(n->id))
+            ref_targets[i] = call->args[i].get();
+        }
       std::vector<int> argv;
       for (size_t i = 0; i < slots.size(); ++i) {
         if (slots[i] && inst[i].is_function()) continue;   // compile-time: no argument
@@ -2041,6 +2061,7 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
       // the final values of the wp.ref[T] parameters, written back to the arguments' places
       for (size_t k = 0; k < ref_params.size(); ++k) {
         const ast::Expr* target = ref_targets.at(static_cast<size_t>(ref_params[k]));
+        if (!target && !c.refs[static_cast<size_t>(ref_params[k])]) continue;   // a temporary tile
         if (!target) return Error(loc, "wp.ref argument of '" + name + "' has no place to write to");
         WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, Value::OfVar(dsts[own_returns + k])));
       }

@@ -5,6 +5,7 @@
 // offset becomes one int64 index per dimension. Tiles belong to the thread computing them
 // (engine/native/tile.h; docs/tiles.md).
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -118,7 +119,10 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
   auto shape_of = [&](const Value& v) -> Expected<std::vector<int>> {
     std::vector<Value> dims = v.kind == Value::Kind::kTuple ? v.elems : std::vector<Value>{v};
     if (v.kind == Value::Kind::kNone) return Error(loc, "wp." + name + "() needs a shape");
-    if (dims.empty() || dims.size() > 4) return Error(loc, "wp." + name + "(): a tile has 1 to 4 dimensions");
+    if (dims.empty() || dims.size() > 4)
+      return ErrorOf("value", loc,
+                     name + "() output must have between one and four dimensions, got " + std::to_string(dims.size()) +
+                         " (a tile has 1 to 4)");
     std::vector<int> shape;
     int64_t total = 1;
     for (const Value& d : dims) {
@@ -208,8 +212,8 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     WEFT_RETURN_IF_ERROR(bind({"capacity", "dtype"}, &p));
     WEFT_ASSIGN_OR_RETURN(int64_t cap, const_int(p[0], "capacity"));
     if (cap < 1 || cap > kMaxTileElements)
-      return ErrorOf("value", loc, "wp.tile_stack(): capacity must be 1 to " + std::to_string(kMaxTileElements) + ", got " +
-                                      std::to_string(cap));
+      return ErrorOf("value", loc, "wp.tile_stack(): capacity must be a positive integer of at most " +
+                                       std::to_string(kMaxTileElements) + ", got " + std::to_string(cap));
     WEFT_ASSIGN_OR_RETURN(Type elem, dtype_of(p[1], Type::Float32()));
     Stmt st;
     st.op.kind = OpKind::kConstruct;
@@ -318,8 +322,14 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
           return ErrorOf("value", loc, std::string("tile_arange() ") + pname + "=" + t + " is too wide to use as an integer bound");
         x.f = static_cast<double>(x.i);
       } else {
-        x.f = std::strtod(t.c_str(), &end);
-        if (errno == ERANGE || !std::isfinite(x.f))
+        x.f = std::strtod(t.c_str(), &end);   // ERANGE with a finite value: a subnormal, kept
+        char shortest[32];   // messages show the value as Python writes it (1e+300, not 1.0000000000000001e+300)
+        const auto written = std::to_chars(shortest, shortest + sizeof(shortest), x.f);
+        if (written.ec == std::errc()) {
+          x.text.assign(shortest, written.ptr);
+          if (x.text.find_first_of(".eni") == std::string::npos) x.text += ".0";
+        }
+        if (!std::isfinite(x.f))
           return ErrorOf("value", loc, std::string("tile_arange() ") + pname + "=" + t + " is out of range");
       }
       if (!end || *end) return ErrorOf("value", loc, std::string("tile_arange() ") + pname + "=" + t + " is not a number");
@@ -331,6 +341,14 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     if (!elem.is_scalar() || elem.scalar == ScalarKind::kBool)
       return ErrorOf("type", loc, "tile_arange() requires a numeric scalar dtype, got " + TypeString(elem));
     const bool int_dtype = IsInt(elem.scalar);
+    if (!int_dtype) {   // every bound within the float dtype's range
+      const double top = elem.scalar == ScalarKind::kFloat16 ? 65504.0
+                         : elem.scalar == ScalarKind::kFloat32 ? 3.4028234663852886e38 : 1.7976931348623157e308;
+      for (const Bound& x : b)
+        if (std::fabs(x.f) > top)
+          return ErrorOf("value", loc, std::string("tile_arange() ") + x.name + "=" + x.text + " is out of range for " +
+                                           TypeString(elem));
+    }
     if (int_dtype) {   // every bound an integer of the dtype
       const int bits = ScalarSize(elem.scalar) * 8;
       const bool is_signed = IsSigned(elem.scalar);
@@ -500,7 +518,9 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     if (TypeOf(src) != TypeOf(dest))
       return Error(loc, "wp.tile_axpy(): src is " + TypeString(TypeOf(src)) + ", dest " + TypeString(TypeOf(dest)));
     if (p[0].kind != Value::Kind::kVar) return Error(loc, "wp.tile_axpy(): alpha must be a value");
-    WEFT_ASSIGN_OR_RETURN(int alpha, Coerce(p[0], TypeOf(src).elem(), loc, "alpha"));
+    const Type elem = TypeOf(src).elem();   // alpha: the element's scalar (vector and matrix tiles too)
+    const Type alpha_type = elem.is_vector() || elem.is_matrix() ? Type::Scalar(elem.scalar) : elem;
+    WEFT_ASSIGN_OR_RETURN(int alpha, Coerce(p[0], alpha_type, loc, "alpha"));
     WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_axpy", {Value::OfVar(alpha), p[1], p[2]}, loc));
     return assign_to_arg(0, r);
   }
@@ -567,8 +587,11 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
         std::vector<Value> axes = p[1].kind == Value::Kind::kTuple ? p[1].elems : std::vector<Value>{p[1]};
         for (const Value& ax : axes) {
           WEFT_ASSIGN_OR_RETURN(int64_t k, const_int(ax, "axis"));
+          if (k < -tt.ndim || k >= tt.ndim)
+            return ErrorOf("value", loc, "tile_squeeze() axis " + std::to_string(k) +
+                                             " is out of bounds for tile with " + std::to_string(tt.ndim) + " dimensions");
           if (k < 0) k += tt.ndim;
-          if (k < 0 || k >= tt.ndim || tt.fixed_shape[k] != 1)
+          if (tt.fixed_shape[k] != 1)
             return Error(loc, "wp.tile_squeeze(): axis " + ax.literal_text + " is not an extent of 1 of a tile of shape " +
                                   ShapeText(tt.fixed_shape));
           drop[k] = true;
@@ -797,11 +820,26 @@ Expected<Checker::TileRegion> Checker::TileRegionOf(const ast::Subscript& s, con
       WEFT_ASSIGN_OR_RETURN(Value v, Eval(*e));
       if (v.kind != Value::Kind::kVar || !TypeOf(v.var).is_scalar() || !IsInt(TypeOf(v.var).scalar))
         return Error(e->loc, "tile indices must be integers or slices");
+      // NumPy's rule: a negative index counts from the end. A constant outside the extent is a
+      // compile error; a runtime one is wrapped here and checked by the op at launch.
+      int index;
+      if (!v.literal_text.empty() && v.literal_text.find_first_not_of("-0123456789") == std::string::npos &&
+          v.literal_text.size() <= 12) {
+        int64_t n = std::stoll(v.literal_text);
+        if (n < -extent || n >= extent)
+          return ErrorOf("value", e->loc, "tile index " + v.literal_text + " is out of bounds for axis " +
+                                              std::to_string(d) + " with extent " + std::to_string(extent));
+        if (n < 0) n += extent;
+        index = EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(" + std::to_string(n) + ")");
+      } else {
+        index = EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::tile_wrap_index(wp::int64($0), " + std::to_string(extent) + ")",
+                        {v.var});
+      }
       if (r.element) {
-        r.indices.push_back(EmitRaw(Type::Int32(), "wp::int32($0)", {v.var}));
+        r.indices.push_back(EmitRaw(Type::Int32(), "wp::int32($0)", {index}));
         continue;
       }
-      r.offsets.push_back(EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::int64($0)", {v.var}));
+      r.offsets.push_back(index);
       continue;
     }
     // Python's slice rules with constant bounds: the first element and the count.

@@ -195,7 +195,7 @@ def test_tile_indices_outside_the_tile_are_launch_errors(device, rng):
     wp.launch_tiled(tile_bad_index, dim=1, inputs=[a, out, 3])
     np.testing.assert_array_equal(out.numpy()[:5], np.concatenate([[a.numpy()[3]], a.numpy()[3:7]]))
     line = tile_bad_index.func.__code__.co_firstlineno + 3
-    for k in (8, -1, 2**31 - 1):
+    for k in (8, -9, 2**31 - 1):   # -1 .. -8 count from the end (NumPy); -9 is outside
         with pytest.raises(wp.WeftError, match=rf"test_lang_tiles.py:{line}: kernel 'tile_bad_index'.*tile index out of range"):
             wp.launch_tiled(tile_bad_index, dim=1, inputs=[a, out, k])
             wp.synchronize()
@@ -223,6 +223,24 @@ def test_tile_indices_outside_the_tile_are_launch_errors(device, rng):
     ("t = wp.tile_zeros(shape=5000, dtype=wp.vec2)\nwp.tile_fft(t)", r"not a power of two may be at most 4096"),
     ("k = wp.tile_zeros(shape=8192, dtype=float)\nv = wp.tile_zeros(shape=8192, dtype=int)\nwp.tile_sort(k, v)",
      r"sorts at most 4096 elements"),
+    # Warp's errors and messages
+    ("t = wp.tile_zeros(shape=4, dtype=wp.vec3)\nu = t / wp.vec3(1.0, 2.0, 3.0)",
+     r"Cannot divide tile<vec3f> by vec3f: at least one operand must be a scalar type"),
+    ("t = wp.tile_zeros(shape=4, dtype=wp.vec3)\nu = wp.vec3(1.0, 2.0, 3.0) * t",
+     r"Cannot multiply vec3f by tile<vec3f>: at least one operand must be a scalar type"),
+    ("t = wp.tile_broadcast(wp.tile_zeros(shape=1, dtype=float), shape=(1, 1, 1, 1, 1))",
+     r"tile_broadcast\(\) output must have between one and four dimensions, got 5"),
+    ("t = wp.tile_squeeze(wp.tile_zeros(shape=(1, 2, 1), dtype=float), axis=(-4,))",
+     r"tile_squeeze\(\) axis -4 is out of bounds for tile with 3 dimensions"),
+    ("s = wp.tile_stack(capacity=0, dtype=int)", r"capacity must be a positive integer"),
+    ("t = wp.tile_arange(0.0, 1.0e300, dtype=wp.float32)", r"stop=1e\+300 is out of range for float32"),
+    ("t = wp.tile_arange(0.0, 1.0, 5.0e-324, dtype=wp.float64)", r"spans more elements than can be counted"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = t[4, :]", r"tile index 4 is out of bounds for axis 0 with extent 4"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = t[1, -5]", r"tile index -5 is out of bounds for axis 1"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nt[0] += wp.tile_ones(shape=4, dtype=float)",
+     r"Compound assignment to a tile view is not supported"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nt[0:2, :] -= wp.tile_ones(shape=(2, 4), dtype=float)",
+     r"Compound assignment to a tile view is not supported"),
     # thread memory: tiles and their adjoints over 2 MiB
     ("t = wp.tile_zeros(shape=(256, 256), dtype=wp.float64)\nu = t * 2.0 + t", r"take \d+ bytes of the thread's memory"),
 ])
@@ -493,3 +511,123 @@ def test_tile_sort_is_stable_and_carries_values(device, rng):
     order = np.argsort(k0, kind="stable")
     np.testing.assert_array_equal(keys.numpy(), k0[order])
     np.testing.assert_array_equal(vals.numpy(), order)
+
+
+@wp.func
+def add_five(t: wp.tile[float, 4]):
+    t += wp.tile_ones(dtype=float, shape=4) * 5.0
+
+
+@wp.func
+def push_pair(s: wp.tile_stack(capacity=8, dtype=int), v: int):
+    wp.tile_stack_push(s, v, True)
+    wp.tile_stack_push(s, v + 1, True)
+
+
+@wp.kernel
+def tile_by_reference(a: wp.array[float], out: wp.array[float], stack: wp.array[int]):
+    t = wp.tile_load(a, shape=4)
+    add_five(t)
+    add_five(t)
+    add_five(wp.tile_zeros(shape=4, dtype=float))   # a temporary: nothing to write back
+    wp.tile_store(out, t * t)
+    s = wp.tile_stack(capacity=8, dtype=int)
+    push_pair(s, 10)
+    push_pair(s, 20)
+    stack[0] = wp.tile_stack_count(s)
+    v, slot = wp.tile_stack_pop(s)
+    stack[1] = v
+
+
+def test_tiles_and_stacks_reach_funcs_by_reference(device, rng):
+    """A @wp.func that updates a tile or pushes onto a stack changes the caller's (Warp passes
+    tiles by reference); the gradient flows through the update: d(t + 10)^2 / dt = 2 (t + 10)."""
+    a_np = rng.standard_normal(4).astype(np.float32) * np.float32(3.0)
+    a = wp.array(a_np, requires_grad=True)
+    out = wp.zeros(4, dtype=float, requires_grad=True)
+    stack = wp.zeros(2, dtype=int)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_by_reference, dim=1, inputs=[a, out, stack])
+    shifted = a_np.astype(np.float64) + 10.0
+    np.testing.assert_allclose(out.numpy(), shifted ** 2, rtol=1e-6)
+    assert stack.numpy().tolist() == [4, 21]
+    tape.backward(grads={out: wp.ones(4, dtype=float)})
+    np.testing.assert_allclose(a.grad.numpy(), 2.0 * shifted, rtol=1e-6)
+
+
+@wp.struct
+class Mixed:
+    flag: wp.bool
+    small: wp.int8
+    value: float
+    v: wp.vec3
+
+
+@wp.kernel
+def tile_mixed_structs(inp: wp.array[Mixed], stored: wp.array[Mixed], added: wp.array[Mixed]):
+    t = wp.tile_load(inp, shape=8)
+    wp.tile_store(stored, t)
+    wp.tile_atomic_add(added, t)
+    wp.tile_atomic_add(added, t)
+
+
+def test_tile_atomic_add_of_structs_adds_float_fields_only(device, rng):
+    """tile_atomic_add of a struct tile adds its floating-point fields atomically (twice here);
+    bool and int8 fields, which have no atomic add, keep the destination's values (Warp)."""
+    data = []
+    for i in range(8):
+        s = Mixed()
+        s.flag, s.small, s.value = bool(i % 2), wp.int8(i - 4), float(rng.standard_normal())
+        s.v = wp.vec3(*rng.standard_normal(3).astype(np.float32))
+        data.append(s)
+    inp = wp.array(data, dtype=Mixed)
+    stored = wp.zeros(8, dtype=Mixed)
+    added = wp.zeros(8, dtype=Mixed)
+    wp.launch_tiled(tile_mixed_structs, dim=1, inputs=[inp, stored, added])
+    src, out, acc = inp.numpy(), stored.numpy(), added.numpy()
+    for field in ("flag", "small", "value", "v"):
+        np.testing.assert_array_equal(out[field], src[field])
+    np.testing.assert_allclose(acc["value"], 2.0 * src["value"], rtol=1e-6)
+    np.testing.assert_allclose(acc["v"], 2.0 * src["v"], rtol=1e-6)
+    assert not acc["flag"].any() and not acc["small"].any()
+
+
+@wp.kernel
+def tile_negative_indices(a: wp.array2d[float], k: int, idx: wp.array[int], row: wp.array[float],
+                          rows: wp.array2d[float], out: wp.array2d[float], elems: wp.array[float]):
+    t = wp.tile_load(a, shape=(6, 5))
+    wp.tile_store(row, t[k, :])
+    wp.tile_store(rows, t[wp.tile_load(idx, shape=4), :])
+    elems[0] = t[-1, -2]
+    elems[1] = t[k, k]
+    t[-2] = wp.tile_zeros(shape=5, dtype=float)
+    t[k, 0] += 100.0
+    wp.tile_store(out, t)
+
+
+def test_tile_subscripts_count_negative_indices_from_the_end(device, rng):
+    """NumPy's rule for integer subscripts of tiles, constant or runtime, in views, gathers,
+    element reads and writes (Warp); the gradient of the gather lands on the wrapped rows."""
+    a_np = rng.standard_normal((6, 5)).astype(np.float32)
+    idx_np = np.array([-1, 0, -6, 3], dtype=np.int32)
+    a = wp.array(a_np, requires_grad=True)
+    row = wp.zeros(5, dtype=float)
+    rows = wp.zeros((4, 5), dtype=float, requires_grad=True)
+    out = wp.zeros((6, 5), dtype=float)
+    elems = wp.zeros(2, dtype=float)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_negative_indices, dim=1, inputs=[a, -3, wp.array(idx_np), row, rows, out, elems])
+    np.testing.assert_array_equal(row.numpy(), a_np[-3])
+    np.testing.assert_array_equal(rows.numpy(), a_np[idx_np])
+    np.testing.assert_array_equal(elems.numpy(), [a_np[-1, -2], a_np[-3, -3]])
+    expected = a_np.copy()
+    expected[-2] = 0.0
+    expected[-3, 0] += 100.0
+    np.testing.assert_allclose(out.numpy(), expected, rtol=1e-6)
+    weights = rng.standard_normal((4, 5)).astype(np.float32)
+    tape.backward(grads={rows: wp.array(weights)})
+    grad = np.zeros((6, 5), dtype=np.float64)
+    np.add.at(grad, idx_np, weights)
+    np.testing.assert_allclose(a.grad.numpy(), grad, rtol=1e-6)
