@@ -1131,6 +1131,26 @@ Expected<Value> Checker::EvalCall(const ast::Call& c) {
     t.source = ExprText(c);
     return t;
   }
+  if (const auto* fn = ast::As<ast::Name>(c.func.get());
+      fn && fn->id == "slice" && !st_->scope.count("slice") && !symbols_.count("slice")) {
+    // slice(start, stop[, step]) as Python's: a tuple named "slice" of its three parts (None where
+    // left out), which wp.tile_view reads as a slice of a dimension.
+    if (c.args.empty() || c.args.size() > 3 || !c.keywords.empty())
+      return Error(c.loc, "slice() takes (stop), (start, stop) or (start, stop, step)");
+    std::vector<Value> parts;
+    for (const auto& a : c.args) {
+      WEFT_ASSIGN_OR_RETURN(Value v, Eval(*a));
+      parts.push_back(v);
+    }
+    if (parts.size() == 1) parts.insert(parts.begin(), Value());
+    while (parts.size() < 3) parts.push_back(Value());
+    Value t;
+    t.kind = Value::Kind::kTuple;
+    t.name = "slice";
+    t.elems = std::move(parts);
+    t.source = ExprText(c);
+    return t;
+  }
   WEFT_ASSIGN_OR_RETURN(Value callee, EvalCallee(*c.func));
   std::vector<Value> args;
   for (const auto& a : c.args) {

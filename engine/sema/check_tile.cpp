@@ -611,9 +611,61 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     if (p[1].kind == Value::Kind::kNone || given.empty() || static_cast<int>(given.size()) > tt.ndim)
       return Error(loc, "wp.tile_view(): the offset has 1 to " + std::to_string(tt.ndim) + " entries");
     std::vector<int> offsets;
+    bool any_slice = false;
+    for (const Value& g : given) any_slice |= g.kind == Value::Kind::kTuple && g.name == "slice";
+    if (any_slice) {   // offset=(slice(a, b, c), i, ...): the sub-tile as t[a:b:c, i, ...] names it
+      if (p[2].kind != Value::Kind::kNone)
+        return ErrorOf("value", loc, "wp.tile_view(): 'shape' together with a slice in the offset is ambiguous: "
+                                     "the slices give the shape");
+      std::vector<int64_t> steps;
+      std::vector<int> kept, extents;
+      for (int d = 0; d < tt.ndim; ++d) {
+        const int extent = tt.fixed_shape[d];
+        if (d >= static_cast<int>(given.size()) || (given[d].kind == Value::Kind::kTuple && given[d].name == "slice")) {
+          auto part = [&](size_t k, int64_t dflt, bool* given_part) -> Expected<int64_t> {
+            *given_part = false;
+            if (d >= static_cast<int>(given.size()) || given[d].elems[k].kind == Value::Kind::kNone) return dflt;
+            const Value& v = given[d].elems[k];
+            if (v.kind != Value::Kind::kVar || v.literal_text.empty() ||
+                v.literal_text.find_first_not_of("-0123456789") != std::string::npos || v.literal_text.size() > 12)
+              return ErrorOf("value", loc, "wp.tile_view(): slice bounds must be compile-time constant integers");
+            *given_part = true;
+            return std::stoll(v.literal_text);
+          };
+          bool has_start, has_stop, has_step;
+          WEFT_ASSIGN_OR_RETURN(int64_t step, part(2, 1, &has_step));
+          if (step == 0) return ErrorOf("value", loc, "wp.tile_view(): slice step cannot be zero");
+          WEFT_ASSIGN_OR_RETURN(int64_t start, part(0, step > 0 ? 0 : extent - 1, &has_start));
+          WEFT_ASSIGN_OR_RETURN(int64_t stop, part(1, step > 0 ? extent : -1, &has_stop));
+          // Python's slice.indices(extent)
+          auto clamp = [&](int64_t v, bool given_part, int64_t lo, int64_t hi) {
+            if (!given_part) return v;
+            if (v < 0) v += extent;
+            return v < lo ? lo : (v > hi ? hi : v);
+          };
+          start = clamp(start, has_start, step > 0 ? 0 : -1, step > 0 ? extent : extent - 1);
+          stop = clamp(stop, has_stop, step > 0 ? 0 : -1, step > 0 ? extent : extent - 1);
+          const int64_t count = step > 0 ? (stop > start ? (stop - start + step - 1) / step : 0)
+                                         : (start > stop ? (start - stop - step - 1) / -step : 0);
+          if (count <= 0) return ErrorOf("value", loc, "wp.tile_view(): an empty tile slice");
+          offsets.push_back(EmitConst(Type::Scalar(ScalarKind::kInt64), "wp::int64(" + std::to_string(start) + ")"));
+          steps.resize(static_cast<size_t>(d) + 1, 1);
+          steps[static_cast<size_t>(d)] = step;
+          kept.push_back(d);
+          extents.push_back(static_cast<int>(count));
+          continue;
+        }
+        const Value& g = given[d];
+        if (g.kind != Value::Kind::kVar || !TypeOf(g.var).is_scalar() || !IsInt(TypeOf(g.var).scalar))
+          return ErrorOf("value", loc, "wp.tile_view(): offsets must be integers or slices");
+        offsets.push_back(EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::int64($0)", {g.var}));
+      }
+      if (kept.empty()) return ErrorOf("value", loc, "wp.tile_view(): a view needs at least one sliced dimension");
+      return TileView(a, offsets, kept, extents, loc, steps);
+    }
     for (const Value& g : given) {
       if (g.kind != Value::Kind::kVar || !TypeOf(g.var).is_scalar() || !IsInt(TypeOf(g.var).scalar))
-        return Error(loc, "wp.tile_view(): offsets must be integers");
+        return ErrorOf("value", loc, "wp.tile_view(): offsets must be integers or slices");
       offsets.push_back(EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::int64($0)", {g.var}));
     }
     std::vector<int> kept, extents;

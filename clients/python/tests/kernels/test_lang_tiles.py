@@ -241,6 +241,12 @@ def test_tile_indices_outside_the_tile_are_launch_errors(device, rng):
      r"Compound assignment to a tile view is not supported"),
     ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nt[0:2, :] -= wp.tile_ones(shape=(2, 4), dtype=float)",
      r"Compound assignment to a tile view is not supported"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = wp.tile_view(t, offset=(slice(0, 2, 1),), shape=(2, 4))",
+     r"'shape' together with a slice"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nn = a.shape[0]\nu = wp.tile_view(t, offset=(slice(0, n, 1),))",
+     r"slice bounds must be compile-time constant"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = wp.tile_view(t, offset=(1.5,))", r"must be integers or slices"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = wp.tile_view(t, offset=(slice(2, 2),))", r"an empty tile slice"),
     # thread memory: tiles and their adjoints over 2 MiB
     ("t = wp.tile_zeros(shape=(256, 256), dtype=wp.float64)\nu = t * 2.0 + t", r"take \d+ bytes of the thread's memory"),
 ])
@@ -631,3 +637,40 @@ def test_tile_subscripts_count_negative_indices_from_the_end(device, rng):
     grad = np.zeros((6, 5), dtype=np.float64)
     np.add.at(grad, idx_np, weights)
     np.testing.assert_allclose(a.grad.numpy(), grad, rtol=1e-6)
+
+
+@wp.kernel
+def tile_view_slices(a: wp.array2d[float], k: int, o1: wp.array[float], o2: wp.array2d[float],
+                     o3: wp.array2d[float], o4: wp.array[float]):
+    t = wp.tile_load(a, shape=(6, 8))
+    wp.tile_store(o1, wp.tile_view(t, offset=(k, slice(0, -1, 1))))
+    wp.tile_store(o2, wp.tile_view(t, offset=(slice(-3, 6, 1), slice(None, None, 3))))
+    wp.tile_store(o3, wp.tile_view(t, offset=(slice(5, None, -2),)))
+    wp.tile_store(o4, wp.tile_view(t, offset=(slice(1, 5), 2)))
+
+
+def test_tile_view_takes_slices_in_the_offset(device, rng):
+    """wp.tile_view(t, offset=(slice(a, b, c), i, ...)) names the sub-tile t[a:b:c, i, ...]
+    (Python's slice rules against the tile's extents; dimensions after the offset are whole);
+    gradients reach the viewed elements."""
+    a_np = rng.standard_normal((6, 8)).astype(np.float32)
+    a = wp.array(a_np, requires_grad=True)
+    o1 = wp.zeros(7, dtype=float, requires_grad=True)
+    o2 = wp.zeros((3, 3), dtype=float, requires_grad=True)
+    o3 = wp.zeros((3, 8), dtype=float, requires_grad=True)
+    o4 = wp.zeros(4, dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_view_slices, dim=1, inputs=[a, 4, o1, o2, o3, o4])
+    np.testing.assert_array_equal(o1.numpy(), a_np[4, 0:-1])
+    np.testing.assert_array_equal(o2.numpy(), a_np[-3:6, ::3])
+    np.testing.assert_array_equal(o3.numpy(), a_np[5::-2])
+    np.testing.assert_array_equal(o4.numpy(), a_np[1:5, 2])
+    tape.backward(grads={o1: wp.ones(7, dtype=float), o2: wp.ones((3, 3), dtype=float),
+                         o3: wp.ones((3, 8), dtype=float), o4: wp.ones(4, dtype=float)})
+    grad = np.zeros((6, 8))
+    grad[4, 0:-1] += 1.0
+    grad[-3:6, ::3] += 1.0
+    grad[5::-2] += 1.0
+    grad[1:5, 2] += 1.0
+    np.testing.assert_array_equal(a.grad.numpy(), grad)
