@@ -359,6 +359,7 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
   }
 
   CountAssignedNames(pf.def->body, &state.assign_counts);
+  CollectTileViewBases(pf.def->body, &state.view_bases);
   Status s = LowerBlock(pf.def->body);
   if (!s.ok()) return finish_error(s);
   // wp.ref[T] parameters: their final values are returned after the function's own (the
@@ -627,10 +628,17 @@ Status Checker::LowerStmt(const ast::Stmt& s) {
   if (s.kind == ast::StmtKind::kIf || s.kind == ast::StmtKind::kFor || s.kind == ast::StmtKind::kWhile) {
     const auto tuples = st_->tuple_scope;
     const auto funcs = st_->func_scope;
+    const auto aliases = st_->tile_aliases;
     Status r = LowerStmt2(s);
     if (st_) {
       MarkPathBound(tuples, &st_->tuple_scope, &st_->path_bound);
       MarkPathBound(funcs, &st_->func_scope, &st_->path_bound);
+      // a view bound on one path only is a plain value after the statement
+      for (auto it = st_->tile_aliases.begin(); it != st_->tile_aliases.end();) {
+        auto before = aliases.find(it->first);
+        if (before == aliases.end() || !(before->second == it->second)) it = st_->tile_aliases.erase(it);
+        else ++it;
+      }
     }
     return r;
   }
@@ -651,8 +659,26 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
     case ast::StmtKind::kFunctionDef: return Error(s.loc, "nested function definitions are not supported in kernels");
     case ast::StmtKind::kAssign: {
       const auto& a = static_cast<const ast::Assign&>(s);
+      last_tile_view_.result = -1;
       WEFT_ASSIGN_OR_RETURN(Value v, Eval(*a.value));
+      const auto view = last_tile_view_;
       for (const auto& t : a.targets) WEFT_RETURN_IF_ERROR(LowerAssignTo(*t, v));
+      // `row = t[i]`, `v = wp.tile_view(t, ...)`: the name aliases the view of the tile local
+      const ast::Expr* viewed = nullptr;
+      if (const auto* sub = ast::As<ast::Subscript>(a.value.get())) viewed = sub->value.get();
+      if (const auto* call = ast::As<ast::Call>(a.value.get()); call && !call->args.empty()) {
+        const auto* fa = ast::As<ast::Attribute>(call->func.get());
+        const auto* fn = ast::As<ast::Name>(call->func.get());
+        if ((fa && fa->attr == "tile_view") || (fn && fn->id == "tile_view")) viewed = call->args[0].get();
+      }
+      const auto* base = viewed ? ast::As<ast::Name>(viewed) : nullptr;
+      if (base && a.targets.size() == 1 && v.kind == Value::Kind::kVar && v.var == view.result) {
+        const auto* n = ast::As<ast::Name>(a.targets[0].get());
+        auto b = st_->scope.find(base->id);
+        const bool base_is_view = st_->tile_aliases.count(base->id) > 0;
+        if (n && n->id != base->id && b != st_->scope.end() && (b->second == view.base || base_is_view))
+          st_->tile_aliases[n->id] = TileAlias{base->id, TypeOf(v.var), view.region};
+      }
       // `x = 0` (an untyped literal; Warp's constant local, not a place wp.ref can take)
       const ast::Expr* lit = a.value.get();
       if (const auto* u = ast::As<ast::UnaryOp>(lit); u && u->op == ast::UnaryOperator::kMinus) lit = u->operand.get();
@@ -750,6 +776,8 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
                                 ExprText(*a.target) + "' from " + TypeString(TypeOf(lhs.var)) + " to " +
                                 TypeString(TypeOf(r.var)));
       slot_store_emitted_ = false;
+      if (const auto* n = ast::As<ast::Name>(a.target.get()); n && st_->tile_aliases.count(n->id))
+        write_through_ = true;   // `row += x` on a view updates the tile it views
       WEFT_RETURN_IF_ERROR(LowerAssignTo(*a.target, r));
       // `a[i].x *= v` (any operator but + - & | ^) on a differentiable slot of an array element:
       // its adjoint would need the slot's value before the update, which the replay no longer
@@ -815,6 +843,8 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
   const SourceLocation& loc = target.loc;
   const bool slot_store = slot_store_;   // `value` is an element updated by a component write
   slot_store_ = false;
+  const bool write_through = write_through_;   // an update in place (see write_through_)
+  write_through_ = false;
   // The base of a component or field write: an array element loaded there is a slot load.
   auto eval_slot_base = [&](const ast::Expr& e) {
     slot_target_ = true;
@@ -825,9 +855,16 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
   // Lowers the write of `updated` (the base with one component or field replaced).
   auto assign_updated = [&](const ast::Expr& e, int updated) {
     slot_store_ = true;
+    write_through_ = true;
     return LowerAssignTo(e, Value::OfVar(updated));
   };
   if (const auto* n = ast::As<ast::Name>(&target)) {
+    if (auto alias = st_->tile_aliases.find(n->id); alias != st_->tile_aliases.end()) {
+      const TileAlias a = alias->second;
+      if (write_through && value.kind == Value::Kind::kVar && TypeOf(value.var) == a.view)
+        return WriteThroughAlias(n->id, a, value.var, loc);
+      st_->tile_aliases.erase(alias);   // rebound: no longer a view
+    }
     if (value.kind == Value::Kind::kTuple) {
       // A tuple value (Warp's tuples): the name stands for its elements (len(), t[i], unpacking,
       // passing to a func's tuple or Any parameter).
@@ -1168,6 +1205,33 @@ Status Checker::LowerIf(int cond, const std::function<Status()>& then_fn, const 
   return Status::Ok();
 }
 
+void CollectTileViewBases(const ast::StmtList& body, std::map<std::string, std::set<std::string>>* out) {
+  for (const auto& sp : body) {
+    const ast::Stmt& s = *sp;
+    if (s.kind == ast::StmtKind::kAssign) {
+      const auto& a = static_cast<const ast::Assign&>(s);
+      const ast::Expr* viewed = nullptr;
+      if (const auto* sub = ast::As<ast::Subscript>(a.value.get())) viewed = sub->value.get();
+      if (const auto* call = ast::As<ast::Call>(a.value.get()); call && !call->args.empty()) {
+        const auto* fa = ast::As<ast::Attribute>(call->func.get());
+        const auto* fn = ast::As<ast::Name>(call->func.get());
+        if ((fa && fa->attr == "tile_view") || (fn && fn->id == "tile_view")) viewed = call->args[0].get();
+      }
+      const auto* base = viewed ? ast::As<ast::Name>(viewed) : nullptr;
+      if (base)
+        for (const auto& t : a.targets)
+          if (const auto* n = ast::As<ast::Name>(t.get()); n && n->id != base->id) (*out)[n->id].insert(base->id);
+    } else if (s.kind == ast::StmtKind::kIf) {
+      CollectTileViewBases(static_cast<const ast::If&>(s).body, out);
+      CollectTileViewBases(static_cast<const ast::If&>(s).orelse, out);
+    } else if (s.kind == ast::StmtKind::kFor) {
+      CollectTileViewBases(static_cast<const ast::For&>(s).body, out);
+    } else if (s.kind == ast::StmtKind::kWhile) {
+      CollectTileViewBases(static_cast<const ast::While&>(s).body, out);
+    }
+  }
+}
+
 void CollectAssignedNames(const ast::StmtList& stmts, std::set<std::string>* out) {
   std::map<std::string, int> counts;
   CountAssignedNames(stmts, &counts);
@@ -1255,6 +1319,15 @@ struct LoopBuilder {
     std::set<std::string> assigned;
     CollectAssignedNames(body, &assigned);
     auto* st = c->st_;
+    // writing through a tile view assigns the tile it views (and what that views)
+    for (bool grew = true; grew;) {
+      grew = false;
+      for (const auto& n : std::set<std::string>(assigned)) {
+        auto v = st->view_bases.find(n);
+        if (v == st->view_bases.end()) continue;
+        for (const auto& b : v->second) grew |= assigned.insert(b).second;
+      }
+    }
     for (const auto& n : assigned) {
       auto it = st->scope.find(n);
       if (it == st->scope.end()) continue;

@@ -330,6 +330,12 @@ Expected<Value> Checker::LookupGlobal(const std::string& name, const SourceLocat
 }
 
 Expected<Value> Checker::EvalName(const ast::Name& n) {
+  if (auto alias = st_->tile_aliases.find(n.id); alias != st_->tile_aliases.end()) {   // the tile as it is now
+    const TileAlias a = alias->second;
+    WEFT_ASSIGN_OR_RETURN(Value v, ViewOfAlias(a, n.loc));
+    v.source = n.id;
+    return v;
+  }
   auto it = st_->scope.find(n.id);
   if (it != st_->scope.end()) {
     Value v = Value::OfVar(it->second);
@@ -2083,6 +2089,7 @@ Expected<Value> Checker::CallUserFunc(const std::string& name, std::vector<Value
         const ast::Expr* target = ref_targets.at(static_cast<size_t>(ref_params[k]));
         if (!target && !c.refs[static_cast<size_t>(ref_params[k])]) continue;   // a temporary tile
         if (!target) return Error(loc, "wp.ref argument of '" + name + "' has no place to write to");
+        write_through_ = true;
         WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, Value::OfVar(dsts[own_returns + k])));
       }
       return out;

@@ -47,6 +47,17 @@ class Checker {
   Expected<Module> Run();
 
   // --- per-function state ---
+  struct TileAlias {
+    std::string base;            // the tile local viewed
+    Type view;                   // the view's type
+    std::vector<Value> region;   // its tile_view / tile_assign region arguments
+    bool operator==(const TileAlias& o) const {
+      if (base != o.base || view != o.view || region.size() != o.region.size()) return false;
+      for (size_t i = 0; i < region.size(); ++i)
+        if (region[i].var != o.region[i].var) return false;
+      return true;
+    }
+  };
   struct FnState {
     Function fn;
     const ParsedFunction* parsed = nullptr;
@@ -77,6 +88,12 @@ class Checker {
     std::set<std::string> static_loop_vars;
     // Names whose binding is an untyped numeric literal (`x = 0`): name -> the literal's text.
     std::map<std::string, std::string> untyped_literal_names;
+    // Names bound to a view of another tile local (`row = t[i]`, `v = wp.tile_view(t, ...)`):
+    // Warp's views alias their tile, so reading the name views the tile as it is now and writing
+    // into it (wp.tile_assign, row[j] = x, row += x, a func updating it) writes into the tile.
+    std::map<std::string, TileAlias> tile_aliases;
+    // name -> the tile locals it may view anywhere in the body (for the loop carries).
+    std::map<std::string, std::set<std::string>> view_bases;
   };
 
   // check.cpp
@@ -206,7 +223,22 @@ class Checker {
   // LowerAssignTo of the updated element of a component or field write: its store is Op::slot.
   bool slot_store_ = false;
   bool slot_store_emitted_ = false;   // a slot store was emitted (since the flag was last cleared)
+  // LowerAssignTo of a name updated in place (a tile call's written argument, t[...] = v,
+  // t += v, a func's by-reference tile): a name aliasing a tile view writes into the tile.
+  bool write_through_ = false;
+  // The last sub-tile TileView emitted: its result and what made it (for TileAlias).
+  struct {
+    int result = -1;
+    int base = -1;
+    std::vector<Value> region;
+  } last_tile_view_;
+  Status WriteThroughAlias(const std::string& name, const TileAlias& alias, int value, const SourceLocation& loc);
+  Expected<Value> ViewOfAlias(const TileAlias& alias, const SourceLocation& loc);
 };
+
+// name -> the tile locals it is bound to a view of, anywhere in `body` (`row = t[i]`,
+// `v = wp.tile_view(t, ...)`): writing through such a name assigns the tile.
+void CollectTileViewBases(const ast::StmtList& body, std::map<std::string, std::set<std::string>>* out);
 
 // The tile builtins whose calls sema/check_tile.cpp checks (some have no registry row).
 bool IsTileCall(const std::string& name);

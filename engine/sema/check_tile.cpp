@@ -172,6 +172,7 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     const ast::Expr* target = call && written ? TileWrittenTarget(*call, written->at(which)) : nullptr;
     if (!target) return Error(loc, "wp." + name + "(): " + (written ? written->at(which).param : "the argument") +
                                        " must name a tile");
+    write_through_ = true;   // an update in place: a view argument writes into its tile
     WEFT_RETURN_IF_ERROR(LowerAssignTo(*target, r));
     return Value();
   };
@@ -823,7 +824,45 @@ Expected<Value> Checker::TileView(int base, std::vector<int> offsets, const std:
       return Error(loc, "a view of extent " + std::to_string(extents[d]) + " in dimension " + std::to_string(kept[d]) +
                             " of a tile of shape " + ShapeText(tt.fixed_shape));
   std::vector<Value> args{Value::OfVar(NewVar(Type::Tile(tt.elem(), extents), "tile shape")), Value::OfVar(base)};
-  for (const Value& v : TileRegionArgs(std::move(offsets), steps, kept)) args.push_back(v);
+  const std::vector<Value> region = TileRegionArgs(std::move(offsets), steps, kept);
+  for (const Value& v : region) args.push_back(v);
+  WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin("tile_view", std::move(args), loc));
+  last_tile_view_.result = r.var;
+  last_tile_view_.base = base;
+  last_tile_view_.region = region;
+  return r;
+}
+
+Status Checker::WriteThroughAlias(const std::string& name, const TileAlias& alias, int value, const SourceLocation& loc) {
+  WEFT_RETURN_IF_ERROR(BindLocal(name, value, loc));
+  auto base = st_->scope.find(alias.base);
+  if (base == st_->scope.end()) return Error(loc, "'" + name + "' views '" + alias.base + "', which is gone");
+  Value current = Value::OfVar(base->second);
+  auto outer = st_->tile_aliases.find(alias.base);
+  if (outer != st_->tile_aliases.end()) {   // the base is itself a view: as it is now
+    WEFT_ASSIGN_OR_RETURN(current, ViewOfAlias(outer->second, loc));
+  }
+  std::vector<Value> args{current, Value::OfVar(value)};
+  for (const Value& v : alias.region) args.push_back(v);
+  WEFT_ASSIGN_OR_RETURN(Value u, ResolveAndEmitBuiltin("tile_assign", std::move(args), loc));
+  if (outer != st_->tile_aliases.end()) {
+    const TileAlias next = outer->second;
+    return WriteThroughAlias(alias.base, next, u.var, loc);
+  }
+  return BindLocal(alias.base, u.var, loc);
+}
+
+Expected<Value> Checker::ViewOfAlias(const TileAlias& alias, const SourceLocation& loc) {
+  auto base = st_->scope.find(alias.base);
+  if (base == st_->scope.end()) return Error(loc, "a tile view outlived the tile '" + alias.base + "'");
+  Value current = Value::OfVar(base->second);
+  auto outer = st_->tile_aliases.find(alias.base);
+  if (outer != st_->tile_aliases.end()) {
+    const TileAlias next = outer->second;
+    WEFT_ASSIGN_OR_RETURN(current, ViewOfAlias(next, loc));
+  }
+  std::vector<Value> args{Value::OfVar(NewVar(alias.view, "tile shape")), current};
+  for (const Value& v : alias.region) args.push_back(v);
   return ResolveAndEmitBuiltin("tile_view", std::move(args), loc);
 }
 

@@ -674,3 +674,60 @@ def test_tile_view_takes_slices_in_the_offset(device, rng):
     grad[5::-2] += 1.0
     grad[1:5, 2] += 1.0
     np.testing.assert_array_equal(a.grad.numpy(), grad)
+
+
+@wp.kernel
+def tile_view_aliases(a: wp.array2d[float], out: wp.array2d[float], seen: wp.array[float], other: wp.array2d[float]):
+    src = wp.tile_load(a, shape=(4, 6))
+    b = wp.tile_zeros(shape=(4, 6), dtype=float)
+    for i in range(4):
+        row_src = src[i]
+        row_dst = b[i]
+        wp.tile_assign(row_dst, row_src)        # writes into b's row i
+    corner = wp.tile_view(b, offset=(1, 2), shape=(2, 3))
+    corner[0, 0] = 100.0                        # element write through the view
+    corner += wp.tile_ones(shape=(2, 3), dtype=float)
+    inner = corner[1]                           # a view of a view
+    add_three(inner)                            # a func updating the view by reference
+    b[3, 5] = -7.0
+    last = b[3]
+    seen[0] = last[5]                           # reads b as it is now
+    c = wp.tile_zeros(shape=(4, 6), dtype=float)
+    row = c[0]
+    row = wp.tile_ones(shape=6, dtype=float)    # rebinding: row is a new tile, c unchanged
+    wp.tile_assign(row, wp.tile_ones(shape=6, dtype=float) * 2.0)
+    wp.tile_store(out, b)
+    wp.tile_store(other, c)
+
+
+@wp.func
+def add_three(t: wp.tile[float, 3]):
+    t += wp.tile_ones(shape=3, dtype=float) * 3.0
+
+
+def test_tile_views_alias_their_tile(device, rng):
+    """A name bound to a view of a tile (row = t[i], v = wp.tile_view(t, ...)) aliases it, as in
+    Warp: writes through it (tile_assign, element writes, +=, a func's by-reference update,
+    views of views) change the tile, reads see the tile as it is now, rebinding the name ends
+    the alias; gradients follow the writes."""
+    a_np = rng.standard_normal((4, 6)).astype(np.float32)
+    a = wp.array(a_np, requires_grad=True)
+    out = wp.zeros((4, 6), dtype=float, requires_grad=True)
+    seen = wp.zeros(1, dtype=float)
+    other = wp.zeros((4, 6), dtype=float)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_view_aliases, dim=1, inputs=[a, out, seen, other])
+    expected = a_np.astype(np.float64).copy()
+    expected[1, 2] = 100.0
+    expected[1:3, 2:5] += 1.0
+    expected[2, 2:5] += 3.0
+    expected[3, 5] = -7.0
+    np.testing.assert_allclose(out.numpy(), expected, rtol=1e-6)
+    assert seen.numpy()[0] == -7.0
+    assert not other.numpy().any()
+    tape.backward(grads={out: wp.ones((4, 6), dtype=float)})
+    grad = np.ones((4, 6))
+    grad[1, 2] = 0.0   # overwritten
+    grad[3, 5] = 0.0
+    np.testing.assert_array_equal(a.grad.numpy(), grad)
