@@ -568,8 +568,9 @@ WP_FUNC WP_TILE tile_scan(const WP_TILE& a) {
     }
     if (k > 0) {
       if (KIND == TILE_SCAN_SUM_INCLUSIVE) cg_accum(acc, a.data[k]);
-      else if (KIND == TILE_SCAN_MAX) acc = a.data[k] > acc ? a.data[k] : acc;
-      else acc = a.data[k] < acc ? a.data[k] : acc;
+      // max / min skip NaN elements (fmax / fmin, Warp's rule): NaN only while every element so far is
+      else if (KIND == TILE_SCAN_MAX) acc = (a.data[k] > acc || acc != acc) ? a.data[k] : acc;
+      else acc = (a.data[k] < acc || acc != acc) ? a.data[k] : acc;
     }
     r.data[k] = acc;
   }

@@ -1241,6 +1241,11 @@ Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vec
           const Type t = TypeOf(v.var);
           return t.is_tile() ? "tile<" + WarpTypeRepr(t.elem()) + ">" : WarpTypeRepr(t);
         };
+        const bool both_tiles = args[0].kind == Value::Kind::kVar && args[1].kind == Value::Kind::kVar &&
+                                TypeOf(args[0].var).is_tile() && TypeOf(args[1].var).is_tile();
+        if (both_tiles)   // Warp's two messages: tile by tile, tile by value
+          return ErrorOf("type", loc, "tile " + name + ": one operand's element type must be scalar, got " +
+                                          TypeString(elem_of(args[0])) + " and " + TypeString(elem_of(args[1])));
         return ErrorOf("type", loc, std::string(name == "mul" ? "Cannot multiply " : "Cannot divide ") +
                                         operand(args[0]) + " by " + operand(args[1]) +
                                         ": at least one operand must be a scalar type");

@@ -342,13 +342,25 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     if (!elem.is_scalar() || elem.scalar == ScalarKind::kBool)
       return ErrorOf("type", loc, "tile_arange() requires a numeric scalar dtype, got " + TypeString(elem));
     const bool int_dtype = IsInt(elem.scalar);
-    if (!int_dtype) {   // every bound within the float dtype's range
+    if (!int_dtype) {   // every bound within the float dtype's range, then rounded to it (Warp counts those)
       const double top = elem.scalar == ScalarKind::kFloat16 ? 65504.0
                          : elem.scalar == ScalarKind::kFloat32 ? 3.4028234663852886e38 : 1.7976931348623157e308;
-      for (const Bound& x : b)
+      // round to nearest even with `bits` significant bits, subnormal below 2^(min_exp - 1)
+      auto round_to = [](double v, int bits, int min_exp) {
+        if (v == 0.0 || !std::isfinite(v)) return v;
+        int e = 0;
+        std::frexp(v, &e);
+        const int quantum = (e < min_exp ? min_exp : e) - bits;
+        return std::ldexp(std::nearbyint(std::ldexp(v, -quantum)), quantum);
+      };
+      for (Bound& x : b) {
         if (std::fabs(x.f) > top)
           return ErrorOf("value", loc, std::string("tile_arange() ") + x.name + "=" + x.text + " is out of range for " +
                                            TypeString(elem));
+        if (elem.scalar == ScalarKind::kFloat32) x.f = x.is_int ? static_cast<float>(x.i) : static_cast<float>(x.f);
+        else if (elem.scalar == ScalarKind::kFloat16) x.f = round_to(x.f, 11, -13);
+        else if (elem.scalar == ScalarKind::kBFloat16) x.f = round_to(x.f, 8, -125);
+      }
     }
     if (int_dtype) {   // every bound an integer of the dtype
       const int bits = ScalarSize(elem.scalar) * 8;
@@ -664,9 +676,17 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
       if (kept.empty()) return ErrorOf("value", loc, "wp.tile_view(): a view needs at least one sliced dimension");
       return TileView(a, offsets, kept, extents, loc, steps);
     }
-    for (const Value& g : given) {
+    for (size_t d = 0; d < given.size(); ++d) {
+      const Value& g = given[d];
       if (g.kind != Value::Kind::kVar || !TypeOf(g.var).is_scalar() || !IsInt(TypeOf(g.var).scalar))
         return ErrorOf("value", loc, "wp.tile_view(): offsets must be integers or slices");
+      if (!g.literal_text.empty() && g.literal_text.find_first_not_of("-0123456789") == std::string::npos &&
+          g.literal_text.size() <= 12) {   // a constant offset outside the tile: an error now
+        const int64_t o = std::stoll(g.literal_text);
+        if (o < 0 || o >= tt.fixed_shape[d])
+          return ErrorOf("value", loc, "wp.tile_view(): offset " + g.literal_text + " is out of bounds for axis " +
+                                           std::to_string(d) + " with extent " + std::to_string(tt.fixed_shape[d]));
+      }
       offsets.push_back(EmitRaw(Type::Scalar(ScalarKind::kInt64), "wp::int64($0)", {g.var}));
     }
     std::vector<int> kept, extents;
@@ -1020,7 +1040,7 @@ Expected<int> Checker::TileUpdate(const ast::Subscript& s, const Value& base, co
   }
   const Type vt = TypeOf(value.var);
   if (!vt.is_tile() || vt.fixed_shape != r.extents)
-    return ErrorOf("value", s.loc, "assigning to a tile view requires a tile of matching shape " +
+    return ErrorOf("value", s.loc, "shape mismatch: assigning to a tile view requires a tile of matching shape " +
                                        ShapeText(r.extents) + ", got " + TypeString(vt));
   Value src = value;
   if (vt.elem() != tt.elem()) {

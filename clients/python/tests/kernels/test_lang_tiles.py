@@ -228,6 +228,9 @@ def test_tile_indices_outside_the_tile_are_launch_errors(device, rng):
      r"Cannot divide tile<vec3f> by vec3f: at least one operand must be a scalar type"),
     ("t = wp.tile_zeros(shape=4, dtype=wp.vec3)\nu = wp.vec3(1.0, 2.0, 3.0) * t",
      r"Cannot multiply vec3f by tile<vec3f>: at least one operand must be a scalar type"),
+    ("t = wp.tile_zeros(shape=4, dtype=wp.vec3)\nu = t * t", r"tile mul: one operand's element type must be scalar"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = wp.tile_view(t, offset=(-1,))", r"offset -1 is out of bounds"),
+    ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = wp.tile_view(t, offset=(4,))", r"offset 4 is out of bounds"),
     ("t = wp.tile_broadcast(wp.tile_zeros(shape=1, dtype=float), shape=(1, 1, 1, 1, 1))",
      r"tile_broadcast\(\) output must have between one and four dimensions, got 5"),
     ("t = wp.tile_squeeze(wp.tile_zeros(shape=(1, 2, 1), dtype=float), axis=(-4,))",
@@ -731,3 +734,53 @@ def test_tile_views_alias_their_tile(device, rng):
     grad[1, 2] = 0.0   # overwritten
     grad[3, 5] = 0.0
     np.testing.assert_array_equal(a.grad.numpy(), grad)
+
+
+@wp.kernel
+def tile_nan_scans(x: wp.array2d[float], hi: wp.array2d[float], lo: wp.array2d[float]):
+    i = wp.tid()
+    t = wp.tile_load(x, shape=(1, 64), offset=(i, 0))
+    wp.tile_store(hi, wp.tile_scan_max_inclusive(t), offset=(i, 0))
+    wp.tile_store(lo, wp.tile_scan_min_inclusive(t), offset=(i, 0))
+
+
+def test_tile_min_max_scans_skip_nan(device, rng):
+    """Running max / min skip NaN elements (NumPy's fmax / fmin accumulate, Warp's rule): NaN
+    only while every element so far is NaN; infinities are values."""
+    rows = []
+    for k in (0, 1, 31, 63):
+        r = rng.uniform(-100, 100, 64).astype(np.float32)
+        r[:k] = np.nan
+        rows.append(r)
+    rows.append(np.full(64, np.nan, dtype=np.float32))
+    rows.append(rng.choice(np.array([np.nan, -np.inf, np.inf, -1.0, 1.0], dtype=np.float32), 64))
+    sparse = rng.uniform(-1e30, 1e30, 64).astype(np.float32)
+    sparse[rng.random(64) < 0.3] = np.nan
+    rows.append(sparse)
+    x_np = np.stack(rows)
+    hi = wp.zeros(x_np.shape, dtype=float)
+    lo = wp.zeros(x_np.shape, dtype=float)
+    wp.launch_tiled(tile_nan_scans, dim=len(rows), inputs=[wp.array(x_np), hi, lo])
+    with np.errstate(invalid="ignore"):
+        np.testing.assert_array_equal(hi.numpy(), np.fmax.accumulate(x_np, axis=1))
+        np.testing.assert_array_equal(lo.numpy(), np.fmin.accumulate(x_np, axis=1))
+
+
+@wp.kernel
+def tile_arange_rounded(f32: wp.array[float], f16: wp.array[wp.float16], f64: wp.array[wp.float64]):
+    wp.tile_store(f32, wp.tile_arange(0.0, 3.0000001, 0.99999999, dtype=wp.float32))
+    wp.tile_store(f16, wp.tile_arange(0.0, 2049.0, 1024.0001, dtype=wp.float16))
+    wp.tile_store(f64, wp.tile_arange(0.0, 3.0000001, 0.99999999, dtype=wp.float64))
+
+
+def test_tile_arange_counts_the_bounds_of_its_dtype(device):
+    """tile_arange rounds its bounds to the element type before counting (Warp): in float32,
+    [0, 3.0000001) by 0.99999999 is [0, 3) by 1 (3 elements); in float16, 2049 is 2048 and
+    1024.0001 is 1024 (2 elements); float64 keeps the values (4 elements)."""
+    f32 = wp.full(4, -1.0, dtype=float)
+    f16 = wp.full(3, -1.0, dtype=wp.float16)
+    f64 = wp.full(5, -1.0, dtype=wp.float64)
+    wp.launch_tiled(tile_arange_rounded, dim=1, inputs=[f32, f16, f64])
+    np.testing.assert_array_equal(f32.numpy(), [0.0, 1.0, 2.0, -1.0])
+    np.testing.assert_array_equal(f16.numpy(), [0.0, 1024.0, -1.0])
+    np.testing.assert_allclose(f64.numpy(), [0.0, 0.99999999, 1.99999998, 2.99999997, -1.0], rtol=1e-15)
