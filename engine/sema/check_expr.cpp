@@ -29,14 +29,6 @@ const std::map<ast::BinaryOperator, std::string>& BinaryBuiltins() {
 // name, as every function target; no module of a Python program is named so).
 constexpr const char* kBuiltinTargetPrefix = "__weft_builtin__.";
 
-bool IsIntLiteralText(const std::string& t) {
-  if (t.empty()) return false;
-  size_t i = (t[0] == '-' || t[0] == '+') ? 1 : 0;
-  if (i >= t.size()) return false;
-  for (; i < t.size(); ++i)
-    if (!std::isdigit(static_cast<unsigned char>(t[i]))) return false;
-  return true;
-}
 
 std::string FloatText(double v) {
   if (std::isnan(v)) return "nan";
@@ -60,6 +52,15 @@ bool IsSpecialBuiltin(const std::string& n) {
 }
 
 }  // namespace
+
+bool IsIntLiteralText(const std::string& t) {
+  if (t.empty()) return false;
+  size_t i = (t[0] == '-' || t[0] == '+') ? 1 : 0;
+  if (i >= t.size()) return false;
+  for (; i < t.size(); ++i)
+    if (!std::isdigit(static_cast<unsigned char>(t[i]))) return false;
+  return true;
+}
 
 std::string ExprText(const ast::Expr& e) {
   if (const auto* n = ast::As<ast::Name>(&e)) return n->id;

@@ -236,6 +236,9 @@ class Checker {
   Expected<Value> ViewOfAlias(const TileAlias& alias, const SourceLocation& loc);
 };
 
+// "12", "-3": the Python text of an integer literal.
+bool IsIntLiteralText(const std::string& t);
+
 // name -> the tile locals it is bound to a view of, anywhere in `body` (`row = t[i]`,
 // `v = wp.tile_view(t, ...)`): writing through such a name assigns the tile.
 void CollectTileViewBases(const ast::StmtList& body, std::map<std::string, std::set<std::string>>* out);

@@ -186,7 +186,7 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     }
     WEFT_ASSIGN_OR_RETURN(std::vector<int> shape, shape_of(p[0]));
     Type def = Type::Float32();
-    if (full && p[1].kind == Value::Kind::kVar && !p[1].literal) def = TypeOf(p[1].var);
+    if (full && p[1].kind == Value::Kind::kVar) def = TypeOf(p[1].var);   // the fill value's type (Warp)
     WEFT_ASSIGN_OR_RETURN(Type elem, dtype_of(p[full ? 2 : 1], def));
     const Type tt = Type::Tile(elem, shape);
     if (elem.is_struct() && name == "tile_ones")
@@ -245,6 +245,12 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
       return top;
     }
     if (p[1].kind != Value::Kind::kVar) return Error(loc, "wp.tile_stack_push() needs a value");
+    const Type vt = TypeOf(p[1].var);   // the element type, or an integer literal for a numeric stack
+    const bool int_literal = p[1].literal && IsIntLiteralText(p[1].literal_text) && stt.elem().is_scalar() &&
+                             stt.elem().scalar != ScalarKind::kBool;
+    if (vt != stt.elem() && !int_literal)
+      return ErrorOf("type", loc, "wp.tile_stack_push(): the value's type " + TypeString(vt) +
+                                      " does not match the stack's element type " + TypeString(stt.elem()));
     WEFT_ASSIGN_OR_RETURN(int v, Coerce(p[1], stt.elem(), loc, "value"));
     Value has = p[2].kind == Value::Kind::kNone ? Value::OfVar(EmitConst(Type::Bool(), "true")) : p[2];
     if (has.kind != Value::Kind::kVar) return Error(loc, "wp.tile_stack_push(): has_value must be a bool");

@@ -236,6 +236,8 @@ def test_tile_indices_outside_the_tile_are_launch_errors(device, rng):
     ("t = wp.tile_squeeze(wp.tile_zeros(shape=(1, 2, 1), dtype=float), axis=(-4,))",
      r"tile_squeeze\(\) axis -4 is out of bounds for tile with 3 dimensions"),
     ("s = wp.tile_stack(capacity=0, dtype=int)", r"capacity must be a positive integer"),
+    ("s = wp.tile_stack(capacity=4, dtype=int)\nwp.tile_stack_push(s, 1.0, True)",
+     r"the value's type float32 does not match the stack's element type int32"),
     ("t = wp.tile_arange(0.0, 1.0e300, dtype=wp.float32)", r"stop=1e\+300 is out of range for float32"),
     ("t = wp.tile_arange(0.0, 1.0, 5.0e-324, dtype=wp.float64)", r"spans more elements than can be counted"),
     ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = t[4, :]", r"tile index 4 is out of bounds for axis 0 with extent 4"),
@@ -784,3 +786,21 @@ def test_tile_arange_counts_the_bounds_of_its_dtype(device):
     np.testing.assert_array_equal(f32.numpy(), [0.0, 1.0, 2.0, -1.0])
     np.testing.assert_array_equal(f16.numpy(), [0.0, 1024.0, -1.0])
     np.testing.assert_allclose(f64.numpy(), [0.0, 0.99999999, 1.99999998, 2.99999997, -1.0], rtol=1e-15)
+
+
+@wp.kernel
+def tile_full_types(f: wp.array[float], i: wp.array[int], v: wp.array[wp.vec3], c: wp.array[float]):
+    wp.tile_store(f, wp.tile_full(shape=(4,), value=1.5))
+    wp.tile_store(i, wp.tile_full(4, value=7))
+    wp.tile_store(v, wp.tile_full(shape=(4,), value=wp.vec3(1.0, 2.0, 3.0)))
+    wp.tile_store(c, wp.tile_full(shape=(4,), value=7, dtype=float))
+
+
+def test_tile_full_takes_the_type_of_its_value(device):
+    """Without a dtype, tile_full's tile holds the fill value's type (a Python int: int32);
+    with one, the value is converted (Warp)."""
+    f, i = wp.zeros(4, dtype=float), wp.zeros(4, dtype=int)
+    v, c = wp.zeros(4, dtype=wp.vec3), wp.zeros(4, dtype=float)
+    wp.launch_tiled(tile_full_types, dim=1, inputs=[f, i, v, c])
+    assert f.numpy().tolist() == [1.5] * 4 and i.numpy().tolist() == [7] * 4 and c.numpy().tolist() == [7.0] * 4
+    np.testing.assert_array_equal(v.numpy(), np.tile([1.0, 2.0, 3.0], (4, 1)))
