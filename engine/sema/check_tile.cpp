@@ -446,6 +446,9 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
                             "-D array");
     if (at.elem() != tt.elem())
       return Error(loc, "wp." + name + "(): the tile holds " + TypeString(tt.elem()) + ", the array " + TypeString(at.elem()));
+    if (name == "tile_atomic_add" && !tt.elem().is_struct() && tt.elem().scalar == ScalarKind::kBool)
+      return ErrorOf("", loc, "tile_atomic_add() only supports tiles with integer or floating-point scalars as the "
+                              "underlying scalar type, but got " + TypeString(tt.elem()));
     WEFT_ASSIGN_OR_RETURN(std::vector<Value> off, offsets_of(p[2], at.ndim));
     std::vector<Value> full{p[0]};
     full.insert(full.end(), off.begin(), off.end());
