@@ -4,8 +4,9 @@
 A field of float32 values at the nodes of an (nx, ny, nz) grid becomes a triangle mesh: one vertex
 per grid edge whose endpoints lie on different sides of the threshold (a node is inside when its
 value is below it), placed by linear interpolation of the two values, and the triangles of each
-cell from the case tables of `_mc_tables`. Three launches on the field's device: counts per node,
-vertices, faces. The two prefix sums between them run on the host (the counts come back once).
+cell from the case tables of `_mc_tables`. On the field's device: counts per node, their prefix
+sums (per chunk of nodes on the device; only the chunks' sums come to the host and their starts
+go back), vertices, faces.
 Vertices are differentiable with respect to the field: under a `wp.Tape`, gradients flow from
 `verts` back to `field` through the interpolation; the indices are discrete.
 """
@@ -34,18 +35,17 @@ def _below(v: float, threshold: float):
 
 
 @wp.func
-def _cell_case(field: wp.array3d[float], i: int, j: int, k: int, threshold: float,
-               corners: wp.array[wp.int32]):
-    case = int(0)
-    for c in range(8):
-        v = field[i + corners[3 * c], j + corners[3 * c + 1], k + corners[3 * c + 2]]
-        case = case | (_below(v, threshold) << c)
-    return case
+def _cell_case(field: wp.array3d[float], i: int, j: int, k: int, threshold: float):
+    """Bit c set when corner c (CUBE_CORNER_OFFSETS[c]) is below the threshold."""
+    return (_below(field[i, j, k], threshold) | (_below(field[i + 1, j, k], threshold) << 1) |
+            (_below(field[i + 1, j + 1, k], threshold) << 2) | (_below(field[i, j + 1, k], threshold) << 3) |
+            (_below(field[i, j, k + 1], threshold) << 4) | (_below(field[i + 1, j, k + 1], threshold) << 5) |
+            (_below(field[i + 1, j + 1, k + 1], threshold) << 6) | (_below(field[i, j + 1, k + 1], threshold) << 7))
 
 
 @wp.kernel
-def _mc_count(field: wp.array3d[float], threshold: float, corners: wp.array[wp.int32],
-              case_tri_range: wp.array[wp.int32], edge_counts: wp.array[wp.int32],
+def _mc_count(field: wp.array3d[float], threshold: float, case_tri_range: wp.array[wp.int32],
+              edge_counts: wp.array[wp.int32],
               tri_counts: wp.array[wp.int32]):
     """Per node: the crossed grid edges that start there (+x, +y, +z) and the triangles of the
     cell whose lowest corner it is."""
@@ -63,7 +63,7 @@ def _mc_count(field: wp.array3d[float], threshold: float, corners: wp.array[wp.i
     edge_counts[node] = n
     tris = int(0)
     if i + 1 < nx and j + 1 < ny and k + 1 < nz:
-        case = _cell_case(field, i, j, k, threshold, corners)
+        case = _cell_case(field, i, j, k, threshold)
         tris = (case_tri_range[case + 1] - case_tri_range[case]) // 3
     tri_counts[node] = tris
 
@@ -108,8 +108,8 @@ def _mc_vertices(field: wp.array3d[float], threshold: float, lower: wp.vec3, del
 
 
 @wp.kernel
-def _mc_faces(field: wp.array3d[float], threshold: float, corners: wp.array[wp.int32],
-              case_tri_range: wp.array[wp.int32], tri_local: wp.array[wp.int32],
+def _mc_faces(field: wp.array3d[float], threshold: float, case_tri_range: wp.array[wp.int32],
+              tri_local: wp.array[wp.int32],
               edge_nodes: wp.array[wp.int32], tri_offsets: wp.array[wp.int32],
               edge_vertex: wp.array[wp.int32], indices: wp.array[wp.int32]):
     """The triangles of the cell whose lowest corner is this node, as vertex indices."""
@@ -117,7 +117,7 @@ def _mc_faces(field: wp.array3d[float], threshold: float, corners: wp.array[wp.i
     nx, ny, nz = field.shape[0], field.shape[1], field.shape[2]
     if i + 1 >= nx or j + 1 >= ny or k + 1 >= nz:
         return
-    case = _cell_case(field, i, j, k, threshold, corners)
+    case = _cell_case(field, i, j, k, threshold)
     start = case_tri_range[case]
     base = tri_offsets[(i * ny + j) * nz + k] * 3 - start
     for q in range(start, case_tri_range[case + 1]):
@@ -126,6 +126,39 @@ def _mc_faces(field: wp.array3d[float], threshold: float, corners: wp.array[wp.i
         nj = j + edge_nodes[4 * e + 1]
         nk = k + edge_nodes[4 * e + 2]
         indices[base + q] = edge_vertex[((ni * ny + nj) * nz + nk) * 3 + edge_nodes[4 * e + 3]]
+
+
+@wp.kernel
+def _mc_chunk_sums(edge_counts: wp.array[wp.int32], tri_counts: wp.array[wp.int32], chunk: int,
+                   edge_sums: wp.array[wp.int32], tri_sums: wp.array[wp.int32]):
+    """The sums of the counts of each chunk of `chunk` consecutive nodes."""
+    c = wp.tid()
+    start = c * chunk
+    end = wp.min(start + chunk, edge_counts.shape[0])
+    e = int(0)
+    t = int(0)
+    for k in range(start, end):
+        e += edge_counts[k]
+        t += tri_counts[k]
+    edge_sums[c] = e
+    tri_sums[c] = t
+
+
+@wp.kernel
+def _mc_chunk_offsets(edge_counts: wp.array[wp.int32], tri_counts: wp.array[wp.int32], chunk: int,
+                      edge_starts: wp.array[wp.int32], tri_starts: wp.array[wp.int32],
+                      edge_offsets: wp.array[wp.int32], tri_offsets: wp.array[wp.int32]):
+    """Exclusive prefix sums of the counts, each chunk from its start."""
+    c = wp.tid()
+    start = c * chunk
+    end = wp.min(start + chunk, edge_counts.shape[0])
+    e = edge_starts[c]
+    t = tri_starts[c]
+    for k in range(start, end):
+        edge_offsets[k] = e
+        tri_offsets[k] = t
+        e += edge_counts[k]
+        t += tri_counts[k]
 
 
 _table_cache: dict = {"runtime": None, "by_device": {}}
@@ -142,8 +175,7 @@ def _device_tables(device):
         def upload(values):
             return wp.array(np.asarray(values, dtype=np.int32).ravel(), dtype=wp.int32, device=device)
 
-        found = (upload(_tables.CUBE_CORNER_OFFSETS), upload(_tables.CASE_TO_TRI_RANGE),
-                 upload(_tables.TRI_LOCAL_INDICES), upload(_tables.edge_nodes()))
+        found = (upload(_tables.CASE_TO_TRI_RANGE), upload(_tables.TRI_LOCAL_INDICES), upload(_tables.edge_nodes()))
         _table_cache["by_device"][key] = found
     return found
 
@@ -182,29 +214,40 @@ def _marching_cubes(field, threshold: float, lower, upper):
     validate_field(field)
     origin, delta = resolve_domain_bounds(field.shape, lower, upper)
     device = field.device
-    corners, case_tri_range, tri_local, edge_nodes = _device_tables(device)
+    case_tri_range, tri_local, edge_nodes = _device_tables(device)
     nodes = field.shape[0] * field.shape[1] * field.shape[2]
     threshold = float(threshold)
 
     edge_counts = wp.empty(nodes, dtype=wp.int32, device=device)
     tri_counts = wp.empty(nodes, dtype=wp.int32, device=device)
     wp.launch(_mc_count, dim=field.shape, device=device,
-              inputs=[field, threshold, corners, case_tri_range, edge_counts, tri_counts])
-    edge_offsets, vert_total = _exclusive_offsets(edge_counts.numpy(), "vertices")
-    tri_offsets, tri_total = _exclusive_offsets(tri_counts.numpy(), "triangles")
+              inputs=[field, threshold, case_tri_range, edge_counts, tri_counts])
+    # prefix sums: chunk sums on the device, the chunks' starts on the host (at most ~64K each)
+    chunk = max(256, -(-nodes // 65536))
+    chunks = -(-nodes // chunk)
+    edge_sums = wp.empty(chunks, dtype=wp.int32, device=device)
+    tri_sums = wp.empty(chunks, dtype=wp.int32, device=device)
+    wp.launch(_mc_chunk_sums, dim=chunks, device=device, inputs=[edge_counts, tri_counts, chunk],
+              outputs=[edge_sums, tri_sums])
+    edge_starts, vert_total = _exclusive_offsets(edge_sums.numpy(), "vertices")
+    tri_starts, tri_total = _exclusive_offsets(tri_sums.numpy(), "triangles")
 
     grad = bool(getattr(field, "requires_grad", False))
     verts = wp.empty(vert_total, dtype=wp.vec3, device=device, requires_grad=grad)
     indices = wp.empty(3 * tri_total, dtype=wp.int32, device=device)
     if vert_total == 0:
         return verts, indices
+    edge_offsets = wp.empty(nodes, dtype=wp.int32, device=device)
+    tri_offsets = wp.empty(nodes, dtype=wp.int32, device=device)
+    wp.launch(_mc_chunk_offsets, dim=chunks, device=device,
+              inputs=[edge_counts, tri_counts, chunk, wp.array(edge_starts, dtype=wp.int32, device=device),
+                      wp.array(tri_starts, dtype=wp.int32, device=device)],
+              outputs=[edge_offsets, tri_offsets])
     edge_vertex = wp.empty(3 * nodes, dtype=wp.int32, device=device)
     wp.launch(_mc_vertices, dim=field.shape, device=device,
-              inputs=[field, threshold, origin, delta, wp.array(edge_offsets, dtype=wp.int32, device=device)],
-              outputs=[verts, edge_vertex])
+              inputs=[field, threshold, origin, delta, edge_offsets], outputs=[verts, edge_vertex])
     wp.launch(_mc_faces, dim=field.shape, device=device,
-              inputs=[field, threshold, corners, case_tri_range, tri_local, edge_nodes,
-                      wp.array(tri_offsets, dtype=wp.int32, device=device), edge_vertex],
+              inputs=[field, threshold, case_tri_range, tri_local, edge_nodes, tri_offsets, edge_vertex],
               outputs=[indices])
     return verts, indices
 
