@@ -253,6 +253,10 @@ Expected<CudaDevice::Slab*> CudaDevice::NewSlabLocked(uint64_t size, bool dedica
   slab->dedicated = dedicated;
   slab->owner = owner;
   jit::CuResult r = driver_->MemAlloc(&slab->base, size);
+  if (r == 2 /* CUDA_ERROR_OUT_OF_MEMORY */) {   // the cached slabs first, then the error
+    DropCachedLocked();
+    r = driver_->MemAlloc(&slab->base, size);
+  }
   if (r == 2 /* CUDA_ERROR_OUT_OF_MEMORY */)
     return ResourceExhausted(name_ + " is out of memory (a slab of " + std::to_string(size) + " bytes)");
   WEFT_RETURN_IF_ERROR(driver_->Check(r, "cuMemAlloc"));
@@ -273,8 +277,13 @@ Expected<MemoryBlock> CudaDevice::Allocate(uint64_t bytes, const std::string& ow
   std::lock_guard<std::mutex> lock(mu_);
   Slab* slab = nullptr;
   uint64_t offset = 0;
-  if (dedicated || need > options_.dedicated_threshold) {
+  if (dedicated) {   // an export's slab: always a fresh one
     WEFT_ASSIGN_OR_RETURN(slab, NewSlabLocked(need, true, owner));
+  } else if (need > options_.dedicated_threshold) {
+    slab = TakeCachedLocked(need, owner);
+    if (!slab) {
+      WEFT_ASSIGN_OR_RETURN(slab, NewSlabLocked(need, true, owner));
+    }
   } else {
     for (auto& [id, s] : slabs_) {
       if (s->dedicated || s->owner != owner) continue;
@@ -311,6 +320,33 @@ Expected<MemoryBlock> CudaDevice::Allocate(uint64_t bytes, const std::string& ow
   return b;
 }
 
+CudaDevice::Slab* CudaDevice::TakeCachedLocked(uint64_t need, const std::string& owner) {
+  Slab* best = nullptr;
+  for (auto& [id, s] : slabs_) {
+    if (!s->cached || s->shared || s->owner != owner || s->size < need || s->size - need > need / 2) continue;
+    if (!best || s->size < best->size) best = s.get();
+  }
+  if (best) best->cached = false;
+  return best;
+}
+
+void CudaDevice::DropCachedLocked() {
+  for (auto it = slabs_.begin(); it != slabs_.end();) {
+    if (it->second->cached) {
+      driver_->MemFree(it->second->base);
+      it = slabs_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+void CudaDevice::MarkShared(const MemoryBlock& b) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = slabs_.find(b.slab_id);
+  if (it != slabs_.end()) it->second->shared = true;
+}
+
 void CudaDevice::Free(const MemoryBlock& b) {
   std::shared_lock<std::shared_mutex> reset(reset_mu_);
   if (b.generation != generation_.load()) return;   // its memory went with the old context
@@ -320,6 +356,18 @@ void CudaDevice::Free(const MemoryBlock& b) {
   if (it == slabs_.end()) return;
   Slab& s = *it->second;
   s.used -= std::min(s.used, b.size);
+  if (s.used == 0 && s.dedicated && !s.shared && streams_.count(s.owner)) {
+    // Kept for the owner's next big array, within the owner's cache budget.
+    uint64_t cached = 0;
+    for (const auto& [id, o] : slabs_)
+      if (o->cached && o->owner == s.owner) cached += o->size;
+    if (cached + s.size <= options_.dedicated_cache_bytes) {
+      s.cached = true;
+      s.free_ranges.clear();
+      s.free_ranges[0] = s.size;
+      return;
+    }
+  }
   if (s.used == 0 && (s.dedicated || !streams_.count(s.owner))) {
     // An empty dedicated slab, or one whose owner has closed, goes back to the driver; the
     // regular slabs of a live session stay for its next arrays.

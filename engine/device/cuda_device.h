@@ -40,6 +40,9 @@ struct CudaDeviceOptions {
   int ordinal = 0;
   uint64_t slab_size = 64ull << 20;
   uint64_t dedicated_threshold = 16ull << 20;
+  // Empty dedicated slabs a live session keeps for its next big arrays (bytes per session); a
+  // slab whose IPC handle may have gone to another session (an exported array) is never kept.
+  uint64_t dedicated_cache_bytes = 1ull << 30;
   double launch_time_limit_s = 0;     // 0 = none
   // Compiles CUDA C++ for sm_XX to a loadable image (NVRTC through the module store).
   std::function<Expected<std::string>(const std::string& source, const std::string& name, int sm)> compile;
@@ -78,6 +81,7 @@ class CudaDevice final : public Device {
 
   uint64_t ReservedSize(uint64_t bytes) const override;
   Expected<MemoryBlock> Allocate(uint64_t bytes, const std::string& owner, bool dedicated) override;
+  void MarkShared(const MemoryBlock& block) override;
   void Free(const MemoryBlock& block) override;
   uint64_t SlabBytes() const override;
   uint32_t SlabCount() const override;
@@ -159,6 +163,8 @@ class CudaDevice final : public Device {
     uint64_t used = 0;
     std::map<uint64_t, uint64_t> free_ranges;   // offset -> size
     std::string ipc;
+    bool shared = false;   // its IPC handle may have gone to another session: never reused
+    bool cached = false;   // an empty dedicated slab kept for its owner's next big array
   };
   struct Pending {
     std::shared_ptr<const LoadedModule> module;
@@ -233,6 +239,9 @@ class CudaDevice final : public Device {
   Stream* FindStream(const std::string& session_id);
   void DestroyStream(Stream& st);
   Expected<Slab*> NewSlabLocked(uint64_t size, bool dedicated, const std::string& owner);
+  // A cached dedicated slab of `owner` for `need` bytes (at most half of it unused), or nullptr.
+  Slab* TakeCachedLocked(uint64_t need, const std::string& owner);
+  void DropCachedLocked();   // every cached slab back to the driver (before an allocation fails)
   Status CheckBlock(const MemoryBlock& b, const std::string& what) const;
   Status CheckUsable() const;
   Expected<jit::CuFunction> Function(const LoadedModule& module, const std::string& symbol);

@@ -55,6 +55,9 @@ class Device {
   virtual uint64_t ReservedSize(uint64_t bytes) const = 0;
   virtual Expected<MemoryBlock> Allocate(uint64_t bytes, const std::string& owner, bool dedicated) = 0;
   virtual void Free(const MemoryBlock& block) = 0;
+  // The block's memory may be seen by another session from now on (an export): a device that
+  // keeps freed memory for its owner's next allocations must not keep this block's.
+  virtual void MarkShared(const MemoryBlock&) {}
   // Bytes of slabs held / slab count (stats).
   virtual uint64_t SlabBytes() const = 0;
   virtual uint32_t SlabCount() const = 0;

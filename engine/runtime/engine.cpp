@@ -473,6 +473,15 @@ Expected<std::string> Engine::ExportArray(Session& s, uint64_t handle) {
       if (moved.ok() && a->grad) moved = MoveToOwnSlab(*a->grad, s);
     });
     WEFT_RETURN_IF_ERROR(moved);
+    // Other sessions may map these slabs from now on: never reused for the owner's next arrays.
+    if (Device* pool = devices_->Find(a->device)) {
+      std::lock_guard<std::mutex> block_lock(a->block_mu);
+      pool->MarkShared(a->block);
+      if (a->grad) {
+        std::lock_guard<std::mutex> grad_lock(a->grad->block_mu);
+        pool->MarkShared(a->grad->block);
+      }
+    }
     a->export_secret = NewIpcSecret();
     a->export_principal = s.options().principal;
   } else if (a->export_principal != s.options().principal) {

@@ -1,7 +1,8 @@
 // The CUDA device through the engine (skipped with the reason when no GPU computes here):
 // arrays on cuda:0 from data, strided fills and copies between cuda:0 and the CPU against a
 // host reference on random data, the "cuda" alias placing a session, per-session GPU slabs in
-// Stats and their release when the session closes, and a CPU-compiled module refused on a GPU.
+// Stats and their release when the session closes, freed big slabs reused by their own session
+// only (never another's, never an exported one's), and a CPU-compiled module refused on a GPU.
 // With two GPUs or more: sessions opened with "cuda" spread over the GPUs, and copies between
 // GPUs (contiguous and strided, both directions) are bit-exact on random bit patterns, and slab
 // ids differ across GPUs.
@@ -102,6 +103,56 @@ TEST_F(CudaDeviceTest, ArraysFillsAndCopiesBetweenCpuAndGpu) {
 
   EXPECT_GT(engine_->Stats().gpu_slabs, 0u);
   ASSERT_TRUE(engine_->CloseSession(s->id()).ok());
+  EXPECT_EQ(engine_->Stats().gpu_slabs, 0u);
+}
+
+// Big arrays (over the 16 MiB dedicated threshold) get a slab of their own; a freed one stays
+// with its session for the session's next big array of a similar size, never for another
+// session's, never once its array was exported (another session may have mapped it), and goes
+// back to the driver when the session closes. Contents of a reused slab: zeros when asked.
+TEST_F(CudaDeviceTest, FreedBigSlabsAreReusedByTheirOwnSessionOnly) {
+  auto a = engine_->OpenSession(Local());
+  auto b = engine_->OpenSession(Local());
+  CreateArrayParams big;
+  big.dtype = F32();
+  big.shape = {8 << 20};   // 32 MiB
+  big.device = "cuda:0";
+  big.init = CreateArrayParams::Init::kZeros;
+  auto first = engine_->CreateArray(*a, big);
+  ASSERT_TRUE(first.ok()) << first.status().ToString();
+  const uint64_t slab = first->cuda_slab_id;
+  ASSERT_NE(slab, 0u);
+  std::vector<float> ones(8 << 20, 1.f);
+  ASSERT_TRUE(engine_->WriteArray(*a, first->handle, 0, ones.data(), ones.size() * 4).ok());
+  const uint64_t slabs_before = engine_->Stats().gpu_slabs;
+  ASSERT_TRUE(engine_->FreeArray(*a, first->handle).ok());
+  ASSERT_TRUE(engine_->Synchronize(*a).error.ok());
+
+  // another session's big array: a slab of its own, not a's
+  auto other = engine_->CreateArray(*b, big);
+  ASSERT_TRUE(other.ok());
+  EXPECT_NE(other->cuda_slab_id, slab);
+  // a's next big array of a similar size: a's freed slab, zeroed as asked
+  CreateArrayParams again = big;
+  again.shape = {7 << 20};   // 28 MiB: within the reuse bound
+  auto second = engine_->CreateArray(*a, again);
+  ASSERT_TRUE(second.ok());
+  EXPECT_EQ(second->cuda_slab_id, slab);
+  std::vector<float> back = ReadFloats(*engine_, *a, second->handle);
+  EXPECT_TRUE(std::all_of(back.begin(), back.end(), [](float x) { return x == 0.f; }));
+  EXPECT_EQ(engine_->Stats().gpu_slabs, slabs_before + 1);   // b's slab only
+
+  // an exported array's slab is never reused
+  auto token = engine_->ExportArray(*a, second->handle);
+  ASSERT_TRUE(token.ok()) << token.status().ToString();
+  ASSERT_TRUE(engine_->FreeArray(*a, second->handle).ok());
+  ASSERT_TRUE(engine_->Synchronize(*a).error.ok());
+  auto third = engine_->CreateArray(*a, again);
+  ASSERT_TRUE(third.ok());
+  EXPECT_NE(third->cuda_slab_id, slab);
+
+  ASSERT_TRUE(engine_->CloseSession(a->id()).ok());
+  ASSERT_TRUE(engine_->CloseSession(b->id()).ok());
   EXPECT_EQ(engine_->Stats().gpu_slabs, 0u);
 }
 
