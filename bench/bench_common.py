@@ -41,6 +41,12 @@ def import_warp():
     return warp
 
 
+def device_and_quick() -> tuple[str, bool]:
+    """`--device NAME` (default cpu) and `--quick` from the command line."""
+    device = sys.argv[sys.argv.index("--device") + 1] if "--device" in sys.argv else "cpu"
+    return device, "--quick" in sys.argv
+
+
 def median_time(fn, repeat: int = 5, min_time: float = 0.0) -> float:
     """Median wall time of fn() over `repeat` runs (seconds)."""
     times = []

@@ -74,10 +74,7 @@ def run(wp, field_np: np.ndarray, device: str):
 def main():
     import weft
 
-    device = "cpu"
-    if "--device" in sys.argv:
-        device = sys.argv[sys.argv.index("--device") + 1]
-    quick = "--quick" in sys.argv
+    device, quick = bc.device_and_quick()
     weft.init()
     warp = bc.import_warp()
     sizes = [64] if quick else ([64, 128, 256] if device.startswith("cuda") else [64, 128])

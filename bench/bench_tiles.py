@@ -74,10 +74,7 @@ def run(wp, mod, a, b, x, tile, device):
 def main():
     import weft
 
-    device = "cpu"
-    if "--device" in sys.argv:
-        device = sys.argv[sys.argv.index("--device") + 1]
-    quick = "--quick" in sys.argv
+    device, quick = bc.device_and_quick()
     weft.init()
     warp = bc.import_warp()
     rng = np.random.default_rng(0)

@@ -664,14 +664,7 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
       const auto view = last_tile_view_;
       for (const auto& t : a.targets) WEFT_RETURN_IF_ERROR(LowerAssignTo(*t, v));
       // `row = t[i]`, `v = wp.tile_view(t, ...)`: the name aliases the view of the tile local
-      const ast::Expr* viewed = nullptr;
-      if (const auto* sub = ast::As<ast::Subscript>(a.value.get())) viewed = sub->value.get();
-      if (const auto* call = ast::As<ast::Call>(a.value.get()); call && !call->args.empty()) {
-        const auto* fa = ast::As<ast::Attribute>(call->func.get());
-        const auto* fn = ast::As<ast::Name>(call->func.get());
-        if ((fa && fa->attr == "tile_view") || (fn && fn->id == "tile_view")) viewed = call->args[0].get();
-      }
-      const auto* base = viewed ? ast::As<ast::Name>(viewed) : nullptr;
+      const ast::Name* base = ViewedTileName(*a.value);
       if (base && a.targets.size() == 1 && v.kind == Value::Kind::kVar && v.var == view.result) {
         const auto* n = ast::As<ast::Name>(a.targets[0].get());
         auto b = st_->scope.find(base->id);
@@ -1205,19 +1198,23 @@ Status Checker::LowerIf(int cond, const std::function<Status()>& then_fn, const 
   return Status::Ok();
 }
 
+const ast::Name* ViewedTileName(const ast::Expr& value) {
+  const ast::Expr* viewed = nullptr;
+  if (const auto* sub = ast::As<ast::Subscript>(&value)) viewed = sub->value.get();
+  if (const auto* call = ast::As<ast::Call>(&value); call && !call->args.empty()) {
+    const auto* fa = ast::As<ast::Attribute>(call->func.get());
+    const auto* fn = ast::As<ast::Name>(call->func.get());
+    if ((fa && fa->attr == "tile_view") || (fn && fn->id == "tile_view")) viewed = call->args[0].get();
+  }
+  return viewed ? ast::As<ast::Name>(viewed) : nullptr;
+}
+
 void CollectTileViewBases(const ast::StmtList& body, std::map<std::string, std::set<std::string>>* out) {
   for (const auto& sp : body) {
     const ast::Stmt& s = *sp;
     if (s.kind == ast::StmtKind::kAssign) {
       const auto& a = static_cast<const ast::Assign&>(s);
-      const ast::Expr* viewed = nullptr;
-      if (const auto* sub = ast::As<ast::Subscript>(a.value.get())) viewed = sub->value.get();
-      if (const auto* call = ast::As<ast::Call>(a.value.get()); call && !call->args.empty()) {
-        const auto* fa = ast::As<ast::Attribute>(call->func.get());
-        const auto* fn = ast::As<ast::Name>(call->func.get());
-        if ((fa && fa->attr == "tile_view") || (fn && fn->id == "tile_view")) viewed = call->args[0].get();
-      }
-      const auto* base = viewed ? ast::As<ast::Name>(viewed) : nullptr;
+      const ast::Name* base = ViewedTileName(*a.value);
       if (base)
         for (const auto& t : a.targets)
           if (const auto* n = ast::As<ast::Name>(t.get()); n && n->id != base->id) (*out)[n->id].insert(base->id);

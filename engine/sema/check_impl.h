@@ -236,6 +236,10 @@ class Checker {
   Expected<Value> ViewOfAlias(const TileAlias& alias, const SourceLocation& loc);
 };
 
+// The tile local an assigned value views (`t` in `x = t[i]` or `x = wp.tile_view(t, ...)`), or
+// nullptr.
+const ast::Name* ViewedTileName(const ast::Expr& value);
+
 // "12", "-3": the Python text of an integer literal.
 bool IsIntLiteralText(const std::string& t);
 

@@ -265,6 +265,22 @@ def _deprecated(message: str) -> None:
     log_warning(message, DeprecationWarning, stacklevel=2)
 
 
+def _deprecated_alias(name: str, attr: str) -> property:
+    """A deprecated attribute that reads and writes `attr`, warning as Warp does."""
+    message = (f"IsoSurfaceMarchingCubes.{name} is deprecated and will be removed in a future version of Warp. "
+               f"Use `{attr}` instead.")
+
+    def get(self):
+        _deprecated(message)
+        return getattr(self, attr)
+
+    def set(self, value):
+        _deprecated(message)
+        setattr(self, attr, value)
+
+    return property(get, set, doc=f"Deprecated alias of `{attr}`.")
+
+
 class IsoSurfaceBase(ABC):
     """Grid dimensions (nodes per axis), the bounds the grid maps to, and the last mesh extracted
     (`verts`, `indices`); the interface of Warp's iso-surface backends."""
@@ -286,6 +302,45 @@ class IsoSurfaceBase(ABC):
                              f"{(self.nx, self.ny, self.nz)}.")
 
     @abstractmethod
+    def surface(self, field, threshold: float) -> None:
+        """Extracts the surface of `field` at `threshold` into `verts` and `indices`."""
+
+    @classmethod
+    @abstractmethod
+    def extract(cls, field, threshold: float = 0.0, *, lower=None, upper=None):
+        """(verts, indices) of the surface of `field` at `threshold`."""
+
+
+class IsoSurfaceMarchingCubes(IsoSurfaceBase):
+    """Marching cubes over a dense float32 field (Warp's class of that name): `surface` fills
+    `verts` (vec3) and `indices` (flat int32, three per triangle); `extract` returns them."""
+
+    CUBE_CORNER_OFFSETS = _tables.CUBE_CORNER_OFFSETS
+    EDGE_TO_CORNERS = _tables.EDGE_TO_CORNERS
+    CASE_TO_TRI_RANGE = _tables.CASE_TO_TRI_RANGE
+    TRI_LOCAL_INDICES = _tables.TRI_LOCAL_INDICES
+
+    def __init__(self, nx: int, ny: int, nz: int, lower=None, upper=None, *,
+                 domain_bounds_lower_corner=_UNSET, domain_bounds_upper_corner=_UNSET):
+        if domain_bounds_lower_corner is not _UNSET:
+            if lower is not None and domain_bounds_lower_corner is not None:
+                raise TypeError("Cannot specify both `lower` and `domain_bounds_lower_corner`.")
+            _deprecated("IsoSurfaceMarchingCubes() argument `domain_bounds_lower_corner` is deprecated "
+                        "and will be removed in a future version of Warp. Use `lower` instead.")
+            if domain_bounds_lower_corner is not None:
+                lower = domain_bounds_lower_corner
+        if domain_bounds_upper_corner is not _UNSET:
+            if upper is not None and domain_bounds_upper_corner is not None:
+                raise TypeError("Cannot specify both `upper` and `domain_bounds_upper_corner`.")
+            _deprecated("IsoSurfaceMarchingCubes() argument `domain_bounds_upper_corner` is deprecated "
+                        "and will be removed in a future version of Warp. Use `upper` instead.")
+            if domain_bounds_upper_corner is not None:
+                upper = domain_bounds_upper_corner
+        super().__init__(nx, ny, nz, lower=lower, upper=upper)
+
+    domain_bounds_lower_corner = _deprecated_alias("domain_bounds_lower_corner", "lower")
+    domain_bounds_upper_corner = _deprecated_alias("domain_bounds_upper_corner", "upper")
+
     def surface(self, field, threshold: float) -> None:
         """Extracts the surface of `field` at `threshold` into `verts` and `indices`."""
 
