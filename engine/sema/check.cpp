@@ -360,6 +360,8 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
 
   CountAssignedNames(pf.def->body, &state.assign_counts);
   CollectTileViewBases(pf.def->body, &state.view_bases);
+  std::set<std::string> rebound;   // names plainly assigned (not updated in place) in the body
+  CollectReboundNames(pf.def->body, &rebound);
   Status s = LowerBlock(pf.def->body);
   if (!s.ok()) return finish_error(s);
   // wp.ref[T] parameters: their final values are returned after the function's own (the
@@ -370,10 +372,11 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
     if (!RefTypeInner(fs.param_types[i], &inner)) {
       // A tile or tile stack the body assigns (`t += ...`, a push) is a reference too (Warp
       // passes tiles by reference): its final value goes back to the caller's variable.
+      // A parameter the body rebinds (`t = t * 2.0`) is a local from there on, as in Python.
       const Type& t = param_types[i];
       auto cur = state.scope.find(params[i].name);
       if (fs.is_kernel || !(t.is_tile() || t.is_tile_stack()) || cur == state.scope.end() ||
-          cur->second == param_vars[i] || TypeOf(cur->second) != t)
+          cur->second == param_vars[i] || TypeOf(cur->second) != t || rebound.count(params[i].name))
         continue;
       int slot = NewVar(t, "ref_" + params[i].name, true);
       EmitCopy(slot, cur->second);
@@ -1196,6 +1199,33 @@ Status Checker::LowerIf(int cond, const std::function<Status()>& then_fn, const 
   }
   st_->scope = std::move(merged);
   return Status::Ok();
+}
+
+void CollectReboundNames(const ast::StmtList& body, std::set<std::string>* out) {
+  std::function<void(const ast::Expr&)> target = [&](const ast::Expr& t) {
+    if (const auto* n = ast::As<ast::Name>(&t)) out->insert(n->id);
+    else if (const auto* tu = ast::As<ast::Tuple>(&t))
+      for (const auto& e : tu->elts) target(*e);
+  };
+  for (const auto& sp : body) {
+    const ast::Stmt& s = *sp;
+    switch (s.kind) {
+      case ast::StmtKind::kAssign:
+        for (const auto& t : static_cast<const ast::Assign&>(s).targets) target(*t);
+        break;
+      case ast::StmtKind::kAnnAssign: target(*static_cast<const ast::AnnAssign&>(s).target); break;
+      case ast::StmtKind::kIf:
+        CollectReboundNames(static_cast<const ast::If&>(s).body, out);
+        CollectReboundNames(static_cast<const ast::If&>(s).orelse, out);
+        break;
+      case ast::StmtKind::kFor:
+        target(*static_cast<const ast::For&>(s).target);
+        CollectReboundNames(static_cast<const ast::For&>(s).body, out);
+        break;
+      case ast::StmtKind::kWhile: CollectReboundNames(static_cast<const ast::While&>(s).body, out); break;
+      default: break;
+    }
+  }
 }
 
 const ast::Name* ViewedTileName(const ast::Expr& value) {

@@ -236,6 +236,9 @@ class Checker {
   Expected<Value> ViewOfAlias(const TileAlias& alias, const SourceLocation& loc);
 };
 
+// Names the statements bind with `=` (or as a for target), not counting updates in place.
+void CollectReboundNames(const ast::StmtList& body, std::set<std::string>* out);
+
 // The tile local an assigned value views (`t` in `x = t[i]` or `x = wp.tile_view(t, ...)`), or
 // nullptr.
 const ast::Name* ViewedTileName(const ast::Expr& value);

@@ -530,6 +530,12 @@ def add_five(t: wp.tile[float, 4]):
 
 
 @wp.func
+def doubled_sum(t: wp.tile[float, 4]):
+    t = t * 2.0   # rebinding: a local from here on, the caller's tile is unchanged
+    return wp.tile_sum(t)[0]
+
+
+@wp.func
 def push_pair(s: wp.tile_stack(capacity=8, dtype=int), v: int):
     wp.tile_stack_push(s, v, True)
     wp.tile_stack_push(s, v + 1, True)
@@ -541,6 +547,7 @@ def tile_by_reference(a: wp.array[float], out: wp.array[float], stack: wp.array[
     add_five(t)
     add_five(t)
     add_five(wp.tile_zeros(shape=4, dtype=float))   # a temporary: nothing to write back
+    stack[2] = int(doubled_sum(t))
     wp.tile_store(out, t * t)
     s = wp.tile_stack(capacity=8, dtype=int)
     push_pair(s, 10)
@@ -552,17 +559,19 @@ def tile_by_reference(a: wp.array[float], out: wp.array[float], stack: wp.array[
 
 def test_tiles_and_stacks_reach_funcs_by_reference(device, rng):
     """A @wp.func that updates a tile or pushes onto a stack changes the caller's (Warp passes
-    tiles by reference); the gradient flows through the update: d(t + 10)^2 / dt = 2 (t + 10)."""
+    tiles by reference); one that rebinds its parameter (`t = t * 2.0`) leaves the caller's
+    alone, as Python does; the gradient flows through the update: d(t + 10)^2 / dt = 2 (t + 10)."""
     a_np = rng.standard_normal(4).astype(np.float32) * np.float32(3.0)
     a = wp.array(a_np, requires_grad=True)
     out = wp.zeros(4, dtype=float, requires_grad=True)
-    stack = wp.zeros(2, dtype=int)
+    stack = wp.zeros(3, dtype=int)
     tape = wp.Tape()
     with tape:
         wp.launch_tiled(tile_by_reference, dim=1, inputs=[a, out, stack])
     shifted = a_np.astype(np.float64) + 10.0
     np.testing.assert_allclose(out.numpy(), shifted ** 2, rtol=1e-6)
-    assert stack.numpy().tolist() == [4, 21]
+    assert stack.numpy().tolist()[:2] == [4, 21]
+    assert stack.numpy()[2] == int(np.float32(2.0 * shifted.sum()))
     tape.backward(grads={out: wp.ones(4, dtype=float)})
     np.testing.assert_allclose(a.grad.numpy(), 2.0 * shifted, rtol=1e-6)
 
