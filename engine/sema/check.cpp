@@ -772,8 +772,9 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
                                 ExprText(*a.target) + "' from " + TypeString(TypeOf(lhs.var)) + " to " +
                                 TypeString(TypeOf(r.var)));
       slot_store_emitted_ = false;
-      if (const auto* n = ast::As<ast::Name>(a.target.get()); n && st_->tile_aliases.count(n->id))
-        write_through_ = true;   // `row += x` on a view updates the tile it views
+      if (const auto* n = ast::As<ast::Name>(a.target.get());
+          n && r.kind == Value::Kind::kVar && (st_->tile_aliases.count(n->id) || TypeOf(r.var).is_tile()))
+        write_through_ = true;   // `t += x` on a tile updates it in place (its views see it)
       WEFT_RETURN_IF_ERROR(LowerAssignTo(*a.target, r));
       // `a[i].x *= v` (any operator but + - & | ^) on a differentiable slot of an array element:
       // its adjoint would need the slot's value before the update, which the replay no longer
@@ -900,6 +901,22 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
     // An assigned literal takes its default type (int32 / float32); keep the var. A name
     // assigned only once, from a numeric literal, stays usable as that literal where Warp
     // takes constants (typed constructors, constant integer indices and slice bounds).
+    if (!write_through) {
+      // A tile rebound with `=`: the names viewing it keep viewing the tile they were bound to,
+      // now as values of their own (Python names; Warp's views keep their storage).
+      for (auto it = st_->tile_aliases.begin(); it != st_->tile_aliases.end();) {
+        if (it->second.base != n->id) {
+          ++it;
+          continue;
+        }
+        const std::string viewer = it->first;
+        const TileAlias dep = it->second;
+        WEFT_ASSIGN_OR_RETURN(Value now, ViewOfAlias(dep, loc));
+        WEFT_RETURN_IF_ERROR(BindLocal(viewer, now.var, loc));
+        it = st_->tile_aliases.find(viewer);
+        it = st_->tile_aliases.erase(it);
+      }
+    }
     WEFT_RETURN_IF_ERROR(BindLocal(n->id, value.var, loc));
     auto count = st_->assign_counts.find(n->id);
     if (value.literal && count != st_->assign_counts.end() && count->second == 1)
