@@ -216,6 +216,9 @@ def _marching_cubes(field, threshold: float, lower, upper):
     device = field.device
     case_tri_range, tri_local, edge_nodes = _device_tables(device)
     nodes = field.shape[0] * field.shape[1] * field.shape[2]
+    if 3 * nodes > _INT32_MAX:   # the kernels name grid edges with int32 (node * 3 + axis)
+        raise ValueError(f"marching cubes: a field of shape {tuple(field.shape)} has more grid edges than int32 "
+                         f"indices can address")
     threshold = float(threshold)
 
     edge_counts = wp.empty(nodes, dtype=wp.int32, device=device)
@@ -263,6 +266,17 @@ _UNSET = _DeprecatedDefault()
 def _deprecated(message: str) -> None:
     """Warns at the user's line (two frames up: the deprecated entry point's caller)."""
     log_warning(message, DeprecationWarning, stacklevel=2)
+
+
+def _deprecated_argument(value, legacy, name: str, legacy_name: str):
+    """`value`, or the deprecated keyword's value when that was given (warning as Warp does)."""
+    if legacy is _UNSET:
+        return value
+    if value is not None and legacy is not None:
+        raise TypeError(f"Cannot specify both `{name}` and `{legacy_name}`.")
+    log_warning(f"IsoSurfaceMarchingCubes() argument `{legacy_name}` is deprecated and will be removed in a "
+                f"future version of Warp. Use `{name}` instead.", DeprecationWarning, stacklevel=2)
+    return value if legacy is None else legacy
 
 
 def _deprecated_alias(name: str, attr: str) -> property:
@@ -322,84 +336,12 @@ class IsoSurfaceMarchingCubes(IsoSurfaceBase):
 
     def __init__(self, nx: int, ny: int, nz: int, lower=None, upper=None, *,
                  domain_bounds_lower_corner=_UNSET, domain_bounds_upper_corner=_UNSET):
-        if domain_bounds_lower_corner is not _UNSET:
-            if lower is not None and domain_bounds_lower_corner is not None:
-                raise TypeError("Cannot specify both `lower` and `domain_bounds_lower_corner`.")
-            _deprecated("IsoSurfaceMarchingCubes() argument `domain_bounds_lower_corner` is deprecated "
-                        "and will be removed in a future version of Warp. Use `lower` instead.")
-            if domain_bounds_lower_corner is not None:
-                lower = domain_bounds_lower_corner
-        if domain_bounds_upper_corner is not _UNSET:
-            if upper is not None and domain_bounds_upper_corner is not None:
-                raise TypeError("Cannot specify both `upper` and `domain_bounds_upper_corner`.")
-            _deprecated("IsoSurfaceMarchingCubes() argument `domain_bounds_upper_corner` is deprecated "
-                        "and will be removed in a future version of Warp. Use `upper` instead.")
-            if domain_bounds_upper_corner is not None:
-                upper = domain_bounds_upper_corner
+        lower = _deprecated_argument(lower, domain_bounds_lower_corner, "lower", "domain_bounds_lower_corner")
+        upper = _deprecated_argument(upper, domain_bounds_upper_corner, "upper", "domain_bounds_upper_corner")
         super().__init__(nx, ny, nz, lower=lower, upper=upper)
 
     domain_bounds_lower_corner = _deprecated_alias("domain_bounds_lower_corner", "lower")
     domain_bounds_upper_corner = _deprecated_alias("domain_bounds_upper_corner", "upper")
-
-    def surface(self, field, threshold: float) -> None:
-        """Extracts the surface of `field` at `threshold` into `verts` and `indices`."""
-
-    @classmethod
-    @abstractmethod
-    def extract(cls, field, threshold: float = 0.0, *, lower=None, upper=None):
-        """(verts, indices) of the surface of `field` at `threshold`."""
-
-
-class IsoSurfaceMarchingCubes(IsoSurfaceBase):
-    """Marching cubes over a dense float32 field (Warp's class of that name): `surface` fills
-    `verts` (vec3) and `indices` (flat int32, three per triangle); `extract` returns them."""
-
-    CUBE_CORNER_OFFSETS = _tables.CUBE_CORNER_OFFSETS
-    EDGE_TO_CORNERS = _tables.EDGE_TO_CORNERS
-    CASE_TO_TRI_RANGE = _tables.CASE_TO_TRI_RANGE
-    TRI_LOCAL_INDICES = _tables.TRI_LOCAL_INDICES
-
-    def __init__(self, nx: int, ny: int, nz: int, lower=None, upper=None, *,
-                 domain_bounds_lower_corner=_UNSET, domain_bounds_upper_corner=_UNSET):
-        if domain_bounds_lower_corner is not _UNSET:
-            if lower is not None and domain_bounds_lower_corner is not None:
-                raise TypeError("Cannot specify both `lower` and `domain_bounds_lower_corner`.")
-            _deprecated("IsoSurfaceMarchingCubes() argument `domain_bounds_lower_corner` is deprecated "
-                        "and will be removed in a future version of Warp. Use `lower` instead.")
-            if domain_bounds_lower_corner is not None:
-                lower = domain_bounds_lower_corner
-        if domain_bounds_upper_corner is not _UNSET:
-            if upper is not None and domain_bounds_upper_corner is not None:
-                raise TypeError("Cannot specify both `upper` and `domain_bounds_upper_corner`.")
-            _deprecated("IsoSurfaceMarchingCubes() argument `domain_bounds_upper_corner` is deprecated "
-                        "and will be removed in a future version of Warp. Use `upper` instead.")
-            if domain_bounds_upper_corner is not None:
-                upper = domain_bounds_upper_corner
-        super().__init__(nx, ny, nz, lower=lower, upper=upper)
-
-    @property
-    def domain_bounds_lower_corner(self):
-        _deprecated("IsoSurfaceMarchingCubes.domain_bounds_lower_corner is deprecated and will be removed in "
-                    "a future version of Warp. Use `lower` instead.")
-        return self.lower
-
-    @domain_bounds_lower_corner.setter
-    def domain_bounds_lower_corner(self, value):
-        _deprecated("IsoSurfaceMarchingCubes.domain_bounds_lower_corner is deprecated and will be removed in "
-                    "a future version of Warp. Use `lower` instead.")
-        self.lower = value
-
-    @property
-    def domain_bounds_upper_corner(self):
-        _deprecated("IsoSurfaceMarchingCubes.domain_bounds_upper_corner is deprecated and will be removed in "
-                    "a future version of Warp. Use `upper` instead.")
-        return self.upper
-
-    @domain_bounds_upper_corner.setter
-    def domain_bounds_upper_corner(self, value):
-        _deprecated("IsoSurfaceMarchingCubes.domain_bounds_upper_corner is deprecated and will be removed in "
-                    "a future version of Warp. Use `upper` instead.")
-        self.upper = value
 
     def surface(self, field, threshold: float) -> None:
         """Extracts the surface of `field` at `threshold` into `verts` and `indices`; the field's

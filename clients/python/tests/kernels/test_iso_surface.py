@@ -14,6 +14,7 @@ arithmetic)."""
 from __future__ import annotations
 
 import collections
+import types
 from pathlib import Path
 import warnings
 
@@ -296,7 +297,8 @@ def test_deprecated_names(device, rng, capsys):
 
 
 def test_index_count_overflow_is_refused():
-    """More triangles than int32 indices can address is a clear error before any allocation."""
+    """More triangles or grid edges than int32 indices can address is a clear error before any
+    allocation."""
     from weft.iso_surface import _exclusive_offsets
 
     counts = np.full(1 << 20, 1 << 10, dtype=np.int32)   # 2^30 triangles -> 3 * 2^30 indices
@@ -304,6 +306,10 @@ def test_index_count_overflow_is_refused():
         _exclusive_offsets(counts, "triangles")
     offsets, total = _exclusive_offsets(np.array([3, 0, 2], dtype=np.int32), "vertices")
     assert offsets.tolist() == [0, 3, 3] and total == 5
+    # a grid with more edges than int32 names (3 per node): refused before anything runs
+    huge = types.SimpleNamespace(shape=(1300, 1300, 1300), dtype=wp.float32, device="cpu")
+    with pytest.raises(ValueError, match="more grid edges than int32 indices can address"):
+        MC.extract(huge)
 
 
 def test_kernels_compile_for_the_gpu(device):
