@@ -859,6 +859,24 @@ class FnEmitter {
   bool hoisting_ = false;  // the op being emitted is a load or view (its check may move up)
 };
 
+// The fields Warp's struct arithmetic accumulates (its wp.atomic_add scalar set): scalars,
+// vectors, matrices, quaternions and transforms of [u]int32, [u]int64, float16, bfloat16,
+// float32 and float64, and nested structs. bool and narrow-integer fields, arrays and the rest
+// ride along unchanged.
+bool StructArithmeticField(const Type& t) {
+  if (t.is_struct()) return true;
+  if (!(t.is_scalar() || t.is_vector() || t.is_matrix() || t.kind == TypeKind::kQuat ||
+        t.kind == TypeKind::kTransform))
+    return false;
+  switch (t.scalar) {
+    case ScalarKind::kInt32: case ScalarKind::kInt64: case ScalarKind::kUInt32: case ScalarKind::kUInt64:
+    case ScalarKind::kFloat16: case ScalarKind::kFloat32: case ScalarKind::kFloat64: case ScalarKind::kBFloat16:
+      return true;
+    default:
+      return false;
+  }
+}
+
 void EmitStructs(const Module& m, std::string* out) {
   if (m.struct_order.empty()) return;
   std::string& o = *out;
@@ -885,6 +903,27 @@ void EmitStructs(const Module& m, std::string* out) {
         o += std::string(f.type.is_struct() ? " cg_atomic_accum(" : " atomic_add_ptr(") + "&p->" + FieldName(f.name) +
              ", v." + FieldName(f.name) + ");";
     o += " (void)p; (void)v; }\n";
+    // Warp's struct arithmetic (tiles of structs: t + u, t - u, -t, tile_sum, t[i] += s): field
+    // by field over the fields StructArithmeticField names; the others keep a's value.
+    const std::string& sn = si.cpp_name;
+    o += "WP_FUNC " + sn + " struct_add(const " + sn + "& a, const " + sn + "& b) { " + sn + " r = a;";
+    for (const auto& f : si.fields)
+      if (StructArithmeticField(f.type))
+        o += std::string(" r.") + FieldName(f.name) + " = " + (f.type.is_struct() ? "struct_add" : "add") + "(a." +
+             FieldName(f.name) + ", b." + FieldName(f.name) + ");";
+    o += " (void)b; return r; }\n";
+    o += "WP_FUNC " + sn + " struct_sub(const " + sn + "& a, const " + sn + "& b) { " + sn + " r = a;";
+    for (const auto& f : si.fields)
+      if (StructArithmeticField(f.type))
+        o += std::string(" r.") + FieldName(f.name) + " = " + (f.type.is_struct() ? "struct_sub" : "sub") + "(a." +
+             FieldName(f.name) + ", b." + FieldName(f.name) + ");";
+    o += " (void)b; return r; }\n";
+    o += "WP_FUNC " + sn + " struct_neg(const " + sn + "& a) { " + sn + " r = a;";
+    for (const auto& f : si.fields)
+      if (StructArithmeticField(f.type))
+        o += std::string(" r.") + FieldName(f.name) + " = " + (f.type.is_struct() ? "struct_neg" : "neg") + "(a." +
+             FieldName(f.name) + ");";
+    o += " return r; }\n";
     o += "WP_FUNC void cg_link(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
     for (const auto& f : si.fields)
       if (HasArrays(f.type, m.structs)) o += " cg_link(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";

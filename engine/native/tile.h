@@ -301,11 +301,39 @@ WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_EXTRACT_FORMS)
 
 // ---- reductions -----------------------------------------------------------------------------
 
-WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_sum(const WP_TILE& a) {
+// Struct arithmetic (the struct_add / struct_sub / struct_neg generated with each @wp.struct,
+// found at instantiation): the adjoints pass the result's gradient to both operands.
+template <typename S> WP_FUNC void adj_struct_add(const S&, const S&, S& adj_a, S& adj_b, const S& adj_ret) {
+  cg_accum(adj_a, adj_ret);
+  cg_accum(adj_b, adj_ret);
+}
+template <typename S> WP_FUNC void adj_struct_sub(const S&, const S&, S& adj_a, S& adj_b, const S& adj_ret) {
+  cg_accum(adj_a, adj_ret);
+  cg_accum(adj_b, struct_neg(adj_ret));
+}
+template <typename S> WP_FUNC void adj_struct_neg(const S&, S& adj_a, const S& adj_ret) {
+  cg_accum(adj_a, struct_neg(adj_ret));
+}
+// The sum of a tile's elements: of numbers from zero; of structs field by field from the first
+// element (Warp: the fields that do not accumulate keep a value of the tile).
+template <typename T> WP_FUNC auto tile_sum_elements(const T* data, int n, int) -> decltype(struct_add(*data, *data)) {
+  T s = data[0];
+  for (int k = 1; k < n; ++k) s = struct_add(s, data[k]);
+  return s;
+}
+template <typename T> WP_FUNC T tile_sum_elements(const T* data, int n, long) {
   T s = cg_zeros<T>();
-  for (int k = 0; k < WP_TILE::SIZE; ++k) cg_accum(s, a.data[k]);
+  for (int k = 0; k < n; ++k) cg_accum(s, data[k]);
+  return s;
+}
+// One step of a sum along an axis (`first`: the axis's first element; the sum starts at zero).
+template <typename T> WP_FUNC auto tile_sum_step(T& acc, const T& x, bool first, int) -> decltype(void(struct_add(acc, x))) {
+  acc = first ? x : struct_add(acc, x);
+}
+template <typename T> WP_FUNC void tile_sum_step(T& acc, const T& x, bool, long) { acc = add(acc, x); }
+WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_sum(const WP_TILE& a) {
   tile_t<T, 1, 0, 0, 0> r;
-  r.data[0] = s;
+  r.data[0] = tile_sum_elements(a.data, WP_TILE::SIZE, 0);
   return r;
 }
 WP_TILE_TEMPLATE WP_FUNC void adj_tile_sum(const WP_TILE&, WP_TILE& adj_a, const tile_t<T, 1, 0, 0, 0>& adj_ret) {
@@ -405,16 +433,18 @@ WP_FUNC void adj_tile_astype(const R&, const WP_TILE&, R&, WP_TILE& adj_a, const
 
 // ---- matrix products ------------------------------------------------------------------------
 
-// alpha * a @ b + beta * c (c: a tile of the result's shape).
+// alpha * a @ b + beta * c (c: a tile of the result's shape). With beta == 0, c is not read
+// (Warp: a reused output tile may hold NaN or infinities, which 0 * c would carry).
 template <typename T, int M, int K, int N>
 WP_FUNC tile_t<T, M, N, 0, 0> tile_matmul_acc(const tile_t<T, M, K, 0, 0>& a, const tile_t<T, K, N, 0, 0>& b,
                                               const tile_t<T, M, N, 0, 0>& c, T alpha, T beta) {
   tile_t<T, M, N, 0, 0> r;
+  const bool read_c = !(beta == T(0));
   for (int i = 0; i < M; ++i)
     for (int j = 0; j < N; ++j) {
       T s = T(0);
       for (int k = 0; k < K; ++k) s += a.data[i * K + k] * b.data[k * N + j];
-      r.data[i * N + j] = alpha * s + beta * c.data[i * N + j];
+      r.data[i * N + j] = read_c ? T(alpha * s + beta * c.data[i * N + j]) : T(alpha * s);
     }
   return r;
 }
@@ -702,6 +732,51 @@ WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line,
   }
 WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_INSERT_FORMS)
 #undef WP_TILE_INSERT_FORMS
+
+// v added into element (i, j, ...) of t: numbers add, structs field by field (struct_add).
+template <typename T> WP_FUNC auto tile_value_add(const T& a, const T& b, int) -> decltype(struct_add(a, b)) {
+  return struct_add(a, b);
+}
+template <typename T> WP_FUNC T tile_value_add(const T& a, const T& b, long) { return add(a, b); }
+// wp.tile_scatter_add(t, i, ..., v, has_value) and wp.tile_scatter_masked(t, i, ..., v, has_value):
+// the block's one thread adds v into (writes v at) element (i, ...) when has_value; the index
+// is checked only then (a launch error outside t).
+#define WP_TILE_SCATTER_FORMS(PARAMS, ADJ_PARAMS, N, IDX)                                                             \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC WP_TILE tile_scatter_add(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,    \
+                                   T v, bool has) {                                                                 \
+    WP_TILE r = t;                                                                                                  \
+    const int f = has ? tile_flat(ctx, fid, line, t, N, IDX) : -1;                                                  \
+    if (f >= 0) r.data[f] = tile_value_add(r.data[f], v, 0);                                                        \
+    return r;                                                                                                       \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC void adj_tile_scatter_add(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,   \
+                                    T, bool has, WP_TILE& adj_t, ADJ_PARAMS, T& adj_v, bool&,                       \
+                                    const WP_TILE& adj_ret) {                                                       \
+    const int f = has ? tile_flat(ctx, fid, line, t, N, IDX) : -1;                                                  \
+    cg_accum(adj_t, adj_ret);                                                                                       \
+    if (f >= 0) cg_accum(adj_v, adj_ret.data[f]);                                                                   \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC WP_TILE tile_scatter_masked(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS, \
+                                      T v, bool has) {                                                              \
+    WP_TILE r = t;                                                                                                  \
+    const int f = has ? tile_flat(ctx, fid, line, t, N, IDX) : -1;                                                  \
+    if (f >= 0) r.data[f] = v;                                                                                      \
+    return r;                                                                                                       \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC void adj_tile_scatter_masked(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t,       \
+                                       PARAMS, T, bool has, WP_TILE& adj_t, ADJ_PARAMS, T& adj_v, bool&,            \
+                                       const WP_TILE& adj_ret) {                                                    \
+    const int f = has ? tile_flat(ctx, fid, line, t, N, IDX) : -1;                                                  \
+    for (int k = 0; k < WP_TILE::SIZE; ++k)                                                                         \
+      if (k != f) cg_accum(adj_t.data[k], adj_ret.data[k]);                                                         \
+    if (f >= 0) cg_accum(adj_v, adj_ret.data[f]);                                                                   \
+  }
+WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_SCATTER_FORMS)
+#undef WP_TILE_SCATTER_FORMS
 #undef WP_TILE_FOR_EACH_INDEX_COUNT
 #undef WP_COMMA
 
@@ -775,7 +850,7 @@ WP_FUNC R tile_sum_axis(const R&, const WP_TILE& a, int32 axis) {
   for (int k = 0; k < WP_TILE::SIZE; ++k) {
     int j;
     const int o = tile_axis_target<R, T, D0, D1, D2, D3>(k, axis, &j);
-    r.data[o] = add(r.data[o], a.data[k]);
+    tile_sum_step(r.data[o], a.data[k], j == 0, 0);
   }
   return r;
 }

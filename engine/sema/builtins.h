@@ -11,6 +11,7 @@
 //   Index                  any integer scalar, not bound (array indices)
 //   Cond                   bool or any integer scalar, not bound
 //   X, Y                   any value type, bound (X in one overload is one type)
+//   S                      any @wp.struct type, bound
 //   N, M, K, D             dimension variables (vector length, matrix rows/cols, array ndim)
 //   vec(n,s) mat(r,c,s) quat(s) transform(s) array(p,d)   composites over patterns
 //   float32, int32, vec(3,float32), ...   concrete types;  str  a string literal

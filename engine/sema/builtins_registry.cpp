@@ -92,8 +92,9 @@ bool Match(std::string_view pattern, const Type& arg, Bindings* b) {
   if (head == "Index") return arg.is_scalar() && IsInt(arg.scalar);
   if (head == "Cond") return arg.is_scalar() && !IsFloat(arg.scalar);
   if (head == "str") return arg.kind == TypeKind::kString;
-  if (head == "X" || head == "Y") {
+  if (head == "X" || head == "Y" || head == "S") {
     if (arg.is_void() || arg.is_tuple() || arg.kind == TypeKind::kString) return false;
+    if (head == "S" && !arg.is_struct()) return false;
     auto it = b->type_vars.find(head);
     if (it == b->type_vars.end()) {
       b->type_vars[head] = arg;
@@ -149,7 +150,7 @@ Expected<Type> Substitute(std::string_view pattern, const Bindings& b) {
     WEFT_ASSIGN_OR_RETURN(ScalarKind s, scalar_of(head));
     return Type::Scalar(s);
   }
-  if (head == "X" || head == "Y") {
+  if (head == "X" || head == "Y" || head == "S") {
     auto it = b.type_vars.find(head);
     if (it == b.type_vars.end()) return Internal("unbound type variable in builtin result");
     return it->second;

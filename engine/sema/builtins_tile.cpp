@@ -42,6 +42,13 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
     row("tile_atomic_add_indexed(a: " + a + ", indices: tile(int32,G), t: " + t + ", axis: int32, " + off4 + ") -> " + t,
         "Called as wp.tile_atomic_add_indexed(a, indices, t, offset, axis): tile_atomic_add through the index tile.",
         kBuiltinSideEffect);
+    row("tile_scatter_add(a: " + t + ", " + idx[d - 1] + ", value: X, has_value: bool) -> " + t,
+        "Called as wp.tile_scatter_add(a, i, ..., value, has_value[, atomic]): the block's one thread adds value into "
+        "a at the indices when has_value (structs field by field), assigned to a; the index is checked then.",
+        kBuiltinNeedsLoc);
+    row("tile_scatter_masked(a: " + t + ", " + idx[d - 1] + ", value: X, has_value: bool) -> " + t,
+        "Called as wp.tile_scatter_masked(a, i, ..., value, has_value): writes value into a at the indices when "
+        "has_value, assigned to a.", kBuiltinNeedsLoc);
     row("tile_extract(a: " + t + ", " + idx[d - 1] + ") -> X",
         "The element of a at the indices (also a[i, j]); an index outside the tile is a launch error.", kBuiltinNeedsLoc);
     row("tile_sum(a: " + t + ") -> tile(X,1)", "The sum of all elements, as a tile of shape (1,).");
@@ -125,6 +132,13 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
       "Called as wp.tile_stack_clear(s): the empty stack, assigned to s.", kBuiltinNotDiff);
   row("tile_stack_count(s: tile_stack(X,N)) -> int32", "The number of values on the stack.", kBuiltinNotDiff);
   row("tile_diag_add(a: tile(X,N,N), d: tile(X,N)) -> tile(X,N,N)", "a with d added to its diagonal.");
+  const char* struct_doc = " of two Warp structs field by field, for the elements of struct tiles only (t + u, "
+                           "t[i] += s, wp.tile_sum, wp.tile_scatter_add): fields of [u]int32, [u]int64, float16, "
+                           "bfloat16, float32 or float64 scalars, vectors, matrices, quaternions and transforms, and "
+                           "nested structs; other fields keep a's value.";
+  row("add(a: S, b: S) -> S", (std::string("The sum") + struct_doc).c_str(), kBuiltinNone, "struct_add");
+  row("sub(a: S, b: S) -> S", (std::string("The difference") + struct_doc).c_str(), kBuiltinNone, "struct_sub");
+  row("neg(a: S) -> S", (std::string("The negation") + struct_doc).c_str(), kBuiltinNone, "struct_neg");
   row("tile_sort(keys: tile(Scalar,N), values: tile(X,N)) -> tuple(tile(Scalar,N),tile(X,N))",
       "Called as wp.tile_sort(keys, values): keys sorted ascending (stable) and values in their order, assigned to "
       "the arguments.", kBuiltinNotDiff);

@@ -714,17 +714,22 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
       }
       // arr[i] += v / -= v are atomic adds (Warp's rule), so parallel threads may accumulate;
       // &=, |=, ^= on integer elements (scalars, integer vectors/matrices) are atomic and/or/xor.
+      const bool bitwise_op = a.op == ast::BinaryOperator::kBitAnd || a.op == ast::BinaryOperator::kBitOr ||
+                              a.op == ast::BinaryOperator::kBitXor;
+      bool struct_tile_element = false;   // t[i] op= s on a tile of structs
       if (const auto* sub = ast::As<ast::Subscript>(a.target.get())) {
         WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
         if (base.kind == Value::Kind::kVar && TypeOf(base.var).is_tile()) {   // t[i, j] += v only (Warp)
+          struct_tile_element = TypeOf(base.var).elem().is_struct();
+          if (struct_tile_element && bitwise_op)
+            return ErrorOf("type", a.loc, "Tile bitwise inplace operators do not support Warp struct tile elements");
           bool any_slice = false;
           for (const auto& e : sub->indices) any_slice |= ast::As<ast::Slice>(e.get()) != nullptr;
           if (any_slice || static_cast<int>(sub->indices.size()) != TypeOf(base.var).ndim)
             return ErrorOf("value", a.loc, "Compound assignment to a tile view is not supported: write t[...] = t[...] " +
                                                std::string("+ v, or update the whole tile"));
         }
-        const bool bitwise = a.op == ast::BinaryOperator::kBitAnd || a.op == ast::BinaryOperator::kBitOr ||
-                             a.op == ast::BinaryOperator::kBitXor;
+        const bool bitwise = bitwise_op;
         const bool integer_elem = base.kind == Value::Kind::kVar && TypeOf(base.var).is_array() &&
                                   (TypeOf(base.var).elem().is_scalar() || TypeOf(base.var).elem().is_vector() ||
                                    TypeOf(base.var).elem().is_matrix()) &&
@@ -757,6 +762,8 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
       store_target_ = false;
       WEFT_ASSIGN_OR_RETURN(Value lhs, std::move(lhs_or));
       WEFT_ASSIGN_OR_RETURN(Value rhs, Eval(*a.value));
+      if (bitwise_op && lhs.kind == Value::Kind::kVar && TypeOf(lhs.var).is_tile() && TypeOf(lhs.var).elem().is_struct())
+        return ErrorOf("type", a.loc, "Tile bitwise inplace operators do not support Warp struct tile elements");
       static const std::map<ast::BinaryOperator, std::string> kNames = {
           {ast::BinaryOperator::kAdd, "add"},        {ast::BinaryOperator::kSub, "sub"},
           {ast::BinaryOperator::kMul, "mul"},        {ast::BinaryOperator::kMatMul, "mul"},
@@ -766,7 +773,11 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
           {ast::BinaryOperator::kBitOr, "bit_or"},   {ast::BinaryOperator::kBitXor, "bit_xor"},
           {ast::BinaryOperator::kBitAnd, "bit_and"},
       };
-      WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(kNames.at(a.op), {lhs, rhs}, a.loc));
+      const bool saved_struct_arithmetic = struct_arithmetic_;
+      struct_arithmetic_ = struct_tile_element;
+      Expected<Value> r_or = ResolveAndEmitBuiltin(kNames.at(a.op), {lhs, rhs}, a.loc);
+      struct_arithmetic_ = saved_struct_arithmetic;
+      WEFT_ASSIGN_OR_RETURN(Value r, std::move(r_or));
       if (r.kind == Value::Kind::kVar && lhs.kind == Value::Kind::kVar && TypeOf(r.var) != TypeOf(lhs.var))
         return Error(a.loc, std::string("'") + ast::Spelling(a.op) + "=' would change the type of '" +
                                 ExprText(*a.target) + "' from " + TypeString(TypeOf(lhs.var)) + " to " +

@@ -1273,6 +1273,9 @@ Expected<Value> Checker::ResolveAndEmitBuiltin(const std::string& name, std::vec
     std::string msg = m.status().message();
     return Error(loc, msg);
   }
+  if (m->overload->native.rfind("struct_", 0) == 0 && !struct_arithmetic_)
+    return ErrorOf("type", loc, "'" + name + "' of Warp structs is defined only on the elements of struct tiles "
+                                "(t + u, t - u, -t, t[i] += s, wp.tile_sum), field by field");
   Stmt s;
   s.op.kind = OpKind::kCall;
   s.op.builtin = m->overload;

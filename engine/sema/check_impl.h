@@ -226,6 +226,9 @@ class Checker {
   // LowerAssignTo of a name updated in place (a tile call's written argument, t[...] = v,
   // t += v, a func's by-reference tile): a name aliasing a tile view writes into the tile.
   bool write_through_ = false;
+  // Warp's struct arithmetic (struct_add / struct_sub / struct_neg rows) applies only to the
+  // elements of struct tiles: set while typing a tile op's element function or `t[i] op= v`.
+  bool struct_arithmetic_ = false;
   // The last sub-tile TileView emitted: its result and what made it (for TileAlias).
   struct {
     int result = -1;

@@ -28,7 +28,7 @@ bool IsTileCall(const std::string& n) {
                                  "tile_fft", "tile_ifft", "tile_load_indexed", "tile_store_indexed",
                                  "tile_atomic_add_indexed", "tile_sort", "tile_randi", "tile_randf",
                                  "tile_from_thread", "tile_stack", "tile_stack_push", "tile_stack_pop",
-                                 "tile_stack_clear"};
+                                 "tile_stack_clear", "tile_scatter_add", "tile_scatter_masked"};
   for (const char* k : kNames)
     if (n == k) return true;
   return false;
@@ -49,6 +49,8 @@ const std::vector<TileWrittenArg>* TileWrittenArgs(const std::string& name) {
       {"tile_stack_push", {{0, "s"}}},
       {"tile_stack_pop", {{0, "s"}}},
       {"tile_stack_clear", {{0, "s"}}},
+      {"tile_scatter_add", {{0, "a"}}},
+      {"tile_scatter_masked", {{0, "a"}}},
   };
   auto it = kTable.find(name);
   return it == kTable.end() ? nullptr : &it->second;
@@ -262,6 +264,43 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     (void)unused;
     return slot;
   }
+  if (name == "tile_scatter_add" || name == "tile_scatter_masked") {
+    // (a, i[, j, k, l], value, has_value[, atomic]): as many indices as a has dimensions. With
+    // one thread per block no two threads meet at an element, so `atomic` changes nothing.
+    if (args.empty()) return Error(loc, "wp." + name + "() needs a tile as its first argument");
+    WEFT_ASSIGN_OR_RETURN(int a, tile_arg(args[0], "a"));
+    const Type tt = TypeOf(a);
+    std::vector<std::string> names{"a"};
+    for (int d = 0; d < tt.ndim; ++d) names.push_back(std::string(1, "ijkl"[d]));
+    names.push_back("value");
+    names.push_back("has_value");
+    if (name == "tile_scatter_add") names.push_back("atomic");
+    WEFT_RETURN_IF_ERROR(bind(names, &p));
+    std::vector<Value> full{p[0]};
+    for (int d = 1; d <= tt.ndim; ++d) {
+      if (p[d].kind != Value::Kind::kVar || !TypeOf(p[d].var).is_scalar() || !IsInt(TypeOf(p[d].var).scalar))
+        return Error(loc, "wp." + name + "(): index " + names[d] + " must be an integer");
+      full.push_back(p[d]);
+    }
+    const Value& value = p[tt.ndim + 1];
+    const Value& has = p[tt.ndim + 2];
+    if (value.kind != Value::Kind::kVar) return Error(loc, "wp." + name + "() needs a value");
+    if (has.kind != Value::Kind::kVar) return Error(loc, "wp." + name + "() needs has_value (a bool)");
+    if (TypeOf(value.var) != tt.elem() && !(value.literal && tt.elem().is_scalar()))
+      return ErrorOf("type", loc, "wp." + name + "(): the value's type " + WarpTypeRepr(TypeOf(value.var)) +
+                                      " does not match the tile's element type " + WarpTypeRepr(tt.elem()));
+    WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, tt.elem(), loc, "value"));
+    WEFT_ASSIGN_OR_RETURN(int hv, Coerce(has, Type::Bool(), loc, "has_value"));
+    if (name == "tile_scatter_add" && p.back().kind != Value::Kind::kNone &&
+        p.back().literal_text != "True" && p.back().literal_text != "False")
+      return Error(loc, "wp.tile_scatter_add(): atomic must be a constant (True or False)");
+    full.push_back(Value::OfVar(v));
+    full.push_back(Value::OfVar(hv));
+    WEFT_ASSIGN_OR_RETURN(Value r, ResolveAndEmitBuiltin(name, std::move(full), loc));
+    WEFT_ASSIGN_OR_RETURN(Value unused, assign_to_arg(0, r));
+    (void)unused;
+    return Value();
+  }
   if (name == "tile_from_thread") {
     // One thread per block: the value of "thread thread_idx" is this thread's value.
     WEFT_RETURN_IF_ERROR(bind({"shape", "value", "thread_idx", "storage"}, &p));
@@ -446,9 +485,15 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
                             "-D array");
     if (at.elem() != tt.elem())
       return Error(loc, "wp." + name + "(): the tile holds " + TypeString(tt.elem()) + ", the array " + TypeString(at.elem()));
-    if (name == "tile_atomic_add" && !tt.elem().is_struct() && tt.elem().scalar == ScalarKind::kBool)
-      return ErrorOf("", loc, "tile_atomic_add() only supports tiles with integer or floating-point scalars as the "
-                              "underlying scalar type, but got " + TypeString(tt.elem()));
+    if (name == "tile_atomic_add" && !tt.elem().is_struct()) {   // Warp's atomic scalar set
+      const ScalarKind sk = tt.elem().scalar;
+      const bool atomic_scalar = sk == ScalarKind::kInt32 || sk == ScalarKind::kInt64 || sk == ScalarKind::kUInt32 ||
+                                 sk == ScalarKind::kUInt64 || sk == ScalarKind::kFloat16 || sk == ScalarKind::kBFloat16 ||
+                                 sk == ScalarKind::kFloat32 || sk == ScalarKind::kFloat64;
+      if (!atomic_scalar)
+        return ErrorOf("", loc, "tile_atomic_add() only supports tiles with [u]int32, [u]int64, float16, bfloat16, "
+                                "float32, or float64 as the underlying scalar type, but got " + WarpTypeRepr(tt.elem()));
+    }
     WEFT_ASSIGN_OR_RETURN(std::vector<Value> off, offsets_of(p[2], at.ndim));
     std::vector<Value> full{p[0]};
     full.insert(full.end(), off.begin(), off.end());
@@ -458,9 +503,9 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
   if (name == "tile_sum" || name == "tile_max" || name == "tile_min" || name == "tile_argmax" || name == "tile_argmin") {
     WEFT_RETURN_IF_ERROR(bind({"a", "axis"}, &p));
     WEFT_ASSIGN_OR_RETURN(int a, tile_arg(p[0], "a"));
-    if (TypeOf(a).elem().is_struct())
-      return ErrorOf("type", loc, "wp." + name + "() does not support tiles of Warp struct elements (" +
-                                      TypeString(TypeOf(a).elem()) + ")");
+    if (TypeOf(a).elem().is_struct() && name != "tile_sum")   // sums add structs field by field
+      return ErrorOf("type", loc, name + "() does not support Warp struct tile elements (" +
+                                      WarpTypeRepr(TypeOf(a).elem()) + ")");
     if (p[1].kind == Value::Kind::kNone) return ResolveAndEmitBuiltin(name, {p[0]}, loc);
     if (name != "tile_sum") return Error(loc, "wp." + name + "(axis=...) is not supported in weft kernels yet");
     WEFT_ASSIGN_OR_RETURN(int64_t axis, const_int(p[1], "axis"));
@@ -1111,8 +1156,15 @@ Expected<Value> Checker::TileMap(const std::string& name, std::vector<Value> arg
   std::vector<Stmt> scratch;
   std::vector<Stmt>* saved = st_->block;
   st_->block = &scratch;
+  const bool saved_struct_arithmetic = struct_arithmetic_;
+  struct_arithmetic_ = true;
   auto r = f.kind == Value::Kind::kBuiltin ? CallBuiltin(f.name, elems, loc, nullptr) : CallUserFunc(f.name, elems, loc);
+  struct_arithmetic_ = saved_struct_arithmetic;
   st_->block = saved;
+  const Type elem0 = TypeOf(elems[0].var);
+  if (!r.ok() && reduce && elem0.is_struct())   // Warp's message
+    return ErrorOf("type", loc, "tile_reduce() operator " + f.name + " has no overload accepting Warp struct tile element type " +
+                                    WarpTypeRepr(elem0));
   if (!r.ok()) return r.status();
   const std::string what = "wp." + name + "(" + f.name + ", ...)";
   if (scratch.empty() || scratch.back().kind != Stmt::Kind::kOp ||
@@ -1135,8 +1187,9 @@ Expected<Value> Checker::TileMap(const std::string& name, std::vector<Value> arg
   if (reduce && (elem_call.args[0] != elems[0].var || elem_call.args[1] != elems[1].var))
     return Error(loc, what + ": the function must take two elements as they are");
   const Type result = TypeOf(elem_call.dst[0]);
-  if (reduce && result != TypeOf(elems[0].var))
-    return Error(loc, what + " returns " + TypeString(result) + ", the tile holds " + TypeString(TypeOf(elems[0].var)));
+  if (reduce && result != elem0)
+    return ErrorOf("type", loc, "tile_reduce() operator " + f.name + " must return the tile element type " +
+                                    WarpTypeRepr(elem0) + ", got " + WarpTypeRepr(result));
   if (!result.is_scalar() && !result.is_composite() && !result.is_struct())
     return Error(loc, what + ": tile elements are scalars, vectors, matrices, quaternions, transforms or structs");
   for (size_t k = 0; k + 1 < scratch.size(); ++k) {   // conversions of non-tile arguments

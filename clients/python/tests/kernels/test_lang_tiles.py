@@ -277,7 +277,8 @@ def test_tile_kernels_compile_for_the_gpu_without_one():
     needed)."""
     report = wp.compile(tile_math, device="cuda", arch=90)   # the whole module
     text = str(report)
-    for name in ("tile_math", "tile_gemm", "tile_edges", "tile_views", "tile_bad_index"):
+    for name in ("tile_math", "tile_gemm", "tile_edges", "tile_views", "tile_bad_index", "tile_struct_arithmetic",
+                 "tile_struct_arithmetic_loss", "tile_scatter_outside"):
         assert name in text
 
 
@@ -613,6 +614,190 @@ def test_tile_atomic_add_of_structs_adds_float_fields_only(device, rng):
     assert not acc["flag"].any() and not acc["small"].any()
 
 
+@wp.struct
+class Body:
+    mass: float
+    count: wp.int32
+    flag: wp.bool
+    small: wp.int8
+    vel: wp.vec3
+
+
+@wp.kernel
+def tile_struct_arithmetic(a: wp.array[Body], b: wp.array[Body], s: Body, k: int, add: wp.array[Body],
+                           sub: wp.array[Body], neg: wp.array[Body], total: wp.array[Body], rows: wp.array[Body],
+                           inplace: wp.array[Body], elem: wp.array[Body], scattered: wp.array[Body]):
+    ta = wp.tile_load(a, shape=8)
+    tb = wp.tile_load(b, shape=8)
+    wp.tile_store(add, ta + tb)
+    wp.tile_store(sub, ta - tb)
+    wp.tile_store(neg, -ta)
+    wp.tile_store(total, wp.tile_sum(ta))
+    wp.tile_store(rows, wp.tile_sum(wp.tile_reshape(ta, shape=(2, 4)), axis=1))
+    c = wp.tile_load(a, shape=8)
+    c += tb
+    c -= ta
+    wp.tile_store(inplace, c)
+    e = wp.tile_load(a, shape=8)
+    e[k] += s
+    e[0] -= s
+    wp.tile_store(elem, e)
+    z = wp.tile_zeros(shape=8, dtype=Body)
+    wp.tile_scatter_add(z, k, s, True)
+    wp.tile_scatter_add(z, k, s, True, atomic=False)
+    wp.tile_scatter_add(z, k + 100, s, False)   # no value: the index is not looked at
+    wp.tile_scatter_masked(z, 1, s, k != 1)
+    wp.tile_store(scattered, z)
+
+
+def random_bodies(rng, n):
+    out = []
+    for _ in range(n):
+        p = Body()
+        p.mass = float(rng.standard_normal() * 10.0 ** rng.integers(-3, 4))
+        p.count = int(rng.integers(-1000, 1000))
+        p.flag = bool(rng.integers(0, 2))
+        p.small = wp.int8(int(rng.integers(-100, 100)))
+        p.vel = wp.vec3(*(rng.standard_normal(3) * 10.0 ** rng.integers(-3, 4)).astype(np.float32))
+        out.append(p)
+    return out
+
+
+def test_struct_tiles_add_field_by_field(device, rng):
+    """Warp's struct tile arithmetic: t + u, t - u, -t, tile_sum (whole and along an axis),
+    t += u, t[i] += s, tile_scatter_add / tile_scatter_masked add float and 32/64-bit integer
+    fields (vectors included); bool and int8 fields keep the left operand's value (a sum's: its
+    first element's). Against float64 sums; the integer fields exactly."""
+    host_a, host_b = random_bodies(rng, 8), random_bodies(rng, 8)
+    s = random_bodies(rng, 1)[0]
+    a, b = wp.array(host_a, dtype=Body), wp.array(host_b, dtype=Body)
+    outs = [wp.zeros(n, dtype=Body) for n in (8, 8, 8, 1, 2, 8, 8, 8)]
+    k = 3
+    wp.launch_tiled(tile_struct_arithmetic, dim=1, inputs=[a, b, s, k, *outs])
+    add, sub, neg, total, rows, inplace, elem, scattered = (o.numpy() for o in outs)
+    an, bn = a.numpy(), b.numpy()
+    f64 = {f: an[f].astype(np.float64) for f in ("mass", "vel")}
+    g64 = {f: bn[f].astype(np.float64) for f in ("mass", "vel")}
+
+    def close(got, want, scale):   # float32 results of float64 sums: a few ulps of the addends
+        err, bound = np.abs(got.astype(np.float64) - want), 4 * np.finfo(np.float32).eps * np.asarray(scale) + 1e-30
+        assert np.all(err <= bound), (got, want, err / bound)
+
+    def carried(got, src):
+        np.testing.assert_array_equal(got["flag"], src["flag"])
+        np.testing.assert_array_equal(got["small"], src["small"])
+
+    for out, sign in ((add, 1), (sub, -1)):
+        close(out["mass"], f64["mass"] + sign * g64["mass"], np.abs(f64["mass"]) + np.abs(g64["mass"]))
+        close(out["vel"], f64["vel"] + sign * g64["vel"], np.abs(f64["vel"]) + np.abs(g64["vel"]))
+        np.testing.assert_array_equal(out["count"], an["count"] + sign * bn["count"])
+        carried(out, an)
+    np.testing.assert_array_equal(neg["mass"], -an["mass"])
+    np.testing.assert_array_equal(neg["vel"], -an["vel"])
+    np.testing.assert_array_equal(neg["count"], -an["count"])
+    carried(neg, an)
+    for out, groups in ((total, [slice(0, 8)]), (rows, [slice(0, 4), slice(4, 8)])):
+        for r, g in enumerate(groups):
+            close(out["mass"][r], f64["mass"][g].sum(), 8 * np.abs(f64["mass"][g]).sum())
+            close(out["vel"][r], f64["vel"][g].sum(axis=0), 8 * np.abs(f64["vel"][g]).sum(axis=0))
+            assert out["count"][r] == an["count"][g].sum()
+            assert out["flag"][r] == an["flag"][g.start] and out["small"][r] == an["small"][g.start]
+    close(inplace["mass"], g64["mass"], 2 * (np.abs(f64["mass"]) + np.abs(g64["mass"])))
+    close(inplace["vel"], g64["vel"], 2 * (np.abs(f64["vel"]) + np.abs(g64["vel"])))
+    np.testing.assert_array_equal(inplace["count"], bn["count"])
+    carried(inplace, an)
+    s_mass, s_vel = np.float64(np.float32(s.mass)), np.array(s.vel, dtype=np.float32).astype(np.float64)
+    want_mass, want_vel, want_count = f64["mass"].copy(), f64["vel"].copy(), an["count"].copy()
+    want_mass[k] += s_mass
+    want_vel[k] += s_vel
+    want_count[k] += s.count
+    want_mass[0] -= s_mass
+    want_vel[0] -= s_vel
+    want_count[0] -= s.count
+    close(elem["mass"], want_mass, np.abs(f64["mass"]) + abs(s_mass))
+    close(elem["vel"], want_vel, np.abs(f64["vel"]) + np.abs(s_vel))
+    np.testing.assert_array_equal(elem["count"], want_count)
+    carried(elem, an)
+    want = np.zeros(8, dtype=scattered.dtype)
+    want["mass"][k], want["vel"][k], want["count"][k] = 2 * s_mass, 2 * s_vel, 2 * s.count
+    want["mass"][1], want["vel"][1], want["count"][1] = s_mass, s_vel, s.count
+    want["flag"][1], want["small"][1] = s.flag, s.small
+    for field in ("mass", "vel", "count", "flag", "small"):
+        np.testing.assert_array_equal(scattered[field], want[field])
+
+
+@wp.func
+def body_energy(p: Body):
+    return p.mass * p.mass + wp.dot(p.vel, p.vel)
+
+
+@wp.kernel
+def tile_struct_arithmetic_loss(a: wp.array[Body], b: wp.array[Body], loss: wp.array[float]):
+    d = (wp.tile_load(a, shape=8) + wp.tile_load(a, shape=8)) - wp.tile_load(b, shape=8)
+    wp.tile_atomic_add(loss, wp.tile_sum(wp.tile_map(body_energy, -d)))
+    wp.tile_atomic_add(loss, wp.tile_map(body_energy, wp.tile_sum(d)))
+
+
+def test_struct_tile_arithmetic_gradients(device, rng):
+    """Adjoints of struct add, sub, neg and tile_sum: loss = sum_i E(-(2 a_i - b_i)) + E(sum_i d_i)
+    with E(p) = mass^2 + |vel|^2, so dloss/da_i = 2 (2 d_i + 2 S) and dloss/db_i = -(2 d_i + 2 S)
+    for the float fields (float64 reference)."""
+    host_a, host_b = random_bodies(rng, 8), random_bodies(rng, 8)
+    a = wp.array(host_a, dtype=Body, requires_grad=True)
+    b = wp.array(host_b, dtype=Body, requires_grad=True)
+    loss = wp.zeros(1, dtype=float, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch_tiled(tile_struct_arithmetic_loss, dim=1, inputs=[a, b, loss])
+    tape.backward(loss)
+    an, bn = a.numpy(), b.numpy()
+    for field in ("mass", "vel"):
+        d = 2 * an[field].astype(np.float64) - bn[field].astype(np.float64)
+        g = 2 * d + 2 * d.sum(axis=0)
+        scale = 8 * (np.abs(an[field]).max() + np.abs(bn[field]).max()) * 8
+        np.testing.assert_allclose(a.grad.numpy()[field], 2 * g, rtol=0, atol=1e-5 * scale)
+        np.testing.assert_allclose(b.grad.numpy()[field], -g, rtol=0, atol=1e-5 * scale)
+
+
+@wp.kernel
+def tile_scatter_outside(out: wp.array[float], k: int):
+    z = wp.tile_zeros(shape=4, dtype=float)
+    wp.tile_scatter_add(z, k, 1.0, True)
+    wp.tile_store(out, z)
+
+
+def test_tile_scatter_index_outside_the_tile_is_a_launch_error(device):
+    out = wp.zeros(4, dtype=float)
+    line = tile_scatter_outside.func.__code__.co_firstlineno + 3
+    for k in (4, -1, 2**31 - 1):
+        with pytest.raises(wp.WeftError, match=rf"test_lang_tiles.py:{line}: kernel 'tile_scatter_outside'.*"
+                                               r"tile index out of range"):
+            wp.launch_tiled(tile_scatter_outside, dim=1, inputs=[out, k])
+            wp.synchronize()
+    wp.launch_tiled(tile_scatter_outside, dim=1, inputs=[out, 2])   # the session goes on
+    assert out.numpy().tolist() == [0.0, 0.0, 1.0, 0.0]
+
+
+@pytest.mark.parametrize("body, message", [
+    ("t = wp.tile_load(a, shape=4)\nt &= t", r"Tile bitwise inplace operators do not support Warp struct tile elements"),
+    ("t = wp.tile_load(a, shape=4)\nt[0] |= a[1]", r"Tile bitwise inplace operators do not support Warp struct"),
+    ("s = a[0] + a[1]", r"'add' of Warp structs is defined only on the elements of struct tiles"),
+    ("s = -a[0]", r"'neg' of Warp structs is defined only on the elements of struct tiles"),
+    ("t = wp.tile_reduce(wp.min, wp.tile_load(a, shape=4))",
+     r"tile_reduce\(\) operator min has no overload accepting Warp struct tile element type"),
+    ("t = wp.tile_min(wp.tile_load(a, shape=4))", r"tile_min\(\) does not support Warp struct tile elements"),
+    ("t = wp.tile_load(a, shape=4)\nwp.tile_scatter_add(t, 0, 1.0, True)", r"the value's type float32 does not match"),
+    ("t = wp.tile_load(a, shape=4)\nwp.tile_scatter_add(t, 0, a[0], True, atomic=a[0].count > 0)",
+     r"atomic must be a constant"),
+])
+def test_struct_tile_misuse_is_a_compile_error(kernel_module, device, body, message):
+    lines = "".join("    " + line.strip() + "\n" for line in body.split("\n"))
+    mod = kernel_module("@wp.struct\nclass P:\n    m: float\n    count: int\n\n"
+                        "@wp.kernel\ndef k(a: wp.array[P]):\n" + lines)
+    with pytest.raises(RuntimeError, match=message):
+        wp.launch_tiled(mod.k, dim=1, inputs=[wp.zeros(4, dtype=mod.P)])
+
+
 @wp.kernel
 def tile_negative_indices(a: wp.array2d[float], k: int, idx: wp.array[int], row: wp.array[float],
                           rows: wp.array2d[float], out: wp.array2d[float], elems: wp.array[float]):
@@ -823,26 +1008,16 @@ def test_tile_full_takes_the_type_of_its_value(device):
     np.testing.assert_array_equal(v.numpy(), np.tile([1.0, 2.0, 3.0], (4, 1)))
 
 
-@wp.kernel
-def tile_narrow_atomics(s8: wp.array[wp.int8], d8: wp.array[wp.int8], su: wp.array[wp.uint8], du: wp.array[wp.uint8]):
-    wp.tile_atomic_add(d8, wp.tile_load(s8, shape=8))
-    wp.tile_atomic_add(du, wp.tile_load(su, shape=8))
-
-
-def test_tile_atomic_add_of_narrow_types(device, rng, kernel_module):
-    """int8 and uint8 tiles add atomically (Warp refuses them; weft's atomics cover them, as for
-    wp.atomic_add): four tile indices add into the same elements, wrapping. bool tiles are
-    refused with Warp's message."""
-    s8_np = rng.integers(-128, 128, 8).astype(np.int8)
-    su_np = rng.integers(0, 256, 8).astype(np.uint8)
-    d8, du = wp.zeros(8, dtype=wp.int8), wp.zeros(8, dtype=wp.uint8)
-    wp.launch_tiled(tile_narrow_atomics, dim=4, inputs=[wp.array(s8_np), d8, wp.array(su_np), du])
-    np.testing.assert_array_equal(d8.numpy(), (4 * s8_np.astype(np.int64)).astype(np.int8))
-    np.testing.assert_array_equal(du.numpy(), (4 * su_np.astype(np.int64)).astype(np.uint8))
-    mod = kernel_module("""
+@pytest.mark.parametrize("dtype", ["wp.bool", "wp.int8", "wp.uint8", "wp.int16", "wp.uint16"])
+def test_tile_atomic_add_refuses_types_without_an_atomic_add(device, kernel_module, dtype):
+    """tile_atomic_add takes Warp's atomic scalar set ([u]int32, [u]int64, float16, bfloat16,
+    float32, float64, and composites of them): other tiles are refused with Warp's message, as
+    wp.atomic_add on such arrays is."""
+    mod = kernel_module(f"""
         @wp.kernel
-        def k(s: wp.array[wp.bool], d: wp.array[wp.bool]):
+        def k(s: wp.array[{dtype}], d: wp.array[{dtype}]):
             wp.tile_atomic_add(d, wp.tile_load(s, shape=8))
     """)
-    with pytest.raises(RuntimeError, match=r"tile_atomic_add\(\) only supports tiles with"):
-        wp.launch_tiled(mod.k, dim=1, inputs=[wp.zeros(8, dtype=wp.bool), wp.zeros(8, dtype=wp.bool)])
+    dt = eval(dtype, {"wp": wp})
+    with pytest.raises(RuntimeError, match=r"tile_atomic_add\(\) only supports tiles with \[u\]int32, \[u\]int64"):
+        wp.launch_tiled(mod.k, dim=1, inputs=[wp.zeros(8, dtype=dt), wp.zeros(8, dtype=dt)])
