@@ -864,6 +864,46 @@ Expected<Value> Checker::EvalBinOp(const ast::BinOp& b) {
   WEFT_ASSIGN_OR_RETURN(Value l, Eval(*b.left));
   WEFT_ASSIGN_OR_RETURN(Value r, Eval(*b.right));
   const std::string& name = BinaryBuiltins().at(b.op);
+  // + - * // % of two integer constants (literals, wp.constant ints) is a constant, as Python
+  // computes it (floor division and modulo), so that `shape=(TILE_M // 2, TILE_N * 2)` is one.
+  // Folded only where the result fits int32 and nothing divides by zero; otherwise the runtime
+  // operator, as before.
+  if (l.kind == Value::Kind::kVar && r.kind == Value::Kind::kVar && l.literal && r.literal &&
+      IsIntLiteralText(l.literal_text) && IsIntLiteralText(r.literal_text) && l.literal_text.size() < 19 &&
+      r.literal_text.size() < 19) {
+    const long long x = std::stoll(l.literal_text), y = std::stoll(r.literal_text);
+    bool fold = true;
+    long long v = 0;
+    switch (b.op) {
+      case ast::BinaryOperator::kAdd: v = x + y; break;
+      case ast::BinaryOperator::kSub: v = x - y; break;
+      case ast::BinaryOperator::kMul:
+        fold = (x == 0 || std::llabs(y) <= 0x7fffffffffffLL / std::max(1LL, std::llabs(x))) &&
+               std::llabs(x) <= 0x7fffffffffffLL;
+        if (fold) v = x * y;
+        break;
+      case ast::BinaryOperator::kFloorDiv:
+      case ast::BinaryOperator::kMod: {
+        fold = y != 0;
+        if (!fold) break;
+        long long q = x / y, m = x % y;
+        if (m != 0 && ((m < 0) != (y < 0))) {   // Python rounds the quotient down
+          q -= 1;
+          m += y;
+        }
+        v = b.op == ast::BinaryOperator::kFloorDiv ? q : m;
+        break;
+      }
+      default: fold = false;
+    }
+    if (fold && v >= -2147483648LL && v <= 2147483647LL) {
+      Value c = Value::OfVar(EmitConst(Type::Int32(), "wp::int32(" + std::to_string(v) + ")"));
+      c.literal = true;
+      c.literal_text = std::to_string(v);
+      c.source = ExprText(b);
+      return c;
+    }
+  }
   auto is_tile = [this](const Value& v) { return v.kind == Value::Kind::kVar && TypeOf(v.var).is_tile(); };
   if (b.op == ast::BinaryOperator::kMatMul && is_tile(l) && is_tile(r)) {   // a @ b of tiles: tile_matmul
     bool handled = false;
@@ -1159,6 +1199,21 @@ Expected<Value> Checker::EvalCall(const ast::Call& c) {
     return t;
   }
   WEFT_ASSIGN_OR_RETURN(Value callee, EvalCallee(*c.func));
+  if (callee.kind == Value::Kind::kBuiltin && callee.name == "tile_arange") {
+    // A bound past int64 (2**70) has no integer type to carry it: Warp's message, which points
+    // at the float spelling, rather than the literal's own error.
+    static const char* kOne[] = {"stop"};
+    static const char* kMore[] = {"start", "stop", "step"};
+    for (size_t k = 0; k < c.args.size() && k < 3; ++k) {
+      const ast::Expr* e = c.args[k].get();
+      if (const auto* u = ast::As<ast::UnaryOp>(e); u && u->op == ast::UnaryOperator::kMinus) e = u->operand.get();
+      const auto* lit = ast::As<ast::Constant>(e);
+      if (lit && lit->type == ast::Constant::Type::kInt && (!lit->int_fits_u64 || lit->int_value > 9223372036854775807ull))
+        return ErrorOf("value", c.args[k]->loc, std::string("tile_arange() ") + (c.args.size() == 1 ? kOne[0] : kMore[k]) +
+                                                   "=" + ExprText(*c.args[k]) + " is too wide to use as an integer "
+                                                   "bound; write it as a floating-point literal");
+    }
+  }
   std::vector<Value> args;
   for (const auto& a : c.args) {
     if (const auto* star = ast::As<ast::Starred>(a.get())) {

@@ -387,24 +387,31 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     if (!elem.is_scalar() || elem.scalar == ScalarKind::kBool)
       return ErrorOf("type", loc, "tile_arange() requires a numeric scalar dtype, got " + TypeString(elem));
     const bool int_dtype = IsInt(elem.scalar);
+    // A double as the float dtype holds it (round to nearest even; float16 / bfloat16: `bits`
+    // significant bits, subnormal below 2^(min_exp - 1); beyond the largest finite: infinite).
+    auto round_to = [](double v, int bits, int min_exp) {
+      if (v == 0.0 || !std::isfinite(v)) return v;
+      int e = 0;
+      std::frexp(v, &e);
+      const int quantum = (e < min_exp ? min_exp : e) - bits;
+      return std::ldexp(std::nearbyint(std::ldexp(v, -quantum)), quantum);
+    };
+    auto as_elem = [&](double v) {
+      if (elem.scalar == ScalarKind::kFloat32) return static_cast<double>(static_cast<float>(v));
+      const double r = elem.scalar == ScalarKind::kFloat16 ? round_to(v, 11, -13)
+                       : elem.scalar == ScalarKind::kBFloat16 ? round_to(v, 8, -125) : v;
+      const double top = elem.scalar == ScalarKind::kFloat16 ? 65504.0
+                         : elem.scalar == ScalarKind::kBFloat16 ? 3.3895313892515355e38 : HUGE_VAL;
+      return std::fabs(r) > top ? std::copysign(HUGE_VAL, r) : r;
+    };
     if (!int_dtype) {   // every bound within the float dtype's range, then rounded to it (Warp counts those)
       const double top = elem.scalar == ScalarKind::kFloat16 ? 65504.0
                          : elem.scalar == ScalarKind::kFloat32 ? 3.4028234663852886e38 : 1.7976931348623157e308;
-      // round to nearest even with `bits` significant bits, subnormal below 2^(min_exp - 1)
-      auto round_to = [](double v, int bits, int min_exp) {
-        if (v == 0.0 || !std::isfinite(v)) return v;
-        int e = 0;
-        std::frexp(v, &e);
-        const int quantum = (e < min_exp ? min_exp : e) - bits;
-        return std::ldexp(std::nearbyint(std::ldexp(v, -quantum)), quantum);
-      };
       for (Bound& x : b) {
         if (std::fabs(x.f) > top)
           return ErrorOf("value", loc, std::string("tile_arange() ") + x.name + "=" + x.text + " is out of range for " +
                                            TypeString(elem));
-        if (elem.scalar == ScalarKind::kFloat32) x.f = x.is_int ? static_cast<float>(x.i) : static_cast<float>(x.f);
-        else if (elem.scalar == ScalarKind::kFloat16) x.f = round_to(x.f, 11, -13);
-        else if (elem.scalar == ScalarKind::kBFloat16) x.f = round_to(x.f, 8, -125);
+        x.f = elem.scalar == ScalarKind::kFloat32 && x.is_int ? static_cast<float>(x.i) : as_elem(x.f);
       }
     }
     if (int_dtype) {   // every bound an integer of the dtype
@@ -426,7 +433,9 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
       }
     }
     const bool one = b.size() == 1;
-    auto at = [&](int k, long long di, double df) { return b.size() > static_cast<size_t>(k) ? b[k] : Bound{"", "", true, di, df}; };
+    auto at = [&](int k, long long di, double df) {
+      return b.size() > static_cast<size_t>(k) ? b[k] : Bound{"", std::to_string(di), true, di, df};
+    };
     const Bound start = one ? Bound{"start", "0", true, 0, 0.0} : b[0];
     const Bound stop = one ? b[0] : b[1];
     const Bound step = b.size() == 3 ? b[2] : at(9, 1, 1.0);
@@ -438,8 +447,16 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
       const __int128 st = step.i;
       __int128 n = (span > 0) == (st > 0) && span != 0 ? (span + st - (st > 0 ? 1 : -1)) / st : 0;
       count = static_cast<long double>(n);
+    } else if (step.f > 0 ? start.f < stop.f : start.f > stop.f) {
+      // Warp's count: the quotient as the dtype holds it (0.3f / 0.1f is 3, not 3.0000001), its
+      // ceiling, at least one (a non-empty range holds start)
+      const double quotient = as_elem((stop.f - start.f) / step.f);
+      if (!std::isfinite(quotient))
+        return ErrorOf("value", loc, "tile_arange() start=" + start.text + ", stop=" + stop.text + ", step=" + step.text +
+                                         " spans more elements than can be counted; the step is too small for the range");
+      count = std::max(1.0L, std::ceil(static_cast<long double>(quotient)));
     } else {
-      count = std::ceil((static_cast<long double>(stop.f) - start.f) / step.f);
+      count = 0;
     }
     if (!(count >= 1))
       return ErrorOf("value", loc, "tile_arange() requires a non-empty range: a zero-length tile cannot be built");

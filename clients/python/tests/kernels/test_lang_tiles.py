@@ -240,6 +240,8 @@ def test_tile_indices_outside_the_tile_are_launch_errors(device, rng):
      r"the value's type float32 does not match the stack's element type int32"),
     ("t = wp.tile_arange(0.0, 1.0e300, dtype=wp.float32)", r"stop=1e\+300 is out of range for float32"),
     ("t = wp.tile_arange(0.0, 1.0, 5.0e-324, dtype=wp.float64)", r"spans more elements than can be counted"),
+    ("t = wp.tile_arange(0, 1180591620717411303424, 18446744073709551616, dtype=wp.float32)",
+     r"tile_arange\(\) stop=1180591620717411303424 is too wide to use as an integer bound"),
     ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = t[4, :]", r"tile index 4 is out of bounds for axis 0 with extent 4"),
     ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nu = t[1, -5]", r"tile index -5 is out of bounds for axis 1"),
     ("t = wp.tile_zeros(shape=(4, 4), dtype=float)\nt[0] += wp.tile_ones(shape=4, dtype=float)",
@@ -988,6 +990,66 @@ def test_tile_arange_counts_the_bounds_of_its_dtype(device):
     np.testing.assert_array_equal(f32.numpy(), [0.0, 1.0, 2.0, -1.0])
     np.testing.assert_array_equal(f16.numpy(), [0.0, 1024.0, -1.0])
     np.testing.assert_allclose(f64.numpy(), [0.0, 0.99999999, 1.99999998, 2.99999997, -1.0], rtol=1e-15)
+
+
+TILE_HALF = wp.constant(8)
+
+
+@wp.kernel
+def tile_arange_quotients(a: wp.array[float], b: wp.array[float], c: wp.array[float], d: wp.array[float],
+                          e: wp.array[float]):
+    wp.tile_store(a, wp.tile_arange(0.0, 0.3, 0.1, dtype=float))
+    wp.tile_store(b, wp.tile_arange(0.0, 2.0, 0.3, dtype=float))
+    wp.tile_store(c, wp.tile_arange(0.0, 0.3, dtype=float))
+    wp.tile_store(d, wp.tile_arange(0.3, dtype=float))
+    wp.tile_store(e, wp.tile_arange(0.0, 1180591620717411303424.0, 18446744073709551616.0, dtype=float))
+
+
+def test_tile_arange_counts_the_quotient_of_its_dtype(device):
+    """The count is the ceiling of (stop - start) / step as the element type holds it, at least
+    one (Warp, NumPy's half-open range): float32's 0.3 / 0.1 is 3, not 3.0000001 (3 elements, not
+    4); (0, 0.3) and (0.3) with the implicit step 1 hold 0 alone; 2**70 by 2**64 is 64 elements."""
+    outs = [wp.full(n, -1.0, dtype=float) for n in (5, 9, 3, 3, 66)]
+    wp.launch_tiled(tile_arange_quotients, dim=1, inputs=outs)
+    want = [np.arange(0.0, 0.3, 0.1), np.arange(0.0, 2.0, 0.3), [0.0], [0.0], np.arange(64) * 2.0**64]
+    for out, w in zip(outs, want):
+        got = out.numpy()
+        np.testing.assert_allclose(got[:len(w)], np.asarray(w, dtype=np.float32), rtol=1e-7)
+        assert (got[len(w):] == -1.0).all(), got
+
+
+@wp.kernel
+def tile_constant_shapes(a: wp.array2d[float], out: wp.array[float]):
+    t = wp.tile_load(a, shape=(TILE_HALF // 2, TILE_HALF * 2 - 12), offset=(TILE_HALF % 3, -7 // 2 + 4))
+    wp.tile_store(out, wp.tile_reshape(t, shape=(TILE_HALF // 2) * (TILE_HALF - 4)))
+
+
+def test_tile_shapes_take_integer_arithmetic_on_constants(device, rng):
+    """+ - * // % of integer constants (wp.constant ints, literals) are constants, folded as
+    Python computes them (floor division), so shapes and offsets may be spelled with them."""
+    a_np = rng.standard_normal((8, 16)).astype(np.float32)
+    out = wp.zeros(16, dtype=float)
+    wp.launch_tiled(tile_constant_shapes, dim=1, inputs=[wp.array(a_np), out])
+    np.testing.assert_array_equal(out.numpy(), a_np[2:6, 0:4].reshape(-1))
+
+
+@wp.kernel
+def tile_matmul_beta_zero(a: wp.array2d[float], b: wp.array2d[float], c: wp.array2d[float]):
+    out = wp.tile_load(c, shape=(4, 4))
+    wp.tile_matmul(wp.tile_load(a, shape=(4, 3)), wp.tile_load(b, shape=(3, 4)), out, alpha=2.0, beta=0.0)
+    wp.tile_store(c, out)
+
+
+def test_tile_matmul_with_beta_zero_does_not_read_out(device, rng):
+    """out = alpha a b + beta out with beta 0 never reads out: NaN and infinities there vanish
+    (Warp), against a float64 product."""
+    a_np, b_np = rng.standard_normal((4, 3)), rng.standard_normal((3, 4))
+    c_np = np.full((4, 4), np.nan, dtype=np.float32)
+    c_np[::2] = np.inf
+    c = wp.array(c_np)
+    wp.launch_tiled(tile_matmul_beta_zero, dim=1, inputs=[wp.array(a_np, dtype=float), wp.array(b_np, dtype=float), c])
+    want = 2.0 * a_np.astype(np.float32).astype(np.float64) @ b_np.astype(np.float32).astype(np.float64)
+    np.testing.assert_allclose(c.numpy(), want, rtol=1e-5, atol=1e-5 * np.abs(want).max())
 
 
 @wp.kernel
