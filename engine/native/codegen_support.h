@@ -337,3 +337,4 @@ WP_FUNC bool cg_check_adj(const launch_context_t* ctx, int32 function_id, int32 
 #include "indexed_array.h"
 #include "fixed_array.h"
 #include "tile.h"
+#include "geometry_tiled.h"

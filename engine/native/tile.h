@@ -475,6 +475,42 @@ WP_FUNC void adj_tile_matmul_acc(const tile_t<T, M, K, 0, 0>& a, const tile_t<T,
     }
 }
 
+// ---- print ------------------------------------------------------------------------------------
+
+// wp.print(t) as Warp prints a tile: the elements in nested brackets (a 2-D tile's rows one per
+// line, higher dimensions separated by a blank line), then " = tile(shape=(...), storage=...)";
+// weft's tiles are the thread's values, so storage reads "register". The line is bounded like
+// every print line (print.h): a large tile's text is cut there.
+WP_TILE_TEMPLATE WP_FUNC void tile_print_level(print_line& l, const WP_TILE& t, int level, int index) {
+  constexpr int N = WP_TILE::NDIM;
+  int stride = 1;
+  for (int d = level + 1; d < N; ++d) stride *= WP_TILE::extent(d);
+  l.add("[");
+  for (int i = 0; i < WP_TILE::extent(level); ++i) {
+    if (level == N - 1) {
+      if (i) l.add(" ");
+      print_value(l, t.data[index + i]);
+      continue;
+    }
+    if (i) {
+      l.add(level == N - 2 ? "\n" : "\n\n");
+      for (int k = 0; k <= level; ++k) l.add(" ");
+    }
+    tile_print_level(l, t, level + 1, index + i * stride);
+  }
+  l.add("]");
+}
+WP_TILE_TEMPLATE WP_FUNC void print_value(print_line& l, const WP_TILE& t) {
+  tile_print_level(l, t, 0, 0);
+  l.add(" = tile(shape=(");
+  for (int d = 0; d < WP_TILE::NDIM; ++d) {
+    if (d) l.add(",");
+    l.add("%d", WP_TILE::extent(d));
+  }
+  l.add("), storage=register)");
+}
+WP_TILE_TEMPLATE WP_FUNC void print_spaced(print_line& l, const WP_TILE& t) { print_value(l, t); }
+
 #undef WP_TILE
 #undef WP_TILE_TEMPLATE
 

@@ -24,6 +24,8 @@ const StructTable& GeometryStructs() {
     add("Mesh", {{"points", points}, {"velocities", points}, {"indices", Type::Array(i32, 1)}});
     add("BvhQuery", {});
     add("MeshQueryAABB", {});
+    add("BvhQueryTiled", {});
+    add("MeshQueryAABBTiled", {});
     add("MeshQueryPoint", {{"result", b}, {"sign", f32}, {"face", i32}, {"u", f32}, {"v", f32}});
     add("MeshQueryRay", {{"result", b}, {"sign", f32}, {"face", i32}, {"t", f32}, {"u", f32}, {"v", f32},
                          {"normal", Type::Vector(3, ScalarKind::kFloat32)}});
@@ -82,6 +84,37 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
       "Next item index of the query into `index`; false when done.", kBuiltinNotDiff | kBuiltinWritesArgs);
   bvh("bvh_query_next(query: struct(BvhQuery), index: int32, max_dist: float32) -> bool",
       "bvh_query_next; ray and capsule queries skip items whose bounds start beyond max_dist.", kBuiltinNotDiff | kBuiltinWritesArgs);
+
+  // Warp's tiled queries, one thread per block (engine/native/geometry_tiled.h); the *_tiled
+  // names are Warp's deprecated aliases.
+  for (const char* name : {"tile_bvh_query_aabb", "bvh_query_aabb_tiled"})
+    rows->push_back(Builtin("BVH", (std::string(name) + "(id: uint64, low: vec(3,float32), high: vec(3,float32)) -> "
+                                    "struct(BvhQueryTiled)").c_str(),
+                            "Start a tiled query of the items whose bounds overlap [low, high] (iterate with "
+                            "tile_bvh_query_next while tile_query_valid).", q, "tile_bvh_query_aabb"));
+  for (const char* name : {"tile_bvh_query_ray", "bvh_query_ray_tiled"})
+    rows->push_back(Builtin("BVH", (std::string(name) + "(id: uint64, start: vec(3,float32), dir: vec(3,float32)) -> "
+                                    "struct(BvhQueryTiled)").c_str(),
+                            "Start a tiled query of the items whose bounds the ray start + t dir (t >= 0) meets.", q,
+                            "tile_bvh_query_ray"));
+  for (const char* name : {"tile_bvh_query_next", "bvh_query_next_tiled"})
+    rows->push_back(Builtin("BVH", (std::string(name) + "(query: struct(BvhQueryTiled)) -> tile(int32,1)").c_str(),
+                            "The next item as a tile of shape (1,) (one thread per block): its index, or -1 once the "
+                            "query is done (tile_query_valid then turns false).",
+                            kBuiltinNotDiff | kBuiltinWritesArgs, "tile_bvh_query_next"));
+  rows->push_back(Builtin("BVH", "tile_query_valid(query: struct(BvhQueryTiled)) -> bool",
+                          "False once tile_bvh_query_next found no further item.", kBuiltinNotDiff));
+  rows->push_back(Builtin("Meshes", "tile_query_valid(query: struct(MeshQueryAABBTiled)) -> bool",
+                          "False once tile_mesh_query_aabb_next found no further face.", kBuiltinNotDiff));
+  for (const char* name : {"tile_mesh_query_aabb", "mesh_query_aabb_tiled"})
+    rows->push_back(Builtin("Meshes", (std::string(name) + "(id: uint64, low: vec(3,float32), high: vec(3,float32)) -> "
+                                       "struct(MeshQueryAABBTiled)").c_str(),
+                            "Start a tiled query of the faces whose bounds overlap [low, high].", q,
+                            "tile_mesh_query_aabb"));
+  for (const char* name : {"tile_mesh_query_aabb_next", "mesh_query_aabb_next_tiled"})
+    rows->push_back(Builtin("Meshes", (std::string(name) + "(query: struct(MeshQueryAABBTiled)) -> tile(int32,1)").c_str(),
+                            "The next face as a tile of shape (1,): its index, or -1 once the query is done.",
+                            kBuiltinNotDiff | kBuiltinWritesArgs, "tile_mesh_query_aabb_next"));
 
   auto mesh = [rows](const char* sig, const char* doc, unsigned flags) {
     rows->push_back(Builtin("Meshes", sig, doc, flags));

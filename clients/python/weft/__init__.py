@@ -39,7 +39,8 @@ from .types import *  # noqa: F401,F403
 from .types import (Any, dtype_from_numpy, dtype_to_numpy, matrix, quaternion,  # noqa: F401
                     transformation, type_size_in_bytes, type_str, vector)
 from .utils import ScopedTimer, transform_expand  # noqa: F401
-from .geometry import (Bvh, BvhQuery, HashGrid, HashGridQuery, Mesh, MeshQuery, MeshQueryAABB,  # noqa: F401
+from .geometry import (Bvh, BvhQuery, BvhQueryTiled, HashGrid, HashGridQuery, Mesh, MeshQuery,  # noqa: F401
+                       MeshQueryAABB, MeshQueryAABBTiled,
                        MeshQueryPoint, MeshQueryRay, bvh_query_t, hash_grid_query_t,
                        is_cubql_available, mesh_query_aabb_t, mesh_query_point_t,
                        mesh_query_ray_t)

@@ -12,7 +12,8 @@ from __future__ import annotations
 from . import _runtime
 from .device import get_device
 
-__all__ = ["is_cubql_available", "HashGrid", "Bvh", "Mesh", "HashGridQuery", "BvhQuery", "MeshQueryPoint", "MeshQueryRay",
+__all__ = ["is_cubql_available", "HashGrid", "Bvh", "Mesh", "HashGridQuery", "BvhQuery", "BvhQueryTiled",
+           "MeshQueryAABBTiled", "MeshQueryPoint", "MeshQueryRay",
            "MeshQueryAABB", "MeshQuery", "hash_grid_query_t", "bvh_query_t", "mesh_query_point_t", "mesh_query_ray_t",
            "mesh_query_aabb_t", "IsoSurfaceBase", "IsoSurfaceMarchingCubes"]
 
@@ -278,5 +279,8 @@ MeshQueryPoint = mesh_query_point_t = _QueryType("MeshQueryPoint")
 MeshQueryRay = mesh_query_ray_t = _QueryType("MeshQueryRay")
 MeshQueryAABB = mesh_query_aabb_t = _QueryType("MeshQueryAABB")
 MeshQuery = MeshQueryAABB   # Warp's erased sphere / AABB query type: one iterator type here
+# The tiled queries (wp.tile_bvh_query_aabb / _ray, wp.tile_mesh_query_aabb; docs/geometry.md).
+BvhQueryTiled = _QueryType("BvhQueryTiled")
+MeshQueryAABBTiled = _QueryType("MeshQueryAABBTiled")
 
 

@@ -842,6 +842,74 @@ def test_bvh_queries_match_brute_force(rng):
         assert (got2[i][sure] == 1).all()
 
 
+@wp.kernel
+def bvh_boxes_tiled(bvh: wp.uint64, lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3),
+                    hits: wp.array2d(dtype=int)):
+    tid = wp.tid()
+    query = wp.tile_bvh_query_aabb(bvh, lowers[tid], uppers[tid])
+    while wp.tile_query_valid(query):
+        item = wp.untile(wp.tile_bvh_query_next(query))
+        if item >= 0:
+            hits[tid, item] = hits[tid, item] + 1
+
+
+@wp.kernel
+def bvh_rays_tiled(bvh: wp.uint64, starts: wp.array(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3),
+                   hits: wp.array2d(dtype=int)):
+    tid = wp.tid()
+    query = wp.bvh_query_ray_tiled(bvh, starts[tid], dirs[tid])   # Warp's deprecated names
+    while wp.tile_query_valid(query):
+        item = wp.bvh_query_next_tiled(query)[0]
+        if item >= 0:
+            hits[tid, item] = hits[tid, item] + 1
+
+
+@wp.kernel
+def mesh_aabb_faces_tiled(mesh: wp.uint64, lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3),
+                          hits: wp.array2d(dtype=int)):
+    tid = wp.tid()
+    query = wp.tile_mesh_query_aabb(mesh, lowers[tid], uppers[tid])
+    while wp.tile_query_valid(query):
+        f = wp.untile(wp.tile_mesh_query_aabb_next(query))
+        if f >= 0:
+            hits[tid, f] = hits[tid, f] + 1
+
+
+def test_tiled_queries_report_what_thread_queries_do_once(rng):
+    """Warp's tiled BVH and mesh queries (one thread per block: each _next gives a (1,) tile of
+    the next item, -1 at the end, after which tile_query_valid is false) report exactly the items
+    of the thread queries, each once, launched plainly and tiled."""
+    m, n = 500, 40
+    c = rng.uniform(-5, 5, size=(m, 3))
+    h = rng.uniform(0.01, 0.6, size=(m, 3))
+    bvh = wp.Bvh(wp.array((c - h).astype(np.float32), dtype=wp.vec3, device=DEV),
+                 wp.array((c + h).astype(np.float32), dtype=wp.vec3, device=DEV))
+    qc, qh = rng.uniform(-5, 5, size=(n, 3)), rng.uniform(0.1, 1.5, size=(n, 3))
+    ql = wp.array((qc - qh).astype(np.float32), dtype=wp.vec3, device=DEV)
+    qu = wp.array((qc + qh).astype(np.float32), dtype=wp.vec3, device=DEV)
+    d = rng.normal(size=(n, 3))
+    starts = wp.array(rng.uniform(-6, 6, size=(n, 3)).astype(np.float32), dtype=wp.vec3, device=DEV)
+    dirs = wp.array((d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32), dtype=wp.vec3, device=DEV)
+    mesh, _, tris, _ = make_mesh(rng)
+    for thread_kernel, tiled_kernel, obj, a, b, width in (
+            (bvh_boxes, bvh_boxes_tiled, bvh, ql, qu, m), (bvh_rays, bvh_rays_tiled, bvh, starts, dirs, m),
+            (mesh_aabb_faces, mesh_aabb_faces_tiled, mesh,
+             wp.array((qc * 0.3 - qh * 0.2).astype(np.float32), dtype=wp.vec3, device=DEV),
+             wp.array((qc * 0.3 + qh * 0.2).astype(np.float32), dtype=wp.vec3, device=DEV), len(tris))):
+        want = wp.zeros((n, width), dtype=int, device=DEV)
+        wp.launch(thread_kernel, dim=n, inputs=[obj.id, a, b, want], device=DEV)
+        assert want.numpy().sum() > 0
+        for launch in (wp.launch, wp.launch_tiled):
+            got = wp.zeros((n, width), dtype=int, device=DEV)
+            launch(tiled_kernel, dim=n, inputs=[obj.id, a, b, got], device=DEV)
+            np.testing.assert_array_equal(got.numpy(), want.numpy())
+    out = wp.zeros((n, m), dtype=int, device=DEV)
+    with pytest.raises(wp.WeftError, match=r"bvh_query_aabb.*is not a live Bvh of this session"):   # a forged id
+        wp.launch(bvh_boxes_tiled, dim=n, inputs=[bvh.id + 12345, ql, qu, out], device=DEV)
+        wp.synchronize()
+    _daemon_still_serves(rng)
+
+
 def _hard_boxes(rng, case):
     """Boxes (lo, hi) float32 that stress a tree build: identical boxes (one Morton code for all),
     exponentially spaced tiny boxes, magnitudes from 1e-30 to 1e30, two far clusters, a single

@@ -280,7 +280,7 @@ def test_tile_kernels_compile_for_the_gpu_without_one():
     report = wp.compile(tile_math, device="cuda", arch=90)   # the whole module
     text = str(report)
     for name in ("tile_math", "tile_gemm", "tile_edges", "tile_views", "tile_bad_index", "tile_struct_arithmetic",
-                 "tile_struct_arithmetic_loss", "tile_scatter_outside"):
+                 "tile_struct_arithmetic_loss", "tile_scatter_outside", "tile_prints"):
         assert name in text
 
 
@@ -1050,6 +1050,27 @@ def test_tile_matmul_with_beta_zero_does_not_read_out(device, rng):
     wp.launch_tiled(tile_matmul_beta_zero, dim=1, inputs=[wp.array(a_np, dtype=float), wp.array(b_np, dtype=float), c])
     want = 2.0 * a_np.astype(np.float32).astype(np.float64) @ b_np.astype(np.float32).astype(np.float64)
     np.testing.assert_allclose(c.numpy(), want, rtol=1e-5, atol=1e-5 * np.abs(want).max())
+
+
+@wp.kernel
+def tile_prints(x: wp.array[wp.int32], m: wp.array2d[float]):
+    wp.print(wp.tile_load(x, shape=(8,)))
+    wp.print(wp.tile_load(m, shape=(2, 3)))
+    wp.print(wp.tile_reshape(wp.tile_load(x, shape=(8,)), shape=(2, 2, 2)))
+
+
+def test_tiles_print_as_warp_prints_them(device, capfd):
+    """wp.print(t): nested brackets (rows one per line, higher dimensions apart by a blank line),
+    then ' = tile(shape=(...), storage=register)', as Warp's CPU prints a register tile."""
+    x = wp.array(np.arange(1, 9, dtype=np.int32))
+    m = wp.array(np.array([[0.5, -1.0, 2.0], [3.0, 4.25, -0.125]], dtype=np.float32))
+    capfd.readouterr()
+    wp.launch_tiled(tile_prints, dim=1, inputs=[x, m])
+    wp.synchronize()
+    out = capfd.readouterr().out
+    assert "[1 2 3 4 5 6 7 8] = tile(shape=(8), storage=register)\n" in out, out
+    assert "[[0.5 -1 2]\n [3 4.25 -0.125]] = tile(shape=(2,3), storage=register)\n" in out, out
+    assert "[[[1 2]\n  [3 4]]\n\n [[5 6]\n  [7 8]]] = tile(shape=(2,2,2), storage=register)\n" in out, out
 
 
 @wp.kernel

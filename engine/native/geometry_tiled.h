@@ -1,0 +1,63 @@
+// Warp's tiled geometry queries (tile_bvh_query_aabb / _ray, tile_mesh_query_aabb and their
+// _next and tile_query_valid; the deprecated *_tiled names are aliases in the registry). weft
+// runs one thread per block (docs/tiles.md), so a tiled query is the thread query with a
+// `valid` flag: each _next gives a tile of shape (1,) holding the next item (-1 once the walk is
+// done, which clears `valid`). Every item is reported once, as Warp's block-wide walk does.
+#pragma once
+
+namespace wp {
+
+struct weft_struct_BvhQueryTiled {
+  weft_struct_BvhQuery query;
+  bool valid;
+};
+WP_FUNC void cg_accum(weft_struct_BvhQueryTiled&, const weft_struct_BvhQueryTiled&) {}
+WP_FUNC void cg_link(weft_struct_BvhQueryTiled&, const weft_struct_BvhQueryTiled&) {}
+
+struct weft_struct_MeshQueryAABBTiled {
+  weft_struct_MeshQueryAABB query;
+  bool valid;
+};
+WP_FUNC void cg_accum(weft_struct_MeshQueryAABBTiled&, const weft_struct_MeshQueryAABBTiled&) {}
+WP_FUNC void cg_link(weft_struct_MeshQueryAABBTiled&, const weft_struct_MeshQueryAABBTiled&) {}
+
+WP_FUNC weft_struct_BvhQueryTiled tile_bvh_query_aabb(const launch_context_t* ctx, int32 fid, int32 line, uint64 id,
+                                                      const vec3& lower, const vec3& upper) {
+  weft_struct_BvhQueryTiled q;
+  q.query = bvh_query_aabb(ctx, fid, line, id, lower, upper);
+  q.valid = true;
+  return q;
+}
+WP_FUNC weft_struct_BvhQueryTiled tile_bvh_query_ray(const launch_context_t* ctx, int32 fid, int32 line, uint64 id,
+                                                     const vec3& start, const vec3& dir) {
+  weft_struct_BvhQueryTiled q;
+  q.query = bvh_query_ray(ctx, fid, line, id, start, dir);
+  q.valid = true;
+  return q;
+}
+WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_bvh_query_next(weft_struct_BvhQueryTiled& q) {
+  tile_t<int32, 1, 0, 0, 0> r;
+  int32 index = -1;
+  if (q.valid && !bvh_query_next(q.query, index)) q.valid = false;
+  r.data[0] = q.valid ? index : -1;
+  return r;
+}
+WP_FUNC bool tile_query_valid(const weft_struct_BvhQueryTiled& q) { return q.valid; }
+
+WP_FUNC weft_struct_MeshQueryAABBTiled tile_mesh_query_aabb(const launch_context_t* ctx, int32 fid, int32 line,
+                                                            uint64 id, const vec3& lower, const vec3& upper) {
+  weft_struct_MeshQueryAABBTiled q;
+  q.query = mesh_query_aabb(ctx, fid, line, id, lower, upper);
+  q.valid = true;
+  return q;
+}
+WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_mesh_query_aabb_next(weft_struct_MeshQueryAABBTiled& q) {
+  tile_t<int32, 1, 0, 0, 0> r;
+  int32 index = -1;
+  if (q.valid && !mesh_query_aabb_next(q.query, index)) q.valid = false;
+  r.data[0] = q.valid ? index : -1;
+  return r;
+}
+WP_FUNC bool tile_query_valid(const weft_struct_MeshQueryAABBTiled& q) { return q.valid; }
+
+}  // namespace wp
