@@ -4,7 +4,8 @@ same run.
 
     python bench/bench_iso_surface.py [--device cpu|cuda:0] [--quick]
 
-Time: extract + synchronize, median of several runs after a warm-up that compiles. Throughput:
+Time: extract + synchronize (and the stateful surface() called again on the field, which may keep
+its temporaries), median of several runs after a warm-up that compiles. Throughput:
 million grid cells per second. Error: the vertices against a float64 NumPy interpolation of the
 same float32 field on the same crossed edges (each vertex matched to its edge), as the largest
 difference relative to the grid's extent. Ratio = warp time / weft time (higher is
@@ -65,10 +66,18 @@ def run(wp, field_np: np.ndarray, device: str):
         result["mesh"] = geometry.IsoSurfaceMarchingCubes.extract(field, 0.0)
         wp.synchronize_device(device)
 
+    iso = geometry.IsoSurfaceMarchingCubes(*field_np.shape)
+
+    def surface():   # the stateful form, called again on a field of the same shape
+        iso.surface(field, 0.0)
+        wp.synchronize_device(device)
+
     extract()
+    surface()
     seconds = bc.median_time(extract, repeat=5)
+    surface_seconds = bc.median_time(surface, repeat=5)
     verts, indices = result["mesh"]
-    return seconds, verts.numpy().astype(np.float64), indices.numpy().size // 3
+    return seconds, surface_seconds, verts.numpy().astype(np.float64), indices.numpy().size // 3
 
 
 def main():
@@ -84,16 +93,18 @@ def main():
         field = sphere(n)
         ref = by_edge(reference_vertices(field), n)
         extent = float(n - 1)
-        t, v, tris = run(weft, field, device)
+        t, ts, v, tris = run(weft, field, device)
         err = float(np.abs(by_edge(v, n) - ref).max() / extent) if len(v) == len(ref) else float("nan")
-        xt = xerr = None
+        xt = xts = xerr = None
         if warp is not None:
-            xt, xv, _ = run(warp, field, device)
+            xt, xts, xv, _ = run(warp, field, device)
             xerr = float(np.abs(by_edge(xv, n) - ref).max() / extent) if len(xv) == len(ref) else float("nan")
         cells = (n - 1) ** 3
-        rows.append([f"{n}^3", f"{len(v):,} / {tris:,}", bc.fmt_time(t), f"{cells / t / 1e6:,.1f}", f"{err:.1e}",
-                     bc.fmt_time(xt), "n/a" if xerr is None else f"{xerr:.1e}", bc.fmt_ratio(t, xt)])
-    header = ["grid", "verts / tris", "weft", "Mcells/s", "rel err", "warp", "warp rel err", "ratio"]
+        rows.append([f"{n}^3", f"{len(v):,} / {tris:,}", bc.fmt_time(t), bc.fmt_time(ts), f"{cells / t / 1e6:,.1f}",
+                     f"{err:.1e}", bc.fmt_time(xt), bc.fmt_time(xts), "n/a" if xerr is None else f"{xerr:.1e}",
+                     bc.fmt_ratio(t, xt), bc.fmt_ratio(ts, xts)])
+    header = ["grid", "verts / tris", "extract", "surface()", "Mcells/s", "rel err", "warp extract", "warp surface()",
+              "warp rel err", "ratio", "ratio surface()"]
     bc.print_table(f"Marching cubes on {device}: IsoSurfaceMarchingCubes.extract of a sphere SDF", header, rows)
 
 

@@ -210,7 +210,17 @@ def _exclusive_offsets(counts: np.ndarray, what: str) -> tuple[np.ndarray, int]:
     return offsets.astype(np.int32), total
 
 
-def _marching_cubes(field, threshold: float, lower, upper):
+def _scratch_size(nodes: int, chunks: int) -> int:
+    """int32 words of one extraction's temporaries: per node the edge and triangle counts and
+    offsets and three edge vertices; per chunk the two chunk sums."""
+    return 7 * nodes + 2 * chunks
+
+
+def _marching_cubes(field, threshold: float, lower, upper, scratch_holder=None):
+    """(verts, indices). The temporaries are views of one int32 block (`scratch_holder`, a dict
+    of the calling IsoSurfaceMarchingCubes, keeps it for the next call of the same size and
+    device); the host sees the chunk sums once and sends the chunk starts once: a GPU extraction
+    costs the daemon one allocation, one download and one upload besides the outputs."""
     validate_field(field)
     origin, delta = resolve_domain_bounds(field.shape, lower, upper)
     device = field.device
@@ -220,33 +230,38 @@ def _marching_cubes(field, threshold: float, lower, upper):
         raise ValueError(f"marching cubes: a field of shape {tuple(field.shape)} has more grid edges than int32 "
                          f"indices can address")
     threshold = float(threshold)
-
-    edge_counts = wp.empty(nodes, dtype=wp.int32, device=device)
-    tri_counts = wp.empty(nodes, dtype=wp.int32, device=device)
-    wp.launch(_mc_count, dim=field.shape, device=device,
-              inputs=[field, threshold, case_tri_range, edge_counts, tri_counts])
     # prefix sums: chunk sums on the device, the chunks' starts on the host (at most ~64K each)
     chunk = max(256, -(-nodes // 65536))
     chunks = -(-nodes // chunk)
-    edge_sums = wp.empty(chunks, dtype=wp.int32, device=device)
-    tri_sums = wp.empty(chunks, dtype=wp.int32, device=device)
+    need = _scratch_size(nodes, chunks)
+    key = (str(device), need, _runtime.get_runtime())
+    buf = scratch_holder.get(key) if scratch_holder is not None else None
+    if buf is None:
+        buf = wp.empty(need, dtype=wp.int32, device=device)
+        if scratch_holder is not None:
+            scratch_holder.clear()
+            scratch_holder[key] = buf
+    edge_counts, tri_counts = buf[0:nodes], buf[nodes:2 * nodes]
+    edge_offsets, tri_offsets = buf[2 * nodes:3 * nodes], buf[3 * nodes:4 * nodes]
+    edge_vertex = buf[4 * nodes:7 * nodes]
+    sums = buf[7 * nodes:need]
+    wp.launch(_mc_count, dim=field.shape, device=device,
+              inputs=[field, threshold, case_tri_range, edge_counts, tri_counts])
     wp.launch(_mc_chunk_sums, dim=chunks, device=device, inputs=[edge_counts, tri_counts, chunk],
-              outputs=[edge_sums, tri_sums])
-    edge_starts, vert_total = _exclusive_offsets(edge_sums.numpy(), "vertices")
-    tri_starts, tri_total = _exclusive_offsets(tri_sums.numpy(), "triangles")
+              outputs=[sums[0:chunks], sums[chunks:]])
+    host_sums = sums.numpy()
+    edge_starts, vert_total = _exclusive_offsets(host_sums[:chunks], "vertices")
+    tri_starts, tri_total = _exclusive_offsets(host_sums[chunks:], "triangles")
 
     grad = bool(getattr(field, "requires_grad", False))
     verts = wp.empty(vert_total, dtype=wp.vec3, device=device, requires_grad=grad)
     indices = wp.empty(3 * tri_total, dtype=wp.int32, device=device)
     if vert_total == 0:
         return verts, indices
-    edge_offsets = wp.empty(nodes, dtype=wp.int32, device=device)
-    tri_offsets = wp.empty(nodes, dtype=wp.int32, device=device)
+    starts = wp.array(np.concatenate([edge_starts, tri_starts]), dtype=wp.int32, device=device)
     wp.launch(_mc_chunk_offsets, dim=chunks, device=device,
-              inputs=[edge_counts, tri_counts, chunk, wp.array(edge_starts, dtype=wp.int32, device=device),
-                      wp.array(tri_starts, dtype=wp.int32, device=device)],
+              inputs=[edge_counts, tri_counts, chunk, starts[0:chunks], starts[chunks:]],
               outputs=[edge_offsets, tri_offsets])
-    edge_vertex = wp.empty(3 * nodes, dtype=wp.int32, device=device)
     wp.launch(_mc_vertices, dim=field.shape, device=device,
               inputs=[field, threshold, origin, delta, edge_offsets], outputs=[verts, edge_vertex])
     wp.launch(_mc_faces, dim=field.shape, device=device,
@@ -339,6 +354,7 @@ class IsoSurfaceMarchingCubes(IsoSurfaceBase):
         lower = _deprecated_argument(lower, domain_bounds_lower_corner, "lower", "domain_bounds_lower_corner")
         upper = _deprecated_argument(upper, domain_bounds_upper_corner, "upper", "domain_bounds_upper_corner")
         super().__init__(nx, ny, nz, lower=lower, upper=upper)
+        self._scratch = {}   # the temporaries of the last surface() call, reused by the next
 
     domain_bounds_lower_corner = _deprecated_alias("domain_bounds_lower_corner", "lower")
     domain_bounds_upper_corner = _deprecated_alias("domain_bounds_upper_corner", "upper")
@@ -347,7 +363,7 @@ class IsoSurfaceMarchingCubes(IsoSurfaceBase):
         """Extracts the surface of `field` at `threshold` into `verts` and `indices`; the field's
         shape must be the grid's (nx, ny, nz)."""
         self._check_field_shape(field)
-        self.verts, self.indices = self.extract(field, threshold, lower=self.lower, upper=self.upper)
+        self.verts, self.indices = _marching_cubes(field, threshold, self.lower, self.upper, self._scratch)
 
     @classmethod
     def extract(cls, field, threshold: float = 0.0, *, lower=None, upper=None):

@@ -165,6 +165,27 @@ def test_sphere_stateful_interface(device, rng):
     assert_closed_and_oriented(iso.indices.numpy())
 
 
+
+def test_repeated_surface_calls_reuse_their_temporaries(device, rng):
+    """surface() keeps its temporaries (one int32 block) for the next call of the same size and
+    device: every call's mesh still equals the float64 reference (fresh fields, new thresholds),
+    the block is allocated once, and a resize allocates a new one."""
+    shape = (9, 7, 8)
+    iso = MC(*shape)
+    blocks = []
+    for threshold in (0.0, 0.25, -0.3):
+        field_np = hard_field(rng, shape, closed=False)
+        iso.surface(wp.array(field_np, dtype=wp.float32, device=device), threshold)
+        ref_verts, ref_faces = reference_mesh(field_np, threshold)
+        np.testing.assert_array_equal(iso.indices.numpy(), ref_faces)
+        np.testing.assert_allclose(iso.verts.numpy(), ref_verts, rtol=0, atol=2e-5 * max(shape))
+        blocks.append(next(iter(iso._scratch.values())))
+    assert blocks[0] is blocks[1] is blocks[2] and len(iso._scratch) == 1
+    iso.resize(5, 6, 7)
+    iso.surface(wp.array(hard_field(rng, (5, 6, 7), closed=True), device=device), 0.0)
+    assert_closed_and_oriented(iso.indices.numpy())
+    assert len(iso._scratch) == 1 and next(iter(iso._scratch.values())) is not blocks[0]
+
 def test_threshold_and_ties(device, rng):
     """A node exactly at the threshold is outside (not below it), in the count, the vertices and
     the faces alike."""
