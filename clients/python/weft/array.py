@@ -458,6 +458,9 @@ class array:
     """A multi-dimensional array in weftd memory (Warp's wp.array)."""
 
     _default_ndim_ = 1
+    # A copy of framework memory kept in step with it around launches (interop/torch.py,
+    # TensorMirror); None for every other array.
+    _mirror = None
 
     def __class_getitem__(cls, params):
         # wp.array[float], wp.array[float, Literal[2]]: an annotation object (dtype, ndim).

@@ -217,3 +217,67 @@ def test_from_torch_retain_grad(wp, torch):
     assert not wp.from_torch(t, requires_grad=True).retain_grad
     with pytest.raises(ValueError, match="requires requires_grad"):
         wp.from_torch(torch.zeros(3), requires_grad=False, retain_grad=True)
+
+
+@wp.kernel
+def affine(x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = 0.5 - 2.0 * x[i]
+
+
+def test_copies_of_shared_tensors_stay_in_step_around_launches(wp, torch, rng):
+    """from_torch of a tensor whose storage it cannot move (a view, `y.detach()` beside `y`)
+    copies; a launch taking the copy first copies in what Torch wrote since (its version counter
+    moved), then writes its results back into the tensor's memory, seen through every tensor
+    sharing it, without moving Torch's version counter (as a kernel writing shared memory
+    would). Against float64."""
+    x = torch.tensor((rng.standard_normal(16) * 10.0 ** rng.integers(-3, 4, 16)).astype(np.float32))
+    xv = x[2:10]                       # a view: copied
+    y = torch.full((8,), -7.0)
+    yd = y.detach()                    # shares y's storage: copied
+    ax, ay = wp.from_torch(xv), wp.from_torch(yd)
+    assert ay.ptr != y.data_ptr()
+    version = y._version
+
+    def expect(src):
+        want = 0.5 - 2.0 * src.numpy().astype(np.float64)
+        np.testing.assert_allclose(y.numpy(), want, rtol=2e-7, atol=1e-7)
+        np.testing.assert_array_equal(yd.numpy(), y.numpy())
+
+    wp.launch(affine, dim=8, inputs=[ax], outputs=[ay])
+    expect(xv)
+    assert y._version == version
+    with torch.no_grad():
+        x.mul_(3.0)                    # Torch writes the viewed memory in place
+    wp.launch(affine, dim=8, inputs=[ax], outputs=[ay])
+    expect(xv)
+    # Warp's descriptor form takes the same path
+    wp.launch(affine, dim=8, inputs=[wp.from_torch(xv, return_ctype=True)],
+              outputs=[wp.from_torch(yd, return_ctype=True)])
+    expect(xv)
+
+
+def test_custom_autograd_function_over_detached_tensors(wp, torch):
+    """Warp's custom-op pattern: forward writes into `y.detach()`, backward launches the adjoint
+    into fresh tensors; the output and x.grad are Torch's (0.5 - 2x, -2)."""
+
+    class Op(torch.autograd.Function):
+        @staticmethod
+        def forward(ctx, x):
+            y = torch.empty_like(x)
+            ctx.x, ctx.y = x.detach(), y.detach()
+            wp.launch(affine, dim=len(x), inputs=[wp.from_torch(ctx.x)], outputs=[wp.from_torch(ctx.y)])
+            return y
+
+        @staticmethod
+        def backward(ctx, adj_y):
+            adj_x = torch.zeros_like(ctx.x)
+            wp.launch(affine, dim=len(ctx.x), inputs=[wp.from_torch(ctx.x)], outputs=[wp.from_torch(ctx.y)],
+                      adj_inputs=[wp.from_torch(adj_x)], adj_outputs=[wp.from_torch(adj_y)], adjoint=True)
+            return adj_x
+
+    x = torch.linspace(-3.0, 5.0, 16, requires_grad=True)
+    y = Op.apply(x)
+    np.testing.assert_allclose(y.detach().numpy(), 0.5 - 2.0 * x.detach().numpy().astype(np.float64), rtol=1e-6)
+    y.sum().backward()
+    np.testing.assert_array_equal(x.grad.numpy(), np.full(16, -2.0, dtype=np.float32))

@@ -143,6 +143,18 @@ class _PendingCopyBack:
                                                                       copy=False))
 
 
+class _MirrorCopyBack:
+    """A weft copy of framework memory the launch took (weft.interop.torch.TensorMirror): its
+    values go back into the framework's memory after the launch."""
+
+    def __init__(self, mirror, array):
+        self.mirror = mirror
+        self.array = array
+
+    def apply(self) -> None:
+        self.mirror.after_launch(self.array)
+
+
 class ArgPacker:
     """Packs launch arguments for one kernel and device; keeps temporaries alive."""
 
@@ -219,6 +231,9 @@ class ArgPacker:
 
         if value is None:
             return types_pb2.ArrayRef(handle=0), None
+        weft_value = getattr(value, "_weft_value", None)
+        if weft_value is not None and is_weft_array(weft_value):   # its ctypes descriptor (array_t)
+            value = weft_value
         if not is_weft_array(value):
             if getattr(value, "_indexed_", False):   # an indexed view is no plain array (as in Warp)
                 self._fail(name, f"expects an array of type array(ndim={desc.ndim}, dtype={desc.elem.text}), "
@@ -244,6 +259,10 @@ class ArgPacker:
                                                 array_device.startswith("cuda")):
             self._fail(name, f"array is on device {array_device} but the kernel is launched "
                              f"on {self.device}")
+        mirror = getattr(value, "_mirror", None)
+        if mirror is not None:   # a copy of framework memory: brought up to date, written back after
+            mirror.before_launch(value)
+            self.copy_backs.append(_MirrorCopyBack(mirror, value))
         return value._ref(), value
 
     def _temporary(self, name: str, desc, annotation, value):
@@ -583,8 +602,8 @@ def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
     for i, (p, value) in enumerate(zip(plan.params, args)):
         if p.is_array:
             if isinstance(value, array_type):
-                c = _array_arg(value)
-                if (p.elem_any or c[6] == p.elem_text) and c[7] == p.ndim and \
+                c = _array_arg(value) if value._mirror is None else None   # a mirror: the packer
+                if c is not None and (p.elem_any or c[6] == p.elem_text) and c[7] == p.ndim and \
                         _device_matches(c[8], device):
                     packed.append(c[9])
                     continue

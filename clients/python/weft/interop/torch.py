@@ -135,9 +135,43 @@ def _adopt_tensor(t, dtype, what, requires_grad=False, other_refs=0):
             try:
                 with torch.no_grad():
                     t.data = moved
+                return out
             except RuntimeError:
                 pass                    # Torch refused: the array stays a copy
+    if t.device.type == "cpu" and not t.is_inference():
+        out._mirror = TensorMirror(t)   # a copy: launches keep it and the tensor in step
     return out
+
+
+class TensorMirror:
+    """The CPU tensor a weft array copied because its storage could not move (a view, storage
+    other tensors share, such as `y` and `y.detach()`): a launch taking the array first copies
+    the tensor in when Torch changed it since (its version counter moved), and afterwards
+    copies the array back into the tensor (weft/_kernel/launch.py), so each side sees the
+    other's writes at the points where it would with shared memory."""
+
+    def __init__(self, tensor):
+        self.tensor = tensor
+        self.version = tensor._version
+
+    def before_launch(self, a) -> None:
+        if self.tensor._version != self.version:
+            a.assign(self.tensor.detach().numpy())
+            self.version = self.tensor._version
+
+    def after_launch(self, a) -> None:
+        # Written through the tensor's memory, as a kernel writing into shared memory would:
+        # Torch's version counter does not move (autograd's saved inputs stay valid).
+        values = np.asarray(a.numpy())
+        try:
+            target = self.tensor.detach().numpy()
+        except (TypeError, RuntimeError):   # no NumPy view (bfloat16): through Torch
+            torch = _torch()
+            with torch.no_grad():
+                self.tensor.copy_(torch.from_numpy(np.ascontiguousarray(values)).reshape(self.tensor.shape))
+            self.version = self.tensor._version
+            return
+        np.copyto(target, values.reshape(target.shape).astype(target.dtype, copy=False))
 
 
 def _storage_exclusive(t, other_refs=0) -> bool:
@@ -216,12 +250,13 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False,
     matches `t`'s trailing dimensions; `requires_grad` (default: t.requires_grad) maps the
     tensor's .grad to the array's .grad (zeros when the tensor has none); `grad` gives that
     gradient tensor explicitly; `retain_grad` sets the array's retain_grad (its gradient is kept
-    through the adjoints of stores to it). `return_ctype` is accepted for Warp compatibility:
-    weft has no ctypes descriptors, and the array returned is already a thin view."""
+    through the adjoints of stores to it). `return_ctype=True` returns the array's ctypes
+    descriptor (`a.__ctype__()`, Warp's array_t: data and grad addresses in this process, shape,
+    byte strides), which keeps the array alive and which launches take as the array."""
     a = _from_torch(t, dtype, requires_grad, grad)
     if retain_grad:
         a.retain_grad = True
-    return a
+    return a.__ctype__() if return_ctype else a
 
 
 def _from_torch(t, dtype, requires_grad, grad):
