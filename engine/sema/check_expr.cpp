@@ -866,11 +866,13 @@ Expected<Value> Checker::EvalBinOp(const ast::BinOp& b) {
   const std::string& name = BinaryBuiltins().at(b.op);
   // + - * // % of two integer constants (literals, wp.constant ints) is a constant, as Python
   // computes it (floor division and modulo), so that `shape=(TILE_M // 2, TILE_N * 2)` is one.
-  // Folded only where the result fits int32 and nothing divides by zero; otherwise the runtime
-  // operator, as before.
-  if (l.kind == Value::Kind::kVar && r.kind == Value::Kind::kVar && l.literal && r.literal &&
-      IsIntLiteralText(l.literal_text) && IsIntLiteralText(r.literal_text) && l.literal_text.size() < 19 &&
-      r.literal_text.size() < 19) {
+  // Folded only where the result fits int32 and nothing divides by zero (typed constants such as
+  // wp.uint8(200) keep their type's arithmetic); otherwise the runtime operator, as before.
+  auto python_int = [this](const Value& v) {   // an untyped integer constant (int32 / int64 literal)
+    return v.kind == Value::Kind::kVar && v.literal && IsIntLiteralText(v.literal_text) && v.literal_text.size() < 19 &&
+           (TypeOf(v.var) == Type::Int32() || TypeOf(v.var) == Type::Scalar(ScalarKind::kInt64));
+  };
+  if (python_int(l) && python_int(r)) {
     const long long x = std::stoll(l.literal_text), y = std::stoll(r.literal_text);
     bool fold = true;
     long long v = 0;

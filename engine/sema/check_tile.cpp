@@ -1174,7 +1174,7 @@ Expected<Value> Checker::TileMap(const std::string& name, std::vector<Value> arg
   std::vector<Stmt>* saved = st_->block;
   st_->block = &scratch;
   const bool saved_struct_arithmetic = struct_arithmetic_;
-  struct_arithmetic_ = true;
+  struct_arithmetic_ = f.kind == Value::Kind::kBuiltin;   // a builtin applied to struct elements
   auto r = f.kind == Value::Kind::kBuiltin ? CallBuiltin(f.name, elems, loc, nullptr) : CallUserFunc(f.name, elems, loc);
   struct_arithmetic_ = saved_struct_arithmetic;
   st_->block = saved;

@@ -1024,6 +1024,23 @@ def tile_constant_shapes(a: wp.array2d[float], out: wp.array[float]):
     wp.tile_store(out, wp.tile_reshape(t, shape=(TILE_HALF // 2) * (TILE_HALF - 4)))
 
 
+TYPED_U8 = wp.constant(wp.uint8(200))
+
+
+@wp.kernel
+def typed_constant_arithmetic(out: wp.array[wp.uint8], folded: wp.array[int]):
+    out[0] = TYPED_U8 * 2          # uint8 arithmetic: wraps to 144
+    folded[0] = -7 // 2 + TILE_HALF % 3 * 10
+
+
+def test_typed_constants_keep_their_arithmetic(device):
+    """Folding takes untyped integers only: a typed constant (wp.uint8) keeps its type's wrapping
+    arithmetic; untyped ones fold with Python's floor division and modulo."""
+    out, folded = wp.zeros(1, dtype=wp.uint8), wp.zeros(1, dtype=int)
+    wp.launch(typed_constant_arithmetic, dim=1, inputs=[out, folded])
+    assert out.numpy()[0] == 144 and folded.numpy()[0] == -7 // 2 + 8 % 3 * 10
+
+
 def test_tile_shapes_take_integer_arithmetic_on_constants(device, rng):
     """+ - * // % of integer constants (wp.constant ints, literals) are constants, folded as
     Python computes them (floor division), so shapes and offsets may be spelled with them."""
