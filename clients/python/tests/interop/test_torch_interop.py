@@ -281,3 +281,24 @@ def test_custom_autograd_function_over_detached_tensors(wp, torch):
     np.testing.assert_allclose(y.detach().numpy(), 0.5 - 2.0 * x.detach().numpy().astype(np.float64), rtol=1e-6)
     y.sum().backward()
     np.testing.assert_array_equal(x.grad.numpy(), np.full(16, -2.0, dtype=np.float32))
+
+
+def test_from_torch_return_ctype_is_warps_descriptor(wp, torch):
+    """from_torch(..., return_ctype=True) gives Warp's array_t: the data address is the tensor's
+    (its storage moved into weft memory), grad the explicit gradient's (a tensor or a weft
+    array), shape and byte strides; a launch takes it as the array."""
+    import ctypes
+
+    for dt in (torch.float64, torch.float32, torch.float16, torch.int64, torch.int8, torch.uint8, torch.bool):
+        t = torch.zeros(10, dtype=dt)
+        a = wp.from_torch(t, return_ctype=True)
+        size = ctypes.sizeof(wp.dtype_from_torch(dt)._type_)
+        assert (a.data, a.grad, a.ndim, a.shape[0], a.strides[0]) == (t.data_ptr(), 0, 1, 10, size)
+    t, g = torch.zeros((10, 2)), torch.zeros((10, 2))
+    a = wp.from_torch(t, dtype=wp.vec2, grad=g, return_ctype=True)
+    assert (a.data, a.grad, a.shape[0], a.strides[0]) == (t.data_ptr(), g.data_ptr(), 10, 8)
+    ga = wp.zeros(10, dtype=wp.vec2)
+    a = wp.from_torch(torch.zeros((10, 2)), dtype=wp.vec2, grad=ga, return_ctype=True)
+    assert a.grad == ga.ptr
+    with pytest.raises(ValueError, match="the gradient array has shape"):
+        wp.from_torch(torch.zeros((10, 2)), dtype=wp.vec2, grad=wp.zeros(9, dtype=wp.vec2))

@@ -299,8 +299,8 @@ def _from_torch(t, dtype, requires_grad, grad):
         raise external.InteropError(f"{what}: the tensor lives on {t.device}, which has no "
                                     f"weft counterpart (weft has cpu and cuda:N)")
     if requires_grad is None:
-        requires_grad = bool(t.requires_grad)
-    if not requires_grad:
+        requires_grad = bool(t.requires_grad) or grad is not None   # an explicit grad is mapped (Warp)
+    if not requires_grad and grad is None:
         # The same conversion again (a loop): the array over the tensor's slab memory,
         # remembered on the tensor while it points there.
         from .cuda_import import _fresh  # noqa: PLC0415
@@ -310,7 +310,7 @@ def _from_torch(t, dtype, requires_grad, grad):
         if known is not None and known[0] == key and not known[1]._alloc.runtime.closed:
             return _fresh(known[1])
     a = _adopt_tensor(t, dtype, what, requires_grad)
-    if not requires_grad:
+    if not requires_grad and grad is None:
         if a.ptr is not None and a.ptr == t.data_ptr():
             try:
                 t.__dict__["_weft_cpu_array"] = ((t.data_ptr(), t.shape, t.stride(), t.dtype, dtype), a)
@@ -319,10 +319,19 @@ def _from_torch(t, dtype, requires_grad, grad):
         return a
     torch = _torch()
     if grad is not None:
-        # an explicit gradient tensor: the array's gradient is that memory (client side)
+        # an explicit gradient (a tensor or a weft array): the array's gradient is that memory
+        from ..array import array as weft_array  # noqa: PLC0415
+
+        if isinstance(grad, weft_array):
+            if tuple(grad.shape) != tuple(a.shape) or grad.dtype != a.dtype:
+                raise ValueError(f"{what}: the gradient array has shape {tuple(grad.shape)} and dtype "
+                                 f"{grad.dtype.__name__}, the array {tuple(a.shape)} and {a.dtype.__name__}")
+            a._grad = grad
+            a._requires_grad = bool(requires_grad)
+            return a
         _check_tensor(grad, what + " (grad)")
         a._grad = _adopt_tensor(grad, a.dtype, what + " (grad)")
-        a._requires_grad = True
+        a._requires_grad = bool(requires_grad)
         return a
     g = t.grad
     ga = memory.grad_view(a)            # the daemon-side gradient, when the allocation has one
