@@ -924,6 +924,13 @@ void EmitStructs(const Module& m, std::string* out) {
         o += std::string(" r.") + FieldName(f.name) + " = " + (f.type.is_struct() ? "struct_neg" : "neg") + "(a." +
              FieldName(f.name) + ");";
     o += " return r; }\n";
+    // tile_atomic_add of struct elements: the same fields, each atomically
+    o += "WP_FUNC void struct_atomic_add(" + sn + "* p, const " + sn + "& v) {";
+    for (const auto& f : si.fields)
+      if (StructArithmeticField(f.type))
+        o += std::string(f.type.is_struct() ? " struct_atomic_add(" : " atomic_add_ptr(") + "&p->" + FieldName(f.name) +
+             ", v." + FieldName(f.name) + ");";
+    o += " (void)p; (void)v; }\n";
     o += "WP_FUNC void cg_link(" + si.cpp_name + "& a, const " + si.cpp_name + "& b) {";
     for (const auto& f : si.fields)
       if (HasArrays(f.type, m.structs)) o += " cg_link(a." + FieldName(f.name) + ", b." + FieldName(f.name) + ");";

@@ -41,15 +41,16 @@ struct tile_t {
 // Atomic accumulation of a gradient element: fieldwise for structs (their cg_atomic_accum is
 // generated with each struct and found at instantiation), atomic_add_ptr otherwise.
 template <typename T> WP_FUNC void cg_atomic_accum(T* p, const T& v) { atomic_add_ptr(p, v); }
-// tile_atomic_add of one element: the old value. Types without an atomic add (structs) add
-// their differentiable fields atomically and give the value read before.
+// tile_atomic_add of one element: the old value. Structs (no atomic add of their own) add the
+// fields Warp accumulates ([u]int32, [u]int64 and float scalars and composites, nested structs:
+// the generated struct_atomic_add) atomically one by one and give the value read before.
 template <typename T>
 WP_FUNC auto tile_atomic_add_elem(T* p, const T& v, int) -> decltype(add(*p, v), atomic_add_ptr(p, v)) {
   return atomic_add_ptr(p, v);
 }
 template <typename T> WP_FUNC T tile_atomic_add_elem(T* p, const T& v, long) {
   const T old = *p;
-  cg_atomic_accum(p, v);
+  struct_atomic_add(p, v);
   return old;
 }
 

@@ -585,6 +585,8 @@ class Mixed:
     small: wp.int8
     value: float
     v: wp.vec3
+    count: wp.int64
+    ids: wp.vec2i
 
 
 @wp.kernel
@@ -595,24 +597,29 @@ def tile_mixed_structs(inp: wp.array[Mixed], stored: wp.array[Mixed], added: wp.
     wp.tile_atomic_add(added, t)
 
 
-def test_tile_atomic_add_of_structs_adds_float_fields_only(device, rng):
-    """tile_atomic_add of a struct tile adds its floating-point fields atomically (twice here);
-    bool and int8 fields, which have no atomic add, keep the destination's values (Warp)."""
+def test_tile_atomic_add_of_structs_adds_warps_accumulating_fields(device, rng):
+    """tile_atomic_add of a struct tile adds the fields Warp accumulates atomically (twice here):
+    float and [u]int32 / [u]int64 scalars and vectors; bool and int8 fields, which have no atomic
+    add, keep the destination's values (Warp)."""
     data = []
     for i in range(8):
         s = Mixed()
         s.flag, s.small, s.value = bool(i % 2), wp.int8(i - 4), float(rng.standard_normal())
         s.v = wp.vec3(*rng.standard_normal(3).astype(np.float32))
+        s.count = int(rng.integers(-2**40, 2**40))
+        s.ids = wp.vec2i(*(int(x) for x in rng.integers(-1000, 1000, 2)))
         data.append(s)
     inp = wp.array(data, dtype=Mixed)
     stored = wp.zeros(8, dtype=Mixed)
     added = wp.zeros(8, dtype=Mixed)
     wp.launch_tiled(tile_mixed_structs, dim=1, inputs=[inp, stored, added])
     src, out, acc = inp.numpy(), stored.numpy(), added.numpy()
-    for field in ("flag", "small", "value", "v"):
+    for field in ("flag", "small", "value", "v", "count", "ids"):
         np.testing.assert_array_equal(out[field], src[field])
     np.testing.assert_allclose(acc["value"], 2.0 * src["value"], rtol=1e-6)
     np.testing.assert_allclose(acc["v"], 2.0 * src["v"], rtol=1e-6)
+    np.testing.assert_array_equal(acc["count"], 2 * src["count"])
+    np.testing.assert_array_equal(acc["ids"], 2 * src["ids"])
     assert not acc["flag"].any() and not acc["small"].any()
 
 
