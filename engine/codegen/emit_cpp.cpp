@@ -906,18 +906,14 @@ void EmitStructs(const Module& m, std::string* out) {
     // Warp's struct arithmetic (tiles of structs: t + u, t - u, -t, tile_sum, t[i] += s): field
     // by field over the fields StructArithmeticField names; the others keep a's value.
     const std::string& sn = si.cpp_name;
-    o += "WP_FUNC " + sn + " struct_add(const " + sn + "& a, const " + sn + "& b) { " + sn + " r = a;";
-    for (const auto& f : si.fields)
-      if (StructArithmeticField(f.type))
-        o += std::string(" r.") + FieldName(f.name) + " = " + (f.type.is_struct() ? "struct_add" : "add") + "(a." +
-             FieldName(f.name) + ", b." + FieldName(f.name) + ");";
-    o += " (void)b; return r; }\n";
-    o += "WP_FUNC " + sn + " struct_sub(const " + sn + "& a, const " + sn + "& b) { " + sn + " r = a;";
-    for (const auto& f : si.fields)
-      if (StructArithmeticField(f.type))
-        o += std::string(" r.") + FieldName(f.name) + " = " + (f.type.is_struct() ? "struct_sub" : "sub") + "(a." +
-             FieldName(f.name) + ", b." + FieldName(f.name) + ");";
-    o += " (void)b; return r; }\n";
+    for (const char* op : {"add", "sub"}) {
+      o += "WP_FUNC " + sn + " struct_" + op + "(const " + sn + "& a, const " + sn + "& b) { " + sn + " r = a;";
+      for (const auto& f : si.fields)
+        if (StructArithmeticField(f.type))
+          o += " r." + FieldName(f.name) + " = " + (f.type.is_struct() ? "struct_" : "") + op + "(a." +
+               FieldName(f.name) + ", b." + FieldName(f.name) + ");";
+      o += " (void)b; return r; }\n";
+    }
     o += "WP_FUNC " + sn + " struct_neg(const " + sn + "& a) { " + sn + " r = a;";
     for (const auto& f : si.fields)
       if (StructArithmeticField(f.type))

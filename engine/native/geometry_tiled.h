@@ -35,12 +35,17 @@ WP_FUNC weft_struct_BvhQueryTiled tile_bvh_query_ray(const launch_context_t* ctx
   q.valid = true;
   return q;
 }
-WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_bvh_query_next(weft_struct_BvhQueryTiled& q) {
+// The result of one _next of a tiled query whose thread query gave `found` / `index`: the
+// item as a (1,) tile, -1 (and `valid` cleared) once the walk is done.
+WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_query_result(bool& valid, bool found, int32 index) {
   tile_t<int32, 1, 0, 0, 0> r;
-  int32 index = -1;
-  if (q.valid && !bvh_query_next(q.query, index)) q.valid = false;
-  r.data[0] = q.valid ? index : -1;
+  valid = found;
+  r.data[0] = found ? index : -1;
   return r;
+}
+WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_bvh_query_next(weft_struct_BvhQueryTiled& q) {
+  int32 index = -1;
+  return tile_query_result(q.valid, q.valid && bvh_query_next(q.query, index), index);
 }
 WP_FUNC bool tile_query_valid(const weft_struct_BvhQueryTiled& q) { return q.valid; }
 
@@ -52,11 +57,8 @@ WP_FUNC weft_struct_MeshQueryAABBTiled tile_mesh_query_aabb(const launch_context
   return q;
 }
 WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_mesh_query_aabb_next(weft_struct_MeshQueryAABBTiled& q) {
-  tile_t<int32, 1, 0, 0, 0> r;
   int32 index = -1;
-  if (q.valid && !mesh_query_aabb_next(q.query, index)) q.valid = false;
-  r.data[0] = q.valid ? index : -1;
-  return r;
+  return tile_query_result(q.valid, q.valid && mesh_query_aabb_next(q.query, index), index);
 }
 WP_FUNC bool tile_query_valid(const weft_struct_MeshQueryAABBTiled& q) { return q.valid; }
 
