@@ -726,6 +726,25 @@ def _launch_device(device, args) -> str:
     return name
 
 
+_cpu_blocks_warned = False
+
+
+def _check_cpu_block_dim(block_dim: int) -> None:
+    """Warp's CPU block limit, and a warning (once) when wp.config.enable_cpu_blocks asks for
+    Warp's cooperative CPU blocks, which weft does not run (docs/tiles.md)."""
+    global _cpu_blocks_warned
+    if block_dim > 1024:
+        raise ValueError(f"block_dim must be at most 1024 on CPU, got {block_dim}")
+    if _config.enable_cpu_blocks and not _cpu_blocks_warned:
+        _cpu_blocks_warned = True
+        from .. import _log  # noqa: PLC0415
+
+        _log.log_warning("wp.config.enable_cpu_blocks is set, but weft runs every CPU block as one thread "
+                         "(Warp's default CPU rule): kernels whose results depend on several lanes of a block "
+                         "(wp.tile(x) of per-thread values, tile stacks pushed by every lane) differ from "
+                         "Warp's cooperative CPU blocks (docs/tiles.md)", stacklevel=3)
+
+
 def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), device=None,
            stream=None, adjoint=False, record_tape=True, record_cmd=False, max_blocks=0,
            block_dim=256):
@@ -741,6 +760,8 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         dims = normalize_dim(dim)
     args = [*inputs, *outputs] if outputs else list(inputs or [])
     device = _launch_device(device, args)
+    if device == "cpu" and block_dim and block_dim > 1:
+        _check_cpu_block_dim(block_dim)
     if max_blocks and max_blocks > 0 and device.startswith("cuda") and not module_mod.grid_stride_of(kernel):
         raise WeftLaunchError(
             f"Kernel '{kernel.key}' was launched with max_blocks={max_blocks}, but it was compiled "
