@@ -54,6 +54,12 @@ template <typename T> WP_FUNC T tile_atomic_add_elem(T* p, const T& v, long) {
   return old;
 }
 
+// a + b of two tile elements: numbers add, structs field by field (the generated struct_add).
+template <typename T> WP_FUNC auto tile_value_add(const T& a, const T& b, int) -> decltype(struct_add(a, b)) {
+  return struct_add(a, b);
+}
+template <typename T> WP_FUNC T tile_value_add(const T& a, const T& b, long) { return add(a, b); }
+
 // A subscript's integer index as NumPy reads it: a negative one counts from the end (what is
 // still outside the extent stays so, and the op using it reports it).
 WP_FUNC int64 tile_wrap_index(int64 i, int64 extent) { return i < 0 ? i + extent : i; }
@@ -319,7 +325,7 @@ template <typename S> WP_FUNC void adj_struct_neg(const S&, S& adj_a, const S& a
 // element (Warp: the fields that do not accumulate keep a value of the tile).
 template <typename T> WP_FUNC auto tile_sum_elements(const T* data, int n, int) -> decltype(struct_add(*data, *data)) {
   T s = data[0];
-  for (int k = 1; k < n; ++k) s = struct_add(s, data[k]);
+  for (int k = 1; k < n; ++k) s = tile_value_add(s, data[k], 0);
   return s;
 }
 template <typename T> WP_FUNC T tile_sum_elements(const T* data, int n, long) {
@@ -327,11 +333,6 @@ template <typename T> WP_FUNC T tile_sum_elements(const T* data, int n, long) {
   for (int k = 0; k < n; ++k) cg_accum(s, data[k]);
   return s;
 }
-// One step of a sum along an axis (`first`: the axis's first element; the sum starts at zero).
-template <typename T> WP_FUNC auto tile_sum_step(T& acc, const T& x, bool first, int) -> decltype(void(struct_add(acc, x))) {
-  acc = first ? x : struct_add(acc, x);
-}
-template <typename T> WP_FUNC void tile_sum_step(T& acc, const T& x, bool, long) { acc = add(acc, x); }
 WP_TILE_TEMPLATE WP_FUNC tile_t<T, 1, 0, 0, 0> tile_sum(const WP_TILE& a) {
   tile_t<T, 1, 0, 0, 0> r;
   r.data[0] = tile_sum_elements(a.data, WP_TILE::SIZE, 0);
@@ -770,11 +771,6 @@ WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line,
 WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_INSERT_FORMS)
 #undef WP_TILE_INSERT_FORMS
 
-// v added into element (i, j, ...) of t: numbers add, structs field by field (struct_add).
-template <typename T> WP_FUNC auto tile_value_add(const T& a, const T& b, int) -> decltype(struct_add(a, b)) {
-  return struct_add(a, b);
-}
-template <typename T> WP_FUNC T tile_value_add(const T& a, const T& b, long) { return add(a, b); }
 // wp.tile_scatter_add(t, i, ..., v, has_value) and wp.tile_scatter_masked(t, i, ..., v, has_value):
 // the block's one thread adds v into (writes v at) element (i, ...) when has_value; the index
 // is checked only then (a launch error outside t).
@@ -879,15 +875,15 @@ WP_FUNC int tile_axis_target(int k, int axis, int* along) {
   *along = (int)c[axis];
   return (int)flat;
 }
-// Sum along `axis` (a constant the compiler checked): R is the tile without that dimension.
+// Sum along `axis` (a constant the compiler checked): R is the tile without that dimension;
+// each sum starts at the axis's first element (structs: its fields that do not accumulate stay).
 template <typename R, typename T, int D0, int D1, int D2, int D3>
 WP_FUNC R tile_sum_axis(const R&, const WP_TILE& a, int32 axis) {
   R r;
-  for (int k = 0; k < R::SIZE; ++k) r.data[k] = cg_zeros<T>();
   for (int k = 0; k < WP_TILE::SIZE; ++k) {
     int j;
     const int o = tile_axis_target<R, T, D0, D1, D2, D3>(k, axis, &j);
-    tile_sum_step(r.data[o], a.data[k], j == 0, 0);
+    r.data[o] = j == 0 ? a.data[k] : tile_value_add(r.data[o], a.data[k], 0);
   }
   return r;
 }

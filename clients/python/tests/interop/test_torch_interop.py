@@ -302,3 +302,20 @@ def test_from_torch_return_ctype_is_warps_descriptor(wp, torch):
     assert a.grad == ga.ptr
     with pytest.raises(ValueError, match="the gradient array has shape"):
         wp.from_torch(torch.zeros((10, 2)), dtype=wp.vec2, grad=wp.zeros(9, dtype=wp.vec2))
+
+
+def test_bfloat16_copies_stay_in_step_too(wp, torch, rng):
+    """The same for a bfloat16 view (weft reads and writes its bits): the kernel's writes reach
+    the base tensor, Torch's later writes reach the next launch."""
+    base = torch.tensor(rng.standard_normal(12).astype(np.float32) * 100.0, dtype=torch.bfloat16)
+    view = base[2:10]
+    a = wp.from_torch(view)
+    out = wp.zeros(8, dtype=wp.float32)
+    want = view.float().numpy().copy()
+    wp.launch(bf16_scale, dim=8, inputs=[a, out])
+    np.testing.assert_array_equal(out.numpy(), 2.0 * want)
+    np.testing.assert_array_equal(base[2:10].float().numpy(), np.full(8, -1.0, dtype=np.float32))
+    with torch.no_grad():
+        base[2:10] = 3.0
+    wp.launch(bf16_scale, dim=8, inputs=[a, out])
+    np.testing.assert_array_equal(out.numpy(), np.full(8, 6.0, dtype=np.float32))

@@ -154,24 +154,25 @@ class TensorMirror:
         self.tensor = tensor
         self.version = tensor._version
 
+    def _memory(self) -> np.ndarray:
+        """The tensor's own memory as NumPy (bfloat16: its uint16 bits, what weft's bfloat16
+        arrays take and give)."""
+        view = external.host_view(self.tensor, "wp.from_torch")
+        return view.view(np.uint16) if self.tensor.dtype is _torch().bfloat16 else view
+
     def before_launch(self, a) -> None:
         if self.tensor._version != self.version:
-            a.assign(self.tensor.detach().numpy())
+            a.assign(self._memory())
             self.version = self.tensor._version
 
     def after_launch(self, a) -> None:
         # Written through the tensor's memory, as a kernel writing into shared memory would:
         # Torch's version counter does not move (autograd's saved inputs stay valid).
+        target = self._memory()
         values = np.asarray(a.numpy())
-        try:
-            target = self.tensor.detach().numpy()
-        except (TypeError, RuntimeError):   # no NumPy view (bfloat16): through Torch
-            torch = _torch()
-            with torch.no_grad():
-                self.tensor.copy_(torch.from_numpy(np.ascontiguousarray(values)).reshape(self.tensor.shape))
-            self.version = self.tensor._version
-            return
-        np.copyto(target, values.reshape(target.shape).astype(target.dtype, copy=False))
+        if values.dtype != target.dtype:   # bfloat16 (ml_dtypes' type or its bits)
+            values = values.view(target.dtype)
+        np.copyto(target, values.reshape(target.shape))
 
 
 def _storage_exclusive(t, other_refs=0) -> bool:
