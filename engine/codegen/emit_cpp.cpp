@@ -329,6 +329,22 @@ class FnEmitter {
       RegionReset();
     }
   }
+  // What a builtin call does among the lanes of a cooperative CPU block (CodegenOptions::
+  // cpu_lanes > 1): nothing special, wait for them first (tile loads), or leave the call to
+  // the leader (memory writes and the print of a tile). Every lane holds the same tiles, so
+  // one lane's write is the block's.
+  enum class LaneRole { kNone, kWaitFirst, kLeader };
+  LaneRole LaneRoleOf(const Op& op) const {
+    if (opt_.cpu_lanes <= 1 || op.kind != OpKind::kCall) return LaneRole::kNone;
+    const std::string& n = op.builtin->native;
+    if (n == "tile_load" || n == "tile_load_indexed") return LaneRole::kWaitFirst;
+    if (n == "tile_store" || n == "tile_store_indexed" || n == "tile_atomic_add" || n == "tile_atomic_add_indexed")
+      return LaneRole::kLeader;
+    if (n == "print")
+      for (int a : op.args)
+        if (T(a).is_tile()) return LaneRole::kLeader;
+    return LaneRole::kNone;
+  }
   bool Pure(const Op& op) const {
     switch (op.kind) {
       case OpKind::kStore:
@@ -503,9 +519,21 @@ class FnEmitter {
           int ndim = T(op.args[0]).ndim;
           Check(op, line, op.args[0], std::vector<int>(op.args.begin() + 1, op.args.begin() + 1 + ndim));
         }
+        // Cooperative CPU blocks (engine/native/lanes.h): a tile load waits for the block's
+        // lanes (their writes before it are seen); a tile store or atomic add, or a tile's
+        // print, is performed by the leader alone between two waits, its result then handed
+        // to every lane.
+        const LaneRole role = LaneRoleOf(op);
+        if (role != LaneRole::kNone) Line("wp::lane_sync(__ctx);");
+        if (role == LaneRole::kLeader) Line("if (wp::lane_leads(__ctx)) {");
         if (op.dst.size() > 1) Line(name + "(" + args + ", " + Args(op.dst) + ");");
         else if (op.dst.empty()) Line(name + "(" + args + ");");
         else Line(d() + " = " + name + "(" + args + ");");
+        if (role == LaneRole::kLeader) {
+          Line("}");
+          for (int v : op.dst) Line("wp::lane_broadcast(__ctx, " + V(v) + ");");
+          Line("wp::lane_sync(__ctx);");
+        }
         if (op.dst.size() == 1 && Links(T(op.dst[0]))) Line("wp::cg_link_grads(" + A(op.dst[0]) + ", " + d() + ");");
         return;
       }
@@ -730,13 +758,32 @@ class FnEmitter {
           return;
         }
         if (!b->differentiable()) return;
+        // Cooperative CPU blocks: the adjoint of a tile load, store or atomic add touches the
+        // arrays' gradients: the leader alone runs it, then hands the tiles' adjoints to every
+        // lane (see LaneRoleOf).
+        const bool lane_leader = LaneRoleOf(op) != LaneRole::kNone;
+        auto lane_begin = [&] {
+          if (!lane_leader) return;
+          Line("wp::lane_sync(__ctx);");
+          Line("if (wp::lane_leads(__ctx)) {");
+        };
+        auto lane_end = [&] {
+          if (!lane_leader) return;
+          Line("}");
+          for (int a : op.args)
+            if (T(a).is_tile() && Diff(T(a))) Line("wp::lane_broadcast(__ctx, " + A(a) + ");");
+          Line("wp::lane_sync(__ctx);");
+        };
         if (op.dst.empty()) {
           // A builtin without a result whose arguments still get gradients (tile_store: the
           // stored tile's adjoint reads the array's gradient).
           if (!(b->flags & kBuiltinVoidAdjoint)) return;
           bool diff = false;
           for (int v : op.args) diff |= Diff(T(v));
-          if (diff) Line("wp::" + b->adjoint + "(" + Args(op.args) + ", " + Args(op.args, 0, std::string::npos, true) + ");");
+          if (!diff) return;
+          lane_begin();
+          Line("wp::" + b->adjoint + "(" + Args(op.args) + ", " + Args(op.args, 0, std::string::npos, true) + ");");
+          lane_end();
           return;
         }
         if ((b->flags & kBuiltinArrayAccess) && (!Diff(T(op.args.back())) || T(op.args.back()).is_struct())) return;
@@ -751,6 +798,7 @@ class FnEmitter {
         const std::string loc = (b->flags & kBuiltinNeedsLoc)
                                     ? "__ctx, " + std::to_string(f_.function_id) + ", " + std::to_string(line) + ", "
                                     : "";
+        lane_begin();
         if (op.dst.size() > 1) {
           Line("wp::" + b->adjoint + "(" + loc + Args(op.args) + ", " + Args(op.dst) + ", " +
                Args(op.args, 0, std::string::npos, true) + ", " + Args(op.dst, 0, std::string::npos, true) + ");");
@@ -758,6 +806,7 @@ class FnEmitter {
           Line("wp::" + b->adjoint + "(" + loc + Args(op.args) + (op.args.empty() ? "" : ", ") +
                Args(op.args, 0, std::string::npos, true) + (op.args.empty() ? "" : ", ") + A(op.dst[0]) + ");");
         }
+        lane_end();
         return;
       }
       case OpKind::kFuncCall: {
@@ -1095,6 +1144,7 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
     kl.forward_symbol = "weft_" + MangleIdentifier(f.name) + "_" + target + "_forward";
     if (options.enable_backward) kl.backward_symbol = "weft_" + MangleIdentifier(f.name) + "_" + target + "_backward";
     if (options.target == Target::kCpu) {
+      kl.lanes = options.cpu_lanes > 1 ? options.cpu_lanes : 1;
       o += "extern \"C\" void " + kl.forward_symbol +
            "(const wp::launch_context_t* __ctx, const void* __args, wp::int64 __begin, wp::int64 __end) {\n"
            "  const " + args_struct + "& __a = *static_cast<const " + args_struct + "*>(__args);\n"

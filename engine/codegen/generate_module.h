@@ -44,6 +44,9 @@ struct KernelLayout {
   // The CUDA entries stride over the grid (CodegenOptions::grid_stride); false: the launch
   // must use a grid that covers its size, and max_blocks is refused.
   bool grid_stride = true;
+  // CPU entries compiled for cooperative blocks of this many lanes (CodegenOptions::cpu_lanes);
+  // 1: one thread per block.
+  uint32_t lanes = 1;
 };
 
 struct GeneratedModule {
@@ -64,6 +67,10 @@ struct CodegenOptions {
   // thread with an early return (Warp's grid_stride=False: fewer registers and instructions,
   // the grid must cover the launch). No effect on CPU entries.
   bool grid_stride = true;
+  // CPU entries for cooperative blocks of this many lanes (the module option "cpu_block_dim",
+  // wp.config.enable_cpu_blocks): wp.tile(x) has this many elements and the launch runs each
+  // block's threads as fibers (engine/runtime/cpu_lanes.h). 1: one thread per block.
+  uint32_t cpu_lanes = 1;
 };
 
 // On failure returns InvalidArgument and appends the user-facing diagnostics to *diags.

@@ -15,4 +15,17 @@ std::string Diagnostic::ToString() const {
   return out;
 }
 
+int CpuLanesOption(const ModuleSource& source) {
+  auto it = source.options.find("cpu_block_dim");
+  if (it == source.options.end()) return 1;
+  const std::string& v = it->second;
+  if (v.empty() || v.size() > 4) return 0;
+  int n = 0;
+  for (char c : v) {
+    if (c < '0' || c > '9') return 0;
+    n = n * 10 + (c - '0');
+  }
+  return n >= 1 && n <= 1024 ? n : 0;
+}
+
 }  // namespace weft

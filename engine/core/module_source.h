@@ -71,4 +71,9 @@ struct ModuleSource {
   std::map<std::string, std::string> options;
 };
 
+// The lanes of a cooperative CPU block the module is compiled for: its option "cpu_block_dim"
+// (wp.config.enable_cpu_blocks with a launch's block_dim), an integer from 1 to 1024. 1 when
+// absent; 0 when present but not such an integer (the compiler refuses the module).
+int CpuLanesOption(const ModuleSource& source);
+
 }  // namespace weft

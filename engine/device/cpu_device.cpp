@@ -43,6 +43,7 @@ Status CpuDevice::Launch(Session& s, const KernelLaunch& l, std::string* output)
   launch.dim = l.dim;
   launch.args = l.args;
   launch.adj_args = l.adj_args;
+  launch.block_dim = l.block_dim;
   launch.print_capacity = options_.print_capacity;
   std::shared_ptr<geometry::LaunchTable> geometry = s.geometry().TableFor("cpu");   // alive for the launch
   if (geometry) launch.geometry = &geometry->table;

@@ -298,6 +298,14 @@ WP_FUNC bool cg_loop_poll(const launch_context_t* ctx, uint32& counter) {
 
 // tid of flat launch index `flat`, unravelled by the launch shape (row-major). The outermost
 // index is what is left of `flat`: a 1-D launch does no division at all.
+// i = wp.tid() (one name): the first coordinate of the thread's launch index (Warp's rule: only
+// the leading indices are returned); the flat index of a 1-D launch.
+WP_FUNC int64 cg_tid_first(const launch_context_t* ctx, int64 flat) {
+  const launch_bounds_t& b = ctx->bounds;
+  if (b.ndim <= 1) return flat;
+  const int64 inner = (b.shape[1] > 0 ? b.shape[1] : 1) * (b.shape[2] > 0 ? b.shape[2] : 1) * (b.shape[3] > 0 ? b.shape[3] : 1);
+  return flat / inner;
+}
 WP_FUNC void cg_unravel(const launch_bounds_t& b, int64 flat, int64* tid) {
   tid[1] = tid[2] = tid[3] = 0;
   for (int d = b.ndim - 1; d > 0; --d) {
@@ -336,5 +344,6 @@ WP_FUNC bool cg_check_adj(const launch_context_t* ctx, int32 function_id, int32 
 
 #include "indexed_array.h"
 #include "fixed_array.h"
+#include "lanes.h"
 #include "tile.h"
 #include "geometry_tiled.h"

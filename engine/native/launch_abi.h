@@ -83,6 +83,25 @@ struct print_buffer_t {
 
 struct geometry_table_t;   // geometry_abi.h
 
+// The lanes of one CPU block (Warp's cooperative CPU blocks, wp.config.enable_cpu_blocks): the
+// block's block_dim threads run as fibers on one worker thread, each to its next lane_sync in
+// turn (engine/runtime/cpu_lanes.cpp). Tile ops that combine the lanes' values exchange them
+// through `scratch` between two syncs (engine/native/lanes.h). Null on GPUs and for kernels
+// compiled for one thread per block.
+struct lane_block_t {
+  int32 lane;            // the lane running now
+  int32 count;           // lanes of this block: dim, fewer in the launch's last block
+  int32 dim;             // block_dim the kernel was compiled for
+  int32 leader;          // the lowest lane still running: it performs the block's memory writes
+  const unsigned char* running;   // [count]: 1 until the lane returned from the kernel
+  // Returns once every running lane of the block has called it as often as this one.
+  void (*sync)(lane_block_t* block);
+  // At least `bytes` of memory the lanes of the block share (zeroed when first handed out);
+  // valid until the block ends. Null when more than the runtime gives a block.
+  char* (*scratch)(lane_block_t* block, uint64 bytes);
+  void* runtime;
+};
+
 struct launch_context_t {
   launch_bounds_t bounds;
   launch_error_t* error;
@@ -100,6 +119,8 @@ struct launch_context_t {
   // that reports an error or appends print output stores 1 there (a plain store), so at a
   // synchronize the daemon reads the error slots and the print header back only when it is set.
   int32* report_flag;
+  // Null but on the CPU for a kernel compiled with lanes (lane_block_t): this worker's block.
+  lane_block_t* lanes;
 };
 
 constexpr uint32 LAUNCH_FLAG_NO_BOUNDS_CHECK = 1u;

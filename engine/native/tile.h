@@ -204,6 +204,154 @@ template <typename T> WP_FUNC void adj_untile(const tile_t<T, 1, 0, 0, 0>&, tile
   cg_accum(adj_t.data[0], adj_ret);
 }
 
+// With lanes (engine/native/lanes.h) wp.tile(x) is a tile of the block's lanes, lane l's x at
+// element l (zero for lanes that do not run); untile gives each lane its element, and its
+// adjoint gathers every lane's. `like` carries the shape (B,) (or (n, B), (rows, cols, B)).
+template <typename T, int B>
+WP_FUNC tile_t<T, B, 0, 0, 0> tile_lanes(const launch_context_t* ctx, int32, int32, const tile_t<T, B, 0, 0, 0>&, T x) {
+  tile_t<T, B, 0, 0, 0> r = cg_zeros<tile_t<T, B, 0, 0, 0>>();
+  lane_block_t* b = lanes_of(ctx);
+  if (!b) {
+    r.data[0] = x;
+    return r;
+  }
+  const T* all = lane_share(b, x);
+  for (int l = 0; all && l < B; ++l)
+    if (lane_running(b, l)) r.data[l] = all[l];
+  b->sync(b);
+  return r;
+}
+template <typename T, int B>
+WP_FUNC void adj_tile_lanes(const launch_context_t* ctx, int32, int32, const tile_t<T, B, 0, 0, 0>&, T,
+                            tile_t<T, B, 0, 0, 0>&, T& adj_x, const tile_t<T, B, 0, 0, 0>& adj_ret) {
+  const int l = lane_index(ctx);
+  if (l < B) cg_accum(adj_x, adj_ret.data[l]);
+}
+// The components of a vector or matrix, in row-major order.
+template <unsigned N, typename T> WP_FUNC const T* lane_components(const vec_t<N, T>& v) { return v.c; }
+template <unsigned R, unsigned C, typename T> WP_FUNC const T* lane_components(const mat_t<R, C, T>& m) { return &m.data[0][0]; }
+// Component c of lane l's value at (c, l): vectors (n, B), matrices (rows, cols, B).
+template <typename T, int N, int B, typename V>
+WP_FUNC tile_t<T, N, B, 0, 0> tile_split_lanes_of(const launch_context_t* ctx, const V& v) {
+  tile_t<T, N, B, 0, 0> r = cg_zeros<tile_t<T, N, B, 0, 0>>();
+  lane_block_t* b = lanes_of(ctx);
+  if (!b) {
+    for (int c = 0; c < N; ++c) r.data[c * B] = lane_components(v)[c];
+    return r;
+  }
+  const V* all = lane_share(b, v);
+  for (int l = 0; all && l < B; ++l)
+    if (lane_running(b, l))
+      for (int c = 0; c < N; ++c) r.data[c * B + l] = lane_components(all[l])[c];
+  b->sync(b);
+  return r;
+}
+template <unsigned N, typename T, int B>
+WP_FUNC tile_t<T, (int)N, B, 0, 0> tile_split_lanes(const launch_context_t* ctx, int32, int32,
+                                                    const tile_t<T, (int)N, B, 0, 0>&, const vec_t<N, T>& v) {
+  return tile_split_lanes_of<T, (int)N, B>(ctx, v);
+}
+template <unsigned R, unsigned C, typename T, int B>
+WP_FUNC tile_t<T, (int)R, (int)C, B, 0> tile_split_lanes(const launch_context_t* ctx, int32, int32,
+                                                         const tile_t<T, (int)R, (int)C, B, 0>&, const mat_t<R, C, T>& m) {
+  const tile_t<T, (int)(R * C), B, 0, 0> flat = tile_split_lanes_of<T, (int)(R * C), B>(ctx, m);
+  tile_t<T, (int)R, (int)C, B, 0> r;
+  for (int k = 0; k < (int)(R * C) * B; ++k) r.data[k] = flat.data[k];
+  return r;
+}
+template <unsigned N, typename T, int B>
+WP_FUNC void adj_tile_split_lanes(const launch_context_t* ctx, int32, int32, const tile_t<T, (int)N, B, 0, 0>&,
+                                  const vec_t<N, T>&, tile_t<T, (int)N, B, 0, 0>&, vec_t<N, T>& adj_v,
+                                  const tile_t<T, (int)N, B, 0, 0>& adj_ret) {
+  const int l = lane_index(ctx);
+  for (unsigned c = 0; l < B && c < N; ++c) cg_accum(adj_v.c[c], adj_ret.data[c * B + l]);
+}
+template <unsigned R, unsigned C, typename T, int B>
+WP_FUNC void adj_tile_split_lanes(const launch_context_t* ctx, int32, int32, const tile_t<T, (int)R, (int)C, B, 0>&,
+                                  const mat_t<R, C, T>&, tile_t<T, (int)R, (int)C, B, 0>&, mat_t<R, C, T>& adj_m,
+                                  const tile_t<T, (int)R, (int)C, B, 0>& adj_ret) {
+  const int l = lane_index(ctx);
+  for (unsigned i = 0; l < B && i < R; ++i)
+    for (unsigned j = 0; j < C; ++j) cg_accum(adj_m.data[i][j], adj_ret.data[(i * C + j) * B + l]);
+}
+// untile with lanes: lane l's element (column l of a vector's or matrix's tile).
+template <typename T, int B> WP_FUNC T untile_lanes(const launch_context_t* ctx, int32, int32, const tile_t<T, B, 0, 0, 0>& t) {
+  const int l = lane_index(ctx);
+  return l < B ? t.data[l] : cg_zeros<T>();
+}
+template <typename T, int B>
+WP_FUNC void adj_untile_lanes(const launch_context_t* ctx, int32, int32, const tile_t<T, B, 0, 0, 0>&,
+                              tile_t<T, B, 0, 0, 0>& adj_t, const T& adj_ret) {
+  lane_block_t* b = lanes_of(ctx);
+  if (!b) {
+    cg_accum(adj_t.data[0], adj_ret);
+    return;
+  }
+  const T* all = lane_share(b, adj_ret);
+  for (int l = 0; all && l < B; ++l)
+    if (lane_running(b, l)) cg_accum(adj_t.data[l], all[l]);
+  b->sync(b);
+}
+template <typename T, int N, int B>
+WP_FUNC vec_t<(unsigned)N, T> untile_lanes(const launch_context_t* ctx, int32, int32, const tile_t<T, N, B, 0, 0>& t) {
+  const int l = lane_index(ctx);
+  vec_t<(unsigned)N, T> v;
+  for (int c = 0; c < N; ++c) v.c[c] = l < B ? t.data[c * B + l] : T(0);
+  return v;
+}
+template <typename T, int N, int B>
+WP_FUNC void adj_untile_lanes(const launch_context_t* ctx, int32, int32, const tile_t<T, N, B, 0, 0>&,
+                              tile_t<T, N, B, 0, 0>& adj_t, const vec_t<(unsigned)N, T>& adj_ret) {
+  lane_block_t* b = lanes_of(ctx);
+  if (!b) {
+    for (int c = 0; c < N; ++c) cg_accum(adj_t.data[c * B], adj_ret.c[c]);
+    return;
+  }
+  const vec_t<(unsigned)N, T>* all = lane_share(b, adj_ret);
+  for (int l = 0; all && l < B; ++l)
+    if (lane_running(b, l))
+      for (int c = 0; c < N; ++c) cg_accum(adj_t.data[c * B + l], all[l].c[c]);
+  b->sync(b);
+}
+template <typename T, int R, int C, int B>
+WP_FUNC mat_t<(unsigned)R, (unsigned)C, T> untile_lanes(const launch_context_t* ctx, int32, int32,
+                                                        const tile_t<T, R, C, B, 0>& t) {
+  const int l = lane_index(ctx);
+  mat_t<(unsigned)R, (unsigned)C, T> m;
+  for (int i = 0; i < R; ++i)
+    for (int j = 0; j < C; ++j) m.data[i][j] = l < B ? t.data[(i * C + j) * B + l] : T(0);
+  return m;
+}
+template <typename T, int R, int C, int B>
+WP_FUNC void adj_untile_lanes(const launch_context_t* ctx, int32, int32, const tile_t<T, R, C, B, 0>&,
+                              tile_t<T, R, C, B, 0>& adj_t, const mat_t<(unsigned)R, (unsigned)C, T>& adj_ret) {
+  lane_block_t* b = lanes_of(ctx);
+  if (!b) {
+    for (int i = 0; i < R; ++i)
+      for (int j = 0; j < C; ++j) cg_accum(adj_t.data[(i * C + j) * B], adj_ret.data[i][j]);
+    return;
+  }
+  const mat_t<(unsigned)R, (unsigned)C, T>* all = lane_share(b, adj_ret);
+  for (int l = 0; all && l < B; ++l)
+    if (lane_running(b, l))
+      for (int i = 0; i < R; ++i)
+        for (int j = 0; j < C; ++j) cg_accum(adj_t.data[(i * C + j) * B + l], all[l].data[i][j]);
+  b->sync(b);
+}
+
+// wp.tile_from_thread(shape, value, thread_idx) with lanes: every element lane thread_idx's value
+// (zero when that lane does not run).
+template <typename R, typename T>
+WP_FUNC R tile_from_lane(const launch_context_t* ctx, int32, int32, const T& v, int32 from) {
+  T x = v;
+  if (lane_block_t* b = lanes_of(ctx)) {
+    const T* all = lane_share(b, v);
+    x = all && lane_running(b, from) ? all[from] : cg_zeros<T>();
+    b->sync(b);
+  }
+  return tile_full<R>(x);
+}
+
 // wp.tile(v) of a vector or matrix on one thread: its components as a tile of shape (n, 1) or
 // (rows, cols, 1) (the last extent is the block's one thread); untile reverses it.
 template <unsigned N, typename T> WP_FUNC tile_t<T, (int)N, 1, 0, 0> tile_split(const vec_t<N, T>& v) {
@@ -283,6 +431,41 @@ WP_TILE_TEMPLATE WP_FUNC int tile_flat(const launch_context_t* ctx, int32 fid, i
   }
   return (int)flat;
 }
+// With lanes: every running lane's (element f, value v) applied to r in lane order as op(r[f], v)
+// (f < 0: none); returns false without lanes. t[i] = v, t[i] op= v and scatters of the lanes
+// of a block so update every lane's tile alike.
+template <typename R, typename T, typename Op> WP_FUNC bool tile_lanes_apply(const launch_context_t* ctx, R& r, int f, const T& v, Op op) {
+  lane_block_t* b = lanes_of(ctx);
+  if (!b) return false;
+  struct update_t {
+    int32 f;
+    T v;
+  };
+  const update_t* all = lane_share(b, update_t{f, v});
+  for (int32 l = 0; all && l < b->count; ++l)
+    if (lane_running(b, l) && all[l].f >= 0 && all[l].f < R::SIZE) op(r.data[all[l].f], all[l].v);
+  b->sync(b);
+  return true;
+}
+template <typename T> struct tile_assign_op {
+  WP_FUNC void operator()(T& a, const T& v) const { a = v; }
+};
+template <typename T> struct tile_accum_op {
+  WP_FUNC void operator()(T& a, const T& v) const { cg_accum(a, v); }
+};
+template <typename T> struct tile_add_op {
+  WP_FUNC void operator()(T& a, const T& v) const { a = tile_value_add(a, v, 0); }
+};
+template <typename T> struct tile_bit_and_op {
+  WP_FUNC void operator()(T& a, const T& v) const { a = bit_and(a, v); }
+};
+template <typename T> struct tile_bit_or_op {
+  WP_FUNC void operator()(T& a, const T& v) const { a = bit_or(a, v); }
+};
+template <typename T> struct tile_bit_xor_op {
+  WP_FUNC void operator()(T& a, const T& v) const { a = bit_xor(a, v); }
+};
+
 #define WP_TILE_EXTRACT_FORMS(PARAMS, ADJ_PARAMS, N, IDX)                                                             \
   template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
   WP_FUNC T tile_extract(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS) {            \
@@ -292,8 +475,8 @@ WP_TILE_TEMPLATE WP_FUNC int tile_flat(const launch_context_t* ctx, int32 fid, i
   template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
   WP_FUNC void adj_tile_extract(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,       \
                                 WP_TILE& adj_t, ADJ_PARAMS, const T& adj_ret) {                                     \
-    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
-    if (f >= 0) cg_accum(adj_t.data[f], adj_ret);                                                         \
+    const int f = tile_flat(ctx, fid, line, t, N, IDX); /* lanes: every lane's read adds its adjoint */             \
+    if (!tile_lanes_apply(ctx, adj_t, f, adj_ret, tile_accum_op<T>()) && f >= 0) cg_accum(adj_t.data[f], adj_ret);  \
   }
 // Expands FORMS(params, adjoint params, count, the 4 indices) for 1 to 4 element indices.
 #define WP_COMMA ,
@@ -757,15 +940,25 @@ WP_FUNC void adj_tile_assign(const launch_context_t* ctx, int32 fid, int32 line,
   WP_FUNC WP_TILE tile_insert(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS, T v) {  \
     WP_TILE r = t;                                                                                                  \
     const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
-    if (f >= 0) r.data[f] = v;                                                                                      \
+    if (!tile_lanes_apply(ctx, r, f, v, tile_assign_op<T>()) && f >= 0) r.data[f] = v;                              \
     return r;                                                                                                       \
   }                                                                                                                 \
   template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
   WP_FUNC void adj_tile_insert(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS, T,     \
                                WP_TILE& adj_t, ADJ_PARAMS, T& adj_v, const WP_TILE& adj_ret) {                      \
     const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
-    for (int k = 0; k < WP_TILE::SIZE; ++k)                                                                         \
-      if (k != f) cg_accum(adj_t.data[k], adj_ret.data[k]);                                              \
+    if (lane_block_t* b = lanes_of(ctx)) { /* lanes: no gradient passes the elements any lane wrote */             \
+      bool written[WP_TILE::SIZE] = {};                                                                             \
+      const int32* all = lane_share(b, (int32)f);                                                                   \
+      for (int32 l = 0; all && l < b->count; ++l)                                                                   \
+        if (lane_running(b, l) && all[l] >= 0 && all[l] < WP_TILE::SIZE) written[all[l]] = true;                    \
+      b->sync(b);                                                                                                   \
+      for (int k = 0; k < WP_TILE::SIZE; ++k)                                                                       \
+        if (!written[k] && k != f) cg_accum(adj_t.data[k], adj_ret.data[k]);                                        \
+    } else {                                                                                                        \
+      for (int k = 0; k < WP_TILE::SIZE; ++k)                                                                       \
+        if (k != f) cg_accum(adj_t.data[k], adj_ret.data[k]);                                                       \
+    }                                                                                                               \
     if (f >= 0) cg_accum(adj_v, adj_ret.data[f]);                                                                 \
   }
 WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_INSERT_FORMS)
@@ -780,7 +973,7 @@ WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_INSERT_FORMS)
                                    T v, bool has) {                                                                 \
     WP_TILE r = t;                                                                                                  \
     const int f = has ? tile_flat(ctx, fid, line, t, N, IDX) : -1;                                                  \
-    if (f >= 0) r.data[f] = tile_value_add(r.data[f], v, 0);                                                        \
+    if (!tile_lanes_apply(ctx, r, f, v, tile_add_op<T>()) && f >= 0) r.data[f] = tile_value_add(r.data[f], v, 0);  \
     return r;                                                                                                       \
   }                                                                                                                 \
   template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
@@ -796,7 +989,7 @@ WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_INSERT_FORMS)
                                       T v, bool has) {                                                              \
     WP_TILE r = t;                                                                                                  \
     const int f = has ? tile_flat(ctx, fid, line, t, N, IDX) : -1;                                                  \
-    if (f >= 0) r.data[f] = v;                                                                                      \
+    if (!tile_lanes_apply(ctx, r, f, v, tile_assign_op<T>()) && f >= 0) r.data[f] = v;                              \
     return r;                                                                                                       \
   }                                                                                                                 \
   template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
@@ -810,6 +1003,36 @@ WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_INSERT_FORMS)
   }
 WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_SCATTER_FORMS)
 #undef WP_TILE_SCATTER_FORMS
+
+// t[i, ...] &= v, |= v, ^= v in a kernel compiled with lanes: every lane's v combined into the
+// element (as Warp's block-shared tiles do); one thread alone without lanes.
+#define WP_TILE_LANE_BITWISE_FORMS(PARAMS, ADJ_PARAMS, N, IDX)                                                        \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC WP_TILE tile_lanes_bit_and(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,  \
+                                     T v) {                                                                         \
+    WP_TILE r = t;                                                                                                  \
+    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
+    if (!tile_lanes_apply(ctx, r, f, v, tile_bit_and_op<T>()) && f >= 0) r.data[f] = bit_and(r.data[f], v);         \
+    return r;                                                                                                       \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC WP_TILE tile_lanes_bit_or(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,   \
+                                    T v) {                                                                          \
+    WP_TILE r = t;                                                                                                  \
+    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
+    if (!tile_lanes_apply(ctx, r, f, v, tile_bit_or_op<T>()) && f >= 0) r.data[f] = bit_or(r.data[f], v);           \
+    return r;                                                                                                       \
+  }                                                                                                                 \
+  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
+  WP_FUNC WP_TILE tile_lanes_bit_xor(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,  \
+                                     T v) {                                                                         \
+    WP_TILE r = t;                                                                                                  \
+    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
+    if (!tile_lanes_apply(ctx, r, f, v, tile_bit_xor_op<T>()) && f >= 0) r.data[f] = bit_xor(r.data[f], v);         \
+    return r;                                                                                                       \
+  }
+WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_LANE_BITWISE_FORMS)
+#undef WP_TILE_LANE_BITWISE_FORMS
 #undef WP_TILE_FOR_EACH_INDEX_COUNT
 #undef WP_COMMA
 
@@ -1317,32 +1540,65 @@ WP_FUNC void adj_tile_diag_add(const tile_t<T, N, M, 0, 0>&, const tile_t<T, (N 
 
 // ---- tile stacks (wp.tile_stack) -------------------------------------------------------------
 // A stack of at most C values; with one thread per block a push or pop is the thread's own.
+// With lanes every lane holds the block's stack: a push appends the values of the pushing
+// lanes in lane order (a lane's slot: the count before the push plus its rank among them), a
+// pop gives the running lanes the top values, the leader the topmost.
 template <typename T, int C> struct tile_stack_t {
   T data[C];
   int32 count;
 };
 // The slot a push writes (-1: full, or nothing to push), and the stack after it.
-template <typename T, int C> WP_FUNC int32 tile_stack_push_slot(const tile_stack_t<T, C>& s, const T&, bool has_value) {
-  return has_value && s.count < C ? s.count : -1;
+template <typename T, int C>
+WP_FUNC int32 tile_stack_push_slot(const launch_context_t* ctx, int32, int32, const tile_stack_t<T, C>& s, const T&,
+                                   bool has_value) {
+  int32 rank = 0;
+  if (lane_block_t* b = lanes_of(ctx)) {
+    const bool* all = lane_share(b, has_value);
+    for (int32 l = 0; all && l < b->lane; ++l) rank += lane_running(b, l) && all[l];
+    b->sync(b);
+  }
+  const int32 slot = s.count + rank;
+  return has_value && s.count >= 0 && slot < C ? slot : -1;
 }
 template <typename T, int C>
-WP_FUNC tile_stack_t<T, C> tile_stack_pushed(const tile_stack_t<T, C>& s, const T& v, bool has_value) {
+WP_FUNC tile_stack_t<T, C> tile_stack_pushed(const launch_context_t* ctx, int32, int32, const tile_stack_t<T, C>& s,
+                                             const T& v, bool has_value) {
   tile_stack_t<T, C> r = s;
-  if (has_value && r.count >= 0 && r.count < C) r.data[r.count++] = v;
+  if (r.count < 0 || r.count > C) r.count = 0;
+  if (lane_block_t* b = lanes_of(ctx)) {
+    struct push_t {
+      T value;
+      bool has;
+    };
+    const push_t* all = lane_share(b, push_t{v, has_value});
+    for (int32 l = 0; all && l < b->count; ++l)
+      if (lane_running(b, l) && all[l].has && r.count < C) r.data[r.count++] = all[l].value;
+    b->sync(b);
+    return r;
+  }
+  if (has_value && r.count < C) r.data[r.count++] = v;
   return r;
 }
 // The top value and its slot (zero and -1 when empty), and the stack after the pop.
-template <typename T, int C> WP_FUNC void tile_stack_top(const tile_stack_t<T, C>& s, T& value, int32& slot) {
-  const bool any = s.count > 0 && s.count <= C;
-  value = any ? s.data[s.count - 1] : cg_zeros<T>();
-  slot = any ? s.count - 1 : -1;
+template <typename T, int C>
+WP_FUNC void tile_stack_top(const launch_context_t* ctx, int32, int32, const tile_stack_t<T, C>& s, T& value,
+                            int32& slot) {
+  const lane_block_t* b = lanes_of(ctx);
+  const int32 at = s.count - 1 - (b ? lane_rank(b, b->lane) : 0);
+  const bool any = s.count <= C && at >= 0;
+  value = any ? s.data[at] : cg_zeros<T>();
+  slot = any ? at : -1;
 }
-template <typename T, int C> WP_FUNC tile_stack_t<T, C> tile_stack_popped(const tile_stack_t<T, C>& s) {
+template <typename T, int C>
+WP_FUNC tile_stack_t<T, C> tile_stack_popped(const launch_context_t* ctx, int32, int32, const tile_stack_t<T, C>& s) {
+  const lane_block_t* b = lanes_of(ctx);
   tile_stack_t<T, C> r = s;
-  if (r.count > 0) --r.count;
+  r.count -= b ? lane_rank(b, b->count) : 1;
+  if (r.count < 0) r.count = 0;
   return r;
 }
-template <typename T, int C> WP_FUNC tile_stack_t<T, C> tile_stack_cleared(const tile_stack_t<T, C>& s) {
+template <typename T, int C>
+WP_FUNC tile_stack_t<T, C> tile_stack_cleared(const launch_context_t*, int32, int32, const tile_stack_t<T, C>& s) {
   tile_stack_t<T, C> r = s;
   r.count = 0;
   return r;

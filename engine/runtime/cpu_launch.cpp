@@ -2,10 +2,12 @@
 #include "engine/runtime/cpu_launch.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <memory>
 
 #include "engine/runtime/allocation.h"
+#include "engine/runtime/cpu_lanes.h"
 
 namespace weft {
 
@@ -120,7 +122,35 @@ Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
            (l.cancel && __atomic_load_n(l.cancel, __ATOMIC_RELAXED) != 0);
   };
   const void* args = l.args->block.data();
-  if (!backward) {
+  const uint32_t lanes = l.kernel->layout.lanes;
+  if (lanes > 1) {
+    // Cooperative blocks: `lanes` consecutive threads per block, the last block possibly short.
+    if (l.block_dim != lanes)
+      return InvalidArgument("kernel '" + l.kernel->layout.name + "' was compiled for CPU blocks of " +
+                             std::to_string(lanes) + " threads (wp.config.enable_cpu_blocks) but launched with block_dim " +
+                             std::to_string(l.block_dim));
+    const int64_t blocks = (ctx.bounds.size + lanes - 1) / lanes;
+    std::atomic<bool> no_stacks{false};
+    pool.ParallelFor(blocks, [&](int64_t b, int64_t e) {
+      LaneBlockRunner runner(static_cast<int>(lanes));
+      wp::launch_context_t lane_ctx = ctx;   // this worker's block
+      lane_ctx.lanes = runner.block();
+      const void* adj = backward ? l.adj_args->block.data() : nullptr;
+      for (int64_t blk = b; blk < e && !stopped(); ++blk) {
+        const int64_t first = blk * lanes;
+        const int count = static_cast<int>(std::min<int64_t>(lanes, ctx.bounds.size - first));
+        Status st = runner.Run(count, [&](int lane) {
+          if (backward) l.kernel->cpu_backward(&lane_ctx, args, adj, first + lane, first + lane + 1);
+          else l.kernel->cpu_forward(&lane_ctx, args, first + lane, first + lane + 1);
+        });
+        if (!st.ok()) {
+          no_stacks = true;
+          return;
+        }
+      }
+    }, /*min_chunk=*/1, /*inline_below=*/1);
+    if (no_stacks) return ResourceExhausted("kernel '" + l.kernel->layout.name + "': cannot reserve fiber stacks for its CPU blocks");
+  } else if (!backward) {
     CpuForwardFn fn = l.kernel->cpu_forward;
     pool.ParallelFor(ctx.bounds.size, [&](int64_t b, int64_t e) {
       for (int64_t s = b; s < e && !stopped(); s += kCancelChunk) fn(&ctx, args, s, std::min(e, s + kCancelChunk));

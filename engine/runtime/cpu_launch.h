@@ -30,6 +30,9 @@ struct CpuLaunch {
   const int32_t* cancel = nullptr;
   // The session's geometry objects on the CPU (null: none).
   const wp::geometry_table_t* geometry = nullptr;
+  // The launch's block_dim (0: not given). A kernel compiled with lanes (KernelLayout::lanes >
+  // 1) must be launched with that block_dim and runs its blocks as fibers (cpu_lanes.h).
+  uint32_t block_dim = 0;
 };
 
 // Threads run between two checks of the cancel word.

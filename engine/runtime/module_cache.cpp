@@ -244,6 +244,7 @@ std::string ModuleCacheKey(const ModuleSource& source, const CodegenOptions& cod
   w.Field("bounds_checks", codegen.bounds_checks ? 1 : 0);
   if (!codegen.loop_cancel_poll) w.Field("cancel_poll", 0);
   if (!codegen.grid_stride) w.Field("grid_stride", 0);
+  if (codegen.cpu_lanes > 1) w.Field("cpu_lanes", uint64_t{codegen.cpu_lanes});
   w.Field("native", context.native_version);
   w.Field("target_id", context.target_id);
   w.Field("build", context.build_id);
@@ -284,7 +285,7 @@ std::string SerializeArtifact(const ModuleArtifact& artifact) {
     w.Str(k.forward_symbol);
     w.Str(k.backward_symbol);
     w.Str(k.adjoint_refused);
-    w.U32(k.grid_stride ? 1 : 0);
+    w.U32((k.grid_stride ? 1u : 0u) | (k.lanes > 1 ? k.lanes << 1 : 0u));   // layout flags
     w.U32(k.args_size);
     w.U32(k.args_align);
     w.U64(k.params.size());
@@ -309,11 +310,12 @@ Expected<ModuleArtifact> DeserializeArtifact(std::string_view payload) {
   a.kernels.resize(nkernels);
   for (auto& k : a.kernels) {
     uint64_t nparams = 0;
-    uint32_t grid_stride = 1;
+    uint32_t flags = 1;
     if (!(r.Str(&k.name) && r.Str(&k.forward_symbol) && r.Str(&k.backward_symbol) && r.Str(&k.adjoint_refused) &&
-          r.U32(&grid_stride) && grid_stride <= 1 && r.U32(&k.args_size) && r.U32(&k.args_align) && r.Count(&nparams)))
+          r.U32(&flags) && (flags >> 1) <= 1024 && r.U32(&k.args_size) && r.U32(&k.args_align) && r.Count(&nparams)))
       return bad();
-    k.grid_stride = grid_stride == 1;
+    k.grid_stride = (flags & 1u) != 0;
+    k.lanes = (flags >> 1) > 1 ? flags >> 1 : 1;
     k.params.resize(nparams);
     for (auto& p : k.params)
       if (!ReadParam(r, &p, 0)) return bad();

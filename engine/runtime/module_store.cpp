@@ -386,6 +386,8 @@ class ModuleStoreImpl final : public ModuleStore {
     auto stride = source.options.find("grid_stride");
     variant.codegen.grid_stride =
         stride == source.options.end() || (stride->second != "false" && stride->second != "False" && stride->second != "0");
+    const int lanes = CpuLanesOption(source);   // 0 (malformed) is refused by the checker
+    variant.codegen.cpu_lanes = target == Target::kCpu && lanes > 1 ? static_cast<uint32_t>(lanes) : 1;
     return variant;
   }
 

@@ -334,7 +334,7 @@ std::string BuiltinRegistry::Markdown() const {
   out +=
       "\n## Language-level builtins (rules in engine/sema/check_expr.cpp)\n\n"
       "| form | result | notes |\n|---|---|---|\n"
-      "| `wp.tid()` | int32 | flat launch index; `i, j = wp.tid()` (up to 4 names) unravels it by the launch shape. In kernels and @wp.func (the calling thread). |\n"
+      "| `wp.tid()` | int32 | the launch index: `i = wp.tid()` its first coordinate (the flat index of a 1-D launch), `i, j = wp.tid()` (up to 4 names) its leading coordinates, row-major. In kernels and @wp.func (the calling thread). |\n"
       "| `len(a)` | int32 | `a.shape[0]` of an array; the length of a vector, quaternion (4), transform (7), matrix rows. |\n"
       "| `a.shape`, `a.shape[k]`, `a.ndim` | int32 | array extents. |\n"
       "| `range(stop)`, `range(start, stop[, step])` | - | only as the iterable of `for`; integer arguments. |\n"

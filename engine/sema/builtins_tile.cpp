@@ -49,6 +49,10 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
     row("tile_scatter_masked(a: " + t + ", " + idx[d - 1] + ", value: X, has_value: bool) -> " + t,
         "Called as wp.tile_scatter_masked(a, i, ..., value, has_value): writes value into a at the indices when "
         "has_value, assigned to a.", kBuiltinNeedsLoc);
+    for (const char* op : {"and", "or", "xor"})
+      row("tile_lanes_bit_" + std::string(op) + "(a: " + t + ", " + idx[d - 1] + ", value: X) -> " + t,
+          "Called as t[i, ...] op= v (&=, |=, ^=) in a kernel compiled for cooperative CPU blocks: every lane's v "
+          "combined into the element, assigned to t.", kBuiltinNeedsLoc | kBuiltinNotDiff);
     row("tile_extract(a: " + t + ", " + idx[d - 1] + ") -> X",
         "The element of a at the indices (also a[i, j]); an index outside the tile is a launch error.", kBuiltinNeedsLoc);
     row("tile_sum(a: " + t + ") -> tile(X,1)", "The sum of all elements, as a tile of shape (1,).");
@@ -111,6 +115,20 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
     }
   }
   row("tile(x: X) -> tile(X,1)", "The thread's value as a tile of shape (1,) (one thread per block).");
+  row("tile_lanes(like: tile(X,M), x: X) -> tile(X,M)",
+      "Called as wp.tile(x) in a kernel compiled for cooperative CPU blocks (wp.config.enable_cpu_blocks): lane l's x "
+      "at element l of a tile of the block's lanes.", kBuiltinNeedsLoc);
+  row("tile_split_lanes(like: tile(Scalar,N,M), x: vec(N,Scalar)) -> tile(Scalar,N,M)",
+      "Called as wp.tile(v) of a vector with cooperative CPU blocks: lane l's components in column l.", kBuiltinNeedsLoc);
+  row("tile_split_lanes(like: tile(Scalar,N,M,K), x: mat(N,M,Scalar)) -> tile(Scalar,N,M,K)",
+      "Called as wp.tile(m) of a matrix with cooperative CPU blocks: lane l's components at [:, :, l].", kBuiltinNeedsLoc);
+  row("untile_lanes(a: tile(X,M)) -> X",
+      "Called as wp.untile(t) with cooperative CPU blocks: the lane's element of a tile of the block's lanes.",
+      kBuiltinNeedsLoc);
+  row("untile_lanes(a: tile(Scalar,N,M)) -> vec(N,Scalar)",
+      "Called as wp.untile(t) with cooperative CPU blocks: the vector in the lane's column.", kBuiltinNeedsLoc);
+  row("untile_lanes(a: tile(Scalar,N,M,K)) -> mat(N,M,Scalar)",
+      "Called as wp.untile(t) with cooperative CPU blocks: the matrix at the lane's [:, :, l].", kBuiltinNeedsLoc);
   row("untile(a: tile(X,1)) -> X", "The value of a tile of shape (1,) (one thread per block).");
   row("tile_split(x: vec(N,Scalar)) -> tile(Scalar,N,1)",
       "Called as wp.tile(v) of a vector: its components as a tile of shape (n, 1) (one thread per block).");
@@ -121,15 +139,15 @@ void AddTileBuiltins(std::vector<BuiltinOverload>* rows) {
   row("tile_transpose(a: tile(X,M,N)) -> tile(X,N,M)", "The transpose of a 2-D tile.");
   row("tile_stack_push_slot(s: tile_stack(X,N), value: X, has_value: bool) -> int32",
       "Called as wp.tile_stack_push(s, value, has_value): the slot the value goes to (-1 when the stack is full or "
-      "has_value is False); the pushed stack is assigned to s.", kBuiltinNotDiff);
+      "has_value is False); the pushed stack is assigned to s.", kBuiltinNeedsLoc | kBuiltinNotDiff);
   row("tile_stack_pushed(s: tile_stack(X,N), value: X, has_value: bool) -> tile_stack(X,N)",
-      "The stack after wp.tile_stack_push.", kBuiltinNotDiff);
+      "The stack after wp.tile_stack_push.", kBuiltinNeedsLoc | kBuiltinNotDiff);
   row("tile_stack_top(s: tile_stack(X,N)) -> tuple(X,int32)",
       "Called as value, slot = wp.tile_stack_pop(s): the top value and its slot (zero and -1 when empty); the "
-      "popped stack is assigned to s.", kBuiltinNotDiff);
-  row("tile_stack_popped(s: tile_stack(X,N)) -> tile_stack(X,N)", "The stack after wp.tile_stack_pop.", kBuiltinNotDiff);
+      "popped stack is assigned to s.", kBuiltinNeedsLoc | kBuiltinNotDiff);
+  row("tile_stack_popped(s: tile_stack(X,N)) -> tile_stack(X,N)", "The stack after wp.tile_stack_pop.", kBuiltinNeedsLoc | kBuiltinNotDiff);
   row("tile_stack_cleared(s: tile_stack(X,N)) -> tile_stack(X,N)",
-      "Called as wp.tile_stack_clear(s): the empty stack, assigned to s.", kBuiltinNotDiff);
+      "Called as wp.tile_stack_clear(s): the empty stack, assigned to s.", kBuiltinNeedsLoc | kBuiltinNotDiff);
   row("tile_stack_count(s: tile_stack(X,N)) -> int32", "The number of values on the stack.", kBuiltinNotDiff);
   row("tile_diag_add(a: tile(X,N,N), d: tile(X,N)) -> tile(X,N,N)", "a with d added to its diagonal.");
   const char* struct_doc = " of two Warp structs field by field, for the elements of struct tiles only (t + u, "

@@ -24,7 +24,7 @@ static const char* AtomicBuiltinOf(ast::BinaryOperator op) {
 
 Checker::Checker(const ModuleSource& module, const std::vector<ParsedFunction>& parsed,
                  std::vector<Diagnostic>* diags)
-    : src_(module), parsed_(parsed), diags_(diags) {
+    : src_(module), parsed_(parsed), diags_(diags), lanes_(CpuLanesOption(module)) {
   for (const auto& s : module.symbols) symbols_.emplace(s.name, &s);
   for (const auto& p : parsed) by_key_[p.source->key.empty() ? p.source->name : p.source->key] = &p;
 }
@@ -47,6 +47,12 @@ Status Checker::ErrorOf(const char* kind, const SourceLocation& loc, const std::
 Expected<Module> Checker::Run() {
   // The geometry query structs (defined by engine/native, never emitted) come first; client
   // structs may not take their names, nor hold them.
+  if (lanes_ < 1) {
+    SourceLocation loc;
+    loc.file = src_.name;
+    return Error(loc, "module option cpu_block_dim must be an integer from 1 to 1024, got '" +
+                          src_.options.at("cpu_block_dim").substr(0, 16) + "'");
+  }
   const StructTable& geometry = GeometryStructs();
   for (const auto& [name, info] : geometry) module_.structs[name] = info;
   auto uses_geometry = [&](const Type& t) {
@@ -717,9 +723,11 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
       const bool bitwise_op = a.op == ast::BinaryOperator::kBitAnd || a.op == ast::BinaryOperator::kBitOr ||
                               a.op == ast::BinaryOperator::kBitXor;
       bool struct_tile_element = false;   // t[i] op= s on a tile of structs
+      bool tile_element = false;          // t[i] op= s
       if (const auto* sub = ast::As<ast::Subscript>(a.target.get())) {
         WEFT_ASSIGN_OR_RETURN(Value base, Eval(*sub->value));
         if (base.kind == Value::Kind::kVar && TypeOf(base.var).is_tile()) {   // t[i, j] += v only (Warp)
+          tile_element = true;
           struct_tile_element = TypeOf(base.var).elem().is_struct();
           if (struct_tile_element && bitwise_op)
             return ErrorOf("type", a.loc, "Tile bitwise inplace operators do not support Warp struct tile elements");
@@ -786,7 +794,15 @@ Status Checker::LowerStmtUnguarded(const ast::Stmt& s) {
       if (const auto* n = ast::As<ast::Name>(a.target.get());
           n && r.kind == Value::Kind::kVar && (st_->tile_aliases.count(n->id) || TypeOf(r.var).is_tile()))
         write_through_ = true;   // `t += x` on a tile updates it in place (its views see it)
-      WEFT_RETURN_IF_ERROR(LowerAssignTo(*a.target, r));
+      if (lanes_ > 1 && tile_element &&
+          (a.op == ast::BinaryOperator::kAdd || a.op == ast::BinaryOperator::kSub || bitwise_op)) {
+        lane_update_.active = true;   // combine every lane's v (TileUpdate)
+        lane_update_.op = a.op;
+        lane_update_.value = rhs;
+      }
+      Status assigned = LowerAssignTo(*a.target, r);
+      lane_update_.active = false;
+      WEFT_RETURN_IF_ERROR(assigned);
       // `a[i].x *= v` (any operator but + - & | ^) on a differentiable slot of an array element:
       // its adjoint would need the slot's value before the update, which the replay no longer
       // has. Warp refuses it when the module generates adjoints; so does weft.

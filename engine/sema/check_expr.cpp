@@ -1404,7 +1404,7 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
     if (!args.empty()) return Error(loc, "wp.tid() takes no arguments");
     // In a @wp.func: the calling thread's index (codegen passes __tid_flat to every func).
     st_->fn.uses_tid = true;
-    Value v = Value::OfVar(EmitRaw(Type::Int32(), "wp::int32(__tid_flat)", {}));
+    Value v = Value::OfVar(EmitRaw(Type::Int32(), "wp::int32(wp::cg_tid_first(__ctx, __tid_flat))", {}));
     v.name = "__tid";
     return v;
   }

@@ -229,6 +229,17 @@ class Checker {
   // Warp's struct arithmetic (struct_add / struct_sub / struct_neg rows) applies only to the
   // elements of struct tiles: set while typing a tile op's element function or `t[i] op= v`.
   bool struct_arithmetic_ = false;
+  // Lanes of a cooperative CPU block the module is compiled for (CpuLanesOption; 1: one thread
+  // per block): wp.tile(x) has this many elements, untile gives the lane's, and t[i] op= v
+  // combines the lanes' values (engine/native/lanes.h).
+  int lanes_ = 1;
+  // `t[i] op= v` with lanes: the operator and v, for TileUpdate to combine every lane's v into
+  // the element (tile_scatter_add, tile_lanes_bit_*) instead of writing this lane's result.
+  struct {
+    bool active = false;
+    ast::BinaryOperator op = ast::BinaryOperator::kAdd;
+    Value value;
+  } lane_update_;
   // The last sub-tile TileView emitted: its result and what made it (for TileAlias).
   struct {
     int result = -1;

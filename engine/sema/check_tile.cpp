@@ -309,6 +309,11 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     const Type tt = Type::Tile(TypeOf(v), shape);
     if (!TypeOf(v).is_scalar() && !TypeOf(v).is_composite() && !TypeOf(v).is_struct())
       return Error(loc, "wp.tile_from_thread(): value must be a scalar, vector, matrix, quaternion, transform or struct");
+    if (lanes_ > 1) {   // lanes: lane thread_idx's value (zero when that lane does not run)
+      if (p[2].kind != Value::Kind::kVar) return Error(loc, "wp.tile_from_thread() needs thread_idx");
+      WEFT_ASSIGN_OR_RETURN(int from, Coerce(p[2], Type::Int32(), loc, "thread_idx"));
+      return Value::OfVar(EmitRaw(tt, "wp::tile_from_lane<" + CppType(tt) + ">($@, $0, $1)", {v, from}));
+    }
     return Value::OfVar(EmitRaw(tt, "wp::tile_full<" + CppType(tt) + ">($0)", {v}));
   }
   if (name == "tile_randi" || name == "tile_randf") {
@@ -885,6 +890,17 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     WEFT_ASSIGN_OR_RETURN(int x, value_of(p[0], "x"));
     const Type xt = TypeOf(x);
     const bool preserve = p[1].kind == Value::Kind::kVar && p[1].literal_text == "True";
+    if (lanes_ > 1) {   // lanes: one element per lane of the block (engine/native/lanes.h)
+      std::vector<int> shape;
+      if (xt.is_vector() && !preserve) shape = {xt.rows, lanes_};
+      else if (xt.is_matrix() && !preserve) shape = {xt.rows, xt.cols, lanes_};
+      else shape = {lanes_};
+      const Type et = shape.size() > 1 ? Type::Scalar(xt.scalar) : xt;
+      if (shape.size() == 1 && !xt.is_scalar() && !xt.is_composite() && !xt.is_struct())
+        return Error(loc, "wp.tile(x) takes a scalar, vector, matrix, quaternion, transform or struct, got " + TypeString(xt));
+      const int like = NewVar(Type::Tile(et, shape), "tile shape");
+      return ResolveAndEmitBuiltin(shape.size() > 1 ? "tile_split_lanes" : "tile_lanes", {Value::OfVar(like), p[0]}, loc);
+    }
     if ((xt.is_vector() || xt.is_matrix()) && !preserve) return ResolveAndEmitBuiltin("tile_split", {p[0]}, loc);
     if (!xt.is_scalar() && !xt.is_composite() && !xt.is_struct())
       return Error(loc, "wp.tile(x) takes a scalar, vector, matrix, quaternion, transform or struct, got " + TypeString(xt));
@@ -903,6 +919,15 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
   }
   // untile, tile_transpose: rows as they are.
   if (call && !call->keywords.empty()) return Error(loc, "wp." + name + "() takes no keyword arguments");
+  if (name == "untile" && lanes_ > 1) {   // lanes: the lane's element of a tile of the block's lanes
+    if (args.size() != 1 || args[0].kind != Value::Kind::kVar || !TypeOf(args[0].var).is_tile())
+      return Error(loc, "wp.untile() takes one tile");
+    const Type at = TypeOf(args[0].var);
+    if (at.fixed_shape.empty() || at.fixed_shape.back() != lanes_)
+      return ErrorOf("value", loc, "wp.untile(): the tile's last dimension must be the block's " + std::to_string(lanes_) +
+                                       " threads (block_dim), got " + TypeString(at));
+    return ResolveAndEmitBuiltin("untile_lanes", std::move(args), loc);
+  }
   return ResolveAndEmitBuiltin(name, std::move(args), loc);
 }
 
@@ -1102,11 +1127,32 @@ Expected<int> Checker::TileUpdate(const ast::Subscript& s, const Value& base, co
   const Type tt = TypeOf(base.var);
   WEFT_ASSIGN_OR_RETURN(TileRegion r, TileRegionOf(s, tt));
   if (r.element) {
-    WEFT_ASSIGN_OR_RETURN(int v, Coerce(value, tt.elem(), s.loc, "the tile element"));
+    std::string row = "tile_insert";
+    Value element = value;
+    const bool lane_update = lane_update_.active;
+    if (lane_update) {   // `t[i] op= v` with lanes: every lane's v combined into the element
+      lane_update_.active = false;
+      element = lane_update_.value;
+      const ast::BinaryOperator op = lane_update_.op;
+      row = op == ast::BinaryOperator::kBitAnd  ? "tile_lanes_bit_and"
+            : op == ast::BinaryOperator::kBitOr ? "tile_lanes_bit_or"
+            : op == ast::BinaryOperator::kBitXor ? "tile_lanes_bit_xor"
+                                                 : "tile_scatter_add";
+    }
+    WEFT_ASSIGN_OR_RETURN(int v, Coerce(element, tt.elem(), s.loc, "the tile element"));
+    if (lane_update && lane_update_.op == ast::BinaryOperator::kSub) {
+      const bool saved = struct_arithmetic_;
+      struct_arithmetic_ = tt.elem().is_struct();
+      Expected<Value> negated = ResolveAndEmitBuiltin("neg", {Value::OfVar(v)}, s.loc);
+      struct_arithmetic_ = saved;
+      WEFT_ASSIGN_OR_RETURN(Value n, std::move(negated));
+      v = n.var;
+    }
     std::vector<Value> args{base};
     for (int i : r.indices) args.push_back(Value::OfVar(i));
     args.push_back(Value::OfVar(v));
-    WEFT_ASSIGN_OR_RETURN(Value u, ResolveAndEmitBuiltin("tile_insert", std::move(args), s.loc));
+    if (row == "tile_scatter_add") args.push_back(Value::OfVar(EmitConst(Type::Bool(), "true")));
+    WEFT_ASSIGN_OR_RETURN(Value u, ResolveAndEmitBuiltin(row, std::move(args), s.loc));
     return u.var;
   }
   const Type vt = TypeOf(value.var);

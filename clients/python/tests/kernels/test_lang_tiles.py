@@ -1128,25 +1128,3 @@ def test_tile_atomic_add_refuses_types_without_an_atomic_add(device, kernel_modu
     dt = eval(dtype, {"wp": wp})
     with pytest.raises(RuntimeError, match=r"tile_atomic_add\(\) only supports tiles with \[u\]int32, \[u\]int64"):
         wp.launch_tiled(mod.k, dim=1, inputs=[wp.zeros(8, dtype=dt), wp.zeros(8, dtype=dt)])
-
-
-def test_cpu_blocks_are_one_thread_and_say_so(device, capfd, monkeypatch):
-    """wp.config.enable_cpu_blocks (Warp's cooperative CPU blocks) is not run: a CPU block stays
-    one thread, and the first such launch says so on stderr (once); block_dim above 1024 on the
-    CPU is Warp's ValueError."""
-    if device != "cpu":
-        pytest.skip("a CPU rule")
-    import importlib
-
-    launch_mod = importlib.import_module("weft._kernel.launch")
-    monkeypatch.setattr(launch_mod, "_cpu_blocks_warned", False)
-    monkeypatch.setattr(wp.config, "enable_cpu_blocks", True)
-    out = wp.zeros(4, dtype=float)
-    capfd.readouterr()
-    for _ in range(2):
-        wp.launch_tiled(tile_scatter_outside, dim=1, inputs=[out, 2], block_dim=64)
-    wp.synchronize()
-    assert out.numpy().tolist() == [0.0, 0.0, 1.0, 0.0]
-    assert capfd.readouterr().err.count("wp.config.enable_cpu_blocks is set, but weft runs every CPU block") == 1
-    with pytest.raises(ValueError, match=r"block_dim must be at most 1024 on CPU, got 2048"):
-        wp.launch_tiled(tile_scatter_outside, dim=1, inputs=[out, 2], block_dim=2048)

@@ -497,16 +497,16 @@ class _LaunchPlan:
             module_id=compiled.module_id, kernel=self.kernel_name, device=device))
 
 
-def _launch_plan(kernel: Kernel, device: str, runtime) -> _LaunchPlan:
+def _launch_plan(kernel: Kernel, device: str, runtime, lanes: int = 1) -> _LaunchPlan:
     plans = kernel.__dict__.get("_launch_plans")
     if plans is None:
         plans = kernel._launch_plans = {}
-    key = (id(runtime), device)
+    key = (id(runtime), device, lanes)
     plan = plans.get(key)
     if plan is not None and plan.version == module_mod.registry_version() and \
-            plan.compiled is kernel._compiled.get((key[0], device, False), (0, None))[1]:
+            plan.compiled is kernel._compiled.get((key[0], device, False, lanes), (0, None))[1]:
         return plan
-    compiled, info = module_mod.compile_kernel(kernel, device, backward=False)
+    compiled, info = module_mod.compile_kernel(kernel, device, backward=False, lanes=lanes)
     plan = plans[key] = _LaunchPlan(kernel, compiled, info, device)
     return plan
 
@@ -726,28 +726,20 @@ def _launch_device(device, args) -> str:
     return name
 
 
-_cpu_blocks_warned = False
-
-
-def _check_cpu_block_dim(block_dim: int) -> None:
-    """Warp's CPU block limit, and a warning (once) when wp.config.enable_cpu_blocks asks for
-    Warp's cooperative CPU blocks, which weft does not run (docs/tiles.md)."""
-    global _cpu_blocks_warned
+def cpu_lanes(device: str, block_dim) -> int:
+    """The threads of one CPU block a launch runs cooperatively (Warp's rule): block_dim from 2
+    to 1024 when wp.config.enable_cpu_blocks is set, else 1 (one thread per block; block_dim
+    None or below 1 also selects 1). Raises Warp's ValueError above 1024."""
+    if device != "cpu" or not block_dim or block_dim < 2:
+        return 1
     if block_dim > 1024:
         raise ValueError(f"block_dim must be at most 1024 on CPU, got {block_dim}")
-    if _config.enable_cpu_blocks and not _cpu_blocks_warned:
-        _cpu_blocks_warned = True
-        from .. import _log  # noqa: PLC0415
-
-        _log.log_warning("wp.config.enable_cpu_blocks is set, but weft runs every CPU block as one thread "
-                         "(Warp's default CPU rule): kernels whose results depend on several lanes of a block "
-                         "(wp.tile(x) of per-thread values, tile stacks pushed by every lane) differ from "
-                         "Warp's cooperative CPU blocks (docs/tiles.md)", stacklevel=3)
+    return int(block_dim) if _config.enable_cpu_blocks else 1
 
 
 def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), device=None,
            stream=None, adjoint=False, record_tape=True, record_cmd=False, max_blocks=0,
-           block_dim=256):
+           block_dim=None):
     """wp.launch: runs kernel over dim (an int or a tuple of up to 4 ints) on device."""
     if not isinstance(kernel, Kernel):
         raise WeftLaunchError(f"wp.launch expects a @wp.kernel, got {type(kernel).__name__}")
@@ -760,8 +752,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         dims = normalize_dim(dim)
     args = [*inputs, *outputs] if outputs else list(inputs or [])
     device = _launch_device(device, args)
-    if device == "cpu" and block_dim and block_dim > 1:
-        _check_cpu_block_dim(block_dim)
+    lanes = cpu_lanes(device, block_dim)
     if max_blocks and max_blocks > 0 and device.startswith("cuda") and not module_mod.grid_stride_of(kernel):
         raise WeftLaunchError(
             f"Kernel '{kernel.key}' was launched with max_blocks={max_blocks}, but it was compiled "
@@ -785,7 +776,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     if not adjoint and not generic:
         if len(args) != len(kernel.param_names):     # before compiling, as the slow path does
             pack_arguments(kernel, device, args)
-        plan = _launch_plan(kernel, device, rt)
+        plan = _launch_plan(kernel, device, rt, lanes)
         packed, packer, resolved = _pack_fast(kernel, plan, device, args)
     else:
         plan = None
@@ -797,7 +788,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         if adjoint:
             adj_args = list(adj_inputs or []) + list(adj_outputs or [])
             adj_packed = adjoint_arguments(kernel, device, packer.resolved, adj_args)
-        compiled, info = module_mod.compile_kernel(kernel, device, backward=bool(adjoint))
+        compiled, info = module_mod.compile_kernel(kernel, device, backward=bool(adjoint), lanes=lanes)
         module_id, kernel_name = compiled.module_id, info.name or kernel.name
     for d in dims:
         if d == 0:
@@ -823,7 +814,9 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
                                     args=packed, adjoint=bool(adjoint), adj_args=adj_packed,
                                     device=device),
             origin=caller_origin())
-    if block_dim and block_dim != 256:        # GPU launch geometry (Warp's options)
+    if lanes > 1:                             # cooperative CPU blocks: the kernel's lanes
+        command.launch.block_dim = lanes
+    elif block_dim and block_dim > 0 and block_dim != 256:   # GPU launch geometry (Warp's options)
         command.launch.block_dim = int(block_dim)
     if max_blocks:
         command.launch.max_blocks = int(max_blocks)
@@ -832,7 +825,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         tape.resume_recording()
     elif tape is not None:
         temps = packer.temps if packer is not None else ()
-        tape.record_launch(kernel, dims, list(resolved), device, temps)
+        tape.record_launch(kernel, dims, list(resolved), device, temps, lanes)
     if packer is not None and packer.copy_backs:
         rt.synchronize()
         for pending in packer.copy_backs:
@@ -850,13 +843,17 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
 
 def launch_tiled(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), device=None,
                  stream=None, adjoint=False, record_tape=True, record_cmd=False, max_blocks=0,
-                 block_dim=256):
-    """wp.launch_tiled: a launch of one block per tile, `dim` counting tiles. weft runs each
-    block as one thread on every device (Warp's rule on the CPU: tiles belong to the thread
-    computing them, docs/tiles.md), so wp.tid() in the kernel gives the tile's index and
-    `block_dim` is the launch's thread-block size on a GPU."""
+                 block_dim=None):
+    """wp.launch_tiled: a launch of one block per tile, `dim` counting tiles. A block runs as
+    one thread (Warp's rule on the CPU; weft's on a GPU: tiles belong to the thread computing
+    them, docs/tiles.md), so wp.tid() in the kernel gives the tile's index and `block_dim` is
+    the launch's thread-block size on a GPU. On the CPU with wp.config.enable_cpu_blocks, a
+    block runs block_dim cooperating lanes and the launch is dim + [block_dim], as Warp's."""
     if type(dim) is int:
         dim = [dim]
+    device_name_ = _launch_device(device, [*inputs, *outputs] if outputs else list(inputs or []))
+    if cpu_lanes(device_name_, block_dim) > 1:
+        dim = [*normalize_dim(dim), int(block_dim)]
     return launch(kernel, dim, inputs, outputs, adj_inputs, adj_outputs, device=device, stream=stream,
                   adjoint=adjoint, record_tape=record_tape, record_cmd=record_cmd,
                   max_blocks=max_blocks, block_dim=block_dim)
@@ -928,7 +925,7 @@ class Launch:
     adjoint ones."""
 
     def __init__(self, kernel: Kernel, device, dim=0, params=None, adj_params=(), adjoint=False,
-                 max_blocks=0, block_dim=256):
+                 max_blocks=0, block_dim=None):
         device = device_name(device) if not isinstance(device, str) else device
         adj_params = list(adj_params)
         if params is None:
@@ -954,7 +951,8 @@ class Launch:
         self.fwd_args = list(params)
         self.adj_args = adj_params + [None] * (len(self.fwd_args) - len(adj_params))
         pack_arguments(kernel, device, self.fwd_args)       # argument errors raise here
-        module_mod.compile_kernel(kernel, device, backward=self.adjoint)
+        module_mod.compile_kernel(kernel, device, backward=self.adjoint,
+                                  lanes=cpu_lanes(device, block_dim))
 
     @property
     def params(self) -> list:

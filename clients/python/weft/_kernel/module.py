@@ -325,7 +325,7 @@ def _wire_module_name(name: str) -> str:
     parts = [re.sub(r"[^A-Za-z0-9_]", "_", p) for p in str(name).split(".")]
     return ".".join(p if p and not p[0].isdigit() else "_" + p for p in parts)
 
-def build_module_source(kernel: Kernel, backward: bool = False):
+def build_module_source(kernel: Kernel, backward: bool = False, lanes: int = 1):
     """The ModuleSource that compiles `kernel` together with the other kernels of its module's
     build group (see _partition_groups), as a protobuf message. A kernel outside the groups
     (module="unique", a generic kernel's instance, one whose own build failed) is built alone."""
@@ -338,6 +338,8 @@ def build_module_source(kernel: Kernel, backward: bool = False):
             group = _closure_of(kernel)
 
     options = _message_options(kernel)
+    if lanes > 1:       # cooperative CPU blocks of `lanes` threads (wp.config.enable_cpu_blocks)
+        options["cpu_block_dim"] = int(lanes)
     msg = module_pb2.ModuleSource(name=_wire_module_name(kernel.module_name))
     for key in sorted(options):
         value = options[key]
@@ -408,17 +410,18 @@ def _find_kernel_info(compiled: CompiledModule, kernel: Kernel):
     return None
 
 
-def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
-    """(CompiledModule, KernelInfo) of kernel on device, compiling its module when needed.
-    Raises WeftCompileError with the daemon's diagnostics."""
+def compile_kernel(kernel: Kernel, device: str, backward: bool = False, lanes: int = 1):
+    """(CompiledModule, KernelInfo) of kernel on device, compiling its module when needed;
+    `lanes` > 1: for cooperative CPU blocks of that many threads. Raises WeftCompileError with
+    the daemon's diagnostics."""
     from weft import _runtime  # noqa: PLC0415
 
     runtime_id = id(_runtime.get_runtime())
-    fast_key = (runtime_id, device, backward)
+    fast_key = (runtime_id, device, backward, lanes)
     cached = kernel._compiled.get(fast_key)
     if cached is not None and cached[0] == _registry_version:
         return cached[1], cached[2]
-    source, group = build_module_source(kernel, backward)
+    source, group = build_module_source(kernel, backward, lanes)
     digest = content_hash(source)
     compiled = _compiled.get((runtime_id, digest, device))
     if compiled is None:
@@ -432,7 +435,7 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False):
                     k.broken = True
                 bump_version()
                 if kernel not in broken:
-                    return compile_kernel(kernel, device, backward)
+                    return compile_kernel(kernel, device, backward, lanes)
             raise
         _compiled[(runtime_id, digest, device)] = compiled
         if _config.verbose and not compiled.cache_hit:

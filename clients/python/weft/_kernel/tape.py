@@ -90,12 +90,13 @@ def _daemon_tapes_supported(rt) -> bool:
 
 
 class _RecordedLaunch:
-    def __init__(self, kernel, dims, args, device, temps):
+    def __init__(self, kernel, dims, args, device, temps, lanes=1):
         self.kernel = kernel
         self.dims = list(dims)
         self.args = list(args)
         self.device = device
         self.temps = list(temps)       # keeps temporary arrays alive for the backward pass
+        self.lanes = lanes             # cooperative CPU blocks of this many threads (1: none)
 
 
 class _RecordedFunc:
@@ -216,8 +217,8 @@ class Tape:
             pass
 
     # --- recording ----------------------------------------------------------------------
-    def record_launch(self, kernel, dims, args, device, temps=()):
-        self.launches.append(_RecordedLaunch(kernel, dims, args, device, temps))
+    def record_launch(self, kernel, dims, args, device, temps=(), lanes=1):
+        self.launches.append(_RecordedLaunch(kernel, dims, args, device, temps, lanes))
 
     def record_func(self, backward, arrays):
         """Records a Python callback to run at its place in the backward pass (Warp's API)."""
@@ -329,13 +330,15 @@ class Tape:
             kernel = entry.kernel
             packed, _ = pack_arguments(kernel, entry.device, entry.args)
             adj = adjoint_arguments(kernel, entry.device, entry.args, [])
-            compiled, info = module_mod.compile_kernel(kernel, entry.device, backward=True)
-            rt.submit(exec_pb2.Command(
-                launch=exec_pb2.LaunchCommand(
-                    module_id=compiled.module_id, kernel=info.name or kernel.name,
-                    dim=entry.dims, args=packed, adjoint=True, adj_args=adj,
-                    device=entry.device),
-                origin=caller_origin()))
+            compiled, info = module_mod.compile_kernel(kernel, entry.device, backward=True,
+                                                       lanes=entry.lanes)
+            command = exec_pb2.LaunchCommand(
+                module_id=compiled.module_id, kernel=info.name or kernel.name,
+                dim=entry.dims, args=packed, adjoint=True, adj_args=adj,
+                device=entry.device)
+            if entry.lanes > 1:
+                command.block_dim = entry.lanes
+            rt.submit(exec_pb2.Command(launch=command, origin=caller_origin()))
         self._note_gradients()
         self._reset_read_flags()
         _finish_for_frameworks(begun)
