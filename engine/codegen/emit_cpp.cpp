@@ -1070,6 +1070,15 @@ std::string AdjointRefused(const Module& m, const Function& f) {
 
 }  // namespace
 
+// Whether any function of the module holds a tile or a tile stack (cooperative CPU blocks
+// change nothing for a module without them).
+static bool ModuleUsesTiles(const Module& m) {
+  for (const auto& f : m.functions)
+    for (const auto& v : f.vars)
+      if (v.type.is_tile() || v.type.is_tile_stack()) return true;
+  return false;
+}
+
 Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options, std::vector<Diagnostic>* diags) {
   GeneratedModule gm;
   std::string& o = gm.source;
@@ -1144,7 +1153,8 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
     kl.forward_symbol = "weft_" + MangleIdentifier(f.name) + "_" + target + "_forward";
     if (options.enable_backward) kl.backward_symbol = "weft_" + MangleIdentifier(f.name) + "_" + target + "_backward";
     if (options.target == Target::kCpu) {
-      kl.lanes = options.cpu_lanes > 1 ? options.cpu_lanes : 1;
+      // Lanes only where they can matter: a module without tiles runs one thread per block.
+      kl.lanes = options.cpu_lanes > 1 && ModuleUsesTiles(m) ? options.cpu_lanes : 1;
       o += "extern \"C\" void " + kl.forward_symbol +
            "(const wp::launch_context_t* __ctx, const void* __args, wp::int64 __begin, wp::int64 __end) {\n"
            "  const " + args_struct + "& __a = *static_cast<const " + args_struct + "*>(__args);\n"

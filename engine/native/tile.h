@@ -396,20 +396,32 @@ WP_FUNC void adj_untile(const tile_t<T, R, C, 1, 0>&, tile_t<T, R, C, 1, 0>& adj
     for (int j = 0; j < C; ++j) cg_accum(adj_t.data[i * C + j], adj_ret.data[i][j]);
 }
 
-// tile_randi / tile_randf of one thread (Warp's lane 0): the state is rng advanced once, then
-// each element is the next draw, in row-major order. `rng` itself is not changed.
-// `bounds`: none, or (min, max) as randi / randf take them.
-template <typename R, typename... B> WP_FUNC R tile_randi(uint32 rng, B... bounds) {
-  uint32 s = rand_pcg(rng);
-  R r;
-  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randi(s, bounds...);
+// tile_randi / tile_randf, Warp's draws: lane t of a block of B lanes advances its rng + t once,
+// then draws the elements t, t + B, t + 2B, ... in turn. One thread per block (lane 0 of 1):
+// the state is rng advanced once and each element the next draw, in row-major order. With lanes
+// every lane computes every lane's draws from their rng (shared); elements of lanes that do not
+// run are zero. `rng` itself is not changed. `bounds`: none, or (min, max).
+template <bool Ints, typename R, typename... B> WP_FUNC R tile_rand_lanes(const launch_context_t* ctx, uint32 rng, B... bounds) {
+  R r = cg_zeros<R>();
+  lane_block_t* b = lanes_of(ctx);
+  const uint32* all = b ? lane_share(b, rng) : nullptr;
+  const int lanes = b ? b->dim : 1;
+  for (int t = 0; t < lanes; ++t) {
+    if (b && (!all || !lane_running(b, t))) continue;
+    uint32 s = rand_pcg((b ? all[t] : rng) + uint32(t));
+    for (int k = t; k < R::SIZE; k += lanes) {
+      if constexpr (Ints) r.data[k] = randi(s, bounds...);
+      else r.data[k] = randf(s, bounds...);
+    }
+  }
+  if (b) b->sync(b);
   return r;
 }
-template <typename R, typename... B> WP_FUNC R tile_randf(uint32 rng, B... bounds) {
-  uint32 s = rand_pcg(rng);
-  R r;
-  for (int k = 0; k < R::SIZE; ++k) r.data[k] = randf(s, bounds...);
-  return r;
+template <typename R, typename... B> WP_FUNC R tile_randi(const launch_context_t* ctx, int32, int32, uint32 rng, B... bounds) {
+  return tile_rand_lanes<true, R>(ctx, rng, bounds...);
+}
+template <typename R, typename... B> WP_FUNC R tile_randf(const launch_context_t* ctx, int32, int32, uint32 rng, B... bounds) {
+  return tile_rand_lanes<false, R>(ctx, rng, bounds...);
 }
 
 // ---- element access -------------------------------------------------------------------------

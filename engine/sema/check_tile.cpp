@@ -325,12 +325,12 @@ Expected<Value> Checker::CallTile(const std::string& name, std::vector<Value> ar
     const Type elem = ints ? Type::Int32() : Type::Float32();
     const Type tt = Type::Tile(elem, shape);
     const bool ranged = p[2].kind != Value::Kind::kNone || p[3].kind != Value::Kind::kNone;
-    if (!ranged) return Value::OfVar(EmitRaw(tt, "wp::" + name + "<" + CppType(tt) + ">($0)", {rng}));
+    if (!ranged) return Value::OfVar(EmitRaw(tt, "wp::" + name + "<" + CppType(tt) + ">($@, $0)", {rng}));
     if (p[2].kind != Value::Kind::kVar || p[3].kind != Value::Kind::kVar)
       return Error(loc, "wp." + name + "() takes both min and max");
     WEFT_ASSIGN_OR_RETURN(int lo, Coerce(p[2], elem, loc, "min"));
     WEFT_ASSIGN_OR_RETURN(int hi, Coerce(p[3], elem, loc, "max"));
-    return Value::OfVar(EmitRaw(tt, "wp::" + name + "<" + CppType(tt) + ">($0, $1, $2)", {rng, lo, hi}));
+    return Value::OfVar(EmitRaw(tt, "wp::" + name + "<" + CppType(tt) + ">($@, $0, $1, $2)", {rng, lo, hi}));
   }
   if (name == "tile_arange") {
     // tile_arange(stop), (start, stop) or (start, stop, step): constants, as the shape depends

@@ -250,3 +250,35 @@ def gather_vectors_one(x: wp.array[float], own: wp.array[float], dims: wp.array[
     own[i] = wp.untile(t)
     dims[i] = wp.block_dim()
     wp.tile_atomic_add(sums, wp.tile_sum(t))
+
+
+@wp.kernel
+def lane_draws(seed: int, xi: wp.array[int], xf: wp.array[float]):
+    i, _lane = wp.tid()
+    rng = wp.rand_init(seed, i)
+    wp.tile_store(xi, wp.tile_randi(shape=2 * B, rng=rng), offset=i * 2 * B)
+    wp.tile_store(xf, wp.tile_randf(shape=2 * B, rng=rng, min=-3.0, max=5.0), offset=i * 2 * B)
+
+
+@wp.kernel
+def one_thread_draws(seed: int, xi: wp.array[int], xf: wp.array[float]):
+    i, t = wp.tid()
+    rng = wp.rand_init(seed, i) + wp.uint32(t)
+    a = wp.tile_randi(shape=2, rng=rng)           # lane t's stream: its first two draws
+    b = wp.tile_randf(shape=2, rng=rng, min=-3.0, max=5.0)
+    xi[i * 2 * B + t] = a[0]
+    xi[i * 2 * B + t + B] = a[1]
+    xf[i * 2 * B + t] = b[0]
+    xf[i * 2 * B + t + B] = b[1]
+
+
+def test_random_tiles_draw_one_stream_per_lane(rng, monkeypatch):
+    seed = int(rng.integers(0, 2**31))
+    xi, xf = wp.zeros(4 * B, dtype=int), wp.zeros(4 * B, dtype=float)
+    wp.launch_tiled(lane_draws, dim=[2], inputs=[seed, xi, xf], block_dim=B)
+    monkeypatch.setattr(wp.config, "enable_cpu_blocks", False)
+    ri, rf = wp.zeros(4 * B, dtype=int), wp.zeros(4 * B, dtype=float)
+    wp.launch(one_thread_draws, dim=[2, B], inputs=[seed, ri, rf])
+    assert xi.numpy().tolist() == ri.numpy().tolist()
+    assert xf.numpy().tolist() == rf.numpy().tolist()
+    assert np.all((xf.numpy() >= -3.0) & (xf.numpy() < 5.0)) and len(set(xi.numpy().tolist())) > 3 * B
