@@ -43,6 +43,37 @@ WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_query_result(bool& valid, bool found, int
   r.data[0] = found ? index : -1;
   return r;
 }
+// With cooperative CPU blocks of B lanes (docs/tiles.md) a _next gives the next B items, -1 past
+// the last; the query stays valid while a _next found any. Every lane walks the same query.
+template <typename Q, typename Next, int B>
+WP_FUNC tile_t<int32, B, 0, 0, 0> tile_query_next_lanes(Q& q, Next next) {
+  tile_t<int32, B, 0, 0, 0> r;
+  int found = 0;
+  for (int k = 0; k < B; ++k) {
+    int32 index = -1;
+    const bool f = q.valid && found == k && next(q.query, index);
+    r.data[k] = f ? index : -1;
+    found += f;
+  }
+  q.valid = found > 0;
+  return r;
+}
+struct tile_bvh_next_op {
+  WP_FUNC bool operator()(weft_struct_BvhQuery& q, int32& index) const { return bvh_query_next(q, index); }
+};
+struct tile_mesh_aabb_next_op {
+  WP_FUNC bool operator()(weft_struct_MeshQueryAABB& q, int32& index) const { return mesh_query_aabb_next(q, index); }
+};
+template <int B>
+WP_FUNC tile_t<int32, B, 0, 0, 0> tile_bvh_query_next_lanes(const tile_t<int32, B, 0, 0, 0>&, weft_struct_BvhQueryTiled& q) {
+  return tile_query_next_lanes<weft_struct_BvhQueryTiled, tile_bvh_next_op, B>(q, tile_bvh_next_op());
+}
+template <int B>
+WP_FUNC tile_t<int32, B, 0, 0, 0> tile_mesh_query_aabb_next_lanes(const tile_t<int32, B, 0, 0, 0>&,
+                                                                    weft_struct_MeshQueryAABBTiled& q) {
+  return tile_query_next_lanes<weft_struct_MeshQueryAABBTiled, tile_mesh_aabb_next_op, B>(q, tile_mesh_aabb_next_op());
+}
+
 WP_FUNC tile_t<int32, 1, 0, 0, 0> tile_bvh_query_next(weft_struct_BvhQueryTiled& q) {
   int32 index = -1;
   return tile_query_result(q.valid, q.valid && bvh_query_next(q.query, index), index);

@@ -102,6 +102,14 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
                             "The next item as a tile of shape (1,) (one thread per block): its index, or -1 once the "
                             "query is done (tile_query_valid then turns false).",
                             kBuiltinNotDiff | kBuiltinWritesArgs, "tile_bvh_query_next"));
+  rows->push_back(Builtin("BVH", "tile_bvh_query_next_lanes(like: tile(int32,M), query: struct(BvhQueryTiled)) -> tile(int32,M)",
+                          "Called as tile_bvh_query_next with cooperative CPU blocks (docs/tiles.md): the next M items "
+                          "(the block's lanes), -1 past the last.", kBuiltinNotDiff | kBuiltinWritesArgs));
+  rows->push_back(Builtin("Meshes",
+                          "tile_mesh_query_aabb_next_lanes(like: tile(int32,M), query: struct(MeshQueryAABBTiled)) -> "
+                          "tile(int32,M)",
+                          "Called as tile_mesh_query_aabb_next with cooperative CPU blocks: the next M faces, -1 past "
+                          "the last.", kBuiltinNotDiff | kBuiltinWritesArgs));
   rows->push_back(Builtin("BVH", "tile_query_valid(query: struct(BvhQueryTiled)) -> bool",
                           "False once tile_bvh_query_next found no further item.", kBuiltinNotDiff));
   rows->push_back(Builtin("Meshes", "tile_query_valid(query: struct(MeshQueryAABBTiled)) -> bool",

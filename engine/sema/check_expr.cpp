@@ -1400,6 +1400,13 @@ Expected<Value> Checker::CallBuiltin(const std::string& name, std::vector<Value>
       return Error(e->loc, std::string(what) + " must be a small integer constant (0 to 64)");
     return std::stoi(v->literal_text);
   };
+  if (lanes_ > 1 && (name == "tile_bvh_query_next" || name == "bvh_query_next_tiled" ||
+                     name == "tile_mesh_query_aabb_next" || name == "mesh_query_aabb_next_tiled")) {
+    // cooperative CPU blocks: a tile of the block's lanes per _next (engine/native/geometry_tiled.h)
+    const bool bvh = name.find("bvh") != std::string::npos;
+    args.insert(args.begin(), Value::OfVar(NewVar(Type::Tile(Type::Int32(), {lanes_}), "tile shape")));
+    return ResolveAndEmitBuiltin(bvh ? "tile_bvh_query_next_lanes" : "tile_mesh_query_aabb_next_lanes", std::move(args), loc);
+  }
   if (name == "tid") {
     if (!args.empty()) return Error(loc, "wp.tid() takes no arguments");
     // In a @wp.func: the calling thread's index (codegen passes __tid_flat to every func).

@@ -282,3 +282,30 @@ def test_random_tiles_draw_one_stream_per_lane(rng, monkeypatch):
     assert xi.numpy().tolist() == ri.numpy().tolist()
     assert xf.numpy().tolist() == rf.numpy().tolist()
     assert np.all((xf.numpy() >= -3.0) & (xf.numpy() < 5.0)) and len(set(xi.numpy().tolist())) > 3 * B
+
+
+@wp.kernel
+def tiled_bvh_hits(bvh: wp.uint64, lower: wp.vec3, upper: wp.vec3, hits: wp.array[int], rounds: wp.array[int]):
+    query = wp.tile_bvh_query_aabb(bvh, lower, upper)
+    n = int(0)
+    while wp.tile_query_valid(query):
+        found = wp.untile(wp.tile_bvh_query_next(query))    # one item per lane
+        if found >= 0:
+            wp.atomic_add(hits, found, 1)
+        n += 1
+    wp.atomic_max(rounds, 0, n)
+
+
+def test_tiled_bvh_queries_give_each_lane_an_item(rng):
+    count = 300
+    lowers = rng.random((count, 3)).astype(np.float32) * 10.0
+    uppers = lowers + rng.random((count, 3)).astype(np.float32) * 2.0
+    bvh = wp.Bvh(wp.array(lowers, dtype=wp.vec3), wp.array(uppers, dtype=wp.vec3))
+    lo, hi = np.array([2.0, 2.0, 2.0], np.float32), np.array([7.0, 7.0, 7.0], np.float32)
+    hits = wp.zeros(count, dtype=int)
+    rounds = wp.zeros(1, dtype=int)
+    wp.launch_tiled(tiled_bvh_hits, dim=[1], inputs=[bvh.id, wp.vec3(*lo), wp.vec3(*hi), hits, rounds], block_dim=B)
+    overlap = np.all((lowers <= hi) & (uppers >= lo), axis=1)
+    assert hits.numpy().tolist() == overlap.astype(int).tolist()     # each item once, by one lane
+    # B items per round: the lanes share the walk
+    assert rounds.numpy()[0] == (int(overlap.sum()) + B - 1) // B + 1
