@@ -29,13 +29,32 @@ LaneBlockRunner::LaneBlockRunner(int dim) : dim_(dim) {
   block_.runtime = this;
 }
 
+LaneBlockRunner& LaneBlockRunner::ForThisThread(int dim) {
+  thread_local std::unique_ptr<LaneBlockRunner> runner;
+  if (!runner || runner->dim() != dim) runner = std::make_unique<LaneBlockRunner>(dim);
+  return *runner;
+}
+
+void LaneBlockRunner::Trim() {
+  // A stack that went below its kept top has the page just below it resident (mincore: one
+  // cheap call); only those are given back (madvise over 8 MiB costs even when nothing is there).
+  const size_t page = PageSize();
+  for (void* s : stacks_) {
+    char* low = static_cast<char*>(s) + page;                    // above the guard page
+    char* below_keep = low + kStackBytes - kKeepBytes - page;
+    unsigned char resident = 0;
+    if (mincore(below_keep, page, &resident) == 0 && (resident & 1) == 0) continue;
+    madvise(low, kStackBytes - kKeepBytes, MADV_DONTNEED);
+  }
+}
+
 LaneBlockRunner::~LaneBlockRunner() {
   for (void* s : stacks_) munmap(s, kStackBytes + PageSize());
 }
 
 void LaneBlockRunner::Sync(wp::lane_block_t* block) {
   auto* self = static_cast<LaneBlockRunner*>(block->runtime);
-  swapcontext(&self->fibers_[static_cast<size_t>(block->lane)], &self->scheduler_);
+  FiberSwitch(&self->fibers_[static_cast<size_t>(block->lane)], &self->scheduler_);
 }
 
 char* LaneBlockRunner::Scratch(wp::lane_block_t* block, wp::uint64 bytes) {
@@ -59,7 +78,8 @@ void LaneBlockRunner::Entry() {
   const int lane = self->block_.lane;
   (*self->body_)(lane);
   self->done_[static_cast<size_t>(lane)] = 1;   // leaves the block at the next round
-  // returning resumes uc_link: the scheduler
+  FiberSwitch(&self->fibers_[static_cast<size_t>(lane)], &self->scheduler_);   // for good
+  __builtin_trap();
 }
 
 Status LaneBlockRunner::Run(int count, const std::function<void(int)>& body) {
@@ -78,12 +98,8 @@ Status LaneBlockRunner::Run(int count, const std::function<void(int)>& body) {
   LaneBlockRunner* outer = current_runner;
   current_runner = this;
   for (int l = 0; l < count; ++l) {
-    ucontext_t& f = fibers_[static_cast<size_t>(l)];
-    getcontext(&f);
-    f.uc_stack.ss_sp = static_cast<char*>(stacks_[static_cast<size_t>(l)]) + guard;
-    f.uc_stack.ss_size = kStackBytes;
-    f.uc_link = &scheduler_;
-    makecontext(&f, &LaneBlockRunner::Entry, 0);
+    FiberPrepare(&fibers_[static_cast<size_t>(l)], static_cast<char*>(stacks_[static_cast<size_t>(l)]) + guard,
+                 kStackBytes, &LaneBlockRunner::Entry);
     done_[static_cast<size_t>(l)] = 0;
   }
   // Rounds: each running lane runs to its next sync (or its end); a sync returns in the next
@@ -99,7 +115,7 @@ Status LaneBlockRunner::Run(int count, const std::function<void(int)>& body) {
     for (int l = 0; l < count; ++l) {
       if (!running_[static_cast<size_t>(l)]) continue;
       block_.lane = l;
-      swapcontext(&scheduler_, &fibers_[static_cast<size_t>(l)]);
+      FiberSwitch(&scheduler_, &fibers_[static_cast<size_t>(l)]);
     }
   }
   current_runner = outer;

@@ -132,7 +132,7 @@ Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
     const int64_t blocks = (ctx.bounds.size + lanes - 1) / lanes;
     std::atomic<bool> no_stacks{false};
     pool.ParallelFor(blocks, [&](int64_t b, int64_t e) {
-      LaneBlockRunner runner(static_cast<int>(lanes));
+      LaneBlockRunner& runner = LaneBlockRunner::ForThisThread(static_cast<int>(lanes));
       wp::launch_context_t lane_ctx = ctx;   // this worker's block
       lane_ctx.lanes = runner.block();
       const void* adj = backward ? l.adj_args->block.data() : nullptr;
@@ -148,7 +148,8 @@ Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
           return;
         }
       }
-    }, /*min_chunk=*/1, /*inline_below=*/1);
+      runner.Trim();
+    }, /*min_chunk=*/std::max<int64_t>(1, blocks / (4 * pool.size())), /*inline_below=*/1);
     if (no_stacks) return ResourceExhausted("kernel '" + l.kernel->layout.name + "': cannot reserve fiber stacks for its CPU blocks");
   } else if (!backward) {
     CpuForwardFn fn = l.kernel->cpu_forward;

@@ -6,6 +6,9 @@
 // and refuses a launch whose block_dim is not its lane count.
 #include <gtest/gtest.h>
 
+#include <sys/mman.h>
+#include <unistd.h>
+
 #include <cstring>
 #include <vector>
 
@@ -92,6 +95,31 @@ TEST(CpuLanes, ScratchIsSharedGrowsAndKeepsEarlierBuffersForTheBlock) {
   }).ok());
   EXPECT_EQ(sums, (std::vector<int>{100, 100, 100, 100}));
   EXPECT_EQ(b->scratch(b, LaneBlockRunner::kMaxScratchBytes + 1), nullptr);
+}
+
+TEST(CpuLanes, ThreadRunnerIsKeptAndTrimGivesBackDeepStackPages) {
+  LaneBlockRunner& runner = LaneBlockRunner::ForThisThread(2);
+  EXPECT_EQ(&runner, &LaneBlockRunner::ForThisThread(2));
+  const size_t page = static_cast<size_t>(sysconf(_SC_PAGESIZE));
+  char* deep = nullptr;
+  ASSERT_TRUE(runner.Run(2, [&](int lane) {
+    char big[2 << 20];   // far below the kept top of the lane's stack
+    std::memset(big, lane + 1, sizeof big);
+    if (lane == 0) deep = big;
+    asm volatile("" : : "r"(big) : "memory");
+  }).ok());
+  ASSERT_NE(deep, nullptr);
+  char* page_of = reinterpret_cast<char*>(reinterpret_cast<uintptr_t>(deep) & ~(uintptr_t(page) - 1));
+  unsigned char resident = 0;
+  ASSERT_EQ(mincore(page_of, page, &resident), 0);
+  EXPECT_EQ(resident & 1, 1);
+  runner.Trim();
+  ASSERT_EQ(mincore(page_of, page, &resident), 0);
+  EXPECT_EQ(resident & 1, 0);
+  // the stacks still work after the trim
+  int ran = 0;
+  ASSERT_TRUE(runner.Run(2, [&](int) { ++ran; }).ok());
+  EXPECT_EQ(ran, 2);
 }
 
 // A lanes kernel by hand: each lane shares its flat index, and every lane writes the sum of
