@@ -29,7 +29,7 @@ class LaneBlockRunner {
   LaneBlockRunner& operator=(const LaneBlockRunner&) = delete;
 
   // Stack bytes (from the top) each lane keeps between launches; Trim releases the rest.
-  static constexpr size_t kKeepBytes = size_t{256} << 10;
+  static constexpr size_t kKeepBytes = size_t{32} << 10;
 
   // This thread's runner for blocks of `dim` lanes (made on first use, or when dim changes).
   static LaneBlockRunner& ForThisThread(int dim);

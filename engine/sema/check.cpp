@@ -439,6 +439,13 @@ Expected<int> Checker::InstantiateFunction(const ParsedFunction& pf, const std::
       return finish_error(Error(pf.def->loc, "the tiles and fixed-size arrays of '" + fs.name + "' and the funcs it calls take " +
                                                  std::to_string(fn.local_value_bytes) + " bytes of the thread's memory, "
                                                  "adjoints included (at most " + std::to_string(kMaxLocalValueBytes) + ")"));
+    if (fn.is_kernel && lanes_ > 1 && fn.local_value_bytes * lanes_ > kMaxLaneBlockValueBytes)
+      return finish_error(Error(pf.def->loc, "with cooperative CPU blocks of " + std::to_string(lanes_) + " threads, the tiles "
+                                                 "and fixed-size arrays of '" + fs.name + "' take " +
+                                                 std::to_string(fn.local_value_bytes) + " bytes per thread, " +
+                                                 std::to_string(fn.local_value_bytes * lanes_) + " per block (at most " +
+                                                 std::to_string(kMaxLaneBlockValueBytes) + "): use a smaller block_dim or "
+                                                 "smaller tiles"));
   }
 
   st_ = saved;

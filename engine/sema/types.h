@@ -66,6 +66,8 @@ constexpr int kMaxTileElements = 1 << 16;
 // Thread memory (stack on the CPU) that the tiles and fixed-size arrays of a kernel and the
 // funcs it calls may take, adjoints included: a kernel over it is a compile error.
 constexpr int64_t kMaxLocalValueBytes = int64_t{2} << 20;
+// The same for all the lanes of a cooperative CPU block together (each lane holds its tiles).
+constexpr int64_t kMaxLaneBlockValueBytes = int64_t{256} << 20;
 
 // The extent of a vector or matrix pattern that takes any length ("vec(any,float32)").
 constexpr int kAnyExtent = -1;

@@ -309,3 +309,19 @@ def test_tiled_bvh_queries_give_each_lane_an_item(rng):
     assert hits.numpy().tolist() == overlap.astype(int).tolist()     # each item once, by one lane
     # B items per round: the lanes share the walk
     assert rounds.numpy()[0] == (int(overlap.sum()) + B - 1) // B + 1
+
+
+@wp.kernel
+def wide_tiles(x: wp.array2d[float], out: wp.array2d[float]):
+    t = wp.tile_load(x, shape=(128, 256))        # 128 KiB per lane, twice that with adjoints
+    wp.tile_store(out, t * 2.0)
+
+
+def test_blocks_whose_tiles_take_too_much_memory_are_refused():
+    x = wp.zeros((128, 256), dtype=float)
+    out = wp.zeros((128, 256), dtype=float)
+    wp.launch_tiled(wide_tiles, dim=[1], inputs=[x, out], block_dim=8)      # 8 lanes: fine
+    with pytest.raises(Exception, match=r"cooperative CPU blocks of 1024 threads.*per block \(at most 268435456\)"):
+        wp.launch_tiled(wide_tiles, dim=[1], inputs=[x, out], block_dim=1024)
+    wp.launch_tiled(wide_tiles, dim=[1], inputs=[x, out], block_dim=8)      # the session goes on
+    wp.synchronize()
