@@ -1018,32 +1018,33 @@ WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_SCATTER_FORMS)
 
 // t[i, ...] &= v, |= v, ^= v in a kernel compiled with lanes: every lane's v combined into the
 // element (as Warp's block-shared tiles do); one thread alone without lanes.
+template <typename Op, typename R, typename T> WP_FUNC R tile_lanes_update(const launch_context_t* ctx, const R& t, int f, const T& v) {
+  R r = t;
+  if (!tile_lanes_apply(ctx, r, f, v, Op()) && f >= 0) Op()(r.data[f], v);
+  return r;
+}
+// One form per index count of the operator WP_TILE_LANE_OP named WP_TILE_LANE_NAME.
 #define WP_TILE_LANE_BITWISE_FORMS(PARAMS, ADJ_PARAMS, N, IDX)                                                        \
   template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
-  WP_FUNC WP_TILE tile_lanes_bit_and(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,  \
-                                     T v) {                                                                         \
-    WP_TILE r = t;                                                                                                  \
-    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
-    if (!tile_lanes_apply(ctx, r, f, v, tile_bit_and_op<T>()) && f >= 0) r.data[f] = bit_and(r.data[f], v);         \
-    return r;                                                                                                       \
-  }                                                                                                                 \
-  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
-  WP_FUNC WP_TILE tile_lanes_bit_or(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,   \
+  WP_FUNC WP_TILE WP_TILE_LANE_NAME(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,   \
                                     T v) {                                                                          \
-    WP_TILE r = t;                                                                                                  \
-    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
-    if (!tile_lanes_apply(ctx, r, f, v, tile_bit_or_op<T>()) && f >= 0) r.data[f] = bit_or(r.data[f], v);           \
-    return r;                                                                                                       \
-  }                                                                                                                 \
-  template <typename T, int D0, int D1, int D2, int D3, typename I>                                                \
-  WP_FUNC WP_TILE tile_lanes_bit_xor(const launch_context_t* ctx, int32 fid, int32 line, const WP_TILE& t, PARAMS,  \
-                                     T v) {                                                                         \
-    WP_TILE r = t;                                                                                                  \
-    const int f = tile_flat(ctx, fid, line, t, N, IDX);                                                              \
-    if (!tile_lanes_apply(ctx, r, f, v, tile_bit_xor_op<T>()) && f >= 0) r.data[f] = bit_xor(r.data[f], v);         \
-    return r;                                                                                                       \
+    return tile_lanes_update<WP_TILE_LANE_OP<T>>(ctx, t, tile_flat(ctx, fid, line, t, N, IDX), v);                 \
   }
+#define WP_TILE_LANE_NAME tile_lanes_bit_and
+#define WP_TILE_LANE_OP tile_bit_and_op
 WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_LANE_BITWISE_FORMS)
+#undef WP_TILE_LANE_NAME
+#undef WP_TILE_LANE_OP
+#define WP_TILE_LANE_NAME tile_lanes_bit_or
+#define WP_TILE_LANE_OP tile_bit_or_op
+WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_LANE_BITWISE_FORMS)
+#undef WP_TILE_LANE_NAME
+#undef WP_TILE_LANE_OP
+#define WP_TILE_LANE_NAME tile_lanes_bit_xor
+#define WP_TILE_LANE_OP tile_bit_xor_op
+WP_TILE_FOR_EACH_INDEX_COUNT(WP_TILE_LANE_BITWISE_FORMS)
+#undef WP_TILE_LANE_NAME
+#undef WP_TILE_LANE_OP
 #undef WP_TILE_LANE_BITWISE_FORMS
 #undef WP_TILE_FOR_EACH_INDEX_COUNT
 #undef WP_COMMA
