@@ -330,19 +330,20 @@ class FnEmitter {
     }
   }
   // What a builtin call does among the lanes of a cooperative CPU block (CodegenOptions::
-  // cpu_lanes > 1): nothing special, wait for them first (tile loads), or leave the call to
-  // the leader (memory writes and the print of a tile). Every lane holds the same tiles, so
-  // one lane's write is the block's.
+  // cpu_lanes > 1): nothing special; wait for them first (a tile read from an array: a tile
+  // load); or leave the call to the leader (a call with effects that takes a tile: tile stores
+  // and atomic adds, the print of a tile). Every lane holds the same tiles, so one lane's write
+  // is the block's.
   enum class LaneRole { kNone, kWaitFirst, kLeader };
   LaneRole LaneRoleOf(const Op& op) const {
     if (opt_.cpu_lanes <= 1 || op.kind != OpKind::kCall) return LaneRole::kNone;
-    const std::string& n = op.builtin->native;
-    if (n == "tile_load" || n == "tile_load_indexed") return LaneRole::kWaitFirst;
-    if (n == "tile_store" || n == "tile_store_indexed" || n == "tile_atomic_add" || n == "tile_atomic_add_indexed")
-      return LaneRole::kLeader;
-    if (n == "print")
-      for (int a : op.args)
-        if (T(a).is_tile()) return LaneRole::kLeader;
+    bool takes_tile = false, takes_array = false;
+    for (int a : op.args) {
+      takes_tile |= T(a).is_tile();
+      takes_array |= T(a).is_array();
+    }
+    if (op.builtin->side_effect() && takes_tile) return LaneRole::kLeader;
+    if (takes_array && op.dst.size() == 1 && T(op.dst[0]).is_tile()) return LaneRole::kWaitFirst;
     return LaneRole::kNone;
   }
   bool Pure(const Op& op) const {

@@ -93,7 +93,7 @@ struct lane_block_t {
   int32 count;           // lanes of this block: dim, fewer in the launch's last block
   int32 dim;             // block_dim the kernel was compiled for
   int32 leader;          // the lowest lane still running: it performs the block's memory writes
-  const unsigned char* running;   // [count]: 1 until the lane returned from the kernel
+  const unsigned char* running;   // [count]: 1 for the lanes that had not returned when this round began
   // Returns once every running lane of the block has called it as often as this one.
   void (*sync)(lane_block_t* block);
   // At least `bytes` of memory the lanes of the block share (zeroed when first handed out);

@@ -136,13 +136,15 @@ Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
       wp::launch_context_t lane_ctx = ctx;   // this worker's block
       lane_ctx.lanes = runner.block();
       const void* adj = backward ? l.adj_args->block.data() : nullptr;
+      int64_t first = 0;   // the block's first thread
+      const std::function<void(int)> lane_body = [&](int lane) {
+        if (backward) l.kernel->cpu_backward(&lane_ctx, args, adj, first + lane, first + lane + 1);
+        else l.kernel->cpu_forward(&lane_ctx, args, first + lane, first + lane + 1);
+      };
       for (int64_t blk = b; blk < e && !stopped(); ++blk) {
-        const int64_t first = blk * lanes;
+        first = blk * lanes;
         const int count = static_cast<int>(std::min<int64_t>(lanes, ctx.bounds.size - first));
-        Status st = runner.Run(count, [&](int lane) {
-          if (backward) l.kernel->cpu_backward(&lane_ctx, args, adj, first + lane, first + lane + 1);
-          else l.kernel->cpu_forward(&lane_ctx, args, first + lane, first + lane + 1);
-        });
+        Status st = runner.Run(count, lane_body);
         if (!st.ok()) {
           no_stacks = true;
           return;

@@ -182,6 +182,27 @@ def test_injected_text_inside_kernel_source_is_only_python(raw, tmp_path):
     assert not marker.exists()
 
 
+@pytest.mark.parametrize("value", ["0", "1025", "-1", "abc", "", "16 ", "99999999999999999999",
+                                   "16\n#include </etc/passwd>"])
+def test_cpu_block_dim_option_is_checked(raw, wp, value):
+    """The module option for cooperative CPU blocks is an integer from 1 to 1024 or the module
+    is refused (text that is not printable already by the request's check of option values);
+    16 compiles."""
+    module = _module_pb()
+    module.options["cpu_block_dim"] = value
+    with pytest.raises(grpc.RpcError) as info:
+        _compile_raw(raw, module)
+    assert info.value.code() == grpc.StatusCode.INVALID_ARGUMENT, info.value
+    details = info.value.details()
+    if "\n" in value:     # the compile request's own check of option values comes first
+        assert "is not a short printable ASCII value" in details, details
+    else:
+        assert "module option cpu_block_dim must be an integer from 1 to 1024" in details, details
+    module.options["cpu_block_dim"] = "16"
+    assert _compile_raw(raw, module).module_id
+    _still_serves(wp)
+
+
 def test_valid_unusual_names_are_mangled_not_refused(raw, wp):
     """Names the identifier grammar accepts but C++ would not (non-ASCII letters in a module
     name, C++ keywords, 'Z' and '_' that a lossy mangling would merge) compile: they are

@@ -325,3 +325,41 @@ def test_blocks_whose_tiles_take_too_much_memory_are_refused():
         wp.launch_tiled(wide_tiles, dim=[1], inputs=[x, out], block_dim=1024)
     wp.launch_tiled(wide_tiles, dim=[1], inputs=[x, out], block_dim=8)      # the session goes on
     wp.synchronize()
+
+
+@wp.kernel
+def print_tile(x: wp.array[float]):
+    i = wp.tid()
+    wp.print(wp.tile(x[i]))
+
+
+def test_a_tile_prints_once_per_block(capfd):
+    x = wp.array(np.arange(2 * 4, dtype=np.float32))
+    capfd.readouterr()
+    wp.launch(print_tile, dim=8, inputs=[x], block_dim=4)
+    wp.synchronize()
+    out = capfd.readouterr().out
+    assert out.count("tile(shape=(4)") == 2, out
+    assert "[0 1 2 3]" in out and "[4 5 6 7]" in out, out
+
+
+def test_a_launch_with_another_block_dim_than_compiled_is_refused(monkeypatch):
+    """The daemon checks block_dim against the lanes the kernel was compiled for: a client
+    that compiles for 16 lanes and launches with 8 gets an error, the session goes on."""
+    import importlib
+
+    launch_mod = importlib.import_module("weft._kernel.launch")
+    plan = launch_mod._launch_plan
+    monkeypatch.setattr(launch_mod, "_launch_plan", lambda k, d, rt, lanes=1: plan(k, d, rt, B))
+    monkeypatch.setattr(launch_mod, "cpu_lanes", lambda device, block_dim: 8)
+    x = wp.array(np.ones(B, dtype=np.float32))
+    with pytest.raises(Exception, match=r"compiled for CPU blocks of 16 threads .* launched with block_dim 8"):
+        wp.launch(gather_lanes, dim=B, inputs=[x, wp.zeros(B, dtype=float), wp.zeros(1, dtype=float),
+                                               wp.zeros(B, dtype=float), wp.zeros(B, dtype=int)], block_dim=8)
+        wp.synchronize()
+    monkeypatch.undo()
+    monkeypatch.setattr(wp.config, "enable_cpu_blocks", True)
+    own = wp.zeros(B, dtype=float)
+    wp.launch(gather_lanes, dim=B, inputs=[x, wp.zeros(B, dtype=float), wp.zeros(1, dtype=float), own,
+                                           wp.zeros(B, dtype=int)], block_dim=B)
+    assert own.numpy().tolist() == [6.0] * B

@@ -851,8 +851,8 @@ def launch_tiled(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=
     block runs block_dim cooperating lanes and the launch is dim + [block_dim], as Warp's."""
     if type(dim) is int:
         dim = [dim]
-    device_name_ = _launch_device(device, [*inputs, *outputs] if outputs else list(inputs or []))
-    if cpu_lanes(device_name_, block_dim) > 1:
+    if _config.enable_cpu_blocks and block_dim and block_dim > 1 and \
+            cpu_lanes(_launch_device(device, [*inputs, *outputs] if outputs else list(inputs or [])), block_dim) > 1:
         dim = [*normalize_dim(dim), int(block_dim)]
     return launch(kernel, dim, inputs, outputs, adj_inputs, adj_outputs, device=device, stream=stream,
                   adjoint=adjoint, record_tape=record_tape, record_cmd=record_cmd,
