@@ -73,12 +73,16 @@ WP_FUNC const geometry_desc_t* geometry_resolve(const launch_context_t* ctx, int
   const geometry_table_t* t = ctx ? ctx->geometry : nullptr;
   uint64 slot = (id & 0xffffffffull);
   uint32 gen = (uint32)(id >> 32);
+  const bool mesh_bvh = (slot & GEOMETRY_MESH_BVH_BIT) != 0;   // mesh_get_bvh's id
+  slot &= ~GEOMETRY_MESH_BVH_BIT;
   const geometry_desc_t* d = nullptr;
   if (t && slot >= 1 && slot <= t->count) {
     d = &t->slots[slot - 1];
     if (d->kind == GEOMETRY_NONE || d->generation != gen) d = nullptr;
   }
-  if (d && d->kind == kind) return d;
+  if (d && !mesh_bvh && d->kind == kind) return d;
+  if (d && mesh_bvh && kind == GEOMETRY_BVH && d->kind == GEOMETRY_MESH) return d;
+  if (d && mesh_bvh) d = nullptr;   // a mesh's BVH id names no object of another kind
   geometry_resolve_failed(ctx, function_id, line, fn, id, kind, t, d);
   return nullptr;
 }
@@ -99,6 +103,9 @@ WP_FUNC int32 bvh_group_root(const geometry_desc_t* g, int32 group) {
 WP_FUNC int32 bvh_get_group_root(const launch_context_t* ctx, int32 fid, int32 line, uint64 id, int32 group) {
   return bvh_group_root(geometry_resolve(ctx, fid, line, "bvh_get_group_root", id, GEOMETRY_BVH), group);
 }
+WP_FUNC uint64 mesh_get_bvh(const launch_context_t* ctx, int32 fid, int32 line, uint64 id) {
+  return geometry_resolve(ctx, fid, line, "mesh_get_bvh", id, GEOMETRY_MESH) ? (id | GEOMETRY_MESH_BVH_BIT) : 0;
+}
 WP_FUNC int32 mesh_get_group_root(const launch_context_t* ctx, int32 fid, int32 line, uint64 id, int32 group) {
   return bvh_group_root(geometry_resolve(ctx, fid, line, "mesh_get_group_root", id, GEOMETRY_MESH), group);
 }
@@ -112,7 +119,8 @@ struct bvh_walk_t {
   const geometry_desc_t* g;
   int32 mode;         // 0 aabb, 1 ray, 2 sphere, 3 capsule
   float32 a[3];       // aabb lower | ray/capsule start | sphere center
-  float32 b[3];       // aabb upper | ray/capsule direction | sphere radius in b[0]
+  float32 b[3];       // aabb upper | ray/capsule direction | sphere radius in b[0], and in b[1]
+                      // 1 when the items are a mesh's faces tested exactly (mesh_query_sphere)
   float32 max_t;      // ray/capsule: items hit beyond it are skipped
   float32 radius;     // capsule: the ray's bounds are inflated by it
   int32 stack[BVH_STACK];
@@ -229,7 +237,7 @@ inline WP_NOINLINE WP_CALLABLE bool bvh_walk_next(bvh_walk_t& w, int32& index) {
       float32 lo[3], hi[3];
       bvh_item_bounds(g, item, lo, hi);
       if (bvh_walk_test(w, lo, hi) &&
-          (w.mode != 2 || g->kind != GEOMETRY_MESH || mesh_face_in_sphere(g, item, w.a, w.b[0]))) {
+          (w.mode != 2 || w.b[1] == 0.0f || mesh_face_in_sphere(g, item, w.a, w.b[0]))) {
         index = item;
         return true;
       }
@@ -240,7 +248,7 @@ inline WP_NOINLINE WP_CALLABLE bool bvh_walk_next(bvh_walk_t& w, int32& index) {
     int32 left, right;
     bvh_load_node(g, w.stack[--w.count], lo, hi, left, right);
     if (!bvh_walk_test(w, lo, hi)) continue;
-    if (right == -1 && (w.mode != 2 || g->kind != GEOMETRY_MESH)) {
+    if (right == -1 && (w.mode != 2 || w.b[1] == 0.0f)) {
       // A leaf of one item (device builds): its bounds are the item's, already tested. (The
       // item test would also pass an item with a NaN bound, which no node bound holds.)
       index = g->prim_ids[left];

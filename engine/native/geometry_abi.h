@@ -118,6 +118,11 @@ WP_CALLABLE inline uint64 geometry_make_id(uint32 slot, uint32 generation) {
   return ((uint64)generation << 32) | (uint64)(slot + 1u);
 }
 
+// mesh_get_bvh's id: the mesh's id with this bit of the slot part set. BVH queries accept it and
+// walk the mesh's face BVH; every other use of it (and a plain mesh id in a BVH query) is refused.
+// Slots stay far below 2^31 (the registry's object limit), so the bit never names a slot.
+constexpr uint64 GEOMETRY_MESH_BVH_BIT = 1ull << 31;
+
 // The hash grid's cell coordinate of x (Warp's rule: floor(x / cell_width)), clamped to a range
 // whose products with the dims cannot overflow; NaN maps to 0.
 WP_CALLABLE inline int32 hash_grid_coord(float32 x, float32 cell_width) {

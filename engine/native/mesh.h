@@ -439,7 +439,7 @@ WP_FUNC weft_struct_MeshQueryAABB mesh_query_sphere(const launch_context_t* ctx,
                                                     const vec3& center, float32 radius) {
   weft_struct_MeshQueryAABB q;
   const geometry_desc_t* g = geometry_resolve(ctx, fid, line, "mesh_query_sphere", id, GEOMETRY_MESH);
-  bvh_walk_begin(q.walk, g, 2, center, vec3(radius, 0.0f, 0.0f), 0.0f, -1);
+  bvh_walk_begin(q.walk, g, 2, center, vec3(radius, 1.0f, 0.0f), 0.0f, -1);   // faces tested exactly
   return q;
 }
 

@@ -183,6 +183,8 @@ void AddGeometryBuiltins(std::vector<BuiltinOverload>* rows) {
        "Out-parameter form of mesh_query_ray from node `root`.", q);
   mesh("mesh_get_group_root(id: uint64, group: int32) -> int32",
        "The root node of `group`'s faces in a Mesh built with groups; -1 when there is no such group.", q);
+  mesh("mesh_get_bvh(id: uint64) -> uint64",
+       "The id of the mesh's own BVH over its faces, for bvh_query_aabb/ray/sphere/capsule (items are face indices).", q);
   mesh("mesh_eval_position(id: uint64, face: int32, bary_u: float32, bary_v: float32) -> vec(3,float32)",
        "u * p0 + v * p1 + (1 - u - v) * p2 of face.", q);
   mesh("mesh_eval_velocity(id: uint64, face: int32, bary_u: float32, bary_v: float32) -> vec(3,float32)",

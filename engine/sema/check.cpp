@@ -1079,7 +1079,8 @@ Status Checker::LowerAssignTo(const ast::Expr& target, Value value) {
       static const std::string kXYZW = "xyzw";
       size_t k = at->attr.size() == 1 ? kXYZW.find(at->attr[0]) : std::string::npos;
       if (k == std::string::npos || static_cast<int>(k) >= bt.component_count())
-        return Error(at->attr_loc, TypeString(bt) + " has no component '" + at->attr + "'");
+        return ErrorOf("attribute", at->attr_loc, "`" + at->attr + "` is not an attribute of '" + ExprText(*at->value) +
+                                                      "' (" + TypeString(bt) + ")");
       if (!TypeOf(value.var).is_scalar())   // Warp's TypeError for a composite slot write
         return ErrorOf("type", loc, "Composite slot assignment expects value of type `" +
                                         TypeString(Type::Scalar(bt.scalar)) + "`, got `" + TypeString(TypeOf(value.var)) + "`");
@@ -1474,8 +1475,9 @@ Status Checker::LowerFor(const ast::For& s) {
     call = ast::As<ast::Call>(call->args[0].get());
     fname = call ? ast::As<ast::Name>(call->func.get()) : nullptr;
   }
-  if (!reversed && call && !(fname && fname->id == "range" && !st_->scope.count("range"))) {
-    // for index in wp.hash_grid_query(...) / wp.bvh_query_*(...) / wp.mesh_query_aabb(...):
+  if (!reversed && !(call && fname && fname->id == "range" && !st_->scope.count("range"))) {
+    // for index in wp.hash_grid_query(...) / wp.bvh_query_*(...) / wp.mesh_query_aabb(...),
+    // or over a query held in a variable:
     // index = 0; while <query>_next(q, index): body
     WEFT_ASSIGN_OR_RETURN(Value qv, Eval(*s.iter));
     const char* next = nullptr;

@@ -165,6 +165,12 @@ Expected<Value> Checker::Eval(const ast::Expr& e) {
     }
     case ast::ExprKind::kBoolOp: {
       const auto& b = static_cast<const ast::BoolOp&>(e);
+      bool lazy = false;
+      for (size_t i = 1; i < b.values.size(); ++i) lazy = lazy || MayFailOrHaveEffects(*b.values[i]);
+      if (lazy && CanBranchHere()) {
+        WEFT_ASSIGN_OR_RETURN(int r, EvalShortCircuit(b, 0));
+        return Value::OfVar(r);
+      }
       std::vector<int> vs;
       std::string text = "(";
       for (size_t i = 0; i < b.values.size(); ++i) {
@@ -178,20 +184,12 @@ Expected<Value> Checker::Eval(const ast::Expr& e) {
     case ast::ExprKind::kIfExp: {
       const auto& i = static_cast<const ast::IfExp&>(e);
       WEFT_ASSIGN_OR_RETURN(int c, EvalCond(*i.test));
+      if ((MayFailOrHaveEffects(*i.body) || MayFailOrHaveEffects(*i.orelse)) && CanBranchHere())
+        return EvalConditionalBranches(i, c);
       WEFT_ASSIGN_OR_RETURN(Value a, Eval(*i.body));
       WEFT_ASSIGN_OR_RETURN(Value b, Eval(*i.orelse));
-      if (a.kind != Value::Kind::kVar || b.kind != Value::Kind::kVar)
-        return Error(e.loc, "both branches of a conditional expression must be values");
-      int av = a.var, bv = b.var;
-      if (a.literal && !b.literal) {
-        WEFT_ASSIGN_OR_RETURN(av, Coerce(a, TypeOf(bv), i.body->loc, "the first branch"));
-      } else if (b.literal && !a.literal) {
-        WEFT_ASSIGN_OR_RETURN(bv, Coerce(b, TypeOf(av), i.orelse->loc, "the second branch"));
-      }
-      if (TypeOf(av) != TypeOf(bv))
-        return Error(e.loc, "the branches of a conditional expression have types " + TypeString(TypeOf(av)) +
-                                " and " + TypeString(TypeOf(bv)));
-      return Value::OfVar(EmitOp(OpKind::kPhi, TypeOf(av), {c, av, bv}));
+      WEFT_ASSIGN_OR_RETURN(auto branches, UnifyConditionalBranches(i, a, b));
+      return Value::OfVar(EmitOp(OpKind::kPhi, TypeOf(branches.first), {c, branches.first, branches.second}));
     }
     case ast::ExprKind::kTuple: {
       const auto& t = static_cast<const ast::Tuple&>(e);
@@ -208,6 +206,133 @@ Expected<Value> Checker::Eval(const ast::Expr& e) {
       return ErrorOf("type", e.loc, "Starred expressions are only supported as positional arguments of a call");
   }
   return Error(e.loc, "unsupported expression");
+}
+
+// ---------------------------------------------------------------------------------------
+// Conditional evaluation: `a and b`, `a or b` and `x if c else y` evaluate an operand only
+// when Python would. An operand that can fail (an array access, a bounds check) or act (a
+// call) is lowered inside an `if`, so `arr and arr[i] == 0` never reads a None array and
+// `t if i < 0 else a[i]` never reads a[-1]; pure operands keep a select.
+// ---------------------------------------------------------------------------------------
+
+bool Checker::MayFailOrHaveEffects(const ast::Expr& e) const {
+  bool found = false;
+  std::function<void(const ast::Expr&)> walk = [&](const ast::Expr& x) {
+    if (found) return;
+    switch (x.kind) {
+      case ast::ExprKind::kSubscript:
+      case ast::ExprKind::kCall: found = true; return;
+      case ast::ExprKind::kAttribute: walk(*static_cast<const ast::Attribute&>(x).value); return;
+      case ast::ExprKind::kBinOp: {
+        const auto& b = static_cast<const ast::BinOp&>(x);
+        walk(*b.left), walk(*b.right);
+        return;
+      }
+      case ast::ExprKind::kUnaryOp: walk(*static_cast<const ast::UnaryOp&>(x).operand); return;
+      case ast::ExprKind::kBoolOp:
+        for (const auto& v : static_cast<const ast::BoolOp&>(x).values) walk(*v);
+        return;
+      case ast::ExprKind::kCompare: {
+        const auto& c = static_cast<const ast::Compare&>(x);
+        walk(*c.left);
+        for (const auto& v : c.comparators) walk(*v);
+        return;
+      }
+      case ast::ExprKind::kIfExp: {
+        const auto& i = static_cast<const ast::IfExp&>(x);
+        walk(*i.test), walk(*i.body), walk(*i.orelse);
+        return;
+      }
+      case ast::ExprKind::kTuple:
+        for (const auto& v : static_cast<const ast::Tuple&>(x).elts) walk(*v);
+        return;
+      default: return;
+    }
+  };
+  walk(e);
+  return found;
+}
+
+// Branches need a statement list to go into, and lanes of a cooperative block must all reach
+// the block's synchronizations, so there an operand is evaluated unconditionally.
+bool Checker::CanBranchHere() const { return st_ != nullptr && st_->block != nullptr && lanes_ == 1; }
+
+std::string Checker::HiddenLocalName(const char* what) {
+  return std::string("$") + what + std::to_string(hidden_locals_++);   // never a Python identifier
+}
+
+Expected<int> Checker::EvalShortCircuit(const ast::BoolOp& b, size_t first) {
+  WEFT_ASSIGN_OR_RETURN(int c, EvalCond(*b.values[first]));
+  if (first + 1 == b.values.size()) return c;
+  const std::string name = HiddenLocalName("bool");
+  st_->scope[name] = c;
+  const int go_on = b.op == ast::BoolOperator::kAnd ? c : EmitRaw(Type::Bool(), "!$0", {c});
+  WEFT_RETURN_IF_ERROR(LowerIf(go_on, [&]() -> Status {
+    WEFT_ASSIGN_OR_RETURN(int rest, EvalShortCircuit(b, first + 1));
+    st_->scope[name] = rest;
+    return Status::Ok();
+  }, {}));
+  const int result = st_->scope[name];
+  st_->scope.erase(name);
+  return result;
+}
+
+Expected<std::pair<int, int>> Checker::UnifyConditionalBranches(const ast::IfExp& i, const Value& a, const Value& b) {
+  if (a.kind != Value::Kind::kVar || b.kind != Value::Kind::kVar)
+    return Error(i.loc, "both branches of a conditional expression must be values");
+  int av = a.var, bv = b.var;
+  if (a.literal && !b.literal) {
+    WEFT_ASSIGN_OR_RETURN(av, Coerce(a, TypeOf(bv), i.body->loc, "the first branch"));
+  } else if (b.literal && !a.literal) {
+    WEFT_ASSIGN_OR_RETURN(bv, Coerce(b, TypeOf(av), i.orelse->loc, "the second branch"));
+  }
+  if (TypeOf(av) != TypeOf(bv))
+    return Error(i.loc, "the branches of a conditional expression have types " + TypeString(TypeOf(av)) + " and " +
+                            TypeString(TypeOf(bv)));
+  return std::make_pair(av, bv);
+}
+
+namespace {
+bool IsLiteralExpr(const ast::Expr& e) {
+  if (ast::As<ast::Constant>(&e)) return true;
+  const auto* u = ast::As<ast::UnaryOp>(&e);
+  return u && u->op == ast::UnaryOperator::kMinus && ast::As<ast::Constant>(u->operand.get());
+}
+}  // namespace
+
+// `x if c else y` with a branch that must not run unless chosen: each branch in its own arm of an
+// `if`. A literal branch takes the other branch's type, so the arm with the literal goes second.
+Expected<Value> Checker::EvalConditionalBranches(const ast::IfExp& i, int cond) {
+  const bool swap = IsLiteralExpr(*i.body) && !IsLiteralExpr(*i.orelse);
+  const ast::Expr& first = swap ? *i.orelse : *i.body;
+  const ast::Expr& second = swap ? *i.body : *i.orelse;
+  const int arm_cond = swap ? EmitRaw(Type::Bool(), "!$0", {cond}) : cond;
+  const std::string name = HiddenLocalName("ifexp");
+  Value first_value;
+  WEFT_RETURN_IF_ERROR(LowerIf(
+      arm_cond,
+      [&]() -> Status {
+        WEFT_ASSIGN_OR_RETURN(first_value, Eval(first));
+        if (first_value.kind != Value::Kind::kVar)
+          return Error(i.loc, "both branches of a conditional expression must be values");
+        st_->scope[name] = first_value.var;
+        return Status::Ok();
+      },
+      [&]() -> Status {
+        WEFT_ASSIGN_OR_RETURN(Value second_value, Eval(second));
+        const Value& a = swap ? second_value : first_value;
+        const Value& b = swap ? first_value : second_value;
+        WEFT_ASSIGN_OR_RETURN(auto branches, UnifyConditionalBranches(i, a, b));
+        // The first arm's value is already final: only the second arm's may be converted.
+        if ((swap ? branches.second : branches.first) != first_value.var)
+          return Error(i.loc, "the branches of a conditional expression have types " +
+                                  TypeString(TypeOf(branches.first)) + " and " + TypeString(TypeOf(branches.second)));
+        st_->scope[name] = swap ? branches.first : branches.second;
+        return Status::Ok();
+      }));
+  const int result = st_->scope[name];
+  st_->scope.erase(name);
+  return Value::OfVar(result);
 }
 
 Expected<int> Checker::EvalVar(const ast::Expr& e) {
@@ -231,9 +356,11 @@ Expected<Value> Checker::EvalConstant(const ast::Constant& c) {
   Value v;
   switch (c.type) {
     case ast::Constant::Type::kInt: {
-      if (!c.int_fits_u64 || c.int_value > 9223372036854775807ull)
-        return Error(c.loc, "integer literal " + c.text + " does not fit in int64");
-      Type t = c.int_value <= 2147483647ull ? Type::Int32() : Type::Scalar(ScalarKind::kInt64);
+      if (!c.int_fits_u64) return Error(c.loc, "integer literal " + c.text + " does not fit in 64 bits");
+      // int32 when it fits, else int64, else (2^63 .. 2^64-1, as in wp.uint64(0xFF51AFD7ED558CCD)) uint64.
+      Type t = c.int_value <= 2147483647ull           ? Type::Int32()
+               : c.int_value <= 9223372036854775807ull ? Type::Scalar(ScalarKind::kInt64)
+                                                       : Type::Scalar(ScalarKind::kUInt64);
       std::string text = std::to_string(c.int_value);
       WEFT_ASSIGN_OR_RETURN(std::string cpp, CppLiteral(t, text));
       v = Value::OfVar(EmitConst(t, cpp));
@@ -483,7 +610,8 @@ Expected<Value> Checker::EvalAttribute(const ast::Attribute& a) {
     static const std::string kXYZW = "xyzw";
     size_t k = a.attr.size() == 1 ? kXYZW.find(a.attr[0]) : std::string::npos;
     if (k == std::string::npos || static_cast<int>(k) >= bt.component_count())
-      return Error(a.attr_loc, TypeString(bt) + " has no component '" + a.attr + "'");
+      return ErrorOf("attribute", a.attr_loc, "`" + a.attr + "` is not an attribute of '" + ExprText(*a.value) + "' (" +
+                                                  TypeString(bt) + ")");
     int ki = EmitConst(Type::Int32(), "wp::int32(" + std::to_string(k) + ")");
     return Value::OfVar(EmitOp(OpKind::kExtract, Type::Scalar(bt.scalar), {base.var, ki}));
   }
@@ -953,7 +1081,7 @@ Expected<Value> Checker::EvalCompare(const ast::Compare& c) {
       continue;
     }
     if (lt != rt || !(lt.is_scalar() || (eq_op && lt.is_composite())))
-      return Error(c.loc, std::string("cannot compare ") + TypeString(lt) + " " + ast::Spelling(op) + " " +
+      return ErrorOf("type", c.loc, std::string("cannot compare ") + TypeString(lt) + " " + ast::Spelling(op) + " " +
                               TypeString(rt) + (lt.is_scalar() && rt.is_scalar() ? " (both sides need the same scalar type)"
                                                                                   : " (both sides need the same type)"));
     parts.push_back(EmitRaw(Type::Bool(), std::string("($0 ") + ast::Spelling(op) + " $1)", {lv, rv}));

@@ -123,6 +123,12 @@ class Checker {
   Expected<Value> EvalArraySlice(const ast::Subscript& s, const Value& base);
   Expected<Value> EvalArrayOverFixed(const ast::Call& c);
   Expected<int> EvalCond(const ast::Expr& e);         // bool var (ints compared with 0)
+  bool MayFailOrHaveEffects(const ast::Expr& e) const;
+  bool CanBranchHere() const;
+  std::string HiddenLocalName(const char* what);
+  Expected<int> EvalShortCircuit(const ast::BoolOp& b, size_t first);
+  Expected<std::pair<int, int>> UnifyConditionalBranches(const ast::IfExp& i, const Value& a, const Value& b);
+  Expected<Value> EvalConditionalBranches(const ast::IfExp& i, int cond);
   Expected<Value> EvalName(const ast::Name& n);
   Expected<Value> EvalAttribute(const ast::Attribute& a);
   Expected<Value> TypeAttribute(const Type& t, const ast::Attribute& a);
@@ -233,6 +239,7 @@ class Checker {
   // per block): wp.tile(x) has this many elements, untile gives the lane's, and t[i] op= v
   // combines the lanes' values (engine/native/lanes.h).
   int lanes_ = 1;
+  int hidden_locals_ = 0;   // numbers the compiler's own locals ($bool0, $ifexp1, ...)
   // `t[i] op= v` with lanes: the operator and v, for TileUpdate to combine every lane's v into
   // the element (tile_scatter_add, tile_lanes_bit_*) instead of writing this lane's result.
   struct {

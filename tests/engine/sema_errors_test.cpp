@@ -97,7 +97,7 @@ TEST(SemaErrors, BranchesDisagreeOnType) {
 }
 
 TEST(SemaErrors, ForOverNonRange) {
-  ExpectError(Compile("    for v in a:\n        pass\n"), 11, "for loops iterate over range(...) or reversed(range(...)) only");
+  ExpectError(Compile("    for v in a:\n        pass\n"), 11, "for loops iterate over range(...), reversed(range(...)) or a geometry query");
 }
 
 TEST(SemaErrors, RangeNeedsIntegers) {
@@ -128,7 +128,7 @@ TEST(SemaErrors, ComparingDifferentTypes) {
 }
 
 TEST(SemaErrors, VectorComponentOutOfRange) {
-  ExpectError(Compile("    v = wp.vec2(1.0, 2.0)\n    y = v.z\n"), 12, "vec(2,float32) has no component 'z'");
+  ExpectError(Compile("    v = wp.vec2(1.0, 2.0)\n    y = v.z\n"), 12, "`z` is not an attribute of 'v' (vec(2,float32))");
 }
 
 TEST(SemaErrors, ConstructorComponentCount) {

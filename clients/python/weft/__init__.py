@@ -47,6 +47,7 @@ from .geometry import (Bvh, BvhQuery, BvhQueryTiled, HashGrid, HashGridQuery, Me
 from .volume import Volume  # noqa: F401
 
 __version__ = "0.1.0"
+_weft_reexport_of_ = "weft"   # carried by packages that re-export weft (see _aliases.py)
 DeviceLike = object  # typing alias of Warp (a Device or its alias string)
 
 
@@ -75,6 +76,10 @@ from .interop.paddle import (device_from_paddle, device_to_paddle,  # noqa: F401
 from .interop.torch import (device_from_torch, device_to_torch, dtype_from_torch,  # noqa: F401,E402
                             dtype_to_torch, from_torch, stream_from_torch, stream_to_torch,
                             to_torch)
+
+from . import _aliases  # noqa: E402
+
+_aliases.install()
 
 
 def __getattr__(name):

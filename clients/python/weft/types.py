@@ -17,7 +17,7 @@ import numpy as np
 
 __all__ = [
     "Any", "bool", "float16", "float32", "float64", "int8", "int16", "int32", "int64",
-    "uint8", "uint16", "uint32", "uint64", "bfloat16",
+    "uint8", "uint16", "uint32", "uint64", "bfloat16", "handle",
     "scalar_types", "float_types", "int_types", "vector_types",
     "vector", "matrix", "quaternion", "transformation",
     "vec2", "vec3", "vec4", "mat22", "mat33", "mat44", "quat", "transform",
@@ -142,6 +142,9 @@ float16 = _make_scalar("float16", np.float16, _py_float)
 float32 = _make_scalar("float32", np.float32, _py_float)
 float64 = _make_scalar("float64", np.float64, _py_float)
 half = float16
+# Warp's wp.handle: the type of object handles (Mesh, Volume, Bvh ids) in kernel parameters, struct
+# fields and arrays; it behaves as uint64 in every respect, so it is uint64.
+handle = uint64
 # bfloat16 (Warp's wp.bfloat16): float32's upper 16 bits, stored as those bits (its NumPy dtype is
 # uint16; arrays' numpy() is ml_dtypes.bfloat16 when that package is installed). A value keeps
 # bfloat16 precision (rounded to nearest even). Scalars and arrays of scalars only: there are no

@@ -1538,3 +1538,65 @@ def test_mesh_query_point_sign_follows_the_winding(wp, rng):
         got = out.numpy()
         np.testing.assert_array_equal(got[:, 0], np.where(expected_inside < 0, -flip, 1.0))
         np.testing.assert_array_equal(got[:, 1], expected_inside)
+
+
+# ---------------------------------------------------------------------------------------------
+# mesh_get_bvh: a mesh's face BVH for BVH queries, and iterating a query held in a variable
+
+@wp.kernel
+def mesh_bvh_sphere(mesh: wp.uint64, centers: wp.array(dtype=wp.vec3), radius: float,
+                    hits: wp.array2d(dtype=int)):
+    i = wp.tid()
+    query = wp.bvh_query_sphere(wp.mesh_get_bvh(mesh), centers[i], radius)
+    for face in query:          # a query in a variable iterates like wp.bvh_query_next
+        hits[i, face] += 1
+
+
+@wp.kernel
+def mesh_bvh_as_mesh(mesh: wp.uint64, out: wp.array(dtype=wp.vec3)):
+    out[0] = wp.mesh_get_point(wp.mesh_get_bvh(mesh), 0)
+
+
+@wp.kernel
+def bvh_query_of(obj: wp.uint64, out: wp.array(dtype=int)):
+    query = wp.bvh_query_aabb(obj, wp.vec3(-10.0), wp.vec3(10.0))
+    k = int(0)
+    while wp.bvh_query_next(query, k):
+        out[0] += 1
+
+
+def test_mesh_get_bvh_sphere_queries_match_the_face_bounds(rng):
+    mesh, pts, tris, _ = make_mesh(rng)
+    a, b, c = pts[tris[:, 0]], pts[tris[:, 1]], pts[tris[:, 2]]
+    lo_t, hi_t = np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
+    n = 30
+    centers = rng.uniform(-1.3, 1.3, size=(n, 3)).astype(np.float32)
+    radius = float(rng.uniform(0.1, 0.5))
+    hits = wp.zeros((n, len(tris)), dtype=int, device=DEV)
+    wp.launch(mesh_bvh_sphere, dim=n, inputs=[mesh.id, wp.array(centers, dtype=wp.vec3, device=DEV), radius,
+                                              hits], device=DEV)
+    got = hits.numpy()
+    assert got.max() <= 1 and got.sum() > 0   # each face at most once, and some faces hit
+    for i in range(n):   # broad phase: every face whose bounds the sphere reaches, exactly once
+        cp = np.clip(centers[i].astype(np.float64), lo_t, hi_t)
+        d2 = ((centers[i] - cp) ** 2).sum(1)
+        sure, maybe = d2 < radius * radius - TOL, d2 <= radius * radius + TOL
+        assert (got[i][sure] == 1).all() and (got[i][~maybe] == 0).all()
+
+
+def test_mesh_get_bvh_id_serves_bvh_queries_only(rng):
+    mesh, _, _, _ = make_mesh(rng)
+    out = wp.zeros(1, dtype=wp.vec3, device=DEV)
+    with pytest.raises(wp.WeftError, match=r"mesh_get_point.*is not a live Mesh of this session"):
+        wp.launch(mesh_bvh_as_mesh, dim=1, inputs=[mesh.id, out], device=DEV)
+        wp.synchronize()
+    count = wp.zeros(1, dtype=int, device=DEV)
+    with pytest.raises(wp.WeftError, match=r"bvh_query_aabb.*is a Mesh, not a Bvh"):   # the plain mesh id
+        wp.launch(bvh_query_of, dim=1, inputs=[mesh.id, count], device=DEV)
+        wp.synchronize()
+    lowers = wp.array(rng.uniform(-1, 0, size=(8, 3)).astype(np.float32), dtype=wp.vec3, device=DEV)
+    bvh = wp.Bvh(lowers, wp.array(lowers.numpy() + 0.5, dtype=wp.vec3, device=DEV))
+    with pytest.raises(wp.WeftError, match=r"bvh_query_aabb.*is not a live Bvh of this session"):
+        wp.launch(bvh_query_of, dim=1, inputs=[bvh.id | (1 << 31), count], device=DEV)   # a Bvh with the bit
+        wp.synchronize()
+    _daemon_still_serves(rng)

@@ -217,3 +217,45 @@ def test_float_scalars_show_the_number_they_were_given(wp, device):
     assert abs(wp.float32(0.1).value - 0.1) < 1e-8
     assert repr(wp.int8(-1)) == "int8(-1)" and repr(wp.uint64(2**64 - 1)) == "uint64(18446744073709551615)"
     assert repr(wp.bfloat16(1)) == "bfloat16(1)"
+
+
+def test_unknown_component_is_an_attribute_error_and_mismatched_compare_a_type_error(wp):
+    @wp.kernel(module="unique")
+    def bad_component(out: wp.array(dtype=float)):
+        v = wp.vec3(1.0, 2.0, 3.0)
+        out[0] = v.foo
+
+    err = _compile_error(wp, bad_component, [wp.zeros(1, dtype=float)])
+    assert isinstance(err, AttributeError)
+    assert "`foo` is not an attribute of 'v' (vec(3,float32))" in str(err)
+
+    @wp.kernel(module="unique")
+    def bad_compare():
+        x = wp.int32(10)
+        if x == True:  # noqa: E712
+            pass
+
+    err = _compile_error(wp, bad_compare)
+    assert isinstance(err, TypeError) and "cannot compare int32 == bool" in str(err)
+
+
+def test_struct_bool_field_holds_a_bool(wp):
+    @wp.struct
+    class Flags:
+        on: wp.bool
+        h: wp.handle
+
+    f = Flags()
+    f.on = 1
+    f.h = 2 ** 63 + 5
+    assert f.on is True and wp.handle is wp.uint64
+
+    @wp.kernel(module="unique")
+    def read(f: Flags, out: wp.array(dtype=int), h: wp.array(dtype=wp.uint64)):
+        out[0] = wp.where(f.on, 1, 2)
+        h[0] = f.h
+
+    out = wp.zeros(1, dtype=int)
+    h = wp.zeros(1, dtype=wp.uint64)
+    wp.launch(read, dim=1, inputs=[f, out, h])
+    assert out.numpy()[0] == 1 and int(h.numpy()[0]) == 2 ** 63 + 5

@@ -154,6 +154,8 @@ class StructType:
             return value
         # validate eagerly so errors point at the assignment
         typestr.pack_value(desc, value)
+        if desc.kind == "scalar" and desc.scalar == "bool" and not isinstance(value, bool):
+            return bool(value)      # `s.flag = 1` holds True, as Warp's bool field does
         return value
 
     def from_record(self, record) -> StructInstance:

@@ -43,10 +43,13 @@ class Resolution:
 
 
 def is_warp_module(value) -> bool:
+    """weft's own modules and a package that re-exports weft (a `warp` alias): the namespace of
+    kernel builtins. A user's package that merely lives under such a name (warp.tests) is not."""
     if not isinstance(value, types.ModuleType):
         return False
     name = value.__name__
-    return name in ("weft", "warp") or name.startswith(("weft.", "warp."))
+    return (name == "weft" or name.startswith("weft.") or
+            getattr(value, "_weft_reexport_of_", None) == "weft")
 
 
 def _local_names(fdef: ast.FunctionDef) -> set:
@@ -150,8 +153,12 @@ def resolve(definition: FunctionDefinition) -> Resolution:
             if isinstance(member, Function):
                 classify(".".join(chain[:2]), member, add, functions, structs)
                 continue
-            add(ResolvedSymbol(chain[0], "builtin_module", "warp"))
-            continue
+            # warp.tests.helpers.CONST: a user's package under the alias name, resolved as Python does
+            user_package = (len(chain) > 2 and isinstance(member, types.ModuleType) and
+                            not is_warp_module(member))
+            if not user_package:
+                add(ResolvedSymbol(chain[0], "builtin_module", "warp"))
+                continue
         used = 1
         # descend through plain modules: mymod.N, math.pi, pkg.sub.CONST
         while isinstance(value, types.ModuleType) and used < len(chain):
