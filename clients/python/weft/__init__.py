@@ -71,12 +71,15 @@ utils.quat_between_vectors = quat_between_vectors   # warp.utils has it too
 from .interop.dlpack import from_dlpack, to_dlpack  # noqa: F401,E402
 from .interop.jax import (device_from_jax, device_to_jax, dtype_from_jax,  # noqa: F401,E402
                           dtype_to_jax, from_jax, to_jax)
+from .interop.jax_ffi import (JaxCallableGraphMode, JaxModulePreloadMode,  # noqa: F401,E402
+                              clear_jax_callable_graph_cache, jax_callable, jax_kernel)
 from .interop.paddle import (device_from_paddle, device_to_paddle,  # noqa: F401,E402
                              dtype_from_paddle, dtype_to_paddle, from_paddle, to_paddle)
 from .interop.torch import (device_from_torch, device_to_torch, dtype_from_torch,  # noqa: F401,E402
                             dtype_to_torch, from_torch, stream_from_torch, stream_to_torch,
                             to_torch)
 
+from . import autograd  # noqa: F401,E402
 from . import _aliases  # noqa: E402
 
 _aliases.install()

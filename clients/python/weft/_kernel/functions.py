@@ -526,6 +526,13 @@ class Kernel:
         kernel.overloads."""
         return list(self._specializations.values())
 
+    def add_overload(self, arg_types) -> "Kernel":
+        """Warp's kernel.add_overload(arg_types): the instance of this generic kernel for the given
+        parameter types (a list in parameter order, or a dict by name), as wp.overload gives."""
+        from .api import overload  # noqa: PLC0415
+
+        return overload(self, arg_types)
+
     def specialize(self, param_types: list, annotations: typing.Optional[list] = None) -> "Kernel":
         """The instance of a generic kernel (typing.Any parameters) for concrete types;
         `annotations`, when given, are the concrete Python types (structs they name are

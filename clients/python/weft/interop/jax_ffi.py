@@ -1,0 +1,435 @@
+"""jax_kernel and jax_callable: weft kernels and Python functions that launch them, callable
+inside jax.jit, jax.vmap and jax.grad (Warp's wp.jax_kernel / wp.jax_callable).
+
+JAX runs the call on the CPU through jax.pure_callback: at run time JAX hands the input buffers
+to a host callback in this process, which copies them into weft arrays, launches in the daemon
+and returns the outputs for JAX. Warp registers an XLA FFI target instead and launches on JAX's
+own buffers; weft's kernels run in another process, so each call copies its inputs in and its
+outputs out (two copies Warp does not make), and only CPU JAX devices are served.
+
+Conventions are Warp's: a kernel's parameters are its inputs (arrays, and scalars that must be
+static in JAX) followed by its outputs; `num_outputs` counts the outputs including the
+input-output arrays named by `in_out_argnames` (inputs whose updated values are returned, first
+among the outputs). Launch dimensions come from the first array input (less its vector or matrix
+dimensions) unless `launch_dims` says otherwise; outputs are shaped like the launch unless
+`output_dims` (a shape, or a dict by output name) says otherwise. Under jax.vmap the batch axes
+lead every array and the callback runs the kernel once per batch element. `enable_backward=True`
+gives the wrapper a JAX VJP: the backward pass records the forward launch on a weft Tape, seeds
+the outputs' gradients with JAX's cotangents and returns the inputs' gradients.
+
+Wrappers are cached: the same kernel or function with the same settings gives the same object.
+"""
+from __future__ import annotations
+
+import enum
+import inspect
+import operator
+import sys
+import threading
+
+import numpy as np
+
+from . import external
+
+JAX_CALLABLE_DEFAULT_GRAPH_CACHE_MAX = 64
+_MAX_TID_EXTENT = 2**31 - 1
+_VMAP_METHODS = ("broadcast_all", "sequential", "sequential_unrolled", "expand_dims")
+
+_FFI_REGISTRY_LOCK = threading.Lock()
+_FFI_KERNEL_REGISTRY: dict = {}
+_FFI_CALLABLE_REGISTRY: dict = {}
+
+
+class JaxCallableGraphMode(enum.IntEnum):
+    """Warp's CUDA graph capture modes of jax_callable. On the CPU, NONE and JAX run without a
+    graph; the WARP modes need CUDA and are refused at run time on the CPU."""
+    NONE = 0
+    JAX = 1
+    WARP = 2
+    WARP_STAGED = 3
+    WARP_STAGED_EX = 4
+
+
+class JaxModulePreloadMode(enum.IntEnum):
+    """Where Warp preloads a wrapper's module. weft compiles in the daemon on first launch and
+    caches the result, so every mode behaves as CURRENT_DEVICE."""
+    NONE = 0
+    CURRENT_DEVICE = 1
+    ALL_DEVICES = 2
+
+
+def _jax():
+    import jax  # noqa: PLC0415
+
+    return jax
+
+
+def _hashable(value):
+    if isinstance(value, dict):
+        return tuple(sorted((k, _hashable(v)) for k, v in value.items()))
+    if isinstance(value, (list, tuple)):
+        return tuple(_hashable(v) for v in value)
+    return value
+
+
+def _dims(value) -> tuple:
+    return (int(value),) if np.isscalar(value) else tuple(int(d) for d in value)
+
+
+def _check_block_dim(block_dim):
+    if block_dim is None:
+        return None
+    if isinstance(block_dim, bool):
+        raise TypeError("jax_kernel(): block_dim must be an integer or None.")
+    try:
+        block_dim = operator.index(block_dim)
+    except TypeError:
+        raise TypeError("jax_kernel(): block_dim must be an integer or None.") from None
+    if block_dim <= 0:
+        raise ValueError("jax_kernel(): block_dim must be positive.")
+    return block_dim
+
+
+def _check_cpu(what):
+    weft = sys.modules["weft"]
+    if not weft.is_cpu_available():
+        raise RuntimeError(f"{what}: this weft daemon does not include CPU support, which JAX's "
+                           f"CPU device needs")
+
+
+class _Param:
+    """One parameter of a wrapped kernel or function: name, weft annotation, array or scalar."""
+
+    def __init__(self, name, annotation):
+        from .._kernel import typestr  # noqa: PLC0415
+        from .._kernel.launch import _element_dtype  # noqa: PLC0415
+
+        self.name = name
+        self.annotation = annotation
+        desc = typestr.parse(typestr.type_string(annotation))
+        self.is_array = desc.kind == "array"
+        if self.is_array:
+            self.dtype = _element_dtype(annotation)
+            self.inner = tuple(getattr(self.dtype, "_shape_", ()))
+            self.np_dtype = np.dtype(self.dtype._wp_scalar_type_._np_dtype_)
+
+
+class _Wrapper:
+    """What jax_kernel and jax_callable share: the parameter split, shapes, vmap and the call."""
+
+    def __init__(self, what, params, num_outputs, vmap_method, output_dims, in_out_argnames):
+        self.what = what
+        self.params = params
+        names = [p.name for p in params]
+        self.in_out = list(in_out_argnames or ())
+        if len(set(self.in_out)) != len(self.in_out):
+            raise ValueError(f"{what}: in_out_argnames must not contain duplicate names")
+        num_outputs = int(num_outputs)
+        pure_outputs = num_outputs - len(self.in_out)
+        if num_outputs < 1 or pure_outputs < 0 or pure_outputs > len(params):
+            raise ValueError(f"{what}: {len(params)} parameters cannot have num_outputs={num_outputs} "
+                             f"with {len(self.in_out)} input-output argument(s)")
+        self.num_inputs = len(params) - pure_outputs
+        for name in self.in_out:
+            if name not in names:
+                raise ValueError(f"{what}: in_out_argnames '{name}' did not match any function argument names")
+            if name not in names[:self.num_inputs]:
+                raise ValueError(f"{what}: in_out arguments should be placed before output-only arguments "
+                                 f"('{name}' comes after them)")
+            if not params[names.index(name)].is_array:
+                raise TypeError(f"{what}: input-output argument '{name}' is not an array")
+        for p in params[self.num_inputs:]:
+            if not p.is_array:
+                raise TypeError(f"{what}: output '{p.name}' is not an array")
+        self.outputs = [p for p in params[:self.num_inputs] if p.name in self.in_out] + params[self.num_inputs:]
+        if vmap_method is not None and vmap_method not in _VMAP_METHODS:
+            raise ValueError(f"{what}: vmap_method must be one of {', '.join(_VMAP_METHODS)}, got {vmap_method!r}")
+        self.vmap_method = vmap_method
+        self.output_dims = output_dims
+
+    # ---- tracing ---------------------------------------------------------------------------
+    def _split(self, args):
+        jax = _jax()
+        if len(args) != self.num_inputs:
+            raise TypeError(f"{self.what}: expected {self.num_inputs} inputs, got {len(args)}")
+        arrays, scalars = [], {}
+        for i, value in enumerate(args):
+            p = self.params[i]
+            if p.is_array:
+                if np.dtype(value.dtype) != p.np_dtype:
+                    raise TypeError(f"{self.what}: input '{p.name}' has dtype {value.dtype}, "
+                                    f"expected {p.np_dtype}")
+                arrays.append(i)
+            elif isinstance(value, jax.core.Tracer):
+                raise TypeError(f"{self.what}: scalar input '{p.name}' is a traced value; make it "
+                                f"static (jax.jit(..., static_argnames=...))")
+            else:
+                scalars[i] = value
+        return arrays, scalars
+
+    def _launch_dims(self, args, arrays, launch_dims):
+        if launch_dims is None:
+            if not arrays:
+                raise ValueError(f"{self.what}: launch_dims is required without array inputs")
+            i = arrays[0]
+            shape = tuple(args[i].shape)
+            launch_dims = shape[:len(shape) - len(self.params[i].inner)]
+        return _dims(launch_dims)
+
+    def _out_shape(self, p, launch_dims, output_dims, args):
+        if p.name in self.in_out:
+            return tuple(args[[q.name for q in self.params].index(p.name)].shape)
+        dims = output_dims.get(p.name, launch_dims) if isinstance(output_dims, dict) else \
+            (output_dims if output_dims is not None else launch_dims)
+        dims = _dims(dims)
+        if not (p.inner and dims[len(dims) - len(p.inner):] == p.inner and len(dims) > len(p.inner)):
+            dims = dims + p.inner   # Warp's shape convention; JAX's (..., 3) also accepted
+        return dims
+
+    def _call(self, args, launch_dims, output_dims, vmap_method, run):
+        """pure_callback of run(launch_dims, host input arrays by position, scalars) -> outputs."""
+        jax = _jax()
+        arrays, scalars = self._split(args)
+        launch_dims = self._launch_dims(args, arrays, launch_dims)
+        specs = [jax.ShapeDtypeStruct(self._out_shape(p, launch_dims, output_dims, args), p.np_dtype)
+                 for p in self.outputs]
+        base_ndims = [len(args[i].shape) for i in arrays]
+
+        def host(*host_arrays):
+            return self._run_batched(run, launch_dims, specs, arrays, base_ndims, host_arrays, scalars)
+
+        method = vmap_method or self.vmap_method or "broadcast_all"
+        method = "sequential" if method == "sequential_unrolled" else method
+        return tuple(jax.pure_callback(host, tuple(specs), *[args[i] for i in arrays], vmap_method=method))
+
+    def _run_batched(self, run, launch_dims, specs, arrays, base_ndims, host_arrays, scalars):
+        """Runs once per element of the leading batch axes jax.vmap adds (none outside vmap)."""
+        host_arrays = [np.asarray(a) for a in host_arrays]
+        batch = ()
+        for a, nd in zip(host_arrays, base_ndims):
+            if a.ndim > nd:
+                batch = np.broadcast_shapes(batch, a.shape[:a.ndim - nd])
+        if not batch:
+            return run(launch_dims, dict(zip(arrays, host_arrays)), scalars, specs)
+        results = [np.empty(batch + tuple(s.shape), dtype=s.dtype) for s in specs]
+        for idx in np.ndindex(*batch):
+            item = {}
+            for i, a, nd in zip(arrays, host_arrays, base_ndims):
+                lead = a.ndim - nd
+                item[i] = a[tuple(0 if a.shape[k] == 1 else idx[len(batch) - lead + k] for k in range(lead))] \
+                    if lead else a
+            for r, value in zip(results, run(launch_dims, item, scalars, specs)):
+                r[idx] = value
+        return tuple(results)
+
+    # ---- host side -------------------------------------------------------------------------
+    def _weft_inputs(self, host, scalars, requires_grad=False):
+        values = [None] * self.num_inputs
+        for i, v in scalars.items():
+            values[i] = v
+        for i, v in host.items():
+            p = self.params[i]
+            view = np.ascontiguousarray(v).reshape(tuple(v.shape[:v.ndim - len(p.inner)]) + p.inner)
+            if p.name in self.in_out or requires_grad:   # written by the kernel: its own copy
+                values[i] = sys.modules["weft"].array(np.array(view, copy=True), dtype=p.dtype, device="cpu",
+                                                      requires_grad=requires_grad)
+            else:
+                values[i], _ = external.weft_array(view, dtype=p.dtype, device="cpu",
+                                                   what=f"{self.what} input '{p.name}'")
+        return values
+
+    def _weft_outputs(self, specs, requires_grad=False):
+        array_mod = sys.modules["weft.array"]
+        outs = []
+        for p, spec in zip(self.params[self.num_inputs:], specs[len(self.in_out):]):
+            shape = spec.shape[:len(spec.shape) - len(p.inner)] if p.inner else spec.shape
+            outs.append(array_mod.zeros(shape, dtype=p.dtype, device="cpu", requires_grad=requires_grad))
+        return outs
+
+    def _results(self, values, outs, specs):
+        got = [values[[p.name for p in self.params].index(n)] for n in self.in_out] + outs
+        return tuple(np.array(o.numpy(), copy=True).reshape(s.shape) for o, s in zip(got, specs))
+
+
+class FfiKernel(_Wrapper):
+    """wp.jax_kernel's wrapper of a kernel."""
+
+    def __init__(self, kernel, num_outputs, vmap_method, launch_dims, output_dims, in_out_argnames,
+                 enable_backward, block_dim):
+        params = [_Param(n, kernel.definition.annotations[n]) for n in kernel.param_names]
+        super().__init__(f"jax_kernel {kernel.key}", params, num_outputs, vmap_method, output_dims,
+                         in_out_argnames)
+        self.kernel = kernel
+        self.launch_dims = launch_dims
+        self.enable_backward = enable_backward
+        self.block_dim = block_dim
+        if enable_backward and (output_dims is not None or self.in_out):
+            raise NotImplementedError(f"{self.what}: output_dims and in_out_argnames are not supported "
+                                      f"with enable_backward=True")
+
+    def _check_extents(self, launch_dims):
+        for k, extent in enumerate(launch_dims):
+            if extent > _MAX_TID_EXTENT:
+                raise ValueError(f"Warp cannot launch a kernel using wp.tid() with extent {extent} in "
+                                 f"dimension {k}; the largest extent is {_MAX_TID_EXTENT}")
+
+    def __call__(self, *args, launch_dims=None, output_dims=None, vmap_method=None):
+        if self.enable_backward:
+            if launch_dims is not None:
+                raise TypeError(f"{self.what}: launch_dims cannot be overridden per-call with enable_backward=True")
+            if output_dims is not None:
+                raise TypeError(f"{self.what}: output_dims is not supported with enable_backward=True")
+            if vmap_method is not None:
+                raise TypeError(f"{self.what}: vmap_method cannot be overridden per-call with enable_backward=True")
+            return self._differentiable(args)
+        _check_cpu(self.what)
+        launch = launch_dims if launch_dims is not None else self.launch_dims
+        arrays, _ = self._split(args)
+        self._check_extents(self._launch_dims(args, arrays, launch))
+        return self._call(args, launch, output_dims if output_dims is not None else self.output_dims,
+                          vmap_method, self._run)
+
+    def _run(self, launch_dims, host, scalars, specs):
+        values = self._weft_inputs(host, scalars)
+        outs = self._weft_outputs(specs)
+        sys.modules["weft"].launch(self.kernel, dim=launch_dims, inputs=values, outputs=outs, device="cpu",
+                                   block_dim=self.block_dim)
+        return self._results(values, outs, specs)
+
+    def _run_backward(self, launch_dims, host, scalars, specs, grad_specs):
+        weft = sys.modules["weft"]
+        forward_host = {i: v for i, v in host.items() if i < self.num_inputs}
+        values = self._weft_inputs(forward_host, scalars, requires_grad=True)
+        outs = self._weft_outputs(specs, requires_grad=True)
+        tape = weft.Tape()
+        with tape:
+            weft.launch(self.kernel, dim=launch_dims, inputs=values, outputs=outs, device="cpu",
+                        block_dim=self.block_dim)
+        grads = {}
+        for k, (o, p) in enumerate(zip(outs, self.params[self.num_inputs:])):
+            g = np.ascontiguousarray(host[self.num_inputs + k]).reshape(o.shape + p.inner)
+            grads[o] = weft.array(g, dtype=p.dtype, device="cpu")
+        tape.backward(grads=grads)
+        return tuple(np.array(values[i].grad.numpy(), copy=True).reshape(s.shape)
+                     for i, s in zip(sorted(forward_host), grad_specs))
+
+    def _differentiable(self, args):
+        jax = _jax()
+        _check_cpu(self.what)
+        arrays, scalars = self._split(args)
+        launch_dims = self._launch_dims(args, arrays, self.launch_dims)
+        self._check_extents(launch_dims)
+        positions = list(arrays)
+        nout = len(self.outputs)
+
+        # outputs are shaped like the first array input (less its vector/matrix dimensions), which
+        # is the launch unless launch_dims fixes a smaller one (Warp's differentiable wrapper)
+        first = self.params[positions[0]] if positions else None
+        out_dims = None if first is None else \
+            tuple(args[positions[0]].shape[:len(args[positions[0]].shape) - len(first.inner)])
+
+        def forward(*xs):
+            full = list(args)
+            for i, x in zip(positions, xs):
+                full[i] = x
+            return self._call(full, launch_dims, out_dims, None, self._run)
+
+        @jax.custom_vjp
+        def apply(*xs):
+            return forward(*xs)
+
+        def apply_fwd(*xs):
+            return forward(*xs), xs
+
+        def apply_bwd(xs, cotangents):
+            grad_specs = [jax.ShapeDtypeStruct(x.shape, x.dtype) for x in xs]
+            out_specs = [jax.ShapeDtypeStruct(c.shape, c.dtype) for c in cotangents]
+            base_ndims = [len(x.shape) for x in xs] + [len(c.shape) for c in cotangents]
+            where = positions + [self.num_inputs + k for k in range(nout)]
+
+            def run(_dims, host, scalars_, _specs):
+                return self._run_backward(launch_dims, host, scalars_, out_specs, grad_specs)
+
+            def host(*host_arrays):
+                return self._run_batched(run, launch_dims, grad_specs, where, base_ndims, host_arrays, scalars)
+
+            return tuple(jax.pure_callback(host, tuple(grad_specs), *xs, *cotangents,
+                                           vmap_method="broadcast_all"))
+
+        apply.defvjp(apply_fwd, apply_bwd)
+        return tuple(apply(*[args[i] for i in positions]))
+
+
+class FfiCallable(_Wrapper):
+    """wp.jax_callable's wrapper of a Python function that launches weft kernels."""
+
+    def __init__(self, func, num_outputs, graph_mode, vmap_method, output_dims, in_out_argnames,
+                 stage_in_argnames=None, stage_out_argnames=None):
+        sig = inspect.signature(func)
+        annotations = getattr(func, "__annotations__", {})
+        params = []
+        for name in sig.parameters:
+            if name not in annotations:
+                raise TypeError(f"jax_callable {func.__name__}: parameter '{name}' needs a type annotation")
+            params.append(_Param(name, annotations[name]))
+        super().__init__(f"jax_callable {func.__name__}", params, num_outputs, vmap_method, output_dims,
+                         in_out_argnames)
+        self.func = func
+        self.graph_mode = JaxCallableGraphMode(graph_mode)
+        self.stage_in_argnames = set(stage_in_argnames or ())
+        self.stage_out_argnames = set(stage_out_argnames or ())
+
+    def __call__(self, *args, output_dims=None, vmap_method=None):
+        _check_cpu(self.what)
+        return self._call(args, None, output_dims if output_dims is not None else self.output_dims,
+                          vmap_method, self._run)
+
+    def _run(self, launch_dims, host, scalars, specs):
+        if self.graph_mode not in (JaxCallableGraphMode.NONE, JaxCallableGraphMode.JAX):
+            raise RuntimeError(f"{self.what}: graph mode {self.graph_mode.name} captures a CUDA graph and "
+                               f"is not available on the CPU")
+        values = self._weft_inputs(host, scalars)
+        outs = self._weft_outputs(specs)
+        self.func(*values, *outs)
+        return self._results(values, outs, specs)
+
+
+def jax_kernel(kernel, num_outputs=1, vmap_method="broadcast_all", launch_dims=None, output_dims=None,
+               in_out_argnames=None, module_preload_mode=JaxModulePreloadMode.CURRENT_DEVICE,
+               enable_backward=False, has_side_effect=False, block_dim=None):
+    """A JAX-callable wrapper of a weft kernel (see this module's docstring)."""
+    block_dim = _check_block_dim(block_dim)
+    JaxModulePreloadMode(module_preload_mode)
+    key = (kernel, int(num_outputs), vmap_method, _hashable(launch_dims), _hashable(output_dims),
+           tuple(in_out_argnames or ()), bool(enable_backward), bool(has_side_effect), block_dim)
+    with _FFI_REGISTRY_LOCK:
+        found = _FFI_KERNEL_REGISTRY.get(key)
+        if found is None:
+            found = FfiKernel(kernel, num_outputs, vmap_method, launch_dims, output_dims, in_out_argnames,
+                              bool(enable_backward), block_dim)
+            _FFI_KERNEL_REGISTRY[key] = found
+    return found
+
+
+def jax_callable(func, num_outputs=1, graph_mode=JaxCallableGraphMode.JAX, vmap_method="broadcast_all",
+                 output_dims=None, in_out_argnames=None, stage_in_argnames=None, stage_out_argnames=None,
+                 graph_cache_max=JAX_CALLABLE_DEFAULT_GRAPH_CACHE_MAX,
+                 module_preload_mode=JaxModulePreloadMode.CURRENT_DEVICE, has_side_effect=False):
+    """A JAX-callable wrapper of a Python function that launches weft kernels on its array
+    arguments (see this module's docstring). Staging and graph caching are CUDA graph
+    features; on the CPU they change nothing."""
+    JaxModulePreloadMode(module_preload_mode)
+    key = (func, int(num_outputs), int(graph_mode), vmap_method, _hashable(output_dims),
+           tuple(in_out_argnames or ()), tuple(stage_in_argnames or ()), tuple(stage_out_argnames or ()),
+           bool(has_side_effect))
+    with _FFI_REGISTRY_LOCK:
+        found = _FFI_CALLABLE_REGISTRY.get(key)
+        if found is None:
+            found = FfiCallable(func, num_outputs, graph_mode, vmap_method, output_dims, in_out_argnames,
+                                stage_in_argnames, stage_out_argnames)
+            _FFI_CALLABLE_REGISTRY[key] = found
+    return found
+
+
+def clear_jax_callable_graph_cache(callable=None):  # noqa: A002 - Warp's name
+    """Warp drops the CUDA graphs a jax_callable captured; weft's CPU path captures none."""
