@@ -22,7 +22,7 @@ import inspect
 import itertools
 import re
 from collections.abc import Callable, Sequence
-from typing import Any, Optional
+from typing import Optional
 
 import numpy as np
 
@@ -387,8 +387,15 @@ def jacobian(
                 metadata.update_from_function(function, inputs, outputs)
         mask = _resolve_mask(input_output_mask, metadata, len(inputs))
 
-        zero_grads(inputs)
-        zero_grads(outputs)
+        def clear_grads():
+            # every row starts from zero gradients: a function's intermediate arrays too,
+            # which would otherwise carry the previous row's adjoints into this one
+            if tape is not None and tape.launches:
+                tape.zero()
+            zero_grads(inputs)
+            zero_grads(outputs)
+
+        clear_grads()
         jacobians = {}
         for input_i, output_i in _pairs(inputs, outputs, mask):
             x, y = inputs[input_i], outputs[output_i]
@@ -403,8 +410,7 @@ def jacobian(
                 seed[r] = 0
                 backward()
                 jac[r] = x.grad.numpy().reshape(jac.shape[1:])
-                zero_grads(inputs)
-                zero_grads(outputs)
+                clear_grads()
             jacobians[input_i, output_i] = _to_weft(jac, x)
     finally:
         if snapshot is not None:
@@ -559,6 +565,23 @@ def _error_jacobians(jac_ad: np.ndarray, jac_fd: np.ndarray):
     return relative, absolute
 
 
+def _summary_row(input_label, output_label, ad: np.ndarray, fd: np.ndarray, matches: bool,
+                 has_nan: bool) -> list:
+    """One row of gradcheck()'s table: the largest |AD - FD| and where, AD and FD there, the
+    largest relative error |AD - FD| / |FD + 1e-8|, and the verdict."""
+    difference = np.abs(ad - fd)
+    if difference.size and not np.isnan(difference).all():
+        at = np.unravel_index(np.nanargmax(difference), difference.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            max_rel = np.nanmax(np.abs((ad - fd) / (fd + 1e-8)))
+        max_abs, ad_at, fd_at = difference[at], ad[at], fd[at]
+    else:
+        at, max_abs, ad_at, fd_at, max_rel = (), np.nan, np.nan, np.nan, np.nan
+    verdict = _RED + "NaN" if has_nan else _GREEN + "PASS" if matches else _RED + "FAIL"
+    return [input_label, output_label, f"{max_abs:.3e} at {tuple(int(k) for k in at)}",
+            f"{ad_at:.3e}", f"{fd_at:.3e}", f"{max_rel:.3e}", verdict + _RESET]
+
+
 def gradcheck(
     function,
     dim=None,
@@ -629,20 +652,9 @@ def gradcheck(
         success = success and matches and not has_nan
 
         if show_summary:
-            difference = np.abs(ad - fd)
-            if difference.size:
-                at = np.unravel_index(np.nanargmax(difference) if not np.all(np.isnan(difference))
-                                      else 0, difference.shape)
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    max_rel = np.nanmax(np.abs((ad - fd) / (fd + 1e-8))) if not np.all(
-                        np.isnan(difference)) else np.nan
-                max_abs, ad_at, fd_at = difference[at], ad[at], fd[at]
-            else:
-                at, max_abs, ad_at, fd_at, max_rel = (), np.nan, np.nan, np.nan, np.nan
-            status = (_RED + "NaN" if has_nan else _GREEN + "PASS" if matches else _RED + "FAIL")
-            summary.append([metadata.input_labels[input_i], metadata.output_labels[output_i],
-                            f"{max_abs:.3e} at {tuple(int(k) for k in at)}", f"{ad_at:.3e}",
-                            f"{fd_at:.3e}", f"{max_rel:.3e}", status + _RESET])
+            summary.append(_summary_row(metadata.input_labels[input_i],
+                                        metadata.output_labels[output_i], ad, fd, matches,
+                                        has_nan))
 
     if show_summary:
         print_table(["Input", "Output", "Max Abs Error", "AD at MAE", "FD at MAE",
@@ -656,17 +668,18 @@ def gradcheck(
         jacobian_plot(absolute_jacs, metadata, title=f"{metadata.key} kernel Jacobian absolute error")
 
     if raise_exception:
+        # a NaN gradient also fails the comparison: it is the more telling report
+        if first_nan is not None:
+            input_i, output_i = first_nan
+            raise ValueError(f"Gradient check failed for kernel {metadata.key}, input "
+                             f"{metadata.input_labels[input_i]}, output "
+                             f"{metadata.output_labels[output_i]}: gradient contains NaN values")
         if first_mismatch is not None:
             input_i, output_i = first_mismatch
             raise ValueError(f"Gradient check failed for kernel {metadata.key}, input "
                              f"{metadata.input_labels[input_i]}, output "
                              f"{metadata.output_labels[output_i]}: finite difference and autodiff "
                              f"gradients do not match")
-        if first_nan is not None:
-            input_i, output_i = first_nan
-            raise ValueError(f"Gradient check failed for kernel {metadata.key}, input "
-                             f"{metadata.input_labels[input_i]}, output "
-                             f"{metadata.output_labels[output_i]}: gradient contains NaN values")
     return success
 
 
