@@ -1,7 +1,8 @@
 """GPU arrays through the daemon (skipped with the reason when it has no CUDA device it can run
 kernels on): creation, fills of slices, copies between cpu and cuda, clone/to, numpy() copies,
 assign; the client's CUDA IPC mapping (ptr, __cuda_array_interface__ v3, DLPack kDLCUDA) and
-the copy fallback when IPC is off (WEFT_CUDA_IPC=0); streams and events."""
+the copy fallback when IPC is off (WEFT_CUDA_IPC=0); streams and events (Warp's attributes,
+host waits refused inside a capture, events between captured graphs)."""
 import numpy as np
 import pytest
 
@@ -180,3 +181,48 @@ def test_streams_are_cuda_only(wp):
         wp.Stream("cpu")
     with pytest.raises(RuntimeError, match="CUDA objects"):
         wp.Event("cpu")
+
+
+def test_stream_attributes_as_warp(wp, cuda):
+    assert wp.Stream(cuda).priority == 0
+    assert wp.Stream(cuda, priority=-100).priority == -1      # Warp's two levels, clamped
+    assert wp.Stream(cuda, priority=100).priority == 0
+    with pytest.raises(TypeError, match="priority must be an integer"):
+        wp.Stream(cuda, priority=0.5)
+    assert wp.Stream(cuda).is_blocking and cuda.stream.is_blocking and cuda.null_stream.is_blocking
+    assert cuda.has_stream and not wp.get_device("cpu").has_stream
+    stream, event = wp.Stream(cuda), wp.Event(cuda)
+    assert event.is_complete                                     # never recorded
+    a = wp.zeros(1 << 16, dtype=float, device=cuda)
+    with wp.ScopedStream(stream):
+        a.fill_(2.0)
+        stream.record_event(event)
+        wp.synchronize_stream(stream)
+        assert stream.is_complete and event.is_complete
+    b = wp.empty_like(a)
+    wp.copy(b, a, stream=stream)
+    np.testing.assert_array_equal(b.numpy(), 2.0)
+    with pytest.raises(TypeError, match="must be a wp.Stream"):
+        wp.copy(b, a, stream="cuda:0")
+
+
+def test_host_waits_inside_a_capture_are_refused(wp, cuda):
+    with wp.ScopedDevice(cuda):
+        for wait, what in ((wp.synchronize, "device"), (wp.synchronize_device, "device"),
+                           (wp.synchronize_stream, "stream"),
+                           (lambda: wp.synchronize_event(wp.Event(cuda)), "event")):
+            with pytest.raises(RuntimeError, match=f"Cannot synchronize {what}"):
+                with wp.ScopedCapture():
+                    wait()
+        # an event recorded inside one graph and waited on in another: in order on one stream
+        a = wp.zeros(1024, dtype=float, device=cuda)
+        event = wp.Event()
+        with wp.ScopedCapture() as first:
+            a.fill_(1.0)
+            wp.record_event(event, external=True)
+        with wp.ScopedCapture() as second:
+            wp.wait_event(event, external=True)
+            a.fill_(4.0)
+        wp.capture_launch(first.graph, stream=wp.Stream(cuda))
+        wp.capture_launch(second.graph, stream=wp.Stream(cuda))
+        np.testing.assert_array_equal(a.numpy(), 4.0)

@@ -1,8 +1,9 @@
-"""Warp's memory-pool and peer-access API against weft (weft/mempool.py): no device has
-memory-pool support (weftd sub-allocates GPU memory from its own slabs) and no device pair has
-client-side pool or peer access, so queries answer False, enabling raises as Warp does for a
-device without the support (RuntimeError on CUDA devices, ValueError where a CPU is named),
-disabling is accepted, and unknown device names are refused. CUDA cases skip without a GPU."""
+"""Warp's memory-pool and peer-access API against weft (weft/mempool.py): a CUDA device's pool
+is the session's memory in weftd (support, the per-device switch, Warp's capture-allocation
+error with it off, the release threshold's rules, usage of this process's arrays), the CPU has
+no pools (ValueError), a GPU reaches its own memory and no other's, and unknown device names are
+refused. CUDA cases skip without a GPU."""
+import numpy as np
 import pytest
 
 
@@ -30,19 +31,61 @@ def test_cpu_has_no_memory_pools(wp):
     assert a.numpy().tolist() == [3.0] * 8
 
 
-def test_cuda_devices_have_no_memory_pools(wp):
+def test_cuda_devices_have_pools_that_answer_for_the_session(wp):
     gpu = _cuda(wp)
-    assert wp.is_mempool_supported(gpu) is False and wp.is_mempool_enabled(gpu) is False
-    with pytest.raises(RuntimeError, match="does not support memory pools"):
-        wp.set_mempool_enabled(gpu, True)
-    with pytest.raises(RuntimeError, match="does not support memory pools"):
-        wp.get_mempool_release_threshold(gpu)
-    with pytest.raises(RuntimeError, match="does not support memory pools"):
-        with wp.ScopedMempool(gpu, True):
-            pass
-    with wp.ScopedMempool(gpu, False):           # Warp's IPC idiom: allocate outside pools
-        a = wp.full(8, 2.0, dtype=float, device=gpu)
+    assert wp.is_mempool_supported(gpu) is True and gpu.is_mempool_supported is True
+    assert wp.is_mempool_enabled(gpu) is True                 # Warp's default
+    with wp.ScopedMempool(gpu, False):
+        assert wp.is_mempool_enabled(gpu) is False
+        a = wp.full(8, 2.0, dtype=float, device=gpu)          # outside a capture: allocated
+    assert wp.is_mempool_enabled(gpu) is True
     assert a.numpy().tolist() == [2.0] * 8
+
+    saved = wp.get_mempool_release_threshold(gpu)
+    wp.set_mempool_release_threshold(gpu, 42000)
+    assert wp.get_mempool_release_threshold(gpu) == 42000
+    wp.set_mempool_release_threshold(gpu, 0.5)
+    assert wp.get_mempool_release_threshold(gpu) == int(0.5 * gpu.total_memory)
+    wp.set_mempool_release_threshold(gpu, -3)
+    assert wp.get_mempool_release_threshold(gpu) == 0
+    wp.set_mempool_release_threshold(gpu, saved)
+
+
+def test_pool_usage_counts_the_arrays_this_process_holds(wp):
+    import gc
+    gpu = _cuda(wp)
+    gc.collect()
+    before, high_before = wp.get_mempool_used_mem_current(gpu), wp.get_mempool_used_mem_high(gpu)
+    assert high_before >= before >= 0
+    n = int(np.random.default_rng().integers(200_000, 300_000))
+    a = wp.empty(n, dtype=wp.float32, device=gpu)
+    held = wp.get_mempool_used_mem_current(gpu)
+    assert held >= before + 4 * n
+    assert wp.get_mempool_used_mem_high(gpu) >= held
+    del a
+    gc.collect()
+    assert wp.get_mempool_used_mem_current(gpu) == held - 4 * n
+    assert wp.get_mempool_used_mem_high(gpu) >= held       # the high-water mark stays
+
+
+def test_allocating_during_a_capture_needs_the_pool_on(wp):
+    gpu = _cuda(wp)
+    with wp.ScopedMempool(gpu, False):
+        wp.capture_begin(device=gpu)
+        try:
+            with pytest.raises(RuntimeError, match="memory pools are not enabled on device"):
+                wp.zeros(16, dtype=float, device=gpu)
+        finally:
+            graph = wp.capture_end(device=gpu)
+    wp.capture_launch(graph)
+    with wp.ScopedMempool(gpu, True):
+        wp.capture_begin(device=gpu)
+        try:
+            b = wp.full(16, 5.0, dtype=float, device=gpu)
+        finally:
+            graph = wp.capture_end(device=gpu)
+    wp.capture_launch(graph)
+    assert b.numpy().tolist() == [5.0] * 16
 
 
 def test_peer_and_pool_access_between_devices(wp):
@@ -58,14 +101,20 @@ def test_peer_and_pool_access_between_devices(wp):
         pass
 
 
-def test_peer_access_between_gpus_is_the_daemons(wp):
+def test_a_gpu_reaches_its_own_memory_and_no_other(wp):
     gpu = _cuda(wp)
-    assert wp.is_peer_access_supported(gpu, gpu) is False
-    assert wp.is_peer_access_enabled(gpu, gpu) is False
-    with pytest.raises(RuntimeError, match="weftd copies between GPUs itself"):
-        wp.set_peer_access_enabled(gpu, gpu, True)
+    assert wp.is_peer_access_supported(gpu, gpu) is True
+    assert wp.is_peer_access_enabled(gpu, gpu) is True
+    assert wp.is_mempool_access_enabled(gpu, gpu) is True
+    wp.set_peer_access_enabled(gpu, gpu, True)            # no-ops, as in Warp
+    wp.set_mempool_access_enabled(gpu, gpu, False)
     with pytest.raises(ValueError):
         wp.set_mempool_access_enabled(gpu, "cpu", True)
+    others = [d for d in wp.get_cuda_devices() if d.is_compute_supported and d.alias != gpu.alias]
+    for other in others:
+        assert wp.is_peer_access_supported(gpu, other) is False
+        with pytest.raises(RuntimeError, match="weftd copies between GPUs itself"):
+            wp.set_peer_access_enabled(gpu, other, True)
 
 
 def test_unknown_devices_are_refused(wp):

@@ -13,7 +13,8 @@ from .array import (ARRAY_MAX_DIMS, array, array1d, array2d, array3d, array4d, c
 from .fixedarray import fixedarray  # noqa: F401
 from .indexedarray import (indexedarray, indexedarray1d, indexedarray2d,  # noqa: F401
                            indexedarray3d, indexedarray4d)
-from .fabricarray import fabricarray, indexedfabricarray  # noqa: F401
+from .fabricarray import (fabricarray, fabricarrayarray, indexedfabricarray,  # noqa: F401
+                          indexedfabricarrayarray)
 from .tile import tile, tile_stack  # noqa: F401
 from .device import (Device, ScopedDevice, get_cuda_device, get_cuda_device_count,  # noqa: F401
                      get_cuda_devices, get_cuda_driver_version, get_cuda_toolkit_version,

@@ -515,6 +515,34 @@ def wait_value(ordinal: int, stream: int, address: int, value: int) -> None:
                    address, value, CU_STREAM_WAIT_VALUE_GEQ)
 
 
+CUDA_ERROR_NOT_READY = 600
+
+
+def stream_is_blocking(ordinal: int, stream: int) -> bool:
+    """Whether this process's CUDA stream `stream` synchronizes with the legacy default stream
+    (the default stream itself: True)."""
+    if not stream:
+        return True
+    if _load() is None:
+        raise CudaError(f"no CUDA driver ({_reason})")
+    flags = ctypes.c_uint()
+    with _lock, _Scope(ordinal):
+        _check(_lib.cuStreamGetFlags(ctypes.c_void_p(stream), ctypes.byref(flags)), "cuStreamGetFlags")
+    return not (flags.value & CU_STREAM_NON_BLOCKING)
+
+
+def stream_is_idle(ordinal: int, stream: int) -> bool:
+    """Whether the work queued so far on this process's CUDA stream `stream` is done."""
+    if _load() is None:
+        raise CudaError(f"no CUDA driver ({_reason})")
+    with _lock, _Scope(ordinal):
+        rc = _lib.cuStreamQuery(ctypes.c_void_p(stream or None))
+    if rc == CUDA_ERROR_NOT_READY:
+        return False
+    _check(rc, "cuStreamQuery")
+    return True
+
+
 def synchronize_stream(ordinal: int, stream: int) -> None:
     with _lock, _Scope(ordinal):
         _check(_lib.cuStreamSynchronize(ctypes.c_void_p(stream or None)), "cuStreamSynchronize")

@@ -23,6 +23,7 @@ import numpy as np
 from . import _cuda_ipc, _runtime, types
 from . import array_annotations as _array_annotations
 from . import config as _config
+from . import mempool as _mempool
 from .device import Device, get_device
 from .errors import WeftError
 from .interop import memory as _interop_memory
@@ -255,7 +256,7 @@ class _Allocation:
     """One daemon allocation held by this process; freed when the last view lets go."""
 
     __slots__ = ("runtime", "info", "owned", "parent", "_mapping", "_cuda", "_cuda_slab",
-                 "keep", "recycle", "__weakref__")
+                 "keep", "recycle", "pool_bytes", "__weakref__")
 
     def __init__(self, runtime, info, owned=True, parent=None):
         self.runtime = runtime
@@ -269,6 +270,8 @@ class _Allocation:
         # imported framework memory: called with the ArrayInfo instead of freeing the handle
         # when this allocation dies (weft.interop.cuda_import keeps it for the same block)
         self.recycle = None
+        # bytes counted as this process's GPU pool use (weft/mempool.py), uncounted when it dies
+        self.pool_bytes = 0
 
     def cuda_address(self):
         """The allocation's device address in this process (GPU arrays of local sessions,
@@ -302,6 +305,8 @@ class _Allocation:
 
     def __del__(self):
         try:
+            if self.pool_bytes:
+                _mempool.note_freed(self.info.device, self.pool_bytes)
             if self._cuda_slab is not None:
                 _cuda_ipc.release(self._cuda_slab)
             if self.owned and self.info.handle:
@@ -424,9 +429,22 @@ def _stream_call(rt, method, iterator):
         raise _runtime.error_from_rpc(err) from None
 
 
+def _byte_size_for_message(dtype, shape) -> int:
+    try:
+        return int(types.type_size_in_bytes(dtype)) * math.prod(int(n) for n in shape)
+    except (TypeError, ValueError, AttributeError):
+        return 0
+
+
 def _create(dtype, shape, device, requires_grad, init, value=b""):
     rt = _runtime.get_runtime()
     rt.drain_frees()
+    if rt.captures and device.is_cuda:
+        from .graph import is_capturing  # noqa: PLC0415
+        if is_capturing(device):
+            refused = _mempool.capture_allocation_error(device, _byte_size_for_message(dtype, shape))
+            if refused is not None:
+                raise refused
     ap = _runtime.array_pb2
     request = ap.CreateArrayRequest(dtype=_dtype_proto(dtype), shape=list(shape),
                                     device=device.alias, requires_grad=bool(requires_grad),
@@ -559,10 +577,15 @@ class array:
         ap = _runtime.array_pb2
         rt, info = _create(dtype, shape, self.device, requires_grad,
                            ap.CreateArrayRequest.EMPTY if init is None else init, value)
-        self._adopt(rt, info, dtype)
+        self._adopt(rt, info, dtype, pooled=True)
 
-    def _adopt(self, rt, info, dtype, owned=True):
+    def _adopt(self, rt, info, dtype, owned=True, pooled=False):
+        """`pooled`: a new allocation of the daemon's for this process (counted as GPU pool use
+        on a CUDA device, weft/mempool.py)."""
         self._alloc = _Allocation(rt, info, owned)
+        if pooled and owned and self.device.is_cuda and info.byte_size:
+            self._alloc.pool_bytes = int(info.byte_size)
+            _mempool.note_allocated(info.device, self._alloc.pool_bytes)
         self._info = info
         self._handle = info.handle
         self._byte_offset = 0
@@ -633,11 +656,11 @@ class array:
                                                     nbytes >= LOCAL_WRITE_MIN_BYTES):
             rt, info = _create(dtype, arr_shape, self.device, requires_grad,
                                ap.CreateArrayRequest.DATA, arr.tobytes())
-            self._adopt(rt, info, dtype)
+            self._adopt(rt, info, dtype, pooled=True)
         else:
             rt, info = _create(dtype, arr_shape, self.device, requires_grad,
                                ap.CreateArrayRequest.EMPTY)
-            self._adopt(rt, info, dtype)
+            self._adopt(rt, info, dtype, pooled=True)
             _write_bytes(rt, info, 0, arr.reshape(-1).view(np.uint8), self._alloc)
 
     @classmethod
@@ -1518,10 +1541,21 @@ def _check_copy_types(dest, src, by_value=False) -> None:
                            f"source dtype={types.type_repr(src.dtype)}")
 
 
-def copy(dest, src, dest_offset=0, src_offset=0, count=0):
+def copy(dest, src, dest_offset=0, src_offset=0, count=0, stream=None):
     """Copies `src` into `dest` (Warp's wp.copy). Offsets and count are in elements of the
-    flattened arrays, which must then be contiguous; count 0 copies all of src."""
+    flattened arrays, which must then be contiguous; count 0 copies all of src. `stream`, a
+    wp.Stream of one of the arrays' devices, orders the copy as any stream of that device does
+    for a weft client: on the session's stream, after the work issued before it."""
     from .indexedarray import indexedarray  # noqa: PLC0415
+
+    if stream is not None:
+        from .streams import Stream  # noqa: PLC0415
+        if not isinstance(stream, Stream):
+            raise TypeError(f"wp.copy(): stream must be a wp.Stream, got {type(stream).__name__}")
+        devices = {getattr(a, "device", None) for a in (dest, src)}
+        if stream.device not in devices:
+            raise RuntimeError(f"wp.copy(): the stream is on {stream.device}, the arrays on "
+                               f"{', '.join(sorted(str(d) for d in devices))}")
 
     if isinstance(dest, indexedarray) or isinstance(src, indexedarray):
         if dest_offset or src_offset or count:

@@ -35,7 +35,8 @@ class Device:
         self.max_shared_memory_per_block = (int(getattr(info, "max_shared_memory_per_block", 0))
                                             if self.is_cuda else 0)
         self.is_uva = self.is_cuda
-        self.is_mempool_supported = False
+        # its session memory in weftd acts as the pool (weft/mempool.py)
+        self.is_mempool_supported = self.is_cuda and self.is_compute_supported
         # array.ipc_handle() / wp.from_ipc_handle() share this device's arrays between client
         # processes (daemon tokens, docs/cuda-client.md); interprocess events are not available.
         self.is_ipc_supported = True
@@ -58,6 +59,18 @@ class Device:
     @property
     def context(self):
         return None
+
+    @property
+    def has_stream(self) -> bool:
+        """A CUDA device always has the session's stream (weft/streams.py); the CPU has none."""
+        return self.is_cuda
+
+    @property
+    def null_stream(self):
+        """Warp's legacy default stream of the device: for a weft client the session's stream
+        too (every wp.Stream of a device names it, weft/streams.py)."""
+        from .streams import Stream  # noqa: PLC0415
+        return Stream(self)
 
     @property
     def is_capturing(self) -> bool:
@@ -237,13 +250,24 @@ class ScopedDevice:
         _state.stack.pop()
 
 
+def _refuse_during_capture(device=None) -> None:
+    """Warp's error for a host wait while this thread captures a graph (on `device`; on any
+    device when None)."""
+    from .graph import is_capturing  # noqa: PLC0415
+
+    if is_capturing(device):
+        where = device if device is not None else "the capturing device"
+        raise RuntimeError(f"Cannot synchronize device {where} while graph capture is active")
+
+
 def synchronize() -> None:
     """Waits for every command this process issued; raises the first asynchronous error."""
+    _refuse_during_capture()
     _runtime.get_runtime().synchronize()
 
 
 def synchronize_device(device=None) -> None:
     """Waits for the commands issued on `device` (weft: every device of this session)."""
-    if device is not None:
-        get_device(device)
+    device = get_device(device)
+    _refuse_during_capture(device)
     _runtime.get_runtime().synchronize()

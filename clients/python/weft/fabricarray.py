@@ -38,3 +38,15 @@ class indexedfabricarray(fabricarray):
         if fa is not None or indices is not None:
             raise RuntimeError(_NO_FABRIC)
         return _annotations.subscript(cls._family, (dtype, ndim if ndim is not None else 1))
+
+
+def fabricarrayarray(**kwargs):
+    """A Fabric array of arrays: `fabricarray(..., ndim=2)` (type only in weft)."""
+    kwargs["ndim"] = 2
+    return fabricarray(**kwargs)
+
+
+def indexedfabricarrayarray(**kwargs):
+    """An indexed Fabric array of arrays: `indexedfabricarray(..., ndim=2)` (type only in weft)."""
+    kwargs["ndim"] = 2
+    return indexedfabricarray(**kwargs)

@@ -35,6 +35,14 @@ def _cuda_device(device):
     return device
 
 
+def refuse_during_capture(device, what: str) -> None:
+    """Warp's error for a host wait inside a graph capture on `device` (this thread's)."""
+    from .graph import is_capturing  # noqa: PLC0415
+
+    if device is not None and device.is_cuda and is_capturing(device):
+        raise RuntimeError(f"Cannot synchronize {what} while graph capture is active on {device}")
+
+
 class Event:
     """A point in the session's command order on a device (Warp's wp.Event)."""
 
@@ -64,7 +72,14 @@ class Event:
         rt = _runtime.get_runtime()
         return not (rt._unsynchronized or rt._batch)
 
+    @property
+    def is_complete(self) -> bool:
+        """Warp's name for query(): True when the work before the last record is done (and
+        for an event never recorded)."""
+        return self.query()
+
     def synchronize(self) -> None:
+        refuse_during_capture(self.device, "event")
         if self._recorded and self._time is None:
             _runtime.get_runtime().synchronize_if_needed()
 
@@ -85,9 +100,37 @@ class Stream:
 
     def __init__(self, device=None, priority=0, cuda_stream=None, **_kwargs):
         self.device = _cuda_device(device)
-        self.priority = int(priority)
+        if not isinstance(priority, int) or isinstance(priority, bool):
+            raise TypeError(f"Stream priority must be an integer, got {type(priority).__name__}")
+        # Warp's two levels: high (-1) and normal (0), other values clamped. The daemon runs
+        # the session's commands on its one stream per device, so the level is kept, not used.
+        self.priority = min(max(priority, -1), 0)
         self._torch_stream = None
         self._foreign = None if cuda_stream is None else int(cuda_stream)
+        # streams weft names are blocking (as Warp's); a bound stream's flags are read on use
+        self._is_blocking = True if self._foreign is None else None
+
+    @property
+    def is_blocking(self) -> bool:
+        """Whether the stream synchronizes with the legacy default stream (Warp's streams
+        do); for a bound stream of this process, read from the driver once."""
+        if self._is_blocking is None:
+            from . import _cuda_ipc  # noqa: PLC0415
+            self._is_blocking = _cuda_ipc.stream_is_blocking(int(self.device.ordinal), self._foreign)
+        return self._is_blocking
+
+    @property
+    def is_complete(self) -> bool:
+        """True when the work queued on the stream so far is done (a bound stream: its own
+        work too)."""
+        if self._foreign is not None:
+            from . import _cuda_ipc  # noqa: PLC0415
+            if not _cuda_ipc.stream_is_idle(int(self.device.ordinal), self._foreign):
+                return False
+        # the session's part: nothing batched here and no GPU work queued since the last
+        # synchronize (what the client knows without asking the daemon)
+        rt = _runtime.get_runtime()
+        return not (rt._batch or rt._unsynchronized)
 
     @property
     def cuda_stream(self):
@@ -156,6 +199,7 @@ class Stream:
             _cuda_ipc.synchronize_stream(ordinal, other._foreign)
 
     def synchronize(self) -> None:
+        refuse_during_capture(self.device, "stream")
         if self._foreign is not None:
             from . import _cuda_ipc  # noqa: PLC0415
             _cuda_ipc.synchronize_stream(int(self.device.ordinal), self._foreign)
@@ -239,16 +283,29 @@ class ScopedStream:
 
 
 def synchronize_stream(stream_or_device=None) -> None:
+    if isinstance(stream_or_device, Stream):
+        stream_or_device.synchronize()
+        return
+    device = get_device(stream_or_device)
+    refuse_during_capture(device, "stream")
     _runtime.get_runtime().synchronize()
 
 
-def record_event(event=None) -> Event:
-    """Records `event` (a new one when None) on the current stream."""
+def record_event(event=None, external=False) -> Event:
+    """Records `event` (a new one when None) on the current stream. Inside a graph capture the
+    record is part of the captured order (`external=True`, Warp's event between two graphs,
+    needs nothing more: the session's graphs and commands run in order on one stream)."""
     device = event.device if event is not None else None
-    return get_stream(device).record_event(event)
+    stream = get_stream(device)
+    if external or stream.is_capturing:
+        if event is None:
+            event = Event(stream.device)
+        event._recorded = True
+        return event
+    return stream.record_event(event)
 
 
-def wait_event(event) -> None:
+def wait_event(event, external=False) -> None:
     get_stream(event.device).wait_event(event)
 
 

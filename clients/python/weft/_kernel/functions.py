@@ -42,7 +42,9 @@ class FunctionDefinition:
         self.tree = next(n for n in ast.parse(self.source).body
                          if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)))
         self.static_values: dict = {}     # name in source -> value of a wp.static(...) call
-        self.static_error = None          # a wp.static expression that failed (see _static_error)
+        # The first error this definition defers to the build of a module using it (a wp.static
+        # expression that fails, a parameter type kernels cannot take): see _defer_error.
+        self.build_error = None
         self._expand_static()
         self.param_names = [a.arg for a in self.tree.args.args]
         hints = self._annotations()
@@ -75,6 +77,13 @@ class FunctionDefinition:
                     raise WeftCompileError(
                         f"{self.file}:{self.first_line}: error: parameter '{name}' of "
                         f"'{self.name}': {err}") from err
+                continue
+            if getattr(ann, "_fabric_", False) is True:
+                # Declaring such a kernel is fine (Warp's test files declare them beside others);
+                # building it is the error, at the kernel's line.
+                self._defer_error(self.first_line, 1, f"parameter '{name}' of '{self.name}': "
+                                  f"{typestr.fabric_refusal(ann)}")
+                self.param_types.append("any")
                 continue
             try:
                 self.param_types.append(typestr.type_string(ann))
@@ -205,11 +214,15 @@ class FunctionDefinition:
         return f"{bind(st)}({fields})"
 
     def _static_error(self, call, message: str) -> None:
-        """A wp.static expression that fails here: the error is raised when a module using this
-        function is built (as Warp's at code generation), at the call's line."""
-        if self.static_error is None:
-            line = self.first_line + call.lineno - 1
-            self.static_error = f"{self.file}:{line}:{call.col_offset + 1}: error: {message}"
+        """A wp.static expression that fails here, reported at the call's line."""
+        self._defer_error(self.first_line + call.lineno - 1, call.col_offset + 1, message)
+
+    def _defer_error(self, line: int, column: int, message: str) -> None:
+        """An error raised when a module using this function is built (as Warp's at code
+        generation), at the given line: a wp.static expression that fails here, a parameter type
+        kernels cannot take. The first one is kept."""
+        if self.build_error is None:
+            self.build_error = f"{self.file}:{line}:{column}: error: {message}"
 
     def _annotations(self) -> dict:
         """The evaluated annotations; string annotations (PEP 563) are evaluated in the

@@ -229,6 +229,9 @@ def _closure_of(kernel: Kernel) -> _Closure:
                     structs.append(s)
         for function in resolution.functions:
             pending.extend(function.overloads)
+    for s in structs:
+        if s.build_error:
+            raise WeftCompileError(s.build_error)
     return _Closure(definitions, symbols, structs)
 
 

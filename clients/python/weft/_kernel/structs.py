@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import ctypes
+import inspect
 import re
 import typing
 
@@ -96,6 +97,14 @@ def _snapshot(inst: StructInstance) -> StructInstance:
     return out
 
 
+def _declared_at(cls) -> str:
+    """file:line of a class's declaration, or its module's name where the source is unknown."""
+    try:
+        return f"{inspect.getsourcefile(cls)}:{inspect.getsourcelines(cls)[1]}"
+    except (OSError, TypeError):
+        return cls.__module__
+
+
 class StructType:
     """The type object @wp.struct returns: call it to make an instance."""
 
@@ -109,7 +118,17 @@ class StructType:
         self.__doc__ = cls.__doc__
         annotations = typing.get_type_hints(cls) if _hints_are_strings(cls) else \
             dict(getattr(cls, "__annotations__", {}))
-        self.fields = [StructField(name, ann) for name, ann in annotations.items()]
+        # A Fabric array field makes a struct that can be declared but not used in a kernel: the
+        # field is left out and the error is raised when a module using the struct is built.
+        self.build_error = None
+        self.fields = []
+        for name, ann in annotations.items():
+            if getattr(ann, "_fabric_", False) is True:
+                if self.build_error is None:
+                    self.build_error = (f"{_declared_at(cls)}: error: struct field '{name}' of "
+                                        f"{self.key}: {typestr.fabric_refusal(ann)}")
+                continue
+            self.fields.append(StructField(name, ann))
         self._by_name = {f.name: f for f in self.fields}
 
     def __call__(self, **kwargs) -> StructInstance:

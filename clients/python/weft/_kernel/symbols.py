@@ -111,8 +111,8 @@ _OPERATOR_FUNCS = {ast.Add: "add", ast.Sub: "sub", ast.Mult: "mul", ast.MatMult:
 
 def resolve(definition: FunctionDefinition) -> Resolution:
     """Resolves the free names of one function definition (body, annotations, defaults)."""
-    if getattr(definition, "static_error", None):
-        raise WeftCompileError(definition.static_error)
+    if getattr(definition, "build_error", None):
+        raise WeftCompileError(definition.build_error)
     fdef = definition.tree
     collector = _Collector(_local_names(fdef))
     for arg in fdef.args.args + fdef.args.kwonlyargs:

@@ -240,6 +240,11 @@ def _scalar_name_of(obj) -> typing.Optional[str]:
     return None
 
 
+def fabric_refusal(obj) -> str:
+    """Why a Fabric array type cannot be a kernel parameter or field."""
+    return f"{obj!r}: weft does not support Fabric arrays in kernels"
+
+
 def type_string(obj) -> str:
     """The canonical type string of a type object used in an annotation, a struct field, a
     constructor or an array dtype. Raises TypeError when obj is not a type weft knows."""
@@ -248,7 +253,7 @@ def type_string(obj) -> str:
     if getattr(obj, "_weft_function_type_", False) and isinstance(obj, type):
         return "function"      # wp.Function: a parameter taking a @wp.func or builtin
     if getattr(obj, "_fabric_", False) is True:
-        raise TypeError(f"{obj!r}: weft does not support Fabric arrays in kernels")
+        raise TypeError(fabric_refusal(obj))
     if typing.get_origin(obj) is typing.Union or type(obj).__name__ == "UnionType":
         raise TypeError("Union type annotations are only supported at Python scope and are "
                         "invalid in Warp kernels/functions")
