@@ -1,6 +1,7 @@
 """Language: @wp.struct values as kernel arguments (scalar, vector, nested struct and array
 members), struct locals constructed and modified in a kernel, struct fields read through
-attribute chains, and Python-side instances with attribute access."""
+attribute chains, Python-side instances with attribute access, and Warp's `.to(device)` of
+instances (array members moved, indexed arrays as identity views, a field named "to" kept)."""
 import numpy as np
 import pytest
 
@@ -76,3 +77,50 @@ def test_struct_instance_python_side():
     assert b.material.stiffness == 4.0
     with pytest.raises(AttributeError):
         b.not_a_field = 1
+
+
+@wp.struct
+class Indexed:
+    values: wp.indexedarray(dtype=float)
+    scale: float
+
+
+@wp.struct
+class Holder:
+    body: Body
+    picked: Indexed
+    to: int                      # a field named like the method: reads stay the field's
+
+
+@wp.kernel
+def read_indexed(h: Holder, out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = h.picked.values[i] * h.picked.scale + float(h.to)
+
+
+def test_struct_to_moves_array_members(wp, rng):
+    devices = ["cpu"] + [d.alias for d in wp.get_cuda_devices() if d.is_compute_supported][:1]
+    values = rng.standard_normal(12).astype(np.float32)
+    index = np.sort(rng.choice(12, 5, replace=False)).astype(np.int32)
+    h = Holder()
+    h.body.positions = wp.array(rng.standard_normal((4, 3)), dtype=wp.vec3, device="cpu")
+    h.body.material.color = wp.vec3(1.0, 2.0, 3.0)
+    h.picked.values = wp.indexedarray(wp.array(values, device="cpu"), [wp.array(index, dtype=int, device="cpu")])
+    h.picked.scale = 2.0
+    h.to = 3
+    assert h.to == 3
+    same = h._to("cpu")          # (Holder has a field named "to": the method is _to)
+    assert same.body.positions is h.body.positions and same.picked.values is h.picked.values
+    assert same.body.material.color is not h.body.material.color
+    for device in devices[1:]:
+        moved = h._to(device)
+        assert moved.body.positions.device == device
+        np.testing.assert_array_equal(moved.body.positions.numpy(), h.body.positions.numpy())
+        assert isinstance(moved.picked.values, wp.indexedarray)
+        assert all(i is None for i in moved.picked.values.indices)
+        out = wp.zeros(5, dtype=float, device=device)
+        wp.launch(read_indexed, dim=5, inputs=[moved, out], device=device)
+        np.testing.assert_allclose(out.numpy(), values[index] * 2.0 + 3.0, rtol=1e-6)
+    plain = Body()
+    plain.positions = wp.zeros(2, dtype=wp.vec3, device="cpu")
+    assert plain.to("cpu").positions is plain.positions     # no field "to": the method

@@ -66,6 +66,25 @@ class StructInstance:
         inner = ", ".join(f"{k}={v!r}" for k, v in self._values.items())
         return f"{self._struct_type.cls.__name__}({inner})"
 
+    def _to(self, device) -> "StructInstance":
+        """A copy of the struct with its array members on `device` (Warp's StructInstance.to):
+        an array already there is referenced as it is, another is copied; an indexed array on
+        another device becomes an identity indexed array over a copy of the values it selects;
+        nested structs likewise, other fields copied."""
+        from weft.device import get_device  # noqa: PLC0415
+        return _moved(self, get_device(device))
+
+    class _FieldFirst:
+        """`inst.to`: the struct's own field of that name where it has one, else the method."""
+
+        def __get__(self, inst, owner):
+            if inst is None:
+                return owner._to
+            values = object.__getattribute__(inst, "_values")
+            return values["to"] if "to" in values else inst._to
+
+    to = _FieldFirst()
+
     def __ctype__(self) -> "StructCtype":
         """Warp's ctypes value of the struct: a snapshot of the fields as they are now (later
         assignments to this instance do not change it), which wp.Launch's
@@ -91,6 +110,26 @@ def _snapshot(inst: StructInstance) -> StructInstance:
     for name, value in inst._values.items():
         if isinstance(value, StructInstance):
             value = _snapshot(value)
+        elif isinstance(value, (_Composite, np.ndarray)):
+            value = copy.deepcopy(value)
+        out._values[name] = value
+    return out
+
+
+def _moved(inst: StructInstance, device) -> StructInstance:
+    from weft.array import array  # noqa: PLC0415
+    from weft.indexedarray import indexedarray  # noqa: PLC0415
+    from weft.types import _Composite  # noqa: PLC0415
+
+    out = StructInstance(inst._struct_type)
+    for name, value in inst._values.items():
+        if isinstance(value, StructInstance):
+            value = _moved(value, device)
+        elif isinstance(value, indexedarray):
+            if value.device is not None and value.device != device:
+                value = indexedarray(value.to(device))
+        elif isinstance(value, array):
+            value = value.to(device)
         elif isinstance(value, (_Composite, np.ndarray)):
             value = copy.deepcopy(value)
         out._values[name] = value
