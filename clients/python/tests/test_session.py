@@ -175,6 +175,50 @@ print(json.dumps({"address": r.address, "daemon_pid": r.daemon_pid,
                      or "zombie" in Path(f"/proc/{pid}/status").read_text().lower(), 10.0)
 
 
+def test_an_autostarted_daemon_keeps_compiled_modules_on_disk(weftd, client_env, daemon_path, tmp_path):
+    """As Warp's kernel cache: a second run, by a daemon started anew, compiles nothing."""
+    runtime_dir, cache_home = tempfile.mkdtemp(prefix="weft-xdg-"), tmp_path / "cache"
+    scale = float(np.random.default_rng().integers(2, 1000))
+    script = tmp_path / "cached_kernel.py"
+    script.write_text(f"""
+import json, numpy as np
+import weft as wp
+import weft._runtime as rt
+wp.config.verbose = True
+
+@wp.kernel
+def scale(a: wp.array(dtype=float)):
+    i = wp.tid()
+    a[i] = a[i] * {scale}
+
+a = wp.array(np.arange(4, dtype=np.float32))
+wp.launch(scale, dim=4, inputs=[a])
+print(json.dumps({{"pid": rt.get_runtime().daemon_pid, "values": a.numpy().tolist()}}))
+""")
+    env = client_env({"WEFT_ADDRESS": None, "WEFT_TOKEN": None, "WEFT_CACHE_DIR": None,
+                      "XDG_RUNTIME_DIR": runtime_dir, "XDG_CACHE_HOME": str(cache_home),
+                      "WEFT_DAEMON": str(daemon_path)})
+    runs = []
+    for _ in range(2):
+        proc = subprocess.run([sys.executable, str(script)], env=env, capture_output=True,
+                              text=True, timeout=90, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        lines = proc.stdout.strip().splitlines()
+        out = json.loads(lines[-1])
+        runs.append((out, [ln for ln in lines if "(compiled)" in ln]))
+        assert out["values"] == [scale * i for i in range(4)]
+        pid = out["pid"]
+        assert pid and pid != weftd.pid
+        os.kill(pid, signal.SIGTERM)             # the next run starts a daemon of its own
+        wait_for(lambda: not Path(f"/proc/{pid}").exists()
+                 or "zombie" in Path(f"/proc/{pid}/status").read_text().lower(), 10.0)
+    (first, compiled_first), (second, compiled_second) = runs
+    assert first["pid"] != second["pid"]
+    assert len(compiled_first) == 1 and compiled_second == []
+    cached = list((cache_home / "weft" / "modules").glob("*.wmod"))
+    assert cached and (cache_home / "weft" / "modules").stat().st_mode & 0o077 == 0
+
+
 def test_no_daemon_and_no_binary_is_a_clear_error(weftd, tmp_path, client_env):
     env = client_env({"WEFT_ADDRESS": None, "XDG_RUNTIME_DIR": str(tmp_path),
                       "WEFT_DAEMON": str(tmp_path / "missing-weftd"), "PATH": "/usr/bin:/bin"})

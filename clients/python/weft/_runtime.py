@@ -185,8 +185,25 @@ def find_daemon_binary() -> str | None:
     return str(beside) if beside.exists() else None
 
 
+def module_cache_dir() -> Path | None:
+    """The disk module cache an autostarted weftd keeps (as Warp's kernel cache, so a second run
+    compiles nothing): wp.config.kernel_cache_dir, else $WEFT_CACHE_DIR, else
+    $XDG_CACHE_HOME/weft/modules (~/.cache/weft/modules); None (memory only) when
+    wp.config.cache_kernels is False."""
+    from . import config  # noqa: PLC0415 - config is a leaf module
+
+    if not config.cache_kernels:
+        return None
+    chosen = config.kernel_cache_dir or os.environ.get("WEFT_CACHE_DIR")
+    if chosen:
+        return Path(chosen).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "weft" / "modules"
+
+
 def _start_local_daemon(socket_path: Path) -> None:
-    """Starts weftd in the background on `socket_path` and waits until it answers."""
+    """Starts weftd in the background on `socket_path` (with the disk module cache of
+    module_cache_dir()) and waits until it answers."""
     target = f"unix:{socket_path}"
     socket_path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
     lock_path = socket_path.parent / "weftd.start.lock"
@@ -204,8 +221,13 @@ def _start_local_daemon(socket_path: Path) -> None:
                             "does not exist or is not executable (WEFT_DAEMON / PATH)",
                             "UNAVAILABLE")
         log_path = socket_path.parent / "weftd.log"
+        argv = [binary, "--listen", target]
+        cache_dir = module_cache_dir()
+        if cache_dir is not None:
+            cache_dir.mkdir(mode=0o700, parents=True, exist_ok=True)
+            argv += ["--cache-dir", str(cache_dir)]
         with open(log_path, "ab") as log:
-            proc = subprocess.Popen([binary, "--listen", target], stdin=subprocess.DEVNULL,
+            proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL,
                                     stdout=log, stderr=subprocess.STDOUT,
                                     start_new_session=True, close_fds=True)
         deadline = time.monotonic() + DAEMON_START_TIMEOUT_S

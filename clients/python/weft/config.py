@@ -11,9 +11,11 @@ What weft does with them:
                        "Module NAME load on device DEV took T ms (compiled)".
   enable_vector_component_overwrites, optimization_level: sent with the module's options when
                        set away from their defaults (so they are part of its cache key).
-The daemon owns the module cache (weftd --cache-dir), so cache_kernels and kernel_cache_dir
-are kept but change nothing; CUDA, tile, mathdx and memory-pool settings are accepted and have
-no effect on the CPU daemon.
+The daemon owns the module cache (weftd --cache-dir). A weftd the client starts itself gets a
+disk cache: kernel_cache_dir, else $WEFT_CACHE_DIR, else ~/.cache/weft/modules, or none (memory
+only) with cache_kernels = False; a daemon started otherwise keeps its own setting. CUDA, tile,
+mathdx settings are accepted and change nothing; enable_mempools_at_init is the default of the GPU
+pools' switch (weft/mempool.py).
 """
 import sys as _sys
 import types as _types
