@@ -2,7 +2,12 @@
 analytic references (including large magnitudes), jax.vmap (batched and sequential), input-output
 arrays, Python callables that launch kernels, wrapper caching, and the errors a caller can cause
 (traced scalars, duplicate or misplaced in-out names, oversized launches, per-call overrides of a
-differentiable wrapper, CUDA-only graph modes on the CPU)."""
+differentiable wrapper, CUDA-only graph modes on the CPU), and jax.shard_map's varying mesh axes
+kept through a call."""
+import subprocess
+import sys
+import textwrap
+
 import numpy as np
 import pytest
 
@@ -134,3 +139,41 @@ def test_errors_a_caller_can_cause(jax, rng):
     c = wp.jax_callable(double_then_add, graph_mode=wp.JaxCallableGraphMode.WARP)
     with _cpu(jax), pytest.raises(Exception, match="WARP.*CPU"):
         jax.block_until_ready(jax.jit(c)(a, a))
+
+
+def test_outputs_keep_the_inputs_varying_mesh_axes_under_shard_map(jax, client_env, tmp_path):
+    """Inside jax.shard_map (check_vma), a call's outputs vary over the mesh axes its inputs vary
+    over, as an XLA FFI call's do: a lax.scan carry through the call keeps its type. Run in a
+    child with two host devices; wp.device_to_jax gives this process's own CPU device."""
+    if not hasattr(jax, "shard_map") or not hasattr(jax.lax, "pcast"):
+        pytest.skip("this JAX has no shard_map / lax.pcast")
+    script = tmp_path / "shard_map_scan.py"
+    script.write_text(textwrap.dedent("""
+        import numpy as np, jax, jax.numpy as jp
+        import weft as wp
+
+        @wp.kernel
+        def twice(a: wp.array(dtype=float), out: wp.array(dtype=float)):
+            i = wp.tid()
+            out[i] = 2.0 * a[i]
+
+        def twice_callable(a: wp.array(dtype=float), out: wp.array(dtype=float)):
+            wp.launch(twice, dim=a.shape, inputs=[a, out], device="cpu")
+
+        devices = jax.local_devices(backend="cpu")
+        assert wp.device_to_jax("cpu") == devices[0]
+        mesh = jax.sharding.Mesh(np.array(devices[:2]), ("replicas",))
+        spec = jax.sharding.PartitionSpec("replicas")
+        for call in (wp.jax_kernel(twice, num_outputs=1), wp.jax_callable(twice_callable, num_outputs=1)):
+            @jax.shard_map(mesh=mesh, in_specs=spec, out_specs=spec, check_vma=True)
+            def scan_twice(x):
+                return jax.lax.scan(lambda c, _: (call(c)[0], None), x, None, length=3)[0]
+            x = np.random.default_rng().standard_normal(64).astype(np.float32)
+            np.testing.assert_allclose(np.asarray(scan_twice(jp.asarray(x))), 8.0 * x, rtol=1e-6)
+        print("ok")
+    """))
+    env = client_env({"XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"})
+    proc = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip().endswith("ok")

@@ -56,18 +56,23 @@ def device_from_jax(jax_device):
 
 
 def device_to_jax(device):
-    """The JAX device of a weft device."""
+    """The JAX device of a weft device, among this process's JAX devices (so a process of a
+    jax.distributed program gets its own: its CPU, or the local GPU of the same ordinal)."""
     from ..device import get_device  # noqa: PLC0415
 
     device = get_device(device)
     jax = _jax()
-    if device.is_cpu:
-        return jax.devices("cpu")[0]
+    try:
+        local = jax.local_devices(backend="cuda" if device.is_cuda else "cpu")
+    except RuntimeError:
+        local = []
     if device.is_cuda:
-        for d in jax.devices("gpu"):
+        for d in local:
             if getattr(d, "local_hardware_id", d.id) == device.ordinal:
                 return d
-    raise RuntimeError(f"weft device {device} has no JAX device")
+    elif device.is_cpu and local:
+        return local[0]
+    raise RuntimeError(f"weft device {device} has no JAX device in this process")
 
 
 def from_jax(jax_array, dtype=None):

@@ -200,7 +200,8 @@ class _Wrapper:
 
         method = vmap_method or self.vmap_method or "broadcast_all"
         method = "sequential" if method == "sequential_unrolled" else method
-        return tuple(jax.pure_callback(host, tuple(specs), *[args[i] for i in arrays], vmap_method=method))
+        inputs = [args[i] for i in arrays]
+        return _varying_as(inputs, jax.pure_callback(host, tuple(specs), *inputs, vmap_method=method))
 
     def _run_batched(self, run, launch_dims, specs, arrays, base_ndims, host_arrays, scalars):
         """Runs once per element of the leading batch axes jax.vmap adds (none outside vmap)."""
@@ -353,11 +354,30 @@ class FfiKernel(_Wrapper):
             def host(*host_arrays):
                 return self._run_batched(run, launch_dims, grad_specs, where, base_ndims, host_arrays, scalars)
 
-            return tuple(jax.pure_callback(host, tuple(grad_specs), *xs, *cotangents,
-                                           vmap_method="broadcast_all"))
+            return _varying_as([*xs, *cotangents], jax.pure_callback(
+                host, tuple(grad_specs), *xs, *cotangents, vmap_method="broadcast_all"))
 
         apply.defvjp(apply_fwd, apply_bwd)
         return tuple(apply(*[args[i] for i in positions]))
+
+
+def _varying_as(inputs, outputs) -> tuple:
+    """The callback's outputs, varying over every manual mesh axis an input varies over (inside
+    jax.shard_map with check_vma, as an XLA FFI call's outputs are; pure_callback's are not):
+    without it a lax.scan carry through the call changes type."""
+    jax = _jax()
+    axes = set()
+    for x in inputs:
+        manual = getattr(jax.typeof(x), "manual_axis_type", None) if hasattr(jax, "typeof") else None
+        axes |= set(getattr(manual, "varying", ()) or ())
+    if not axes or not hasattr(jax.lax, "pcast"):
+        return tuple(outputs)
+    out = []
+    for y in outputs:
+        have = set(getattr(getattr(jax.typeof(y), "manual_axis_type", None), "varying", ()) or ())
+        missing = tuple(sorted(axes - have))
+        out.append(jax.lax.pcast(y, missing, to="varying") if missing else y)
+    return tuple(out)
 
 
 class FfiCallable(_Wrapper):
