@@ -110,14 +110,16 @@ WP_FUNC bool claim_error(launch_error_t* e, int32 kind) {
   return __atomic_compare_exchange_n(&e->kind, &expected, kind, false, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE);
 #endif
 }
-// Threads per block of this launch: blockDim.x on CUDA; on the CPU the block's lanes
-// (wp.config.enable_cpu_blocks), else 1 (one thread at a time).
+// Threads per block of this launch: blockDim.x on CUDA; on the CPU the block's lanes, or the
+// launch's block_dim for a kernel without tiles (wp.config.enable_cpu_blocks, 2..1024), else 1.
 WP_FUNC int32 block_dim(const launch_context_t* ctx) {
 #if WP_DEVICE_CODE
   (void)ctx;
   return (int32)blockDim.x;
 #else
-  return ctx && ctx->lanes ? ctx->lanes->dim : 1;
+  if (!ctx) return 1;
+  if (ctx->lanes) return ctx->lanes->dim;
+  return ctx->block_dim > 1 && ctx->block_dim <= 1024 ? (int32)ctx->block_dim : 1;
 #endif
 }
 // True once some thread of this launch reported an error (kernels may stop early).

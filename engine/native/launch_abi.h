@@ -107,7 +107,10 @@ struct launch_context_t {
   launch_error_t* error;
   print_buffer_t* print;
   uint32 flags;          // LAUNCH_FLAG_*
-  uint32 _pad;
+  // CPU: the launch's block_dim under wp.config.enable_cpu_blocks (what wp.block_dim() gives a
+  // kernel that runs one thread per block because its module has no tiles); 0 otherwise.
+  // GPUs read blockDim.x instead.
+  uint32 block_dim;
   // Non-zero once the launch must stop (its session closed, or its time limit passed); the
   // runtime sets it, loops in generated code poll it (cg_loop_poll). Null: never cancelled.
   // On a GPU it must be null or point at memory the device can read (mapped host memory).

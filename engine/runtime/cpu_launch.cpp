@@ -113,6 +113,7 @@ Status RunCpuLaunch(ThreadPool& pool, const CpuLaunch& l, std::string* output) {
   wp::print_buffer_t print{print_data.get(), l.print_capacity, 0};
   ctx.print = &print;
   ctx.flags = l.bounds_checks ? 0u : wp::LAUNCH_FLAG_NO_BOUNDS_CHECK;
+  ctx.block_dim = l.block_dim;   // wp.block_dim() of a kernel without lanes (native/array.h)
   ctx.cancel = reinterpret_cast<const wp::int32*>(l.cancel);
   ctx.geometry = l.geometry;
 

@@ -199,9 +199,14 @@ def test_stream_attributes_as_warp(wp, cuda):
         stream.record_event(event)
         wp.synchronize_stream(stream)
         assert stream.is_complete and event.is_complete
+    a.fill_(3.0)                                              # a loop polling for completion ends
+    polls = 0
+    while not stream.is_complete:
+        polls += 1
+        assert polls < 3
     b = wp.empty_like(a)
     wp.copy(b, a, stream=stream)
-    np.testing.assert_array_equal(b.numpy(), 2.0)
+    np.testing.assert_array_equal(b.numpy(), 3.0)
     with pytest.raises(TypeError, match="must be a wp.Stream"):
         wp.copy(b, a, stream="cuda:0")
 

@@ -70,7 +70,9 @@ class Device:
         """Warp's legacy default stream of the device: for a weft client the session's stream
         too (every wp.Stream of a device names it, weft/streams.py)."""
         from .streams import Stream  # noqa: PLC0415
-        return Stream(self)
+        if getattr(self, "_null_stream", None) is None:
+            self._null_stream = Stream(self)
+        return self._null_stream
 
     @property
     def is_capturing(self) -> bool:

@@ -35,6 +35,23 @@ def _cuda_device(device):
     return device
 
 
+def _session_work_done(asker) -> bool:
+    """Whether the session's queued work is done, for Stream.is_complete and Event.query. The
+    client cannot see the daemon's stream without a round trip: work queued since the last
+    synchronize answers False once per asking stream or event (it may well be running), and
+    when that one asks again with nothing new queued, the answer waits for the work (a
+    synchronize) and is True, so a loop that polls until completion ends."""
+    rt = _runtime.get_runtime()
+    if not (rt._batch or rt._unsynchronized):
+        return True
+    mark = (id(rt), rt.work_queued)
+    if getattr(asker, "_unfinished_mark", None) == mark:
+        rt.synchronize_if_needed()
+        return True
+    asker._unfinished_mark = mark
+    return False
+
+
 def refuse_during_capture(device, what: str) -> None:
     """Warp's error for a host wait inside a graph capture on `device` (this thread's)."""
     from .graph import is_capturing  # noqa: PLC0415
@@ -69,8 +86,7 @@ class Event:
         """True when the work before the last record is done (always after a timed record)."""
         if not self._recorded or self._time is not None:
             return True
-        rt = _runtime.get_runtime()
-        return not (rt._unsynchronized or rt._batch)
+        return _session_work_done(self)
 
     @property
     def is_complete(self) -> bool:
@@ -122,15 +138,12 @@ class Stream:
     @property
     def is_complete(self) -> bool:
         """True when the work queued on the stream so far is done (a bound stream: its own
-        work too)."""
+        work too); see _session_work_done for what a weft client can know."""
         if self._foreign is not None:
             from . import _cuda_ipc  # noqa: PLC0415
             if not _cuda_ipc.stream_is_idle(int(self.device.ordinal), self._foreign):
                 return False
-        # the session's part: nothing batched here and no GPU work queued since the last
-        # synchronize (what the client knows without asking the daemon)
-        rt = _runtime.get_runtime()
-        return not (rt._batch or rt._unsynchronized)
+        return _session_work_done(self)
 
     @property
     def cuda_stream(self):

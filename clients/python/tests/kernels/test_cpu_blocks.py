@@ -6,7 +6,8 @@ add is done once per block (not once per lane), gradients of gathered values rea
 the launch's last block may be short, and wp.block_dim() is the block's size. Checked on fresh
 random data against NumPy. Attacks: block_dim above 1024; lanes that leave the kernel early or
 take different branches around tile ops (no hang, the daemon goes on); the largest block
-(1024 lanes) with tiles on every lane's stack; the setting off: one thread per block."""
+(1024 lanes) with tiles on every lane's stack; the setting off: one thread per block; a kernel
+without tiles sees the launch's block_dim in wp.block_dim()."""
 import numpy as np
 import pytest
 
@@ -363,3 +364,23 @@ def test_a_launch_with_another_block_dim_than_compiled_is_refused(monkeypatch):
     wp.launch(gather_lanes, dim=B, inputs=[x, wp.zeros(B, dtype=float), wp.zeros(1, dtype=float), own,
                                            wp.zeros(B, dtype=int)], block_dim=B)
     assert own.numpy().tolist() == [6.0] * B
+
+
+@wp.kernel
+def block_size_without_tiles(x: wp.array[float], out: wp.array[float], dims: wp.array[int]):
+    i = wp.tid()
+    out[i] = x[i] * float(wp.block_dim())
+    dims[i] = wp.block_dim()
+
+
+def test_block_dim_of_a_kernel_without_tiles_is_the_launchs(rng, monkeypatch):
+    # Warp's rule: with the setting on, wp.block_dim() is the launch's block_dim even where the
+    # module has no tiles (weft then runs its threads one at a time, not as lanes)
+    n = 200
+    xs = rng.standard_normal(n).astype(np.float32)
+    for block_dim, on, expected in ((64, True, 64), (1024, True, 1024), (None, True, 1), (64, False, 1)):
+        monkeypatch.setattr(wp.config, "enable_cpu_blocks", on)
+        out, dims = wp.zeros(n, dtype=float), wp.zeros(n, dtype=int)
+        wp.launch(block_size_without_tiles, dim=n, inputs=[wp.array(xs), out, dims], block_dim=block_dim)
+        assert set(dims.numpy().tolist()) == {expected}
+        np.testing.assert_array_equal(out.numpy(), xs * np.float32(expected))

@@ -815,9 +815,9 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
                                     device=device),
             origin=caller_origin())
     if lanes > 1:                             # cooperative CPU blocks: the kernel's lanes
-        command.launch.block_dim = lanes
-    elif block_dim and block_dim > 0 and block_dim != 256:   # GPU launch geometry (Warp's options)
-        command.launch.block_dim = int(block_dim)
+        command.launch.block_dim = lanes      # (also what wp.block_dim() gives a kernel without tiles)
+    elif block_dim and block_dim > 0 and block_dim != 256 and device != "cpu":
+        command.launch.block_dim = int(block_dim)   # GPU launch geometry (Warp's options)
     if max_blocks:
         command.launch.max_blocks = int(max_blocks)
     rt.submit(command)
