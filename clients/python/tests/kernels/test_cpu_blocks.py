@@ -7,7 +7,8 @@ the launch's last block may be short, and wp.block_dim() is the block's size. Ch
 random data against NumPy. Attacks: block_dim above 1024; lanes that leave the kernel early or
 take different branches around tile ops (no hang, the daemon goes on); the largest block
 (1024 lanes) with tiles on every lane's stack; the setting off: one thread per block; a kernel
-without tiles sees the launch's block_dim in wp.block_dim()."""
+without tiles sees the launch's block_dim in wp.block_dim(), and a forged block_dim never
+reaches it outside Warp's range."""
 import numpy as np
 import pytest
 
@@ -384,3 +385,25 @@ def test_block_dim_of_a_kernel_without_tiles_is_the_launchs(rng, monkeypatch):
         wp.launch(block_size_without_tiles, dim=n, inputs=[wp.array(xs), out, dims], block_dim=block_dim)
         assert set(dims.numpy().tolist()) == {expected}
         np.testing.assert_array_equal(out.numpy(), xs * np.float32(expected))
+
+
+def test_a_forged_block_dim_never_reaches_a_kernel_without_lanes(rng, monkeypatch):
+    """A client that sends any block_dim for a CPU launch of a kernel compiled without lanes:
+    wp.block_dim() stays within Warp's range (1 outside 2..1024), the session goes on."""
+    import importlib
+
+    launch_mod = importlib.import_module("weft._kernel.launch")
+    plan = launch_mod._launch_plan
+    n = 50
+    xs = rng.standard_normal(n).astype(np.float32)
+    for forged in (5000, 2**31 - 1, 2**32 - 1):
+        monkeypatch.setattr(launch_mod, "_launch_plan", lambda k, d, rt, lanes=1: plan(k, d, rt, 1))
+        monkeypatch.setattr(launch_mod, "cpu_lanes", lambda device, block_dim, f=forged: f)
+        out, dims = wp.zeros(n, dtype=float), wp.zeros(n, dtype=int)
+        wp.launch(block_size_without_tiles, dim=n, inputs=[wp.array(xs), out, dims], block_dim=64)
+        assert set(dims.numpy().tolist()) == {1}
+        monkeypatch.undo()
+    monkeypatch.setattr(wp.config, "enable_cpu_blocks", True)
+    dims = wp.zeros(n, dtype=int)
+    wp.launch(block_size_without_tiles, dim=n, inputs=[wp.array(xs), wp.zeros(n, dtype=float), dims], block_dim=32)
+    assert set(dims.numpy().tolist()) == {32}
