@@ -12,8 +12,9 @@ on reports pool support, and the pool API answers for the session:
 - get/set_mempool_release_threshold keep the value with Warp's rules (negative -> 0, a fraction
   in (0, 1] of the device's memory); weftd returns a session's empty slabs to the driver under
   its own bound (docs/cuda.md), which the value does not change.
-- get_mempool_used_mem_current / _high: bytes of the arrays this client process holds on the
-  device (live now / the most at any time), counted where the daemon allocates them.
+- get_mempool_used_mem_current / _high: bytes of the arrays this client process created on the
+  device and still holds (live now / the most at any time; their gradient buffers are not
+  counted), counted where the daemon allocates them.
 A device always reaches its own memory (peer and pool access to itself: True, setting it is a
 no-op); between two GPUs weftd copies itself (peer copies where the GPUs allow them, staged
 otherwise) and a client never maps another GPU's memory, so no pair of different devices has
