@@ -429,20 +429,13 @@ def _stream_call(rt, method, iterator):
         raise _runtime.error_from_rpc(err) from None
 
 
-def _byte_size_for_message(dtype, shape) -> int:
-    try:
-        return int(types.type_size_in_bytes(dtype)) * math.prod(int(n) for n in shape)
-    except (TypeError, ValueError, AttributeError):
-        return 0
-
-
 def _create(dtype, shape, device, requires_grad, init, value=b""):
     rt = _runtime.get_runtime()
     rt.drain_frees()
     if rt.captures and device.is_cuda:
         from .graph import is_capturing  # noqa: PLC0415
         if is_capturing(device):
-            refused = _mempool.capture_allocation_error(device, _byte_size_for_message(dtype, shape))
+            refused = _mempool.capture_allocation_error(device, _elem_size(dtype) * math.prod(shape))
             if refused is not None:
                 raise refused
     ap = _runtime.array_pb2

@@ -252,24 +252,16 @@ class ScopedDevice:
         _state.stack.pop()
 
 
-def _refuse_during_capture(device=None) -> None:
-    """Warp's error for a host wait while this thread captures a graph (on `device`; on any
-    device when None)."""
-    from .graph import is_capturing  # noqa: PLC0415
-
-    if is_capturing(device):
-        where = device if device is not None else "the capturing device"
-        raise RuntimeError(f"Cannot synchronize device {where} while graph capture is active")
-
-
 def synchronize() -> None:
     """Waits for every command this process issued; raises the first asynchronous error."""
-    _refuse_during_capture()
+    from .graph import refuse_host_wait  # noqa: PLC0415
+    refuse_host_wait("device")
     _runtime.get_runtime().synchronize()
 
 
 def synchronize_device(device=None) -> None:
     """Waits for the commands issued on `device` (weft: every device of this session)."""
     device = get_device(device)
-    _refuse_during_capture(device)
+    from .graph import refuse_host_wait  # noqa: PLC0415
+    refuse_host_wait("device", device)
     _runtime.get_runtime().synchronize()

@@ -191,6 +191,14 @@ def is_capturing(device=None) -> bool:
     return device is None or get_device(device) == capture.graph.device
 
 
+def refuse_host_wait(what: str, device=None) -> None:
+    """Warp's error for a host wait (`what`: "device", "stream", "event") while this thread
+    captures a graph on `device` (on any device when None)."""
+    if _runtime.get_runtime().captures and is_capturing(device):
+        where = f" {device}" if device is not None else ""
+        raise RuntimeError(f"Cannot synchronize {what}{where} while graph capture is active")
+
+
 def capture_begin(device=None, stream=None, force_module_load=None, external=False,
                   apic=False, capture_mode=None):
     """Starts recording this thread's commands for `device` (or `stream`'s device)."""

@@ -78,14 +78,10 @@ def is_mempool_enabled(device=None) -> bool:
 
 
 def set_mempool_enabled(device, enable: bool) -> None:
-    d = get_device(device)
-    if not d.is_cuda:
-        if enable:
-            raise ValueError("Memory pools are only supported on CUDA devices")
-        return
-    if enable and not d.is_mempool_supported:
-        raise RuntimeError(f"Device {d} does not support memory pools")
-    _enabled[d.alias] = bool(enable)
+    """Disabling is accepted on any device (as in Warp); enabling needs a pool."""
+    d = _pool_device(device) if enable else get_device(device)
+    if d.is_cuda:
+        _enabled[d.alias] = bool(enable)
 
 
 def capture_allocation_error(device, nbytes: int):

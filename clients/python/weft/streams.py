@@ -21,6 +21,7 @@ import time
 
 from . import _runtime
 from .device import get_device
+from .graph import is_capturing, refuse_host_wait
 
 __all__ = ["Stream", "Event", "get_stream", "set_stream", "ScopedStream", "synchronize_stream",
            "synchronize_event", "record_event", "wait_event", "wait_stream",
@@ -50,14 +51,6 @@ def _session_work_done(asker) -> bool:
         return True
     asker._unfinished_mark = mark
     return False
-
-
-def refuse_during_capture(device, what: str) -> None:
-    """Warp's error for a host wait inside a graph capture on `device` (this thread's)."""
-    from .graph import is_capturing  # noqa: PLC0415
-
-    if device is not None and device.is_cuda and is_capturing(device):
-        raise RuntimeError(f"Cannot synchronize {what} while graph capture is active on {device}")
 
 
 class Event:
@@ -95,7 +88,7 @@ class Event:
         return self.query()
 
     def synchronize(self) -> None:
-        refuse_during_capture(self.device, "event")
+        refuse_host_wait("event", self.device)
         if self._recorded and self._time is None:
             _runtime.get_runtime().synchronize_if_needed()
 
@@ -166,7 +159,6 @@ class Stream:
     @property
     def is_capturing(self) -> bool:
         """Whether this thread is capturing a graph on the stream's device."""
-        from .graph import is_capturing  # noqa: PLC0415
         return is_capturing(self.device)
 
     def record_event(self, event=None) -> Event:
@@ -212,7 +204,7 @@ class Stream:
             _cuda_ipc.synchronize_stream(ordinal, other._foreign)
 
     def synchronize(self) -> None:
-        refuse_during_capture(self.device, "stream")
+        refuse_host_wait("stream", self.device)
         if self._foreign is not None:
             from . import _cuda_ipc  # noqa: PLC0415
             _cuda_ipc.synchronize_stream(int(self.device.ordinal), self._foreign)
@@ -300,7 +292,7 @@ def synchronize_stream(stream_or_device=None) -> None:
         stream_or_device.synchronize()
         return
     device = get_device(stream_or_device)
-    refuse_during_capture(device, "stream")
+    refuse_host_wait("stream", device)
     _runtime.get_runtime().synchronize()
 
 

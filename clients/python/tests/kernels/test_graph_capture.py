@@ -4,7 +4,7 @@ capture; zeros/full made inside a capture are reset by each replay; a tape recor
 capture replays its backward (a gradient-descent step captured whole matches a float64
 reference); a graph keeps the arrays it names; capture_if/capture_while; errors in replayed
 commands carry the captured launch's file:line; a tampered graph command is refused by the
-daemon like any command."""
+daemon like any command; a host wait inside a capture is Warp's error and the capture goes on."""
 import gc
 import inspect
 import re
@@ -88,6 +88,19 @@ def test_capture_begin_end_and_misuse(device):
     with pytest.raises(TypeError, match="wp.Graph"):
         wp.capture_launch("graph")
     assert wp.is_conditional_graph_supported() is False
+
+
+def test_host_waits_inside_a_capture_are_refused_and_the_capture_goes_on(device):
+    x = wp.zeros(4)
+    with wp.ScopedCapture() as capture:
+        x.fill_(2.0)
+        for wait in (wp.synchronize, lambda: wp.synchronize_device(device)):
+            with pytest.raises(RuntimeError, match="Cannot synchronize device.* while graph capture is active"):
+                wait()
+    wp.synchronize()                       # outside the capture: a host wait again
+    np.testing.assert_array_equal(x.numpy(), 0.0)
+    wp.capture_launch(capture.graph)
+    np.testing.assert_array_equal(x.numpy(), 2.0)
 
 
 def test_zeros_made_in_a_capture_start_from_zero_at_each_replay(rng, device):

@@ -231,6 +231,7 @@ def test_unions_fabric_and_tiles_are_refused_in_kernels(kernel_module, device):
     """)
     with pytest.raises(RuntimeError, match=r"\.py:\d+:1: error: parameter 'a' of 'k': .*Fabric arrays"):
         wp.launch(fabric.k, dim=1, inputs=[wp.zeros(1, dtype=float, device=device)], device=device)
+    assert wp.overload(fabric.k, [wp.fabricarray[float]]) is fabric.k   # no Fabric instance
     out = wp.zeros(3, dtype=float, device=device)
     wp.launch(fabric.sibling, dim=3, inputs=[out], device=device)
     assert out.numpy().tolist() == [2.0, 2.0, 2.0]

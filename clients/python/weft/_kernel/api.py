@@ -207,11 +207,13 @@ def overload(target, arg_types=None):
         if isinstance(arg_types, dict):
             arg_types = [arg_types.get(n, a) for n, a in
                          zip(target.param_names, target.definition.annotations.values())]
-        if any(getattr(t, "_fabric_", False) is True for t in arg_types):
+        try:
+            type_strings = [typestr.type_string(t) for t in arg_types]
+        except typestr.FabricArrayRefused:
             # no instance over Fabric arrays: they cannot be made in weft (weft/fabricarray.py),
             # and a kernel declared with them reports the refusal when it is built
             return target
-        return target.specialize([typestr.type_string(t) for t in arg_types], list(arg_types))
+        return target.specialize(type_strings, list(arg_types))
     if isinstance(target, Function):
         return target
     if callable(target):

@@ -78,15 +78,11 @@ class FunctionDefinition:
                         f"{self.file}:{self.first_line}: error: parameter '{name}' of "
                         f"'{self.name}': {err}") from err
                 continue
-            if getattr(ann, "_fabric_", False) is True:
-                # Declaring such a kernel is fine (Warp's test files declare them beside others);
-                # building it is the error, at the kernel's line.
-                self._defer_error(self.first_line, 1, f"parameter '{name}' of '{self.name}': "
-                                  f"{typestr.fabric_refusal(ann)}")
-                self.param_types.append("any")
-                continue
             try:
                 self.param_types.append(typestr.type_string(ann))
+            except typestr.FabricArrayRefused as err:
+                self._defer_error(self.first_line, 1, f"parameter '{name}' of '{self.name}': {err}")
+                self.param_types.append("any")
             except TypeError as err:
                 raise WeftCompileError(
                     f"{self.file}:{self.first_line}: error: parameter '{name}' of "

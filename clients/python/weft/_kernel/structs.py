@@ -72,7 +72,7 @@ class StructInstance:
         another device becomes an identity indexed array over a copy of the values it selects;
         nested structs likewise, other fields copied."""
         from weft.device import get_device  # noqa: PLC0415
-        return _moved(self, get_device(device))
+        return _snapshot(self, get_device(device))
 
     class _FieldFirst:
         """`inst.to`: the struct's own field of that name where it has one, else the method."""
@@ -102,21 +102,10 @@ class StructCtype(ctypes.Structure):
     _fields_ = ()
 
 
-def _snapshot(inst: StructInstance) -> StructInstance:
-    """A copy of a struct instance: nested structs, vectors and matrices copied, arrays shared."""
-    from weft.types import _Composite  # noqa: PLC0415
-
-    out = StructInstance(inst._struct_type)
-    for name, value in inst._values.items():
-        if isinstance(value, StructInstance):
-            value = _snapshot(value)
-        elif isinstance(value, (_Composite, np.ndarray)):
-            value = copy.deepcopy(value)
-        out._values[name] = value
-    return out
-
-
-def _moved(inst: StructInstance, device) -> StructInstance:
+def _snapshot(inst: StructInstance, device=None) -> StructInstance:
+    """A copy of a struct instance: nested structs, vectors and matrices copied, arrays shared;
+    with `device`, array members not on it copied there (an indexed array as an identity
+    indexed array over the values it selects)."""
     from weft.array import array  # noqa: PLC0415
     from weft.indexedarray import indexedarray  # noqa: PLC0415
     from weft.types import _Composite  # noqa: PLC0415
@@ -124,14 +113,13 @@ def _moved(inst: StructInstance, device) -> StructInstance:
     out = StructInstance(inst._struct_type)
     for name, value in inst._values.items():
         if isinstance(value, StructInstance):
-            value = _moved(value, device)
-        elif isinstance(value, indexedarray):
-            if value.device is not None and value.device != device:
-                value = indexedarray(value.to(device))
-        elif isinstance(value, array):
-            value = value.to(device)
+            value = _snapshot(value, device)
         elif isinstance(value, (_Composite, np.ndarray)):
             value = copy.deepcopy(value)
+        elif device is not None and isinstance(value, (array, indexedarray)) and \
+                value.device is not None and value.device != device:
+            moved = value.to(device)
+            value = indexedarray(moved) if isinstance(value, indexedarray) else moved
         out._values[name] = value
     return out
 
@@ -162,12 +150,12 @@ class StructType:
         self.build_error = None
         self.fields = []
         for name, ann in annotations.items():
-            if getattr(ann, "_fabric_", False) is True:
+            try:
+                self.fields.append(StructField(name, ann))
+            except typestr.FabricArrayRefused as err:
                 if self.build_error is None:
                     self.build_error = (f"{_declared_at(cls)}: error: struct field '{name}' of "
-                                        f"{self.key}: {typestr.fabric_refusal(ann)}")
-                continue
-            self.fields.append(StructField(name, ann))
+                                        f"{self.key}: {err}")
         self._by_name = {f.name: f for f in self.fields}
 
     def __call__(self, **kwargs) -> StructInstance:

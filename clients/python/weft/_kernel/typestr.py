@@ -240,9 +240,10 @@ def _scalar_name_of(obj) -> typing.Optional[str]:
     return None
 
 
-def fabric_refusal(obj) -> str:
-    """Why a Fabric array type cannot be a kernel parameter or field."""
-    return f"{obj!r}: weft does not support Fabric arrays in kernels"
+class FabricArrayRefused(TypeError):
+    """type_string of a Fabric array type: such a kernel parameter or struct field can be
+    declared (Warp's test files declare them beside other kernels), and the refusal is raised
+    when a module using it is built."""
 
 
 def type_string(obj) -> str:
@@ -253,7 +254,7 @@ def type_string(obj) -> str:
     if getattr(obj, "_weft_function_type_", False) and isinstance(obj, type):
         return "function"      # wp.Function: a parameter taking a @wp.func or builtin
     if getattr(obj, "_fabric_", False) is True:
-        raise TypeError(fabric_refusal(obj))
+        raise FabricArrayRefused(f"{obj!r}: weft does not support Fabric arrays in kernels")
     if typing.get_origin(obj) is typing.Union or type(obj).__name__ == "UnionType":
         raise TypeError("Union type annotations are only supported at Python scope and are "
                         "invalid in Warp kernels/functions")

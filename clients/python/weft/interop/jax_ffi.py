@@ -366,16 +366,16 @@ def _varying_as(inputs, outputs) -> tuple:
     jax.shard_map with check_vma, as an XLA FFI call's outputs are; pure_callback's are not):
     without it a lax.scan carry through the call changes type."""
     jax = _jax()
-    axes = set()
-    for x in inputs:
-        manual = getattr(jax.typeof(x), "manual_axis_type", None) if hasattr(jax, "typeof") else None
-        axes |= set(getattr(manual, "varying", ()) or ())
-    if not axes or not hasattr(jax.lax, "pcast"):
+    if not (hasattr(jax, "typeof") and hasattr(jax.lax, "pcast")):     # JAX before varying axes
         return tuple(outputs)
+
+    def varying(x) -> set:
+        return set(getattr(getattr(jax.typeof(x), "manual_axis_type", None), "varying", ()) or ())
+
+    axes = set().union(*(varying(x) for x in inputs))
     out = []
     for y in outputs:
-        have = set(getattr(getattr(jax.typeof(y), "manual_axis_type", None), "varying", ()) or ())
-        missing = tuple(sorted(axes - have))
+        missing = tuple(sorted(axes - varying(y)))
         out.append(jax.lax.pcast(y, missing, to="varying") if missing else y)
     return tuple(out)
 
