@@ -130,6 +130,7 @@ class LaneTrace {
       if (s.phase[i].size() < kMaxSamples) s.phase[i].push_back(values[i]);
       else s.phase[i][s.frames % kMaxSamples] = values[i];
     }
+    if (p.stream_blocks > 0) ++s.blocked;
     ++s.frames;
   }
   // One line per kind: medians (us) of each phase. Appended to the file WEFT_LANE_TRACE names.
@@ -139,10 +140,10 @@ class LaneTrace {
       char line[512];
       std::snprintf(line, sizeof(line),
                     "lane-trace session=%s kind=%s frames=%zu median_us: before=%.1f parse=%.1f serve=%.1f "
-                    "(device_sync=%.1f stream_wait=%.1f polls=%.0f) reply=%.1f\n",
+                    "(device_sync=%.1f stream_wait=%.1f polls=%.0f) reply=%.1f blocked_frames=%zu\n",
                     session.c_str(), kind.c_str(), s.frames, Median(s.phase[0]) / 1e3, Median(s.phase[1]) / 1e3,
                     Median(s.phase[2]) / 1e3, Median(s.phase[3]) / 1e3, Median(s.phase[4]) / 1e3,
-                    Median(s.phase[5]), Median(s.phase[6]) / 1e3);
+                    Median(s.phase[5]), Median(s.phase[6]) / 1e3, s.blocked);
       out += line;
     }
     if (out.empty()) return;
@@ -161,6 +162,7 @@ class LaneTrace {
   static constexpr int kPhases = 7;
   struct Samples {
     size_t frames = 0;
+    size_t blocked = 0;   // frames whose stream wait blocked on the stream's host function
     std::vector<int64_t> phase[kPhases];
   };
   static double Median(std::vector<int64_t>& v) {

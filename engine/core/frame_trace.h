@@ -16,6 +16,7 @@ struct Phases {
   int64_t device_sync_ns = 0;   // in Device::Synchronize (queueing the read-back, waiting, draining)
   int64_t stream_wait_ns = 0;   // of that, polling the stream until it was idle
   int64_t stream_polls = 0;     // cuStreamQuery calls
+  int64_t stream_blocks = 0;    // waits that blocked until the stream's host function signalled
 };
 Phases& Current();   // thread-local
 inline void Reset() { Current() = Phases{}; }

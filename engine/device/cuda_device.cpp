@@ -6,8 +6,12 @@
 
 #include <algorithm>
 #include <chrono>
+#include <condition_variable>
 #include <cstddef>
+#include <cstdlib>
 #include <cstring>
+#include <mutex>
+#include <string_view>
 #include <thread>
 
 #include <spdlog/spdlog.h>
@@ -536,26 +540,75 @@ void CudaDevice::CloseSession(Session& s) {
   }
 }
 
+// A synchronize blocked on a stream waits for `fired` to change; the host function the
+// stream runs when it gets there (SignalFromStream) changes it.
+struct StreamSignal {
+  std::mutex mu;
+  std::condition_variable cv;
+  uint64_t fired = 0;
+};
+
+namespace {
+
+// cuLaunchHostFunc's function: `holder` is a heap std::shared_ptr<StreamSignal> of its own (the
+// stream may be gone by the time the driver runs this). Makes no CUDA call, as the driver requires.
+void SignalFromStream(void* holder) {
+  auto* signal = static_cast<std::shared_ptr<StreamSignal>*>(holder);
+  {
+    std::lock_guard<std::mutex> lock((*signal)->mu);
+    ++(*signal)->fired;
+  }
+  (*signal)->cv.notify_all();
+  delete signal;
+}
+
+// WEFT_STREAM_WAIT=poll: the wait polls with 100 us sleeps after 4000 polls (the earlier way).
+bool StreamWaitPolls() {
+  static const bool polls = [] {
+    const char* v = std::getenv("WEFT_STREAM_WAIT");
+    return v && std::string_view(v) == "poll";
+  }();
+  return polls;
+}
+
+// How long a wait polls the stream before it blocks (WEFT_STREAM_SPIN_US, default 1000 us).
+std::chrono::nanoseconds StreamSpinTime() {
+  static const std::chrono::nanoseconds spin = [] {
+    const char* v = std::getenv("WEFT_STREAM_SPIN_US");
+    char* end = nullptr;
+    const long long us = v ? std::strtoll(v, &end, 10) : 1000;
+    return std::chrono::microseconds(v && (end == v || us < 0 || us > 10'000'000) ? 1000 : us);
+  }();
+  return spin;
+}
+
+}  // namespace
+
 jit::CuResult CudaDevice::WaitStream(Session& s, Stream& st, int* cancel_reason) {
   *cancel_reason = 0;
   const auto start = std::chrono::steady_clock::now();
   const bool trace = frame_trace::Enabled();
   const int64_t trace_start = trace ? frame_trace::NowNs() : 0;
+  // A host function may not be queued while the stream captures a graph (it would be captured).
+  bool can_block = driver_->LaunchHostFunc != nullptr && !StreamWaitPolls() && !st.capture;
+  bool queued = false;
+  uint64_t seen = 0;   // signal->fired before the host function was queued
   for (int polls = 0;; ++polls) {
     jit::CuResult r = driver_->StreamQuery(st.stream);
     if (r != jit::kCuErrorNotReady) {
       if (trace) {
         frame_trace::Current().stream_wait_ns += frame_trace::NowNs() - trace_start;
         frame_trace::Current().stream_polls += polls + 1;
+        if (queued) ++frame_trace::Current().stream_blocks;
       }
       return r;
     }
+    const auto now = std::chrono::steady_clock::now();
     if (*cancel_reason == 0) {
       if (s.cancelled()) {
         *cancel_reason = 1;
       } else if (options_.launch_time_limit_s > 0 &&
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >
-                     options_.launch_time_limit_s) {
+                 std::chrono::duration<double>(now - start).count() > options_.launch_time_limit_s) {
         *cancel_reason = 2;
       }
       if (*cancel_reason && !st.cancel_set) {
@@ -566,9 +619,41 @@ jit::CuResult CudaDevice::WaitStream(Session& s, Stream& st, int* cancel_reason)
         ReleaseValueWaits(st);
       }
     }
-    // Spin briefly (short kernels), then sleep in small steps.
-    if (polls < 4000) sched_yield();
-    else std::this_thread::sleep_for(std::chrono::microseconds(100));
+    if (!can_block) {
+      // Spin briefly (short kernels), then sleep in small steps.
+      if (polls < 4000) sched_yield();
+      else std::this_thread::sleep_for(std::chrono::microseconds(100));
+      continue;
+    }
+    // Short waits (a launch + synchronize) end while polling; a long one blocks until the
+    // stream's host function signals, which wakes it within a thread wake-up of the work's end
+    // where a sleep would overshoot by up to its length.
+    if (now - start < StreamSpinTime()) {
+      sched_yield();
+      continue;
+    }
+    if (!queued) {
+      if (!st.signal) st.signal = std::make_shared<StreamSignal>();
+      {
+        std::lock_guard<std::mutex> lock(st.signal->mu);
+        seen = st.signal->fired;
+      }
+      auto* holder = new std::shared_ptr<StreamSignal>(st.signal);
+      if (driver_->LaunchHostFunc(st.stream, SignalFromStream, holder) != 0) {
+        delete holder;
+        can_block = false;   // poll and sleep for the rest of this wait
+        continue;
+      }
+      queued = true;
+    }
+    std::unique_lock<std::mutex> lock(st.signal->mu);
+    if (st.signal->fired != seen) {
+      // Signalled: the stream is about to report idle (or failed after the host function).
+      lock.unlock();
+      sched_yield();
+      continue;
+    }
+    st.signal->cv.wait_for(lock, std::chrono::milliseconds(1));
   }
 }
 

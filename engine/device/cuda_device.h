@@ -35,6 +35,7 @@ namespace weft {
 std::string IpcHandlePrefix(const std::string& handle);
 
 struct wp_launch_error;   // wp::launch_error_t (engine/native/launch_abi.h), kept opaque here
+struct StreamSignal;      // wakes a synchronize blocked on a stream (cuda_device.cpp)
 
 struct CudaDeviceOptions {
   int ordinal = 0;
@@ -222,6 +223,9 @@ class CudaDevice final : public Device {
       std::string refused;             // why the capture cannot become a graph
     };
     std::unique_ptr<Capture> capture;
+    // Set by a host function queued on the stream when a synchronize stops spinning
+    // (WaitStream); the host functions in flight hold it too, so it outlives the stream.
+    std::shared_ptr<StreamSignal> signal;
   };
   struct CuModuleEntry {
     jit::CuModule module = nullptr;
@@ -246,8 +250,12 @@ class CudaDevice final : public Device {
   Status CheckUsable() const;
   Expected<jit::CuFunction> Function(const LoadedModule& module, const std::string& symbol);
   Expected<jit::CuFunction> Builtin(const char* name);
-  // Waits for the stream (bounded steps: sets the cancel word when `s` is cancelled or the time
-  // limit passes). Returns the CUDA result and why the cancel word was set (0 none, 1 session, 2 limit).
+  // Waits for the stream: polls it (yielding the core) for WEFT_STREAM_SPIN_US (default 1000),
+  // then blocks until a host function queued on the stream signals, waking every millisecond to
+  // check the session and the time limit (WEFT_STREAM_WAIT=poll: polls with 100 us sleeps
+  // instead, as where the driver lacks cuLaunchHostFunc). Sets the cancel word when `s` is
+  // cancelled or the time limit passes. Returns the CUDA result and why the cancel word was set
+  // (0 none, 1 session, 2 limit).
   jit::CuResult WaitStream(Session& s, Stream& st, int* cancel_reason);
   // Writes every pending wait's value (from the cancel stream), so a wait the client never
   // satisfies cannot hold the stream; then forgets them.

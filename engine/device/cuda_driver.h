@@ -93,6 +93,9 @@ struct CudaDriver {
   // the driver lacks them.
   CuResult (*StreamWaitValue64)(CuStream stream, CuDevicePtr address, uint64_t value, unsigned flags) = nullptr;
   CuResult (*StreamWriteValue64)(CuStream stream, CuDevicePtr address, uint64_t value, unsigned flags) = nullptr;
+  // A host function run by the driver once the stream reaches it (cuda_device.cpp's signalled
+  // wait); null when the driver lacks it (the wait then polls with sleeps).
+  CuResult (*LaunchHostFunc)(CuStream stream, void (*fn)(void*), void* user_data) = nullptr;
   // Graph capture of a session's stream (cuda_device_graphs.cpp); null when the driver lacks them.
   CuResult (*StreamBeginCapture)(CuStream stream, int mode) = nullptr;
   CuResult (*StreamEndCapture)(CuStream stream, CuGraph* graph) = nullptr;

@@ -55,3 +55,26 @@ def test_from_jax_and_to_jax_on_the_gpu_are_zero_copy(wp, jgpu, rng):
     z = (y * 2.0).block_until_ready()          # JAX work on weft memory
     np.testing.assert_allclose(np.asarray(z), values.astype(np.float64) * 6.0, rtol=1e-6)
 
+
+
+def test_bfloat16_crosses_both_ways_on_the_gpu(wp, jgpu, rng):
+    """A JAX bfloat16 CUDA array (DLPack kDLBfloat) becomes a weft bfloat16 array with the same
+    values, and back; any other dtype asked for is refused (Warp's aliasing rule)."""
+    jax, gpu, cuda = jgpu
+    import jax.numpy as jnp
+
+    values = rng.uniform(-1e3, 1e3, 1000).astype(np.float32)
+    values[:4] = [0.0, -0.0, 1e-30, 3.0e38]
+    xb = jax.device_put(jnp.asarray(values, dtype=jnp.bfloat16), gpu)
+    a = wp.from_jax(xb)
+    assert a.dtype == wp.bfloat16 and a.device.is_cuda and a.shape == (1000,)
+    expect = np.asarray(xb.astype(jnp.float32))
+    np.testing.assert_array_equal(a.numpy().astype(np.float32), expect)
+    b = wp.from_jax(xb, dtype=wp.bfloat16)
+    np.testing.assert_array_equal(b.numpy().astype(np.float32), expect)
+    with pytest.raises(RuntimeError, match="bfloat16"):
+        wp.from_jax(xb, dtype=wp.float16)
+    w = wp.array(values, dtype=wp.bfloat16, device=cuda)
+    j = wp.to_jax(w)
+    assert j.dtype == jnp.bfloat16
+    np.testing.assert_allclose(np.asarray(j.astype(jnp.float32)), values, rtol=1e-2)

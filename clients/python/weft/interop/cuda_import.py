@@ -40,9 +40,11 @@ def import_refused() -> str:
 class _Source:
     """Pointer, layout and device of a foreign GPU array, and what keeps it alive."""
 
-    def __init__(self, ptr, np_dtype, shape, strides, keep, ordinal):
+    def __init__(self, ptr, np_dtype, shape, strides, keep, ordinal, scalar=None):
         self.ptr = int(ptr)
         self.np_dtype = np.dtype(np_dtype)
+        # the weft scalar type where NumPy has none (bfloat16: np_dtype holds its bits)
+        self.scalar = scalar
         self.shape = tuple(int(s) for s in shape)
         if strides is None:
             strides, step = [], self.np_dtype.itemsize
@@ -133,24 +135,64 @@ def _from_dlpack(source, what) -> _Source:
     t = held.tensor
     if t.device_type != _KDL_CUDA:
         raise external.InteropError(f"{what}: DLPack device type {t.device_type} is not CUDA")
-    kind = _DL_CODES.get(int(t.code))
-    if kind is None or t.lanes != 1:
-        raise external.InteropError(f"{what}: unsupported DLPack dtype (code {t.code}, "
-                                    f"{t.bits} bits, {t.lanes} lanes)")
-    np_dtype = np.dtype("?") if kind == "b" else np.dtype(f"{kind}{t.bits // 8}")
+    scalar = None
+    if int(t.code) == 4 and int(t.bits) == 16 and t.lanes == 1:     # kDLBfloat: bfloat16
+        from .. import types  # noqa: PLC0415
+        scalar, np_dtype = types.bfloat16, np.dtype(np.uint16)
+    else:
+        kind = _DL_CODES.get(int(t.code))
+        if kind is None or t.lanes != 1 or int(t.bits) not in (8, 16, 32, 64):
+            raise external.InteropError(f"{what}: unsupported DLPack dtype (code {t.code}, "
+                                        f"{t.bits} bits, {t.lanes} lanes)")
+        np_dtype = np.dtype("?") if kind == "b" else np.dtype(f"{kind}{t.bits // 8}")
     shape = [int(t.shape[i]) for i in range(t.ndim)]
     strides = ([int(t.strides[i]) * np_dtype.itemsize for i in range(t.ndim)]
                if t.strides else None)
     return _Source(int(t.data or 0) + int(t.byte_offset), np_dtype, shape, strides, held,
-                   int(t.device_id))
+                   int(t.device_id), scalar)
+
+
+def _source_dtype(src: _Source, dtype, what: str):
+    """The dtype asked for, or the source's own scalar type where NumPy has none (bfloat16,
+    whose bits only alias bfloat16: DLPackDtypeError for anything else, as Warp's rule)."""
+    if src.scalar is None:
+        return dtype
+    if dtype is None:
+        return src.scalar
+    from ..array import _canonical_dtype  # noqa: PLC0415
+    from .dlpack import DLPackDtypeError  # noqa: PLC0415
+
+    if getattr(_canonical_dtype(dtype), "_wp_scalar_type_", None) is not src.scalar:
+        raise DLPackDtypeError(f"{what}: incompatible data types: DLPack bfloat16 and "
+                               f"{getattr(dtype, '__name__', dtype)}")
+    return dtype
+
+
+def _numeric_interface(obj) -> bool:
+    """Whether `obj` has a readable CUDA Array Interface of a NumPy numeric type (JAX gives
+    bfloat16 arrays none, or a void typestr: those go through DLPack)."""
+    try:
+        iface = obj.__cuda_array_interface__
+        return np.dtype(iface["typestr"]).kind in "biuf"
+    except Exception:  # noqa: BLE001 - any failure to read it: not usable
+        return False
 
 
 def source_of(obj, what) -> _Source:
     """The GPU memory of a foreign array (CUDA Array Interface first, then DLPack)."""
-    if hasattr(obj, "__cuda_array_interface__") or external.is_torch_tensor(obj):
+    if external.is_torch_tensor(obj) or _numeric_interface(obj):
         return _from_interface(obj, what)
     if hasattr(obj, "__dlpack__"):
         return _from_dlpack(obj, what)
+    try:
+        getattr(obj, "__cuda_array_interface__")
+        has_interface = True
+    except AttributeError:
+        has_interface = False
+    except Exception:  # noqa: BLE001 - read again below for its error
+        has_interface = True
+    if has_interface:
+        return _from_interface(obj, what)     # an interface weft cannot use: its error
     raise external.InteropError(f"{what}: {type(obj).__name__} has neither "
                                 f"__cuda_array_interface__ nor __dlpack__")
 
@@ -189,6 +231,7 @@ def copy_in(obj, dtype, device: str, what: str, requires_grad=False, cast_ok=Fal
 
     src = source_of(obj, what)
     ordinal = _check_device(src, device, what)
+    dtype = _source_dtype(src, dtype, what)
     fake = np.lib.stride_tricks.as_strided(np.zeros(1, dtype=src.np_dtype), shape=src.shape,
                                            strides=src.strides, writeable=False)
     wdtype, shape, strides = external.resolve_layout(fake, dtype, what, cast_ok=cast_ok)
@@ -429,6 +472,7 @@ def import_object(obj, dtype, device: str, what: str):
         return None
     src = source_of(obj, what)
     ordinal = _check_device(src, device, what)
+    dtype = _source_dtype(src, dtype, what)
     fake = np.lib.stride_tricks.as_strided(np.zeros(1, dtype=src.np_dtype), shape=src.shape,
                                            strides=src.strides, writeable=False)
     try:

@@ -248,7 +248,7 @@ def from_dlpack(source, dtype=None):
         if external.is_torch_tensor(source):
             out, _ = cuda_import.adopt_torch(source, dtype, f"cuda:{ordinal}", "wp.from_dlpack")
             return out
-        if hasattr(source, "__cuda_array_interface__"):
+        if cuda_import._numeric_interface(source):
             found = external.find_cuda_in_place(source, dtype, f"cuda:{ordinal}",
                                                 "wp.from_dlpack")
             if found is not None:
