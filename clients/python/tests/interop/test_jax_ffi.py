@@ -1,9 +1,9 @@
-"""wp.jax_kernel and wp.jax_callable on the CPU: gradients through jax.grad against float64
-analytic references (including large magnitudes), jax.vmap (batched and sequential), input-output
-arrays, Python callables that launch kernels, wrapper caching, and the errors a caller can cause
-(traced scalars, duplicate or misplaced in-out names, oversized launches, per-call overrides of a
-differentiable wrapper, CUDA-only graph modes on the CPU), and jax.shard_map's varying mesh axes
-kept through a call."""
+"""wp.jax_kernel and wp.jax_callable on the CPU, through their XLA FFI targets: gradients through
+jax.grad against float64 analytic references (including large magnitudes), jax.vmap (batched and
+sequential), input-output arrays, Python callables that launch kernels, wrapper caching, and the
+errors a caller can cause (traced scalars, duplicate or misplaced in-out names, oversized
+launches, per-call overrides of a differentiable wrapper, CUDA-only graph modes on the CPU), and
+jax.shard_map's varying mesh axes kept through a call."""
 import subprocess
 import sys
 import textwrap

@@ -1,11 +1,21 @@
 """jax_kernel and jax_callable: weft kernels and Python functions that launch them, callable
 inside jax.jit, jax.vmap and jax.grad (Warp's wp.jax_kernel / wp.jax_callable).
 
-JAX runs the call on the CPU through jax.pure_callback: at run time JAX hands the input buffers
-to a host callback in this process, which copies them into weft arrays, launches in the daemon
-and returns the outputs for JAX. Warp registers an XLA FFI target instead and launches on JAX's
-own buffers; weft's kernels run in another process, so each call copies its inputs in and its
-outputs out (two copies Warp does not make), and only CPU JAX devices are served.
+Each wrapper is an XLA FFI target of this process (weft/interop/xla_ffi.py), registered once
+per wrapper for JAX's CUDA and CPU platforms and called through jax.ffi.ffi_call; a call's
+static settings (launch dimensions, static scalars, output shapes) are kept by the wrapper and
+named by an integer attribute of the call. At run time XLA hands the handler its own buffers:
+- On a CUDA device they are XLA's device memory. The handler binds each buffer to a weft
+  array on that GPU (imported in place by CUDA IPC where the driver can export XLA's memory,
+  else a device-to-device copy, written back after the launch: weft/interop/cuda_import.py),
+  orders weftd's session stream after XLA's stream, launches, and orders XLA's stream after
+  weftd's work (weft/interop/cuda_order.py). No host copy; no host wait where the memory is
+  imported and events or stream memory operations order the streams.
+- On the CPU they are host memory of this process: inputs are copied into weftd's memory and
+  outputs copied back into XLA's result buffers after the launch (two copies Warp does not
+  make: weft's kernels run in another process).
+Outputs start zeroed (a kernel that writes only some elements leaves zeros elsewhere);
+input-output arrays (`in_out_argnames`) are aliased by XLA to their outputs and updated there.
 
 Conventions are Warp's: a kernel's parameters are its inputs (arrays, and scalars that must be
 static in JAX) followed by its outputs; `num_outputs` counts the outputs including the
@@ -13,23 +23,27 @@ input-output arrays named by `in_out_argnames` (inputs whose updated values are 
 among the outputs). Launch dimensions come from the first array input (less its vector or matrix
 dimensions) unless `launch_dims` says otherwise; outputs are shaped like the launch unless
 `output_dims` (a shape, or a dict by output name) says otherwise. Under jax.vmap the batch axes
-lead every array and the callback runs the kernel once per batch element. `enable_backward=True`
-gives the wrapper a JAX VJP: the backward pass records the forward launch on a weft Tape, seeds
-the outputs' gradients with JAX's cotangents and returns the inputs' gradients.
+lead every array (ffi_call's `vmap_method`) and the handler runs the kernel once per batch
+element. `enable_backward=True` gives the wrapper a JAX VJP: the backward pass (another call
+of the same target) records the forward launch on a weft Tape, seeds the outputs' gradients
+with JAX's cotangents and writes the inputs' gradients into XLA's result buffers.
 
 Wrappers are cached: the same kernel or function with the same settings gives the same object.
 """
 from __future__ import annotations
 
+import collections
+import contextlib
 import enum
 import inspect
+import itertools
 import operator
 import sys
 import threading
 
 import numpy as np
 
-from . import external
+from . import external, xla_ffi
 
 JAX_CALLABLE_DEFAULT_GRAPH_CACHE_MAX = 64
 _MAX_TID_EXTENT = 2**31 - 1
@@ -38,11 +52,20 @@ _VMAP_METHODS = ("broadcast_all", "sequential", "sequential_unrolled", "expand_d
 _FFI_REGISTRY_LOCK = threading.Lock()
 _FFI_KERNEL_REGISTRY: dict = {}
 _FFI_CALLABLE_REGISTRY: dict = {}
+_TARGET_NUMBERS = itertools.count()
+_CALL_ATTR = "weft_call"          # the attribute naming a call's static settings
+# Handler executions by platform ("cpu", "cuda"): tests check which path ran.
+FFI_CALLS: collections.Counter = collections.Counter()
+# JAX's CPU device through jax.pure_callback instead of the FFI target (both copy in and out;
+# docs/interop.md has the measurements that made the FFI target the default).
+CPU_PURE_CALLBACK = False
 
 
 class JaxCallableGraphMode(enum.IntEnum):
     """Warp's CUDA graph capture modes of jax_callable. On the CPU, NONE and JAX run without a
-    graph; the WARP modes need CUDA and are refused at run time on the CPU."""
+    graph; the WARP modes need CUDA and are refused at run time on the CPU. On CUDA every mode
+    runs the function without a graph: weft records none, and XLA does not capture the call
+    (its FFI target advertises no command-buffer trait, weft/interop/xla_ffi.py)."""
     NONE = 0
     JAX = 1
     WARP = 2
@@ -146,6 +169,11 @@ class _Wrapper:
             raise ValueError(f"{what}: vmap_method must be one of {', '.join(_VMAP_METHODS)}, got {vmap_method!r}")
         self.vmap_method = vmap_method
         self.output_dims = output_dims
+        self.has_side_effect = False
+        self._ffi_name = None
+        self._calls_lock = threading.Lock()
+        self._calls: list = []            # _CallSpec by the index a call names
+        self._call_index: dict = {}       # hashable settings -> index
 
     # ---- tracing ---------------------------------------------------------------------------
     def _split(self, args):
@@ -186,22 +214,97 @@ class _Wrapper:
             dims = dims + p.inner   # Warp's shape convention; JAX's (..., 3) also accepted
         return dims
 
-    def _call(self, args, launch_dims, output_dims, vmap_method, run):
-        """pure_callback of run(launch_dims, host input arrays by position, scalars) -> outputs."""
+    def _call(self, args, launch_dims, output_dims, vmap_method, run, run_ffi):
+        """The call of the FFI target (run_ffi(spec, inputs by position, outputs, device) per
+        batch element), or where CPU_PURE_CALLBACK, a pure_callback of run(launch_dims, host
+        input arrays by position, scalars) -> outputs."""
         jax = _jax()
         arrays, scalars = self._split(args)
         launch_dims = self._launch_dims(args, arrays, launch_dims)
         specs = [jax.ShapeDtypeStruct(self._out_shape(p, launch_dims, output_dims, args), p.np_dtype)
                  for p in self.outputs]
         base_ndims = [len(args[i].shape) for i in arrays]
-
-        def host(*host_arrays):
-            return self._run_batched(run, launch_dims, specs, arrays, base_ndims, host_arrays, scalars)
-
         method = vmap_method or self.vmap_method or "broadcast_all"
-        method = "sequential" if method == "sequential_unrolled" else method
         inputs = [args[i] for i in arrays]
-        return _varying_as(inputs, jax.pure_callback(host, tuple(specs), *inputs, vmap_method=method))
+        if CPU_PURE_CALLBACK:
+            def host(*host_arrays):
+                return self._run_batched(run, launch_dims, specs, arrays, base_ndims, host_arrays, scalars)
+
+            method = "sequential" if method == "sequential_unrolled" else method
+            return _varying_as(inputs, jax.pure_callback(host, tuple(specs), *inputs, vmap_method=method))
+        names = [p.name for p in self.params]
+        aliases = {arrays.index(names.index(n)): k for k, n in enumerate(self.in_out)}
+        spec = _CallSpec(run_ffi, launch_dims, arrays, [tuple(x.shape) for x in inputs],
+                         [np.dtype(x.dtype) for x in inputs], specs, scalars)
+        call = jax.ffi.ffi_call(self._target(), tuple(specs), vmap_method=method,
+                                input_output_aliases=aliases or None,
+                                has_side_effect=self.has_side_effect)
+        return _varying_as(inputs, call(*inputs, **{_CALL_ATTR: np.int64(self._remember(spec))}))
+
+    # ---- the FFI target ----------------------------------------------------------------------
+    def _target(self) -> str:
+        if self._ffi_name is None:
+            with _FFI_REGISTRY_LOCK:
+                if self._ffi_name is None:
+                    kind = "kernel" if isinstance(self, FfiKernel) else "callable"
+                    name = f"weft_jax_{kind}_{next(_TARGET_NUMBERS)}"
+                    xla_ffi.register_target(name, self._execute)
+                    self._ffi_name = name
+        return self._ffi_name
+
+    def _remember(self, spec) -> int:
+        """The index of a call's static settings (the same settings: the same index)."""
+        key = spec.key()
+        with self._calls_lock:
+            if key is not None and key in self._call_index:
+                return self._call_index[key]
+            self._calls.append(spec)
+            index = len(self._calls) - 1
+            if key is not None:
+                self._call_index[key] = index
+            return index
+
+    def _execute(self, inputs, outputs, attrs, ctx):
+        """The handler: checks the buffers against the call's settings, then runs the kernel
+        (or function) once per element of the leading batch axes jax.vmap added."""
+        FFI_CALLS[ctx.platform] += 1
+        index = attrs.get(_CALL_ATTR)
+        if not isinstance(index, int) or isinstance(index, bool) or not 0 <= index < len(self._calls):
+            raise xla_ffi.FfiError(f"{self.what}: the call names no settings of this wrapper "
+                                   f"({_CALL_ATTR}={index!r})")
+        spec = self._calls[index]
+        if len(inputs) != len(spec.positions) or len(outputs) != len(spec.specs):
+            raise xla_ffi.FfiError(f"{self.what}: {len(inputs)} input and {len(outputs)} output buffers, "
+                                   f"expected {len(spec.positions)} and {len(spec.specs)}")
+        batch = None
+        for k, (buf, s) in enumerate(zip(outputs, spec.specs)):
+            lead = _check_buffer(buf, tuple(s.shape), np.dtype(s.dtype), f"{self.what} output {k}")
+            if batch is None:
+                batch = buf.shape[:lead]
+            elif buf.shape[:lead] != batch:
+                raise xla_ffi.FfiError(f"{self.what}: outputs with different batch shapes "
+                                       f"{batch} and {buf.shape[:lead]}")
+        leads = []
+        for k, (buf, shape, dtype) in enumerate(zip(inputs, spec.shapes, spec.dtypes)):
+            lead = _check_buffer(buf, shape, dtype, f"{self.what} input {k}")
+            if lead > len(batch) or any(n not in (1, m) for n, m in
+                                        zip(buf.shape[:lead], batch[len(batch) - lead:])):
+                raise xla_ffi.FfiError(f"{self.what}: input {k} of shape {buf.shape} does not "
+                                       f"broadcast to the batch shape {batch}")
+            leads.append(lead)
+        if ctx.platform == "cpu":
+            _check_cpu(self.what)
+            device = "cpu"
+        else:
+            device = f"cuda:{ctx.device_ordinal or 0}"
+        with _ordered_with_xla(ctx):
+            for idx in np.ndindex(*batch):
+                item = {}
+                for pos, buf, lead in zip(spec.positions, inputs, leads):
+                    item[pos] = buf.element(tuple(0 if buf.shape[k] == 1 else idx[len(batch) - lead + k]
+                                                  for k in range(lead))) if lead else buf
+                outs = [o.element(idx) if batch else o for o in outputs]
+                spec.run(spec, item, outs, device)
 
     def _run_batched(self, run, launch_dims, specs, arrays, base_ndims, host_arrays, scalars):
         """Runs once per element of the leading batch axes jax.vmap adds (none outside vmap)."""
@@ -252,6 +355,120 @@ class _Wrapper:
         return tuple(np.array(o.numpy(), copy=True).reshape(s.shape) for o, s in zip(got, specs))
 
 
+class _CallSpec:
+    """The static settings of one traced call: the runner, launch dims, the array inputs'
+    positions, shapes and dtypes, the output specs and the static scalars."""
+
+    __slots__ = ("run", "launch_dims", "positions", "shapes", "dtypes", "specs", "scalars")
+
+    def __init__(self, run, launch_dims, positions, shapes, dtypes, specs, scalars):
+        self.run = run
+        self.launch_dims = tuple(launch_dims)
+        self.positions = list(positions)
+        self.shapes = list(shapes)
+        self.dtypes = list(dtypes)
+        self.specs = list(specs)
+        self.scalars = dict(scalars)
+
+    def key(self):
+        key = (self.run, self.launch_dims, tuple(self.positions), tuple(self.shapes),
+               tuple(self.dtypes), tuple((tuple(s.shape), np.dtype(s.dtype)) for s in self.specs),
+               tuple(sorted((i, type(v).__name__, _hashable(v)) for i, v in self.scalars.items())))
+        try:
+            hash(key)
+        except TypeError:
+            return None
+        return key
+
+
+def _check_buffer(buf, shape: tuple, dtype, what: str) -> int:
+    """How many leading batch axes `buf` has over the traced `shape` (its trailing axes must
+    be that shape, its dtype the traced one)."""
+    if buf.dtype != dtype:
+        raise xla_ffi.FfiError(f"{what}: dtype {buf.dtype}, expected {dtype}")
+    lead = buf.ndim - len(shape)
+    if lead < 0 or buf.shape[lead:] != tuple(shape):
+        raise xla_ffi.FfiError(f"{what}: shape {buf.shape}, expected {tuple(shape)} (after any "
+                               f"batch axes)")
+    return lead
+
+
+@contextlib.contextmanager
+def _ordered_with_xla(ctx):
+    """On CUDA: weftd's work queued inside comes after XLA's work queued on its stream before
+    the call, and XLA's later work on that stream after it; XLA's stream is the framework
+    stream of weft's launches meanwhile. By events or stream memory operations (no host
+    wait), else by host waits where the session cannot order streams."""
+    if ctx.platform != "cuda" or not ctx.stream:
+        yield
+        return
+    from .. import _cuda_ipc, _runtime  # noqa: PLC0415
+    from . import cuda_order  # noqa: PLC0415
+
+    rt = _runtime.get_runtime()
+    ordinal = int(ctx.device_ordinal or 0)
+    previous = cuda_order.set_scoped_stream(ordinal, ctx.stream)
+    try:
+        ordered = cuda_order.enabled(rt, {ordinal})
+        if ordered:
+            cuda_order.before(rt, (ordinal,), ctx.stream)
+        else:
+            _cuda_ipc.synchronize_stream(ordinal, ctx.stream)
+        try:
+            yield
+        finally:
+            if ordered:
+                cuda_order.after(rt, (ordinal,), [ctx.stream])
+            else:
+                rt.synchronize()
+    finally:
+        cuda_order.set_scoped_stream(ordinal, previous)
+
+
+class _Bound:
+    """XLA buffers bound to weft arrays for one run, and what goes back afterwards."""
+
+    def __init__(self, device, what):
+        self.device = device
+        self.what = what
+        self.pending = []
+
+    def array(self, buf, dtype, name, zero=False):
+        """A weft array of `dtype` over `buf` (its memory where weft can use it in place, else a
+        copy that finish() writes back into a result buffer)."""
+        weft = sys.modules["weft"]
+        what = f"{self.what} '{name}'"
+        if buf.size == 0:
+            wdtype, shape, _ = external.resolve_parts(buf.dtype, buf.shape, buf.strides, dtype, what)
+            return weft.zeros(shape, dtype=wdtype, device=self.device)
+        if zero and buf.platform == "cpu":
+            view = buf.numpy()          # a new zeroed weft array, copied into the result after
+            wdtype, shape, _ = external.resolve_layout(view, dtype, what)
+            temp = weft.zeros(shape, dtype=wdtype, device=self.device)
+            self.pending.append((view, temp))
+            return temp
+        temp, back = external.launch_array(buf, dtype, self.device, what)
+        if zero:
+            temp.zero_()
+        if back is not None and buf.writable:
+            self.pending.append((back, temp))
+        return temp
+
+    def finish(self):
+        if not self.pending:
+            return
+        from .. import _runtime  # noqa: PLC0415
+
+        _runtime.get_runtime().synchronize()
+        for back, temp in self.pending:
+            if hasattr(back, "apply"):
+                back.apply()            # a CUDA copy (cuda_import.CopyBack)
+            else:
+                data = np.asarray(temp.numpy())
+                np.copyto(back, data.reshape(back.shape).astype(back.dtype, copy=False))
+        self.pending = []
+
+
 class FfiKernel(_Wrapper):
     """wp.jax_kernel's wrapper of a kernel."""
 
@@ -283,12 +500,57 @@ class FfiKernel(_Wrapper):
             if vmap_method is not None:
                 raise TypeError(f"{self.what}: vmap_method cannot be overridden per-call with enable_backward=True")
             return self._differentiable(args)
-        _check_cpu(self.what)
+        if CPU_PURE_CALLBACK:
+            _check_cpu(self.what)
         launch = launch_dims if launch_dims is not None else self.launch_dims
         arrays, _ = self._split(args)
         self._check_extents(self._launch_dims(args, arrays, launch))
         return self._call(args, launch, output_dims if output_dims is not None else self.output_dims,
-                          vmap_method, self._run)
+                          vmap_method, self._run, self._run_ffi)
+
+    def _run_ffi(self, spec, buffers, outs, device):
+        """One forward launch on XLA's buffers (in-out arrays: their aliased output buffers)."""
+        bound = _Bound(device, self.what)
+        values = [None] * self.num_inputs
+        for i, v in spec.scalars.items():
+            values[i] = v
+        by_name = dict(zip([p.name for p in self.outputs], outs))
+        for i, buf in buffers.items():
+            p = self.params[i]
+            values[i] = bound.array(by_name.get(p.name, buf), p.dtype, p.name)
+        results = [bound.array(buf, p.dtype, p.name, zero=True)
+                   for p, buf in zip(self.params[self.num_inputs:], outs[len(self.in_out):])]
+        sys.modules["weft"].launch(self.kernel, dim=spec.launch_dims, inputs=values, outputs=results,
+                                   device=device, block_dim=self.block_dim)
+        bound.finish()
+
+    def _run_backward_ffi(self, spec, buffers, outs, device):
+        """The backward pass on XLA's buffers: the forward inputs and the cotangents in, the
+        inputs' gradients out."""
+        weft = sys.modules["weft"]
+        bound = _Bound(device, self.what)
+        values = [None] * self.num_inputs
+        for i, v in spec.scalars.items():
+            values[i] = v
+        forward = sorted(i for i in buffers if i < self.num_inputs)
+        for i in forward:
+            p = self.params[i]
+            values[i] = weft.clone(bound.array(buffers[i], p.dtype, p.name), requires_grad=True)
+        grads, results = {}, []
+        for k, p in enumerate(self.params[self.num_inputs:]):
+            g = bound.array(buffers[self.num_inputs + k], p.dtype, f"{p.name} (cotangent)")
+            o = weft.zeros(g.shape, dtype=p.dtype, device=device, requires_grad=True)
+            results.append(o)
+            grads[o] = g
+        tape = weft.Tape()
+        with tape:
+            weft.launch(self.kernel, dim=spec.launch_dims, inputs=values, outputs=results, device=device,
+                        block_dim=self.block_dim)
+        tape.backward(grads=grads)
+        for i, buf in zip(forward, outs):
+            p = self.params[i]
+            weft.copy(bound.array(buf, p.dtype, f"{p.name} (gradient)", zero=True), values[i].grad)
+        bound.finish()
 
     def _run(self, launch_dims, host, scalars, specs):
         values = self._weft_inputs(host, scalars)
@@ -316,7 +578,8 @@ class FfiKernel(_Wrapper):
 
     def _differentiable(self, args):
         jax = _jax()
-        _check_cpu(self.what)
+        if CPU_PURE_CALLBACK:
+            _check_cpu(self.what)
         arrays, scalars = self._split(args)
         launch_dims = self._launch_dims(args, arrays, self.launch_dims)
         self._check_extents(launch_dims)
@@ -333,7 +596,7 @@ class FfiKernel(_Wrapper):
             full = list(args)
             for i, x in zip(positions, xs):
                 full[i] = x
-            return self._call(full, launch_dims, out_dims, None, self._run)
+            return self._call(full, launch_dims, out_dims, None, self._run, self._run_ffi)
 
         @jax.custom_vjp
         def apply(*xs):
@@ -344,6 +607,14 @@ class FfiKernel(_Wrapper):
 
         def apply_bwd(xs, cotangents):
             grad_specs = [jax.ShapeDtypeStruct(x.shape, x.dtype) for x in xs]
+            if not CPU_PURE_CALLBACK:
+                operands = [*xs, *cotangents]
+                where = positions + [self.num_inputs + k for k in range(nout)]
+                spec = _CallSpec(self._run_backward_ffi, launch_dims, where,
+                                 [tuple(x.shape) for x in operands], [np.dtype(x.dtype) for x in operands],
+                                 grad_specs, scalars)
+                call = jax.ffi.ffi_call(self._target(), tuple(grad_specs), vmap_method="broadcast_all")
+                return _varying_as(operands, call(*operands, **{_CALL_ATTR: np.int64(self._remember(spec))}))
             out_specs = [jax.ShapeDtypeStruct(c.shape, c.dtype) for c in cotangents]
             base_ndims = [len(x.shape) for x in xs] + [len(c.shape) for c in cotangents]
             where = positions + [self.num_inputs + k for k in range(nout)]
@@ -362,9 +633,9 @@ class FfiKernel(_Wrapper):
 
 
 def _varying_as(inputs, outputs) -> tuple:
-    """The callback's outputs, varying over every manual mesh axis an input varies over (inside
-    jax.shard_map with check_vma, as an XLA FFI call's outputs are; pure_callback's are not):
-    without it a lax.scan carry through the call changes type."""
+    """The call's outputs, varying over every manual mesh axis an input varies over (inside
+    jax.shard_map with check_vma; neither ffi_call's nor pure_callback's outputs are in the JAX
+    versions tested): without it a lax.scan carry through the call changes type."""
     jax = _jax()
     if not (hasattr(jax, "typeof") and hasattr(jax.lax, "pcast")):     # JAX before varying axes
         return tuple(outputs)
@@ -400,9 +671,30 @@ class FfiCallable(_Wrapper):
         self.stage_out_argnames = set(stage_out_argnames or ())
 
     def __call__(self, *args, output_dims=None, vmap_method=None):
-        _check_cpu(self.what)
+        if CPU_PURE_CALLBACK:
+            _check_cpu(self.what)
         return self._call(args, None, output_dims if output_dims is not None else self.output_dims,
-                          vmap_method, self._run)
+                          vmap_method, self._run, self._run_ffi)
+
+    def _run_ffi(self, spec, buffers, outs, device):
+        """The function on weft arrays bound to XLA's buffers (in-out arrays: their aliased
+        output buffers). Graph modes: weft records no CUDA graph of the function (XLA does not
+        capture the call either); on the CPU the WARP modes are refused, as in Warp."""
+        if device == "cpu" and self.graph_mode not in (JaxCallableGraphMode.NONE, JaxCallableGraphMode.JAX):
+            raise RuntimeError(f"{self.what}: graph mode {self.graph_mode.name} captures a CUDA graph and "
+                               f"is not available on the CPU")
+        bound = _Bound(device, self.what)
+        values = [None] * self.num_inputs
+        for i, v in spec.scalars.items():
+            values[i] = v
+        by_name = dict(zip([p.name for p in self.outputs], outs))
+        for i, buf in buffers.items():
+            p = self.params[i]
+            values[i] = bound.array(by_name.get(p.name, buf), p.dtype, p.name)
+        results = [bound.array(buf, p.dtype, p.name, zero=True)
+                   for p, buf in zip(self.params[self.num_inputs:], outs[len(self.in_out):])]
+        self.func(*values, *results)
+        bound.finish()
 
     def _run(self, launch_dims, host, scalars, specs):
         if self.graph_mode not in (JaxCallableGraphMode.NONE, JaxCallableGraphMode.JAX):
@@ -427,6 +719,7 @@ def jax_kernel(kernel, num_outputs=1, vmap_method="broadcast_all", launch_dims=N
         if found is None:
             found = FfiKernel(kernel, num_outputs, vmap_method, launch_dims, output_dims, in_out_argnames,
                               bool(enable_backward), block_dim)
+            found.has_side_effect = bool(has_side_effect)
             _FFI_KERNEL_REGISTRY[key] = found
     return found
 
@@ -437,7 +730,7 @@ def jax_callable(func, num_outputs=1, graph_mode=JaxCallableGraphMode.JAX, vmap_
                  module_preload_mode=JaxModulePreloadMode.CURRENT_DEVICE, has_side_effect=False):
     """A JAX-callable wrapper of a Python function that launches weft kernels on its array
     arguments (see this module's docstring). Staging and graph caching are CUDA graph
-    features; on the CPU they change nothing."""
+    features; weft records no graph of the function, so they change nothing."""
     JaxModulePreloadMode(module_preload_mode)
     key = (func, int(num_outputs), int(graph_mode), vmap_method, _hashable(output_dims),
            tuple(in_out_argnames or ()), tuple(stage_in_argnames or ()), tuple(stage_out_argnames or ()),
@@ -447,9 +740,10 @@ def jax_callable(func, num_outputs=1, graph_mode=JaxCallableGraphMode.JAX, vmap_
         if found is None:
             found = FfiCallable(func, num_outputs, graph_mode, vmap_method, output_dims, in_out_argnames,
                                 stage_in_argnames, stage_out_argnames)
+            found.has_side_effect = bool(has_side_effect)
             _FFI_CALLABLE_REGISTRY[key] = found
     return found
 
 
 def clear_jax_callable_graph_cache(callable=None):  # noqa: A002 - Warp's name
-    """Warp drops the CUDA graphs a jax_callable captured; weft's CPU path captures none."""
+    """Warp drops the CUDA graphs a jax_callable captured; weft captures none."""
