@@ -160,6 +160,91 @@ extern "C" __global__ void warp_style(wp::int64 n, warp_array_t x, warp_array_t 
   *py = a * *px + *py;
 }
 
+// The body weft generated before 2026-11-28 (WEFT_DUMP_IR of `i = wp.tid(); y[i] = a * x[i] + y[i]`):
+// the tid unravelled (dead here) and its first component through cg_tid_first, whose
+// multi-dimensional divisor (a product of the launch's inner extents) the compiler hoists into
+// every thread's prologue.
+static inline __device__ void gen_body(const wp::launch_context_t* __ctx, const saxpy_args& __args,
+                                       wp::int64 __tid_flat) {
+  wp::int64 __tid[4];
+  wp::cg_unravel(__ctx->bounds, __tid_flat, __tid);
+  (void)__tid;
+  wp::array_t<wp::float32> var_0 = __args.p0;
+  wp::array_t<wp::float32> var_1 = __args.p1;
+  wp::float32 var_2 = __args.p2;
+  // cg_tid_first as it was: the divisor computed inline
+  const wp::launch_bounds_t& b = __ctx->bounds;
+  const wp::int64 tid0 = b.ndim <= 1 ? __tid_flat
+                                     : __tid_flat / ((b.shape[1] > 0 ? b.shape[1] : 1) * (b.shape[2] > 0 ? b.shape[2] : 1) *
+                                                     (b.shape[3] > 0 ? b.shape[3] : 1));
+  wp::int32 var_4 = wp::int32(tid0);
+  if (!wp::cg_check(__ctx, 0, 6, 0, "x", var_0, var_4, 0, 0, 0, 1)) return;
+  if (!wp::cg_check(__ctx, 0, 6, 1, "y", var_1, var_4, 0, 0, 0, 1)) return;
+  wp::float32 var_5 = wp::load(var_0, var_4);
+  wp::float32 var_6 = wp::mul(var_2, var_5);
+  wp::float32 var_7 = wp::load(var_1, var_4);
+  wp::float32 var_8 = wp::add(var_6, var_7);
+  wp::store(var_1, var_4, var_8);
+}
+// The same with the first tid component taken without the divisor for a one-dimensional launch;
+// the multi-dimensional division is a call (not inlined, so nothing of it is hoisted).
+__device__ __noinline__ wp::int64 tid_first_nd(const wp::launch_bounds_t* b, wp::int64 flat) {
+  const wp::int64 inner = (b->shape[1] > 0 ? b->shape[1] : 1) * (b->shape[2] > 0 ? b->shape[2] : 1) *
+                          (b->shape[3] > 0 ? b->shape[3] : 1);
+  return flat / inner;
+}
+static inline __device__ wp::int64 tid_first_fast(const wp::launch_context_t* ctx, wp::int64 flat) {
+  return ctx->bounds.ndim <= 1 ? flat : tid_first_nd(&ctx->bounds, flat);
+}
+static inline __device__ void gen_body_tidfast(const wp::launch_context_t* __ctx, const saxpy_args& __args,
+                                               wp::int64 __tid_flat) {
+  wp::array_t<wp::float32> var_0 = __args.p0;
+  wp::array_t<wp::float32> var_1 = __args.p1;
+  wp::float32 var_2 = __args.p2;
+  wp::int32 var_4 = wp::int32(tid_first_fast(__ctx, __tid_flat));
+  if (!wp::cg_check(__ctx, 0, 6, 0, "x", var_0, var_4, 0, 0, 0, 1)) return;
+  if (!wp::cg_check(__ctx, 0, 6, 1, "y", var_1, var_4, 0, 0, 0, 1)) return;
+  wp::float32 var_5 = wp::load(var_0, var_4);
+  wp::float32 var_6 = wp::mul(var_2, var_5);
+  wp::float32 var_7 = wp::load(var_1, var_4);
+  wp::float32 var_8 = wp::add(var_6, var_7);
+  wp::store(var_1, var_4, var_8);
+}
+#define GC_ENTRY(name) \
+  extern "C" __global__ void name(const __grid_constant__ wp::launch_context_t __ctx, const __grid_constant__ saxpy_args __args)
+#define GC_LOOP(BODY)                                                                                             \
+  const wp::int64 __stride = (wp::int64)blockDim.x * gridDim.x;                                                  \
+  for (wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x; __i < __ctx.bounds.size; __i += __stride) \
+    BODY(&__ctx, __args, __i);
+#define GC_NO_LOOP(BODY)                                                   \
+  const wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x; \
+  if (__i < __ctx.bounds.size) BODY(&__ctx, __args, __i);
+// A grid that covers the launch (always, unless max_blocks) runs each thread once: the loop's
+// back edge is taken only when it does not, so loop-invariant work of the body's error paths
+// need not be hoisted above the first pass.
+#define GC_ONCE_THEN_LOOP(BODY)                                                         \
+  wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;                    \
+  const wp::int64 __stride = (wp::int64)blockDim.x * gridDim.x;                        \
+  if (__i >= __ctx.bounds.size) return;                                                \
+  BODY(&__ctx, __args, __i);                                                           \
+  if (__stride >= __ctx.bounds.size) return;                                           \
+  for (__i += __stride; __i < __ctx.bounds.size; __i += __stride) BODY(&__ctx, __args, __i);
+// The loop calls the body out of line: nothing of the body is hoisted into the loop's prologue.
+static __device__ __noinline__ void gen_body_call(const wp::launch_context_t* __ctx, const saxpy_args* __args,
+                                                  wp::int64 __tid_flat) {
+  gen_body_tidfast(__ctx, *__args, __tid_flat);
+}
+static inline __device__ void gen_body_called(const wp::launch_context_t* __ctx, const saxpy_args& __args,
+                                              wp::int64 __tid_flat) {
+  gen_body_call(__ctx, &__args, __tid_flat);
+}
+GC_ENTRY(gen_loop_calls_body) { GC_LOOP(gen_body_called) }
+GC_ENTRY(gen_now) { GC_LOOP(gen_body) }
+GC_ENTRY(gen_now_no_loop) { GC_NO_LOOP(gen_body) }
+GC_ENTRY(gen_tidfast) { GC_LOOP(gen_body_tidfast) }
+GC_ENTRY(gen_tidfast_no_loop) { GC_NO_LOOP(gen_body_tidfast) }
+GC_ENTRY(gen_tidfast_once_then_loop) { GC_ONCE_THEN_LOOP(gen_body_tidfast) }
+
 #define CHECK(call)                                                                    \
   do {                                                                                 \
     cudaError_t e_ = (call);                                                           \
@@ -241,6 +326,12 @@ int main(int argc, char** argv) {
       void (*run)(unsigned, const wp::launch_context_t&, const saxpy_args&, const warp_array_t&, const warp_array_t&, long long);
     };
     const Variant variants[] = {
+        {"generated before: loop, checks, cg_tid_first inline", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gen_now<<<g, 256>>>(c, a); }},
+        {"generated before, no loop (grid_stride=False)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gen_now_no_loop<<<g, 256>>>(c, a); }},
+        {"loop, checks, 1-D tid fast path", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gen_tidfast<<<g, 256>>>(c, a); }},
+        {"no loop, checks, 1-D tid fast path", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gen_tidfast_no_loop<<<g, 256>>>(c, a); }},
+        {"loop calling the body out of line, checks, 1-D tid fast path", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gen_loop_calls_body<<<g, 256>>>(c, a); }},
+        {"once then loop, checks, 1-D tid fast path", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gen_tidfast_once_then_loop<<<g, 256>>>(c, a); }},
         {"grid-stride loop, checks inline (generated before)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { weft_now<<<g, 256>>>(c, a); }},
         {"grid-stride loop, __grid_constant__, stride hoisted (generated now)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gc_hoisted_stride<<<g, 256>>>(c, a); }},
         {"grid-stride loop, __grid_constant__ only", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gc_only<<<g, 256>>>(c, a); }},

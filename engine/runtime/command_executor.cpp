@@ -112,6 +112,38 @@ Expected<Device*> CommandExecutor::DeviceOf(const Allocation& a) const {
   return d;
 }
 
+Status CommandExecutor::UseGridStrideWhereNeeded(const Device& device, const std::string& module_id,
+                                                 const std::string& kernel_name, bool adjoint, const KernelLaunch& launch,
+                                                 std::shared_ptr<const LoadedModule>* module,
+                                                 const LoadedKernel** kernel) {
+  if (device.is_cpu() || (*kernel)->layout.grid_stride) return Status::Ok();
+  // Threads of the launch (a product that overflows needs the loop; the device checks the dims).
+  uint64_t size = 1;
+  bool huge = false;
+  for (int64_t d : launch.dim) {
+    if (d <= 0) {
+      size = 0;
+      break;
+    }
+    if (__builtin_mul_overflow(size, static_cast<uint64_t>(d), &size)) huge = true;
+  }
+  const uint64_t block = launch.block_dim ? launch.block_dim : 256;
+  const uint64_t blocks = huge ? UINT64_MAX : (size + block - 1) / block;
+  const bool capped = launch.max_blocks > 0 && blocks > launch.max_blocks;
+  if (!capped && blocks <= 0x7fffffffull) return Status::Ok();
+  auto strided = store_->WithGridStride(module_id, adjoint);
+  if (!strided.ok()) {
+    // Built lean on purpose: the device's launch says why the launch is refused.
+    if (strided.status().code() == StatusCode::kFailedPrecondition) return Status::Ok();
+    return strided.status();
+  }
+  const LoadedKernel* k = (*strided)->Find(kernel_name);
+  if (!k) return Internal("the grid-stride variant of module '" + module_id + "' has no kernel '" + kernel_name + "'");
+  *module = *strided;
+  *kernel = k;
+  return Status::Ok();
+}
+
 Status CommandExecutor::ZeroGradients(Session& s, Tape& tape) {
   for (auto& w : tape.touched) {
     auto a = w.lock();
@@ -402,6 +434,8 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
   if (!c.adjoint) {
     launch.module = module;
     launch.kernel = kernel;
+    WEFT_RETURN_IF_ERROR(
+        UseGridStrideWhereNeeded(*device, c.module_id, c.kernel, false, launch, &launch.module, &launch.kernel));
     st = device->Launch(s, launch, &output);
   } else {
     WEFT_ASSIGN_OR_RETURN(std::shared_ptr<const LoadedModule> bmod, store_->WithBackward(c.module_id));
@@ -413,6 +447,8 @@ Status CommandExecutor::Launch(Session& s, const LaunchCommand& c, const HandleS
     launch.module = bmod;
     launch.kernel = bk;
     launch.adj_args = &adj_packed;
+    WEFT_RETURN_IF_ERROR(
+        UseGridStrideWhereNeeded(*device, c.module_id, c.kernel, true, launch, &launch.module, &launch.kernel));
     st = device->Launch(s, launch, &output);
   }
   if (!output.empty()) s.AppendOutput(output);
@@ -591,6 +627,8 @@ Status CommandExecutor::Backward(Session& s, Tape& tape, const TapeCommand& c, c
     launch.block_dim = st.record->block_dim;
     launch.max_blocks = st.record->max_blocks;
     launch.origin = st.record->origin;
+    WEFT_RETURN_IF_ERROR(UseGridStrideWhereNeeded(*st.device, st.record->module_id, st.record->kernel, true, launch,
+                                                  &launch.module, &launch.kernel));
     std::string output;
     Status r = st.device->Launch(s, launch, &output);
     if (!output.empty()) s.AppendOutput(output);

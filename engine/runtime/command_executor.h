@@ -42,6 +42,13 @@ class CommandExecutor {
   Expected<Device*> DeviceOf(const Allocation& a) const;
   Status ZeroGradients(Session& s, Tape& tape);
   Status Launch(Session& s, const LaunchCommand& c, const HandleSnapshot& h, const SourceLocation& origin);
+  // A GPU launch of a kernel whose entries run one index per thread, when its grid cannot cover
+  // it (max_blocks, more blocks than a grid holds): *module and *kernel become those of the
+  // module's grid-stride variant (ModuleStore::WithGridStride). Otherwise, or where the module
+  // was built lean on purpose (the device then refuses the launch), unchanged.
+  Status UseGridStrideWhereNeeded(const Device& device, const std::string& module_id, const std::string& kernel_name,
+                                  bool adjoint, const KernelLaunch& launch, std::shared_ptr<const LoadedModule>* module,
+                                  const LoadedKernel** kernel);
   // Appends a forward launch (its packed arguments) to the session's active tape, unless it
   // runs from a graph.
   void RecordOnTape(Session& s, const LaunchCommand& c, const std::string& device, const SourceLocation& origin,

@@ -353,6 +353,31 @@ class ModuleStoreImpl final : public ModuleStore {
     return *module;
   }
 
+  Expected<std::shared_ptr<const LoadedModule>> WithGridStride(const std::string& module_id, bool backward) override {
+    Variant variant;
+    {
+      std::lock_guard<std::mutex> lock(registry_mutex_);
+      auto it = registry_.find(module_id);
+      if (it == registry_.end()) return NotFound("unknown module id " + module_id);
+      if (auto alive = it->second.strided[backward ? 1 : 0].lock()) return alive;
+      variant = it->second.variant;
+    }
+    if (variant.codegen.target != Target::kCuda || !variant.stride_allowed)
+      return FailedPrecondition("module " + module_id + " was compiled without a grid-stride loop (grid_stride=False)");
+    variant.codegen.grid_stride = true;
+    variant.codegen.enable_backward = backward;
+    std::vector<Diagnostic> diagnostics;
+    auto module = Get(Key(variant), module_id, variant, nullptr, &diagnostics);
+    if (!module.ok()) {
+      std::string text = module.status().message();
+      for (const auto& d : diagnostics) text += "\n" + d.ToString();
+      return Status(module.status().code(), text);
+    }
+    std::lock_guard<std::mutex> lock(registry_mutex_);
+    registry_[module_id].strided[backward ? 1 : 0] = *module;
+    return *module;
+  }
+
   ModuleStoreStats stats() const override { return cache_->stats(); }
 
  private:
@@ -361,12 +386,16 @@ class ModuleStoreImpl final : public ModuleStore {
     ModuleSource source;
     CodegenOptions codegen;
     int sm = 0;  // CUDA compute capability * 10
+    // CUDA: a grid-stride variant may be built for launches that need the loop (the module did
+    // not ask for grid_stride=False).
+    bool stride_allowed = true;
   };
   struct Registered {
     bool known = false;
     Variant variant;
     std::weak_ptr<const LoadedModule> forward;
     std::weak_ptr<const LoadedModule> backward;
+    std::weak_ptr<const LoadedModule> strided[2];   // WithGridStride: forward only, with backward
   };
 
   // How `source` is generated for `target` (the module options that change the code).
@@ -383,9 +412,15 @@ class ModuleStoreImpl final : public ModuleStore {
     auto poll = source.options.find("cancel_poll");
     variant.codegen.loop_cancel_poll =
         poll == source.options.end() || (poll->second != "false" && poll->second != "False" && poll->second != "0");
+    // CUDA entries run one index per thread: with a grid-stride loop around an inlined body the
+    // compiler hoists the body's loop-invariant work (the bounds checks' error paths) into every
+    // thread's prologue, which costs a memory-bound kernel 15% on an H200 (docs/cuda.md, "The
+    // entry without a loop"). A launch that needs the loop gets the grid-stride variant
+    // (WithGridStride), unless the module asked for grid_stride=False.
     auto stride = source.options.find("grid_stride");
-    variant.codegen.grid_stride =
+    variant.stride_allowed =
         stride == source.options.end() || (stride->second != "false" && stride->second != "False" && stride->second != "0");
+    variant.codegen.grid_stride = false;
     const int lanes = CpuLanesOption(source);   // 0 (malformed) is refused by the checker
     variant.codegen.cpu_lanes = target == Target::kCpu && lanes > 1 ? static_cast<uint32_t>(lanes) : 1;
     return variant;

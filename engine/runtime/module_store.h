@@ -121,6 +121,14 @@ class ModuleStore {
   virtual std::shared_ptr<const LoadedModule> Find(const std::string& module_id) const = 0;
   // The same module with backward entry points (generated and compiled on first request).
   virtual Expected<std::shared_ptr<const LoadedModule>> WithBackward(const std::string& module_id) = 0;
+  // The same CUDA module with grid-stride entries (and backward ones when `backward`), generated
+  // and compiled on first request: a module's CUDA entries run one index per thread, and a
+  // launch whose grid cannot cover it (max_blocks, more blocks than a grid holds) needs the loop.
+  // FailedPrecondition when the module was built lean on purpose (grid_stride=False).
+  virtual Expected<std::shared_ptr<const LoadedModule>> WithGridStride(const std::string& module_id, bool backward) {
+    (void)module_id, (void)backward;
+    return Unimplemented("this module store has no grid-stride variants");
+  }
   virtual ModuleStoreStats stats() const = 0;
   // Compiles the module with NVRTC for sm_<arch> (a kCudaArchs entry NVRTC supports, else
   // InvalidArgument listing them) and reports each entry point; cached like other modules

@@ -314,6 +314,19 @@ TEST_F(CacheModule, BackwardVariantIsCompiledOnceOnDemand) {
   EXPECT_EQ(store->WithBackward("no-such-module").status().code(), StatusCode::kNotFound);
 }
 
+TEST_F(CacheModule, GridStrideVariantsAreForCudaModulesOnly) {
+  // CUDA modules are generated lean and get a grid-stride variant on request; a CPU module has
+  // none (its entries take ranges), nor has an unknown id.
+  auto store = NewStore();
+  auto forward = store->Compile(Module("a * x + y"), "cpu", nullptr);
+  ASSERT_TRUE(forward.ok());
+  EXPECT_FALSE(codegen_.seen.back().grid_stride);
+  EXPECT_EQ(store->WithGridStride((*forward)->id, false).status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store->WithGridStride((*forward)->id, true).status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store->WithGridStride("no-such-module", false).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(codegen_.calls, 1);
+}
+
 TEST_F(CacheModule, BoundsCheckOptionReachesCodegenAndTheKey) {
   auto store = NewStore();
   ModuleSource checked = Module("a * x + y");

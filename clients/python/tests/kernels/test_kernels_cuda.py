@@ -92,6 +92,28 @@ def test_block_dim_and_max_blocks(wp, gpu, rng, block_dim, max_blocks):
     np.testing.assert_allclose(y.numpy(), 2.0 * x0.astype(np.float64), rtol=1e-6)
 
 
+def test_max_blocks_forward_and_adjoint_stride_over_every_index(wp, gpu, rng):
+    """A default kernel's GPU entries run one index per thread; a launch capped by max_blocks
+    runs the module's grid-stride variant (built on first use), forward and, from a tape,
+    adjoint, and reaches every index: values and gradients against float64."""
+    n = 5_003
+    x0 = rng.standard_normal(n).astype(np.float32) * np.float32(1e3)
+    y0 = rng.standard_normal(n).astype(np.float32) * np.float32(1e-3)
+    g0 = rng.standard_normal(n).astype(np.float32)
+    x = wp.array(x0, dtype=float, device=gpu, requires_grad=True)
+    y = wp.array(y0, dtype=float, device=gpu, requires_grad=True)
+    tape = wp.Tape()
+    with tape:
+        wp.launch(saxpy, dim=n, inputs=[-1.5, x, y], device=gpu, max_blocks=2, block_dim=64)
+    np.testing.assert_allclose(y.numpy(), -1.5 * x0.astype(np.float64) + y0, rtol=1e-6, atol=1e-9)
+    tape.backward(grads={y: wp.array(g0, dtype=float, device=gpu)})
+    np.testing.assert_allclose(x.grad.numpy(), -1.5 * g0.astype(np.float64), rtol=1e-6)
+    # the same kernel without a cap, right after: the lean entry, still every index
+    z = wp.zeros(n, dtype=float, device=gpu)
+    wp.launch(saxpy, dim=n, inputs=[2.0, x, z], device=gpu)
+    np.testing.assert_allclose(z.numpy(), 2.0 * x0.astype(np.float64), rtol=1e-6)
+
+
 @pytest.mark.parametrize("n,block_dim", [(1, 256), (100_003, 256), (65_537, 32), (1 << 20, 1024)])
 def test_lean_kernels_cover_every_index(wp, gpu, rng, n, block_dim):
     """grid_stride=False: one index per thread; the runtime's grid covers the launch exactly."""
