@@ -915,6 +915,7 @@ Expected<jit::CuFunction> CudaDevice::Function(const LoadedModule& module, const
   thread_local std::string key;
   key.assign(module.id);
   key.append(module.has_backward ? "/b" : "/f");
+  if (module.grid_stride) key.append("s");   // the grid-stride variant: same id and symbols
   std::lock_guard<std::mutex> lock(mu_);
   auto it = modules_.find(key);
   if (it == modules_.end()) {

@@ -630,6 +630,7 @@ class ModuleStoreImpl final : public ModuleStore {
       module->target = Target::kCuda;
       module->function_names = artifact.function_names;
       module->has_backward = backward;
+      module->grid_stride = variant.codegen.grid_stride;
       module->cuda_image = artifact.object;
       module->cuda_sm = variant.sm;
       for (const KernelLayout& layout : artifact.kernels) {

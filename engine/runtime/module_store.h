@@ -34,6 +34,9 @@ struct LoadedModule {
   std::vector<LoadedKernel> kernels;
   std::vector<std::string> function_names; // launch_error_t::function_id -> name
   bool has_backward = false;
+  // target == kCuda: the entries stride over the grid (ModuleStore::WithGridStride's variant);
+  // its CUBIN shares the module id and the symbols with the lean one.
+  bool grid_stride = false;
   // target == kCuda: the CUBIN for cuda_sm (for cuModuleLoadData; kernels' entry points are
   // layout.forward_symbol / backward_symbol). Empty for CPU modules.
   std::string cuda_image;
