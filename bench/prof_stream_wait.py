@@ -1,7 +1,9 @@
 """How weftd's wait for a GPU stream at a synchronize affects rounds of launches: the same
-client work against two daemons, one per wait mode (WEFT_STREAM_WAIT=poll: poll, then 100 us
-sleeps; default: poll for WEFT_STREAM_SPIN_US, then block until a host function queued on the
-stream signals; engine/device/cuda_device.cpp WaitStream).
+client work against four daemons, one per wait mode (WEFT_STREAM_WAIT=poll: poll, then 100 us
+sleeps; WEFT_STREAM_SPIN_US=1000: poll for 1 ms, then block until a host function queued on the
+stream signals; default: the same after 20 ms of polling; engine/device/cuda_device.cpp
+WaitStream), and
+the default with the client holding large GPU launches for a batch (WEFT_START_GPU_THREADS=0).
 
 Per mode and size: saxpy, R launches then one synchronize (R as bench/bench_cuda.py picks it:
 5 at 1e8), best of 5 rounds, time per launch; the same round's slope between R and 4R (the
@@ -56,13 +58,18 @@ def client(sizes: list[int]) -> None:
     mod = bc.load_kernels(SOURCE, "weft", "prof_sw")
     dev = "cuda:0"
 
+    calls: dict = {}
+
     def round_time(fn, reps: int) -> float:
         wp.synchronize()
         t = time.perf_counter()
         for _ in range(reps):
             fn()
+        t1 = time.perf_counter()
         wp.synchronize()
-        return time.perf_counter() - t
+        t2 = time.perf_counter()
+        calls.setdefault(reps, []).append(((t1 - t) / reps, t2 - t1))
+        return t2 - t
 
     for n in sizes:
         x = wp.empty(n, dtype=float, device=dev)
@@ -86,6 +93,11 @@ def client(sizes: list[int]) -> None:
         intercept = short - slope * r
         print(f"ROW saxpy {n:.0e} R={r}: {short / r * 1e6:.1f} us per launch; slope {slope * 1e6:.1f} us, "
               f"per-round cost {intercept * 1e6:.1f} us; rel. error {err:.1e}", flush=True)
+        for reps in (r, 4 * r):
+            launch_s, sync_s = min(calls[reps], key=lambda c: c[0] * reps + c[1])
+            print(f"  {n:.0e} R={reps}: wp.launch {launch_s * 1e6:.1f} us each, then wp.synchronize "
+                  f"{sync_s * 1e6:.1f} us", flush=True)
+        calls.clear()
         del x, y
 
     def empty_sync():
@@ -109,15 +121,19 @@ def main() -> None:
 
     rows: dict = {}
     traces = {}
-    for mode in ("poll", "signal"):
+    # (name, daemon environment, client environment)
+    modes = [("poll", {"WEFT_STREAM_WAIT": "poll"}, {}),
+             ("signal", {"WEFT_STREAM_SPIN_US": "1000"}, {}),
+             ("spin 20 ms", {}, {}),
+             ("held", {}, {"WEFT_START_GPU_THREADS": "0"})]
+    for mode, daemon_env, client_env in modes:
         trace = Path(tempfile.mkdtemp(prefix="weft-stream-wait-")) / "lane.txt"
         os.environ["WEFT_LANE_TRACE"] = str(trace)
-        if mode == "poll":
-            os.environ["WEFT_STREAM_WAIT"] = "poll"
-        else:
-            os.environ.pop("WEFT_STREAM_WAIT", None)
+        for key in ("WEFT_STREAM_WAIT", "WEFT_STREAM_SPIN_US", "WEFT_START_GPU_THREADS"):
+            os.environ.pop(key, None)
+        os.environ.update(daemon_env)
         daemon = bc.BenchDaemon()
-        env = dict(os.environ, WEFT_ADDRESS=daemon.address)
+        env = dict(os.environ, WEFT_ADDRESS=daemon.address, **client_env)
         try:
             out = subprocess.run([sys.executable, __file__, "--client", "--sizes", args.sizes],
                                  env=env, capture_output=True, text=True, cwd=HERE, timeout=400)
@@ -136,11 +152,11 @@ def main() -> None:
         print(f"[{mode}]\n{text}")
     print(f"a 100 us sleep here takes {statistics.median(sleeps) * 1e6:.0f} us (median of 200; "
           f"max {max(sleeps) * 1e6:.0f} us)")
-    print("\n| case | WEFT_STREAM_WAIT=poll | signalled wait (default) |\n| --- | --- | --- |")
-    for a, b in zip(rows.get("poll", []), rows.get("signal", [])):
-        name, _, va = a.partition(":")
-        _, _, vb = b.partition(":")
-        print(f"| {name} | {va.strip()} | {vb.strip()} |")
+    print("\n| case | WEFT_STREAM_WAIT=poll | WEFT_STREAM_SPIN_US=1000 (signalled after 1 ms) | default (polls 20 ms) | "
+          "default, client holds large launches (WEFT_START_GPU_THREADS=0) |\n| --- | --- | --- | --- | --- |")
+    for a, b, c, d in zip(*(rows.get(m[0], []) for m in modes)):
+        cells = [x.partition(":")[2].strip() for x in (a, b, c, d)]
+        print(f"| {a.partition(':')[0]} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

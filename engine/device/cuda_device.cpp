@@ -571,13 +571,19 @@ bool StreamWaitPolls() {
   return polls;
 }
 
-// How long a wait polls the stream before it blocks (WEFT_STREAM_SPIN_US, default 1000 us).
+// How long a wait polls the stream before it blocks (WEFT_STREAM_SPIN_US, default 20 ms). Polling
+// (yielding the core between polls) ends within microseconds of the work; the host function's
+// signal took 200-300 us more on the lent H200 (bench/prof_stream_wait.py: saxpy 1e8, five
+// launches then a synchronize, 407 us per launch polling 20 ms, 454 us blocking after 1 ms), so
+// only waits longer than this, where that is under 1.5%, block. CUDA's own synchronize spins
+// the whole wait by default.
+constexpr long long kDefaultStreamSpinUs = 20'000;
 std::chrono::nanoseconds StreamSpinTime() {
   static const std::chrono::nanoseconds spin = [] {
     const char* v = std::getenv("WEFT_STREAM_SPIN_US");
     char* end = nullptr;
-    const long long us = v ? std::strtoll(v, &end, 10) : 1000;
-    return std::chrono::microseconds(v && (end == v || us < 0 || us > 10'000'000) ? 1000 : us);
+    const long long us = v ? std::strtoll(v, &end, 10) : kDefaultStreamSpinUs;
+    return std::chrono::microseconds(v && (end == v || us < 0 || us > 10'000'000) ? kDefaultStreamSpinUs : us);
   }();
   return spin;
 }

@@ -250,7 +250,7 @@ class CudaDevice final : public Device {
   Status CheckUsable() const;
   Expected<jit::CuFunction> Function(const LoadedModule& module, const std::string& symbol);
   Expected<jit::CuFunction> Builtin(const char* name);
-  // Waits for the stream: polls it (yielding the core) for WEFT_STREAM_SPIN_US (default 1000),
+  // Waits for the stream: polls it (yielding the core) for WEFT_STREAM_SPIN_US (default 20000),
   // then blocks until a host function queued on the stream signals, waking every millisecond to
   // check the session and the time limit (WEFT_STREAM_WAIT=poll: polls with 100 us sleeps
   // instead, as where the driver lacks cuLaunchHostFunc). Sets the cancel word when `s` is

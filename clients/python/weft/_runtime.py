@@ -36,6 +36,11 @@ LANE_IN_FLIGHT = 16     # asynchronous fast-lane Submits sent before the oldest 
 PUMP_FIRST = 8         # commands queued before the first early Submit after a sync point
 PUMP_AFTER_S = 0.002   # or: two commands, the oldest queued this long ago (gRPC)
 PUMP_AFTER_LANE_S = 40e-6   # the same through the fast lane (an early Submit costs a send)
+# A GPU launch of at least this many threads goes out at once when no Submit is in flight
+# (Runtime.submit's `start`): its kernel runs longer than a frame costs, so holding it to fuse
+# with a synchronize only delays the device (saxpy 1e8: ~60 us per round of five launches).
+# WEFT_START_GPU_THREADS=0 turns it off.
+START_GPU_THREADS = int(os.environ.get("WEFT_START_GPU_THREADS", str(1 << 20))) or (1 << 62)
 DAEMON_START_TIMEOUT_S = 30.0
 RPC_TIMEOUT_S = None  # unary calls wait as long as the daemon needs (compiles can be slow)
 ATTACH_CONFIRM_S = 30.0   # how long a new session waits for the daemon to claim its Attach stream
@@ -497,10 +502,11 @@ class Runtime:
             raise error_from_rpc(err) from None
 
     # -- command batch
-    def submit(self, cmd) -> None:
+    def submit(self, cmd, start: bool = False) -> None:
         """Appends an exec_pb2.Command to the batch (origin = caller's file:line if unset).
         When no Submit is in flight the batch goes out at once, without waiting for the reply
-        (see _pump): the daemon starts on it while this process queues more."""
+        (see _pump): the daemon starts on it while this process queues more. `start`: send it
+        now if nothing is in flight (a large GPU launch, START_GPU_THREADS)."""
         if not cmd.HasField("origin"):
             cmd.origin.CopyFrom(caller_location())
         if self.captures:
@@ -518,7 +524,7 @@ class Runtime:
             self._batch_bytes += cmd.ByteSize()
             full = len(self._batch) >= BATCH_MAX_COMMANDS or self._batch_bytes >= BATCH_MAX_BYTES
             if not full:
-                self._pump()
+                self._pump(start)
         if full:
             self.flush()
 
@@ -560,7 +566,7 @@ class Runtime:
                         self._graph_freed.discard(handle)
                         self._pending_frees.append(handle)
 
-    def _pump(self) -> None:
+    def _pump(self, start: bool = False) -> None:
         """Sends the batch as an asynchronous Submit when no Submit is in flight and the batch
         holds at least `_pump_at` commands, or two commands the oldest of which was queued
         PUMP_AFTER_S ago (through the fast lane `_pump_after`: PUMP_AFTER_LANE_S after a sync
@@ -577,7 +583,8 @@ class Runtime:
         launches costs only a few extra round trips, while a short step (a few launches, then
         a sync) stays one fused Submit: an early Submit there would add a round trip. A failed
         asynchronous Submit (nothing of it was queued) is raised by the next synchronize, and
-        nothing more is sent before that."""
+        nothing more is sent before that. `start` (a large GPU launch was queued): sent now
+        whatever the count and age, when nothing is in flight."""
         if not self.pipelined or self._deferred_error is not None or self.pump_held:
             return
         if self._inflight:
@@ -585,7 +592,7 @@ class Runtime:
             if self._inflight or self._deferred_error is not None:
                 return
         n = len(self._batch)
-        if n < self._pump_at:
+        if n < self._pump_at and not start:
             if n < 2:
                 return
             lane = self.fast_lane

@@ -820,7 +820,13 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         command.launch.block_dim = int(block_dim)   # GPU launch geometry (Warp's options)
     if max_blocks:
         command.launch.max_blocks = int(max_blocks)
-    rt.submit(command)
+    start = False
+    if device.startswith("cuda"):       # a large GPU kernel starts at once (Runtime.submit)
+        threads = 1
+        for d in dims:
+            threads *= d
+        start = threads >= _runtime.START_GPU_THREADS
+    rt.submit(command, start)
     if pause:
         tape.resume_recording()
     elif tape is not None:
