@@ -41,6 +41,10 @@ from pathlib import Path
 
 import pytest
 
+# JAX on a GPU takes 75% of its memory when its backend starts; test processes side by side (the
+# GPU machine runs the suite in shards) and weftd share the GPU, so JAX allocates as it goes.
+os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
+
 REPO_ROOT = Path(__file__).resolve().parents[3]
 CLIENT_DIR = REPO_ROOT / "clients" / "python"
 DAEMON_START_TIMEOUT_S = 30.0
