@@ -1,5 +1,6 @@
 """Where the time of an ordered launch on Torch GPU memory goes, in the client (cProfile of
-bench_interop's loop: five from_torch conversions + one launch per iteration), with the time
+bench_interop's loop: five from_torch conversions (--mode ctype: return_ctype=True) + one
+launch per iteration), with the time
 spent waiting for the daemon's replies split out. Needs a GPU, Torch on CUDA and CUDA IPC in
 the client. Usage: WEFT_DAEMON=... python3 bench/prof_interop_launch.py [--iters 2000]"""
 from __future__ import annotations
@@ -23,7 +24,7 @@ from bench_interop import SOURCE  # noqa: E402
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--iters", type=int, default=2000)
-    ap.add_argument("--mode", default="from_torch", choices=["from_torch", "direct"])
+    ap.add_argument("--mode", default="from_torch", choices=["from_torch", "ctype", "direct"])
     ap.add_argument("--top", type=int, default=30)
     args = ap.parse_args()
     import torch
@@ -35,7 +36,8 @@ def main() -> None:
 
         def loop(iters):
             for _ in range(iters):
-                a = ts if args.mode == "direct" else [wp.from_torch(t) for t in ts]
+                a = ts if args.mode == "direct" else [wp.from_torch(t, return_ctype=args.mode == "ctype")
+                                                      for t in ts]
                 wp.launch(mod.inc5, dim=n, inputs=a, device="cuda:0")
 
         loop(50)

@@ -319,3 +319,24 @@ def test_bfloat16_copies_stay_in_step_too(wp, torch, rng):
         base[2:10] = 3.0
     wp.launch(bf16_scale, dim=8, inputs=[a, out])
     np.testing.assert_array_equal(out.numpy(), np.full(8, 6.0, dtype=np.float32))
+
+
+def test_launch_takes_descriptors_like_their_arrays(wp, torch, rng):
+    """A launch given array_t descriptors (from_torch(..., return_ctype=True), a.__ctype__()) runs
+    on their arrays, in the cached fast path as in the first launch, and refuses a descriptor of
+    the wrong dtype with the array's own message."""
+    x0 = rng.standard_normal(64).astype(np.float32) * np.float32(1e4)
+    x, y = torch.tensor(x0), torch.zeros(64)
+    for _ in range(3):                     # the first launch resolves, the later ones are cached
+        wp.launch(affine, dim=64, inputs=[wp.from_torch(x, return_ctype=True)],
+                  outputs=[wp.from_torch(y, return_ctype=True)])
+        np.testing.assert_allclose(y.numpy(), 0.5 - 2.0 * x0.astype(np.float64), rtol=1e-6)
+    w = wp.zeros(64, dtype=float)
+    wp.launch(affine, dim=64, inputs=[wp.from_torch(x).__ctype__()], outputs=[w.__ctype__()])
+    np.testing.assert_allclose(w.numpy(), 0.5 - 2.0 * x0.astype(np.float64), rtol=1e-6)
+    wrong = wp.zeros(64, dtype=wp.float64)
+    with pytest.raises(Exception) as by_array:
+        wp.launch(affine, dim=64, inputs=[wrong], outputs=[w])
+    with pytest.raises(Exception) as by_descriptor:
+        wp.launch(affine, dim=64, inputs=[wrong.__ctype__()], outputs=[w])
+    assert str(by_descriptor.value) == str(by_array.value) and "dtype" in str(by_array.value)

@@ -598,9 +598,16 @@ def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
     packer = None
     resolved = args
     array_type = _array_type()
+    ctype_type = _ctype_type()
     arg_value = _pb().ArgValue
     for i, (p, value) in enumerate(zip(plan.params, args)):
         if p.is_array:
+            if type(value) is ctype_type:        # an array's ctypes descriptor (return_ctype=True)
+                owner = value._weft_value if hasattr(value, "_weft_value") else None
+                if isinstance(owner, array_type):
+                    if resolved is args:
+                        resolved = list(args)
+                    resolved[i] = value = owner
             if isinstance(value, array_type):
                 c = _array_arg(value) if value._mirror is None else None   # a mirror: the packer
                 if c is not None and (p.elem_any or c[6] == p.elem_text) and c[7] == p.ndim and \
@@ -683,6 +690,19 @@ def _array_type():
 
         _ARRAY_TYPE = array
     return _ARRAY_TYPE
+
+
+_CTYPE_TYPE = None
+
+
+def _ctype_type():
+    """weft.array.array_t: what array.__ctype__() (and from_torch(return_ctype=True)) gives."""
+    global _CTYPE_TYPE
+    if _CTYPE_TYPE is None:
+        from weft.array import array_t  # noqa: PLC0415
+
+        _CTYPE_TYPE = array_t
+    return _CTYPE_TYPE
 
 
 _TAPE_MOD = None
