@@ -26,22 +26,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "clients" / "python"))
 
-SOURCE = '''
-@wp.kernel
-def empty_kernel():
-    pass
-
-@wp.kernel
-def init_random(x: wp.array(dtype=float), seed: int, scale: float):
-    i = wp.tid()
-    state = wp.rand_init(seed, i)
-    x[i] = (wp.randf(state) - 0.5) * scale
-
-@wp.kernel
-def saxpy(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):
-    i = wp.tid()
-    y[i] = a * x[i] + y[i]
-'''
+from bench_cuda import SOURCE  # noqa: E402  (empty_kernel, init_random, saxpy)
 
 
 def reps_for(n: int) -> int:

@@ -341,16 +341,10 @@ class ModuleStoreImpl final : public ModuleStore {
       variant = it->second.variant;
     }
     variant.codegen.enable_backward = true;
-    std::vector<Diagnostic> diagnostics;
-    auto module = Get(Key(variant), module_id, variant, nullptr, &diagnostics);
-    if (!module.ok()) {
-      std::string text = module.status().message();
-      for (const auto& d : diagnostics) text += "\n" + d.ToString();
-      return Status(module.status().code(), text);
-    }
+    WEFT_ASSIGN_OR_RETURN(ModuleCache::Module module, GetVariant(module_id, variant));
     std::lock_guard<std::mutex> lock(registry_mutex_);
-    registry_[module_id].backward = *module;
-    return *module;
+    registry_[module_id].backward = module;
+    return module;
   }
 
   Expected<std::shared_ptr<const LoadedModule>> WithGridStride(const std::string& module_id, bool backward) override {
@@ -366,16 +360,10 @@ class ModuleStoreImpl final : public ModuleStore {
       return FailedPrecondition("module " + module_id + " was compiled without a grid-stride loop (grid_stride=False)");
     variant.codegen.grid_stride = true;
     variant.codegen.enable_backward = backward;
-    std::vector<Diagnostic> diagnostics;
-    auto module = Get(Key(variant), module_id, variant, nullptr, &diagnostics);
-    if (!module.ok()) {
-      std::string text = module.status().message();
-      for (const auto& d : diagnostics) text += "\n" + d.ToString();
-      return Status(module.status().code(), text);
-    }
+    WEFT_ASSIGN_OR_RETURN(ModuleCache::Module module, GetVariant(module_id, variant));
     std::lock_guard<std::mutex> lock(registry_mutex_);
-    registry_[module_id].strided[backward ? 1 : 0] = *module;
-    return *module;
+    registry_[module_id].strided[backward ? 1 : 0] = module;
+    return module;
   }
 
   ModuleStoreStats stats() const override { return cache_->stats(); }
@@ -467,6 +455,17 @@ class ModuleStoreImpl final : public ModuleStore {
 #else
     return Unimplemented("this weft was built without CUDA");
 #endif
+  }
+
+  // Another variant of module `module_id` (backward entries, grid-stride entries): compiled on
+  // first request, its compiler diagnostics appended to the error.
+  Expected<ModuleCache::Module> GetVariant(const std::string& module_id, const Variant& variant) const {
+    std::vector<Diagnostic> diagnostics;
+    auto module = Get(Key(variant), module_id, variant, nullptr, &diagnostics);
+    if (module.ok()) return module;
+    std::string text = module.status().message();
+    for (const auto& d : diagnostics) text += "\n" + d.ToString();
+    return Status(module.status().code(), text);
   }
 
   // The module of cache key `key`, presented to clients as module `id`.

@@ -350,6 +350,20 @@ class _Wrapper:
             outs.append(array_mod.zeros(shape, dtype=p.dtype, device="cpu", requires_grad=requires_grad))
         return outs
 
+    def _bind(self, bound, spec, buffers, outs):
+        """(inputs, outputs) of one call as weft arrays over XLA's buffers (in-out arrays: their
+        aliased output buffers; outputs zeroed) and the call's static scalars."""
+        values = [None] * self.num_inputs
+        for i, v in spec.scalars.items():
+            values[i] = v
+        by_name = dict(zip([p.name for p in self.outputs], outs))
+        for i, buf in buffers.items():
+            p = self.params[i]
+            values[i] = bound.array(by_name.get(p.name, buf), p.dtype, p.name)
+        results = [bound.array(buf, p.dtype, p.name, zero=True)
+                   for p, buf in zip(self.params[self.num_inputs:], outs[len(self.in_out):])]
+        return values, results
+
     def _results(self, values, outs, specs):
         got = [values[[p.name for p in self.params].index(n)] for n in self.in_out] + outs
         return tuple(np.array(o.numpy(), copy=True).reshape(s.shape) for o, s in zip(got, specs))
@@ -511,15 +525,7 @@ class FfiKernel(_Wrapper):
     def _run_ffi(self, spec, buffers, outs, device):
         """One forward launch on XLA's buffers (in-out arrays: their aliased output buffers)."""
         bound = _Bound(device, self.what)
-        values = [None] * self.num_inputs
-        for i, v in spec.scalars.items():
-            values[i] = v
-        by_name = dict(zip([p.name for p in self.outputs], outs))
-        for i, buf in buffers.items():
-            p = self.params[i]
-            values[i] = bound.array(by_name.get(p.name, buf), p.dtype, p.name)
-        results = [bound.array(buf, p.dtype, p.name, zero=True)
-                   for p, buf in zip(self.params[self.num_inputs:], outs[len(self.in_out):])]
+        values, results = self._bind(bound, spec, buffers, outs)
         sys.modules["weft"].launch(self.kernel, dim=spec.launch_dims, inputs=values, outputs=results,
                                    device=device, block_dim=self.block_dim)
         bound.finish()
@@ -684,15 +690,7 @@ class FfiCallable(_Wrapper):
             raise RuntimeError(f"{self.what}: graph mode {self.graph_mode.name} captures a CUDA graph and "
                                f"is not available on the CPU")
         bound = _Bound(device, self.what)
-        values = [None] * self.num_inputs
-        for i, v in spec.scalars.items():
-            values[i] = v
-        by_name = dict(zip([p.name for p in self.outputs], outs))
-        for i, buf in buffers.items():
-            p = self.params[i]
-            values[i] = bound.array(by_name.get(p.name, buf), p.dtype, p.name)
-        results = [bound.array(buf, p.dtype, p.name, zero=True)
-                   for p, buf in zip(self.params[self.num_inputs:], outs[len(self.in_out):])]
+        values, results = self._bind(bound, spec, buffers, outs)
         self.func(*values, *results)
         bound.finish()
 
