@@ -356,7 +356,9 @@ class ModuleStoreImpl final : public ModuleStore {
       if (auto alive = it->second.strided[backward ? 1 : 0].lock()) return alive;
       variant = it->second.variant;
     }
-    if (variant.codegen.target != Target::kCuda || !variant.stride_allowed)
+    if (variant.codegen.target != Target::kCuda)
+      return FailedPrecondition("module " + module_id + " is compiled for the CPU, whose entries take index ranges");
+    if (!variant.stride_allowed)
       return FailedPrecondition("module " + module_id + " was compiled without a grid-stride loop (grid_stride=False)");
     variant.codegen.grid_stride = true;
     variant.codegen.enable_backward = backward;

@@ -168,7 +168,7 @@ def _source_dtype(src: _Source, dtype, what: str):
     return dtype
 
 
-def _numeric_interface(obj) -> bool:
+def numeric_interface(obj) -> bool:
     """Whether `obj` has a readable CUDA Array Interface of a NumPy numeric type (JAX gives
     bfloat16 arrays none, or a void typestr: those go through DLPack)."""
     try:
@@ -180,7 +180,7 @@ def _numeric_interface(obj) -> bool:
 
 def source_of(obj, what) -> _Source:
     """The GPU memory of a foreign array (CUDA Array Interface first, then DLPack)."""
-    if external.is_torch_tensor(obj) or _numeric_interface(obj):
+    if external.is_torch_tensor(obj) or numeric_interface(obj):
         return _from_interface(obj, what)
     if hasattr(obj, "__dlpack__"):
         return _from_dlpack(obj, what)

@@ -248,7 +248,7 @@ def from_dlpack(source, dtype=None):
         if external.is_torch_tensor(source):
             out, _ = cuda_import.adopt_torch(source, dtype, f"cuda:{ordinal}", "wp.from_dlpack")
             return out
-        if cuda_import._numeric_interface(source):
+        if cuda_import.numeric_interface(source):
             found = external.find_cuda_in_place(source, dtype, f"cuda:{ordinal}",
                                                 "wp.from_dlpack")
             if found is not None:
