@@ -3,7 +3,9 @@
 // `y[i] = a * x[i] + y[i]`), and variants that each change one thing (no grid-stride loop, as
 // weft's grid_stride=False; the error report out of line, with and without __grid_constant__
 // parameters; no checks; a lean kernel with int32 shape and strides), beside a device copy of
-// the same bytes. Built by bench/kernel_variants/build.sh with the flags weft's NVRTC uses
+// the same bytes; and (2026-11-28) the body weft generates with `wp.tid()` as emitted under the
+// entry forms (the loop, none, a loop calling the body, once then a loop: docs/cuda.md, "The
+// H200, 2026-11-28 later"). Built by bench/kernel_variants/build.sh with the flags weft's NVRTC uses
 // (-std=c++17 --fmad=false) and run on the GPU machine (scripts/gpu-run's WEFT_GPU_BENCH).
 // Prints one row per variant and size: time per launch (median of 7 rounds), GB/s (12 bytes
 // per element), share of the copy rate, and the max error against a float64 reference.
@@ -90,8 +92,9 @@ extern "C" __global__ void cold_report_no_loop(wp::launch_context_t __ctx, saxpy
   const wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
   if (__i < __ctx.bounds.size) saxpy_body_cold(&__ctx, __args, __i);
 }
-// The grid-stride entry as weft generates it now: __grid_constant__ parameters, the stride
-// computed once before the loop; and the two halves of that change alone.
+// The grid-stride entry as weft generated it from 2026-11-25 (its grid-stride variant still
+// does): __grid_constant__ parameters, the stride computed once before the loop; and the two
+// halves of that change alone.
 extern "C" __global__ void gc_hoisted_stride(const __grid_constant__ wp::launch_context_t __ctx,
                                              const __grid_constant__ saxpy_args __args) {
   const wp::int64 __stride = (wp::int64)blockDim.x * gridDim.x;
@@ -333,7 +336,7 @@ int main(int argc, char** argv) {
         {"loop calling the body out of line, checks, 1-D tid fast path", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gen_loop_calls_body<<<g, 256>>>(c, a); }},
         {"once then loop, checks, 1-D tid fast path", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gen_tidfast_once_then_loop<<<g, 256>>>(c, a); }},
         {"grid-stride loop, checks inline (generated before)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { weft_now<<<g, 256>>>(c, a); }},
-        {"grid-stride loop, __grid_constant__, stride hoisted (generated now)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gc_hoisted_stride<<<g, 256>>>(c, a); }},
+        {"grid-stride loop, __grid_constant__, stride hoisted (the entry of 2026-11-25)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gc_hoisted_stride<<<g, 256>>>(c, a); }},
         {"grid-stride loop, __grid_constant__ only", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { gc_only<<<g, 256>>>(c, a); }},
         {"grid-stride loop, stride hoisted only", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { hoisted_stride_only<<<g, 256>>>(c, a); }},
         {"no loop (if i < n), checks inline (grid_stride=False)", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { no_loop<<<g, 256>>>(c, a); }},
