@@ -37,6 +37,21 @@ struct KernelLaunch {
   SourceLocation origin;      // where the client launched it (asynchronous errors name it)
 };
 
+// Whether a GPU launch needs an entry that strides over the grid: the blocks it needs (of
+// block_dim threads, 256 when 0) are more than max_blocks (when set) or than one grid holds
+// (2^31 - 1); a thread count that overflows 64 bits needs it too. A launch with a zero extent
+// needs no grid at all.
+inline bool NeedsGridStride(const KernelLaunch& l) {
+  uint64_t size = 1;
+  for (int64_t d : l.dim) {
+    if (d <= 0) return false;
+    if (__builtin_mul_overflow(size, static_cast<uint64_t>(d), &size)) return true;
+  }
+  const uint64_t block = l.block_dim ? l.block_dim : 256;
+  const uint64_t blocks = size / block + (size % block != 0);
+  return (l.max_blocks > 0 && blocks > l.max_blocks) || blocks > 0x7fffffffull;
+}
+
 // The first asynchronous error of a session on a device since its last Synchronize.
 struct DeviceSyncResult {
   Status error;

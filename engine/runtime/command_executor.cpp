@@ -116,21 +116,7 @@ Status CommandExecutor::UseGridStrideWhereNeeded(const Device& device, const std
                                                  const std::string& kernel_name, bool adjoint, const KernelLaunch& launch,
                                                  std::shared_ptr<const LoadedModule>* module,
                                                  const LoadedKernel** kernel) {
-  if (device.is_cpu() || (*kernel)->layout.grid_stride) return Status::Ok();
-  // Threads of the launch (a product that overflows needs the loop; the device checks the dims).
-  uint64_t size = 1;
-  bool huge = false;
-  for (int64_t d : launch.dim) {
-    if (d <= 0) {
-      size = 0;
-      break;
-    }
-    if (__builtin_mul_overflow(size, static_cast<uint64_t>(d), &size)) huge = true;
-  }
-  const uint64_t block = launch.block_dim ? launch.block_dim : 256;
-  const uint64_t blocks = huge ? UINT64_MAX : (size + block - 1) / block;
-  const bool capped = launch.max_blocks > 0 && blocks > launch.max_blocks;
-  if (!capped && blocks <= 0x7fffffffull) return Status::Ok();
+  if (device.is_cpu() || (*kernel)->layout.grid_stride || !NeedsGridStride(launch)) return Status::Ok();
   auto strided = store_->WithGridStride(module_id, adjoint);
   if (!strided.ok()) {
     // Built lean on purpose: the device's launch says why the launch is refused.
