@@ -768,6 +768,8 @@ print("done")
     assert int(line.group(1)) >= 25, text
     assert all(float(v) >= 0 for v in line.groups()[1:]), text
     assert float(line.group(4)) > 0, text       # the engine did run the launches
+    # and how many frames' stream waits blocked on a host function (GPU streams only)
+    assert re.search(r"kind=submit(?:-gpu)?\+sync frames=\d+ .* reply=[\d.]+ blocked_frames=\d+\n", text), text
     assert "kind=synchronize" in text, text
 
 
