@@ -572,11 +572,11 @@ bool StreamWaitPolls() {
 }
 
 // How long a wait polls the stream before it blocks (WEFT_STREAM_SPIN_US, default 20 ms). Polling
-// (yielding the core between polls) ends within microseconds of the work; the host function's
-// signal took 200-300 us more on the lent H200 (bench/prof_stream_wait.py: saxpy 1e8, five
-// launches then a synchronize, 407 us per launch polling 20 ms, 454 us blocking after 1 ms), so
-// only waits longer than this, where that is under 1.5%, block. CUDA's own synchronize spins
-// the whole wait by default.
+// (yielding the core between polls) ends within microseconds of the work; blocking on the host
+// function cost 190-230 us more per round on the lent H200 (bench/prof_stream_wait.py: saxpy
+// 1e8, five launches then a synchronize, 405-407 us per launch polling 20 ms, 444-454 us
+// blocking after 1 ms), so only waits longer than this, where that is about 1%, block. CUDA's
+// own synchronize spins for the whole wait under its default scheduling.
 constexpr long long kDefaultStreamSpinUs = 20'000;
 std::chrono::nanoseconds StreamSpinTime() {
   static const std::chrono::nanoseconds spin = [] {

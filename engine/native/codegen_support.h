@@ -300,16 +300,11 @@ WP_FUNC bool cg_loop_poll(const launch_context_t* ctx, uint32& counter) {
 // index is what is left of `flat`: a 1-D launch does no division at all.
 // i = wp.tid() (one name): the first coordinate of the thread's launch index (Warp's rule: only
 // the leading indices are returned); the flat index of a 1-D launch.
-// The first tid component of a multi-dimensional launch: out of line, so that a kernel's
-// threads (on a GPU, each usually runs the body once) do not compute the divisor in their
-// prologue where the compiler would hoist it out of the entry's loop.
-inline WP_NOINLINE WP_CALLABLE int64 cg_tid_first_nd(const launch_bounds_t* b, int64 flat) {
-  const int64 inner = (b->shape[1] > 0 ? b->shape[1] : 1) * (b->shape[2] > 0 ? b->shape[2] : 1) *
-                      (b->shape[3] > 0 ? b->shape[3] : 1);
-  return flat / inner;
-}
 WP_FUNC int64 cg_tid_first(const launch_context_t* ctx, int64 flat) {
-  return ctx->bounds.ndim <= 1 ? flat : cg_tid_first_nd(&ctx->bounds, flat);
+  const launch_bounds_t& b = ctx->bounds;
+  if (b.ndim <= 1) return flat;
+  const int64 inner = (b.shape[1] > 0 ? b.shape[1] : 1) * (b.shape[2] > 0 ? b.shape[2] : 1) * (b.shape[3] > 0 ? b.shape[3] : 1);
+  return flat / inner;
 }
 WP_FUNC void cg_unravel(const launch_bounds_t& b, int64 flat, int64* tid) {
   tid[1] = tid[2] = tid[3] = 0;

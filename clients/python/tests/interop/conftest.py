@@ -59,6 +59,25 @@ def tordered(tcuda):
 
 
 @pytest.fixture
+def jgpu(wp, cuda):
+    """(jax, JAX's first CUDA device, weft's cuda:0) with that device JAX's default, or skipped
+    with the reason (no JAX, no CUDA backend in JAX, no CUDA IPC in this client)."""
+    jax = pytest.importorskip("jax", reason="JAX is not installed")
+    try:
+        gpus = jax.devices("gpu")
+    except RuntimeError as err:
+        pytest.skip(f"JAX has no CUDA device here ({err})")
+    if not gpus:
+        pytest.skip("JAX has no CUDA device here")
+    from weft import _cuda_ipc
+
+    if not _cuda_ipc.available():
+        pytest.skip(f"CUDA IPC is not available in this client: {_cuda_ipc.reason()}")
+    with jax.default_device(gpus[0]):
+        yield jax, gpus[0], cuda
+
+
+@pytest.fixture
 def jax():
     """JAX with float64 enabled, its arrays placed on the CPU (these are the CPU paths, also
     on machines where JAX has a GPU)."""

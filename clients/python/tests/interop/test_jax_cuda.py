@@ -17,20 +17,6 @@ def scale_into(x: wp.array(dtype=float), s: float, y: wp.array(dtype=float)):
     y[i] = x[i] * s
 
 
-@pytest.fixture
-def jgpu(wp, cuda):
-    jax = pytest.importorskip("jax", reason="JAX is not installed")
-    try:
-        gpus = jax.devices("gpu")
-    except RuntimeError as err:
-        pytest.skip(f"JAX has no CUDA backend here ({err})")
-    from weft import _cuda_ipc
-
-    if not _cuda_ipc.available():
-        pytest.skip(f"CUDA IPC is not available in this client: {_cuda_ipc.reason()}")
-    return jax, gpus[0], cuda
-
-
 def test_from_jax_and_to_jax_on_the_gpu_are_zero_copy(wp, jgpu, rng):
     jax, gpu, cuda = jgpu
     n = 4096
@@ -54,7 +40,6 @@ def test_from_jax_and_to_jax_on_the_gpu_are_zero_copy(wp, jgpu, rng):
     np.testing.assert_allclose(np.asarray(y), values.astype(np.float64) * 3.0, rtol=1e-6)
     z = (y * 2.0).block_until_ready()          # JAX work on weft memory
     np.testing.assert_allclose(np.asarray(z), values.astype(np.float64) * 6.0, rtol=1e-6)
-
 
 
 def test_bfloat16_crosses_both_ways_on_the_gpu(wp, jgpu, rng):

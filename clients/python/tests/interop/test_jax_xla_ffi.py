@@ -6,7 +6,7 @@ references on fresh random data), attributes of every kind XLA encodes, an excep
 callback, weft's refusal of a wrong rank or element shape and a jax_kernel target's refusal of a
 wrong dtype or shape becoming JAX errors with their messages, re-registration, jax_kernel /
 jax_callable going through their FFI target (handler counter; vmap methods, in-out arrays,
-zeroed outputs), and the pure_callback path kept behind jax_ffi.CPU_PURE_CALLBACK.
+zeroed outputs).
 Attack tests: hand-made call frames (absurd rank, dimensions, counts, dtype codes, struct
 sizes, attribute lengths, a dictionary attribute that contains itself) are refused with an XLA
 error made through the frame's API table, the Python function never called; the metadata query
@@ -231,18 +231,6 @@ def test_outputs_start_zeroed(jax):
     for _ in range(3):        # XLA reuses buffers between calls; the odd elements stay zero
         (out,) = jax.jit(k)(jnp.full(8, 3.0, jnp.float32))
         assert np.asarray(out).tolist() == [3.0, 0.0] * 4
-
-
-def test_pure_callback_path_is_kept(jax, rng, monkeypatch):
-    jnp = jax.numpy
-    monkeypatch.setattr(jax_ffi, "CPU_PURE_CALLBACK", True)
-    monkeypatch.setattr(jax_ffi, "_FFI_KERNEL_REGISTRY", {})
-    a = rng.standard_normal(40).astype(np.float32)
-    b = rng.standard_normal(40).astype(np.float32)
-    before = jax_ffi.FFI_CALLS["cpu"]
-    (out,) = jax.jit(wp.jax_kernel(sin_plus))(jnp.asarray(a), jnp.asarray(b))
-    np.testing.assert_allclose(np.asarray(out), np.sin(a.astype(np.float64)) + b, rtol=1e-6, atol=1e-6)
-    assert jax_ffi.FFI_CALLS["cpu"] == before
 
 
 # ---- attack tests: hand-made call frames ------------------------------------------------------
@@ -484,24 +472,6 @@ def test_the_metadata_query_is_answered_without_the_command_buffer_trait():
 
 
 # ---- GPU: JAX's CUDA buffers --------------------------------------------------------------
-
-
-@pytest.fixture
-def jgpu(wp, cuda):
-    """(jax, JAX's first CUDA device, weft's cuda:0), or skipped with the reason."""
-    jax = pytest.importorskip("jax", reason="JAX is not installed")
-    try:
-        gpus = jax.devices("gpu")
-    except RuntimeError as err:
-        pytest.skip(f"JAX has no CUDA device here ({err})")
-    if not gpus:
-        pytest.skip("JAX has no CUDA device here")
-    from weft import _cuda_ipc
-
-    if not _cuda_ipc.available():
-        pytest.skip(f"CUDA IPC is not available in this client: {_cuda_ipc.reason()}")
-    with jax.default_device(gpus[0]):
-        yield jax, gpus[0], cuda
 
 
 @pytest.fixture

@@ -56,9 +56,6 @@ _TARGET_NUMBERS = itertools.count()
 _CALL_ATTR = "weft_call"          # the attribute naming a call's static settings
 # Handler executions by platform ("cpu", "cuda"): tests check which path ran.
 FFI_CALLS: collections.Counter = collections.Counter()
-# JAX's CPU device through jax.pure_callback instead of the FFI target (both copy in and out;
-# docs/interop.md has the measurements that made the FFI target the default).
-CPU_PURE_CALLBACK = False
 
 
 class JaxCallableGraphMode(enum.IntEnum):
@@ -214,24 +211,16 @@ class _Wrapper:
             dims = dims + p.inner   # Warp's shape convention; JAX's (..., 3) also accepted
         return dims
 
-    def _call(self, args, launch_dims, output_dims, vmap_method, run, run_ffi):
-        """The call of the FFI target (run_ffi(spec, inputs by position, outputs, device) per
-        batch element), or where CPU_PURE_CALLBACK, a pure_callback of run(launch_dims, host
-        input arrays by position, scalars) -> outputs."""
+    def _call(self, args, launch_dims, output_dims, vmap_method, run_ffi):
+        """The call of the FFI target: run_ffi(spec, inputs by position, outputs, device) per
+        batch element."""
         jax = _jax()
         arrays, scalars = self._split(args)
         launch_dims = self._launch_dims(args, arrays, launch_dims)
         specs = [jax.ShapeDtypeStruct(self._out_shape(p, launch_dims, output_dims, args), p.np_dtype)
                  for p in self.outputs]
-        base_ndims = [len(args[i].shape) for i in arrays]
         method = vmap_method or self.vmap_method or "broadcast_all"
         inputs = [args[i] for i in arrays]
-        if CPU_PURE_CALLBACK:
-            def host(*host_arrays):
-                return self._run_batched(run, launch_dims, specs, arrays, base_ndims, host_arrays, scalars)
-
-            method = "sequential" if method == "sequential_unrolled" else method
-            return _varying_as(inputs, jax.pure_callback(host, tuple(specs), *inputs, vmap_method=method))
         names = [p.name for p in self.params]
         aliases = {arrays.index(names.index(n)): k for k, n in enumerate(self.in_out)}
         spec = _CallSpec(run_ffi, launch_dims, arrays, [tuple(x.shape) for x in inputs],
@@ -306,50 +295,6 @@ class _Wrapper:
                 outs = [o.element(idx) if batch else o for o in outputs]
                 spec.run(spec, item, outs, device)
 
-    def _run_batched(self, run, launch_dims, specs, arrays, base_ndims, host_arrays, scalars):
-        """Runs once per element of the leading batch axes jax.vmap adds (none outside vmap)."""
-        host_arrays = [np.asarray(a) for a in host_arrays]
-        batch = ()
-        for a, nd in zip(host_arrays, base_ndims):
-            if a.ndim > nd:
-                batch = np.broadcast_shapes(batch, a.shape[:a.ndim - nd])
-        if not batch:
-            return run(launch_dims, dict(zip(arrays, host_arrays)), scalars, specs)
-        results = [np.empty(batch + tuple(s.shape), dtype=s.dtype) for s in specs]
-        for idx in np.ndindex(*batch):
-            item = {}
-            for i, a, nd in zip(arrays, host_arrays, base_ndims):
-                lead = a.ndim - nd
-                item[i] = a[tuple(0 if a.shape[k] == 1 else idx[len(batch) - lead + k] for k in range(lead))] \
-                    if lead else a
-            for r, value in zip(results, run(launch_dims, item, scalars, specs)):
-                r[idx] = value
-        return tuple(results)
-
-    # ---- host side -------------------------------------------------------------------------
-    def _weft_inputs(self, host, scalars, requires_grad=False):
-        values = [None] * self.num_inputs
-        for i, v in scalars.items():
-            values[i] = v
-        for i, v in host.items():
-            p = self.params[i]
-            view = np.ascontiguousarray(v).reshape(tuple(v.shape[:v.ndim - len(p.inner)]) + p.inner)
-            if p.name in self.in_out or requires_grad:   # written by the kernel: its own copy
-                values[i] = sys.modules["weft"].array(np.array(view, copy=True), dtype=p.dtype, device="cpu",
-                                                      requires_grad=requires_grad)
-            else:
-                values[i], _ = external.weft_array(view, dtype=p.dtype, device="cpu",
-                                                   what=f"{self.what} input '{p.name}'")
-        return values
-
-    def _weft_outputs(self, specs, requires_grad=False):
-        array_mod = sys.modules["weft.array"]
-        outs = []
-        for p, spec in zip(self.params[self.num_inputs:], specs[len(self.in_out):]):
-            shape = spec.shape[:len(spec.shape) - len(p.inner)] if p.inner else spec.shape
-            outs.append(array_mod.zeros(shape, dtype=p.dtype, device="cpu", requires_grad=requires_grad))
-        return outs
-
     def _bind(self, bound, spec, buffers, outs):
         """(inputs, outputs) of one call as weft arrays over XLA's buffers (in-out arrays: their
         aliased output buffers; outputs zeroed) and the call's static scalars."""
@@ -363,11 +308,6 @@ class _Wrapper:
         results = [bound.array(buf, p.dtype, p.name, zero=True)
                    for p, buf in zip(self.params[self.num_inputs:], outs[len(self.in_out):])]
         return values, results
-
-    def _results(self, values, outs, specs):
-        got = [values[[p.name for p in self.params].index(n)] for n in self.in_out] + outs
-        return tuple(np.array(o.numpy(), copy=True).reshape(s.shape) for o, s in zip(got, specs))
-
 
 class _CallSpec:
     """The static settings of one traced call: the runner, launch dims, the array inputs'
@@ -421,8 +361,7 @@ def _ordered_with_xla(ctx):
 
     rt = _runtime.get_runtime()
     ordinal = int(ctx.device_ordinal or 0)
-    previous = cuda_order.set_scoped_stream(ordinal, ctx.stream)
-    try:
+    with xla_ffi.cuda_scope(ctx):
         ordered = cuda_order.enabled(rt, {ordinal})
         if ordered:
             cuda_order.before(rt, (ordinal,), ctx.stream)
@@ -435,8 +374,6 @@ def _ordered_with_xla(ctx):
                 cuda_order.after(rt, (ordinal,), [ctx.stream])
             else:
                 rt.synchronize()
-    finally:
-        cuda_order.set_scoped_stream(ordinal, previous)
 
 
 class _Bound:
@@ -514,13 +451,11 @@ class FfiKernel(_Wrapper):
             if vmap_method is not None:
                 raise TypeError(f"{self.what}: vmap_method cannot be overridden per-call with enable_backward=True")
             return self._differentiable(args)
-        if CPU_PURE_CALLBACK:
-            _check_cpu(self.what)
         launch = launch_dims if launch_dims is not None else self.launch_dims
         arrays, _ = self._split(args)
         self._check_extents(self._launch_dims(args, arrays, launch))
         return self._call(args, launch, output_dims if output_dims is not None else self.output_dims,
-                          vmap_method, self._run, self._run_ffi)
+                          vmap_method, self._run_ffi)
 
     def _run_ffi(self, spec, buffers, outs, device):
         """One forward launch on XLA's buffers (in-out arrays: their aliased output buffers)."""
@@ -558,34 +493,8 @@ class FfiKernel(_Wrapper):
             weft.copy(bound.array(buf, p.dtype, f"{p.name} (gradient)", zero=True), values[i].grad)
         bound.finish()
 
-    def _run(self, launch_dims, host, scalars, specs):
-        values = self._weft_inputs(host, scalars)
-        outs = self._weft_outputs(specs)
-        sys.modules["weft"].launch(self.kernel, dim=launch_dims, inputs=values, outputs=outs, device="cpu",
-                                   block_dim=self.block_dim)
-        return self._results(values, outs, specs)
-
-    def _run_backward(self, launch_dims, host, scalars, specs, grad_specs):
-        weft = sys.modules["weft"]
-        forward_host = {i: v for i, v in host.items() if i < self.num_inputs}
-        values = self._weft_inputs(forward_host, scalars, requires_grad=True)
-        outs = self._weft_outputs(specs, requires_grad=True)
-        tape = weft.Tape()
-        with tape:
-            weft.launch(self.kernel, dim=launch_dims, inputs=values, outputs=outs, device="cpu",
-                        block_dim=self.block_dim)
-        grads = {}
-        for k, (o, p) in enumerate(zip(outs, self.params[self.num_inputs:])):
-            g = np.ascontiguousarray(host[self.num_inputs + k]).reshape(o.shape + p.inner)
-            grads[o] = weft.array(g, dtype=p.dtype, device="cpu")
-        tape.backward(grads=grads)
-        return tuple(np.array(values[i].grad.numpy(), copy=True).reshape(s.shape)
-                     for i, s in zip(sorted(forward_host), grad_specs))
-
     def _differentiable(self, args):
         jax = _jax()
-        if CPU_PURE_CALLBACK:
-            _check_cpu(self.what)
         arrays, scalars = self._split(args)
         launch_dims = self._launch_dims(args, arrays, self.launch_dims)
         self._check_extents(launch_dims)
@@ -602,7 +511,7 @@ class FfiKernel(_Wrapper):
             full = list(args)
             for i, x in zip(positions, xs):
                 full[i] = x
-            return self._call(full, launch_dims, out_dims, None, self._run, self._run_ffi)
+            return self._call(full, launch_dims, out_dims, None, self._run_ffi)
 
         @jax.custom_vjp
         def apply(*xs):
@@ -613,26 +522,13 @@ class FfiKernel(_Wrapper):
 
         def apply_bwd(xs, cotangents):
             grad_specs = [jax.ShapeDtypeStruct(x.shape, x.dtype) for x in xs]
-            if not CPU_PURE_CALLBACK:
-                operands = [*xs, *cotangents]
-                where = positions + [self.num_inputs + k for k in range(nout)]
-                spec = _CallSpec(self._run_backward_ffi, launch_dims, where,
-                                 [tuple(x.shape) for x in operands], [np.dtype(x.dtype) for x in operands],
-                                 grad_specs, scalars)
-                call = jax.ffi.ffi_call(self._target(), tuple(grad_specs), vmap_method="broadcast_all")
-                return _varying_as(operands, call(*operands, **{_CALL_ATTR: np.int64(self._remember(spec))}))
-            out_specs = [jax.ShapeDtypeStruct(c.shape, c.dtype) for c in cotangents]
-            base_ndims = [len(x.shape) for x in xs] + [len(c.shape) for c in cotangents]
+            operands = [*xs, *cotangents]
             where = positions + [self.num_inputs + k for k in range(nout)]
-
-            def run(_dims, host, scalars_, _specs):
-                return self._run_backward(launch_dims, host, scalars_, out_specs, grad_specs)
-
-            def host(*host_arrays):
-                return self._run_batched(run, launch_dims, grad_specs, where, base_ndims, host_arrays, scalars)
-
-            return _varying_as([*xs, *cotangents], jax.pure_callback(
-                host, tuple(grad_specs), *xs, *cotangents, vmap_method="broadcast_all"))
+            spec = _CallSpec(self._run_backward_ffi, launch_dims, where,
+                             [tuple(x.shape) for x in operands], [np.dtype(x.dtype) for x in operands],
+                             grad_specs, scalars)
+            call = jax.ffi.ffi_call(self._target(), tuple(grad_specs), vmap_method="broadcast_all")
+            return _varying_as(operands, call(*operands, **{_CALL_ATTR: np.int64(self._remember(spec))}))
 
         apply.defvjp(apply_fwd, apply_bwd)
         return tuple(apply(*[args[i] for i in positions]))
@@ -640,8 +536,7 @@ class FfiKernel(_Wrapper):
 
 def _varying_as(inputs, outputs) -> tuple:
     """The call's outputs, varying over every manual mesh axis an input varies over (inside
-    jax.shard_map with check_vma; neither ffi_call's nor pure_callback's outputs are in the JAX
-    versions tested): without it a lax.scan carry through the call changes type."""
+    jax.shard_map with check_vma; ffi_call's outputs are not in the JAX versions tested): without it a lax.scan carry through the call changes type."""
     jax = _jax()
     if not (hasattr(jax, "typeof") and hasattr(jax.lax, "pcast")):     # JAX before varying axes
         return tuple(outputs)
@@ -677,10 +572,8 @@ class FfiCallable(_Wrapper):
         self.stage_out_argnames = set(stage_out_argnames or ())
 
     def __call__(self, *args, output_dims=None, vmap_method=None):
-        if CPU_PURE_CALLBACK:
-            _check_cpu(self.what)
         return self._call(args, None, output_dims if output_dims is not None else self.output_dims,
-                          vmap_method, self._run, self._run_ffi)
+                          vmap_method, self._run_ffi)
 
     def _run_ffi(self, spec, buffers, outs, device):
         """The function on weft arrays bound to XLA's buffers (in-out arrays: their aliased
@@ -693,15 +586,6 @@ class FfiCallable(_Wrapper):
         values, results = self._bind(bound, spec, buffers, outs)
         self.func(*values, *results)
         bound.finish()
-
-    def _run(self, launch_dims, host, scalars, specs):
-        if self.graph_mode not in (JaxCallableGraphMode.NONE, JaxCallableGraphMode.JAX):
-            raise RuntimeError(f"{self.what}: graph mode {self.graph_mode.name} captures a CUDA graph and "
-                               f"is not available on the CPU")
-        values = self._weft_inputs(host, scalars)
-        outs = self._weft_outputs(specs)
-        self.func(*values, *outs)
-        return self._results(values, outs, specs)
 
 
 def jax_kernel(kernel, num_outputs=1, vmap_method="broadcast_all", launch_dims=None, output_dims=None,

@@ -24,6 +24,7 @@ through ctypes.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import sys
 import threading
@@ -598,19 +599,17 @@ def register_target(name: str, run) -> None:
             _TARGETS[(name, platform)] = handler
 
 
-def _cuda_scope(ctx):
+@contextlib.contextmanager
+def cuda_scope(ctx):
     """Binds XLA's stream as the framework stream of weft's launches on that device while a
     callback runs (a wp.ScopedStream inside the callback overrides it)."""
     from . import cuda_order  # noqa: PLC0415
 
-    class _Scope:
-        def __enter__(self):
-            self.previous = cuda_order.set_scoped_stream(ctx.device_ordinal or 0, ctx.stream)
-
-        def __exit__(self, *exc):
-            cuda_order.set_scoped_stream(ctx.device_ordinal or 0, self.previous)
-
-    return _Scope()
+    previous = cuda_order.set_scoped_stream(ctx.device_ordinal or 0, ctx.stream)
+    try:
+        yield
+    finally:
+        cuda_order.set_scoped_stream(ctx.device_ordinal or 0, previous)
 
 
 def register_ffi_callback(name, func, graph_compatible=True):
@@ -638,7 +637,7 @@ def register_ffi_callback(name, func, graph_compatible=True):
 
     def run(inputs, outputs, attrs, ctx):
         if ctx.platform == "cuda" and ctx.stream is not None:
-            with _cuda_scope(ctx):
+            with cuda_scope(ctx):
                 func(inputs, outputs, attrs, ctx)
         else:
             func(inputs, outputs, attrs, ctx)
