@@ -235,14 +235,16 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
       break;
     case v1::Command::kCudaEvent: {
       const auto& e = p.cuda_event();
-      if (e.op() != v1::CudaEventCommand::WAIT && e.op() != v1::CudaEventCommand::RECORD)
+      if (e.op() != v1::CudaEventCommand::WAIT && e.op() != v1::CudaEventCommand::RECORD &&
+          e.op() != v1::CudaEventCommand::SHARE)
         return InvalidArgument("command " + std::to_string(index) + ": unknown cuda_event op " + std::to_string(e.op()));
       if (e.ipc_handle().size() != 64)
         return InvalidArgument("command " + std::to_string(index) + ": a CUDA IPC event handle has 64 bytes, got " +
                                std::to_string(e.ipc_handle().size()));
-      c.kind = CudaEventCommand{e.op() == v1::CudaEventCommand::RECORD ? CudaEventCommand::Op::kRecord
-                                                                      : CudaEventCommand::Op::kWait,
-                                e.device(), e.ipc_handle()};
+      const CudaEventCommand::Op op = e.op() == v1::CudaEventCommand::RECORD  ? CudaEventCommand::Op::kRecord
+                                      : e.op() == v1::CudaEventCommand::SHARE ? CudaEventCommand::Op::kShare
+                                                                              : CudaEventCommand::Op::kWait;
+      c.kind = CudaEventCommand{op, e.device(), e.ipc_handle()};
       break;
     }
     case v1::Command::kCudaValue: {

@@ -114,13 +114,17 @@ class CudaDevice final : public Device {
   uint64_t ImportOpens() const { return import_opens_.load(); }
 
   // Cross-process ordering (cuda_device_events.cpp): `handle` (64 bytes) is an interprocess
-  // event of the session's client process, opened once per session (the session's 16 most
-  // recently used events stay open; all close with the session). record=false: the session's
-  // stream waits for the event's latest record (cuStreamWaitEvent); record=true: the event is
-  // recorded on the session's stream. Errors: a handle of the wrong size, one another session
-  // uses, one the driver cannot open (forged, of a process that is gone, not interprocess),
-  // an event the driver refuses to wait on or record here (another GPU's event).
-  Status IpcEvent(Session& s, const std::string& handle, bool record);
+  // event of a client process, opened once per session (the session's 16 most recently used
+  // events stay open; all close with the session). kWait: the session's stream waits for the
+  // event's latest record (cuStreamWaitEvent); kRecord: the event is recorded on the session's
+  // stream; kShare: only opened, and shared. The first session to open a handle owns it; another
+  // session may use it only when the owner shared it (kShare: wp.Event(interprocess=True)) and
+  // both sessions have the same principal. Errors: a handle of the wrong size, one another
+  // session owns and did not share with this one, one the driver cannot open (forged, of a
+  // process that is gone, not interprocess), an event the driver refuses to wait on or record
+  // here (another GPU's event).
+  enum class EventUse { kWait, kRecord, kShare };
+  Status IpcEvent(Session& s, const std::string& handle, EventUse use);
   size_t IpcEventCount() const;      // open events of every session (tests)
 
   // Cross-process ordering without a round trip (cuda_device_values.cpp): the 8-byte counter at
@@ -342,8 +346,15 @@ class CudaDevice final : public Device {
   static constexpr size_t kEventsPerSession = 16;
   mutable std::mutex events_mu_;
   std::unordered_map<std::string, std::vector<OpenedEvent>> ipc_events_;   // by session id
-  std::unordered_map<std::string, std::string> event_owner_;               // handle -> session id
-  Expected<jit::CuEvent> OpenEventLocked(const std::string& session_id, const std::string& handle);
+  struct EventOwner {
+    std::string session_id;   // the first session that opened the handle
+    std::string principal;    // its principal
+    bool shared = false;      // it shared the event (kShare) with its principal's sessions
+  };
+  std::unordered_map<std::string, EventOwner> event_owner_;                // by handle
+  Expected<jit::CuEvent> OpenEventLocked(const Session& s, const std::string& handle, bool share);
+  // Forgets who owns `handle` when `session_id` does (a sharer closing leaves the owner's claim).
+  void ForgetOwnerLocked(const std::string& session_id, const std::string& handle);
   // Destroys the session's events (session close).
   void ForgetEvents(const std::string& session_id);
   std::map<std::string, uint64_t> reset_sessions_;   // session id -> generation it lost arrays in

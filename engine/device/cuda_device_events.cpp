@@ -1,7 +1,8 @@
 // Cross-process stream ordering on a CudaDevice: interprocess CUDA events of a client process
 // (cuIpcGetEventHandle bytes) opened per session, waited on by the session's stream or recorded
 // on it, so that a framework stream in the client and the session's stream in the daemon order
-// their work on the GPU without a host-side synchronize (docs/interop.md, "Ordering").
+// their work on the GPU without a host-side synchronize (docs/interop.md, "Ordering"); and who
+// may use a handle (its first session, or the sessions of that one's principal once shared).
 #include <algorithm>
 #include <cstring>
 
@@ -10,12 +11,18 @@
 
 namespace weft {
 
-Expected<jit::CuEvent> CudaDevice::OpenEventLocked(const std::string& session_id, const std::string& handle) {
+Expected<jit::CuEvent> CudaDevice::OpenEventLocked(const Session& s, const std::string& handle, bool share) {
+  const std::string& session_id = s.id();
   auto owner = event_owner_.find(handle);
-  if (owner != event_owner_.end() && owner->second != session_id)
-    return PermissionDenied("this CUDA IPC event handle (" + IpcHandlePrefix(handle) +
-                            "...) is used by another session; a session orders work with events of its own "
-                            "client process only");
+  if (owner != event_owner_.end() && owner->second.session_id != session_id) {
+    if (!owner->second.shared || owner->second.principal != s.options().principal)
+      return PermissionDenied("this CUDA IPC event handle (" + IpcHandlePrefix(handle) +
+                              "...) is used by another session; a session orders work with events of its own "
+                              "client process, or with interprocess events (wp.Event(interprocess=True)) that "
+                              "a session of the same principal shared");
+  } else if (owner != event_owner_.end() && share) {
+    owner->second.shared = true;
+  }
   const uint64_t gen = generation_.load();
   auto& list = ipc_events_[session_id];
   auto it = std::find_if(list.begin(), list.end(), [&](const OpenedEvent& e) { return e.handle == handle; });
@@ -40,15 +47,20 @@ Expected<jit::CuEvent> CudaDevice::OpenEventLocked(const std::string& session_id
   if (list.size() >= kEventsPerSession) {
     const OpenedEvent& old = list.front();
     if (old.generation == gen) driver_->EventDestroy(old.event);
-    event_owner_.erase(old.handle);
+    ForgetOwnerLocked(session_id, old.handle);
     list.erase(list.begin());
   }
   list.push_back(OpenedEvent{handle, ev, gen});
-  event_owner_[handle] = session_id;
+  if (owner == event_owner_.end()) event_owner_[handle] = EventOwner{session_id, s.options().principal, share};
   return ev;
 }
 
-Status CudaDevice::IpcEvent(Session& s, const std::string& handle, bool record) {
+void CudaDevice::ForgetOwnerLocked(const std::string& session_id, const std::string& handle) {
+  auto owner = event_owner_.find(handle);
+  if (owner != event_owner_.end() && owner->second.session_id == session_id) event_owner_.erase(owner);
+}
+
+Status CudaDevice::IpcEvent(Session& s, const std::string& handle, EventUse use) {
   if (handle.size() != sizeof(jit::CuIpcEventHandle))
     return InvalidArgument("a CUDA IPC event handle has " + std::to_string(sizeof(jit::CuIpcEventHandle)) +
                            " bytes, got " + std::to_string(handle.size()));
@@ -57,7 +69,9 @@ Status CudaDevice::IpcEvent(Session& s, const std::string& handle, bool record) 
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
   std::lock_guard<std::mutex> lock(events_mu_);
-  WEFT_ASSIGN_OR_RETURN(jit::CuEvent ev, OpenEventLocked(s.id(), handle));
+  WEFT_ASSIGN_OR_RETURN(jit::CuEvent ev, OpenEventLocked(s, handle, use == EventUse::kShare));
+  if (use == EventUse::kShare) return Status::Ok();
+  const bool record = use == EventUse::kRecord;
   jit::CuResult r = record ? driver_->EventRecord(ev, st->stream) : driver_->StreamWaitEvent(st->stream, ev, 0);
   if (r == 0) return Status::Ok();
   if (jit::IsStickyCudaError(r)) return driver_->Check(r, record ? "cuEventRecord" : "cuStreamWaitEvent");
@@ -88,7 +102,7 @@ void CudaDevice::ForgetEvents(const std::string& session_id) {
       }
       driver_->EventDestroy(e.event);
     }
-    event_owner_.erase(e.handle);
+    ForgetOwnerLocked(session_id, e.handle);
   }
   ipc_events_.erase(it);
 }

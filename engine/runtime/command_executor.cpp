@@ -333,12 +333,16 @@ Status CommandExecutor::CudaValue(Session& s, const CudaValueCommand& c, const H
 }
 
 Status CommandExecutor::CudaEvent(Session& s, const CudaEventCommand& c) {
-  if (c.op != CudaEventCommand::Op::kWait && c.op != CudaEventCommand::Op::kRecord)
+  if (c.op != CudaEventCommand::Op::kWait && c.op != CudaEventCommand::Op::kRecord &&
+      c.op != CudaEventCommand::Op::kShare)
     return InvalidArgument("cuda_event: unknown op " + std::to_string(static_cast<int>(c.op)));
   WEFT_ASSIGN_OR_RETURN(Device * device, devices_.Resolve(s.id(), c.device));
   auto* gpu = dynamic_cast<CudaDevice*>(device);
   if (gpu == nullptr) return InvalidArgument("cuda_event: '" + c.device + "' is not a GPU (CUDA events order GPU work)");
-  return gpu->IpcEvent(s, c.handle, c.op == CudaEventCommand::Op::kRecord);
+  const CudaDevice::EventUse use = c.op == CudaEventCommand::Op::kRecord  ? CudaDevice::EventUse::kRecord
+                                   : c.op == CudaEventCommand::Op::kShare ? CudaDevice::EventUse::kShare
+                                                                          : CudaDevice::EventUse::kWait;
+  return gpu->IpcEvent(s, c.handle, use);
 }
 
 

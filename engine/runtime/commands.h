@@ -68,9 +68,11 @@ struct SetGradCommand {
 // Ordering with a CUDA stream of the client process (docs/interop.md, "Ordering"): an
 // interprocess event of the client (its cuIpcGetEventHandle bytes, 64), opened by the daemon
 // once per session. kWait: the session's stream on `device` waits for the event's latest
-// record; kRecord: the event is recorded on that stream (after the work queued before it).
+// record; kRecord: the event is recorded on that stream (after the work queued before it);
+// kShare: the event is opened and shared with the other sessions of the session's principal
+// (wp.Event(interprocess=True)); an event opened otherwise stays the session's own.
 struct CudaEventCommand {
-  enum class Op { kWait = 0, kRecord = 1 };
+  enum class Op { kWait = 0, kRecord = 1, kShare = 2 };
   Op op = Op::kWait;
   std::string device;   // "cuda:N" or "cuda"
   std::string handle;   // the event's IPC handle bytes

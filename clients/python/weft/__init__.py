@@ -32,8 +32,8 @@ from .mempool import (ScopedMempool, ScopedMempoolAccess, ScopedPeerAccess,  # n
 from .graph import (Graph, ScopedCapture, capture_begin, capture_debug_dot_print,  # noqa: F401
                     capture_end, capture_if, capture_launch, capture_pause, capture_resume,
                     capture_while, is_conditional_graph_supported)
-from .streams import (Event, ScopedStream, Stream, get_event_elapsed_time,  # noqa: F401
-                      get_stream, record_event, set_stream, synchronize_event,
+from .streams import (Event, ScopedStream, Stream, event_from_ipc_handle,  # noqa: F401
+                      get_event_elapsed_time, get_stream, record_event, set_stream, synchronize_event,
                       synchronize_stream, wait_event, wait_stream)
 from .constants import *  # noqa: F401,F403
 from .types import *  # noqa: F401,F403
@@ -75,7 +75,8 @@ from .interop.jax import (device_from_jax, device_to_jax, dtype_from_jax,  # noq
 from .interop.jax_ffi import (JaxCallableGraphMode, JaxModulePreloadMode,  # noqa: F401,E402
                               clear_jax_callable_graph_cache, jax_callable, jax_kernel)
 from .interop.paddle import (device_from_paddle, device_to_paddle,  # noqa: F401,E402
-                             dtype_from_paddle, dtype_to_paddle, from_paddle, to_paddle)
+                             dtype_from_paddle, dtype_to_paddle, from_paddle,
+                             stream_from_paddle, to_paddle)
 from .interop.torch import (device_from_torch, device_to_torch, dtype_from_torch,  # noqa: F401,E402
                             dtype_to_torch, from_torch, stream_from_torch, stream_to_torch,
                             to_torch)

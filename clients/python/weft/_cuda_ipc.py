@@ -102,6 +102,8 @@ def _load():
         "cuStreamWaitEvent": [vp, vp, u],
         "cuStreamCreate": [p(vp), u],
         "cuStreamSynchronize": [vp],
+        "cuIpcOpenEventHandle": [p(vp), _IpcHandle],
+        "cuEventQuery": [vp],
     }
     try:
         for name, args in signatures.items():
@@ -426,6 +428,67 @@ def next_event(ordinal: int) -> IpcEvent:
         return pool[turn]
 
 
+def create_ipc_event(ordinal: int) -> IpcEvent:
+    """A new interprocess event of this process on device `ordinal` (wp.Event with
+    interprocess=True): not from the ordering pool, it lives as long as its wp.Event."""
+    with _lock:
+        if _load() is None:
+            raise CudaError(f"no CUDA driver ({_reason})")
+        with _Scope(ordinal):
+            ev = ctypes.c_void_p()
+            _check(_lib.cuEventCreate(ctypes.byref(ev), CU_EVENT_INTERPROCESS |
+                                      CU_EVENT_DISABLE_TIMING), "cuEventCreate")
+            h = _IpcHandle()
+            rc = _lib.cuIpcGetEventHandle(ctypes.byref(h), ev)
+            if rc != 0:
+                _lib.cuEventDestroy_v2(ev)
+                _check(rc, "cuIpcGetEventHandle")
+        return IpcEvent(ordinal, ev, ctypes.string_at(ctypes.addressof(h), 64))
+
+
+def open_ipc_event(ordinal: int, handle: bytes) -> IpcEvent:
+    """The event another process made interprocess, opened in this process from its 64-byte
+    handle (wp.event_from_ipc_handle)."""
+    if len(handle) != 64:
+        raise ValueError(f"an IPC event handle is 64 bytes, not {len(handle)}")
+    with _lock:
+        if _load() is None:
+            raise CudaError(f"no CUDA driver ({_reason})")
+        raw = _IpcHandle()
+        ctypes.memmove(ctypes.addressof(raw), bytes(handle), 64)
+        with _Scope(ordinal):
+            ev = ctypes.c_void_p()
+            _check(_lib.cuIpcOpenEventHandle(ctypes.byref(ev), raw), "cuIpcOpenEventHandle")
+        return IpcEvent(ordinal, ev, bytes(handle))
+
+
+def destroy_event(event: IpcEvent) -> None:
+    """Destroys this process's event (the daemon's opened copy of it lives on until the
+    session that opened it ends)."""
+    with _lock:
+        if _lib is None or not event.event:
+            return
+        with _Scope(event.ordinal):
+            _lib.cuEventDestroy_v2(event.event)
+        event.event = None
+
+
+def synchronize_event(event: IpcEvent) -> None:
+    """Waits on the host until the work before the event's latest record (by any process) is
+    done."""
+    with _lock, _Scope(event.ordinal):
+        _check(_lib.cuEventSynchronize(event.event), "cuEventSynchronize")
+
+
+def event_is_done(event: IpcEvent) -> bool:
+    with _lock, _Scope(event.ordinal):
+        rc = _lib.cuEventQuery(event.event)
+    if rc == CUDA_ERROR_NOT_READY:
+        return False
+    _check(rc, "cuEventQuery")
+    return True
+
+
 def record_event(event: IpcEvent, stream: int) -> None:
     """Records `event` on this process's CUDA stream `stream` (0: the legacy default stream)."""
     with _lock, _Scope(event.ordinal):
@@ -441,9 +504,10 @@ def wait_event(stream: int, event: IpcEvent) -> None:
 
 
 def proxy_stream(ordinal: int) -> int:
-    """A non-blocking stream of this process on the device that stands for weft's session
-    stream (it is made to wait for weft's work before it is handed out, e.g. as the
-    `__cuda_array_interface__` "stream")."""
+    """A stream of this process on the device that stands for weft's session stream (it is
+    made to wait for weft's work before it is handed out, e.g. as the
+    `__cuda_array_interface__` "stream"). Blocking, as the streams Warp creates: it also
+    orders with this process's legacy default stream."""
     with _lock:
         s = _proxy_streams.get(ordinal)
         if s is None:
@@ -451,8 +515,7 @@ def proxy_stream(ordinal: int) -> int:
                 raise CudaError(f"no CUDA driver ({_reason})")
             h = ctypes.c_void_p()
             with _Scope(ordinal):
-                _check(_lib.cuStreamCreate(ctypes.byref(h), CU_STREAM_NON_BLOCKING),
-                       "cuStreamCreate")
+                _check(_lib.cuStreamCreate(ctypes.byref(h), 0), "cuStreamCreate")
             s = _proxy_streams[ordinal] = int(h.value)
         return s
 

@@ -38,7 +38,8 @@ class Device:
         # its session memory in weftd acts as the pool (weft/mempool.py)
         self.is_mempool_supported = self.is_cuda and self.is_compute_supported
         # array.ipc_handle() / wp.from_ipc_handle() share this device's arrays between client
-        # processes (daemon tokens, docs/cuda-client.md); interprocess events are not available.
+        # processes (daemon tokens, docs/cuda-client.md), and wp.Event(interprocess=True) orders
+        # their work (an event weftd opens and shares with the sessions of the same principal).
         self.is_ipc_supported = True
         self.is_primary = self.is_cuda
 

@@ -25,7 +25,7 @@ from .graph import is_capturing, refuse_host_wait
 
 __all__ = ["Stream", "Event", "get_stream", "set_stream", "ScopedStream", "synchronize_stream",
            "synchronize_event", "record_event", "wait_event", "wait_stream",
-           "get_event_elapsed_time"]
+           "get_event_elapsed_time", "event_from_ipc_handle"]
 
 
 def _cuda_device(device):
@@ -54,29 +54,48 @@ def _session_work_done(asker) -> bool:
 
 
 class Event:
-    """A point in the session's command order on a device (Warp's wp.Event)."""
+    """A point in the session's command order on a device (Warp's wp.Event). With
+    `interprocess=True` (or from wp.event_from_ipc_handle) it is a real CUDA interprocess event
+    of this process that weftd opens by its handle: recording it queues a record on the
+    session's stream in the daemon, waiting on it queues a wait there, and any process holding
+    its handle (another client of the same or another session, a framework) can order with it."""
 
-    def __init__(self, device=None, enable_timing=False, interprocess=False):
-        if interprocess:
-            raise RuntimeError("interprocess events are not available to weft clients: share "
-                               "arrays with ipc_handle/from_ipc_handle and synchronize instead")
+    def __init__(self, device=None, enable_timing=False, interprocess=False, _ipc=None):
         self.device = _cuda_device(device)
         self.enable_timing = bool(enable_timing)
-        self.is_ipc = False
+        if interprocess and _ipc is None:
+            if enable_timing:
+                raise ValueError("The combination of 'enable_timing=True' and "
+                                 "'interprocess=True' is not allowed.")
+            _ipc = _new_interprocess_event(self.device)
+        self._ipc = _ipc              # _cuda_ipc.IpcEvent of this process, or None
+        self.is_ipc = _ipc is not None
         self._time = None           # host clock when the work before it was done
         self._recorded = False
 
     def _record(self) -> None:
         rt = _runtime.get_runtime()
-        if self.enable_timing:
+        if self._ipc is not None:
+            # Run, not just send: once this returns weftd has queued the record, so a process
+            # told about it afterwards (a pipe, a join) waits for the right work.
+            rt.submit(_ipc_event_command("RECORD", self.device, self._ipc))
+            rt.run()
+        elif self.enable_timing:
             rt.synchronize()
             self._time = time.perf_counter()
         else:
             rt.flush()
         self._recorded = True
 
+    def _wait_on_session_stream(self) -> None:
+        """The session's later work on the device waits (on the GPU) for the latest record."""
+        _runtime.get_runtime().submit(_ipc_event_command("WAIT", self.device, self._ipc))
+
     def query(self) -> bool:
         """True when the work before the last record is done (always after a timed record)."""
+        if self._ipc is not None:
+            from . import _cuda_ipc  # noqa: PLC0415
+            return _cuda_ipc.event_is_done(self._ipc)
         if not self._recorded or self._time is not None:
             return True
         return _session_work_done(self)
@@ -89,15 +108,92 @@ class Event:
 
     def synchronize(self) -> None:
         refuse_host_wait("event", self.device)
+        if self._ipc is not None:
+            from . import _cuda_ipc  # noqa: PLC0415
+            # this session's own work (its errors surface here), then records by any process
+            _runtime.get_runtime().synchronize_if_needed()
+            _cuda_ipc.synchronize_event(self._ipc)
+            return
         if self._recorded and self._time is None:
             _runtime.get_runtime().synchronize_if_needed()
 
+    def ipc_handle(self) -> bytes:
+        """The event's 64-byte CUDA IPC handle (wp.event_from_ipc_handle opens it in another
+        process); an event made without interprocess=True has none: a warning and zeros, as
+        Warp gives."""
+        if self._ipc is None:
+            from ._log import log_warning  # noqa: PLC0415
+            log_warning("IPC event handle appears to be invalid. Was interprocess=True used?")
+            return bytes(64)
+        return self._ipc.handle
+
     @property
     def cuda_event(self):
-        return None
+        """The CUDA event of this process (interprocess events), else None: the session's
+        order lives in the daemon."""
+        return None if self._ipc is None else self._ipc.event.value
+
+    def __del__(self):
+        ipc = getattr(self, "_ipc", None)
+        if ipc is not None:
+            try:
+                from . import _cuda_ipc  # noqa: PLC0415
+                _cuda_ipc.destroy_event(ipc)
+            except Exception:  # noqa: BLE001 (interpreter shutdown)
+                pass
 
     def __repr__(self):
-        return f"<weft Event on {self.device} timing={self.enable_timing}>"
+        kind = " interprocess" if self._ipc is not None else ""
+        return f"<weft{kind} Event on {self.device} timing={self.enable_timing}>"
+
+
+def _ipc_requirements(device):
+    """The session's runtime once weftd can use this process's interprocess events on
+    `device`; a clear error where it cannot (a remote session, no CUDA driver here)."""
+    from .interop import cuda_order  # noqa: PLC0415
+
+    rt = _runtime.get_runtime()
+    if not cuda_order.enabled(rt, {int(device.ordinal)}):
+        why = cuda_order.refused() or ("the session is not local" if not rt.local else
+                                       "CUDA IPC is not available in this process")
+        raise RuntimeError(f"interprocess events on {device} need CUDA IPC between this process "
+                           f"and weftd: {why}")
+    return rt
+
+
+def _new_interprocess_event(device):
+    """A new interprocess event of this process, opened by weftd for this session and shared
+    with the other sessions of the same principal (the clients a handle is passed to)."""
+    from . import _cuda_ipc  # noqa: PLC0415
+
+    rt = _ipc_requirements(device)
+    ipc = _cuda_ipc.create_ipc_event(int(device.ordinal))
+    try:
+        rt.submit(_ipc_event_command("SHARE", device, ipc))
+        rt.run()
+    except BaseException:
+        _cuda_ipc.destroy_event(ipc)
+        raise
+    return ipc
+
+
+def _ipc_event_command(op: str, device, ipc):
+    from .interop import cuda_order  # noqa: PLC0415
+
+    pb = cuda_order._pb()
+    return pb.Command(cuda_event=pb.CudaEventCommand(
+        op=getattr(pb.CudaEventCommand, op), device=f"cuda:{device.ordinal}", ipc_handle=ipc.handle))
+
+
+def event_from_ipc_handle(handle, device=None) -> Event:
+    """The interprocess event whose handle another process took with Event.ipc_handle()."""
+    from . import _cuda_ipc  # noqa: PLC0415
+
+    device = _cuda_device(device)
+    if not isinstance(handle, (bytes, bytearray, memoryview)):
+        raise TypeError("event_from_ipc_handle expects the 64 bytes of Event.ipc_handle()")
+    _ipc_requirements(device)
+    return Event(device, _ipc=_cuda_ipc.open_ipc_event(int(device.ordinal), bytes(handle)))
 
 
 class Stream:
@@ -167,14 +263,27 @@ class Stream:
         elif event.device != self.device:
             raise RuntimeError(f"event on {event.device} cannot be recorded on a stream of "
                                f"{self.device}")
+        if event._ipc is not None and self._foreign is not None:
+            from . import _cuda_ipc  # noqa: PLC0415
+            _cuda_ipc.record_event(event._ipc, self._foreign)
+            event._recorded = True
+            return event
         event._record()
         return event
 
     def wait_event(self, event) -> None:
-        """Satisfied already: the session's commands run in order on one stream per device;
-        across devices the daemon orders copies itself."""
+        """An interprocess event: later work on this stream waits for its latest record (made
+        by any process). Any other event is satisfied already: the session's commands run in
+        order on one stream per device; across devices the daemon orders copies itself."""
         if not isinstance(event, Event):
             raise TypeError("wait_event expects a wp.Event")
+        if event._ipc is None:
+            return
+        if self._foreign is not None:
+            from . import _cuda_ipc  # noqa: PLC0415
+            _cuda_ipc.wait_event(self._foreign, event._ipc)
+        else:
+            event._wait_on_session_stream()
 
     def wait_stream(self, other, event=None) -> None:
         """Work queued on this stream after the call waits for `other`'s work so far. Between
@@ -302,6 +411,11 @@ def record_event(event=None, external=False) -> Event:
     needs nothing more: the session's graphs and commands run in order on one stream)."""
     device = event.device if event is not None else None
     stream = get_stream(device)
+    if event is not None and event._ipc is not None:
+        if stream.is_capturing:
+            raise RuntimeError("an interprocess event cannot be recorded inside a graph capture "
+                               "on weft: record it after the capture's launch")
+        return stream.record_event(event)
     if external or stream.is_capturing:
         if event is None:
             event = Event(stream.device)
