@@ -210,7 +210,8 @@ def from_dlpack(source, dtype=None):
     if not hasattr(source, "__dlpack__") or not hasattr(source, "__dlpack_device__"):
         raise TypeError(f"wp.from_dlpack expects a DLPack producer (with __dlpack__ and "
                         f"__dlpack_device__) or a DLPack capsule, got {type(source).__name__}")
-    kind, ordinal = (int(v) for v in source.__dlpack_device__())
+    kind, ordinal = source.__dlpack_device__()
+    kind, ordinal = int(kind), int(ordinal or 0)     # Paddle's CPU tensors give None
     if kind in (_KDL_CPU, _KDL_CUDA_HOST):
         # the capsule is taken here: bfloat16 (NumPy has no such dtype) is read directly, any
         # other dtype goes to NumPy
