@@ -21,6 +21,7 @@ Status ArrayCreate(Engine& engine, Session& s, const v1::CreateArrayRequest& req
   p.shape.assign(req.shape().begin(), req.shape().end());
   p.device = req.device().empty() ? "cpu" : req.device();
   p.requires_grad = req.requires_grad();
+  p.pinned = req.pinned();
   p.init = static_cast<CreateArrayParams::Init>(req.init());
   p.value = req.value();
   auto r = engine.CreateArray(s, p);

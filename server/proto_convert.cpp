@@ -38,6 +38,8 @@ void ToProto(const ArrayDesc& d, v1::ArrayInfo* p) {
   p->set_device(d.device);
   p->set_byte_size(d.byte_size);
   p->set_grad_handle(d.grad_handle);
+  p->set_pinned(d.pinned);
+  p->set_page_locked(d.page_locked);
   p->set_shm_name(d.shm_name);
   p->set_shm_offset(d.shm_offset);
   p->set_shm_size(d.shm_size);

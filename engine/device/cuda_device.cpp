@@ -415,6 +415,19 @@ Status CudaDevice::CheckUsable() const {
   return Status::Ok();
 }
 
+bool CudaDevice::RegisterHost(void* p, uint64_t bytes) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  if (!CheckUsable().ok() || !MakeCurrent().ok()) return false;
+  constexpr unsigned kPortable = 0x01;   // CU_MEMHOSTREGISTER_PORTABLE
+  return driver_->MemHostRegister(p, bytes, kPortable) == 0;
+}
+
+void CudaDevice::UnregisterHost(void* p) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  if (lost_.load() || !MakeCurrent().ok()) return;
+  (void)driver_->MemHostUnregister(p);
+}
+
 Status CudaDevice::CheckBlock(const MemoryBlock& b, const std::string& what) const {
   WEFT_RETURN_IF_ERROR(CheckUsable());
   if (b.generation != generation_.load())

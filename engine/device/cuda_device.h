@@ -127,6 +127,13 @@ class CudaDevice final : public Device {
   Status IpcEvent(Session& s, const std::string& handle, EventUse use);
   size_t IpcEventCount() const;      // open events of every session (tests)
 
+  // Pinned host arrays (Engine::PageLock): page-locks [p, p + bytes) for every context
+  // (cuMemHostRegister, portable), so copies between it and the GPUs are DMA; false where the
+  // device is unusable or the driver refuses (the memory stays pageable). UnregisterHost undoes
+  // it before the memory is reused (errors ignored: a reset took the registration with it).
+  bool RegisterHost(void* p, uint64_t bytes);
+  void UnregisterHost(void* p);
+
   // Cross-process ordering without a round trip (cuda_device_values.cpp): the 8-byte counter at
   // `byte_offset` in `order` (a block of the session's on this device). write=false: the
   // session's stream waits until it holds at least `value` (cuStreamWaitValue64 GEQ; remembered,

@@ -49,6 +49,8 @@ Expected<const CudaDriver*> Load() {
   Resolve(library, "cuStreamQuery", &driver.StreamQuery, &missing);
   Resolve(library, "cuMemHostAlloc", &driver.MemHostAlloc, &missing);
   Resolve(library, "cuMemFreeHost", &driver.MemFreeHost, &missing);
+  Resolve(library, "cuMemHostRegister_v2", &driver.MemHostRegister, &missing);
+  Resolve(library, "cuMemHostUnregister", &driver.MemHostUnregister, &missing);
   Resolve(library, "cuMemHostGetDevicePointer_v2", &driver.MemHostGetDevicePointer, &missing);
   Resolve(library, "cuIpcGetMemHandle", &driver.IpcGetMemHandle, &missing);
   Resolve(library, "cuIpcOpenMemHandle_v2", &driver.IpcOpenMemHandle, &missing);

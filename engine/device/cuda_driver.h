@@ -79,6 +79,8 @@ struct CudaDriver {
   CuResult (*StreamQuery)(CuStream stream) = nullptr;
   CuResult (*MemHostAlloc)(void** pointer, size_t bytes, unsigned flags) = nullptr;
   CuResult (*MemFreeHost)(void* pointer) = nullptr;
+  CuResult (*MemHostRegister)(void* pointer, size_t bytes, unsigned flags) = nullptr;
+  CuResult (*MemHostUnregister)(void* pointer) = nullptr;
   CuResult (*MemHostGetDevicePointer)(CuDevicePtr* device_pointer, void* host, unsigned flags) = nullptr;
   CuResult (*IpcGetMemHandle)(CuIpcMemHandle* handle, CuDevicePtr pointer) = nullptr;
   // Importing another process's allocation (engine/device/cuda_import.h).

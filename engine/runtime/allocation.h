@@ -32,6 +32,8 @@ struct Allocation {
   mutable std::mutex block_mu;     // guards block/retired_block against concurrent Describe
   std::shared_ptr<Allocation> grad;  // requires_grad arrays
   bool is_grad = false;              // this allocation is some array's gradient
+  bool pinned = false;               // a CPU array created with pinned=true (a slab of its own)
+  bool page_locked = false;          // ... and page-locked for the daemon's GPUs (Engine::PageLock)
   // Client GPU memory imported by CUDA IPC (Engine::ImportCudaArray): `block` points into the
   // mapping, which `release` keeps open; never exported, never moved.
   bool imported = false;

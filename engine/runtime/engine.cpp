@@ -216,7 +216,8 @@ std::vector<DeviceInfo> Engine::ListDevices() const {
 // ---- arrays ----
 
 Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(Session& owner, Device& device, const DType& dtype,
-                                                            const std::vector<int64_t>& shape, bool zero) {
+                                                            const std::vector<int64_t>& shape, bool zero,
+                                                            bool dedicated) {
   WEFT_RETURN_IF_ERROR(dtype.Validate());
   if (shape.empty() || shape.size() > static_cast<size_t>(kMaxArrayDims))
     return InvalidArgument("array shape must have 1 to 4 dimensions, got " + std::to_string(shape.size()));
@@ -234,7 +235,7 @@ Expected<std::shared_ptr<Allocation>> Engine::NewAllocation(Session& owner, Devi
   const std::string session_id = owner.id(), principal = owner.options().principal;
   const uint64_t reserved = device.ReservedSize(bytes);
   WEFT_RETURN_IF_ERROR(quota_->Reserve(session_id, principal, reserved));
-  auto block = device.Allocate(bytes, session_id, false);
+  auto block = device.Allocate(bytes, session_id, dedicated);
   if (!block.ok()) {
     quota_->Release(session_id, principal, reserved);
     return block.status();
@@ -312,9 +313,26 @@ Status Engine::MoveToOwnSlab(Allocation& a, Session& owner) {
 
 MemoryUsage Engine::MemoryUsageOf(const Session& s) const { return quota_->Usage(s.id(), s.options().principal); }
 
+void Engine::PageLock(Allocation& a) {
+  a.pinned = true;
+  if (a.byte_size == 0 || !a.block.dedicated) return;
+  for (const auto& gpu : devices_->gpus()) {
+    if (!gpu->RegisterHost(a.block.data, a.byte_size)) continue;
+    a.page_locked = true;
+    CudaDevice* registered = gpu.get();
+    a.release = [registered, inner = std::move(a.release)](const ShmSlabPool::Block& b) {
+      registered->UnregisterHost(b.data);
+      if (inner) inner(b);
+    };
+    return;
+  }
+}
+
 ArrayDesc Engine::Describe(const Session& s, const Allocation& a) const {
   ArrayDesc d;
   d.handle = a.handle;
+  d.pinned = a.pinned;
+  d.page_locked = a.page_locked;
   d.dtype = a.dtype;
   d.shape = a.shape;
   d.strides = a.strides;
@@ -366,10 +384,13 @@ Expected<ArrayDesc> Engine::CreateArray(Session& s, const CreateArrayParams& p) 
                              " of " + p.dtype.Name() + " needs " + std::to_string(want));
   }
   const bool zero = p.init == CreateArrayParams::Init::kZeros;
-  WEFT_ASSIGN_OR_RETURN(auto a, NewAllocation(s, *device, p.dtype, p.shape, zero));
+  const bool pinned = p.pinned && device->is_cpu();
+  WEFT_ASSIGN_OR_RETURN(auto a, NewAllocation(s, *device, p.dtype, p.shape, zero, pinned));
+  if (pinned) PageLock(*a);
   if (p.requires_grad) {
-    WEFT_ASSIGN_OR_RETURN(auto g, NewAllocation(s, *device, p.dtype, p.shape, true));
+    WEFT_ASSIGN_OR_RETURN(auto g, NewAllocation(s, *device, p.dtype, p.shape, true, pinned));
     g->is_grad = true;
+    if (pinned) PageLock(*g);
     a->grad = std::move(g);
   }
   if (p.init == CreateArrayParams::Init::kFill) {

@@ -55,6 +55,8 @@ struct ArrayDesc {
   std::string device;
   uint64_t byte_size = 0;
   uint64_t grad_handle = 0;
+  bool pinned = false;        // a CPU array created with pinned=true
+  bool page_locked = false;   // its memory is page-locked for the daemon's GPUs
   std::string shm_name;   // local sessions only
   uint64_t shm_offset = 0;
   uint64_t shm_size = 0;
@@ -74,6 +76,8 @@ struct CreateArrayParams {
   bool requires_grad = false;
   Init init = Init::kEmpty;
   std::string value;   // kFill: one element; kData: all bytes, C order
+  // CPU arrays: a slab of its own, page-locked for the daemon's GPUs (PageLock); ignored on GPUs.
+  bool pinned = false;
 };
 
 // One view of client GPU memory to import by CUDA IPC (weft.v1.CudaMemoryRef).
@@ -204,8 +208,14 @@ class Engine {
   // Checks a batch against the limits and counts it as queued (BatchTask uncounts it).
   Status AdmitBatch(Session& s, const std::vector<Command>& commands);
   // A new allocation owned by `owner` on `device`: quota reserved, memory from the owner's slabs.
+  // `dedicated`: a slab of its own (pinned host memory).
   Expected<std::shared_ptr<Allocation>> NewAllocation(Session& owner, Device& device, const DType& dtype,
-                                                      const std::vector<int64_t>& shape, bool zero);
+                                                      const std::vector<int64_t>& shape, bool zero,
+                                                      bool dedicated = false);
+  // Page-locks a CPU allocation in a slab of its own for every GPU (the first GPU that accepts
+  // it registers it portably; unregistered before the memory returns to its pool). Without a
+  // usable GPU the memory stays pageable (page_locked false).
+  void PageLock(Allocation& a);
   // One imported allocation of ImportCudaArray (the view checked against the mapping).
   Expected<std::shared_ptr<Allocation>> ImportedAllocation(Session& s, CudaDevice& gpu, const DType& dtype,
                                                            const std::vector<int64_t>& shape, uint64_t bytes,

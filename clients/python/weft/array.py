@@ -429,7 +429,7 @@ def _stream_call(rt, method, iterator):
         raise _runtime.error_from_rpc(err) from None
 
 
-def _create(dtype, shape, device, requires_grad, init, value=b""):
+def _create(dtype, shape, device, requires_grad, init, value=b"", pinned=False):
     rt = _runtime.get_runtime()
     rt.drain_frees()
     if rt.captures and device.is_cuda:
@@ -442,6 +442,8 @@ def _create(dtype, shape, device, requires_grad, init, value=b""):
     request = ap.CreateArrayRequest(dtype=_dtype_proto(dtype), shape=list(shape),
                                     device=device.alias, requires_grad=bool(requires_grad),
                                     init=init, value=value)
+    if pinned and device.is_cpu:
+        request.pinned = True        # a slab of its own, page-locked for weftd's GPUs
     info = rt.array_call("Create", request).info
     if not device.is_cpu:
         rt._unsynchronized = True   # its zeroing/fill is queued on the session's GPU stream
@@ -509,6 +511,7 @@ class array:
             return
 
         self.device = get_device(device)
+        self.pinned = bool(pinned) and self.device.is_cpu     # Warp: CPU arrays only
         if data is None:
             if dtype is Any:
                 dtype = float32
@@ -569,7 +572,8 @@ class array:
     def _init_new(self, dtype, shape, requires_grad, init=None, value=b""):
         ap = _runtime.array_pb2
         rt, info = _create(dtype, shape, self.device, requires_grad,
-                           ap.CreateArrayRequest.EMPTY if init is None else init, value)
+                           ap.CreateArrayRequest.EMPTY if init is None else init, value,
+                           pinned=self.pinned)
         self._adopt(rt, info, dtype, pooled=True)
 
     def _adopt(self, rt, info, dtype, owned=True, pooled=False):
@@ -648,11 +652,11 @@ class array:
         if nbytes <= INLINE_DATA_MAX_BYTES and not (local_direct and
                                                     nbytes >= LOCAL_WRITE_MIN_BYTES):
             rt, info = _create(dtype, arr_shape, self.device, requires_grad,
-                               ap.CreateArrayRequest.DATA, arr.tobytes())
+                               ap.CreateArrayRequest.DATA, arr.tobytes(), pinned=self.pinned)
             self._adopt(rt, info, dtype, pooled=True)
         else:
             rt, info = _create(dtype, arr_shape, self.device, requires_grad,
-                               ap.CreateArrayRequest.EMPTY)
+                               ap.CreateArrayRequest.EMPTY, pinned=self.pinned)
             self._adopt(rt, info, dtype, pooled=True)
             _write_bytes(rt, info, 0, arr.reshape(-1).view(np.uint8), self._alloc)
 
@@ -1307,11 +1311,11 @@ array4d = _ArrayOfDim(4)
 # Creation functions
 
 
-def _new_array(shape, dtype, device, requires_grad, init, value=b""):
+def _new_array(shape, dtype, device, requires_grad, init, value=b"", pinned=False):
     out = array.__new__(array)
     out._grad = None
-    out.pinned = False
     out.device = get_device(device)
+    out.pinned = bool(pinned) and out.device.is_cpu
     dtype = _canonical_dtype(dtype)
     if dtype is Any:
         dtype = float32
@@ -1356,9 +1360,11 @@ def empty(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, 
     shape = _legacy_length(shape, n)
     if strides is not None:
         return _with_retain(_strided_new(shape, dtype, device, requires_grad, strides,
-                                         _runtime.array_pb2.CreateArrayRequest.EMPTY), retain_grad)
+                                         _runtime.array_pb2.CreateArrayRequest.EMPTY, pinned),
+                            retain_grad)
     return _with_retain(_new_array(shape, dtype, device, requires_grad,
-                                   _runtime.array_pb2.CreateArrayRequest.EMPTY), retain_grad)
+                                   _runtime.array_pb2.CreateArrayRequest.EMPTY, pinned=pinned),
+                        retain_grad)
 
 
 def zeros(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, *, n=None,
@@ -1367,12 +1373,14 @@ def zeros(shape=0, dtype=float, device=None, requires_grad=False, pinned=False, 
     shape = _legacy_length(shape, n)
     if strides is not None:
         return _with_retain(_strided_new(shape, dtype, device, requires_grad, strides,
-                                         _runtime.array_pb2.CreateArrayRequest.ZEROS), retain_grad)
+                                         _runtime.array_pb2.CreateArrayRequest.ZEROS, pinned),
+                            retain_grad)
     return _with_retain(_new_array(shape, dtype, device, requires_grad,
-                                   _runtime.array_pb2.CreateArrayRequest.ZEROS), retain_grad)
+                                   _runtime.array_pb2.CreateArrayRequest.ZEROS, pinned=pinned),
+                        retain_grad)
 
 
-def _strided_new(shape, dtype, device, requires_grad, strides, init):
+def _strided_new(shape, dtype, device, requires_grad, strides, init, pinned=False):
     """An array of `shape` with byte `strides` over a new 1-d buffer of the reached bytes
     (rounded up to whole elements): Warp's allocation with explicit strides."""
     shape = _normalize_shape(shape)
@@ -1387,7 +1395,7 @@ def _strided_new(shape, dtype, device, requires_grad, strides, init):
     if any(s % align for s in strides):
         raise ValueError(f"strides {strides} are not multiples of the {type_str(dtype)} alignment ({align} bytes)")
     reached = 0 if any(d == 0 for d in shape) else item + sum((d - 1) * s for d, s in zip(shape, strides))
-    base = _new_array((-(-reached // item),), dtype, device, requires_grad, init)
+    base = _new_array((-(-reached // item),), dtype, device, requires_grad, init, pinned=pinned)
     out = base._make_view(0, shape, strides)
     out._capacity = reached
     return out
@@ -1437,7 +1445,8 @@ def full(shape=0, value=0, dtype=None, device=None, requires_grad=False, pinned=
     payload = (types.value_to_bytes(dtype, value) if types.is_dtype(dtype)
                else _struct_bytes(dtype, value))
     return _with_retain(_new_array(shape, dtype, device, requires_grad,
-                                   _runtime.array_pb2.CreateArrayRequest.FILL, payload),
+                                   _runtime.array_pb2.CreateArrayRequest.FILL, payload,
+                                   pinned=pinned),
                         retain_grad)
 
 
@@ -1452,24 +1461,29 @@ def _like_grad(src, requires_grad):
     return src.requires_grad if requires_grad is None else requires_grad
 
 
+def _like_pinned(src, pinned):
+    """Warp's rule for *_like and clone: pinned None takes the source's."""
+    return bool(getattr(src, "pinned", False)) if pinned is None else bool(pinned)
+
+
 def empty_like(src, device=None, requires_grad=None, pinned=None, retain_grad=False):
     return empty(src.shape, src.dtype, device if device is not None else src.device,
-                 _like_grad(src, requires_grad), retain_grad=retain_grad)
+                 _like_grad(src, requires_grad), _like_pinned(src, pinned), retain_grad=retain_grad)
 
 
 def zeros_like(src, device=None, requires_grad=None, pinned=None, retain_grad=False):
     return zeros(src.shape, src.dtype, device if device is not None else src.device,
-                 _like_grad(src, requires_grad), retain_grad=retain_grad)
+                 _like_grad(src, requires_grad), _like_pinned(src, pinned), retain_grad=retain_grad)
 
 
 def ones_like(src, device=None, requires_grad=None, pinned=None, retain_grad=False):
     return ones(src.shape, src.dtype, device if device is not None else src.device,
-                _like_grad(src, requires_grad), retain_grad=retain_grad)
+                _like_grad(src, requires_grad), _like_pinned(src, pinned), retain_grad=retain_grad)
 
 
 def full_like(src, value, device=None, requires_grad=None, pinned=None, retain_grad=False):
     return full(src.shape, value, src.dtype, device if device is not None else src.device,
-                _like_grad(src, requires_grad), retain_grad=retain_grad)
+                _like_grad(src, requires_grad), _like_pinned(src, pinned), retain_grad=retain_grad)
 
 
 def from_numpy(arr, dtype=None, shape=None, device=None, requires_grad=False):
@@ -1496,7 +1510,7 @@ def clone(src, device=None, requires_grad=None, pinned=None):
                      device=device if device is not None else src.device,
                      requires_grad=bool(requires_grad))
     dest = empty(src.shape, src.dtype, device if device is not None else src.device,
-                 _like_grad(src, requires_grad))
+                 _like_grad(src, requires_grad), _like_pinned(src, pinned))
     copy(dest, src)
     return dest
 
