@@ -92,9 +92,9 @@ def test_fast_lane_is_used_and_computes_like_grpc(wp, monkeypatch):
     calls = []
     real = rt.fast_lane.call
 
-    def counting(method, request, response_type):
+    def counting(method, request, response_type, *spin):
         calls.append(method)
-        return real(method, request, response_type)
+        return real(method, request, response_type, *spin)
 
     monkeypatch.setattr(rt.fast_lane, "call", counting)
     rng = np.random.default_rng(5)
@@ -326,9 +326,9 @@ def test_fast_lane_keeps_order_of_early_submits(wp, monkeypatch):
     sent = []
     real_call, real_send = rt.fast_lane.call, rt.fast_lane.send
 
-    def counting_call(method, request, response_type):
+    def counting_call(method, request, response_type, *spin):
         sent.append((method, "call"))
-        return real_call(method, request, response_type)
+        return real_call(method, request, response_type, *spin)
 
     def counting_send(method, request, response_type):
         sent.append((method, "send"))
@@ -360,9 +360,9 @@ def test_fast_lane_starts_a_slow_loop_of_launches_before_pump_first(wp, monkeypa
     calls = []
     real_call, real_send = rt.fast_lane.call, rt.fast_lane.send
 
-    def logged_call(method, request, response_type):
+    def logged_call(method, request, response_type, *spin):
         calls.append((method, "call", len(getattr(request, "commands", ()))))
-        return real_call(method, request, response_type)
+        return real_call(method, request, response_type, *spin)
 
     def logged_send(method, request, response_type):
         calls.append((method, "send", len(request.commands)))
@@ -453,7 +453,7 @@ def test_fast_lane_carries_array_create_describe_free(wp, monkeypatch):
     rt = _runtime_with_lane(wp)
     methods = []
     real_call, real_many = rt.fast_lane.call, rt.fast_lane.call_many
-    monkeypatch.setattr(rt.fast_lane, "call", lambda m, r, t: (methods.append(m), real_call(m, r, t))[1])
+    monkeypatch.setattr(rt.fast_lane, "call", lambda m, r, t, *s: (methods.append(m), real_call(m, r, t, *s))[1])
     monkeypatch.setattr(rt.fast_lane, "call_many", lambda m, rs: (methods.extend([m] * len(rs)), real_many(m, rs))[1])
     rng = np.random.default_rng(11)
     x0 = rng.uniform(-1e3, 1e3, 1001).astype(np.float32)
@@ -532,7 +532,7 @@ def test_fast_lane_carries_geometry_calls(wp, monkeypatch):
     rt = _runtime_with_lane(wp)
     methods = []
     real_call = rt.fast_lane.call
-    monkeypatch.setattr(rt.fast_lane, "call", lambda m, r, t: (methods.append(m), real_call(m, r, t))[1])
+    monkeypatch.setattr(rt.fast_lane, "call", lambda m, r, t, *s: (methods.append(m), real_call(m, r, t, *s))[1])
     rng = np.random.default_rng(5)
     pts = wp.array(rng.uniform(-2, 2, size=(300, 3)).astype(np.float32), dtype=wp.vec3, device="cpu")
     grid = wp.HashGrid(8, 8, 8, device="cpu")
@@ -627,7 +627,7 @@ def test_array_calls_over_grpc_when_turned_off(wp, monkeypatch):
     rt = _runtime_with_lane(wp)
     methods = []
     real_call = rt.fast_lane.call
-    monkeypatch.setattr(rt.fast_lane, "call", lambda m, r, t: (methods.append(m), real_call(m, r, t))[1])
+    monkeypatch.setattr(rt.fast_lane, "call", lambda m, r, t, *s: (methods.append(m), real_call(m, r, t, *s))[1])
     monkeypatch.setattr(rt, "lane_arrays", False)
     z = wp.full(9, 1.25, dtype=float, device="cpu")
     wp.launch(lane_add, dim=9, inputs=[z, 0.5], device="cpu")
@@ -837,3 +837,33 @@ def test_finalizers_inside_the_runtime_do_not_disturb_it(wp, monkeypatch):
     got = data.numpy().astype(np.float64)
     np.testing.assert_allclose(got, start + total, rtol=1e-6, atol=1e-3)
     assert not rt.fast_lane.broken
+
+
+def test_a_synchronize_after_gpu_launches_polls_longer(wp, monkeypatch):
+    """A synchronize that waits for GPU work polls for its reply for SPIN_GPU_S (CUDA's own
+    synchronize spins too); any other call keeps SPIN_S; the flag is cleared by the
+    synchronize. Checked on the CPU by marking the session's work as GPU work."""
+    from weft import _fast_lane
+
+    rt = _runtime_with_lane(wp)
+    spins = []
+    real_call = rt.fast_lane.call
+    monkeypatch.setattr(rt.fast_lane, "call",
+                        lambda m, r, t, *s: (spins.append((m, s)), real_call(m, r, t, *s))[1])
+    monkeypatch.setattr(_fast_lane, "SPIN_GPU_S", 0.02)
+    z = wp.zeros(4, dtype=float, device="cpu")
+    wp.launch(lane_saxpy, dim=4, inputs=[z, z, 1.0], device="cpu")
+    assert not rt.gpu_work                   # CPU launches are not GPU work
+    rt.gpu_work = True
+    wp.synchronize()
+    assert spins and spins[-1][0] in (_fast_lane.SUBMIT, _fast_lane.SYNCHRONIZE)
+    assert spins[-1][1] == (0.02,) and not rt.gpu_work
+    spins.clear()
+    wp.launch(lane_saxpy, dim=4, inputs=[z, z, 1.0], device="cpu")
+    wp.synchronize()
+    assert spins and all(s in ((), (None,)) for _, s in spins)
+    monkeypatch.setattr(_fast_lane, "SPIN_GPU_S", 0.0)   # 0: a GPU wait polls as long as any
+    rt.gpu_work = True
+    spins.clear()
+    wp.synchronize()
+    assert spins[-1][1] in ((), (None,))

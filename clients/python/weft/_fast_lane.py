@@ -41,6 +41,11 @@ _RECV_BYTES = (64 << 10) + 8
 # WEFT_FAST_LANE_SPIN_US sets it (0: never poll).
 SPIN_S = float(os.environ.get("WEFT_FAST_LANE_SPIN_US",
                               "100" if (os.cpu_count() or 1) >= 4 else "0")) * 1e-6
+# A synchronize that waits for GPU work polls longer: its reply comes when the GPU is done,
+# and CUDA's own synchronize (what a Warp program waits in) spins the same way while the
+# process has fewer contexts than cores. WEFT_FAST_LANE_GPU_SPIN_US sets it (0: as SPIN_S).
+SPIN_GPU_S = float(os.environ.get("WEFT_FAST_LANE_GPU_SPIN_US",
+                                  "20000" if (os.cpu_count() or 1) >= 4 else "0")) * 1e-6
 
 _CODE_NAMES = {code.value[0]: code.name for code in grpc.StatusCode}
 
@@ -86,11 +91,14 @@ class FastLane:
     def fits(self, request) -> bool:
         return not self.broken and request.ByteSize() + 4 <= MAX_REQUEST_BYTES
 
-    def call(self, method: int, request, response_type):
+    def call(self, method: int, request, response_type, spin_s: float | None = None):
         """Sends `request` and returns the parsed response; a daemon error becomes WeftError
-        with the same message and status name as through gRPC."""
+        with the same message and status name as through gRPC. A Submit or Synchronize polls
+        for its reply for `spin_s` (default SPIN_S) before blocking."""
         self._send(method, request.SerializeToString())
-        return response_type.FromString(self._receive(spin=method in (SUBMIT, SYNCHRONIZE)))
+        if method not in (SUBMIT, SYNCHRONIZE):
+            spin_s = 0.0
+        return response_type.FromString(self._receive(SPIN_S if spin_s is None else spin_s))
 
     def call_many(self, method: int, requests) -> list:
         """Sends each request and collects the replies, PIPELINE_WINDOW frames at a time: one
@@ -130,10 +138,10 @@ class FastLane:
             self.close()
             raise FastLaneError(f"weftd is not reachable: fast lane: {err}", "UNAVAILABLE") from None
 
-    def _poll(self) -> int:
-        """Polls for a reply frame for up to SPIN_S: its length, or -1 when none came."""
+    def _poll(self, seconds: float) -> int:
+        """Polls for a reply frame for up to `seconds`: its length, or -1 when none came."""
         sock, buf = self._sock, self._buf
-        deadline = time.perf_counter() + SPIN_S
+        deadline = time.perf_counter() + seconds
         while True:
             try:
                 return sock.recv_into(buf, _RECV_BYTES, socket.MSG_DONTWAIT)
@@ -141,13 +149,13 @@ class FastLane:
                 if time.perf_counter() >= deadline:
                     return -1
 
-    def _receive(self, spin: bool = False) -> bytes:
+    def _receive(self, spin_s: float = 0.0) -> bytes:
         try:
             parts = []
             size = 0
             closing = False
             while True:
-                n = self._poll() if spin and SPIN_S > 0 and not parts else -1
+                n = self._poll(spin_s) if spin_s > 0 and not parts else -1
                 if n < 0:
                     n = self._sock.recv_into(self._buf, _RECV_BYTES)
                 if n < 8:

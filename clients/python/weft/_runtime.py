@@ -380,6 +380,7 @@ class Runtime:
         self._slabs = weakref.WeakValueDictionary()   # name -> _SlabMapping in use
         self._devices = None
         self._unsynchronized = False   # commands were queued since the last Synchronize
+        self.gpu_work = False          # GPU launches were queued since the last synchronize
         # Graph capture (weft/graph.py): thread id -> the capture recording that thread's
         # commands; handles that captured graphs name, and those freed while a graph held them.
         self.captures: dict = {}
@@ -417,14 +418,16 @@ class Runtime:
         except (WeftError, OSError):
             return None
 
-    def _exec(self, method: str, request):
+    def _exec(self, method: str, request, gpu_wait: bool = False):
         """ExecService.Submit / Synchronize: through the fast lane when it is open and the
-        request fits a frame, else through gRPC. Same responses and errors either way."""
+        request fits a frame, else through gRPC. Same responses and errors either way.
+        `gpu_wait`: the reply waits for GPU work (the lane polls for it longer)."""
         lane = self.fast_lane
         if lane is not None and lane.fits(request):
+            spin = _fast_lane.SPIN_GPU_S if gpu_wait and _fast_lane.SPIN_GPU_S > 0 else None
             if method == "Submit":
-                return lane.call(_fast_lane.SUBMIT, request, exec_pb2.SubmitResponse)
-            return lane.call(_fast_lane.SYNCHRONIZE, request, exec_pb2.SynchronizeResponse)
+                return lane.call(_fast_lane.SUBMIT, request, exec_pb2.SubmitResponse, spin)
+            return lane.call(_fast_lane.SYNCHRONIZE, request, exec_pb2.SynchronizeResponse, spin)
         return self.call(getattr(self.exec_stub, method), request)
 
     _LANE_ARRAY_METHODS = {"Create": (_fast_lane.ARRAY_CREATE, array_pb2.CreateArrayResponse),
@@ -685,18 +688,20 @@ class Runtime:
             if self._finalizer_commands:
                 self._queue_finalizer_commands()
             batch, self._batch, self._batch_bytes = self._batch, [], 0
+            gpu, self.gpu_work = self.gpu_work, False
             if batch and _FUSED_SYNC:
                 response = self._exec("Submit",
-                                      exec_pb2.SubmitRequest(commands=batch, synchronize=True))
+                                      exec_pb2.SubmitRequest(commands=batch, synchronize=True),
+                                      gpu)
                 if not response.HasField("sync"):
                     # A daemon from before the fused path ignores `synchronize`.
-                    response = self._exec("Synchronize", exec_pb2.SynchronizeRequest())
+                    response = self._exec("Synchronize", exec_pb2.SynchronizeRequest(), gpu)
                 else:
                     response = response.sync
             else:
                 if batch:   # message modules generated before SubmitRequest.synchronize
                     self.call(self.exec_stub.Submit, exec_pb2.SubmitRequest(commands=batch))
-                response = self._exec("Synchronize", exec_pb2.SynchronizeRequest())
+                response = self._exec("Synchronize", exec_pb2.SynchronizeRequest(), gpu)
             self._drain_frees()
             self._unsynchronized = False
             deferred, self._deferred_error = self._deferred_error, None

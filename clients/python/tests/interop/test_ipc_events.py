@@ -117,7 +117,8 @@ def test_record_and_wait_in_one_session(ipc_gpu):
 
 CHILD = """
 import sys, weft as wp
-{kernels}
+sys.path.insert(0, {kernel_dir!r})
+from ipc_event_kernels import slow_fill     # kernels live in files (weft reads their source)
 token, handle, n, spins = sys.stdin.readline().split()
 a = wp.from_ipc_handle(bytes.fromhex(token), dtype=float, shape=(int(n),), device="cuda:0")
 e = wp.event_from_ipc_handle(bytes.fromhex(handle), device="cuda:0")
@@ -129,6 +130,9 @@ wp.synchronize()
 """
 
 KERNELS = '''
+import weft as wp
+
+
 @wp.kernel
 def slow_fill(x: wp.array(dtype=float), value: float, spins: int):
     i = wp.tid()
@@ -139,14 +143,15 @@ def slow_fill(x: wp.array(dtype=float), value: float, spins: int):
 '''
 
 
-def test_a_shared_event_orders_two_clients(ipc_gpu, spawn_client):
+def test_a_shared_event_orders_two_clients(ipc_gpu, spawn_client, tmp_path):
     n = 4096
     a = wp.zeros(n, dtype=float, device=ipc_gpu)
     b = wp.zeros(n, dtype=float, device=ipc_gpu)
     e = wp.Event(ipc_gpu, interprocess=True)
     token = a.ipc_handle()
     wp.synchronize()
-    child = spawn_client(CHILD.format(kernels=KERNELS))
+    (tmp_path / "ipc_event_kernels.py").write_text(KERNELS)
+    child = spawn_client(CHILD.format(kernel_dir=str(tmp_path)))
     try:
         child.stdin.write(f"{token.hex()} {e.ipc_handle().hex()} {n} {SPINS}\n")
         child.stdin.flush()
@@ -160,9 +165,10 @@ def test_a_shared_event_orders_two_clients(ipc_gpu, spawn_client):
         e.synchronize()                 # a host wait on another process's record
         np.testing.assert_array_equal(a.numpy(), np.full(n, 5.0, dtype=np.float32))
     finally:
-        child.stdin.write("\n")
-        child.stdin.flush()
-        assert child.wait(timeout=120) == 0, child.stderr.read()
+        if child.poll() is None:
+            child.stdin.write("\n")
+            child.stdin.flush()
+    assert child.wait(timeout=120) == 0, child.stderr.read()
 
 
 NOT_SHARED = """

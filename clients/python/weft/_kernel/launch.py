@@ -846,6 +846,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         for d in dims:
             threads *= d
         start = threads >= _runtime.START_GPU_THREADS
+        rt.gpu_work = True              # the next synchronize waits for the GPU
     rt.submit(command, start)
     if pause:
         tape.resume_recording()
