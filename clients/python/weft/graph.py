@@ -19,6 +19,11 @@ tape holds it as Warp's tape does, and a captured `tape.backward()` replays its 
 
 A graph keeps the daemon arrays it names: an array the program drops stays allocated until
 the graph is gone (Warp asks the program to keep them alive; weft does it for it).
+
+The wp.utils algorithms (sorts, scans, reductions into `out`, casts, run-length encoding) run
+on the host in weft. Captured, one becomes a *host step* of the graph (HostStep): its arguments
+are checked when captured, and capture_launch sends the graph's commands before it, runs it (it
+waits for them as it reads its arrays) and goes on with the rest.
 """
 from __future__ import annotations
 
@@ -53,6 +58,28 @@ _graph_ids = itertools.count(1)
 _GRAPH_KINDS = ("launch", "copy", "fill")
 
 
+class HostStep:
+    """Work a graph runs in this process at its place in the graph's order (a wp.utils
+    algorithm captured with its arguments): `call()` runs it."""
+    __slots__ = ("name", "call")
+
+    def __init__(self, name: str, call):
+        self.name = name
+        self.call = call
+
+    def __repr__(self):
+        return f"<host step {self.name}>"
+
+
+def record_host_step(name: str, call) -> None:
+    """Records `call` as a host step of the graph this thread captures (a caller checked that
+    it captures)."""
+    capture = _capture_of_thread(_runtime.get_runtime())
+    if capture is None or capture.paused:
+        raise RuntimeError(f"{name}: no graph capture is active on this thread")
+    capture.graph.commands.append(HostStep(name, call))
+
+
 class Graph:
     """Commands captured on one device, replayed by wp.capture_launch (Warp's wp.Graph)."""
 
@@ -65,6 +92,7 @@ class Graph:
         self._nbytes = 0
         self._retained: list = []    # array handles kept for the recorded commands (per command)
         self._children: list = []    # graphs launched while this one was captured
+        self._host_steps = False     # _replay holds HostSteps
         self.graph = self            # Warp exposes the native graph; here this object
         self.graph_exec = None
 
@@ -88,13 +116,14 @@ class Graph:
             run.clear()
 
         for cmd in self.commands:
-            if cmd.WhichOneof("kind") in _GRAPH_KINDS:
+            if not isinstance(cmd, HostStep) and cmd.WhichOneof("kind") in _GRAPH_KINDS:
                 run.append(cmd)
             else:
                 close_run()
                 self._replay.append(cmd)
         close_run()
-        self._nbytes = sum(cmd.ByteSize() for cmd in self._replay)
+        self._host_steps = any(isinstance(cmd, HostStep) for cmd in self._replay)
+        self._nbytes = sum(cmd.ByteSize() for cmd in self._replay if not isinstance(cmd, HostStep))
 
     @property
     def is_loaded(self) -> bool:
@@ -259,10 +288,27 @@ def capture_launch(graph: Graph, stream=None) -> None:
     if graph._runtime is not rt:
         raise RuntimeError("this graph was captured by another weft session")
     outer = _capture_of_thread(rt)
-    if outer is not None and not outer.paused:
+    capturing = outer is not None and not outer.paused
+    if capturing:
         outer.graph._children.append(graph)   # its daemon graphs live as long as the outer one
-    if graph._replay:
-        rt.submit_recorded(graph._replay, graph._nbytes)
+    if not graph._host_steps:
+        if graph._replay:
+            rt.submit_recorded(graph._replay, graph._nbytes)
+        return
+    block: list = []
+    for item in graph._replay:
+        if not isinstance(item, HostStep):
+            block.append(item)
+            continue
+        if block:
+            rt.submit_recorded(block, sum(cmd.ByteSize() for cmd in block))
+            block = []
+        if capturing:
+            outer.graph.commands.append(item)   # a step of the graph being captured
+        else:
+            item.call()                         # waits for the commands sent before it
+    if block:
+        rt.submit_recorded(block, sum(cmd.ByteSize() for cmd in block))
 
 
 def is_conditional_graph_supported() -> bool:
@@ -321,6 +367,11 @@ def capture_debug_dot_print(graph: Graph, path: str, verbose: bool = True) -> No
                         f"{type(graph).__name__}")
     lines = ["digraph weft_graph {", "  rankdir=TB;", "  node [shape=box];"]
     for i, cmd in enumerate(graph.commands):
+        if isinstance(cmd, HostStep):
+            lines.append(f'  n{i} [label="host step {cmd.name}"];')
+            if i:
+                lines.append(f"  n{i - 1} -> n{i};")
+            continue
         kind = cmd.WhichOneof("kind")
         if kind == "launch":
             label = f"{'adjoint ' if cmd.launch.adjoint else ''}launch {cmd.launch.kernel}"

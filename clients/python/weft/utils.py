@@ -5,7 +5,10 @@ contents (zero-copy NumPy views for local CPU arrays) and write the results back
 output arrays; they check their arguments with Warp's messages."""
 from __future__ import annotations
 
+import functools
+import inspect
 import operator
+import threading
 import time
 
 import numpy as np
@@ -95,8 +98,17 @@ def _length(dtype) -> int:
     return int(getattr(dtype, "_length_", 1))
 
 
+class _ChecksPassed(Exception):
+    """Raised by _values while a captured call is only being checked (_capturable)."""
+
+
+_checking = threading.local()
+
+
 def _values(a) -> np.ndarray:
     """The array's elements as NumPy, components last (vec3 -> (..., 3))."""
+    if getattr(_checking, "on", False):
+        raise _ChecksPassed
     return np.asarray(a.numpy())
 
 
@@ -109,25 +121,58 @@ def _same_dtype(a, b) -> bool:
     return t.type_str(a) == t.type_str(b)
 
 
-def _not_in_capture(name, *arrays) -> None:
-    """These algorithms run on the host (NumPy) in weft: inside a graph capture they would read
-    data the graph has not produced yet, so they refuse with a clear error."""
-    from . import _runtime  # noqa: PLC0415
+def _captured_device(value) -> bool:
     from .graph import is_capturing  # noqa: PLC0415
 
-    if not _runtime.get_runtime().captures:
-        return
-    for a in arrays:
-        if a is not None and getattr(a, "device", None) is not None and is_capturing(a.device):
-            raise RuntimeError(f"wp.utils.{name} runs on the host in weft and cannot be captured "
-                               f"into a graph: call it outside the capture (or between "
-                               f"wp.capture_pause and wp.capture_resume)")
+    device = getattr(value, "device", None)
+    return getattr(device, "alias", None) is not None and is_capturing(device)
 
 
+def _capturable(name: str, host_value: str | None = None):
+    """These algorithms run on the host (NumPy) in weft. While this thread captures a graph on
+    the device of one of the call's arrays, the call is checked now (the function runs until it
+    would first read an array: a bad argument raises here, as when Warp captures it) and becomes
+    a host step of the graph (weft.graph.HostStep), run at its place in the graph's order by each
+    wp.capture_launch. `host_value`: the argument that must then be given (without it the call
+    returns a value on the host computed from data the graph has not produced yet)."""
+
+    def wrap(fn):
+        signature = inspect.signature(fn)
+
+        @functools.wraps(fn)
+        def call(*args, **kwargs):
+            from . import _runtime  # noqa: PLC0415
+
+            if not _runtime.get_runtime().captures:
+                return fn(*args, **kwargs)
+            bound = signature.bind(*args, **kwargs)
+            if not any(_captured_device(v) for v in bound.arguments.values()):
+                return fn(*args, **kwargs)
+            if host_value is not None and bound.arguments.get(host_value) is None:
+                raise RuntimeError(f"wp.utils.{name} without {host_value}= returns a value on the "
+                                   f"host, which a graph cannot give: pass {host_value}= (an "
+                                   f"array) inside a graph capture")
+            from .graph import record_host_step  # noqa: PLC0415
+
+            _checking.on = True
+            try:
+                result = fn(*args, **kwargs)
+            except _ChecksPassed:
+                record_host_step(f"wp.utils.{name}", functools.partial(fn, *args, **kwargs))
+                return bound.arguments.get(host_value) if host_value else None
+            finally:
+                _checking.on = False
+            return result                 # nothing to do (an empty count): no step
+
+        return call
+
+    return wrap
+
+
+@_capturable("array_scan")
 def array_scan(in_array, out_array, inclusive: bool = True) -> None:
     """Prefix sum of in_array into out_array (inclusive or exclusive), per vector component.
     int32, int64, float32, float64 and vectors of them."""
-    _not_in_capture("array_scan", in_array, out_array)
     if in_array.device != out_array.device:
         raise RuntimeError(f"In and out array storage devices do not match "
                            f"({in_array.device} vs {out_array.device})")
@@ -188,12 +233,12 @@ def _first(comp, axis, ndim, count):
     return comp[tuple(index)]
 
 
+@_capturable("array_sum", host_value="out")
 def array_sum(values, out=None, value_count=None, axis=None):
     """Sum of a float array (of scalars or vectors): over all elements (the first value_count
     of them) or along `axis` (its first value_count entries; the result keeps the axis with
     size 1, as Warp 1.19). Returns the sum (a NumPy scalar or vector; an array along an axis),
     or writes it to out and returns out."""
-    _not_in_capture("array_sum", values, out)
     if out is not None and out.device != values.device:
         raise RuntimeError(f"out array storage device ({out.device}) does not match the values "
                            f"array ({values.device})")
@@ -220,12 +265,12 @@ def array_sum(values, out=None, value_count=None, axis=None):
     return array(result, dtype=values.dtype, device=values.device)
 
 
+@_capturable("array_inner", host_value="out")
 def array_inner(a, b, out=None, count=None, axis=None):
     """Inner product of two float arrays of one shape and dtype (vectors: the sum of the
     componentwise products): over all elements (the first `count`) or along `axis` (its first
     `count` entries; the result keeps the axis with size 1, as Warp 1.19). Returns it, or
     writes it to out and returns out."""
-    _not_in_capture("array_inner", a, b, out)
     if tuple(a.shape) != tuple(b.shape):
         raise ValueError(f"array_inner() arguments must have the same shape, got "
                          f"{tuple(a.shape)} and {tuple(b.shape)}")
@@ -263,11 +308,11 @@ def array_inner(a, b, out=None, count=None, axis=None):
     return array(result, dtype=scalar, device=a.device)
 
 
+@_capturable("array_cast")
 def array_cast(in_array, out_array, count=None) -> None:
     """Converts in_array's scalars to out_array's scalar type (C casts: floats truncate to
     ints). Arrays of several dimensions need one shape; 1-d arrays convert the first `count`
     elements (default: all of in_array), component by component."""
-    _not_in_capture("array_cast", in_array, out_array)
     if in_array.device != out_array.device:
         raise RuntimeError(f"Array storage devices do not match ({in_array.device} vs "
                            f"{out_array.device})")
@@ -323,11 +368,11 @@ def _check_contiguous(what, name, array, keys, values):
                            f"{name} with data types: {_name(keys.dtype)}, {_name(values.dtype)}")
 
 
+@_capturable("radix_sort_pairs")
 def radix_sort_pairs(keys, values, count: int, begin_bit: int = 0, end_bit=None) -> None:
     """Sorts the first `count` keys (stable, by bits [begin_bit, end_bit) of their numeric
     order) and moves the values with them. Like Warp's, both arrays must hold 2*count elements
     (the second half is scratch space)."""
-    _not_in_capture("radix_sort_pairs", keys, values)
     if keys.device != values.device:
         raise RuntimeError(f"Keys and values array storage devices do not match "
                            f"({keys.device} vs {values.device})")
@@ -379,13 +424,13 @@ def _strides_contiguous(arr) -> bool:
     return arr.is_contiguous and (not arr.ndim or arr.strides[-1] == itemsize)
 
 
+@_capturable("segmented_sort_pairs")
 def segmented_sort_pairs(keys, values, count: int, segment_start_indices,
                          segment_end_indices=None) -> None:
     """Sorts each segment [start[i], end[i]) of the first `count` keys (stable; int32 or
     float32 keys with int32 values) and moves the values with them. Without end indices,
     segment i ends where segment i+1 starts (the last start only closes the one before).
     Both arrays must hold 2*count elements."""
-    _not_in_capture("segmented_sort_pairs", keys, values)
     starts, ends = segment_start_indices, segment_end_indices
     devices = {keys.device, values.device, starts.device} | (
         {ends.device} if ends is not None else set())
@@ -438,11 +483,11 @@ def segmented_sort_pairs(keys, values, count: int, segment_start_indices,
     _write(values, v)
 
 
+@_capturable("runlength_encode", host_value="run_count")
 def runlength_encode(values, run_values, run_lengths, run_count=None, value_count=None):
     """Run-length encodes the first value_count values (default: all): run_values gets each
     run's value, run_lengths its length. Returns the number of runs when run_count is None,
     else writes it to run_count[0]."""
-    _not_in_capture("runlength_encode", values, run_values, run_lengths)
     if run_values.device != values.device or run_lengths.device != values.device:
         raise RuntimeError("Values, run values and run lengths must live on one device")
     if not _same_dtype(run_values.dtype, values.dtype):

@@ -296,21 +296,78 @@ def test_capture_debug_dot_print(tmp_path, device):
     assert "n0 -> n1" in text
 
 
-def test_host_side_utils_refuse_to_be_captured(rng, device):
-    """weft's wp.utils algorithms run on the host: inside a capture they would read data the
-    graph has not produced, so they refuse; paused, they run."""
-    keys_np = rng.integers(0, 1000, 16).astype(np.int32)
-    keys = wp.array(np.concatenate([keys_np, keys_np]), dtype=wp.int32)
-    values = wp.array(np.arange(32, dtype=np.int32), dtype=wp.int32)
-    with wp.ScopedCapture():
-        with pytest.raises(RuntimeError, match="cannot be captured"):
-            wp.utils.radix_sort_pairs(keys, values, 16)
-        with pytest.raises(RuntimeError, match="cannot be captured"):
-            wp.utils.array_sum(wp.zeros(4))
-        wp.capture_pause()
-        wp.utils.radix_sort_pairs(keys, values, 16)
-        wp.capture_resume()
-    np.testing.assert_array_equal(keys.numpy()[:16], np.sort(keys_np, kind="stable"))
+@wp.kernel
+def scaled_keys(src: wp.array(dtype=wp.int32), k: int, keys: wp.array(dtype=wp.int32)):
+    i = wp.tid()
+    keys[i] = src[i] * k
+
+
+@wp.kernel
+def plus_one(keys: wp.array(dtype=wp.int32), out: wp.array(dtype=wp.int32)):
+    i = wp.tid()
+    out[i] = keys[i] + 1
+
+
+def test_captured_utils_are_host_steps_in_the_graph_order(rng, device, tmp_path):
+    """weft's wp.utils algorithms run on the host: captured, each is a host step of the graph,
+    run by every capture_launch after the graph's earlier launches and before its later ones
+    (the sort sees what the launch before it wrote; the launch after it sees the sorted keys)."""
+    n = 1000
+    src = wp.zeros(n, dtype=wp.int32)
+    keys = wp.zeros(2 * n, dtype=wp.int32)          # the second half: the sort's scratch
+    values = wp.zeros(2 * n, dtype=wp.int32)
+    out = wp.zeros(n, dtype=wp.int32)
+    scan = wp.zeros(n, dtype=wp.int32)
+    with wp.ScopedCapture() as capture:
+        wp.launch(scaled_keys, n, inputs=[src, -3, keys])
+        wp.utils.radix_sort_pairs(keys, values, n)
+        wp.launch(plus_one, n, inputs=[keys, out])
+        wp.utils.array_scan(out, scan)
+        assert wp.utils.radix_sort_pairs(keys, values, 0) is None   # nothing to do: no step
+    assert len(capture.graph) == 4
+    for _ in range(3):                              # fresh data before each replay
+        src_np = rng.integers(-100_000, 100_000, n).astype(np.int32)
+        src.assign(src_np)
+        values.assign(np.concatenate([np.arange(n, dtype=np.int32), np.zeros(n, np.int32)]))
+        wp.capture_launch(capture.graph)
+        scaled = src_np.astype(np.int64) * -3
+        order = np.argsort(scaled, kind="stable")
+        np.testing.assert_array_equal(out.numpy(), (scaled[order] + 1).astype(np.int32))
+        np.testing.assert_array_equal(values.numpy()[:n], order.astype(np.int32))
+        np.testing.assert_array_equal(scan.numpy(), np.cumsum(scaled[order] + 1).astype(np.int32))
+    path = tmp_path / "graph.dot"
+    wp.capture_debug_dot_print(capture.graph, str(path))
+    assert "host step wp.utils.radix_sort_pairs" in path.read_text()
+
+
+def test_captured_utils_check_their_arguments_when_captured(device):
+    keys = wp.zeros(32, dtype=wp.int32)
+    values = wp.zeros(32, dtype=wp.int32)
+    four = wp.zeros(4)
+    with wp.ScopedCapture() as capture:
+        with pytest.raises(RuntimeError, match="2\\*count elements"):
+            wp.utils.radix_sort_pairs(keys, values, 17)
+        with pytest.raises(RuntimeError, match="returns a value on the host"):
+            wp.utils.array_sum(four)
+        with pytest.raises(RuntimeError, match="returns a value on the host"):
+            wp.utils.runlength_encode(keys, keys, values)
+    assert len(capture.graph) == 0
+
+
+def test_a_graph_with_host_steps_launched_while_capturing(rng, device):
+    n = 64
+    keys = wp.zeros(2 * n, dtype=wp.int32)
+    values = wp.zeros(2 * n, dtype=wp.int32)
+    out = wp.zeros(n, dtype=wp.int32)
+    with wp.ScopedCapture() as inner:
+        wp.utils.radix_sort_pairs(keys, values, n)
+    with wp.ScopedCapture() as outer:
+        wp.capture_launch(inner.graph)
+        wp.launch(plus_one, n, inputs=[keys, out])
+    keys_np = rng.integers(-1000, 1000, n).astype(np.int32)
+    keys.assign(np.concatenate([keys_np, np.zeros(n, np.int32)]))
+    wp.capture_launch(outer.graph)
+    np.testing.assert_array_equal(out.numpy(), np.sort(keys_np, kind="stable") + 1)
 
 
 def test_arrays_made_and_dropped_while_capturing_stay_for_the_graph(rng, device):
