@@ -32,6 +32,30 @@ constexpr uint64_t kAlignment = 256;
 
 uint64_t RoundUp(uint64_t v, uint64_t a) { return (v + a - 1) / a * a; }
 
+// A failed expectation of a GPU kernel keeps its values as a print record in the error's
+// message (engine/native/expect.h): the error as FormatLaunchError reads it, with that record
+// formatted as text (checked as any print record: the slot is device memory a kernel can write).
+wp::launch_error_t WithExpectText(const wp::launch_error_t& e) {
+  if (e.kind != wp::LAUNCH_EXPECT_FAILED) return e;
+  wp::launch_error_t out = e;
+  std::string text;
+  if (e.message[0] == wp::EXPECT_RECORD) {
+    const uint64_t capacity = sizeof(e.message) - 1;
+    uint32_t size = 0;
+    std::memcpy(&size, e.message + 1, sizeof(size));
+    text = FormatPrintRecords(e.message + 1, std::min<uint64_t>(size, capacity), capacity);
+    while (!text.empty() && text.back() == '\n') text.pop_back();
+  } else if (e.message[0] == wp::EXPECT_IN_OUTPUT) {
+    text = "the values are in the kernel's print output";
+  } else {
+    return e;
+  }
+  const size_t n = std::min(text.size(), sizeof(out.message) - 1);
+  std::memcpy(out.message, text.data(), n);
+  out.message[n] = '\0';
+  return out;
+}
+
 // Strided copy and fill over views of up to 4 dimensions; elements move in words of `word`
 // bytes (the largest of 8/4/2/1 that divides the element size, every stride and both bases).
 const char* kBuiltinSource = R"CUDA(
@@ -718,7 +742,7 @@ DeviceSyncResult CudaDevice::Drain(Stream& st) {
     const wp::launch_error_t& e = st.errors_host[i];
     if (e.kind == 0) continue;
     const Pending& p = st.pending[i];
-    out.error = FormatLaunchError(*p.module, *p.kernel, p.adjoint, e);
+    out.error = FormatLaunchError(*p.module, *p.kernel, p.adjoint, WithExpectText(e));
     out.origin = p.origin;
     break;
   }

@@ -1,6 +1,8 @@
 // Native library: wp.expect_eq / expect_neq / expect_near. A failed expectation records a
 // LAUNCH_EXPECT_FAILED error (first error of the launch wins, launch_abi.h) whose message shows
-// both values, e.g. "expect_eq(1 2 3, 1 2 4)"; the kernel goes on (as in Warp).
+// both values, e.g. "expect_eq(1 2 3, 1 2 4)"; the kernel goes on (as in Warp). On a GPU the
+// values travel as a print record in the error's message, formatted by the daemon at the
+// synchronize (a record too long for it is printed to the kernel's output instead).
 // expect_*(ctx, a, b) has no location; the code generator emits expect_*_at(ctx, function_id,
 // line, a, b) so the error names the user's line.
 #pragma once
@@ -12,15 +14,28 @@ namespace wp {
 template <typename A, typename B>
 WP_FUNC void expect_report(const launch_context_t* ctx, int32 function_id, int32 line, const char* what, const A& a, const B& b) {
   print_line l;
-  l.add("%s(", what);
+  l.add("%s", what);   // a string goes alone in its piece (GPU print records)
+  l.add("(");
   print_value(l, a);
   l.add(", ");
   print_value(l, b);
   l.add(")");
 #if WP_DEVICE_CODE
-  ::printf(" failed at line %d\n", line);
-#endif
+  if (!report_error(ctx, LAUNCH_EXPECT_FAILED, function_id, line, -1, 0, nullptr, nullptr, nullptr)) return;
+  char* m = ctx->error->message;
+  const int n = l.rec.size();
+  if (!l.rec.full && n < (int)sizeof(ctx->error->message)) {
+    const char* rec = l.rec.bytes();
+    m[0] = EXPECT_RECORD;
+    for (int i = 0; i < n; ++i) m[1 + i] = rec[i];
+  } else {
+    m[0] = EXPECT_IN_OUTPUT;
+    l.add(" failed at line %d\n", line);
+    l.flush(ctx);
+  }
+#else
   report_error(ctx, LAUNCH_EXPECT_FAILED, function_id, line, -1, 0, nullptr, nullptr, l.text());
+#endif
 }
 
 // Component-wise |a - b| <= tol (NaN never passes).

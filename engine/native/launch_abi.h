@@ -71,8 +71,14 @@ struct launch_error_t {
   int64 shape[ARRAY_MAX_DIMS];
   int32 function_id;     // index into the module's function table (which func/kernel)
   int32 _pad;
-  char message[128];     // optional text (expect failures)
+  // Optional text (expect failures on the CPU, geometry and value errors). On a GPU a failed
+  // expectation stores its values here as one print record (print.h) after the byte
+  // EXPECT_RECORD, which the daemon formats at the synchronize, or the byte EXPECT_IN_OUTPUT
+  // when the record did not fit (it went to the kernel's print output instead).
+  char message[256];
 };
+constexpr char EXPECT_RECORD = 0x01;
+constexpr char EXPECT_IN_OUTPUT = 0x02;
 
 // Kernel print output; writers reserve space with an atomic add on `used`.
 struct print_buffer_t {

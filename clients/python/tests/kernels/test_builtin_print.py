@@ -4,6 +4,8 @@ of another session does not leak into this one."""
 import re
 import textwrap
 
+import numpy as np
+
 import pytest
 
 import weft as wp
@@ -23,11 +25,16 @@ def check(a: wp.array(dtype=int), b: wp.array(dtype=int)):
     wp.expect_eq(a[i], b[i])
 
 
-@pytest.fixture(autouse=True)
-def _gpu_expect_values_not_reported(device, request):
-    if device.startswith("cuda") and request.node.name.startswith("test_expect_eq"):
-        pytest.xfail("a failed wp.expect_eq on a GPU reports its line but not its values yet "
-                     "(docs/cuda.md, 'Not done yet')")
+@wp.kernel
+def check_vec(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    wp.expect_near(a[i], b[i], 1.0e-3)
+
+
+@wp.kernel
+def check_mat(a: wp.array(dtype=wp.mat33), b: wp.array(dtype=wp.mat33)):
+    i = wp.tid()
+    wp.expect_eq(a[i], b[i])
 
 
 def test_print_and_printf_reach_stdout(wp, capfd):
@@ -55,6 +62,39 @@ def test_expect_eq(wp, capfd):
     except wp.WeftError as err:
         report = str(err)
     assert "expect_eq" in report and "2" in report and "5" in report, report
+
+
+def _expect_failure(wp, capfd):
+    """(the error text of the next synchronize, the kernel output before it)."""
+    with pytest.raises(wp.WeftError) as err:
+        wp.synchronize()
+    return str(err.value), capfd.readouterr().out
+
+
+def test_expect_near_names_the_values_and_the_line(wp, capfd, rng):
+    a_np = rng.uniform(-100, 100, size=(4, 3)).astype(np.float32)
+    b_np = a_np.copy()
+    b_np[2, 1] += 0.5
+    a = wp.array(a_np, dtype=wp.vec3)
+    wp.launch(check_vec, dim=4, inputs=[a, wp.array(b_np, dtype=wp.vec3)])
+    text, _ = _expect_failure(wp, capfd)
+    assert "expect_near(" in text and "test_builtin_print.py" in text and "check_vec" in text, text
+    shown = [float(v) for v in re.findall(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?", text.split("expect_near(")[1])]
+    for v in (a_np[2, 1], b_np[2, 1]):
+        assert any(abs(s - v) <= 1e-3 * max(1.0, abs(v)) for s in shown), (v, text)
+
+
+def test_expect_eq_of_large_values_reaches_the_user(wp, capfd, rng):
+    """A mat33 pair is longer than a GPU error slot holds: the error says where the values are
+    (the kernel output); on the CPU the error holds them. Either way the user sees both."""
+    a_np = rng.integers(-9, 9, size=(2, 3, 3)).astype(np.float32)
+    b_np = a_np.copy()
+    b_np[1, 2, 2] = 77.0
+    wp.launch(check_mat, dim=2, inputs=[wp.array(a_np, dtype=wp.mat33),
+                                        wp.array(b_np, dtype=wp.mat33)])
+    text, out = _expect_failure(wp, capfd)
+    assert "expect_eq" in text and "check_mat" in text, text
+    assert "77" in text + out, (text, out)
 
 
 def test_output_stays_in_its_session(wp, run_script, capfd):
