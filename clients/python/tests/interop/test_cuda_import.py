@@ -96,6 +96,37 @@ def test_converting_again_follows_what_the_tensor_is_now(wp, tcuda, torch, rng):
     assert f.grad.ptr == t.grad.data_ptr()
 
 
+def test_descriptors_converted_again_follow_the_tensor(wp, tcuda, torch, rng):
+    """from_torch(return_ctype=True) of a tensor converted before copies the remembered
+    descriptor (interop/torch.py _last_descriptor): a new object with the same bytes, taken by
+    launches like its array; once the tensor changes (re-pointed, resized, another dtype asked
+    for, gradients), the descriptor says so."""
+    values = rng.standard_normal(4096).astype(np.float32)
+    t = torch.tensor(values, device="cuda")
+    descs = [wp.from_torch(t, return_ctype=True) for _ in range(4)]
+    assert len({id(d) for d in descs}) == 4
+    assert {bytes(d) for d in descs} == {bytes(descs[0])}
+    assert descs[-1].data == t.data_ptr() and descs[-1].shape[0] == 4096
+    total = wp.zeros(1, dtype=float, device=tcuda)
+    for d in descs[1:]:
+        wp.launch(scale_sum, dim=4096, inputs=[d, 2.0, total], device=tcuda)
+    wp.synchronize()
+    np.testing.assert_allclose(t.cpu().numpy(), values.astype(np.float64) * 8.0, rtol=1e-6)
+    t.resize_(1000)
+    d = wp.from_torch(t, return_ctype=True)
+    assert d.shape[0] == 1000 and d.data == t.data_ptr()
+    t.set_(torch.tensor(values[:7], device="cuda"))
+    d = wp.from_torch(t, return_ctype=True)
+    assert d.shape[0] == 7 and d.data == t.data_ptr() and d.data != descs[0].data
+    u = torch.tensor(values.reshape(2048, 2), device="cuda")
+    wp.from_torch(u, return_ctype=True), wp.from_torch(u, return_ctype=True)
+    d = wp.from_torch(u, dtype=wp.vec2, return_ctype=True)
+    assert d.ndim == 1 and d.shape[0] == 2048
+    t.requires_grad_(True)
+    d = wp.from_torch(t, return_ctype=True)
+    assert d.grad != 0 and d.grad == t.grad.data_ptr()
+
+
 def test_strided_tensor_view_is_imported(wp, tcuda, torch, rng):
     base = torch.tensor(rng.standard_normal((64, 6)).astype(np.float32), device="cuda")
     view = base[:, ::2]

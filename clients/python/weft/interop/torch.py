@@ -254,10 +254,40 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False,
     through the adjoints of stores to it). `return_ctype=True` returns the array's ctypes
     descriptor (`a.__ctype__()`, Warp's array_t: data and grad addresses in this process, shape,
     byte strides), which keeps the array alive and which launches take as the array."""
+    if return_ctype and grad is None and not retain_grad:
+        desc = _last_descriptor(t, dtype, requires_grad)
+        if desc is not None:
+            return desc
     a = _from_torch(t, dtype, requires_grad, grad)
     if retain_grad:
         a.retain_grad = True
-    return a.__ctype__() if return_ctype else a
+    if not return_ctype:
+        return a
+    desc = a.__ctype__()
+    if grad is None and not retain_grad and a.__dict__.get("_view_of") is not None:
+        last = getattr(t, "__dict__", {}).get(_LAST_IMPORT)
+        if last is not None and last[1] is a.__dict__["_view_of"]:
+            t.__dict__[_LAST_CTYPE] = (last, desc)
+    return desc
+
+
+# On a tensor whose last import is remembered (_LAST_IMPORT): (that entry, the descriptor made
+# from it). A loop converting the same tensors with return_ctype=True gets a copy of the
+# descriptor (its bytes and the array it refers to) without making one field by field.
+_LAST_CTYPE = "_weft_last_ctype"
+
+
+def _last_descriptor(t, dtype, requires_grad):
+    d = getattr(t, "__dict__", None)
+    entry = d.get(_LAST_CTYPE) if d is not None else None
+    if entry is None or d.get(_LAST_IMPORT) is not entry[0]:
+        return None
+    if _last_import(t, dtype, requires_grad) is None:   # the tensor changed, or another session
+        return None
+    desc = entry[1]
+    out = type(desc).from_buffer_copy(desc)
+    out._weft_value = desc._weft_value
+    return out
 
 
 def _from_torch(t, dtype, requires_grad, grad):
