@@ -23,7 +23,9 @@ the graph is gone (Warp asks the program to keep them alive; weft does it for it
 The wp.utils algorithms (sorts, scans, reductions into `out`, casts, run-length encoding) run
 on the host in weft. Captured, one becomes a *host step* of the graph (HostStep): its arguments
 are checked when captured, and capture_launch sends the graph's commands before it, runs it (it
-waits for them as it reads its arrays) and goes on with the rest.
+waits for them as it reads its arrays) and goes on with the rest. capture_if / capture_while
+inside a capture are host steps too: their branches are captured as graphs, and the condition
+is read when the graph runs.
 """
 from __future__ import annotations
 
@@ -312,17 +314,14 @@ def capture_launch(graph: Graph, stream=None) -> None:
 
 
 def is_conditional_graph_supported() -> bool:
-    """False: a condition is read on the host (capture_if/capture_while outside a capture);
-    a captured graph has no device-side branches."""
-    return False
+    """True: capture_if / capture_while work inside a capture. A weft graph has no device-side
+    branches: the condition is read on the host when the graph runs (a host step, see the
+    module's docstring), after the work queued before it."""
+    return True
 
 
 def _condition_value(condition) -> bool:
-    from .array import array  # noqa: PLC0415
-    from .types import int32  # noqa: PLC0415
-
-    if not isinstance(condition, array) or condition.dtype is not int32:
-        raise TypeError("Condition must be a Warp array of int32 with a single element")
+    _condition_type_check(condition)
     return bool(condition.numpy().reshape(-1)[0])
 
 
@@ -335,29 +334,78 @@ def _run_branch(branch, stream, kwargs) -> None:
         raise RuntimeError("branch must be a callable or a wp.Graph")
 
 
-def _refuse_in_capture(what) -> None:
-    if _capture_of_thread(_runtime.get_runtime()) is not None:
-        raise RuntimeError(f"{what} inside a graph capture needs conditional graph nodes, "
-                           f"which weft graphs do not have (wp.is_conditional_graph_supported() "
-                           f"is False): call it outside the capture")
+def _captured_branch(outer, branch, kwargs):
+    """A branch of a conditional captured inside `outer`'s capture: a graph as given, or a
+    callable's work captured into a graph of its own now (as Warp captures the body into the
+    conditional node's child graph). The outer graph keeps it."""
+    if branch is None:
+        return None
+    if isinstance(branch, Graph):
+        sub = branch
+    elif callable(branch):
+        rt = outer.graph._runtime
+        key = threading.get_ident()
+        sub = Graph(outer.graph.device, rt)
+        rt.captures[key] = _Capture(sub)
+        try:
+            branch(**kwargs)
+        finally:
+            rt.captures[key] = outer
+        sub._seal()
+    else:
+        raise RuntimeError("branch must be a callable or a wp.Graph")
+    outer.graph._children.append(sub)
+    return sub
 
 
 def capture_if(condition, on_true=None, on_false=None, stream=None, **kwargs) -> None:
-    """Runs on_true or on_false (callables or graphs) by condition[0] (Warp's capture_if
-    outside a capture: the condition is read after the work queued before it)."""
+    """Runs on_true or on_false (callables or graphs) by condition[0] (Warp's capture_if).
+    Inside a capture the branches are captured as graphs and the choice is a host step of the
+    graph: made each time the graph runs, after the work before it."""
     if on_true is None and on_false is None:
         return
-    _refuse_in_capture("capture_if")
+    outer = _capture_of_thread(_runtime.get_runtime())
+    if outer is not None and not outer.paused:
+        _condition_type_check(condition)
+        true_graph = _captured_branch(outer, on_true, kwargs)
+        false_graph = _captured_branch(outer, on_false, kwargs)
+
+        def choose():
+            graph = true_graph if _condition_value(condition) else false_graph
+            if graph is not None:
+                capture_launch(graph, stream=stream)
+
+        outer.graph.commands.append(HostStep("capture_if", choose))
+        return
     branch = on_true if _condition_value(condition) else on_false
     if branch is not None:
         _run_branch(branch, stream, kwargs)
 
 
 def capture_while(condition, while_body, stream=None, **kwargs) -> None:
-    """Runs while_body (a callable or graph) as long as condition[0] is nonzero."""
-    _refuse_in_capture("capture_while")
+    """Runs while_body (a callable or graph) as long as condition[0] is nonzero. Inside a
+    capture the body is captured as a graph and the loop is a host step of the graph."""
+    outer = _capture_of_thread(_runtime.get_runtime())
+    if outer is not None and not outer.paused:
+        _condition_type_check(condition)
+        body = _captured_branch(outer, while_body, kwargs)
+
+        def loop():
+            while _condition_value(condition):
+                capture_launch(body, stream=stream)
+
+        outer.graph.commands.append(HostStep("capture_while", loop))
+        return
     while _condition_value(condition):
         _run_branch(while_body, stream, kwargs)
+
+
+def _condition_type_check(condition) -> None:
+    from .array import array  # noqa: PLC0415
+    from .types import int32  # noqa: PLC0415
+
+    if not isinstance(condition, array) or condition.dtype is not int32:
+        raise TypeError("Condition must be a Warp array of int32 with a single element")
 
 
 def capture_debug_dot_print(graph: Graph, path: str, verbose: bool = True) -> None:

@@ -87,7 +87,7 @@ def test_capture_begin_end_and_misuse(device):
         wp.capture_end()
     with pytest.raises(TypeError, match="wp.Graph"):
         wp.capture_launch("graph")
-    assert wp.is_conditional_graph_supported() is False
+    assert wp.is_conditional_graph_supported() is True      # host-side conditions
 
 
 def test_host_waits_inside_a_capture_are_refused_and_the_capture_goes_on(device):
@@ -179,11 +179,42 @@ def test_capture_if_and_capture_while_outside_a_capture(device):
     counter.fill_(1)
     wp.capture_if(counter, on_true=body.graph)
     assert counter.numpy()[0] == 0 and hits.numpy()[0] == 4.0
-    with pytest.raises(RuntimeError, match="conditional graph nodes"):
-        with wp.ScopedCapture():
-            wp.capture_while(counter, body.graph)
     with pytest.raises(TypeError, match="int32"):
         wp.capture_if(hits, on_true=body.graph)
+    with pytest.raises(TypeError, match="int32"):
+        with wp.ScopedCapture():
+            wp.capture_while(hits, body.graph)
+
+
+def test_capture_while_and_capture_if_inside_a_capture(rng, device):
+    """Inside a capture the branches and the loop body are captured as graphs and the
+    condition is read each time the graph runs, after the work before it (a host step): the
+    counter a captured fill sets is counted down by the body, which also sorts."""
+    n = 256
+    counter = wp.zeros(1, dtype=wp.int32)
+    hits = wp.zeros(1)
+    keys = wp.zeros(2 * n, dtype=wp.int32)
+    values = wp.zeros(2 * n, dtype=wp.int32)
+    flag = wp.zeros(1, dtype=wp.int32)
+    taken = wp.zeros(2)
+
+    def body():
+        wp.utils.radix_sort_pairs(keys, values, n)
+        wp.launch(count_down, 1, inputs=[counter, hits])
+
+    with wp.ScopedCapture() as capture:
+        counter.fill_(3)
+        wp.capture_while(counter, while_body=body)
+        wp.capture_if(flag, on_true=lambda: taken.fill_(1.0), on_false=lambda: taken.fill_(-1.0))
+    np.testing.assert_array_equal(hits.numpy(), 0.0)        # nothing ran while capturing
+    for round_ in range(2):
+        keys_np = rng.integers(-10_000, 10_000, n).astype(np.int32)
+        keys.assign(np.concatenate([keys_np, np.zeros(n, np.int32)]))
+        flag.fill_(round_)
+        wp.capture_launch(capture.graph)
+        assert counter.numpy()[0] == 0 and hits.numpy()[0] == 3.0 * (round_ + 1)
+        np.testing.assert_array_equal(keys.numpy()[:n], np.sort(keys_np, kind="stable"))
+        np.testing.assert_array_equal(taken.numpy(), 1.0 if round_ else -1.0)
 
 
 def test_a_replayed_bounds_error_names_the_captured_line(device):
