@@ -5,6 +5,8 @@ CudaEventCommand SHARE op), so that one client's launches wait on the GPU for an
 work. Hostile use (an op the daemon does not know, SHARE on the CPU, a handle nobody shared)
 gets clear errors and the daemon keeps serving. The CPU-side checks run everywhere; the GPU
 tests skip with the reason without a GPU or CUDA IPC in the client."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -117,8 +119,8 @@ def test_record_and_wait_in_one_session(ipc_gpu):
 
 CHILD = """
 import sys, weft as wp
-sys.path.insert(0, {kernel_dir!r})
-from ipc_event_kernels import slow_fill     # kernels live in files (weft reads their source)
+sys.path.insert(0, {test_dir!r})
+from test_ipc_events import slow_fill     # this file's kernel (weft reads kernels' source files)
 token, handle, n, spins = sys.stdin.readline().split()
 a = wp.from_ipc_handle(bytes.fromhex(token), dtype=float, shape=(int(n),), device="cuda:0")
 e = wp.event_from_ipc_handle(bytes.fromhex(handle), device="cuda:0")
@@ -129,29 +131,15 @@ sys.stdin.readline()
 wp.synchronize()
 """
 
-KERNELS = '''
-import weft as wp
 
-
-@wp.kernel
-def slow_fill(x: wp.array(dtype=float), value: float, spins: int):
-    i = wp.tid()
-    acc = float(0.0)
-    for k in range(spins):
-        acc = acc + wp.sin(float(k)) * 1.0e-30
-    x[i] = value + acc * 0.0
-'''
-
-
-def test_a_shared_event_orders_two_clients(ipc_gpu, spawn_client, tmp_path):
+def test_a_shared_event_orders_two_clients(ipc_gpu, spawn_client):
     n = 4096
     a = wp.zeros(n, dtype=float, device=ipc_gpu)
     b = wp.zeros(n, dtype=float, device=ipc_gpu)
     e = wp.Event(ipc_gpu, interprocess=True)
     token = a.ipc_handle()
     wp.synchronize()
-    (tmp_path / "ipc_event_kernels.py").write_text(KERNELS)
-    child = spawn_client(CHILD.format(kernel_dir=str(tmp_path)))
+    child = spawn_client(CHILD.format(test_dir=str(Path(__file__).resolve().parent)))
     try:
         child.stdin.write(f"{token.hex()} {e.ipc_handle().hex()} {n} {SPINS}\n")
         child.stdin.flush()

@@ -35,6 +35,19 @@ def is_torch_tensor(obj) -> bool:
     return tensor_type is not None and isinstance(obj, tensor_type)
 
 
+def framework_device(device, cuda_prefix: str, framework: str) -> str:
+    """A framework's device string for a weft device: "cpu", or f"{cuda_prefix}:N" for cuda:N
+    (Torch names GPUs "cuda", Paddle "gpu")."""
+    from ..device import get_device  # noqa: PLC0415
+
+    device = get_device(device)
+    if device.is_cpu:
+        return "cpu"
+    if device.is_cuda:
+        return f"{cuda_prefix}:{device.ordinal}"
+    raise RuntimeError(f"weft device {device} is not compatible with {framework}")
+
+
 def foreign_device(obj) -> str:
     """"cpu" or "cuda:N" for a foreign array (NumPy and anything without a device: "cpu")."""
     if isinstance(obj, np.ndarray):

@@ -18,6 +18,8 @@ import bisect
 import threading
 import weakref
 
+import numpy as np
+
 # Re-entrant: a weakref callback (forget) may run inside a locked region when the garbage
 # collector frees an allocation there.
 _lock = threading.RLock()
@@ -179,3 +181,18 @@ def grad_view(a):
     g = array_over(galloc, a._byte_offset, a.shape, a.strides, a.dtype)
     a._grad = g
     return g
+
+
+def set_now(a, values=None) -> None:
+    """Writes zeros (or `values`) into weft array `a` before returning: a framework that
+    shares the memory (a gradient handed to Torch or Paddle) may read it at once. A local
+    CPU array is written through its slab; any other goes through the daemon and waits."""
+    if a._alloc.runtime.local and a._info.shm_name:
+        view = a.numpy()
+        view[...] = 0 if values is None else np.asarray(values).reshape(view.shape)
+        return
+    if values is None:
+        a.zero_()
+    else:
+        a.assign(values)
+    a._alloc.runtime.synchronize()

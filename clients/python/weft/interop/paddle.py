@@ -159,14 +159,7 @@ def device_from_paddle(paddle_device):
 
 def device_to_paddle(device):
     """The Paddle device string ("cpu", "gpu:N") of a weft device."""
-    from ..device import get_device  # noqa: PLC0415
-
-    device = get_device(device)
-    if device.is_cpu:
-        return "cpu"
-    if device.is_cuda:
-        return f"gpu:{device.ordinal}"
-    raise RuntimeError(f"weft device {device} is not compatible with Paddle")
+    return external.framework_device(device, "gpu", "Paddle")
 
 
 def _check_tensor(t, what):
@@ -281,20 +274,6 @@ def _adopt(t, dtype, what, requires_grad=False):
     return out
 
 
-def _set_now(a, values=None):
-    """Writes zeros (or `values`) into CPU weft array `a` before returning (Paddle may read it
-    at once)."""
-    if a._alloc.runtime.local and a._info.shm_name:
-        view = a.numpy()
-        view[...] = 0 if values is None else np.asarray(values).reshape(view.shape)
-        return
-    if values is None:
-        a.zero_()
-    else:
-        a.assign(values)
-    a._alloc.runtime.synchronize()
-
-
 class _Producer:
     """A GPU Paddle tensor as a DLPack producer whose device is read from its place."""
 
@@ -355,9 +334,9 @@ def _from_paddle(t, dtype, requires_grad, grad):
             zeros(a.shape, dtype=a.dtype, device="cpu")
         a._grad = ga
     elif g is None:
-        _set_now(ga)                    # a tensor without .grad: the gradient starts at zero
+        memory.set_now(ga)             # a tensor without .grad: the gradient starts at zero
     elif not (ga.ptr is not None and int(g.data_ptr()) == ga.ptr):
-        _set_now(ga, _host_view(g, np.dtype(ga.dtype._wp_scalar_type_._np_dtype_)))
+        memory.set_now(ga, _host_view(g, np.dtype(ga.dtype._wp_scalar_type_._np_dtype_)))
     if g is None or ga.ptr is None or int(g.data_ptr()) != ga.ptr:
         gt = _tensor_over(ga, t.dtype)
         if gt is not None:

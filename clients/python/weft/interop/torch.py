@@ -86,14 +86,7 @@ def device_from_torch(torch_device):
 
 def device_to_torch(device):
     """The Torch device string ("cpu", "cuda:N") of a weft device."""
-    from ..device import get_device  # noqa: PLC0415
-
-    device = get_device(device)
-    if device.is_cpu:
-        return "cpu"
-    if device.is_cuda:
-        return f"cuda:{device.ordinal}"
-    raise RuntimeError(f"weft device {device} is not compatible with Torch")
+    return external.framework_device(device, "cuda", "Torch")
 
 
 def _check_tensor(t, what):
@@ -204,23 +197,6 @@ def _tensor_over(a, torch_dtype, shape):
     if t.dtype != torch_dtype:
         t = t.view(torch_dtype)         # same-size alias (int8 <-> uint8, bool <-> uint8)
     return t.reshape(shape) if tuple(t.shape) != tuple(shape) else t
-
-
-def _set_now(a, values=None):
-    """Writes zeros (or `values`) into weft array `a` before returning (Torch may read it
-    at once)."""
-    if a._alloc.runtime.local and a._info.shm_name:
-        view = a.numpy()
-        if values is None:
-            view[...] = 0
-        else:
-            view[...] = np.asarray(values).reshape(view.shape)
-        return
-    if values is None:
-        a.zero_()
-    else:
-        a.assign(values)
-    a._alloc.runtime.synchronize()
 
 
 # On a CUDA tensor imported in place without a gradient: ((pointer, shape, strides, dtype,
@@ -375,9 +351,9 @@ def _from_torch(t, dtype, requires_grad, grad):
             ga = zeros(a.shape, dtype=a.dtype, device="cpu")
         a._grad = ga
     elif g is None:
-        _set_now(ga)                    # a tensor without .grad: the gradient starts at zero
+        memory.set_now(ga)             # a tensor without .grad: the gradient starts at zero
     elif not (g.device.type == "cpu" and ga.ptr is not None and g.data_ptr() == ga.ptr):
-        _set_now(ga, external.host_view(g, what + " (grad)"))
+        memory.set_now(ga, external.host_view(g, what + " (grad)"))
     if g is None or g.data_ptr() != ga.ptr:
         gt = _tensor_over(ga, t.dtype, tuple(t.shape))
         if gt is not None:
