@@ -53,19 +53,21 @@ _PB2_NAMES = ("types_pb2", "array_pb2", "device_pb2", "exec_pb2", "module_pb2", 
 
 
 def _generate_stubs() -> None:
-    """Generates weft/v1/*_pb2.py from <repo>/proto with grpc_tools (when it is installed)."""
+    """Generates weft/v1/*_pb2.py from <repo>/proto with grpc_tools (when it is installed), in
+    a child process: grpc_tools carries a protobuf library of its own, which must not share a
+    process with another extension's (Paddle's aborts the process when both are loaded)."""
+    import importlib.util
+
     proto_dir = _REPO_DIR / "proto"
-    try:
-        from grpc_tools import protoc
-    except ImportError:
+    if importlib.util.find_spec("grpc_tools") is None:
         raise ImportError("weft.v1 message modules are missing: run `make proto-py` in the "
-                          "weft repository (needs grpcio-tools)") from None
+                          "weft repository (needs grpcio-tools)")
     out_dir = _PACKAGE_DIR.parent
     (_PACKAGE_DIR / "v1").mkdir(exist_ok=True)
     protos = sorted(str(p) for p in (proto_dir / "weft" / "v1").glob("*.proto"))
-    args = ["protoc", f"-I{proto_dir}", f"--python_out={out_dir}",
+    args = [sys.executable, "-m", "grpc_tools.protoc", f"-I{proto_dir}", f"--python_out={out_dir}",
             f"--grpc_python_out={out_dir}"] + protos
-    if not protos or protoc.main(args) != 0:
+    if not protos or subprocess.run(args, capture_output=True, timeout=300).returncode != 0:
         raise ImportError(f"generating weft.v1 from {proto_dir} failed")
     (_PACKAGE_DIR / "v1" / "__init__.py").touch()
 
