@@ -156,23 +156,38 @@ def launch_rows(lib, mod, n_launch: int):
     }
 
 
-def kernel_rows(lib, mod, sizes, reps_for):
+def reps_for(n: int) -> int:
+    """Launches per timed round at size n: about 2 GB of saxpy traffic, 5 to 200."""
+    return max(5, min(200, int(2e9 // (n * 12))))
+
+
+def saxpy_inputs(lib, mod, n: int, dev: str = "cuda:0", alpha: float = 1.7):
+    """(x, y, x0, y0, err): random x and y of n floats made on the device, one saxpy
+    y = alpha x + y run on them, the first min(n, 1e6) inputs in float64 and the max relative
+    error of that saxpy against them."""
+    x = lib.empty(n, dtype=float, device=dev)
+    y = lib.empty(n, dtype=float, device=dev)
+    lib.launch(mod.init_random, dim=n, inputs=[x, 1, 4.0], device=dev)
+    lib.launch(mod.init_random, dim=n, inputs=[y, 2, 4.0], device=dev)
+    m = min(n, 1_000_000)
+    x0 = x[:m].numpy().astype(np.float64)
+    y0 = y[:m].numpy().astype(np.float64)
+    lib.launch(mod.saxpy, dim=n, inputs=[x, y, alpha], device=dev)
+    ref = alpha * x0 + y0
+    got = y[:m].numpy().astype(np.float64)
+    err = float(np.max(np.abs(got - ref) / np.maximum(np.abs(ref), 1e-3)))
+    return x, y, x0, y0, err
+
+
+def kernel_rows(lib, mod, sizes):
     """{(name, n): (seconds per launch, max rel error vs float64 of the first 1e6)}"""
     dev = "cuda:0"
     out = {}
     for n in sizes:
-        x = lib.empty(n, dtype=float, device=dev)
-        y = lib.empty(n, dtype=float, device=dev)
-        lib.launch(mod.init_random, dim=n, inputs=[x, 1, 4.0], device=dev)
-        lib.launch(mod.init_random, dim=n, inputs=[y, 2, 4.0], device=dev)
-        m = min(n, 1_000_000)
-        x0 = x[:m].numpy().astype(np.float64)
-        y0 = y[:m].numpy().astype(np.float64)
         alpha = 1.7
-        lib.launch(mod.saxpy, dim=n, inputs=[x, y, alpha], device=dev)
+        x, y, x0, y0, err = saxpy_inputs(lib, mod, n, dev, alpha)
+        m = len(x0)
         ref = alpha * x0 + y0
-        got = y[:m].numpy().astype(np.float64)
-        err = float(np.max(np.abs(got - ref) / np.maximum(np.abs(ref), 1e-3)))
         reps = reps_for(n)
         t = best_of(lib, lambda: lib.launch(mod.saxpy, dim=n, inputs=[x, y, alpha],
                                             device=dev), reps)
@@ -317,9 +332,6 @@ def main():
     args = parser.parse_args()
     sizes = [int(float(s)) for s in args.sizes.split(",")]
 
-    def reps_for(n):
-        return max(5, min(200, int(2e9 // (n * 12))))
-
     daemon = bc.BenchDaemon()
     os.environ["WEFT_ADDRESS"] = daemon.address
     results = {}
@@ -356,7 +368,7 @@ def main():
             results[name] = {}
             steps = [("cold", lambda: {"cold": cold_compile(lib, name)}),
                      ("launch", lambda: launch_rows(lib, mod, args.launches)),
-                     ("kernels", lambda: {"kernels": kernel_rows(lib, mod, sizes, reps_for)}),
+                     ("kernels", lambda: {"kernels": kernel_rows(lib, mod, sizes)}),
                      ("warm", lambda: {"warm": warm_second_client(lib, name, warp_cache)})]
             mod = bc.load_kernels(SOURCE, lib.__name__, "cuda")
             for step, fn in steps:

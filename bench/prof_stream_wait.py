@@ -26,16 +26,10 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "clients" / "python"))
 
-from bench_cuda import SOURCE  # noqa: E402  (empty_kernel, init_random, saxpy)
-
-
-def reps_for(n: int) -> int:
-    return max(5, min(200, int(2e9 // (n * 12))))
+from bench_cuda import SOURCE, reps_for, saxpy_inputs  # noqa: E402  (its kernels and rounds)
 
 
 def client(sizes: list[int]) -> None:
-    import numpy as np  # noqa: PLC0415
-
     import bench_common as bc  # noqa: PLC0415
     import weft as wp  # noqa: PLC0415
 
@@ -57,17 +51,7 @@ def client(sizes: list[int]) -> None:
         return t2 - t
 
     for n in sizes:
-        x = wp.empty(n, dtype=float, device=dev)
-        y = wp.empty(n, dtype=float, device=dev)
-        wp.launch(mod.init_random, dim=n, inputs=[x, 1, 4.0], device=dev)
-        wp.launch(mod.init_random, dim=n, inputs=[y, 2, 4.0], device=dev)
-        m = min(n, 1_000_000)
-        x0 = x[:m].numpy().astype(np.float64)
-        y0 = y[:m].numpy().astype(np.float64)
-        wp.launch(mod.saxpy, dim=n, inputs=[x, y, 1.7], device=dev)
-        ref = 1.7 * x0 + y0
-        got = y[:m].numpy().astype(np.float64)
-        err = float(np.max(np.abs(got - ref) / np.maximum(np.abs(ref), 1e-3)))
+        x, y, _, _, err = saxpy_inputs(wp, mod, n, dev, 1.7)
 
         def saxpy():
             wp.launch(mod.saxpy, dim=n, inputs=[x, y, 1.7], device=dev)

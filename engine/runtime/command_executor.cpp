@@ -336,6 +336,11 @@ Status CommandExecutor::CudaEvent(Session& s, const CudaEventCommand& c) {
   if (c.op != CudaEventCommand::Op::kWait && c.op != CudaEventCommand::Op::kRecord &&
       c.op != CudaEventCommand::Op::kShare)
     return InvalidArgument("cuda_event: unknown op " + std::to_string(static_cast<int>(c.op)));
+  // An IPC event handle names an event of a process on this machine: a remote session has none
+  // of its own, and must not reach local processes' events by guessing handles.
+  if (!s.options().local)
+    return PermissionDenied("cuda_event: CUDA IPC events are for local sessions (Unix socket); this session "
+                            "is remote");
   WEFT_ASSIGN_OR_RETURN(Device * device, devices_.Resolve(s.id(), c.device));
   auto* gpu = dynamic_cast<CudaDevice*>(device);
   if (gpu == nullptr) return InvalidArgument("cuda_event: '" + c.device + "' is not a GPU (CUDA events order GPU work)");

@@ -89,12 +89,12 @@ class Graph:
         self.device = device
         self.commands: list = []     # as captured
         self._runtime = runtime
-        self._replay: list = []      # what capture_launch queues: LAUNCHes and tape commands
+        # What capture_launch replays, in order: (commands, their bytes) blocks of LAUNCHes and
+        # tape commands for the batch, and HostSteps between them.
+        self._segments: list = []
         self._graph_ids: list = []   # the daemon graphs made from the runs of commands
-        self._nbytes = 0
         self._retained: list = []    # array handles kept for the recorded commands (per command)
         self._children: list = []    # graphs launched while this one was captured
-        self._host_steps = False     # _replay holds HostSteps
         self.graph = self            # Warp exposes the native graph; here this object
         self.graph_exec = None
 
@@ -103,6 +103,7 @@ class Graph:
         from .v1 import exec_pb2  # noqa: PLC0415
 
         run: list = []
+        replay: list = []
 
         def close_run():
             if not run:
@@ -112,20 +113,28 @@ class Graph:
                                            device=self.device.alias, commands=run)
             self._runtime.submit(exec_pb2.Command(graph=create, origin=run[0].origin))
             self._graph_ids.append(graph_id)
-            self._replay.append(exec_pb2.Command(
+            replay.append(exec_pb2.Command(
                 graph=exec_pb2.GraphCommand(op=exec_pb2.GraphCommand.LAUNCH, graph_id=graph_id),
                 origin=run[0].origin))
             run.clear()
 
+        def close_block():
+            if replay:
+                self._segments.append((list(replay), sum(cmd.ByteSize() for cmd in replay)))
+                replay.clear()
+
         for cmd in self.commands:
-            if not isinstance(cmd, HostStep) and cmd.WhichOneof("kind") in _GRAPH_KINDS:
+            if isinstance(cmd, HostStep):
+                close_run()
+                close_block()
+                self._segments.append(cmd)
+            elif cmd.WhichOneof("kind") in _GRAPH_KINDS:
                 run.append(cmd)
             else:
                 close_run()
-                self._replay.append(cmd)
+                replay.append(cmd)
         close_run()
-        self._host_steps = any(isinstance(cmd, HostStep) for cmd in self._replay)
-        self._nbytes = sum(cmd.ByteSize() for cmd in self._replay if not isinstance(cmd, HostStep))
+        close_block()
 
     @property
     def is_loaded(self) -> bool:
@@ -293,24 +302,13 @@ def capture_launch(graph: Graph, stream=None) -> None:
     capturing = outer is not None and not outer.paused
     if capturing:
         outer.graph._children.append(graph)   # its daemon graphs live as long as the outer one
-    if not graph._host_steps:
-        if graph._replay:
-            rt.submit_recorded(graph._replay, graph._nbytes)
-        return
-    block: list = []
-    for item in graph._replay:
-        if not isinstance(item, HostStep):
-            block.append(item)
-            continue
-        if block:
-            rt.submit_recorded(block, sum(cmd.ByteSize() for cmd in block))
-            block = []
-        if capturing:
-            outer.graph.commands.append(item)   # a step of the graph being captured
+    for segment in graph._segments:
+        if not isinstance(segment, HostStep):
+            rt.submit_recorded(*segment)
+        elif capturing:
+            outer.graph.commands.append(segment)   # a step of the graph being captured
         else:
-            item.call()                         # waits for the commands sent before it
-    if block:
-        rt.submit_recorded(block, sum(cmd.ByteSize() for cmd in block))
+            segment.call()                         # waits for the commands sent before it
 
 
 def is_conditional_graph_supported() -> bool:

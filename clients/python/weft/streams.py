@@ -76,6 +76,7 @@ class Event:
     def _record(self) -> None:
         rt = _runtime.get_runtime()
         if self._ipc is not None:
+            self._refuse_in_capture("recorded")
             # Run, not just send: once this returns weftd has queued the record, so a process
             # told about it afterwards (a pipe, a join) waits for the right work.
             rt.submit(_ipc_event_command("RECORD", self.device, self._ipc))
@@ -89,7 +90,15 @@ class Event:
 
     def _wait_on_session_stream(self) -> None:
         """The session's later work on the device waits (on the GPU) for the latest record."""
+        self._refuse_in_capture("waited on")
         _runtime.get_runtime().submit(_ipc_event_command("WAIT", self.device, self._ipc))
+
+    def _refuse_in_capture(self, what: str) -> None:
+        """A weft graph records no event operations: an interprocess event used while this
+        thread captures on its device would act at once, outside the graph's order."""
+        if _runtime.get_runtime().captures and is_capturing(self.device):
+            raise RuntimeError(f"an interprocess event cannot be {what} inside a graph capture on "
+                               f"weft: use it before or after the graph's launch")
 
     def query(self) -> bool:
         """True when the work before the last record is done (always after a timed record)."""
@@ -412,10 +421,7 @@ def record_event(event=None, external=False) -> Event:
     device = event.device if event is not None else None
     stream = get_stream(device)
     if event is not None and event._ipc is not None:
-        if stream.is_capturing:
-            raise RuntimeError("an interprocess event cannot be recorded inside a graph capture "
-                               "on weft: record it after the capture's launch")
-        return stream.record_event(event)
+        return stream.record_event(event)      # refused inside a capture (Event._record)
     if external or stream.is_capturing:
         if event is None:
             event = Event(stream.device)

@@ -112,6 +112,13 @@ def test_descriptors_converted_again_follow_the_tensor(wp, tcuda, torch, rng):
         wp.launch(scale_sum, dim=4096, inputs=[d, 2.0, total], device=tcuda)
     wp.synchronize()
     np.testing.assert_allclose(t.cpu().numpy(), values.astype(np.float64) * 8.0, rtol=1e-6)
+    remembered = descs[0]._weft_value          # the import the later conversions follow
+    g = wp.zeros(4096, dtype=float, device=tcuda)
+    remembered.grad = g                         # the descriptor must now carry it
+    d = wp.from_torch(t, return_ctype=True)
+    assert d.grad == g.ptr and d.data == t.data_ptr()
+    remembered.grad = None
+    assert wp.from_torch(t, return_ctype=True).grad == 0
     t.resize_(1000)
     d = wp.from_torch(t, return_ctype=True)
     assert d.shape[0] == 1000 and d.data == t.data_ptr()

@@ -115,6 +115,14 @@ def test_record_and_wait_in_one_session(ipc_gpu):
     wp.synchronize_event(e)
     assert e.query()
     np.testing.assert_array_equal(b.numpy(), np.full(n, 4.0, dtype=np.float32))
+    with wp.ScopedCapture(ipc_gpu) as capture:        # a graph records no event operations
+        with pytest.raises(RuntimeError, match="cannot be recorded inside a graph capture"):
+            wp.record_event(e)
+        with pytest.raises(RuntimeError, match="cannot be recorded inside a graph capture"):
+            wp.get_stream(ipc_gpu).record_event(e)
+        with pytest.raises(RuntimeError, match="cannot be waited on inside a graph capture"):
+            wp.wait_event(e)
+    assert len(capture.graph) == 0
 
 
 CHILD = """
@@ -190,3 +198,32 @@ def test_an_event_the_owner_did_not_share_is_refused(ipc_gpu, spawn_client):
     out, err = child.communicate(pooled.handle.hex() + "\n", timeout=120)
     assert "refused:" in out and "used by another session" in out, out + err
     assert "serving 8.0" in out, out + err
+
+
+def test_a_remote_session_cannot_use_event_handles(tcp_weftd, run_client):
+    """A TCP session has no process on weftd's machine: every CudaEventCommand it sends (any
+    op, any device, a handle it guessed) is refused, and the session goes on."""
+    out = run_client("""
+        import numpy as np
+        import weft as wp
+        from weft import _runtime
+        from weft.v1 import exec_pb2
+        wp.init()
+        rt = _runtime.get_runtime()
+        assert not rt.local
+        ops = exec_pb2.CudaEventCommand
+        for op in (ops.WAIT, ops.RECORD, ops.SHARE):
+            for device in ("cuda:0", "cpu"):
+                rt.submit(exec_pb2.Command(cuda_event=ops(op=op, device=device,
+                                                          ipc_handle=bytes(range(64)))))
+                try:
+                    rt.run()
+                except Exception as err:
+                    assert "for local sessions" in str(err), str(err)
+                else:
+                    raise AssertionError("a remote session's cuda_event was accepted")
+        a = wp.full(4, 3.0, dtype=float, device="cpu")
+        assert np.array_equal(a.numpy(), np.full(4, 3.0, dtype=np.float32))
+        print("OK")
+    """, env={"WEFT_ADDRESS": tcp_weftd.address, "WEFT_TOKEN": tcp_weftd.token}, timeout=180)
+    assert out.stdout.strip().endswith("OK"), out.stdout

@@ -63,24 +63,28 @@ def _scale_callback(inputs, outputs, attrs, ctx):
 # ---- CPU: the real XLA FFI machinery --------------------------------------------------------
 
 
-def test_callback_launches_weft_kernels_on_xla_buffers(jax, rng, request):
+def _scale_case(jax, rng, name, sizes, put, rounds=1):
+    """_scale_callback registered as `name` and called under jax.jit on fresh random inputs
+    (an array of n floats and one of n/2 pairs, n drawn from `sizes`, placed by `put`), each
+    round on new data through the same executable; checks both results against float64."""
     jnp = jax.numpy
-    name = _names(request, "scale")
     register_ffi_callback(name, _scale_callback)
-    n = 2 * int(rng.integers(8, 300))
-    a = rng.standard_normal(n).astype(np.float32)
-    b = rng.standard_normal((n // 2, 2)).astype(np.float32)
+    n = 2 * int(rng.integers(*sizes))
     s = float(rng.uniform(0.5, 3.0))
-    call = jax.ffi.ffi_call(name, (jax.ShapeDtypeStruct(a.shape, jnp.float32),
-                                   jax.ShapeDtypeStruct(b.shape, jnp.float32)))
-    f = jax.jit(lambda x, y: call(x, y, scale=np.float32(s)))
-    c, d = f(jnp.asarray(a), jnp.asarray(b))
     s32 = np.float64(np.float32(s))
-    np.testing.assert_allclose(np.asarray(c), a.astype(np.float64) * s32, rtol=1e-6)
-    np.testing.assert_allclose(np.asarray(d), b.astype(np.float64) * s32, rtol=1e-6)
-    a2 = rng.standard_normal(n).astype(np.float32)      # the same executable, new data
-    c2, _ = f(jnp.asarray(a2), jnp.asarray(b))
-    np.testing.assert_allclose(np.asarray(c2), a2.astype(np.float64) * s32, rtol=1e-6)
+    call = jax.ffi.ffi_call(name, (jax.ShapeDtypeStruct((n,), jnp.float32),
+                                   jax.ShapeDtypeStruct((n // 2, 2), jnp.float32)))
+    f = jax.jit(lambda x, y: call(x, y, scale=np.float32(s)))
+    for _ in range(rounds):
+        a = rng.standard_normal(n).astype(np.float32)
+        b = rng.standard_normal((n // 2, 2)).astype(np.float32)
+        c, d = f(put(a), put(b))
+        np.testing.assert_allclose(np.asarray(c), a.astype(np.float64) * s32, rtol=1e-6)
+        np.testing.assert_allclose(np.asarray(d), b.astype(np.float64) * s32, rtol=1e-6)
+
+
+def test_callback_launches_weft_kernels_on_xla_buffers(jax, rng, request):
+    _scale_case(jax, rng, _names(request, "scale"), (8, 300), jax.numpy.asarray, rounds=2)
 
 
 def test_attributes_of_every_kind(jax, request):
@@ -492,20 +496,9 @@ def no_host_copies(monkeypatch, jgpu):
 
 def test_gpu_register_ffi_callback_warp_pattern(jgpu, rng, request):
     jax, gpu, _ = jgpu
-    jnp = jax.numpy
-    name = _names(request, "gpu_scale")
-    register_ffi_callback(name, _scale_callback)
-    n = 2 * int(rng.integers(64, 4096))
-    a = rng.standard_normal(n).astype(np.float32)
-    b = rng.standard_normal((n // 2, 2)).astype(np.float32)
-    s = float(rng.uniform(0.5, 3.0))
-    call = jax.ffi.ffi_call(name, (jax.ShapeDtypeStruct(a.shape, jnp.float32),
-                                   jax.ShapeDtypeStruct(b.shape, jnp.float32)))
     before = jax_ffi.FFI_CALLS["cuda"]
-    c, d = jax.jit(lambda x, y: call(x, y, scale=np.float32(s)))(jax.device_put(a, gpu), jax.device_put(b, gpu))
-    s32 = np.float64(np.float32(s))
-    np.testing.assert_allclose(np.asarray(c), a.astype(np.float64) * s32, rtol=1e-6)
-    np.testing.assert_allclose(np.asarray(d), b.astype(np.float64) * s32, rtol=1e-6)
+    _scale_case(jax, rng, _names(request, "gpu_scale"), (64, 4096),
+                lambda v: jax.device_put(v, gpu))
     assert jax_ffi.FFI_CALLS["cuda"] == before      # register_ffi_callback: not a jax_kernel
 
 

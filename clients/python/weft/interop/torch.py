@@ -240,7 +240,7 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False,
     if not return_ctype:
         return a
     desc = a.__ctype__()
-    if grad is None and not retain_grad and a.__dict__.get("_view_of") is not None:
+    if grad is None and not retain_grad and _plain(a) and a.__dict__.get("_view_of") is not None:
         last = getattr(t, "__dict__", {}).get(_LAST_IMPORT)
         if last is not None and last[1] is a.__dict__["_view_of"]:
             t.__dict__[_LAST_CTYPE] = (last, desc)
@@ -253,13 +253,22 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False,
 _LAST_CTYPE = "_weft_last_ctype"
 
 
+def _plain(a) -> bool:
+    """Whether array `a` has neither a gradient nor retain_grad: all its descriptor says beyond
+    the tensor's own facts (pointer, shape, strides) is then fixed, so it may be remembered."""
+    return a._grad is None and not a._info.grad_handle and not a._retain_grad
+
+
 def _last_descriptor(t, dtype, requires_grad):
     d = getattr(t, "__dict__", None)
     entry = d.get(_LAST_CTYPE) if d is not None else None
     if entry is None or d.get(_LAST_IMPORT) is not entry[0]:
         return None
-    if _last_import(t, dtype, requires_grad) is None:   # the tensor changed, or another session
+    known = _last_import(t, dtype, requires_grad)
+    if known is None:                   # the tensor changed, or another session
         return None
+    if not _plain(known):
+        return None                     # the descriptor would carry a gradient or a flag now
     desc = entry[1]
     out = type(desc).from_buffer_copy(desc)
     out._weft_value = desc._weft_value

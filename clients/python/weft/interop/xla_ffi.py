@@ -196,20 +196,21 @@ def _count(value, what: str) -> int:
     return value
 
 
-def _pointers(address, n: int, what: str) -> list:
+def _read(address, n: int, ctype, what: str) -> list:
+    """n values of `ctype` at `address` of the call frame (a counted array XLA passes)."""
     if n == 0:
         return []
     if not address:
         raise FfiError(f"XLA FFI call frame: {what} is a null pointer")
-    return list((ctypes.c_void_p * n).from_address(address))
+    return list((ctype * n).from_address(address))
+
+
+def _pointers(address, n: int, what: str) -> list:
+    return _read(address, n, ctypes.c_void_p, what)
 
 
 def _ints(address, n: int, what: str) -> list:
-    if n == 0:
-        return []
-    if not address:
-        raise FfiError(f"XLA FFI call frame: {what} is a null pointer")
-    return list((ctypes.c_int * n).from_address(address))
+    return _read(address, n, ctypes.c_int, what)
 
 
 def _check_size(actual, expected: int, what: str) -> None:
