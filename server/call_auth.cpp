@@ -27,6 +27,11 @@ std::string CallAuth::Principal(const grpc::ServerContextBase& ctx) const {
 }
 
 Status CallAuth::Authenticate(const grpc::ServerContextBase& ctx) const {
+  if (!only_principal_.empty()) {   // a session host: its one principal, locally, and nobody else
+    if (!IsLocalPeer(ctx) || Principal(ctx) != only_principal_)
+      return Status(StatusCode::kPermissionDenied, "this weftd is the session host of another principal");
+    return Status::Ok();
+  }
   if (IsLocalPeer(ctx)) return Status::Ok();
   const std::string peer = ctx.peer();
   if (peer.rfind("ipv4:", 0) != 0 && peer.rfind("ipv6:", 0) != 0)

@@ -38,11 +38,15 @@ class CallAuth {
   Expected<std::shared_ptr<Session>> SessionById(const grpc::ServerContextBase& ctx, const std::string& id) const;
 
   Engine& engine() const { return engine_; }
+  // A session host (server/session_hosts.h) serves one principal: every other caller,
+  // local or TCP, is refused.
+  void RestrictTo(std::string principal) { only_principal_ = std::move(principal); }
 
  private:
   Engine& engine_;
   std::string tcp_token_;
   const UnixListener* unix_;
+  std::string only_principal_;
 };
 
 // gRPC metadata value for `key`, or "".

@@ -89,7 +89,7 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
                                   "compile-time-limit",
                                   "max-launch-threads", "max-sessions-per-principal", "max-queued-commands",
                                   "cache-max-bytes", "max-memory", "max-principal-memory",
-                                  "max-session-memory"};
+                                  "max-session-memory", "max-session-hosts"};
     std::string dashed(k.str());
     for (char& ch : dashed)
       if (ch == '_') ch = '-';
@@ -173,6 +173,7 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   WEFT_RETURN_IF_ERROR(number("max-sessions-per-principal", &c->max_sessions_per_principal));
   WEFT_RETURN_IF_ERROR(number("max-queued-commands", &c->max_queued_commands));
   WEFT_RETURN_IF_ERROR(number("cache-max-bytes", &c->cache_max_bytes));
+  WEFT_RETURN_IF_ERROR(number("max-session-hosts", &c->max_session_hosts));
   return Status::Ok();
 }
 
@@ -220,6 +221,12 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
                  "Most commands queued and not yet run per session (default 65536)");
   app.add_option("--cache-max-bytes", c.cache_max_bytes,
                  "Size bound of the disk module cache; least recently used modules are removed (default 2 GiB)");
+  app.add_option("--max-session-hosts", c.max_session_hosts,
+                 "Most unchecked sessions (each in a process of its own) per principal at once (default 4)");
+  app.add_option("--host-principal", c.host_principal, "Set by the daemon when it starts a session host")
+      ->group("");
+  app.add_option("--host-ready-fd", c.host_ready_fd, "Set by the daemon when it starts a session host")->group("");
+  app.add_option("--host-parent", c.host_parent, "Set by the daemon when it starts a session host")->group("");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -269,6 +276,34 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
     if (l.rfind("unix:", 0) != 0 && l.rfind("tcp:", 0) != 0)
       return InvalidArgument("--listen " + l + ": expected unix:/path or tcp:host:port");
   return c;
+}
+
+
+std::vector<std::string> SessionHostArguments(const DaemonConfig& c) {
+  std::vector<std::string> a;
+  auto add = [&](const char* flag, const std::string& value) {
+    a.push_back(flag);
+    a.push_back(value);
+  };
+  if (!c.cache_dir.empty()) add("--cache-dir", c.cache_dir);
+  add("--log-level", c.log_level);
+  if (!c.native_dir.empty()) add("--native-dir", c.native_dir);
+  if (c.cpu_threads > 0) add("--cpu-threads", std::to_string(c.cpu_threads));
+  if (c.allow_unchecked) a.push_back("--allow-unchecked");
+  add("--max-module-bytes", std::to_string(c.max_module_bytes));
+  add("--max-functions", std::to_string(c.max_functions));
+  add("--max-block-depth", std::to_string(c.max_block_depth));
+  add("--max-expression-depth", std::to_string(c.max_expression_depth));
+  if (c.max_memory) add("--max-memory", std::to_string(c.max_memory));
+  if (c.max_principal_memory) add("--max-principal-memory", std::to_string(c.max_principal_memory));
+  if (c.max_session_memory) add("--max-session-memory", std::to_string(c.max_session_memory));
+  add("--attach-timeout", std::to_string(c.attach_timeout_s));
+  add("--launch-time-limit", std::to_string(c.launch_time_limit_s));
+  add("--compile-time-limit", std::to_string(c.compile_time_limit_s));
+  add("--max-launch-threads", std::to_string(c.max_launch_threads));
+  add("--max-queued-commands", std::to_string(c.max_queued_commands));
+  add("--cache-max-bytes", std::to_string(c.cache_max_bytes));
+  return a;
 }
 
 }  // namespace weft::server

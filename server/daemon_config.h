@@ -41,7 +41,20 @@ struct DaemonConfig {
   uint32_t max_sessions_per_principal = 256;
   uint64_t max_queued_commands = 65536;      // per session
   uint64_t cache_max_bytes = uint64_t{2} << 30;      // disk module cache; LRU files removed beyond it
+  // Unchecked sessions run in session hosts (server/session_hosts.h); at most this many per
+  // principal at once.
+  uint32_t max_session_hosts = 4;
+  // Set only on a session host's command line (by SessionHosts::Start, never by hand): the one
+  // principal it serves, the descriptor it reports readiness on, and the daemon that started it.
+  std::string host_principal;
+  int host_ready_fd = -1;
+  int64_t host_parent = 0;
+  bool session_host() const { return !host_principal.empty(); }
 };
+
+// The flags a session host inherits from this daemon's settings (limits, cache, logging,
+// --allow-unchecked); SessionHosts adds --listen and the --host-* flags.
+std::vector<std::string> SessionHostArguments(const DaemonConfig& c);
 
 // "4096", "512M", "16G", "1T" (binary units, optional "iB"/"B") -> bytes.
 Expected<uint64_t> ParseByteSize(const std::string& text);

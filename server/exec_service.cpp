@@ -9,10 +9,20 @@ namespace weft::server {
 
 namespace {
 
-// A session's sync result (first error, origin, kernel output) as a SynchronizeResponse.
-void FillSync(Session::SyncResult& r, v1::SynchronizeResponse* resp) {
+// A session's sync result (first error, origin, kernel output) as a SynchronizeResponse. In a
+// session host, an error with a GPU lost to a fault ends the session (the driver keeps that
+// error for the life of the process): the response says so, and the client opens a new one.
+void FillSync(Engine& engine, Session::SyncResult& r, v1::SynchronizeResponse* resp) {
   if (!r.error.ok()) {
-    resp->set_error(r.error.message());
+    if (engine.options().session_host && engine.AnyGpuLost()) {
+      resp->set_session_ended(true);
+      resp->set_error(r.error.message() +
+                      "; this unchecked session ran in a process of its own (a session host), which ends with it: "
+                      "the daemon and its other sessions were not touched, and the next weft call opens a new "
+                      "session");
+    } else {
+      resp->set_error(r.error.message());
+    }
     resp->set_error_code(static_cast<int32_t>(r.error.code()));
     ToProto(r.origin, resp->mutable_error_origin());
   }
@@ -35,14 +45,14 @@ Status ExecSubmit(Engine& engine, Session& s, const v1::SubmitRequest& req, v1::
     auto r = engine.SubmitAndSynchronize(s, std::move(commands));
     if (!r.ok()) return r.status();
     resp->set_queued(n);
-    FillSync(*r, resp->mutable_sync());
+    FillSync(engine, *r, resp->mutable_sync());
     return Status::Ok();
   }
   if (req.run()) {
     auto r = engine.SubmitAndRun(s, std::move(commands));
     if (!r.ok()) return r.status();
     resp->set_queued(n);
-    if (r->has_value()) FillSync(**r, resp->mutable_sync());
+    if (r->has_value()) FillSync(engine, **r, resp->mutable_sync());
     return Status::Ok();
   }
   auto r = engine.Submit(s, std::move(commands), run_here_when_idle);
@@ -53,7 +63,7 @@ Status ExecSubmit(Engine& engine, Session& s, const v1::SubmitRequest& req, v1::
 
 void ExecSynchronize(Engine& engine, Session& s, v1::SynchronizeResponse* resp) {
   Session::SyncResult r = engine.Synchronize(s);
-  FillSync(r, resp);
+  FillSync(engine, r, resp);
 }
 
 grpc::Status ExecServiceImpl::Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitResponse* resp) {

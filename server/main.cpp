@@ -3,16 +3,21 @@
 // sessions, and shutdown on SIGTERM/SIGINT within a bound: every session's work is cancelled
 // and every compiler process killed first, then calls get 2 s to finish, then sessions are
 // closed.
+#include <dirent.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
+#include <cstdlib>
 #include <chrono>
 #include <cstring>
 #include <iostream>
+#include <memory>
 #include <thread>
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
@@ -28,6 +33,7 @@
 #include "server/daemon_config.h"
 #include "server/fast_lane.h"
 #include "server/services.h"
+#include "server/session_hosts.h"
 #include "server/session_reaper.h"
 #include "server/unix_listener.h"
 
@@ -69,6 +75,46 @@ Status PrepareUnixSocket(const std::string& path) {
   return Status::Ok();
 }
 
+// A session host keeps stdin/stdout/stderr and its readiness descriptor, nothing else the daemon
+// that started it had open (slab memory files among them).
+void CloseInheritedFds(int keep) {
+  std::vector<int> fds;
+  if (DIR* d = opendir("/proc/self/fd")) {
+    while (dirent* e = readdir(d)) {
+      const int fd = std::atoi(e->d_name);
+      if (fd > 2 && fd != keep && fd != dirfd(d)) fds.push_back(fd);
+    }
+    closedir(d);
+  }
+  for (int fd : fds) close(fd);
+}
+
+std::string ThisExecutable() {
+  char path[4096];
+  const ssize_t n = readlink("/proc/self/exe", path, sizeof(path) - 1);
+  return n > 0 ? std::string(path, static_cast<size_t>(n)) : std::string();
+}
+
+// A session host ends when its session has ended, when no session came within the attach
+// timeout, or when the daemon that started it is gone.
+void WatchSessionHost(Engine& engine, pid_t parent, double attach_timeout_s, const std::atomic<bool>& stopping) {
+  const auto started = std::chrono::steady_clock::now();
+  while (!stopping.load()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    const EngineStats st = engine.Stats();
+    const bool ended = st.sessions_opened_total > 0 && st.sessions == 0;
+    const bool unused = st.sessions_opened_total == 0 &&
+                        std::chrono::steady_clock::now() - started > std::chrono::duration<double>(attach_timeout_s);
+    if (ended || unused || getppid() != parent) {
+      spdlog::info("session host: {}; stopping", ended    ? "its session ended"
+                                                  : unused ? "no session came"
+                                                           : "the daemon that started it is gone");
+      kill(getpid(), SIGTERM);
+      return;
+    }
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -80,7 +126,17 @@ int main(int argc, char** argv) {
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(cfg->log_level));
-  spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [weftd] [%l] %v");
+  spdlog::set_pattern(cfg->session_host() ? "[%Y-%m-%d %H:%M:%S.%e] [weftd host %P] [%l] %v"
+                                          : "[%Y-%m-%d %H:%M:%S.%e] [weftd] [%l] %v");
+  if (cfg->session_host()) {
+    CloseInheritedFds(cfg->host_ready_fd);
+    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (getppid() != static_cast<pid_t>(cfg->host_parent)) return 1;   // the daemon is already gone
+    if (cfg->listen.size() != 1 || cfg->listen.front().rfind("unix:", 0) != 0) {
+      std::cerr << "weftd: a session host listens on exactly one unix: address\n";
+      return 2;
+    }
+  }
 
   // Every thread created from here on inherits the blocked set; one thread waits for them.
   sigset_t stop_signals;
@@ -125,7 +181,9 @@ int main(int argc, char** argv) {
   eo.modules.compile_time_limit_s = cfg->compile_time_limit_s;
   eo.max_sessions_per_principal = cfg->max_sessions_per_principal;
   eo.modules.disk_capacity_bytes = cfg->cache_max_bytes;
-  eo.allow_unchecked = cfg->allow_unchecked;
+  // Unchecked kernels run only in session hosts; the daemon sends unchecked sessions there.
+  eo.allow_unchecked = cfg->allow_unchecked && cfg->session_host();
+  eo.session_host = cfg->session_host();
   eo.memory.daemon = cfg->max_memory;
   eo.memory.per_principal = cfg->max_principal_memory;
   eo.memory.per_session = cfg->max_session_memory;
@@ -149,6 +207,14 @@ int main(int argc, char** argv) {
     return 1;
   }
   CallAuth auth(**engine, token, unix_listener->get());
+  if (cfg->session_host()) auth.RestrictTo(cfg->host_principal);
+  std::unique_ptr<SessionHosts> hosts;
+  if (cfg->allow_unchecked && !cfg->session_host() && !unix_paths.empty()) {
+    const std::string& first = unix_paths.front();
+    hosts = std::make_unique<SessionHosts>(ThisExecutable(), SessionHostArguments(*cfg),
+                                           first.substr(0, first.rfind('/')), cfg->max_session_hosts,
+                                           /*start_timeout_s=*/60);
+  }
   // The fast lane (server/fast_lane.h) beside the first Unix socket: <path>.fast. Its stale
   // file goes (the daemon that owned it is gone: the gRPC socket beside it was stale too).
   std::unique_ptr<FastLane> fast_lane;
@@ -163,7 +229,7 @@ int main(int argc, char** argv) {
     }
   }
   SessionReaper reaper(**engine, cfg->attach_timeout_s);   // before the services: Attach queues reaps to it
-  SessionServiceImpl session_service(auth, reaper, fast_lane.get());
+  SessionServiceImpl session_service(auth, reaper, fast_lane.get(), hosts.get(), cfg->session_host());
   ArrayServiceImpl array_service(auth);
   ExecServiceImpl exec_service(auth);
   ModuleServiceImpl module_service(auth);
@@ -198,14 +264,29 @@ int main(int argc, char** argv) {
   for (const auto& l : cfg->listen) spdlog::info("listening on {}", l);
   if (fast_lane) spdlog::info("fast lane on {}", fast_lane->path());
   spdlog::info("weftd {} ready (pid {}, {} CPU threads{})", WEFT_VERSION, getpid(), (*engine)->pool().size(),
-               cfg->allow_unchecked ? ", unchecked kernels allowed" : "");
+               cfg->session_host()  ? ", session host of " + cfg->host_principal
+               : cfg->allow_unchecked ? ", unchecked sessions allowed (each in a process of its own)"
+                                      : "");
+  std::atomic<bool> stopping{false};
+  std::thread host_watch;
+  if (cfg->session_host()) {
+    if (cfg->host_ready_fd >= 0) {
+      const char ready = 'r';
+      (void)!write(cfg->host_ready_fd, &ready, 1);
+      close(cfg->host_ready_fd);
+    }
+    host_watch = std::thread(WatchSessionHost, std::ref(**engine), static_cast<pid_t>(cfg->host_parent),
+                             cfg->attach_timeout_s, std::cref(stopping));
+  }
 
   std::thread waiter([&] {
     int sig = 0;
     sigwait(&stop_signals, &sig);
     spdlog::info("signal {} received: shutting down", sig);
+    stopping = true;
     (*unix_listener)->Stop();
     if (fast_lane) fast_lane->Stop();
+    if (hosts) hosts->StopAll();
     (*engine)->CancelAllSessions();   // running kernels stop at their next poll
 #if WEFT_WITH_CPU_JIT
     jit::StopCompilerChildren();      // running compiles end now (Unavailable)
@@ -214,6 +295,8 @@ int main(int argc, char** argv) {
   });
   server->Wait();
   waiter.join();
+  if (host_watch.joinable()) host_watch.join();
+  hosts.reset();
   reaper.Stop();
   if (fast_lane) {
     fast_lane->Join();

@@ -3,6 +3,8 @@
 // Status values become grpc::Status only through ToGrpc.
 #pragma once
 
+#include <atomic>
+
 #include "server/call_auth.h"
 #include "server/session_reaper.h"
 #include "weft/v1/array.grpc.pb.h"
@@ -14,15 +16,19 @@
 
 namespace weft::server {
 
-class FastLane;   // server/fast_lane.h
+class FastLane;       // server/fast_lane.h
+class SessionHosts;   // server/session_hosts.h
 
 // Attach is served on gRPC's callback API: an attached session's stream waits without holding
 // a thread (a sync-API stream would hold one of gRPC's server threads for the session's whole
 // life); the other methods are synchronous.
 class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_Attach<v1::SessionService::Service> {
  public:
-  SessionServiceImpl(const CallAuth& auth, SessionReaper& reaper, FastLane* fast_lane = nullptr)
-      : auth_(auth), reaper_(reaper), fast_lane_(fast_lane) {}
+  // `hosts`: where unchecked sessions go (null: none are opened; the session is checked).
+  // `single_session`: this weftd is a session host; a second Open is refused.
+  SessionServiceImpl(const CallAuth& auth, SessionReaper& reaper, FastLane* fast_lane = nullptr,
+                     SessionHosts* hosts = nullptr, bool single_session = false)
+      : auth_(auth), reaper_(reaper), fast_lane_(fast_lane), hosts_(hosts), single_session_(single_session) {}
   grpc::Status Open(grpc::ServerContext* ctx, const v1::OpenSessionRequest* req, v1::OpenSessionResponse* resp) override;
   grpc::ServerBidiReactor<v1::AttachRequest, v1::AttachEvent>* Attach(grpc::CallbackServerContext* ctx) override;
   grpc::Status Close(grpc::ServerContext* ctx, const v1::CloseSessionRequest* req, v1::CloseSessionResponse* resp) override;
@@ -31,6 +37,9 @@ class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_A
   const CallAuth& auth_;
   SessionReaper& reaper_;
   FastLane* fast_lane_;   // null: no fast lane (the Open response then names none)
+  SessionHosts* hosts_;
+  const bool single_session_;
+  std::atomic<bool> session_opened_{false};
 };
 
 class ArrayServiceImpl final : public v1::ArrayService::Service {

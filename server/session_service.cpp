@@ -11,6 +11,7 @@
 
 #include "server/fast_lane.h"
 #include "server/grpc_status.h"
+#include "server/session_hosts.h"
 #include "server/services.h"
 
 namespace weft::server {
@@ -30,6 +31,20 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
   o.client_pid = peer ? peer->pid : req->client_pid();
   o.local = peer.has_value();
   o.principal = auth_.Principal(*ctx);
+  if (req->unchecked() && hosts_ && o.local) {
+    // An unchecked session runs in a process of its own: start it and send the client there.
+    auto host = hosts_->Start(o.principal);
+    if (!host.ok()) {
+      spdlog::warn("refused unchecked session of {}: {}", o.principal, host.status().message());
+      return ToGrpc(host.status());
+    }
+    resp->set_session_host(*host);
+    resp->set_daemon_version(WEFT_VERSION);
+    resp->set_daemon_pid(getpid());
+    return grpc::Status::OK;
+  }
+  if (single_session_ && session_opened_.exchange(true))
+    return ToGrpc(FailedPrecondition("this weftd is a session host and serves one session, already opened"));
   auto s = auth_.engine().OpenClientSession(o);
   if (!s.ok()) {
     spdlog::warn("refused session open from {}: {}", o.principal, s.status().message());
@@ -162,6 +177,10 @@ grpc::Status SessionServiceImpl::Stats(grpc::ServerContext* ctx, const v1::Stats
   resp->set_last_gpu_reset_ms(e.last_gpu_reset_ms);
   resp->set_commands_run_total(e.commands_run_total);
   resp->set_command_run_seconds(e.command_run_seconds);
+  if (hosts_) {
+    resp->set_session_hosts(hosts_->alive());
+    resp->set_session_hosts_started_total(hosts_->started_total());
+  }
   // The calling session's placement, when the call names one.
   if (auto s = auth_.SessionOf(*ctx); s.ok()) resp->set_cuda_placement(auth_.engine().CudaPlacement(**s));
   return grpc::Status::OK;

@@ -35,6 +35,16 @@ std::string NewSessionId() {
   return s;
 }
 
+// The first array handle of a session host: a random number in [2^32, 2^47), so that a handle
+// a client kept from an ended session (of another host, whose handles counted from the same
+// start) names no array here instead of another one.
+uint64_t SessionHostFirstHandle() {
+  uint64_t r = 0;
+  while (getrandom(&r, sizeof(r), 0) != static_cast<ssize_t>(sizeof(r))) {
+  }
+  return (uint64_t{1} << 32) + (r % ((uint64_t{1} << 47) - (uint64_t{1} << 32)));
+}
+
 // The default daemon-wide array limit: the size of /dev/shm (where CPU arrays live), at most
 // physical memory + swap.
 uint64_t DefaultDaemonMemoryLimit(uint64_t physical_and_swap) {
@@ -65,6 +75,7 @@ Engine::Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store)
       store_(std::move(store)),
       pool_(std::make_unique<ThreadPool>(options.cpu_threads)) {
   watchdog_ = std::make_unique<LaunchWatchdog>();
+  if (options.session_host) next_handle_ = SessionHostFirstHandle();
   CpuDeviceOptions cpu;
   cpu.slabs = options.slabs;
   cpu.print_capacity = options.print_capacity;
@@ -751,6 +762,12 @@ void Engine::WarnIgnoredOptions(const std::vector<std::string>& ignored, Compile
     d.message = option + "=false ignored: this daemon does not allow unchecked kernels (start weftd with --allow-unchecked)";
     report->diagnostics.push_back(d);
   }
+}
+
+bool Engine::AnyGpuLost() const {
+  for (const auto& g : devices_->gpus())
+    if (g->lost()) return true;
+  return false;
 }
 
 EngineStats Engine::Stats() const {

@@ -44,6 +44,9 @@ struct EngineOptions {
   double launch_time_limit_s = 300;         // a launch running longer is stopped; 0 = none
   uint32_t max_sessions_per_principal = 256;   // OpenClientSession refuses more
   bool use_gpus = true;                     // create a CUDA device for every GPU that computes
+  // This process serves one unchecked session (a session host, server/session_hosts.h): a GPU
+  // lost to a kernel fault ends that session instead of waiting for a daemon restart.
+  bool session_host = false;
 };
 
 // Everything a client needs to know about an allocation (engine twin of weft.v1.ArrayInfo).
@@ -191,6 +194,8 @@ class Engine {
 
   EngineStats Stats() const;
   const EngineOptions& options() const { return options_; }
+  // A GPU of this process was lost to a fault the driver keeps (CudaDevice::lost).
+  bool AnyGpuLost() const;
   // Reserved array bytes of the session, its principal and the daemon, and the limits.
   MemoryUsage MemoryUsageOf(const Session& s) const;
   const MemoryLimits& memory_limits() const { return quota_->limits(); }

@@ -250,6 +250,16 @@ def _start_local_daemon(socket_path: Path) -> None:
                         f"{DAEMON_START_TIMEOUT_S:.0f} s; log {log_path}", "UNAVAILABLE")
 
 
+def _unchecked_requested() -> bool:
+    """The session is opened unchecked (its kernels may turn bounds checks off) when
+    WEFT_UNCHECKED=1, or when a module option already turns them off as it opens."""
+    if os.environ.get("WEFT_UNCHECKED", "").lower() in ("1", "true", "yes"):
+        return True
+    from ._kernel import module as module_mod  # noqa: PLC0415
+
+    return module_mod.unchecked_requested()
+
+
 def resolve_address() -> str:
     """The gRPC target to use: WEFT_ADDRESS, else the default socket (starting weftd there)."""
     address = os.environ.get("WEFT_ADDRESS")
@@ -328,24 +338,15 @@ class Runtime:
         self.address = address or resolve_address()
         self.token = token if token is not None else (os.environ.get("WEFT_TOKEN") or None)
         self.pid = os.getpid()
-        options = [("grpc.max_send_message_length", MAX_MESSAGE_BYTES),
-                   ("grpc.max_receive_message_length", MAX_MESSAGE_BYTES)]
-        self.channel = grpc.insecure_channel(self.address, options=options)
-        self.session_stub = SessionServiceStub(self.channel)
-        self.array_stub = ArrayServiceStub(self.channel)
-        self.exec_stub = ExecServiceStub(self.channel)
-        self.module_stub = ModuleServiceStub(self.channel)
-        self.device_stub = DeviceServiceStub(self.channel)
-        self._base_metadata = (("authorization", f"Bearer {self.token}"),) if self.token else ()
-        self.metadata = self._base_metadata
-
-        request = session_pb2.OpenSessionRequest(
-            client_name=f"python {sys.version.split()[0]} pid {self.pid}", client_pid=self.pid)
-        try:
-            opened = self.session_stub.Open(request, metadata=self._base_metadata, timeout=30)
-        except grpc.RpcError as err:
+        unchecked = _unchecked_requested()
+        opened = self._open(unchecked)
+        # An unchecked session runs in a weftd process of its own (a session host): the daemon
+        # started it and names its socket; the session is opened there.
+        self.hosted = bool(getattr(opened, "session_host", ""))
+        if self.hosted:
             self.channel.close()
-            raise error_from_rpc(err) from None
+            self.address = "unix:" + opened.session_host
+            opened = self._open(unchecked)
         self.session_id = opened.session_id
         self.daemon_version = opened.daemon_version
         self.daemon_pid = opened.daemon_pid
@@ -408,6 +409,56 @@ class Runtime:
             self.close()
             raise WeftError(f"SessionService.Attach: the daemon at {self.address} {reason}")
 
+    def _open(self, unchecked: bool):
+        """A channel and stubs for self.address, and SessionService.Open on it."""
+        options = [("grpc.max_send_message_length", MAX_MESSAGE_BYTES),
+                   ("grpc.max_receive_message_length", MAX_MESSAGE_BYTES)]
+        self.channel = grpc.insecure_channel(self.address, options=options)
+        self.session_stub = SessionServiceStub(self.channel)
+        self.array_stub = ArrayServiceStub(self.channel)
+        self.exec_stub = ExecServiceStub(self.channel)
+        self.module_stub = ModuleServiceStub(self.channel)
+        self.device_stub = DeviceServiceStub(self.channel)
+        self._base_metadata = (("authorization", f"Bearer {self.token}"),) if self.token else ()
+        self.metadata = self._base_metadata
+        request = session_pb2.OpenSessionRequest(
+            client_name=f"python {sys.version.split()[0]} pid {self.pid}", client_pid=self.pid)
+        if unchecked and "unchecked" in request.DESCRIPTOR.fields_by_name:
+            request.unchecked = True
+        try:
+            return self.session_stub.Open(request, metadata=self._base_metadata, timeout=90)
+        except grpc.RpcError as err:
+            self.channel.close()
+            raise error_from_rpc(err) from None
+
+    def _end_if_over(self, response) -> None:
+        """A session host whose GPU a kernel fault took says the session is over: forget it
+        (its arrays are gone), so that the next weft call opens a new session."""
+        if getattr(response, "session_ended", False):
+            self.abandon()
+
+    def abandon(self) -> None:
+        """Drops a session that can no longer work, without flushing or synchronizing."""
+        if self.closed:
+            return
+        self.closed = True
+        self._batch.clear()
+        self._pending_frees.clear()
+        self._inflight.clear()
+        if self.fast_lane is not None:
+            self.fast_lane.close()
+        try:
+            self.session_stub.Close(session_pb2.CloseSessionRequest(session_id=self.session_id),
+                                    metadata=self.metadata, timeout=5)
+        except grpc.RpcError:
+            pass
+        self._closing.set()
+        try:
+            self._attach_call.cancel()
+        except Exception:  # noqa: BLE001
+            pass
+        self.channel.close()
+
     def _open_fast_lane(self, opened):
         """The fast lane (_fast_lane.py) when the daemon offers one to this local client and
         WEFT_FAST_LANE is not 0; None (gRPC only) otherwise or when it cannot be opened."""
@@ -427,10 +478,26 @@ class Runtime:
         lane = self.fast_lane
         if lane is not None and lane.fits(request):
             spin = _fast_lane.SPIN_GPU_S if gpu_wait and _fast_lane.SPIN_GPU_S > 0 else None
-            if method == "Submit":
-                return lane.call(_fast_lane.SUBMIT, request, exec_pb2.SubmitResponse, spin)
-            return lane.call(_fast_lane.SYNCHRONIZE, request, exec_pb2.SynchronizeResponse, spin)
+            try:
+                if method == "Submit":
+                    return lane.call(_fast_lane.SUBMIT, request, exec_pb2.SubmitResponse, spin)
+                return lane.call(_fast_lane.SYNCHRONIZE, request, exec_pb2.SynchronizeResponse, spin)
+            except WeftError as err:
+                self._raise_if_host_gone(err)
+                raise
         return self.call(getattr(self.exec_stub, method), request)
+
+    def _raise_if_host_gone(self, err: WeftError) -> None:
+        """In a session host (an unchecked session's own process), a lost connection means the
+        process ended (an unchecked kernel crashed it): the session is over. Raises that."""
+        if not self.hosted or err.code != "UNAVAILABLE" or self.closed:
+            return
+        pid = self.daemon_pid
+        self.abandon()
+        raise WeftError(f"the process of this unchecked session (session host pid {pid}) ended, "
+                        "most likely an unchecked kernel crashed it: the session and its arrays "
+                        "are gone (the daemon and its other sessions were not touched); the next "
+                        "weft call opens a new session", "ABORTED") from None
 
     _LANE_ARRAY_METHODS = {"Create": (_fast_lane.ARRAY_CREATE, array_pb2.CreateArrayResponse),
                            "Free": (_fast_lane.ARRAY_FREE, array_pb2.FreeArrayResponse),
@@ -504,7 +571,9 @@ class Runtime:
         try:
             return stub_method(request, metadata=self.metadata, timeout=timeout)
         except grpc.RpcError as err:
-            raise error_from_rpc(err) from None
+            error = error_from_rpc(err)
+            self._raise_if_host_gone(error)
+            raise error from None
 
     # -- command batch
     def submit(self, cmd, start: bool = False) -> None:
@@ -663,9 +732,11 @@ class Runtime:
         except grpc.RpcError as err:
             if self._deferred_error is None:
                 self._deferred_error = error_from_rpc(err)
+                self._raise_if_host_gone(self._deferred_error)
         except WeftError as err:   # a fast-lane Submit's error
             if self._deferred_error is None:
                 self._deferred_error = err
+                self._raise_if_host_gone(err)
 
     def flush(self) -> None:
         """Sends the batched commands (ExecService.Submit), then the deferred frees."""
@@ -707,6 +778,7 @@ class Runtime:
             self._drain_frees()
             self._unsynchronized = False
             deferred, self._deferred_error = self._deferred_error, None
+            self._end_if_over(response)
         _report_sync(response, deferred)
 
     def run(self) -> None:
@@ -729,6 +801,7 @@ class Runtime:
             self._drain_frees()
             self._unsynchronized = False
             response = response.sync
+            self._end_if_over(response)
         _report_sync(response, deferred)
 
     def synchronize_if_needed(self) -> None:
@@ -858,32 +931,44 @@ class Runtime:
 
 _runtime: Runtime | None = None
 _runtime_lock = threading.Lock()
+_every_runtime: list = []
+
+
+def _usable(rt) -> bool:
+    """rt is this process's open session; a session host that went away (its process ended:
+    a crash of an unchecked kernel) ends its session."""
+    if rt is None or rt.pid != os.getpid() or rt.closed:
+        return False
+    if rt.hosted and rt.attach_lost:
+        rt.abandon()
+        return False
+    return True
 
 
 def get_runtime() -> Runtime:
-    """The process's Runtime, connecting (and opening a session) on first use."""
+    """The process's Runtime, connecting (and opening a session) on first use, and again after
+    the session ended."""
     global _runtime
     rt = _runtime
-    if rt is not None and rt.pid == os.getpid() and not rt.closed:
+    if _usable(rt):
         return rt
     with _runtime_lock:
         rt = _runtime
-        if rt is None or rt.pid != os.getpid() or rt.closed:
+        if not _usable(rt):
             rt = Runtime()
             _runtime = rt
+            _every_runtime.append(rt)   # alive for good: caches keyed by id(runtime) stay apart
     return rt
 
 
 def is_initialized() -> bool:
-    return _runtime is not None and _runtime.pid == os.getpid() and not _runtime.closed
+    return _usable(_runtime)
 
 
 def current_runtime() -> Runtime | None:
     """The live Runtime of this process, or None (never connects)."""
     rt = _runtime
-    if rt is not None and rt.pid == os.getpid() and not rt.closed:
-        return rt
-    return None
+    return rt if _usable(rt) else None
 
 
 def shutdown() -> None:

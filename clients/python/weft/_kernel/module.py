@@ -140,6 +140,17 @@ def get_module_options(module=None) -> dict:
     return merged
 
 
+def unchecked_requested() -> bool:
+    """Some options (global or a module's) turn a safety net off: "bounds_checks" or
+    "cancel_poll" false. A session opened now asks weftd for unchecked kernels."""
+    def off(options):
+        return any(options.get(name, True) in (False, 0, "false", "False", "0")
+                   for name in ("bounds_checks", "cancel_poll"))
+
+    with _lock:
+        return off(_global_options) or any(off(m.options) for m in list(_modules.values()))
+
+
 def register_kernel(kernel: Kernel) -> None:
     with _lock:
         module = get_module(kernel.module_name)

@@ -1,0 +1,225 @@
+"""Unchecked sessions run in processes of their own (session hosts, server/session_hosts.h): a
+weftd started with --allow-unchecked sends a session opened unchecked to a weftd it starts for
+that session alone. These tests attack it: an unchecked kernel that writes far out of bounds
+crashes its host and nothing else (another session's array on the daemon stays readable and the
+daemon keeps serving), the crashed client's next call opens a new session by itself, a host
+serves one session and one principal, hosts are bounded per principal, a host ends with its
+session, and a session that asks for unchecked kernels where they are not allowed stays checked."""
+import os
+import time
+from pathlib import Path
+
+import grpc
+import numpy as np
+import pytest
+
+CRASHER = '''
+import time
+import numpy as np
+import weft as wp
+import weft._runtime as runtime
+
+wp.set_module_options({"bounds_checks": False})
+
+
+@wp.kernel
+def wild(a: wp.array(dtype=float), n: int):
+    i = wp.tid()
+    a[i * n] = 1.0
+
+
+@wp.kernel
+def add_one(a: wp.array(dtype=float)):
+    i = wp.tid()
+    a[i] = a[i] + 1.0
+
+
+a = wp.array(np.arange(16, dtype=np.float32), dtype=float, device="cpu")
+first = runtime.get_runtime()
+print("HOSTED", first.hosted, first.daemon_pid, first.address)
+wp.launch(add_one, dim=16, inputs=[a], device="cpu")
+print("BEFORE", a.numpy().tolist() == list(range(1, 17)))
+t = time.perf_counter()
+try:
+    wp.launch(wild, dim=4096, inputs=[a, 1 << 26], device="cpu")
+    wp.synchronize()
+    print("CRASH none")
+except Exception as exc:
+    print("CRASH", exc)
+b = wp.array(np.arange(8, dtype=np.float32), dtype=float, device="cpu")
+wp.launch(add_one, dim=8, inputs=[b], device="cpu")
+ok = b.numpy().tolist() == list(range(1, 9))
+second = runtime.get_runtime()
+print("AFTER", ok, second.hosted, second.daemon_pid != first.daemon_pid,
+      f"{1e3 * (time.perf_counter() - t):.1f} ms")
+try:
+    wp.launch(add_one, dim=16, inputs=[a], device="cpu")
+    wp.synchronize()
+    print("OLD usable")
+except Exception as exc:
+    print("OLD", exc)
+'''
+
+
+def _run_file(tmp_path, client_env, code: str, address: str) -> str:
+    """Runs `code` as a script file (kernels need their source in a file) against `address`."""
+    import subprocess
+    import sys
+
+    script = tmp_path / f"client_{time.monotonic_ns()}.py"
+    script.write_text(code)
+    proc = subprocess.run([sys.executable, str(script)], env=client_env({"WEFT_ADDRESS": address}),
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, f"client failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}"
+    return proc.stdout
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def _host_pids(daemon_pid: int) -> list[int]:
+    """The session hosts the daemon started (its children named weftd)."""
+    pids = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == daemon_pid and "weftd" in (entry / "comm").read_text():
+            pids.append(int(entry.name))
+    return pids
+
+
+def test_an_unchecked_crash_ends_its_own_process_only(start_weftd, client_env, tmp_path, wait_for):
+    daemon = start_weftd(["--allow-unchecked"])
+    with daemon.raw_session("bystander") as bystander:
+        values = np.random.default_rng().standard_normal(1000).astype(np.float32)
+        held = bystander.create_array(values)
+        out = _run_file(tmp_path, client_env, CRASHER, daemon.address)
+        print(out)
+        assert "HOSTED True" in out and f"host-{daemon.pid}-" in out, out
+        assert "BEFORE True" in out, out
+        assert "CRASH " in out and "CRASH none" not in out, out
+        assert "session host pid" in out and "the next weft call opens a new session" in out, out
+        assert "AFTER True True True" in out, out          # a new host, by itself
+        assert "OLD " in out and "unknown array handle" in out, out   # an array of the ended session
+        # The daemon and the other session were never touched.
+        assert _alive(daemon.pid)
+        assert np.array_equal(bystander.read_array(held.handle), values)
+        stats = daemon.stats()
+        assert stats.session_hosts_started_total >= 2
+        assert "ended with signal" in daemon.log()
+    wait_for(lambda: daemon.stats().session_hosts == 0, 10)
+    assert not list(Path(daemon.socket_path).parent.glob("host-*.sock"))
+    assert not [f for f in os.listdir("/dev/shm") if f.startswith("weft-") and
+                not _alive(int(f.split("-")[1]))]
+
+
+def _open_unchecked(daemon):
+    from weft.v1 import session_pb2
+    from weft import _runtime
+
+    channel = grpc.insecure_channel(daemon.grpc_target)
+    stub = _runtime.SessionServiceStub(channel)
+    reply = stub.Open(session_pb2.OpenSessionRequest(client_name="raw unchecked", unchecked=True),
+                      timeout=90)
+    channel.close()
+    return reply
+
+
+def test_a_host_serves_one_session_and_ends_with_it(start_weftd, wait_for):
+    daemon = start_weftd(["--allow-unchecked", "--max-session-hosts", "1"])
+    reply = _open_unchecked(daemon)
+    assert reply.session_host and not reply.session_id
+    target = "unix:" + reply.session_host
+    # The principal's one host is taken: another unchecked session is refused until it ends.
+    with pytest.raises(grpc.RpcError) as refused:
+        _open_unchecked(daemon)
+    assert refused.value.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
+    assert "--max-session-hosts 1" in refused.value.details()
+    hosts = _host_pids(daemon.pid)
+    assert len(hosts) == 1
+    with daemon.raw_session("in the host", target=target) as session:
+        assert session.opened.session_id and session.opened.daemon_pid == hosts[0]
+        with pytest.raises(grpc.RpcError) as second:
+            daemon.raw_session("second in the host", target=target)
+        assert second.value.code() == grpc.StatusCode.FAILED_PRECONDITION
+        assert "serves one session" in second.value.details()
+        values = np.random.default_rng().standard_normal(64).astype(np.float32)
+        info = session.create_array(values)
+        assert np.array_equal(session.read_array(info.handle), values)
+        # Checked sessions stay on the daemon itself.
+        with daemon.raw_session("checked") as checked:
+            assert checked.opened.session_id and not checked.opened.session_host
+            assert checked.opened.daemon_pid == daemon.pid
+    # Its session closed: the host ends, its sockets go, and the slot is free again.
+    wait_for(lambda: not _alive(hosts[0]) or not _host_pids(daemon.pid), 10)
+    wait_for(lambda: daemon.stats().session_hosts == 0, 10)
+    assert not Path(reply.session_host).exists()
+    assert _open_unchecked(daemon).session_host
+
+
+def test_a_host_without_a_session_ends(start_weftd, wait_for):
+    daemon = start_weftd(["--allow-unchecked", "--attach-timeout", "1"])
+    reply = _open_unchecked(daemon)
+    hosts = _host_pids(daemon.pid)
+    assert len(hosts) == 1
+    wait_for(lambda: daemon.stats().session_hosts == 0, 15)
+    assert not _alive(hosts[0]) and not Path(reply.session_host).exists()
+
+
+def test_unchecked_is_refused_where_not_allowed(start_weftd, client_env, tmp_path):
+    """Without --allow-unchecked an unchecked request opens an ordinary session: the bounds
+    check still fires (no process of its own, no crash)."""
+    daemon = start_weftd([])
+    reply = _open_unchecked(daemon)
+    assert reply.session_id and not reply.session_host and reply.daemon_pid == daemon.pid
+    out = _run_file(tmp_path, client_env, '''
+import numpy as np
+import weft as wp
+import weft._runtime as runtime
+wp.set_module_options({"bounds_checks": False})
+
+@wp.kernel
+def past_end(a: wp.array(dtype=float)):
+    a[wp.tid() + 100] = 1.0
+
+a = wp.zeros(4, dtype=float, device="cpu")
+print("HOSTED", runtime.get_runtime().hosted)
+try:
+    wp.launch(past_end, dim=1, inputs=[a], device="cpu")
+    wp.synchronize()
+    print("CHECK none")
+except Exception as exc:
+    print("CHECK", exc)
+''', daemon.address)
+    assert "HOSTED False" in out and "out of bounds" in out.lower(), out
+
+
+def test_a_host_refuses_other_callers(start_weftd, wait_for):
+    """A host serves its principal only; a TCP caller (another principal, whatever token it
+    holds) is refused. (Another Unix user cannot be made here without root; the check is the
+    same comparison of principals.)"""
+    daemon = start_weftd(["--allow-unchecked"], also_tcp=True)
+    from weft.v1 import session_pb2
+    from weft import _runtime
+
+    channel = grpc.insecure_channel(daemon.tcp_target)
+    stub = _runtime.SessionServiceStub(channel)
+    reply = stub.Open(session_pb2.OpenSessionRequest(client_name="tcp unchecked", unchecked=True),
+                      metadata=(("authorization", f"Bearer {daemon.token}"),), timeout=30)
+    channel.close()
+    # A remote client gets no host (it could not reach a Unix socket): an ordinary session.
+    assert reply.session_id and not reply.session_host
+    local = _open_unchecked(daemon)
+    assert local.session_host
+    with daemon.raw_session("in the host", target="unix:" + local.session_host) as session:
+        assert session.opened.session_id
+    wait_for(lambda: daemon.stats().session_hosts == 0, 10)

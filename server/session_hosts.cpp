@@ -1,0 +1,217 @@
+// SessionHosts: starting, reaping and stopping the processes of unchecked sessions.
+#include "server/session_hosts.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+
+#include <spdlog/spdlog.h>
+
+#include "engine/runtime/shm_slab_pool.h"
+
+extern char** environ;
+
+namespace weft::server {
+
+namespace {
+
+constexpr int kReadyFd = 3;   // the host writes one byte here once it listens
+
+std::string ExitText(int status) {
+  if (WIFEXITED(status)) return "exit status " + std::to_string(WEXITSTATUS(status));
+  if (WIFSIGNALED(status)) return std::string("signal ") + strsignal(WTERMSIG(status));
+  return "status " + std::to_string(status);
+}
+
+// Waits up to `timeout_s` for one byte on `fd`: true when it came, false on EOF or timeout.
+bool WaitReady(int fd, double timeout_s) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return false;
+    pollfd p{fd, POLLIN, 0};
+    const int r = poll(&p, 1, static_cast<int>(left.count()));
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) return false;
+    char byte = 0;
+    const ssize_t n = read(fd, &byte, 1);
+    if (n < 0 && errno == EINTR) continue;
+    return n == 1;
+  }
+}
+
+}  // namespace
+
+SessionHosts::SessionHosts(std::string binary, std::vector<std::string> arguments, std::string socket_dir,
+                           uint32_t max_per_principal, double start_timeout_s)
+    : binary_(std::move(binary)),
+      arguments_(std::move(arguments)),
+      socket_dir_(std::move(socket_dir)),
+      max_per_principal_(max_per_principal),
+      start_timeout_s_(start_timeout_s),
+      reaper_([this] { ReapLoop(); }) {}
+
+SessionHosts::~SessionHosts() {
+  StopAll();
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stopping_ = true;
+  }
+  stop_cv_.notify_all();
+  reaper_.join();
+}
+
+Expected<std::string> SessionHosts::Start(const std::string& principal) {
+  std::string socket;
+  pid_t reserved = 0;   // the slot held until the pid is known (a negative key; pids are positive)
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stopping_) return Unavailable("the daemon is shutting down");
+    uint32_t mine = 0;
+    for (const auto& [pid, host] : hosts_) mine += host.principal == principal ? 1 : 0;
+    if (mine >= max_per_principal_)
+      return ResourceExhausted("principal " + principal + " already has " + std::to_string(mine) +
+                               " unchecked sessions, each in a process of its own (--max-session-hosts " +
+                               std::to_string(max_per_principal_) + ")");
+    ++started_;
+    socket = socket_dir_ + "/host-" + std::to_string(getpid()) + "-" + std::to_string(started_) + ".sock";
+    reserved = -static_cast<pid_t>(started_);
+    hosts_[reserved] = Host{principal, socket};
+  }
+  auto release_placeholder = [&] {
+    std::lock_guard<std::mutex> lock(mu_);
+    hosts_.erase(reserved);
+  };
+
+  int ready[2];
+  if (pipe2(ready, O_CLOEXEC) != 0) {
+    release_placeholder();
+    return Internal(std::string("pipe: ") + std::strerror(errno));
+  }
+  // The write end goes to the host as fd 3 (dup2 clears close-on-exec on the copy; a write end
+  // that already is fd 3 is moved first, since dup2 onto itself would keep the flag).
+  int write_end = ready[1];
+  if (write_end == kReadyFd) {
+    write_end = fcntl(ready[1], F_DUPFD_CLOEXEC, 10);
+    close(ready[1]);
+  }
+  std::vector<std::string> args = {binary_};
+  args.insert(args.end(), arguments_.begin(), arguments_.end());
+  args.insert(args.end(), {"--listen", "unix:" + socket, "--host-principal", principal, "--host-ready-fd",
+                           std::to_string(kReadyFd), "--host-parent", std::to_string(getpid())});
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, write_end, kReadyFd);
+  pid_t pid = 0;
+  const int spawned = posix_spawn(&pid, binary_.c_str(), &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  close(write_end);
+  if (spawned != 0) {
+    close(ready[0]);
+    release_placeholder();
+    return Unavailable("could not start a session host (" + binary_ + "): " + std::strerror(spawned));
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const bool up = WaitReady(ready[0], start_timeout_s_);
+  close(ready[0]);
+  std::lock_guard<std::mutex> lock(mu_);
+  hosts_.erase(reserved);
+  if (!up) {
+    int status = 0;
+    std::string why;
+    if (waitpid(pid, &status, WNOHANG) == pid) {
+      why = "it ended with " + ExitText(status);
+    } else {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      why = "it did not listen within " + std::to_string(static_cast<int>(start_timeout_s_)) + " s";
+    }
+    unlink(socket.c_str());
+    return Unavailable("the session host for an unchecked session did not start: " + why +
+                       " (the daemon's log has its output)");
+  }
+  hosts_[pid] = Host{principal, socket};
+  spdlog::info("session host pid {} for {} listens on {} ({:.0f} ms to start)", pid, principal, socket,
+               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  return socket;
+}
+
+void SessionHosts::Forget(pid_t pid, int status) {
+  auto it = hosts_.find(pid);
+  if (it == hosts_.end()) return;
+  unlink(it->second.socket.c_str());
+  unlink((it->second.socket + ".fast").c_str());
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0)
+    spdlog::info("session host pid {} ended", pid);
+  else
+    spdlog::warn("session host pid {} of {} ended with {}: its session and arrays are gone, every other "
+                 "session is untouched", pid, it->second.principal, ExitText(status));
+  hosts_.erase(it);
+  // A host that crashed left its shared-memory slabs behind: they go now, not at the next start.
+  ShmSlabPool::RemoveStaleSlabs();
+}
+
+void SessionHosts::ReapLoop() {
+  std::unique_lock<std::mutex> lock(mu_);
+  while (!stopping_) {
+    stop_cv_.wait_for(lock, std::chrono::milliseconds(100));
+    std::vector<pid_t> ended;
+    std::vector<int> statuses;
+    for (const auto& [pid, host] : hosts_) {
+      int status = 0;
+      if (pid > 0 && waitpid(pid, &status, WNOHANG) == pid) {
+        ended.push_back(pid);
+        statuses.push_back(status);
+      }
+    }
+    for (size_t i = 0; i < ended.size(); ++i) Forget(ended[i], statuses[i]);
+  }
+}
+
+void SessionHosts::StopAll() {
+  std::vector<pid_t> pids;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (const auto& [pid, host] : hosts_)
+      if (pid > 0) pids.push_back(pid);
+  }
+  for (pid_t pid : pids) kill(pid, SIGTERM);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(3);
+  for (pid_t pid : pids) {
+    int status = 0;
+    while (waitpid(pid, &status, WNOHANG) == 0) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        kill(pid, SIGKILL);
+        waitpid(pid, &status, 0);
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    std::lock_guard<std::mutex> lock(mu_);
+    Forget(pid, status);
+  }
+}
+
+uint32_t SessionHosts::alive() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  uint32_t n = 0;
+  for (const auto& [pid, host] : hosts_) n += pid > 0 ? 1 : 0;
+  return n;
+}
+
+uint64_t SessionHosts::started_total() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return started_;
+}
+
+}  // namespace weft::server
