@@ -74,6 +74,7 @@ def main() -> int:
 
     daemon = bc.BenchDaemon(["--allow-unchecked"])
     os.environ["WEFT_ADDRESS"] = daemon.address
+    os.environ["WEFT_UNCHECKED"] = "1"   # an unchecked session (in a process of its own)
     failures, rows = [], []
     try:
         import weft as wp  # noqa: PLC0415

@@ -195,6 +195,8 @@ class WeftSession:
     def __init__(self, extra_args=(), **daemon_kwargs):
         self.daemon = BenchDaemon(extra_args, **daemon_kwargs)
         os.environ["WEFT_ADDRESS"] = self.daemon.address
+        if "--allow-unchecked" in extra_args:   # the session's kernels may turn checks off
+            os.environ["WEFT_UNCHECKED"] = "1"
 
     def __enter__(self):
         try:

@@ -759,7 +759,9 @@ void Engine::WarnIgnoredOptions(const std::vector<std::string>& ignored, Compile
     if (!report) break;
     Diagnostic d;
     d.severity = Diagnostic::Severity::kWarning;
-    d.message = option + "=false ignored: this daemon does not allow unchecked kernels (start weftd with --allow-unchecked)";
+    d.message = option + "=false ignored: this session is checked. Unchecked kernels run only in a session opened "
+                "unchecked (the module option set before the session opens, or WEFT_UNCHECKED=1), which a weftd "
+                "started with --allow-unchecked runs in a process of its own";
     report->diagnostics.push_back(d);
   }
 }
