@@ -434,8 +434,9 @@ uint32_t CudaDevice::SlabCount() const {
 Status CudaDevice::CheckUsable() const {
   if (lost_.load())
     return FailedPrecondition(name_ + " is unusable: " + lost_reason_ +
-                              "; every array on it is lost (device was reset, these arrays are lost); restart weftd "
-                              "to use this GPU again (the CPU, and every GPU the driver still serves, keep working)");
+                              "; every array on it is lost (device was reset, these arrays are lost); using this GPU "
+                              "again takes " + WhatBringsItBack() +
+                              " (the CPU, and every GPU the driver still serves, keep working)");
   return Status::Ok();
 }
 
@@ -794,7 +795,8 @@ DeviceSyncResult CudaDevice::Synchronize(Session& s) {
                          name_ + (lost_.load() ? " was lost" : " was reset") +
                              " after a kernel fault of another session: the arrays this session had on it are lost "
                              "(device was reset, these arrays are lost)" +
-                             (lost_.load() ? "; " + lost_reason_ + ", restart weftd to use it again" : "; create them again"));
+                             (lost_.load() ? "; " + lost_reason_ + "; using it again takes " + WhatBringsItBack()
+                                           : "; create them again"));
       return out;
     }
   }
@@ -832,8 +834,8 @@ DeviceSyncResult CudaDevice::Synchronize(Session& s) {
     out.error = Status(StatusCode::kAborted,
                        name_ + ": a kernel faulted (" + driver_->ErrorName(r) + ") in " + what +
                            (lost_.load() ? "; the device could not be brought back in this process (" + std::string(buf) +
-                                               " ms): restart weftd to use it again; every array on it is lost "
-                                               "(device was reset, these arrays are lost)"
+                                               " ms): using it again takes " + WhatBringsItBack() +
+                                               "; every array on it is lost (device was reset, these arrays are lost)"
                                          : "; the device was reset in " + std::string(buf) +
                                                " ms and every array on it is lost (device was reset, these arrays "
                                                "are lost)"));

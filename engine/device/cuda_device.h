@@ -45,6 +45,9 @@ struct CudaDeviceOptions {
   // slab whose IPC handle may have gone to another session (an exported array) is never kept.
   uint64_t dedicated_cache_bytes = 1ull << 30;
   double launch_time_limit_s = 0;     // 0 = none
+  // This process serves one session and ends with it (a session host): a device lost to a
+  // fault is not worth a daemon restart, and the messages say so.
+  bool process_ends_with_session = false;
   // Compiles CUDA C++ for sm_XX to a loadable image (NVRTC through the module store).
   std::function<Expected<std::string>(const std::string& source, const std::string& name, int sm)> compile;
 };
@@ -316,6 +319,11 @@ class CudaDevice final : public Device {
   void ReleaseGeometry(Stream& st, bool all);
 
   CudaDeviceOptions options_;
+  // What brings a lost device back: "restart weftd", or the end of a session host's session.
+  std::string WhatBringsItBack() const {
+    return options_.process_ends_with_session ? "a new session (this one's process ends with it)"
+                                              : "a restart of weftd";
+  }
   std::string name_;
   const jit::CudaDriver* driver_ = nullptr;
   jit::CuDevice device_ = 0;

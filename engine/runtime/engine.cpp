@@ -87,6 +87,7 @@ Engine::Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store)
       CudaDeviceOptions o;
       o.ordinal = std::stoi(info.name.substr(5));
       o.launch_time_limit_s = options.launch_time_limit_s;
+      o.process_ends_with_session = options.session_host;
       if (st) o.compile = [st](const std::string& source, const std::string& name, int sm) {
         return st->CompileCudaSource(source, name, sm);
       };
