@@ -210,10 +210,8 @@ int main(int argc, char** argv) {
   if (cfg->session_host()) auth.RestrictTo(cfg->host_principal);
   std::unique_ptr<SessionHosts> hosts;
   if (cfg->allow_unchecked && !cfg->session_host() && !unix_paths.empty()) {
-    const std::string& first = unix_paths.front();
-    hosts = std::make_unique<SessionHosts>(ThisExecutable(), SessionHostArguments(*cfg),
-                                           first.substr(0, first.rfind('/')), cfg->max_session_hosts,
-                                           /*start_timeout_s=*/60);
+    hosts = std::make_unique<SessionHosts>(ThisExecutable(), SessionHostArguments(*cfg), unix_paths.front(),
+                                           cfg->max_session_hosts, /*start_timeout_s=*/60);
   }
   // The fast lane (server/fast_lane.h) beside the first Unix socket: <path>.fast. Its stale
   // file goes (the daemon that owned it is gone: the gRPC socket beside it was stale too).

@@ -5,6 +5,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -49,11 +50,12 @@ bool WaitReady(int fd, double timeout_s) {
 
 }  // namespace
 
-SessionHosts::SessionHosts(std::string binary, std::vector<std::string> arguments, std::string socket_dir,
+SessionHosts::SessionHosts(std::string binary, std::vector<std::string> arguments, std::string daemon_socket,
                            uint32_t max_per_principal, double start_timeout_s)
     : binary_(std::move(binary)),
       arguments_(std::move(arguments)),
-      socket_dir_(std::move(socket_dir)),
+      daemon_socket_(std::move(daemon_socket)),
+      socket_dir_(daemon_socket_.substr(0, daemon_socket_.rfind('/'))),
       max_per_principal_(max_per_principal),
       start_timeout_s_(start_timeout_s),
       reaper_([this] { ReapLoop(); }) {}
@@ -141,6 +143,16 @@ Expected<std::string> SessionHosts::Start(const std::string& principal) {
                        " (the daemon's log has its output)");
   }
   hosts_[pid] = Host{principal, socket};
+  // The daemon's socket may have been opened to a group (docs/operations.md): the host's too.
+  struct stat daemon_st {};
+  if (stat(daemon_socket_.c_str(), &daemon_st) == 0) {
+    for (const std::string& path : {socket, socket + ".fast"}) {
+      if (chown(path.c_str(), static_cast<uid_t>(-1), daemon_st.st_gid) != 0 && errno != ENOENT)
+        spdlog::warn("session host socket {}: chown: {}", path, std::strerror(errno));
+      if (chmod(path.c_str(), daemon_st.st_mode & 0777) != 0 && errno != ENOENT)
+        spdlog::warn("session host socket {}: chmod: {}", path, std::strerror(errno));
+    }
+  }
   spdlog::info("session host pid {} for {} listens on {} ({:.0f} ms to start)", pid, principal, socket,
                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   return socket;

@@ -25,8 +25,9 @@ namespace weft::server {
 class SessionHosts {
  public:
   // `binary`: this executable; `arguments`: the settings a host inherits (SessionHostArguments);
-  // `socket_dir`: where hosts listen (the daemon's own socket directory).
-  SessionHosts(std::string binary, std::vector<std::string> arguments, std::string socket_dir,
+  // `daemon_socket`: the daemon's own Unix socket. Hosts listen beside it, and their sockets get
+  // its mode and group (an operator who opened the daemon's socket to a group opened the hosts').
+  SessionHosts(std::string binary, std::vector<std::string> arguments, std::string daemon_socket,
                uint32_t max_per_principal, double start_timeout_s);
   ~SessionHosts();   // StopAll
   SessionHosts(const SessionHosts&) = delete;
@@ -52,6 +53,7 @@ class SessionHosts {
 
   const std::string binary_;
   const std::vector<std::string> arguments_;
+  const std::string daemon_socket_;
   const std::string socket_dir_;
   const uint32_t max_per_principal_;
   const double start_timeout_s_;

@@ -3,8 +3,8 @@ weftd started with --allow-unchecked sends a session opened unchecked to a weftd
 that session alone. These tests attack it: an unchecked kernel that writes far out of bounds
 crashes its host and nothing else (another session's array on the daemon stays readable and the
 daemon keeps serving), the crashed client's next call opens a new session by itself, a host
-serves one session and one principal, hosts are bounded per principal, a host ends with its
-session, and a session that asks for unchecked kernels where they are not allowed stays checked."""
+serves one session and one principal, hosts are bounded per principal, a host's socket has
+the daemon socket's mode and group, a host ends with its session, and a session that asks for unchecked kernels where they are not allowed stays checked."""
 import os
 import time
 from pathlib import Path
@@ -136,8 +136,12 @@ def _open_unchecked(daemon):
 
 def test_a_host_serves_one_session_and_ends_with_it(start_weftd, wait_for):
     daemon = start_weftd(["--allow-unchecked", "--max-session-hosts", "1"])
+    # An operator opened the daemon's socket to its group: a host's socket follows it.
+    os.chmod(daemon.socket_path, 0o660)
     reply = _open_unchecked(daemon)
     assert reply.session_host and not reply.session_id
+    assert os.stat(reply.session_host).st_mode & 0o777 == 0o660
+    assert os.stat(reply.session_host).st_gid == os.stat(daemon.socket_path).st_gid
     target = "unix:" + reply.session_host
     # The principal's one host is taken: another unchecked session is refused until it ends.
     with pytest.raises(grpc.RpcError) as refused:
