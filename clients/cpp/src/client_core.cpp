@@ -34,34 +34,43 @@ Expected<std::shared_ptr<ClientCore>> ClientCore::Open(const ConnectOptions& opt
   if (core->options_.chunk_size > kMaxChunkBytes) core->options_.chunk_size = kMaxChunkBytes;
   if (core->options_.max_pending_commands == 0) core->options_.max_pending_commands = 1;
 
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(-1);
-  args.SetMaxSendMessageSize(-1);
-  core->channel_ =
-      grpc::CreateCustomChannel(address.target, grpc::InsecureChannelCredentials(), args);
-  const auto deadline = std::chrono::system_clock::now() + options.connect_timeout;
-  if (!core->channel_->WaitForConnected(deadline))
-    return Unavailable("no weftd answering at " + address.target + " (waited " +
-                       std::to_string(options.connect_timeout.count()) +
-                       " ms); start weftd or set WEFT_ADDRESS");
-
-  core->session_stub_ = v1::SessionService::NewStub(core->channel_);
-  core->array_stub_ = v1::ArrayService::NewStub(core->channel_);
-  core->device_stub_ = v1::DeviceService::NewStub(core->channel_);
-  core->exec_stub_ = v1::ExecService::NewStub(core->channel_);
-  core->module_stub_ = v1::ModuleService::NewStub(core->channel_);
-
-  v1::OpenSessionRequest request;
-  const std::int64_t pid = ::getpid();
-  request.set_client_name(options.client_name.empty()
-                              ? "weft-cpp pid " + std::to_string(pid)
-                              : options.client_name);
-  request.set_client_pid(pid);
+  std::string target = address.target;
   v1::OpenSessionResponse response;
-  auto context = core->NewContext();
-  context->set_deadline(std::chrono::system_clock::now() + options.connect_timeout);
-  WEFT_CLIENT_RETURN_IF_ERROR(
-      FromRpc(core->session_stub_->Open(context.get(), request, &response), "SessionService.Open"));
+  // At most twice: the daemon, then the session host it may name for an unchecked session.
+  for (int hop = 0; hop < 2; ++hop) {
+    grpc::ChannelArguments args;
+    args.SetMaxReceiveMessageSize(-1);
+    args.SetMaxSendMessageSize(-1);
+    core->channel_ = grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args);
+    const auto deadline = std::chrono::system_clock::now() + options.connect_timeout;
+    if (!core->channel_->WaitForConnected(deadline))
+      return Unavailable("no weftd answering at " + target + " (waited " +
+                         std::to_string(options.connect_timeout.count()) +
+                         " ms); start weftd or set WEFT_ADDRESS");
+
+    core->session_stub_ = v1::SessionService::NewStub(core->channel_);
+    core->array_stub_ = v1::ArrayService::NewStub(core->channel_);
+    core->device_stub_ = v1::DeviceService::NewStub(core->channel_);
+    core->exec_stub_ = v1::ExecService::NewStub(core->channel_);
+    core->module_stub_ = v1::ModuleService::NewStub(core->channel_);
+
+    v1::OpenSessionRequest request;
+    const std::int64_t pid = ::getpid();
+    request.set_client_name(options.client_name.empty()
+                                ? "weft-cpp pid " + std::to_string(pid)
+                                : options.client_name);
+    request.set_client_pid(pid);
+    request.set_unchecked(options.unchecked);
+    response.Clear();
+    auto context = core->NewContext();
+    // A session host may take a while to start (CUDA initialisation): allow it more.
+    context->set_deadline(std::chrono::system_clock::now() + options.connect_timeout +
+                          (options.unchecked ? std::chrono::milliseconds(60000) : std::chrono::milliseconds(0)));
+    WEFT_CLIENT_RETURN_IF_ERROR(
+        FromRpc(core->session_stub_->Open(context.get(), request, &response), "SessionService.Open"));
+    if (response.session_host().empty() || hop == 1) break;
+    target = "unix:" + response.session_host();
+  }
   if (response.session_id().empty())
     return Internal("SessionService.Open: the daemon returned no session id");
 
@@ -69,7 +78,7 @@ Expected<std::shared_ptr<ClientCore>> ClientCore::Open(const ConnectOptions& opt
   core->session_.daemon_version = response.daemon_version();
   core->session_.local = response.local();
   core->session_.daemon_pid = response.daemon_pid();
-  core->session_.address = address.target;
+  core->session_.address = target;
   core->local_ = response.local() && address.unix_socket && options.map_shared_memory;
   core->keeper_ = std::make_unique<SessionKeeper>(core->session_stub_.get(), core->NewContext(),
                                                   core->session_.session_id);

@@ -68,8 +68,9 @@ std::vector<std::string> Glob(const std::string& pattern) {
 
 class Daemon {
  public:
-  // Starts weftd; `tcp` listens on 127.0.0.1 with a token file instead of a Unix socket.
-  static std::unique_ptr<Daemon> Start(bool tcp, std::string* error) {
+  // Starts weftd; `tcp` listens on 127.0.0.1 with a token file instead of a Unix socket;
+  // `extra`: more weftd flags.
+  static std::unique_ptr<Daemon> Start(bool tcp, std::string* error, const std::vector<std::string>& extra = {}) {
     auto d = std::unique_ptr<Daemon>(new Daemon());
     char tmpl[] = "/tmp/weft-client-test-XXXXXX";
     if (::mkdtemp(tmpl) == nullptr) {
@@ -92,6 +93,7 @@ class Daemon {
       args.insert(args.end(), {"--listen", d->address_});
     }
     args.insert(args.end(), {"--cache-dir", (d->dir_ / "cache").string(), "--log-level", "info"});
+    args.insert(args.end(), extra.begin(), extra.end());
     d->log_ = d->dir_ / "weftd.log";
 
     // Everything the child needs is prepared before fork: gRPC threads may hold locks.
@@ -1095,6 +1097,59 @@ TEST_F(ClientTest, CompilesAndLaunchesAKernel) {
   const weft::Status s = client_.Synchronize();
   EXPECT_FALSE(s.ok());
   EXPECT_NE(s.message().find("saxpy"), std::string::npos) << s.ToString();
+}
+
+// An unchecked session runs in a session host of its own: a module there may turn bounds checks
+// off (a read one element past the end then returns whatever lies there instead of an error),
+// while a checked session of the same daemon, asking for the same, still gets the bounds error.
+TEST(ClientUncheckedTest, UncheckedSessionsRunInASessionHost) {
+  std::string error;
+  auto daemon = Daemon::Start(false, &error, {"--allow-unchecked"});
+  ASSERT_NE(daemon, nullptr) << error;
+  weft::ConnectOptions o = daemon->Options();
+  o.unchecked = true;
+  auto unchecked = weft::Client::Connect(o);
+  ASSERT_OK_E(unchecked);
+  EXPECT_NE(unchecked->session().daemon_pid, daemon->pid());
+  EXPECT_NE(unchecked->session().address.find("/host-"), std::string::npos) << unchecked->session().address;
+  EXPECT_TRUE(unchecked->local());
+  auto checked = daemon->Connect();
+  ASSERT_OK_E(checked);
+  EXPECT_EQ(checked->session().daemon_pid, daemon->pid());
+
+  weft::ModuleDef m;
+  m.name = "client_test_past_end";
+  m.AddKernel("past_end",
+              "def past_end(x: wp.array(dtype=float), out: wp.array(dtype=float)):\n"
+              "    out[0] = x[wp.tid() + 64]\n",
+              {"x", "out"}, {"array(float32,1)", "array(float32,1)"});
+  m.options["bounds_checks"] = "false";
+  std::mt19937_64 rng(std::random_device{}());
+  for (weft::Client* c : {&*unchecked, &*checked}) {
+    const bool is_unchecked = c == &*unchecked;
+    auto compiled = c->Compile(m, "cpu");
+    ASSERT_OK_E(compiled);
+    auto x = c->FromData<float>(RandomValues<float>(rng, 64));
+    auto out = c->FromData<float>(RandomValues<float>(rng, 1));
+    ASSERT_OK_E(x);
+    ASSERT_OK_E(out);
+    weft::LaunchSpec launch;
+    launch.module_id = compiled->module_id;
+    launch.kernel = "past_end";
+    launch.dim = {1};
+    launch.args = {x->view(), out->view()};
+    ASSERT_OK(c->Launch(launch, {"client_test.cpp", 1}));
+    const weft::Status s = c->Synchronize();
+    if (is_unchecked) {
+      EXPECT_TRUE(s.ok()) << s.ToString();
+    } else {
+      EXPECT_FALSE(s.ok());
+      EXPECT_NE(s.message().find("past_end"), std::string::npos) << s.ToString();
+    }
+  }
+  ASSERT_OK(unchecked->Close());
+  ASSERT_OK(checked->Close());
+  EXPECT_EQ(daemon->Stop(), 0) << daemon->Log();
 }
 
 TEST_F(ClientTest, TapeBackwardGivesTheGradient) {

@@ -40,6 +40,10 @@ struct ConnectOptions {
   bool map_shared_memory = true;
   // Queued commands are sent when this many are pending (and at every sync point).
   std::size_t max_pending_commands = 1024;
+  // Open an unchecked session: its modules may turn bounds checks off (option
+  // "bounds_checks": "false"). A weftd started with --allow-unchecked runs it in a process of
+  // its own (a session host, whose socket Connect then uses); elsewhere the session is checked.
+  bool unchecked = false;
 };
 
 struct ArrayOptions {
