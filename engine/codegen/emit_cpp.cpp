@@ -53,6 +53,65 @@ bool HasIndexedArrays(const Type& t, const StructTable& structs) {
   return false;
 }
 
+// The text sema emits for `i = wp.tid()` (one name): the kernel's launch index (its first
+// coordinate; the flat index of a 1-D launch), always in [0, threads of the launch).
+constexpr const char* kTidFirstText = "wp::int32(wp::cg_tid_first(__ctx, __tid_flat))";
+
+void CollectTidVars(const std::vector<Stmt>& stmts, std::set<int>* out) {
+  for (const Stmt& s : stmts) {
+    if (s.kind == Stmt::Kind::kOp) {
+      if (s.op.kind == OpKind::kRaw && s.op.text == kTidFirstText && s.op.dst.size() == 1) out->insert(s.op.dst[0]);
+      continue;
+    }
+    CollectTidVars(s.then_body, out);
+    CollectTidVars(s.else_body, out);
+    CollectTidVars(s.cond_body, out);
+    CollectTidVars(s.body, out);
+  }
+}
+
+// p[i] of a kernel where p is a 1-D plain-array parameter (the argument itself, never
+// reassigned) and i a variable holding wp.tid(): within bounds whenever p holds at least as many
+// elements as the launch has threads. Returns the parameter's index, or -1.
+int TidIndexedAccess(const Function& f, const std::set<int>& tid_vars, int array, const std::vector<int>& idx) {
+  if (!f.is_kernel || idx.size() != 1 || !tid_vars.count(idx[0])) return -1;
+  const Var& a = f.vars.at(array);
+  const Var& i = f.vars.at(idx[0]);
+  if (!a.is_param || a.is_mutable || i.is_mutable || !a.type.is_array() || a.type.is_indexed_array() || a.type.ndim != 1)
+    return -1;
+  for (size_t k = 0; k < f.params.size(); ++k)
+    if (f.params[k] == array) return static_cast<int>(k);
+  return -1;
+}
+
+// Every forward access of f that TidIndexedAccess accepts: its parameters, in order.
+void CollectTidIndexedParams(const Function& f, const std::set<int>& tid_vars, const std::vector<Stmt>& stmts,
+                             std::set<uint32_t>* out) {
+  for (const Stmt& s : stmts) {
+    if (s.kind != Stmt::Kind::kOp) {
+      CollectTidIndexedParams(f, tid_vars, s.then_body, out);
+      CollectTidIndexedParams(f, tid_vars, s.else_body, out);
+      CollectTidIndexedParams(f, tid_vars, s.cond_body, out);
+      CollectTidIndexedParams(f, tid_vars, s.body, out);
+      continue;
+    }
+    const Op& op = s.op;
+    std::vector<int> idx;
+    if (op.kind == OpKind::kLoad || op.kind == OpKind::kView) {
+      idx.assign(op.args.begin() + 1, op.args.end());
+    } else if (op.kind == OpKind::kStore) {
+      idx.assign(op.args.begin() + 1, op.args.end() - 1);
+    } else if (op.kind == OpKind::kCall && (op.builtin->flags & kBuiltinArrayAccess)) {
+      const int ndim = f.vars.at(op.args[0]).type.ndim;
+      idx.assign(op.args.begin() + 1, op.args.begin() + 1 + ndim);
+    } else {
+      continue;
+    }
+    const int p = TidIndexedAccess(f, tid_vars, op.args[0], idx);
+    if (p >= 0) out->insert(static_cast<uint32_t>(p));
+  }
+}
+
 // `#line N "file"` (emit_text.h) for generated code that belongs to user line N of f's file.
 std::string UserLine(const Function& f, int line) {
   return codegen::LineDirective(static_cast<uint32_t>(line > 0 ? line : 1), f.file) + "\n";
@@ -79,7 +138,9 @@ class FnEmitter {
   enum class Mode { kForward, kReplay, kAdjoint };
 
   FnEmitter(const Module& m, const Function& f, const CodegenOptions& o, std::string* out)
-      : m_(m), f_(f), opt_(o), out_(*out) {}
+      : m_(m), f_(f), opt_(o), out_(*out) {
+    if (opt_.trust_tid_indices && f_.is_kernel) CollectTidVars(f_.body, &tid_vars_);
+  }
 
   // `static inline R name(ctx, params)` (forward or replay twin) or the adjoint function.
   void EmitFunc(Mode mode) {
@@ -275,6 +336,8 @@ class FnEmitter {
   void Check(const Op& op, int line, int array, const std::vector<int>& idx, bool adjoint = false) {
     if (!opt_.bounds_checks) return;
     if (!adjoint && CheckedBefore(array, idx)) return;
+    // The trusted variant: the launch was proven in range (CodegenOptions::trust_tid_indices).
+    if (!adjoint && !tid_vars_.empty() && TidIndexedAccess(f_, tid_vars_, array, idx) >= 0) return;
     std::string s = std::string(adjoint ? "if (!wp::cg_check_adj(__ctx, " : "if (!wp::cg_check(__ctx, ") +
                     std::to_string(f_.function_id) + ", " + std::to_string(line) + ", " +
                     std::to_string(f_.is_kernel ? op.array_param : -1) + ", " + CppStringLiteral(op.array_name) + ", " +
@@ -896,6 +959,7 @@ class FnEmitter {
   const Function& f_;
   const CodegenOptions& opt_;
   std::string& out_;
+  std::set<int> tid_vars_;   // trusted variant only: the variables holding wp.tid()
   Mode mode_ = Mode::kForward;
   // print() runs in the replay of a backward pass (Warp prints the forward values there, then
   // "adj: ..." in the reverse code), but only in the first replay of the body: not in a
@@ -1174,6 +1238,14 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
       // (bench/kernel_variants, saxpy 1e8 on an H200): 385 us lean against 448 us in the loop,
       // whose prologue carries the hoisted invariants of the bounds checks' error paths.
       kl.grid_stride = options.grid_stride;
+      if (options.bounds_checks) {
+        std::set<int> tid_vars;
+        CollectTidVars(f.body, &tid_vars);
+        std::set<uint32_t> trusted;
+        if (!tid_vars.empty()) CollectTidIndexedParams(f, tid_vars, f.body, &trusted);
+        kl.tid_indexed_params.assign(trusted.begin(), trusted.end());
+        kl.trusts_tid_indices = options.trust_tid_indices && !trusted.empty();
+      }
       auto entry = [&](const std::string& symbol, const std::string& params, const std::string& call) {
         o += "extern \"C\" __global__ void " + symbol + "(" + params + ") {\n";
         if (options.grid_stride)

@@ -47,6 +47,11 @@ struct KernelLayout {
   // CPU entries compiled for cooperative blocks of this many lanes (CodegenOptions::cpu_lanes);
   // 1: one thread per block.
   uint32_t lanes = 1;
+  // CUDA kernels: the parameters (indices into `params`) it accesses as p[i] with i = wp.tid()
+  // (TidIndexedAccess). A launch whose arrays there all hold at least as many elements as it
+  // has threads may use the variant built with CodegenOptions::trust_tid_indices.
+  std::vector<uint32_t> tid_indexed_params;
+  bool trusts_tid_indices = false;   // built with CodegenOptions::trust_tid_indices
 };
 
 struct GeneratedModule {
@@ -71,6 +76,12 @@ struct CodegenOptions {
   // wp.config.enable_cpu_blocks): wp.tile(x) has this many elements and the launch runs each
   // block's threads as fibers (engine/runtime/cpu_lanes.h). 1: one thread per block.
   uint32_t cpu_lanes = 1;
+  // CUDA: the forward accesses p[i] of a kernel, with p a 1-D array parameter and i the value of
+  // wp.tid(), go without their bounds check (KernelLayout::tid_indexed_params lists those p).
+  // Only for launches proven in range: every such p has at least as many elements as the launch
+  // has threads, so i < threads <= p's extent (the executor checks it before it picks the
+  // variant, ModuleStore::WithTrustedTidIndices). Gradient accesses keep their checks.
+  bool trust_tid_indices = false;
 };
 
 // On failure returns InvalidArgument and appends the user-facing diagnostics to *diags.

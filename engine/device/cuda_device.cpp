@@ -961,6 +961,7 @@ Expected<jit::CuFunction> CudaDevice::Function(const LoadedModule& module, const
   key.assign(module.id);
   key.append(module.has_backward ? "/b" : "/f");
   if (module.grid_stride) key.append("s");   // the grid-stride variant: same id and symbols
+  if (module.trusts_tid_indices) key.append("t");   // the trusted-index variant: the same
   std::lock_guard<std::mutex> lock(mu_);
   auto it = modules_.find(key);
   if (it == modules_.end()) {

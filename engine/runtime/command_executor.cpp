@@ -2,6 +2,7 @@
 #include "engine/runtime/command_executor.h"
 
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 
 #include <spdlog/spdlog.h>
@@ -116,7 +117,8 @@ Status CommandExecutor::UseGridStrideWhereNeeded(const Device& device, const std
                                                  const std::string& kernel_name, bool adjoint, const KernelLaunch& launch,
                                                  std::shared_ptr<const LoadedModule>* module,
                                                  const LoadedKernel** kernel) {
-  if (device.is_cpu() || (*kernel)->layout.grid_stride || !NeedsGridStride(launch)) return Status::Ok();
+  if (device.is_cpu() || (*kernel)->layout.grid_stride) return Status::Ok();
+  if (!NeedsGridStride(launch)) return UseTrustedIndicesWhereProven(module_id, kernel_name, adjoint, launch, module, kernel);
   auto strided = store_->WithGridStride(module_id, adjoint);
   if (!strided.ok()) {
     // Built lean on purpose: the device's launch says why the launch is refused.
@@ -126,6 +128,41 @@ Status CommandExecutor::UseGridStrideWhereNeeded(const Device& device, const std
   const LoadedKernel* k = (*strided)->Find(kernel_name);
   if (!k) return Internal("the grid-stride variant of module '" + module_id + "' has no kernel '" + kernel_name + "'");
   *module = *strided;
+  *kernel = k;
+  return Status::Ok();
+}
+
+namespace {
+
+// WEFT_TRUSTED_INDICES=0 keeps every launch on the checked entries (for A/B measurements).
+bool TrustedIndicesEnabled() {
+  static const bool enabled = [] {
+    const char* v = std::getenv("WEFT_TRUSTED_INDICES");
+    return v == nullptr || std::strcmp(v, "0") != 0;
+  }();
+  return enabled;
+}
+
+}  // namespace
+
+Status CommandExecutor::UseTrustedIndicesWhereProven(const std::string& module_id, const std::string& kernel_name,
+                                                     bool adjoint, const KernelLaunch& launch,
+                                                     std::shared_ptr<const LoadedModule>* module,
+                                                     const LoadedKernel** kernel) {
+  const KernelLayout& layout = (*kernel)->layout;
+  if (!TrustedIndicesEnabled() || layout.trusts_tid_indices || layout.tid_indexed_params.empty() || !launch.args ||
+      !TidIndicesInRange(layout, *launch.args, launch.dim))
+    return Status::Ok();
+  auto trusted = store_->WithTrustedTidIndices(module_id, adjoint);
+  if (!trusted.ok()) {   // the checked entries serve the launch as well
+    spdlog::warn("module {}: no trusted-index variant ({}); the launch keeps its checks", module_id,
+                 trusted.status().message());
+    return Status::Ok();
+  }
+  const LoadedKernel* k = (*trusted)->Find(kernel_name);
+  if (!k || k->layout.params.size() != layout.params.size() || k->layout.args_size != layout.args_size)
+    return Internal("the trusted-index variant of module '" + module_id + "' does not match kernel '" + kernel_name + "'");
+  *module = *trusted;
   *kernel = k;
   return Status::Ok();
 }

@@ -46,9 +46,16 @@ class CommandExecutor {
   // it (max_blocks, more blocks than a grid holds): *module and *kernel become those of the
   // module's grid-stride variant (ModuleStore::WithGridStride). Otherwise, or where the module
   // was built lean on purpose (the device then refuses the launch), unchanged.
+  // A launch the grid covers whose kernel accesses p[wp.tid()] of 1-D array parameters, each
+  // holding at least as many elements as the launch has threads (TidIndicesInRange): the
+  // module's trusted-index variant, whose entries skip those checks
+  // (ModuleStore::WithTrustedTidIndices).
   Status UseGridStrideWhereNeeded(const Device& device, const std::string& module_id, const std::string& kernel_name,
                                   bool adjoint, const KernelLaunch& launch, std::shared_ptr<const LoadedModule>* module,
                                   const LoadedKernel** kernel);
+  Status UseTrustedIndicesWhereProven(const std::string& module_id, const std::string& kernel_name, bool adjoint,
+                                      const KernelLaunch& launch, std::shared_ptr<const LoadedModule>* module,
+                                      const LoadedKernel** kernel);
   // Appends a forward launch (its packed arguments) to the session's active tape, unless it
   // runs from a graph.
   void RecordOnTape(Session& s, const LaunchCommand& c, const std::string& device, const SourceLocation& origin,

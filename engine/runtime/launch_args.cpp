@@ -209,4 +209,23 @@ Expected<PackedArgs> GradientArgs(const KernelLayout& kernel, const PackedArgs& 
   return out;
 }
 
+bool TidIndicesInRange(const KernelLayout& kernel, const PackedArgs& args, const std::vector<int64_t>& dim) {
+  if (kernel.tid_indexed_params.empty() || dim.empty()) return false;
+  uint64_t threads = 1;
+  for (int64_t d : dim)
+    if (d <= 0 || __builtin_mul_overflow(threads, static_cast<uint64_t>(d), &threads)) return false;
+  for (uint32_t p : kernel.tid_indexed_params) {
+    if (p >= kernel.params.size()) return false;
+    const PackedArray* slot = nullptr;
+    for (const PackedArray& a : args.arrays)
+      if (a.top_param == static_cast<int>(p) && a.param == kernel.params[p].name) slot = &a;
+    if (!slot || static_cast<uint64_t>(slot->offset) + sizeof(wp::array_abi_t) > args.block.size()) return false;
+    wp::array_abi_t abi{};
+    std::memcpy(&abi, args.block.data() + slot->offset, sizeof abi);
+    if (abi.data == nullptr || abi.ndim != 1 || abi.shape[0] < 0 || static_cast<uint64_t>(abi.shape[0]) < threads)
+      return false;
+  }
+  return true;
+}
+
 }  // namespace weft

@@ -72,4 +72,11 @@ Expected<PackedArgs> PackAdjointArgs(const KernelLayout& kernel, const PackedArg
 Expected<PackedArgs> GradientArgs(const KernelLayout& kernel, const PackedArgs& forward,
                                   const std::vector<std::shared_ptr<Allocation>>& live);
 
+// Whether every array the kernel accesses as p[wp.tid()] (kernel.tid_indexed_params) holds at
+// least as many elements as a launch of `dim` has threads, read from the packed block (whose
+// arrays passed the one validation): then those accesses are in bounds and the kernel's
+// trusted-index variant may run (CodegenOptions::trust_tid_indices). False for an empty list, a
+// missing or null array, a thread count that overflows, or a launch of no threads.
+bool TidIndicesInRange(const KernelLayout& kernel, const PackedArgs& args, const std::vector<int64_t>& dim);
+
 }  // namespace weft

@@ -245,6 +245,7 @@ std::string ModuleCacheKey(const ModuleSource& source, const CodegenOptions& cod
   if (!codegen.loop_cancel_poll) w.Field("cancel_poll", 0);
   if (!codegen.grid_stride) w.Field("grid_stride", 0);
   if (codegen.cpu_lanes > 1) w.Field("cpu_lanes", uint64_t{codegen.cpu_lanes});
+  if (codegen.trust_tid_indices) w.Field("trust_tid_indices", 1);
   w.Field("native", context.native_version);
   w.Field("target_id", context.target_id);
   w.Field("build", context.build_id);
@@ -290,6 +291,9 @@ std::string SerializeArtifact(const ModuleArtifact& artifact) {
     w.U32(k.args_align);
     w.U64(k.params.size());
     for (const auto& p : k.params) WriteParam(w, p);
+    w.U32(k.trusts_tid_indices ? 1u : 0u);
+    w.U64(k.tid_indexed_params.size());
+    for (uint32_t p : k.tid_indexed_params) w.U32(p);
   }
   w.U64(artifact.function_names.size());
   for (const auto& n : artifact.function_names) w.Str(n);
@@ -316,9 +320,17 @@ Expected<ModuleArtifact> DeserializeArtifact(std::string_view payload) {
       return bad();
     k.grid_stride = (flags & 1u) != 0;
     k.lanes = (flags >> 1) > 1 ? flags >> 1 : 1;
+
     k.params.resize(nparams);
     for (auto& p : k.params)
       if (!ReadParam(r, &p, 0)) return bad();
+    uint32_t trusts = 0;
+    uint64_t ntrusted = 0;
+    if (!(r.U32(&trusts) && trusts <= 1 && r.Count(&ntrusted))) return bad();
+    k.trusts_tid_indices = trusts != 0;
+    k.tid_indexed_params.resize(ntrusted);
+    for (auto& p : k.tid_indexed_params)
+      if (!r.U32(&p) || p >= k.params.size()) return bad();
   }
   uint64_t nnames = 0;
   if (!r.Count(&nnames)) return bad();

@@ -368,6 +368,26 @@ class ModuleStoreImpl final : public ModuleStore {
     return module;
   }
 
+  Expected<std::shared_ptr<const LoadedModule>> WithTrustedTidIndices(const std::string& module_id,
+                                                                     bool backward) override {
+    Variant variant;
+    {
+      std::lock_guard<std::mutex> lock(registry_mutex_);
+      auto it = registry_.find(module_id);
+      if (it == registry_.end()) return NotFound("unknown module id " + module_id);
+      if (auto alive = it->second.trusted[backward ? 1 : 0].lock()) return alive;
+      variant = it->second.variant;
+    }
+    if (variant.codegen.target != Target::kCuda || !variant.codegen.bounds_checks)
+      return FailedPrecondition("module " + module_id + " has no trusted-index variant");
+    variant.codegen.trust_tid_indices = true;
+    variant.codegen.enable_backward = backward;
+    WEFT_ASSIGN_OR_RETURN(ModuleCache::Module module, GetVariant(module_id, variant));
+    std::lock_guard<std::mutex> lock(registry_mutex_);
+    registry_[module_id].trusted[backward ? 1 : 0] = module;
+    return module;
+  }
+
   ModuleStoreStats stats() const override { return cache_->stats(); }
 
  private:
@@ -386,6 +406,7 @@ class ModuleStoreImpl final : public ModuleStore {
     std::weak_ptr<const LoadedModule> forward;
     std::weak_ptr<const LoadedModule> backward;
     std::weak_ptr<const LoadedModule> strided[2];   // WithGridStride: forward only, with backward
+    std::weak_ptr<const LoadedModule> trusted[2];   // WithTrustedTidIndices: the same
   };
 
   // How `source` is generated for `target` (the module options that change the code).
@@ -632,6 +653,7 @@ class ModuleStoreImpl final : public ModuleStore {
       module->function_names = artifact.function_names;
       module->has_backward = backward;
       module->grid_stride = variant.codegen.grid_stride;
+      module->trusts_tid_indices = variant.codegen.trust_tid_indices;
       module->cuda_image = artifact.object;
       module->cuda_sm = variant.sm;
       for (const KernelLayout& layout : artifact.kernels) {

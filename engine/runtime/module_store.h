@@ -37,6 +37,8 @@ struct LoadedModule {
   // target == kCuda: the entries stride over the grid (ModuleStore::WithGridStride's variant);
   // its CUBIN shares the module id and the symbols with the lean one.
   bool grid_stride = false;
+  // target == kCuda: built with CodegenOptions::trust_tid_indices (WithTrustedTidIndices).
+  bool trusts_tid_indices = false;
   // target == kCuda: the CUBIN for cuda_sm (for cuModuleLoadData; kernels' entry points are
   // layout.forward_symbol / backward_symbol). Empty for CPU modules.
   std::string cuda_image;
@@ -131,6 +133,15 @@ class ModuleStore {
   virtual Expected<std::shared_ptr<const LoadedModule>> WithGridStride(const std::string& module_id, bool backward) {
     (void)module_id, (void)backward;
     return Unimplemented("this module store has no grid-stride variants");
+  }
+  // The same lean CUDA module whose kernels access p[wp.tid()] of their 1-D array parameters
+  // without a bounds check (CodegenOptions::trust_tid_indices), for launches proven in range
+  // (CommandExecutor checks every such p against the launch first). FailedPrecondition for CPU
+  // modules and modules without bounds checks.
+  virtual Expected<std::shared_ptr<const LoadedModule>> WithTrustedTidIndices(const std::string& module_id,
+                                                                             bool backward) {
+    (void)module_id, (void)backward;
+    return Unimplemented("this module store has no trusted-index variants");
   }
   virtual ModuleStoreStats stats() const = 0;
   // Compiles the module with NVRTC for sm_<arch> (a kCudaArchs entry NVRTC supports, else

@@ -524,5 +524,81 @@ TEST(CodegenKernels, ArrayViewsAndVectorSlices) {
                              {"a", "b", "out"});
   ExpectCompiles(m, true);
 }
+
+// The trusted-index variant (CodegenOptions::trust_tid_indices) drops exactly the forward checks
+// of p[i] with p a 1-D array parameter and i = wp.tid(): x[i], y[i] (loads, the store, the
+// atomic) and w[i] through an alias, never x[j] with j = i + 1, a 2-D parameter's m[i, 0], an
+// array that is one parameter or another depending on the thread, or a gradient access. The layout lists the parameters whose extents a launch must prove
+// (whatever the option), and both variants compile (clang; NVRTC for sm_75 and sm_90).
+TEST(CodegenKernels, TrustedTidIndicesSkipOnlyProvenChecks) {
+  ModuleSource m;
+  m.name = "trusted_mod";
+  m.symbols.push_back(Wp());
+  m.functions.push_back(Fn("k",
+                           "def k(x: wp.array(dtype=float), y: wp.array(dtype=float), m: wp.array2d(dtype=float),\n"
+                           "      z: wp.array(dtype=float), w: wp.array(dtype=float)):\n"
+                           "    i = wp.tid()\n"
+                           "    j = i + 1\n"
+                           "    y[i] = x[i] * x[j] + m[i, 0]\n"
+                           "    wp.atomic_add(y, i, 1.0)\n"
+                           "    z = w\n"
+                           "    z[i] = 2.0\n"
+                           "    v = x\n"
+                           "    if i > 4:\n"
+                           "        v = y\n"
+                           "    v[i] = 3.0\n",
+                           {"array(float32,1)", "array(float32,1)", "array(float32,2)", "array(float32,1)",
+                            "array(float32,1)"},
+                           {"x", "y", "m", "z", "w"}));
+  auto count = [](const std::string& s, const std::string& what) {
+    size_t n = 0;
+    for (size_t at = s.find(what); at != std::string::npos; at = s.find(what, at + 1)) ++n;
+    return n;
+  };
+  auto body_of = [](const std::string& src, const std::string& name) {
+    const size_t at = src.find(name + "(const wp::launch_context_t");
+    return at == std::string::npos ? std::string() : src.substr(at, src.find("\n}\n", at) - at);
+  };
+  size_t checks[2] = {0, 0}, adjoint_checks[2] = {0, 0};
+  for (bool trust : {false, true}) {
+    CodegenOptions o;
+    o.target = Target::kCuda;
+    o.enable_backward = true;
+    o.grid_stride = false;
+    o.trust_tid_indices = trust;
+    std::vector<Diagnostic> diags;
+    auto gm = GenerateModule(m, o, &diags);
+    ASSERT_TRUE(gm.ok()) << gm.status().message();
+    ASSERT_EQ(gm->kernels.size(), 1u);
+    EXPECT_EQ(gm->kernels[0].tid_indexed_params, (std::vector<uint32_t>{0, 1, 4})) << "trust=" << trust;
+    EXPECT_EQ(gm->kernels[0].trusts_tid_indices, trust);
+    const std::string fwd = body_of(gm->source, "_forward_body");
+    const std::string bwd = body_of(gm->source, "_backward_body");
+    ASSERT_FALSE(fwd.empty() || bwd.empty()) << gm->source;
+    checks[trust] = count(fwd, "wp::cg_check(");
+    adjoint_checks[trust] = count(bwd, "wp::cg_check_adj(");
+    EXPECT_EQ(CompileWith(m, o), "") << "trust=" << trust;
+    EXPECT_EQ(CompileCudaForEveryArch(gm->source, "trusted_mod"), "") << "trust=" << trust;
+  }
+  // z = w makes z the parameter w itself (w is listed); v is x or y depending on the thread (a
+  // phi, not a parameter): v[i] keeps its check. Trusted: x[j], m[i, 0] and v[i] are left.
+  EXPECT_EQ(checks[1], 3u) << checks[0];
+  EXPECT_GE(checks[0], checks[1] + 2);
+  EXPECT_EQ(adjoint_checks[0], adjoint_checks[1]);
+  EXPECT_GT(adjoint_checks[1], 0u);
+  // A CPU module, and a module without bounds checks, list nothing.
+  CodegenOptions cpu;
+  std::vector<Diagnostic> diags;
+  auto gm = GenerateModule(m, cpu, &diags);
+  ASSERT_TRUE(gm.ok());
+  EXPECT_TRUE(gm->kernels[0].tid_indexed_params.empty());
+  CodegenOptions unchecked;
+  unchecked.target = Target::kCuda;
+  unchecked.bounds_checks = false;
+  gm = GenerateModule(m, unchecked, &diags);
+  ASSERT_TRUE(gm.ok());
+  EXPECT_TRUE(gm->kernels[0].tid_indexed_params.empty());
+}
+
 }  // namespace
 }  // namespace weft

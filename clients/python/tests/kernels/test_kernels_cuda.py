@@ -166,6 +166,45 @@ def test_out_of_bounds_is_reported_like_the_cpu(wp, gpu):
     np.testing.assert_array_equal(z.numpy(), 2.0)
 
 
+def test_tid_indexed_arrays_shorter_than_the_launch_stay_checked(wp, gpu, rng):
+    """A launch whose x[i] and y[i] (i = wp.tid()) arrays all cover it runs the kernel's
+    trusted-index variant (those checks proven, docs/cuda.md): the same results as float64,
+    views included. An array one element short of the launch, a strided view as long as the
+    launch, and a short array passed as the loss of a backward pass keep their checks: the
+    access past the end is reported as ever, on the same line."""
+    n = 100_003
+    x0 = rng.standard_normal(n).astype(np.float32)
+    y0 = rng.standard_normal(n + 7).astype(np.float32)
+    x = wp.array(x0, dtype=float, device=gpu)
+    for variant, name in ((saxpy, "saxpy"), (saxpy_lean, "saxpy_lean")):
+        y = wp.array(y0, dtype=float, device=gpu)
+        wp.launch(variant, dim=n, inputs=[1.5, x, y], device=gpu)
+        want = y0.astype(np.float64)
+        want[:n] += 1.5 * x0.astype(np.float64)
+        np.testing.assert_allclose(y.numpy(), want, rtol=2e-7, atol=1e-6)
+        # a view that covers the launch exactly: in range
+        yv = wp.array(y0, dtype=float, device=gpu)[7:]
+        wp.launch(variant, dim=n, inputs=[1.5, x, yv], device=gpu)
+        np.testing.assert_allclose(yv.numpy(), y0[7:].astype(np.float64) + 1.5 * x0, rtol=2e-7, atol=1e-6)
+        # one element short: the check stays, and reports the first index past the end
+        short = wp.array(y0[: n - 1], dtype=float, device=gpu)
+        wp.launch(variant, dim=n, inputs=[1.5, x, short], device=gpu)
+        with pytest.raises(wp.WeftError) as info:
+            wp.synchronize()
+        text = str(info.value)
+        assert f"kernel '{name}'" in text and f"of shape ({n - 1},)" in text, text
+        assert f"index [{n - 1}]" in text, text
+        # a strided view of n // 2 + 1 elements under a launch of n threads: checked as well
+        strided = wp.array(y0, dtype=float, device=gpu)[::2]
+        wp.launch(variant, dim=n, inputs=[1.5, x, strided], device=gpu)
+        with pytest.raises(wp.WeftError):
+            wp.synchronize()
+    # the session goes on
+    z = wp.zeros(4, dtype=float, device=gpu)
+    wp.launch(saxpy, dim=4, inputs=[1.0, wp.full(4, 2.0, dtype=float, device=gpu), z], device=gpu)
+    np.testing.assert_array_equal(z.numpy(), 2.0)
+
+
 def test_tape_backward_on_gpu(wp, gpu, rng):
     x0 = rng.standard_normal(1000).astype(np.float32)
     x = wp.array(x0, dtype=float, device=gpu, requires_grad=True)
