@@ -5,7 +5,6 @@
 // closed.
 #include <dirent.h>
 #include <signal.h>
-#include <sys/prctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -130,7 +129,8 @@ int main(int argc, char** argv) {
                                           : "[%Y-%m-%d %H:%M:%S.%e] [weftd] [%l] %v");
   if (cfg->session_host()) {
     CloseInheritedFds(cfg->host_ready_fd);
-    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    // No PR_SET_PDEATHSIG: it fires when the *thread* that started the host ends (a gRPC
+    // handler thread), not the daemon. WatchSessionHost compares getppid() on a timer instead.
     if (getppid() != static_cast<pid_t>(cfg->host_parent)) return 1;   // the daemon is already gone
     if (cfg->listen.size() != 1 || cfg->listen.front().rfind("unix:", 0) != 0) {
       std::cerr << "weftd: a session host listens on exactly one unix: address\n";

@@ -227,3 +227,45 @@ def test_a_host_refuses_other_callers(start_weftd, wait_for):
     with daemon.raw_session("in the host", target="unix:" + local.session_host) as session:
         assert session.opened.session_id
     wait_for(lambda: daemon.stats().session_hosts == 0, 10)
+
+
+def test_hosts_end_with_the_daemon(start_weftd, wait_for):
+    """A daemon killed outright (no chance to stop its hosts) takes its hosts along: each
+    checks on a timer that the daemon which started it is still its parent."""
+    import signal
+
+    daemon = start_weftd(["--allow-unchecked"])
+    _open_unchecked(daemon)
+    _open_unchecked(daemon)
+    hosts = _host_pids(daemon.pid)
+    assert len(hosts) == 2
+    os.kill(daemon.pid, signal.SIGKILL)
+    daemon.proc.wait(timeout=10)
+    wait_for(lambda: not any(_alive(pid) and not _zombie(pid) for pid in hosts), 10)
+    # Let the fixture's check pass: the daemon is gone, and so are the hosts and their slabs.
+    daemon.proc = _Exited()
+
+
+class _Exited:
+    """Stands in for a daemon process the test already killed (the fixture stops and checks it)."""
+
+    returncode = 0
+
+    def poll(self):
+        return 0
+
+    def wait(self, timeout=None):
+        return 0
+
+    def send_signal(self, sig):
+        pass
+
+    def kill(self):
+        pass
+
+
+def _zombie(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return False
