@@ -348,44 +348,24 @@ class ModuleStoreImpl final : public ModuleStore {
   }
 
   Expected<std::shared_ptr<const LoadedModule>> WithGridStride(const std::string& module_id, bool backward) override {
-    Variant variant;
-    {
-      std::lock_guard<std::mutex> lock(registry_mutex_);
-      auto it = registry_.find(module_id);
-      if (it == registry_.end()) return NotFound("unknown module id " + module_id);
-      if (auto alive = it->second.strided[backward ? 1 : 0].lock()) return alive;
-      variant = it->second.variant;
-    }
-    if (variant.codegen.target != Target::kCuda)
-      return FailedPrecondition("module " + module_id + " is compiled for the CPU, whose entries take index ranges");
-    if (!variant.stride_allowed)
-      return FailedPrecondition("module " + module_id + " was compiled without a grid-stride loop (grid_stride=False)");
-    variant.codegen.grid_stride = true;
-    variant.codegen.enable_backward = backward;
-    WEFT_ASSIGN_OR_RETURN(ModuleCache::Module module, GetVariant(module_id, variant));
-    std::lock_guard<std::mutex> lock(registry_mutex_);
-    registry_[module_id].strided[backward ? 1 : 0] = module;
-    return module;
+    return DerivedVariant(module_id, &Registered::strided, backward, [&](Variant& variant) -> Status {
+      if (variant.codegen.target != Target::kCuda)
+        return FailedPrecondition("module " + module_id + " is compiled for the CPU, whose entries take index ranges");
+      if (!variant.stride_allowed)
+        return FailedPrecondition("module " + module_id + " was compiled without a grid-stride loop (grid_stride=False)");
+      variant.codegen.grid_stride = true;
+      return Status::Ok();
+    });
   }
 
   Expected<std::shared_ptr<const LoadedModule>> WithTrustedTidIndices(const std::string& module_id,
                                                                      bool backward) override {
-    Variant variant;
-    {
-      std::lock_guard<std::mutex> lock(registry_mutex_);
-      auto it = registry_.find(module_id);
-      if (it == registry_.end()) return NotFound("unknown module id " + module_id);
-      if (auto alive = it->second.trusted[backward ? 1 : 0].lock()) return alive;
-      variant = it->second.variant;
-    }
-    if (variant.codegen.target != Target::kCuda || !variant.codegen.bounds_checks)
-      return FailedPrecondition("module " + module_id + " has no trusted-index variant");
-    variant.codegen.trust_tid_indices = true;
-    variant.codegen.enable_backward = backward;
-    WEFT_ASSIGN_OR_RETURN(ModuleCache::Module module, GetVariant(module_id, variant));
-    std::lock_guard<std::mutex> lock(registry_mutex_);
-    registry_[module_id].trusted[backward ? 1 : 0] = module;
-    return module;
+    return DerivedVariant(module_id, &Registered::trusted, backward, [&](Variant& variant) -> Status {
+      if (variant.codegen.target != Target::kCuda || !variant.codegen.bounds_checks)
+        return FailedPrecondition("module " + module_id + " has no trusted-index variant");
+      variant.codegen.trust_tid_indices = true;
+      return Status::Ok();
+    });
   }
 
   ModuleStoreStats stats() const override { return cache_->stats(); }
@@ -408,6 +388,28 @@ class ModuleStoreImpl final : public ModuleStore {
     std::weak_ptr<const LoadedModule> strided[2];   // WithGridStride: forward only, with backward
     std::weak_ptr<const LoadedModule> trusted[2];   // WithTrustedTidIndices: the same
   };
+
+  // A variant of a registered module (grid-stride, trusted-index), forward only or with
+  // backward, kept in `slots` of its registry entry while it is alive: `adjust` turns the
+  // module's own variant into it (or refuses).
+  Expected<std::shared_ptr<const LoadedModule>> DerivedVariant(
+      const std::string& module_id, std::weak_ptr<const LoadedModule> (Registered::*slots)[2], bool backward,
+      const std::function<Status(Variant&)>& adjust) {
+    Variant variant;
+    {
+      std::lock_guard<std::mutex> lock(registry_mutex_);
+      auto it = registry_.find(module_id);
+      if (it == registry_.end()) return NotFound("unknown module id " + module_id);
+      if (auto alive = (it->second.*slots)[backward ? 1 : 0].lock()) return alive;
+      variant = it->second.variant;
+    }
+    WEFT_RETURN_IF_ERROR(adjust(variant));
+    variant.codegen.enable_backward = backward;
+    WEFT_ASSIGN_OR_RETURN(ModuleCache::Module module, GetVariant(module_id, variant));
+    std::lock_guard<std::mutex> lock(registry_mutex_);
+    (registry_[module_id].*slots)[backward ? 1 : 0] = module;
+    return module;
+  }
 
   // How `source` is generated for `target` (the module options that change the code).
   Variant VariantOf(const ModuleSource& source, Target target) const {

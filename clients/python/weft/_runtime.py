@@ -441,15 +441,20 @@ class Runtime:
         """Drops a session that can no longer work, without flushing or synchronizing."""
         if self.closed:
             return
-        self.closed = True
         self._batch.clear()
-        self._pending_frees.clear()
         self._inflight.clear()
+        self._end_session(close_timeout=5)
+
+    def _end_session(self, close_timeout: float) -> None:
+        """Marks the session closed, closes the fast lane, sends SessionService.Close (errors
+        ignored: the daemon may be gone), ends the Attach stream and closes the channel."""
+        self.closed = True
+        self._pending_frees.clear()
         if self.fast_lane is not None:
             self.fast_lane.close()
         try:
             self.session_stub.Close(session_pb2.CloseSessionRequest(session_id=self.session_id),
-                                    metadata=self.metadata, timeout=5)
+                                    metadata=self.metadata, timeout=close_timeout)
         except grpc.RpcError:
             pass
         self._closing.set()
@@ -912,21 +917,7 @@ class Runtime:
         except Exception as err:  # noqa: BLE001 - exiting; report and go on
             if not self.attach_lost:
                 sys.stderr.write(f"weft: while closing the session: {err}\n")
-        self.closed = True
-        self._pending_frees.clear()
-        if self.fast_lane is not None:
-            self.fast_lane.close()
-        try:
-            self.session_stub.Close(session_pb2.CloseSessionRequest(session_id=self.session_id),
-                                    metadata=self.metadata, timeout=10)
-        except grpc.RpcError:
-            pass
-        self._closing.set()
-        try:
-            self._attach_call.cancel()
-        except Exception:  # noqa: BLE001
-            pass
-        self.channel.close()
+        self._end_session(close_timeout=10)
 
 
 _runtime: Runtime | None = None
