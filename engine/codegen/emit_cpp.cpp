@@ -77,7 +77,8 @@ int TidIndexedAccess(const Function& f, const std::set<int>& tid_vars, int array
   if (!f.is_kernel || idx.size() != 1 || !tid_vars.count(idx[0])) return -1;
   const Var& a = f.vars.at(array);
   const Var& i = f.vars.at(idx[0]);
-  if (!a.is_param || a.is_mutable || i.is_mutable || !a.type.is_array() || a.type.is_indexed_array() || a.type.ndim != 1)
+  if (!a.is_param || a.is_mutable || i.is_mutable || !a.type.is_array() || a.type.is_indexed_array() ||
+      a.type.is_fixed_array() || a.type.ndim != 1)
     return -1;
   for (size_t k = 0; k < f.params.size(); ++k)
     if (f.params[k] == array) return static_cast<int>(k);
