@@ -18,8 +18,8 @@ void FillSync(Engine& engine, Session::SyncResult& r, v1::SynchronizeResponse* r
       resp->set_session_ended(true);
       resp->set_error(r.error.message() +
                       "; this unchecked session ran in a process of its own (a session host), which ends with it: "
-                      "the daemon and its other sessions were not touched, and the next weft call opens a new "
-                      "session");
+                      "the daemon and its other sessions were not touched; a new session gets a fresh GPU context "
+                      "(the Python client opens one on its next call)");
     } else {
       resp->set_error(r.error.message());
     }
