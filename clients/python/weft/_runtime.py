@@ -426,7 +426,9 @@ class Runtime:
         if unchecked and "unchecked" in request.DESCRIPTOR.fields_by_name:
             request.unchecked = True
         try:
-            return self.session_stub.Open(request, metadata=self._base_metadata, timeout=90)
+            # an unchecked session may wait for its session host to start (CUDA initialisation)
+            return self.session_stub.Open(request, metadata=self._base_metadata,
+                                          timeout=90 if unchecked else 30)
         except grpc.RpcError as err:
             self.channel.close()
             raise error_from_rpc(err) from None
