@@ -943,6 +943,8 @@ def get_runtime() -> Runtime:
     the session ended."""
     global _runtime
     rt = _runtime
+    if rt is not None and not rt.closed and not rt.attach_lost and rt.pid == os.getpid():
+        return rt   # the common case, as cheap as a launch needs it
     if _usable(rt):
         return rt
     with _runtime_lock:
