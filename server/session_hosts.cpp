@@ -62,11 +62,6 @@ SessionHosts::SessionHosts(std::string binary, std::vector<std::string> argument
 
 SessionHosts::~SessionHosts() {
   StopAll();
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    stopping_ = true;
-  }
-  stop_cv_.notify_all();
   reaper_.join();
 }
 
@@ -177,6 +172,7 @@ void SessionHosts::ReapLoop() {
   std::unique_lock<std::mutex> lock(mu_);
   while (!stopping_) {
     stop_cv_.wait_for(lock, std::chrono::milliseconds(100));
+    if (stopping_) break;   // StopAll reaps from here on
     std::vector<pid_t> ended;
     std::vector<int> statuses;
     for (const auto& [pid, host] : hosts_) {
@@ -194,9 +190,11 @@ void SessionHosts::StopAll() {
   std::vector<pid_t> pids;
   {
     std::lock_guard<std::mutex> lock(mu_);
+    stopping_ = true;   // no new hosts; the reaper stops, so only this loop waits for the pids
     for (const auto& [pid, host] : hosts_)
       if (pid > 0) pids.push_back(pid);
   }
+  stop_cv_.notify_all();
   for (pid_t pid : pids) kill(pid, SIGTERM);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(3);
   for (pid_t pid : pids) {

@@ -37,7 +37,8 @@ class SessionHosts {
   // ResourceExhausted when the principal already has max_per_principal hosts alive;
   // Unavailable when the host did not come up (its exit status in the message).
   Expected<std::string> Start(const std::string& principal);
-  // SIGTERM to every host, then SIGKILL to those alive after 3 s; reaps them.
+  // At shutdown: refuses new hosts, sends SIGTERM to every host, then SIGKILL to those alive
+  // after 3 s, and reaps them.
   void StopAll();
 
   uint32_t alive() const;

@@ -46,6 +46,7 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
   if (single_session_ && session_opened_.exchange(true))
     return ToGrpc(FailedPrecondition("this weftd is a session host and serves one session, already opened"));
   auto s = auth_.engine().OpenClientSession(o);
+  if (!s.ok() && single_session_) session_opened_ = false;   // the host's one session is still to come
   if (!s.ok()) {
     spdlog::warn("refused session open from {}: {}", o.principal, s.status().message());
     return ToGrpc(s.status());

@@ -1245,7 +1245,6 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
         std::set<uint32_t> trusted;
         if (!tid_vars.empty()) CollectTidIndexedParams(f, tid_vars, f.body, &trusted);
         kl.tid_indexed_params.assign(trusted.begin(), trusted.end());
-        kl.trusts_tid_indices = options.trust_tid_indices && !trusted.empty();
       }
       auto entry = [&](const std::string& symbol, const std::string& params, const std::string& call) {
         o += "extern \"C\" __global__ void " + symbol + "(" + params + ") {\n";

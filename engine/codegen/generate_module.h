@@ -51,7 +51,6 @@ struct KernelLayout {
   // (TidIndexedAccess). A launch whose arrays there all hold at least as many elements as it
   // has threads may use the variant built with CodegenOptions::trust_tid_indices.
   std::vector<uint32_t> tid_indexed_params;
-  bool trusts_tid_indices = false;   // built with CodegenOptions::trust_tid_indices
 };
 
 struct GeneratedModule {

@@ -150,7 +150,7 @@ Status CommandExecutor::UseTrustedIndicesWhereProven(const std::string& module_i
                                                      std::shared_ptr<const LoadedModule>* module,
                                                      const LoadedKernel** kernel) {
   const KernelLayout& layout = (*kernel)->layout;
-  if (!TrustedIndicesEnabled() || layout.trusts_tid_indices || layout.tid_indexed_params.empty() || !launch.args ||
+  if (!TrustedIndicesEnabled() || (*module)->trusts_tid_indices || layout.tid_indexed_params.empty() || !launch.args ||
       !TidIndicesInRange(layout, *launch.args, launch.dim))
     return Status::Ok();
   auto trusted = store_->WithTrustedTidIndices(module_id, adjoint);

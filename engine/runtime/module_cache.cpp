@@ -291,7 +291,6 @@ std::string SerializeArtifact(const ModuleArtifact& artifact) {
     w.U32(k.args_align);
     w.U64(k.params.size());
     for (const auto& p : k.params) WriteParam(w, p);
-    w.U32(k.trusts_tid_indices ? 1u : 0u);
     w.U64(k.tid_indexed_params.size());
     for (uint32_t p : k.tid_indexed_params) w.U32(p);
   }
@@ -324,10 +323,8 @@ Expected<ModuleArtifact> DeserializeArtifact(std::string_view payload) {
     k.params.resize(nparams);
     for (auto& p : k.params)
       if (!ReadParam(r, &p, 0)) return bad();
-    uint32_t trusts = 0;
     uint64_t ntrusted = 0;
-    if (!(r.U32(&trusts) && trusts <= 1 && r.Count(&ntrusted))) return bad();
-    k.trusts_tid_indices = trusts != 0;
+    if (!r.Count(&ntrusted)) return bad();
     k.tid_indexed_params.resize(ntrusted);
     for (auto& p : k.tid_indexed_params)
       if (!r.U32(&p) || p >= k.params.size()) return bad();

@@ -3,8 +3,10 @@ weftd started with --allow-unchecked sends a session opened unchecked to a weftd
 that session alone. These tests attack it: an unchecked kernel that writes far out of bounds
 crashes its host and nothing else (another session's array on the daemon stays readable and the
 daemon keeps serving), the crashed client's next call opens a new session by itself, a host
-serves one session and one principal, hosts are bounded per principal, a host's socket has
-the daemon socket's mode and group, a host ends with its session, and a session that asks for unchecked kernels where they are not allowed stays checked."""
+serves one session, hosts are bounded per principal, a host's socket has the daemon socket's
+mode and group, a remote client gets no host, a host ends with its session, without one and
+with its daemon, and a session that asks for unchecked kernels where they are not allowed stays
+checked."""
 import os
 import time
 from pathlib import Path
@@ -82,18 +84,26 @@ def _alive(pid: int) -> bool:
     return True
 
 
+def _stat_fields(pid: int) -> list[str]:
+    """/proc/<pid>/stat after the command name (state, parent pid, ...); [] once it is gone."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return []
+
+
 def _host_pids(daemon_pid: int) -> list[int]:
     """The session hosts the daemon started (its children named weftd)."""
     pids = []
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
+        fields = _stat_fields(int(entry.name))
         try:
-            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            if fields and int(fields[1]) == daemon_pid and "weftd" in (entry / "comm").read_text():
+                pids.append(int(entry.name))
         except OSError:
             continue
-        if int(fields[1]) == daemon_pid and "weftd" in (entry / "comm").read_text():
-            pids.append(int(entry.name))
     return pids
 
 
@@ -207,10 +217,11 @@ except Exception as exc:
     assert "HOSTED False" in out and "out of bounds" in out.lower(), out
 
 
-def test_a_host_refuses_other_callers(start_weftd, wait_for):
-    """A host serves its principal only; a TCP caller (another principal, whatever token it
-    holds) is refused. (Another Unix user cannot be made here without root; the check is the
-    same comparison of principals.)"""
+def test_remote_clients_get_no_host(start_weftd, wait_for):
+    """A TCP client (which could not reach a host's Unix socket) asking for an unchecked
+    session gets an ordinary, checked one from the daemon; a local client of the same daemon
+    gets a host. (That a host refuses any principal but its own is not attacked here: another
+    Unix user cannot be made to run the client on this machine.)"""
     daemon = start_weftd(["--allow-unchecked"], also_tcp=True)
     from weft.v1 import session_pb2
     from weft import _runtime
@@ -265,7 +276,4 @@ class _Exited:
 
 
 def _zombie(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
-    except OSError:
-        return False
+    return _stat_fields(pid)[:1] == ["Z"]
