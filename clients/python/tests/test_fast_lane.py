@@ -360,12 +360,17 @@ def test_fast_lane_starts_a_slow_loop_of_launches_before_pump_first(wp, monkeypa
     calls = []
     real_call, real_send = rt.fast_lane.call, rt.fast_lane.send
 
+    def commands(request):          # Submits travel serialized (Runtime.framed_command)
+        if type(request) is bytes:
+            request = exec_pb2.SubmitRequest.FromString(request)
+        return len(getattr(request, "commands", ()))
+
     def logged_call(method, request, response_type, *spin):
-        calls.append((method, "call", len(getattr(request, "commands", ()))))
+        calls.append((method, "call", commands(request)))
         return real_call(method, request, response_type, *spin)
 
     def logged_send(method, request, response_type):
-        calls.append((method, "send", len(request.commands)))
+        calls.append((method, "send", commands(request)))
         return real_send(method, request, response_type)
 
     monkeypatch.setattr(rt.fast_lane, "call", logged_call)
@@ -405,7 +410,7 @@ def test_fast_lane_rejected_early_submit_raises_at_the_next_sync(wp, monkeypatch
     wp.synchronize()
     with rt._lock:
         rt._batch_since = time.perf_counter()
-        rt._batch.append(exec_pb2.Command())   # empty: the daemon refuses the whole batch
+        rt._batch.append(_runtime.framed_command(exec_pb2.Command()))   # empty: refused whole
     rt._unsynchronized = True
     for _ in range(_runtime.PUMP_FIRST - 1):
         wp.launch(lane_add, dim=4, inputs=[data, 1.0], device="cpu")

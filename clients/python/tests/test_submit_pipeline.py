@@ -125,7 +125,7 @@ def test_rejected_asynchronous_submit_raises_at_the_next_sync(wp, runtime):
     bad = exec_pb2.Command()   # no command in it: the daemon refuses the whole batch
     with runtime._lock:
         runtime._batch_since = time.perf_counter()
-        runtime._batch.append(bad)
+        runtime._batch.append(_runtime.framed_command(bad))
     runtime._unsynchronized = True
     for _ in range(_runtime.PUMP_FIRST - 1):   # PUMP_FIRST queued: sent now, refused whole
         wp.launch(pipe_add, dim=4, inputs=[data, 1.0], device="cpu")
@@ -136,3 +136,51 @@ def test_rejected_asynchronous_submit_raises_at_the_next_sync(wp, runtime):
     wp.launch(pipe_add, dim=4, inputs=[data, 2.0], device="cpu")
     wp.launch(pipe_add, dim=4, inputs=[data, 3.0], device="cpu")
     np.testing.assert_array_equal(data.numpy(), 5.0)
+
+
+def test_framed_commands_are_the_submit_request_the_daemon_parses():
+    """A batch travels as its commands' frames (Runtime.framed_command) and the request's
+    flags, never as a SubmitRequest message: byte for byte the serialization of that message,
+    for commands whose lengths take one, two and three varint bytes (127/128 and 16383/16384
+    around the boundaries); the ordering commands weft.interop.cuda_order builds from bytes
+    parse to the message they stand for, for values of every varint length."""
+    import types
+
+    from weft.interop import cuda_order
+    from weft.v1 import exec_pb2, types_pb2
+
+    rng = np.random.default_rng()
+    commands = []
+    for size in (0, 1, 100, 120, 121, 122, 123, 124, 125, 126, 127, 128, 129, 300, 16370,
+                 16380, 16381, 16382, 16383, 16384, 16385, 70000):
+        name = "".join(chr(c) for c in rng.integers(97, 123, size))
+        commands.append(exec_pb2.Command(
+            launch=exec_pb2.LaunchCommand(kernel=name, dim=[int(rng.integers(1, 1 << 30))]),
+            origin=types_pb2.SourceLocation(file="f.py", line=int(rng.integers(1, 1 << 20)))))
+    lengths = {len(c.SerializeToString()) for c in commands}
+    assert {127, 128}.issubset(lengths) or any(n > 16384 for n in lengths)
+    frames = [_runtime.framed_command(c) for c in commands]
+    for flags, expected in ((b"", exec_pb2.SubmitRequest(commands=commands)),
+                            (_runtime._SUBMIT_SYNCHRONIZE,
+                             exec_pb2.SubmitRequest(commands=commands, synchronize=True)),
+                            (_runtime._SUBMIT_RUN, exec_pb2.SubmitRequest(commands=commands, run=True))):
+        body = b"".join(frames) + flags
+        assert body == expected.SerializeToString()
+        assert exec_pb2.SubmitRequest.FromString(body) == expected
+    for n in (0, 1, 127, 128, 16383, 16384, (1 << 63) + 5, (1 << 64) - 1):
+        assert types_pb2.ArrayRef.FromString(b"\x08" + _runtime.varint(n)).handle == n
+
+    fake = types.SimpleNamespace(_handle=(1 << 40) + 7,
+                                 _ref=lambda: types_pb2.ArrayRef(handle=3, shape=[32]))
+    order = cuda_order._ValueOrder(fake, 0xDEAD0000, 0)
+    for op in (exec_pb2.CudaValueCommand.WAIT, exec_pb2.CudaValueCommand.WRITE):
+        for index in (0, 1, 31):
+            for value in (0, 1, 127, 128, int(rng.integers(1, 1 << 62)), (1 << 64) - 1):
+                got = exec_pb2.SubmitRequest.FromString(order.command(op, index, value)).commands
+                assert len(got) == 1
+                assert got[0] == exec_pb2.Command(
+                    cuda_value=exec_pb2.CudaValueCommand(
+                        op=op, order=types_pb2.ArrayRef(handle=fake._handle), index=index,
+                        value=value),
+                    origin=types_pb2.SourceLocation())
+                assert got[0].HasField("origin")   # set (empty): not the caller's line

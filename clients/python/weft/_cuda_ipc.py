@@ -565,6 +565,8 @@ def _stream_op(fn, what, ordinal, stream, address, value, flags):
 def write_value(ordinal: int, stream: int, address: int, value: int) -> None:
     """Queues on this process's stream `stream`: write the 64-bit `value` at device `address`
     after the work queued before it."""
+    if stream and _lib.cuStreamWriteValue64_v2(stream, address, value, 0) == 0:
+        return                   # a stream of its own names its context: no lock, no push
     with _lock:
         _stream_op(_lib.cuStreamWriteValue64_v2, "cuStreamWriteValue64", ordinal, stream,
                    address, value, 0)
@@ -573,6 +575,8 @@ def write_value(ordinal: int, stream: int, address: int, value: int) -> None:
 def wait_value(ordinal: int, stream: int, address: int, value: int) -> None:
     """Queues on this process's stream `stream`: wait (on the GPU) until the 64-bit word at
     device `address` holds at least `value`."""
+    if stream and _lib.cuStreamWaitValue64_v2(stream, address, value, CU_STREAM_WAIT_VALUE_GEQ) == 0:
+        return                   # a stream of its own names its context: no lock, no push
     with _lock:
         _stream_op(_lib.cuStreamWaitValue64_v2, "cuStreamWaitValue64", ordinal, stream,
                    address, value, CU_STREAM_WAIT_VALUE_GEQ)

@@ -14,7 +14,6 @@ WEFT_FAST_LANE=0 turns it off.
 from __future__ import annotations
 
 import os
-import select
 import socket
 import struct
 import time
@@ -48,6 +47,7 @@ SPIN_GPU_S = float(os.environ.get("WEFT_FAST_LANE_GPU_SPIN_US",
                                   "20000" if (os.cpu_count() or 1) >= 4 else "0")) * 1e-6
 
 _CODE_NAMES = {code.value[0]: code.name for code in grpc.StatusCode}
+_METHOD_HEADERS = {method: struct.pack("<I", method) for method in range(1, 9)}
 
 
 def enabled() -> bool:
@@ -91,11 +91,16 @@ class FastLane:
     def fits(self, request) -> bool:
         return not self.broken and request.ByteSize() + 4 <= MAX_REQUEST_BYTES
 
+    def fits_bytes(self, nbytes: int) -> bool:
+        """fits() for a request already serialized into `nbytes` bytes."""
+        return not self.broken and nbytes + 4 <= MAX_REQUEST_BYTES
+
     def call(self, method: int, request, response_type, spin_s: float | None = None):
-        """Sends `request` and returns the parsed response; a daemon error becomes WeftError
-        with the same message and status name as through gRPC. A Submit or Synchronize polls
-        for its reply for `spin_s` (default SPIN_S) before blocking."""
-        self._send(method, request.SerializeToString())
+        """Sends `request` (a message, or its serialized bytes) and returns the parsed
+        response; a daemon error becomes WeftError with the same message and status name as
+        through gRPC. A Submit or Synchronize polls for its reply for `spin_s` (default
+        SPIN_S) before blocking."""
+        self._send(method, request if type(request) is bytes else request.SerializeToString())
         if method not in (SUBMIT, SYNCHRONIZE):
             spin_s = 0.0
         return response_type.FromString(self._receive(SPIN_S if spin_s is None else spin_s))
@@ -120,9 +125,10 @@ class FastLane:
         return results
 
     def send(self, method: int, request, response_type) -> "PendingReply":
-        """Sends `request` without waiting: the daemon works on it while this process goes on.
+        """Sends `request` (a message, or its serialized bytes) without waiting: the daemon
+        works on it while this process goes on.
         The reply must be collected (PendingReply.result) before the next call on this lane."""
-        self._send(method, request.SerializeToString())
+        self._send(method, request if type(request) is bytes else request.SerializeToString())
         return PendingReply(self, response_type)
 
     def _call(self, method: int, body: bytes) -> bytes:
@@ -131,7 +137,8 @@ class FastLane:
 
     def _send(self, method: int, body: bytes) -> None:
         try:
-            frame = struct.pack("<I", method) + body
+            header = _METHOD_HEADERS.get(method)
+            frame = (header if header is not None else struct.pack("<I", method)) + body
             if self._sock.send(frame) != len(frame):
                 raise FastLaneError("fast lane: short send", "UNAVAILABLE")
         except OSError as err:
@@ -149,13 +156,17 @@ class FastLane:
                 if time.perf_counter() >= deadline:
                     return -1
 
-    def _receive(self, spin_s: float = 0.0) -> bytes:
+    def _receive(self, spin_s: float = 0.0, first_frame: int = -1) -> bytes:
+        """The next reply's payload (a daemon error raised as WeftError). `first_frame`: the
+        length of its first frame when the caller already received that into the buffer."""
         try:
             parts = []
             size = 0
             closing = False
             while True:
-                n = self._poll(spin_s) if spin_s > 0 and not parts else -1
+                n = first_frame if not parts else -1
+                if n < 0 and spin_s > 0 and not parts:
+                    n = self._poll(spin_s)
                 if n < 0:
                     n = self._sock.recv_into(self._buf, _RECV_BYTES)
                 if n < 8:
@@ -190,17 +201,39 @@ class PendingReply:
         self._lane = lane
         self._type = response_type
         self._response = None
+        self._payload = None        # the reply's bytes, once received
+        self._error = None          # the daemon's error, once received
 
     def done(self) -> bool:
-        if self._response is not None or self._lane.broken:
+        """Whether the reply is in: received now if it is (one non-blocking recv, no select),
+        so that replies are collected in bulk with one system call each."""
+        if self._payload is not None or self._error is not None or self._lane.broken:
             return True
+        lane = self._lane
         try:
-            readable, _, _ = select.select([self._lane._sock], [], [], 0)
-        except (OSError, ValueError):
-            return True
-        return bool(readable)
+            n = lane._sock.recv_into(lane._buf, _RECV_BYTES, socket.MSG_DONTWAIT)
+        except (BlockingIOError, InterruptedError):
+            return False
+        except OSError:
+            return True             # result() reports the broken connection
+        try:
+            self._payload = lane._receive(first_frame=n)
+        except WeftError as err:
+            self._error = err
+        return True
+
+    def check(self) -> None:
+        """Waits for the reply and raises the daemon's error, if any, without parsing it."""
+        if self._error is not None:
+            raise self._error
+        if self._payload is None:
+            self._payload = self._lane._receive()
 
     def result(self):
+        if self._error is not None:
+            raise self._error
+        if self._payload is None:
+            self._payload = self._lane._receive()
         if self._response is None:
-            self._response = self._type.FromString(self._lane._receive())
+            self._response = self._type.FromString(self._payload)
         return self._response

@@ -36,6 +36,34 @@ LANE_IN_FLIGHT = 16     # asynchronous fast-lane Submits sent before the oldest 
 PUMP_FIRST = 8         # commands queued before the first early Submit after a sync point
 PUMP_AFTER_S = 0.002   # or: two commands, the oldest queued this long ago (gRPC)
 PUMP_AFTER_LANE_S = 40e-6   # the same through the fast lane (an early Submit costs a send)
+
+
+def framed_command(cmd) -> bytes:
+    """exec_pb2.Command `cmd` serialized as one element of SubmitRequest.commands (field 1,
+    length-delimited): a Submit's body is the concatenation of its commands' frames (and the
+    request's flags), so a batch is serialized once per command, when it is queued, and never
+    copied into a SubmitRequest message (upb deep-copies every command it is given)."""
+    data = cmd.SerializeToString()
+    n = len(data)
+    if n < 0x80:
+        return b"\x0a" + bytes((n,)) + data
+    return b"\x0a" + varint(n) + data
+
+
+def varint(n: int) -> bytes:
+    """The protobuf base-128 varint of unsigned `n`."""
+    if n < 0x80:
+        return bytes((n,))
+    out = bytearray()
+    while n >= 0x80:
+        out.append((n & 0x7F) | 0x80)
+        n >>= 7
+    out.append(n)
+    return bytes(out)
+
+
+_SUBMIT_SYNCHRONIZE = b"\x10\x01"     # SubmitRequest.synchronize = true (field 2, varint)
+_SUBMIT_RUN = b"\x18\x01"             # SubmitRequest.run = true (field 3, varint)
 # A GPU launch of at least this many threads goes out at once when no Submit is in flight
 # (Runtime.submit's `start`): its kernel runs longer than a frame costs, so holding it to fuse
 # with a synchronize only delays the device (saxpy 1e8: ~60 us per round of five launches).
@@ -481,9 +509,12 @@ class Runtime:
     def _exec(self, method: str, request, gpu_wait: bool = False):
         """ExecService.Submit / Synchronize: through the fast lane when it is open and the
         request fits a frame, else through gRPC. Same responses and errors either way.
-        `gpu_wait`: the reply waits for GPU work (the lane polls for it longer)."""
+        `request`: the message, or for Submit its serialized body (framed_command frames and
+        flags). `gpu_wait`: the reply waits for GPU work (the lane polls for it longer)."""
         lane = self.fast_lane
-        if lane is not None and lane.fits(request):
+        body = request if isinstance(request, bytes) else None
+        if lane is not None and (lane.fits_bytes(len(body)) if body is not None
+                                 else lane.fits(request)):
             spin = _fast_lane.SPIN_GPU_S if gpu_wait and _fast_lane.SPIN_GPU_S > 0 else None
             try:
                 if method == "Submit":
@@ -492,6 +523,8 @@ class Runtime:
             except WeftError as err:
                 self._raise_if_host_gone(err)
                 raise
+        if body is not None:
+            request = exec_pb2.SubmitRequest.FromString(body)
         return self.call(getattr(self.exec_stub, method), request)
 
     def _raise_if_host_gone(self, err: WeftError) -> None:
@@ -594,6 +627,18 @@ class Runtime:
             capture = self.captures.get(threading.get_ident())
             if capture is not None and capture.take(cmd):
                 return
+        self._queue_frame(framed_command(cmd), start)
+
+    def submit_framed(self, frame: bytes) -> None:
+        """submit() of a command already framed (as framed_command frames it) with its origin
+        set: the ordering commands of weft.interop.cuda_order, built as bytes. Under a graph
+        capture of this thread it is parsed and goes through submit()."""
+        if self.captures and threading.get_ident() in self.captures:
+            self.submit(exec_pb2.SubmitRequest.FromString(frame).commands[0])
+            return
+        self._queue_frame(frame, False)
+
+    def _queue_frame(self, frame: bytes, start: bool) -> None:
         with self._lock:
             self._unsynchronized = True
             self.work_queued += 1
@@ -601,23 +646,24 @@ class Runtime:
                 self._batch_since = time.perf_counter()
             if self._finalizer_commands:
                 self._queue_finalizer_commands()
-            self._batch.append(cmd)
-            self._batch_bytes += cmd.ByteSize()
+            self._batch.append(frame)
+            self._batch_bytes += len(frame)
             full = len(self._batch) >= BATCH_MAX_COMMANDS or self._batch_bytes >= BATCH_MAX_BYTES
             if not full:
                 self._pump(start)
         if full:
             self.flush()
 
-    def submit_recorded(self, commands, nbytes: int) -> None:
+    def submit_recorded(self, commands, frames, nbytes: int) -> None:
         """Queues recorded commands (a captured graph: origins set, checked when captured) as
-        one block of the batch; a block larger than a batch goes out in batch-sized Submits."""
+        one block of the batch; a block larger than a batch goes out in batch-sized Submits.
+        `frames`: the commands as framed_command made them, `nbytes` their total length."""
         if self.captures and threading.get_ident() in self.captures:
             for cmd in commands:        # a graph launched while capturing: part of the new one
                 self.submit(cmd)
             return
-        for start in range(0, len(commands), BATCH_MAX_COMMANDS):
-            chunk = commands[start:start + BATCH_MAX_COMMANDS]
+        for start in range(0, len(frames), BATCH_MAX_COMMANDS):
+            chunk = frames[start:start + BATCH_MAX_COMMANDS]
             if len(self._batch) + len(chunk) > BATCH_MAX_COMMANDS or \
                     self._batch_bytes + nbytes > BATCH_MAX_BYTES:
                 self.flush()
@@ -627,8 +673,8 @@ class Runtime:
                 if not self._batch:
                     self._batch_since = time.perf_counter()
                 self._batch.extend(chunk)
-                self._batch_bytes += nbytes if len(chunk) == len(commands) else \
-                    sum(cmd.ByteSize() for cmd in chunk)
+                self._batch_bytes += nbytes if len(chunk) == len(frames) else \
+                    sum(len(frame) for frame in chunk)
                 self._pump()
 
     def retain_handles(self, handles) -> None:
@@ -710,17 +756,17 @@ class Runtime:
     def _send_batch(self) -> None:
         """The batch as an asynchronous Submit (caller holds the lock; nothing in flight, or
         only fast-lane Submits when this one goes over the lane too: the lane keeps order)."""
-        batch, self._batch, self._batch_bytes = self._batch, [], 0
-        request = exec_pb2.SubmitRequest(commands=batch)
+        body, self._batch, self._batch_bytes = b"".join(self._batch), [], 0
         lane = self.fast_lane
-        if lane is not None and not lane.broken and lane.fits(request):
+        if lane is not None and not lane.broken and lane.fits_bytes(len(body)):
             try:   # sent without waiting; the reply is collected like the grpc future's
-                self._inflight.append(lane.send(_fast_lane.SUBMIT, request, exec_pb2.SubmitResponse))
+                self._inflight.append(lane.send(_fast_lane.SUBMIT, body, exec_pb2.SubmitResponse))
             except WeftError as err:
                 self._deferred_error = err
             return
         self._collect_inflight()           # gRPC and the lane are not ordered with each other
-        self._inflight.append(self.exec_stub.Submit.future(request, metadata=self.metadata))
+        self._inflight.append(self.exec_stub.Submit.future(
+            exec_pb2.SubmitRequest.FromString(body), metadata=self.metadata))
 
     def _collect_inflight(self) -> None:
         """Waits for the asynchronous Submit in flight, if any (caller holds the lock); its
@@ -735,7 +781,10 @@ class Runtime:
 
     def _collect_one(self, call) -> None:
         try:
-            call.result()
+            if type(call) is _fast_lane.PendingReply:
+                call.check()           # only its error matters: not parsed
+            else:
+                call.result()
         except grpc.RpcError as err:
             if self._deferred_error is None:
                 self._deferred_error = error_from_rpc(err)
@@ -753,7 +802,7 @@ class Runtime:
                 self._queue_finalizer_commands()
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             if batch:
-                self._exec("Submit", exec_pb2.SubmitRequest(commands=batch))
+                self._exec("Submit", b"".join(batch))
             self._drain_frees()
 
     def synchronize(self) -> None:
@@ -770,9 +819,8 @@ class Runtime:
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             gpu, self.gpu_work = self.gpu_work, False
             if batch and _FUSED_SYNC:
-                response = self._exec("Submit",
-                                      exec_pb2.SubmitRequest(commands=batch, synchronize=True),
-                                      gpu)
+                batch.append(_SUBMIT_SYNCHRONIZE)
+                response = self._exec("Submit", b"".join(batch), gpu)
                 if not response.HasField("sync"):
                     # A daemon from before the fused path ignores `synchronize`.
                     response = self._exec("Synchronize", exec_pb2.SynchronizeRequest(), gpu)
@@ -780,7 +828,7 @@ class Runtime:
                     response = response.sync
             else:
                 if batch:   # message modules generated before SubmitRequest.synchronize
-                    self.call(self.exec_stub.Submit, exec_pb2.SubmitRequest(commands=batch))
+                    self.call(self.exec_stub.Submit, exec_pb2.SubmitRequest.FromString(b"".join(batch)))
                 response = self._exec("Synchronize", exec_pb2.SynchronizeRequest(), gpu)
             self._drain_frees()
             self._unsynchronized = False
@@ -796,7 +844,8 @@ class Runtime:
             self._collect_inflight()
             batch, self._batch, self._batch_bytes = self._batch, [], 0
             self.pump_held = 0
-            response = self._exec("Submit", exec_pb2.SubmitRequest(commands=batch, run=True))
+            batch.append(_SUBMIT_RUN)
+            response = self._exec("Submit", b"".join(batch))
             deferred, self._deferred_error = self._deferred_error, None
             if not response.HasField("sync"):
                 self._drain_frees()
@@ -844,9 +893,9 @@ class Runtime:
     def _queue_finalizer_commands(self) -> None:
         # Caller holds the lock; straight into the batch, never into a graph being captured.
         while self._finalizer_commands:
-            cmd = self._finalizer_commands.popleft()
-            self._batch.append(cmd)
-            self._batch_bytes += cmd.ByteSize()
+            frame = framed_command(self._finalizer_commands.popleft())
+            self._batch.append(frame)
+            self._batch_bytes += len(frame)
 
     def drain_frees(self) -> None:
         """Frees what finalizers released, if no command that may use them is unsent."""
@@ -938,12 +987,25 @@ def _usable(rt) -> bool:
     return True
 
 
+# This process's id, kept current across fork: os.getpid() is a system call (glibc no longer
+# caches it), and get_runtime runs in every launch.
+_pid = os.getpid()
+
+
+def _forked() -> None:
+    global _pid
+    _pid = os.getpid()
+
+
+os.register_at_fork(after_in_child=_forked)
+
+
 def get_runtime() -> Runtime:
     """The process's Runtime, connecting (and opening a session) on first use, and again after
     the session ended."""
     global _runtime
     rt = _runtime
-    if rt is not None and not rt.closed and not rt.attach_lost and rt.pid == os.getpid():
+    if rt is not None and not rt.closed and not rt.attach_lost and rt.pid == _pid:
         return rt   # the common case, as cheap as a launch needs it
     if _usable(rt):
         return rt

@@ -120,7 +120,8 @@ class Graph:
 
         def close_block():
             if replay:
-                self._segments.append((list(replay), sum(cmd.ByteSize() for cmd in replay)))
+                frames = [_runtime.framed_command(cmd) for cmd in replay]
+                self._segments.append((list(replay), frames, sum(len(f) for f in frames)))
                 replay.clear()
 
         for cmd in self.commands:

@@ -47,24 +47,29 @@ def device_name(device) -> str:
 
 def caller_origin(depth: int = 1):
     """SourceLocation of the first frame outside the weft package (the user's launch line),
-    starting `depth` frames above the caller. One cached proto per (code, line): no inspect,
-    no stack walk beyond the weft frames."""
+    starting `depth` frames above the caller. One cached proto per (code object, instruction
+    offset): no inspect, no stack walk beyond the weft frames. Keys are chosen to cost nothing
+    to hash: a file name (str: its hash is cached) and the code object's id, the entry holding
+    the code object so that the id stays its own; a code object's own hash walks its bytecode
+    and constants (tens of microseconds for a large function on Python 3.12) and `f_lineno`
+    scans the line table, so neither is computed on a hit."""
     frame = sys._getframe(depth + 1)
     while frame is not None:
         code = frame.f_code
-        inside = _INSIDE_PACKAGE.get(code)
+        filename = code.co_filename
+        inside = _INSIDE_PACKAGE.get(filename)
         if inside is None:
-            inside = _INSIDE_PACKAGE[code] = os.path.abspath(code.co_filename).startswith(
+            inside = _INSIDE_PACKAGE[filename] = os.path.abspath(filename).startswith(
                 _PACKAGE_DIR + os.sep)
         if not inside:
-            key = (code, frame.f_lineno)
-            location = _ORIGINS.get(key)
-            if location is None:
+            key = (id(code), frame.f_lasti)
+            entry = _ORIGINS.get(key)
+            if entry is None or entry[0] is not code:
                 if len(_ORIGINS) > 100_000:
                     _ORIGINS.clear()
-                location = _ORIGINS[key] = _pb().types_pb2.SourceLocation(
-                    file=code.co_filename, line=frame.f_lineno)
-            return location
+                entry = _ORIGINS[key] = (code, _pb().types_pb2.SourceLocation(
+                    file=filename, line=frame.f_lineno or 0))
+            return entry[1]
         frame = frame.f_back
     return _pb().types_pb2.SourceLocation()
 
@@ -93,8 +98,8 @@ def _pb() -> _Protos:
     return _PROTOS
 
 
-_ORIGINS: dict = {}            # (code object, line) -> SourceLocation proto (copied by users)
-_INSIDE_PACKAGE: dict = {}     # code object -> whether it belongs to the weft package
+_ORIGINS: dict = {}            # (id(code), f_lasti) -> (code, SourceLocation proto copied by users)
+_INSIDE_PACKAGE: dict = {}     # file name -> whether it belongs to the weft package
 _DTYPE_TEXT: dict = {}         # dtype object -> type string (array argument checks)
 
 
@@ -814,7 +819,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         if d == 0:
             return None
     shared = _interop_memory.any_shared() and _interop_memory.touches_shared(resolved)
-    gpu_order = None                   # GPU ordinals ordered with framework streams by events
+    gpu_order = None                   # (GPU ordinals, their framework streams) ordered on the GPU
     if shared and device.startswith("cuda"):
         gpu_order = _order_framework_gpu(rt, resolved)  # framework work before: seen first
     tape = tape_mod.active_tape()
@@ -859,8 +864,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
             pending.apply()
     elif gpu_order:
         # memory a framework holds: its stream waits for the launch on the GPU
-        from weft.interop import cuda_order  # noqa: PLC0415
-        cuda_order.after(rt, gpu_order)
+        _cuda_order().after(rt, gpu_order[0], sources=gpu_order[1])
     elif shared:
         rt.synchronize()       # memory a framework holds: done before the framework reads it
     if _config.verify_fp:
@@ -889,19 +893,32 @@ def launch_tiled(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=
 def _order_framework_gpu(rt, values):
     """Makes a launch in the daemon see this process's GPU work (Torch, CuPy, ... streams) on
     the devices of the shared weft GPU arrays among `values`. With interprocess events
-    (weft.interop.cuda_order): the session's stream waits for the framework stream, and the
-    GPU ordinals are returned (the caller orders the framework stream after the launch).
-    Without: a host wait for this process's work on those devices; returns None."""
+    (weft.interop.cuda_order): the session's stream waits for the framework stream, and
+    (the GPU ordinals, {ordinal: framework stream}) is returned: the caller orders those
+    streams after the launch. Without: a host wait for this process's work on those devices;
+    returns None."""
     from weft import _cuda_ipc  # noqa: PLC0415
-    from weft.interop import cuda_order  # noqa: PLC0415
 
+    cuda_order = _cuda_order()
     ordinals = cuda_order.gpu_ordinals(values)
     if cuda_order.enabled(rt, ordinals):
-        cuda_order.before(rt, ordinals)
-        return ordinals
+        return ordinals, cuda_order.before(rt, ordinals)
     for ordinal in ordinals:
         _cuda_ipc.synchronize(ordinal)
     return None
+
+
+_CUDA_ORDER = None
+
+
+def _cuda_order():
+    """weft.interop.cuda_order, imported once (an import statement costs ~1 us per launch)."""
+    global _CUDA_ORDER
+    if _CUDA_ORDER is None:
+        from weft.interop import cuda_order  # noqa: PLC0415
+
+        _CUDA_ORDER = cuda_order
+    return _CUDA_ORDER
 
 
 def verify_finite(kernel: Kernel, args, origin) -> None:

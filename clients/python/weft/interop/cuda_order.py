@@ -28,6 +28,7 @@ import sys
 import threading
 
 from .. import _cuda_ipc
+from .._runtime import varint as _varint
 
 _state = threading.local()       # .foreign: {ordinal: stream handle} of a ScopedStream
 _refused: dict = {}              # id(runtime) -> why weftd cannot use this process's events
@@ -82,15 +83,13 @@ def framework_stream(ordinal: int) -> int:
 
 
 _EXEC_PB = None
-_EMPTY_ORIGIN = None
 
 
 def _pb():
-    global _EXEC_PB, _EMPTY_ORIGIN
+    global _EXEC_PB
     if _EXEC_PB is None:
-        from ..v1 import exec_pb2, types_pb2  # noqa: PLC0415
+        from ..v1 import exec_pb2  # noqa: PLC0415
 
-        _EMPTY_ORIGIN = types_pb2.SourceLocation()
         _EXEC_PB = exec_pb2
     return _EXEC_PB
 
@@ -109,7 +108,7 @@ class _ValueOrder:
         self.done_value = 0          # element 0: the last value the session's stream will write
         self.slots: dict = {}        # framework stream handle -> element index (LRU order)
         self.values = [0] * (SLOTS + 1)
-        self._templates: dict = {}   # (op, index) -> the Command less its value (copied per use)
+        self._templates: dict = {}   # (op, index) -> the CudaValueCommand less its value, serialized
 
     def slot(self, stream: int) -> int:
         index = self.slots.pop(stream, None)
@@ -125,18 +124,18 @@ class _ValueOrder:
         self.slots[stream] = index
         return index
 
-    def command(self, op, index: int, value: int):
-        pb = _pb()
-        template = self._templates.get((op, index))
-        if template is None:
-            # origin set (empty): the client's file:line is for user commands, not these
-            template = self._templates[(op, index)] = pb.Command(
-                cuda_value=pb.CudaValueCommand(op=op, order=self.ref, index=index),
-                origin=_EMPTY_ORIGIN)
-        cmd = pb.Command()          # a copy costs a quarter of building the nested messages
-        cmd.CopyFrom(template)
-        cmd.cuda_value.value = value
-        return cmd
+    def command(self, op, index: int, value: int) -> bytes:
+        """The Command {cuda_value: {op, order, index, value}, origin: {}} as
+        Runtime.submit_framed takes it (one SubmitRequest.commands element), built from bytes
+        kept per (op, index): a Python message per use cost more than the launch it orders.
+        origin is set but empty: the client's file:line is for user commands, not these."""
+        inner = self._templates.get((op, index))
+        if inner is None:
+            inner = self._templates[(op, index)] = _pb().CudaValueCommand(
+                op=op, order=self.ref, index=index).SerializeToString()
+        inner += b"\x20" + _varint(value)                     # CudaValueCommand.value = 4
+        cmd = b"\x3a" + _varint(len(inner)) + inner + b"\x7a\x00"   # cuda_value = 7, origin = 15
+        return b"\x0a" + _varint(len(cmd)) + cmd              # SubmitRequest.commands = 1
 
 
 def _value_order(rt, ordinal):
@@ -161,8 +160,8 @@ def _value_order(rt, ordinal):
         state = _ValueOrder(order, int(address), ordinal)
         # Probe: the daemon writes element 0, waits for it, and this process reads it back.
         rt.synchronize()
-        rt.submit(state.command(pb.CudaValueCommand.WRITE, 0, 1))
-        rt.submit(state.command(pb.CudaValueCommand.WAIT, 0, 1))
+        rt.submit_framed(state.command(pb.CudaValueCommand.WRITE, 0, 1))
+        rt.submit_framed(state.command(pb.CudaValueCommand.WAIT, 0, 1))
         rt.synchronize()
         word = ctypes.c_uint64()
         _cuda_ipc.copy_to_host(ordinal, ctypes.addressof(word), state.address, 8)
@@ -227,31 +226,36 @@ def _probe(rt, ordinal) -> bool:
     return True
 
 
-def before(rt, ordinals, stream=None) -> None:
+def before(rt, ordinals, stream=None) -> dict:
     """Queues, for each device: the session stream waits for the framework stream's work so
-    far (`stream`: that stream of this process instead; an event recorded on it now)."""
+    far (`stream`: that stream of this process instead; an event recorded on it now).
+    Returns {ordinal: the stream ordered}, which after() may take as `sources`."""
     pb = _pb()
     rt.pump_held += 1                 # WAIT, the launch and RECORD go out in one Submit (run)
+    sources = {}
     for ordinal in ordinals:
+        source = sources[ordinal] = framework_stream(ordinal) if stream is None else stream
         values = _values.get((rt.session_id, ordinal))
         if values is not None:
-            source = framework_stream(ordinal) if stream is None else stream
             with rt._lock:    # counter order is queue order (threads of one runtime)
                 index = values.slot(source)
                 values.values[index] += 1
                 _cuda_ipc.write_value(ordinal, source, values.address + 8 * index,
                                       values.values[index])
-                rt.submit(values.command(pb.CudaValueCommand.WAIT, index, values.values[index]))
+                rt.submit_framed(values.command(pb.CudaValueCommand.WAIT, index, values.values[index]))
             continue
         event = _cuda_ipc.next_event(ordinal)
-        _cuda_ipc.record_event(event, framework_stream(ordinal) if stream is None else stream)
+        _cuda_ipc.record_event(event, source)
         rt.submit(_command(pb.CudaEventCommand.WAIT, ordinal, event))
+    return sources
 
 
-def after(rt, ordinals, streams=None) -> None:
+def after(rt, ordinals, streams=None, sources=None) -> None:
     """Weft's work queued so far on each device is made to come before later work on the
-    framework stream (`streams`: those streams instead, handles of this process): one Submit
-    that returns once weftd queued it, then GPU-side waits; no host wait for the GPU."""
+    framework stream (`streams`: those streams instead, handles of this process; `sources`:
+    {ordinal: stream} as before() returned it, the framework streams of a launch read once):
+    one Submit that returns once weftd queued it, then GPU-side waits; no host wait for the
+    GPU."""
     pb = _pb()
     events = []
     waits = []
@@ -260,7 +264,7 @@ def after(rt, ordinals, streams=None) -> None:
         if values is not None:
             with rt._lock:    # counter order is queue order (threads of one runtime)
                 values.done_value += 1
-                rt.submit(values.command(pb.CudaValueCommand.WRITE, 0, values.done_value))
+                rt.submit_framed(values.command(pb.CudaValueCommand.WRITE, 0, values.done_value))
                 waits.append((ordinal, values, values.done_value))
             continue
         event = _cuda_ipc.next_event(ordinal)
@@ -271,13 +275,21 @@ def after(rt, ordinals, streams=None) -> None:
     else:
         rt.send_now()                 # the WRITE must reach weftd without another weft call
     for ordinal, values, target in waits:
-        for stream in ([framework_stream(ordinal)] if streams is None else streams):
+        for stream in _targets(ordinal, streams, sources):
             _cuda_ipc.wait_value(ordinal, stream, values.address, target)
             _ordered[(id(rt), ordinal, stream)] = rt.work_queued
     for ordinal, event in events:
-        for stream in ([framework_stream(ordinal)] if streams is None else streams):
+        for stream in _targets(ordinal, streams, sources):
             _cuda_ipc.wait_event(stream, event)
             _ordered[(id(rt), ordinal, stream)] = rt.work_queued
+
+
+def _targets(ordinal, streams, sources):
+    if streams is not None:
+        return streams
+    if sources is not None and ordinal in sources:
+        return (sources[ordinal],)
+    return (framework_stream(ordinal),)
 
 
 def ready(a, streams=None) -> bool:

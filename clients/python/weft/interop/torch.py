@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import external, memory
+from .._runtime import get_runtime as _get_runtime
 
 _FROM_TORCH: dict = {}
 
@@ -213,10 +214,8 @@ def _last_import(t, dtype, requires_grad):
     key, known = last
     if key != (t.data_ptr(), t.shape, t.stride(), t.dtype, dtype):
         return None
-    from .. import _runtime  # noqa: PLC0415
-
     rt = known._alloc.runtime
-    if rt.closed or rt is not _runtime.get_runtime():
+    if rt.closed or rt is not _get_runtime():
         return None
     return known
 
