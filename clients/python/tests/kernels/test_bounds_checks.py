@@ -2,6 +2,7 @@
 array, the index and the source line; nothing is written out of bounds (a neighbouring
 allocation is unchanged); the daemon stays alive and this and other sessions keep working."""
 import inspect
+import sys
 import textwrap
 
 import numpy as np
@@ -102,3 +103,32 @@ def test_other_session_unaffected(wp, run_script):
     assert "OTHER-SESSION-OK" in child.stdout
     with pytest.raises(wp.WeftError):
         wp.synchronize()
+
+
+def test_each_call_site_reports_its_own_line(wp):
+    """The launch origin is cached per call site (code object and instruction, not per
+    function): two launches of one loop body on neighbouring lines, and launches from code
+    objects made again and again in other files and at other lines (the cache holds each code
+    object it keys by id, so an id never names another) each report the line they were made
+    on."""
+    data = wp.zeros(8, dtype=float)
+    for shift in (8, 9):
+        wp.launch(oob_write, dim=8, inputs=[data, shift]); first = sys._getframe().f_lineno  # noqa: E702
+        with pytest.raises(wp.WeftError) as info:
+            wp.synchronize()
+        assert f"test_bounds_checks.py:{first}" in str(info.value), str(info.value)
+        wp.launch(oob_write, dim=8, inputs=[data, shift]); second = sys._getframe().f_lineno  # noqa: E702
+        with pytest.raises(wp.WeftError) as info:
+            wp.synchronize()
+        assert f"test_bounds_checks.py:{second}" in str(info.value), str(info.value)
+    for k in range(40):          # fresh code objects, each freed before the next is made
+        blank = "\n" * (1 + k % 7)
+        namespace = {"wp": wp, "oob_write": oob_write, "data": data}
+        exec(compile(f"{blank}def go():\n    wp.launch(oob_write, dim=8, inputs=[data, 9])\n",
+                     f"generated_{k % 3}.py", "exec"), namespace)
+        namespace["go"]()
+        del namespace
+        with pytest.raises(wp.WeftError) as info:
+            wp.synchronize()
+        line = 1 + k % 7 + 2
+        assert f"generated_{k % 3}.py:{line}" in str(info.value), (k, str(info.value))
