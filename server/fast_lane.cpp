@@ -42,8 +42,9 @@ uint32_t GetU32(const char* p) {
 }
 
 // Sends `payload` as one reply (several frames when it is larger than a chunk). False when
-// the peer is gone.
-bool SendReply(int fd, StatusCode code, const std::string& payload, bool closing = false) {
+// the peer is gone. `extra_flags`: FastLane::kQuietReplyFlag on the error of a quiet Submit.
+bool SendReply(int fd, StatusCode code, const std::string& payload, bool closing = false,
+               uint32_t extra_flags = 0) {
   size_t off = 0;
   do {
     const size_t n = std::min(FastLane::kReplyChunkBytes, payload.size() - off);
@@ -51,7 +52,7 @@ bool SendReply(int fd, StatusCode code, const std::string& payload, bool closing
     std::string frame;
     frame.reserve(8 + n);
     PutU32(&frame, static_cast<uint32_t>(code));
-    PutU32(&frame, (more ? 1u : 0u) | (closing ? 2u : 0u));
+    PutU32(&frame, (more ? 1u : 0u) | (closing ? 2u : 0u) | extra_flags);
     frame.append(payload, off, n);
     ssize_t w;
     do {
@@ -180,7 +181,7 @@ class LaneTrace {
 // never holds a closed session alive. `times` (WEFT_LANE_TRACE) gets the phases' end times.
 template <typename Req, typename Resp, typename Fn>
 FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
-                       Fn&& serve, FrameTimes* times = nullptr) {
+                       Fn&& serve, FrameTimes* times = nullptr, bool quiet = false) {
   // The request and response live on an arena: a Submit of many launches parses into a few
   // blocks (the first on this stack) instead of one heap allocation per message and string.
   alignas(16) char first_block[16384];
@@ -200,7 +201,11 @@ FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len,
   if (times) times->served = frame_trace::NowNs();
   FrameResult r;
   if (!st.ok()) {
-    r = SendError(fd, st, /*closing=*/false) ? FrameResult::kContinue : FrameResult::kEnd;
+    r = SendReply(fd, st.code(), st.message(), /*closing=*/false, quiet ? FastLane::kQuietReplyFlag : 0)
+            ? FrameResult::kContinue
+            : FrameResult::kEnd;
+  } else if (quiet) {
+    r = FrameResult::kContinue;   // answered only when it fails
   } else {
     std::string out;
     resp.SerializeToString(&out);
@@ -399,7 +404,7 @@ void FastLane::Serve(Conn* c) {
       buf.resize(kMaxRequestBytes + 1);
       timeval none{0, 0};
       setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &none, sizeof(none));
-      if (!SendReply(fd, StatusCode::kOk, "")) return;
+      if (!SendReply(fd, StatusCode::kOk, kHelloCapabilities)) return;
       continue;
     }
 
@@ -412,8 +417,11 @@ void FastLane::Serve(Conn* c) {
     FrameResult r = FrameResult::kUnknownMethod;
     switch (method) {
       case kSubmit:
+      case kSubmitQuiet:
         r = ServeFrame<v1::SubmitRequest, v1::SubmitResponse>(fd, "Submit", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) {
+              if (method == kSubmitQuiet && (req.synchronize() || req.run()))
+                return InvalidArgument("fast lane: a quiet Submit cannot synchronize or run (nothing would answer it)");
               // A GPU-only batch is queued on streams in microseconds: it runs here when the
               // session's executor is idle, and the client's next frame (it queues on while
               // this one is answered) is polled for. Any other batch (CPU kernels need the
@@ -424,7 +432,7 @@ void FastLane::Serve(Conn* c) {
                 kind = req.synchronize() ? (gpu_only ? "submit-gpu+sync" : "submit+sync")
                                          : (gpu_only ? "submit-gpu" : "submit");
               return ExecSubmit(engine, ss, req, resp, gpu_only);
-            }, trace ? &times : nullptr);
+            }, trace ? &times : nullptr, method == kSubmitQuiet);
         break;
       case kSynchronize:
         spin_next = true;

@@ -52,6 +52,12 @@ class FastLane {
   static constexpr uint32_t kArrayDescribe = 6;
   static constexpr uint32_t kArrayImportCuda = 7;
   static constexpr uint32_t kGeometryCall = 8;
+  // A Submit answered only when it fails (an asynchronous batch: the client does not wait for
+  // "queued"); its error reply carries kQuietReplyFlag. It may neither synchronize nor run.
+  static constexpr uint32_t kSubmitQuiet = 9;
+  static constexpr uint32_t kQuietReplyFlag = 4;
+  // The hello's reply payload: what this daemon's lane serves beyond the methods above.
+  static constexpr const char* kHelloCapabilities = "quiet-submit";
   static constexpr size_t kMaxRequestBytes = 160u << 10;   // fits a default socket send buffer
   static constexpr size_t kMaxHelloBytes = 1024;           // before the hello is accepted
   static constexpr size_t kReplyChunkBytes = 64u << 10;

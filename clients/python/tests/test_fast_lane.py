@@ -8,6 +8,7 @@ keeps serving (the module's last test launches through the lane again)."""
 import os
 import socket
 import struct
+import time
 
 import numpy as np
 import pytest
@@ -334,8 +335,15 @@ def test_fast_lane_keeps_order_of_early_submits(wp, monkeypatch):
         sent.append((method, "send"))
         return real_send(method, request, response_type)
 
+    real_quiet = rt.fast_lane.send_quiet
+
+    def counting_quiet(body):          # a Submit answered only if it fails: sent, not awaited
+        sent.append((SUBMIT, "send"))
+        return real_quiet(body)
+
     monkeypatch.setattr(rt.fast_lane, "call", counting_call)
     monkeypatch.setattr(rt.fast_lane, "send", counting_send)
+    monkeypatch.setattr(rt.fast_lane, "send_quiet", counting_quiet)
     monkeypatch.setattr(rt, "pipelined", True)
     data = wp.zeros(64, dtype=float, device="cpu")
     wp.synchronize()
@@ -373,8 +381,15 @@ def test_fast_lane_starts_a_slow_loop_of_launches_before_pump_first(wp, monkeypa
         calls.append((method, "send", commands(request)))
         return real_send(method, request, response_type)
 
+    real_quiet = rt.fast_lane.send_quiet
+
+    def logged_quiet(body):
+        calls.append((SUBMIT, "send", commands(body)))
+        return real_quiet(body)
+
     monkeypatch.setattr(rt.fast_lane, "call", logged_call)
     monkeypatch.setattr(rt.fast_lane, "send", logged_send)
+    monkeypatch.setattr(rt.fast_lane, "send_quiet", logged_quiet)
     monkeypatch.setattr(rt, "pipelined", True)
     rng = np.random.default_rng()
     values = rng.standard_normal(64).astype(np.float32)
@@ -872,3 +887,90 @@ def test_a_synchronize_after_gpu_launches_polls_longer(wp, monkeypatch):
     spins.clear()
     wp.synchronize()
     assert spins[-1][1] in ((), (None,))
+
+
+def test_quiet_submit_is_answered_only_when_it_fails(wp):
+    """SUBMIT_QUIET (asynchronous batches): the hello's reply offers it; a batch it queues gets
+    no reply (the next frame read answers the next request); a batch the daemon refuses, or one
+    that asks to synchronize or run (nothing would answer it), gets its error with the quiet
+    flag, in order, read on the way to the next reply; the connection stays usable."""
+    from weft import _fast_lane
+
+    rt = _runtime_with_lane(wp)
+    opened = _open_session(rt)
+    s = _connect(opened.fast_lane_path)
+    try:
+        _send(s, _fast_lane.HELLO, _hello(opened.session_id, opened.fast_lane_secret))
+        code, flags, payload = _reply(s)
+        assert code == 0 and b"quiet-submit" in payload.split(), payload
+        bad = exec_pb2.SubmitRequest()
+        bad.commands.add().origin.line = 3               # no command in it: refused whole
+        sync = exec_pb2.SubmitRequest(synchronize=True)
+        run = exec_pb2.SubmitRequest(run=True)
+        empty = exec_pb2.SubmitRequest()
+        for request in (empty, bad, sync, empty, run, bad):
+            _send(s, _fast_lane.SUBMIT_QUIET, request.SerializeToString())
+        _send(s, _fast_lane.SYNCHRONIZE, exec_pb2.SynchronizeRequest().SerializeToString())
+        replies = []
+        while True:
+            code, flags, payload = _reply(s)
+            replies.append((code, flags, payload))
+            if not flags & _fast_lane.QUIET_REPLY_FLAG:
+                break
+        quiet = replies[:-1]
+        assert len(quiet) == 4, replies                  # bad, sync, run, bad: in order
+        assert all(code != 0 and not flags & 2 for code, flags, _ in quiet), quiet
+        assert b"cannot synchronize or run" in quiet[1][2] and b"cannot synchronize or run" in quiet[2][2]
+        assert quiet[0][2] == quiet[3][2]                # the same refusal as a plain Submit's
+        code, flags, payload = replies[-1]
+        assert code == 0 and not flags & 2, replies[-1]   # the Synchronize's own answer
+        exec_pb2.SynchronizeResponse.FromString(payload)
+        # the lane still serves: a plain Submit's refusal has the same message, unflagged
+        _send(s, _fast_lane.SUBMIT, bad.SerializeToString())
+        code, flags, payload = _reply(s)
+        assert code != 0 and not flags & _fast_lane.QUIET_REPLY_FLAG and payload == quiet[0][2]
+    finally:
+        s.close()
+        _close_session(rt, opened.session_id)
+
+
+def test_quiet_submit_failure_is_raised_at_the_next_synchronize(wp, monkeypatch):
+    """Through the client: an asynchronous batch the daemon refuses (sent quietly) is raised by
+    the next wp.synchronize, with the message a plain Submit gets; nothing of it ran; the next
+    synchronize is clean and later launches run. Also with the failures drained by polling
+    (more quiet Submits than LANE_IN_FLIGHT between synchronizes)."""
+    rt = _runtime_with_lane(wp)
+    if not rt.fast_lane.quiet:
+        pytest.skip("the daemon's lane does not offer quiet Submits")
+    monkeypatch.setattr(rt, "pipelined", True)
+    data = wp.zeros(8, dtype=float, device="cpu")
+    wp.synchronize()
+    sent = []
+    real_quiet = rt.fast_lane.send_quiet
+    monkeypatch.setattr(rt.fast_lane, "send_quiet", lambda body: (sent.append(body), real_quiet(body))[1])
+    bad = exec_pb2.Command()
+    bad.origin.line = 3
+    with rt._lock:
+        rt._batch.append(_runtime.framed_command(bad))   # refused whole when it goes out
+        rt._batch_since = time.perf_counter()
+        rt._unsynchronized = True
+        rt.send_now()
+    assert sent, "the batch went out as a quiet Submit"
+    with pytest.raises(wp.WeftError) as err:
+        wp.synchronize()
+    assert err.value.code == "INVALID_ARGUMENT", err.value
+    wp.synchronize()                                   # taken: nothing more to report
+    np.testing.assert_array_equal(data.numpy(), 0.0)
+    # many quiet Submits, each refused, then good launches: the failures are drained as the
+    # client goes on (poll every LANE_IN_FLIGHT sends) and the first is raised
+    for _ in range(3 * _runtime.LANE_IN_FLIGHT):
+        with rt._lock:
+            rt._batch.append(_runtime.framed_command(bad))
+            rt._unsynchronized = True
+            rt._send_batch()
+    with pytest.raises(wp.WeftError):
+        wp.synchronize()
+    values = np.random.default_rng().uniform(0.5, 2.0, 8).astype(np.float32)
+    x = wp.array(values, dtype=float, device="cpu")
+    wp.launch(lane_saxpy, dim=8, inputs=[x, data, 2.0], device="cpu")
+    np.testing.assert_allclose(data.numpy(), 2.0 * values.astype(np.float64), rtol=1e-6)

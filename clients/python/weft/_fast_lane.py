@@ -25,6 +25,11 @@ from .errors import WeftError
 HELLO, SUBMIT, SYNCHRONIZE = 1, 2, 3
 ARRAY_CREATE, ARRAY_FREE, ARRAY_DESCRIBE, ARRAY_IMPORT_CUDA = 4, 5, 6, 7
 GEOMETRY_CALL = 8
+# A Submit the daemon answers only when it fails (its error reply has QUIET_REPLY_FLAG): the
+# asynchronous batches, where the client never waited for more than "queued". Used when the
+# hello's reply lists "quiet-submit" (WEFT_QUIET_SUBMIT=0: never).
+SUBMIT_QUIET = 9
+QUIET_REPLY_FLAG = 4
 # Frames sent before their replies are read by call_many: the replies wait in this process's
 # receive buffer meanwhile, and a window this small never fills it (the daemon would block).
 PIPELINE_WINDOW = 32
@@ -47,7 +52,7 @@ SPIN_GPU_S = float(os.environ.get("WEFT_FAST_LANE_GPU_SPIN_US",
                                   "20000" if (os.cpu_count() or 1) >= 4 else "0")) * 1e-6
 
 _CODE_NAMES = {code.value[0]: code.name for code in grpc.StatusCode}
-_METHOD_HEADERS = {method: struct.pack("<I", method) for method in range(1, 9)}
+_METHOD_HEADERS = {method: struct.pack("<I", method) for method in range(1, 10)}
 
 
 def enabled() -> bool:
@@ -63,6 +68,8 @@ class FastLane:
     def __init__(self, sock: socket.socket):
         self._sock = sock
         self.broken = False
+        self.quiet = False            # the daemon answers SUBMIT_QUIET only when it fails
+        self.quiet_error = None       # the first failure of a quiet Submit not yet taken
         self._buf = bytearray(_RECV_BYTES)      # every reply frame is received into this
         self._view = memoryview(self._buf)
 
@@ -75,7 +82,9 @@ class FastLane:
             sock.connect(path)
             sock.settimeout(None)
             lane = cls(sock)
-            lane._call(HELLO, hello_pb(session_id=session_id, secret=secret).SerializeToString())
+            offered = lane._call(HELLO, hello_pb(session_id=session_id, secret=secret).SerializeToString())
+            lane.quiet = b"quiet-submit" in offered.split() and \
+                os.environ.get("WEFT_QUIET_SUBMIT", "1") != "0"
             return lane
         except BaseException:
             sock.close()
@@ -124,6 +133,39 @@ class FastLane:
                     results.append(err)
         return results
 
+    def send_quiet(self, body: bytes) -> None:
+        """Sends a serialized SubmitRequest (neither synchronize nor run) as SUBMIT_QUIET: no
+        reply unless it fails; a failure is kept as `quiet_error` when the next reply is read
+        (or by poll_quiet)."""
+        self._send(SUBMIT_QUIET, body)
+
+    def poll_quiet(self) -> None:
+        """Reads the failures of quiet Submits that are in, without blocking. Only while no
+        other reply is outstanding on the lane (everything readable then answers a quiet
+        Submit)."""
+        while not self.broken:
+            try:
+                n = self._sock.recv_into(self._buf, _RECV_BYTES, socket.MSG_DONTWAIT)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as err:
+                self.close()
+                raise FastLaneError(f"weftd is not reachable: fast lane: {err}", "UNAVAILABLE") from None
+            try:
+                _, quiet = self._receive_one(0.0, n)
+            except FastLaneError:
+                raise
+            except WeftError:
+                quiet = False
+            if not quiet:                 # a reply nothing waited for: the lane is confused
+                self.close()
+                raise FastLaneError("fast lane: a reply that answers no request", "UNAVAILABLE")
+
+    def take_quiet_error(self):
+        """The first failure of a quiet Submit read so far (None if none), forgotten."""
+        err, self.quiet_error = self.quiet_error, None
+        return err
+
     def send(self, method: int, request, response_type) -> "PendingReply":
         """Sends `request` (a message, or its serialized bytes) without waiting: the daemon
         works on it while this process goes on.
@@ -158,7 +200,18 @@ class FastLane:
 
     def _receive(self, spin_s: float = 0.0, first_frame: int = -1) -> bytes:
         """The next reply's payload (a daemon error raised as WeftError). `first_frame`: the
-        length of its first frame when the caller already received that into the buffer."""
+        length of its first frame when the caller already received that into the buffer. The
+        failures of quiet Submits sent before the request, read on the way, are kept as
+        `quiet_error` (the first one) and the reply asked for is read on."""
+        while True:
+            payload, quiet = self._receive_one(spin_s, first_frame)
+            if not quiet:
+                return payload
+            first_frame = -1
+
+    def _receive_one(self, spin_s: float, first_frame: int):
+        """One reply: (payload, whether it is a quiet Submit's failure, kept as quiet_error);
+        another daemon error is raised as WeftError."""
         try:
             parts = []
             size = 0
@@ -172,6 +225,7 @@ class FastLane:
                 if n < 8:
                     raise FastLaneError("weftd closed the fast lane", "UNAVAILABLE")
                 code, flags = struct.unpack_from("<II", self._buf)
+                quiet = bool(flags & QUIET_REPLY_FLAG)
                 size += n - 8
                 if size > MAX_REPLY_BYTES:
                     raise FastLaneError("fast lane: reply too large", "RESOURCE_EXHAUSTED")
@@ -188,9 +242,13 @@ class FastLane:
         payload = b"".join(parts)
         if closing:
             self.close()
+        if quiet:
+            if self.quiet_error is None:
+                self.quiet_error = WeftError(payload.decode("utf-8", "replace"), _CODE_NAMES.get(code))
+            return b"", True
         if code != 0:
             raise WeftError(payload.decode("utf-8", "replace"), _CODE_NAMES.get(code))
-        return payload
+        return payload, False
 
 
 class PendingReply:

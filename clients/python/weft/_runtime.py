@@ -399,6 +399,12 @@ class Runtime:
         # Asynchronous Submits in flight, oldest first: one gRPC future, or up to
         # LANE_IN_FLIGHT fast-lane replies (the lane keeps frames in order), see _pump/send_now.
         self._inflight: collections.deque = collections.deque()
+        # Quiet Submits (the daemon answers only failures; _fast_lane.SUBMIT_QUIET) sent since
+        # the lane last answered a request: a gRPC call that must come after them waits for
+        # the lane's answer to an empty Submit first (_fence_quiet). `_quiet_sends` counts
+        # them between polls for their failures.
+        self._quiet_unfenced = False
+        self._quiet_sends = 0
         self.pipelined = _PIPELINED
         # Commands (and GPU array creations) queued so far: weft.interop.cuda_order knows
         # from it whether a framework stream already waits for everything queued.
@@ -523,6 +529,7 @@ class Runtime:
             except WeftError as err:
                 self._raise_if_host_gone(err)
                 raise
+        self._fence_quiet()                # gRPC and the lane are not ordered with each other
         if body is not None:
             request = exec_pb2.SubmitRequest.FromString(body)
         return self.call(getattr(self.exec_stub, method), request)
@@ -758,6 +765,18 @@ class Runtime:
         only fast-lane Submits when this one goes over the lane too: the lane keeps order)."""
         body, self._batch, self._batch_bytes = b"".join(self._batch), [], 0
         lane = self.fast_lane
+        if lane is not None and lane.quiet and not self._inflight and lane.fits_bytes(len(body)):
+            try:   # answered only if it fails: nothing to collect
+                self._quiet_sends += 1
+                if self._quiet_sends >= LANE_IN_FLIGHT:
+                    self._quiet_sends = 0
+                    lane.poll_quiet()       # failures drained: the daemon never blocks on them
+                    self._take_quiet()
+                lane.send_quiet(body)
+                self._quiet_unfenced = True
+            except WeftError as err:
+                self._deferred_error = err
+            return
         if lane is not None and not lane.broken and lane.fits_bytes(len(body)):
             try:   # sent without waiting; the reply is collected like the grpc future's
                 self._inflight.append(lane.send(_fast_lane.SUBMIT, body, exec_pb2.SubmitResponse))
@@ -765,6 +784,7 @@ class Runtime:
                 self._deferred_error = err
             return
         self._collect_inflight()           # gRPC and the lane are not ordered with each other
+        self._fence_quiet()
         self._inflight.append(self.exec_stub.Submit.future(
             exec_pb2.SubmitRequest.FromString(body), metadata=self.metadata))
 
@@ -773,6 +793,32 @@ class Runtime:
         error becomes the deferred error."""
         while self._inflight:
             self._collect_one(self._inflight.popleft())
+
+    def _fence_quiet(self) -> None:
+        """After quiet Submits, before a gRPC call that must come after them: an empty Submit
+        through the lane, answered once weftd has served every frame before it (the lane
+        serves its frames in order); their failures are taken on the way (caller holds the
+        lock)."""
+        if not self._quiet_unfenced:
+            return
+        self._quiet_unfenced = False
+        lane = self.fast_lane
+        if lane is None or lane.broken:
+            return
+        try:
+            lane.call(_fast_lane.SUBMIT, b"", exec_pb2.SubmitResponse)
+        except WeftError as err:
+            if self._deferred_error is None:
+                self._deferred_error = err
+        self._take_quiet()
+
+    def _take_quiet(self) -> None:
+        """The first failure of a quiet Submit the lane read becomes the deferred error."""
+        lane = self.fast_lane
+        if lane is not None and lane.quiet_error is not None:
+            err = lane.take_quiet_error()
+            if self._deferred_error is None:
+                self._deferred_error = err
 
     def _collect_done(self) -> None:
         """Collects the asynchronous Submits at the head of the queue whose replies are in."""
@@ -832,6 +878,8 @@ class Runtime:
                 response = self._exec("Synchronize", exec_pb2.SynchronizeRequest(), gpu)
             self._drain_frees()
             self._unsynchronized = False
+            self._quiet_unfenced = False       # the lane answered after every quiet Submit
+            self._take_quiet()
             deferred, self._deferred_error = self._deferred_error, None
             self._end_if_over(response)
         _report_sync(response, deferred)
@@ -846,6 +894,7 @@ class Runtime:
             self.pump_held = 0
             batch.append(_SUBMIT_RUN)
             response = self._exec("Submit", b"".join(batch))
+            self._take_quiet()
             deferred, self._deferred_error = self._deferred_error, None
             if not response.HasField("sync"):
                 self._drain_frees()
