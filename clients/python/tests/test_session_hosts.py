@@ -3,8 +3,9 @@ weftd started with --allow-unchecked sends a session opened unchecked to a weftd
 that session alone. These tests attack it: an unchecked kernel that writes far out of bounds
 crashes its host and nothing else (another session's array on the daemon stays readable and the
 daemon keeps serving), the crashed client's next call opens a new session by itself, a host
-serves one session, hosts are bounded per principal, a host's socket has the daemon socket's
-mode and group, a remote client gets no host, a host ends with its session, without one and
+serves one session and only its principal (another Unix user who reaches its socket is
+refused), hosts are bounded per principal, a host's socket has the daemon socket's mode and
+group, a remote client gets no host, a host ends with its session, without one and
 with its daemon, and a session that asks for unchecked kernels where they are not allowed stays
 checked."""
 import os
@@ -220,8 +221,7 @@ except Exception as exc:
 def test_remote_clients_get_no_host(start_weftd, wait_for):
     """A TCP client (which could not reach a host's Unix socket) asking for an unchecked
     session gets an ordinary, checked one from the daemon; a local client of the same daemon
-    gets a host. (That a host refuses any principal but its own is not attacked here: another
-    Unix user cannot be made to run the client on this machine.)"""
+    gets a host. (That a host refuses another local user: test_a_host_refuses_another_user.)"""
     daemon = start_weftd(["--allow-unchecked"], also_tcp=True)
     from weft.v1 import session_pb2
     from weft import _runtime
@@ -236,6 +236,102 @@ def test_remote_clients_get_no_host(start_weftd, wait_for):
     local = _open_unchecked(daemon)
     assert local.session_host
     with daemon.raw_session("in the host", target="unix:" + local.session_host) as session:
+        assert session.opened.session_id
+    wait_for(lambda: daemon.stats().session_hosts == 0, 10)
+
+
+OTHER_USER_CLIENT = """
+import sys
+import grpc
+
+# Opens a session on each target with the serialized OpenSessionRequest given, as whoever
+# runs this (bytes in, bytes out: no weft import).
+body = bytes.fromhex(sys.argv[1])
+for target in sys.argv[2:]:
+    channel = grpc.insecure_channel("unix:" + target)
+    try:
+        channel.unary_unary("/weft.v1.SessionService/Open")(body, timeout=20)
+        print("OPENED", target)
+    except grpc.RpcError as err:
+        print("REFUSED", target, err.code().name, err.details())
+    channel.close()
+"""
+
+
+def _reachable_by_others(path) -> bool:
+    """Whether any user can reach `path`: every directory on the way searchable by others and
+    the file itself readable by them."""
+    resolved = Path(path).resolve()
+    try:
+        return all(os.stat(d).st_mode & 0o001 for d in resolved.parents) and \
+            bool(os.stat(resolved).st_mode & 0o004)
+    except OSError:
+        return False
+
+
+def _python_for_another_user():
+    """(interpreter, PYTHONPATH) another user can run with grpc importable: this Python when
+    others can reach it, else the system's interpreter of the same version (grpc's extension
+    is built for it); None when there is none."""
+    import sys
+
+    import grpc as grpc_module
+
+    packages = str(Path(grpc_module.__file__).resolve().parent.parent)
+    if not _reachable_by_others(Path(packages) / "grpc" / "__init__.py"):
+        return None
+    version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    for candidate in (sys.executable, f"/usr/bin/python{version}", f"/usr/local/bin/python{version}"):
+        if os.path.exists(candidate) and _reachable_by_others(candidate):
+            return str(Path(candidate).resolve()), packages
+    return None
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0,
+                    reason="needs root: a client is run as another Unix user (uid 65534)")
+def test_a_host_refuses_another_user(start_weftd, wait_for):
+    """A session host serves its one principal only. Another Unix user (uid 65534) who can reach
+    the host's socket (an operator opened it, and its directory, to everyone) is refused with
+    PERMISSION_DENIED, while the same client reaches the daemon's own socket, opened the same
+    way, and gets a session there; the host's one session is still free for its principal."""
+    import shutil
+    import subprocess
+    import tempfile
+
+    from weft.v1 import session_pb2
+
+    daemon = start_weftd(["--allow-unchecked"])
+    host = _open_unchecked(daemon).session_host
+    assert host
+    public = Path(tempfile.mkdtemp(prefix="weft-other-user-"))
+    try:
+        os.chmod(public, 0o755)
+        links = {}
+        for name, path in (("host", host), ("daemon", str(daemon.socket_path))):
+            os.chmod(path, 0o666)
+            links[name] = public / f"{name}.sock"
+            try:
+                os.link(path, links[name])    # the same socket, on a path everyone can walk
+            except OSError as err:
+                pytest.skip(f"cannot link the socket where another user can reach it: {err}")
+        python = _python_for_another_user()
+        if python is None:
+            pytest.skip("no Python with grpc that another user may run on this machine")
+        body = session_pb2.OpenSessionRequest(client_name="another user", unchecked=True)
+        proc = subprocess.run(
+            [python[0], "-c", OTHER_USER_CLIENT, body.SerializeToString().hex(),
+             str(links["host"]), str(links["daemon"])],
+            user=65534, group=65534, extra_groups=[], capture_output=True, text=True, timeout=60,
+            env={"PATH": "/usr/bin:/bin", "HOME": str(public), "PYTHONPATH": python[1]})
+        assert proc.returncode == 0, proc.stderr
+        lines = proc.stdout.splitlines()
+        assert lines[0].startswith(f"REFUSED {links['host']} PERMISSION_DENIED"), proc.stdout
+        assert "session host of another principal" in lines[0], proc.stdout
+        assert lines[1].startswith(f"OPENED {links['daemon']}"), proc.stdout
+    finally:
+        shutil.rmtree(public, ignore_errors=True)
+    # The refused user took nothing: the host's principal still gets its one session.
+    with daemon.raw_session("the host's principal", target="unix:" + host) as session:
         assert session.opened.session_id
     wait_for(lambda: daemon.stats().session_hosts == 0, 10)
 
