@@ -10,6 +10,7 @@ Usage: WEFT_DAEMON=... python3 bench/prof_interop_phases.py [--iters 2000]"""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections import defaultdict
@@ -49,6 +50,9 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--iters", type=int, default=2000)
     ap.add_argument("--client", help="a folder holding another weft client package (A/B)")
+    ap.add_argument("--modes", default="direct,ctype,from_torch,weft arrays,launch+sync",
+                    help="comma-separated modes to run")
+    ap.add_argument("--plain", action="store_true", help="only the plain timings (no timers)")
     args = ap.parse_args()
     import torch
 
@@ -93,8 +97,13 @@ def main() -> None:
                 best = dt if best is None else min(best, dt)
             return best
 
-        modes = ["direct", "ctype", "from_torch", "weft arrays", "launch+sync"]
+        modes = [m.strip() for m in args.modes.split(",") if m.strip()]
         plain = {m: timed(m) for m in modes}
+        if args.plain:
+            print(f"client: {wp.__file__} WEFT_QUIET_SUBMIT={os.environ.get('WEFT_QUIET_SUBMIT', '1')}")
+            for m in modes:
+                print(f"  {m:<12} {plain[m] * 1e6:8.1f} us")
+            return
 
         targets = [
             (launch_mod, "_pack_fast", "launch: _pack_fast"),
@@ -181,7 +190,6 @@ def main() -> None:
             for i in range(k):
                 time.perf_counter()
             prims.append(("time.perf_counter()", (time.perf_counter() - t0) / k))
-            import os
             t0 = time.perf_counter()
             for i in range(k):
                 os.getpid()
