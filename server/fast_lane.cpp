@@ -126,7 +126,7 @@ class LaneTrace {
     Samples& s = by_kind_[kind];
     const int64_t values[kPhases] = {idle_ns,           t.parsed - t.received, t.served - t.parsed,
                                      p.device_sync_ns,  p.stream_wait_ns,      p.stream_polls,
-                                     t.replied - t.served};
+                                     t.replied - t.served, p.gpu_launch_ns, p.driver_launch_ns};
     for (int i = 0; i < kPhases; ++i) {
       if (s.phase[i].size() < kMaxSamples) s.phase[i].push_back(values[i]);
       else s.phase[i][s.frames % kMaxSamples] = values[i];
@@ -141,10 +141,12 @@ class LaneTrace {
       char line[512];
       std::snprintf(line, sizeof(line),
                     "lane-trace session=%s kind=%s frames=%zu median_us: before=%.1f parse=%.1f serve=%.1f "
-                    "(device_sync=%.1f stream_wait=%.1f polls=%.0f) reply=%.1f blocked_frames=%zu\n",
+                    "(device_sync=%.1f stream_wait=%.1f polls=%.0f gpu_launch=%.1f driver_launch=%.1f) "
+                    "reply=%.1f blocked_frames=%zu\n",
                     session.c_str(), kind.c_str(), s.frames, Median(s.phase[0]) / 1e3, Median(s.phase[1]) / 1e3,
                     Median(s.phase[2]) / 1e3, Median(s.phase[3]) / 1e3, Median(s.phase[4]) / 1e3,
-                    Median(s.phase[5]), Median(s.phase[6]) / 1e3, s.blocked);
+                    Median(s.phase[5]), Median(s.phase[7]) / 1e3, Median(s.phase[8]) / 1e3,
+                    Median(s.phase[6]) / 1e3, s.blocked);
       out += line;
     }
     if (out.empty()) return;
@@ -159,8 +161,9 @@ class LaneTrace {
   }
 
  private:
-  // before (client time), parse, serve, device sync, stream wait, stream polls, reply
-  static constexpr int kPhases = 7;
+  // before (client time), parse, serve, device sync, stream wait, stream polls, reply, GPU
+  // launch, driver launch call
+  static constexpr int kPhases = 9;
   struct Samples {
     size_t frames = 0;
     size_t blocked = 0;   // frames whose stream wait blocked on the stream's host function

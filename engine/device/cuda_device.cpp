@@ -1241,7 +1241,15 @@ Status CudaDevice::MakeRoom(Session& s, Stream& st, size_t n) {
   return Status::Ok();
 }
 
-Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
+Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string* out) {
+  if (!frame_trace::Enabled()) return LaunchTraced(s, l, out, false);
+  const int64_t start = frame_trace::NowNs();
+  Status st = LaunchTraced(s, l, out, true);
+  frame_trace::Current().gpu_launch_ns += frame_trace::NowNs() - start;
+  return st;
+}
+
+Status CudaDevice::LaunchTraced(Session& s, const KernelLaunch& l, std::string*, bool trace) {
   std::shared_lock<std::shared_mutex> reset(reset_mu_);
   WEFT_RETURN_IF_ERROR(CheckUsable());
   const uint64_t generation = generation_.load();
@@ -1299,8 +1307,10 @@ Status CudaDevice::Launch(Session& s, const KernelLaunch& l, std::string*) {
   void* adj = adjoint ? const_cast<char*>(l.adj_args->block.data()) : nullptr;
   void* params_fwd[] = {&ctx, args};
   void* params_adj[] = {&ctx, args, adj};
+  const int64_t driver_start = trace ? frame_trace::NowNs() : 0;
   const jit::CuResult launched =
       driver_->LaunchKernel(fn, grid, 1, 1, block, 1, 1, 0, st->stream, adjoint ? params_adj : params_fwd, nullptr);
+  if (trace) frame_trace::Current().driver_launch_ns += frame_trace::NowNs() - driver_start;
   if (launched != 0) {
     // A kernel whose threads need more local memory than the GPU gives one (large tiles or
     // fixed-size arrays) is refused at launch: say so rather than pass on the driver's code.

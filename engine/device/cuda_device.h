@@ -169,6 +169,8 @@ class CudaDevice final : public Device {
   bool lost() const { return lost_.load(); }
 
  private:
+  // Launch, with `trace` (WEFT_LANE_TRACE): the driver call timed into frame_trace.
+  Status LaunchTraced(Session& s, const KernelLaunch& launch, std::string* output, bool trace);
   struct Slab {
     uint64_t id = 0;
     jit::CuDevicePtr base = 0;

@@ -783,7 +783,8 @@ print("done")
         time.sleep(0.05)
     text = trace.read_text()
     line = re.search(r"kind=submit(?:-gpu)?\+sync frames=(\d+) median_us: before=([\d.]+) parse=([\d.]+) "
-                     r"serve=([\d.]+) \(device_sync=([\d.]+) stream_wait=([\d.]+) polls=(\d+)\) reply=([\d.]+)", text)
+                     r"serve=([\d.]+) \(device_sync=([\d.]+) stream_wait=([\d.]+) polls=(\d+) "
+                     r"gpu_launch=([\d.]+) driver_launch=([\d.]+)\) reply=([\d.]+)", text)
     assert line, text
     assert int(line.group(1)) >= 25, text
     assert all(float(v) >= 0 for v in line.groups()[1:]), text
