@@ -821,7 +821,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     shared = _interop_memory.any_shared() and _interop_memory.touches_shared(resolved)
     gpu_order = None                   # (GPU ordinals, their framework streams) ordered on the GPU
     if shared and device.startswith("cuda"):
-        gpu_order = _order_framework_gpu(rt, resolved)  # framework work before: seen first
+        gpu_order = _order_framework_gpu(rt, resolved, device)  # framework work before: seen first
     tape = tape_mod.active_tape()
     pause = tape is not None and (adjoint or not record_tape)
     if pause:
@@ -890,25 +890,32 @@ def launch_tiled(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=
                   max_blocks=max_blocks, block_dim=block_dim)
 
 
-def _order_framework_gpu(rt, values):
+def _order_framework_gpu(rt, values, device: str = "cuda"):
     """Makes a launch in the daemon see this process's GPU work (Torch, CuPy, ... streams) on
     the devices of the shared weft GPU arrays among `values`. With interprocess events
     (weft.interop.cuda_order): the session's stream waits for the framework stream, and
     (the GPU ordinals, {ordinal: framework stream}) is returned: the caller orders those
     streams after the launch. Without: a host wait for this process's work on those devices;
-    returns None."""
-    from weft import _cuda_ipc  # noqa: PLC0415
-
+    returns None. `device`: the launch's; on "cuda:N" every GPU array of the launch is on N
+    (packing refused any other), so the arrays are not walked for their devices."""
     cuda_order = _cuda_order()
-    ordinals = cuda_order.gpu_ordinals(values)
+    if device.startswith("cuda:"):
+        ordinals = _LAUNCH_ORDINALS.get(device)
+        if ordinals is None:
+            ordinals = _LAUNCH_ORDINALS[device] = frozenset((int(device[5:]),))
+    else:
+        ordinals = cuda_order.gpu_ordinals(values)
     if cuda_order.enabled(rt, ordinals):
         return ordinals, cuda_order.before(rt, ordinals)
+    from weft import _cuda_ipc  # noqa: PLC0415
+
     for ordinal in ordinals:
         _cuda_ipc.synchronize(ordinal)
     return None
 
 
 _CUDA_ORDER = None
+_LAUNCH_ORDINALS: dict = {}    # "cuda:N" -> frozenset({N})
 
 
 def _cuda_order():
