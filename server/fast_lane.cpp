@@ -1,6 +1,6 @@
-// FastLane: listening, the hello (peer uid + one-time secret), serving Submit/Synchronize and
-// ArrayService Create/Free/Describe/ImportCuda frames through the gRPC methods' handler functions,
-// replies in chunks.
+// FastLane: listening, the hello (peer uid + one-time secret), serving Submit (plain or quiet:
+// answered only when it fails), Synchronize, ArrayService Create/Free/Describe/ImportCuda and
+// GeometryService.Call frames through the gRPC methods' handler functions, replies in chunks.
 #include "server/fast_lane.h"
 
 #include <fcntl.h>

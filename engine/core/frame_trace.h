@@ -1,6 +1,7 @@
 // Optional timing of the work one thread does for one request (WEFT_LANE_TRACE): the engine
 // adds the time it spent waiting for a GPU stream at a synchronize and launching GPU kernels,
-// and the fast lane reads it after serving a frame. Off (one branch on a cached flag) unless the variable is set.
+// and the fast lane reads it after serving a frame. Off (one branch on a cached flag) unless
+// the variable is set.
 #pragma once
 
 #include <chrono>
