@@ -969,6 +969,8 @@ def test_quiet_submit_failure_is_raised_at_the_next_synchronize(wp, monkeypatch)
             rt._batch.append(_runtime.framed_command(bad))
             rt._unsynchronized = True
             rt._send_batch()
+    # polled while sending, before any synchronize: a failure was taken already
+    assert rt._deferred_error is not None or rt.fast_lane.quiet_error is not None
     with pytest.raises(wp.WeftError):
         wp.synchronize()
     values = np.random.default_rng().uniform(0.5, 2.0, 8).astype(np.float32)

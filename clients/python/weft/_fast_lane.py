@@ -288,10 +288,7 @@ class PendingReply:
             self._payload = self._lane._receive()
 
     def result(self):
-        if self._error is not None:
-            raise self._error
-        if self._payload is None:
-            self._payload = self._lane._receive()
+        self.check()
         if self._response is None:
             self._response = self._type.FromString(self._payload)
         return self._response

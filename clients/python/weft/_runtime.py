@@ -44,10 +44,7 @@ def framed_command(cmd) -> bytes:
     request's flags), so a batch is serialized once per command, when it is queued, and never
     copied into a SubmitRequest message (upb deep-copies every command it is given)."""
     data = cmd.SerializeToString()
-    n = len(data)
-    if n < 0x80:
-        return b"\x0a" + bytes((n,)) + data
-    return b"\x0a" + varint(n) + data
+    return b"\x0a" + varint(len(data)) + data
 
 
 def varint(n: int) -> bytes:
@@ -712,12 +709,14 @@ class Runtime:
         launches (Warp's launches start at once). At most one Submit is in flight, so the
         daemon receives batches in order (send_now, for ordered GPU launches, may add fast-lane
         Submits behind it: the lane keeps frames in order); while one is on its way, commands
-        accumulate. `_pump_at` starts at PUMP_FIRST after each sync point and doubles with each
-        asynchronous Submit, so a long run of
-        launches costs only a few extra round trips, while a short step (a few launches, then
-        a sync) stays one fused Submit: an early Submit there would add a round trip. A failed
-        asynchronous Submit (nothing of it was queued) is raised by the next synchronize, and
-        nothing more is sent before that. `start` (a large GPU launch was queued): sent now
+        accumulate. Through a lane that takes quiet Submits (answered only when they fail)
+        nothing stays in flight: the lane serves its frames in order, and the count and age
+        thresholds alone space the sends. `_pump_at` starts at PUMP_FIRST after each sync
+        point and doubles with each asynchronous Submit, so a long run of launches costs only
+        a few extra round trips, while a short step (a few launches, then a sync) stays one
+        fused Submit: an early Submit there would add a round trip. A failed asynchronous
+        Submit (nothing of it was queued) is raised by the next synchronize, and nothing more
+        is sent once the client knows of it. `start` (a large GPU launch was queued): sent now
         whatever the count and age, when nothing is in flight."""
         if not self.pipelined or self._deferred_error is not None or self.pump_held:
             return
