@@ -1,6 +1,7 @@
 """Where an ordered launch on Torch GPU memory spends its time in the client, phase by phase,
 without cProfile's distortion: the loop of bench_interop (five conversions + one launch per
-iteration, or the tensors passed directly) runs once plain and once with perf_counter timers
+iteration, or the tensors passed directly; mode "rosenbrock": one step of the Torch Rosenbrock
+autograd example, as bench_interop's second table) runs once plain and once with perf_counter timers
 wrapped around the client's steps (each timer's time is inclusive of what it calls; a
 timer costs ~0.3 us, so the instrumented total is a little higher). Then the primitive costs
 alone: a stream write through ctypes, a Command copy, a fast-lane send.
@@ -63,6 +64,12 @@ def main() -> None:
         import weft.interop.cuda_order as cuda_order
         import weft.interop.memory as interop_memory
         import weft.interop.torch as interop_torch
+        import weft.interop.cuda_import as cuda_import
+        import weft.interop.external as external
+        import weft.interop.dlpack as interop_dlpack
+        import weft._dlpack as dlpack_producer
+        import torch.utils.dlpack as torch_dlpack
+        array_mod = sys.modules["weft.array"]
 
         launch_mod = sys.modules["weft._kernel.launch"]   # weft._kernel.launch is also a function
 
@@ -71,8 +78,25 @@ def main() -> None:
         ts = [torch.randn(n, device="cuda") for _ in range(4)] + [torch.zeros(n, device="cuda")]
         weft_arrays = [wp.array(t.cpu().numpy(), device="cuda:0") for t in ts]
 
+        rn = 1500
+        xy = torch.rand((rn, 2), device="cuda", requires_grad=True)
+
+        def rosenbrock_step():
+            xy.grad = None
+            wxy = wp.from_torch(xy, dtype=wp.vec2, requires_grad=True)
+            z = wp.zeros(rn, requires_grad=True, device="cuda:0")
+            wp.launch(mod.eval_rosenbrock, dim=rn, inputs=[wxy], outputs=[z], device="cuda:0")
+            tz = wp.to_torch(z)
+            z.grad = wp.from_torch(torch.ones_like(tz))
+            wp.launch(mod.eval_rosenbrock, dim=rn, inputs=[wxy], outputs=[z],
+                      adj_inputs=[wxy.grad], adj_outputs=[z.grad], adjoint=True, device="cuda:0")
+            wp.to_torch(wxy.grad)
+
         def loop(mode, iters):
             for _ in range(iters):
+                if mode == "rosenbrock":
+                    rosenbrock_step()
+                    continue
                 if mode == "direct":
                     a = ts
                 elif mode in ("weft arrays", "launch+sync"):
@@ -133,9 +157,39 @@ def main() -> None:
             (runtime_mod, "_report_sync", "_report_sync"),
             (fast_lane.FastLane, "_receive", "lane._receive"),
             (fast_lane.FastLane, "_poll", "lane._poll (waiting)"),
+            (fast_lane.FastLane, "call", "lane.call (round trip)"),
+            (fast_lane.FastLane, "call_many", "lane.call_many"),
+            (interop_torch, "to_torch", "to_torch"),
+            (cuda_import, "import_torch", "import: import_torch"),
+            (cuda_import, "import_memory", "import: import_memory"),
+            (cuda_import, "_fresh", "import: _fresh"),
+            (external, "find_cuda_in_place", "import: find_cuda_in_place"),
+            (cuda_ipc, "export_allocation", "cuda: export_allocation"),
+            (interop_dlpack, "_export_cuda", "dlpack: _export_cuda"),
+            (cuda_order, "ready", "order: ready"),
+            (runtime_mod.Runtime, "synchronize_if_needed", "rt.synchronize_if_needed"),
+            (dlpack_producer, "to_capsule", "dlpack: to_capsule"),
+            (torch_dlpack, "from_dlpack", "torch from_dlpack"),
+            (array_mod, "_create", "array: _create"),
+            (array_mod, "zeros", "wp.zeros"),
+            (array_mod.array, "_adopt", "array: _adopt"),
+            (array_mod.array, "_set_daemon_grad", "array: _set_daemon_grad"),
+            (interop_memory, "grad_view", "memory: grad_view"),
+            (runtime_mod.Runtime, "array_call", "rt.array_call"),
+            (runtime_mod.Runtime, "drain_frees", "rt.drain_frees"),
         ]
         restore = [_wrap(o, name, label) for o, name, label in targets]
+        array_call = runtime_mod.Runtime.array_call
+
+        def counted_array_call(self, method, request):   # which round trips, per iteration
+            _calls[f"rt.array_call {method}"] += 1
+            return array_call(self, method, request)
+
+        runtime_mod.Runtime.array_call = counted_array_call
+        restore.append(lambda: setattr(runtime_mod.Runtime, "array_call", array_call))
         wp.from_torch = interop_torch.from_torch
+        wp.to_torch = interop_torch.to_torch
+        wp.zeros = array_mod.zeros
         rows = []
         try:
             for mode in modes:
@@ -156,6 +210,8 @@ def main() -> None:
             for r in restore:
                 r()
             wp.from_torch = interop_torch.from_torch
+            wp.to_torch = interop_torch.to_torch
+            wp.zeros = array_mod.zeros
 
         # primitives
         order = cuda_order._values.get((rt.session_id, 0))
@@ -214,6 +270,8 @@ def main() -> None:
             for label, _ in sorted(totals.items(), key=lambda kv: -kv[1]):
                 print(f"  {label:<30} {totals[label] / args.iters * 1e6:8.2f} us   "
                       f"{calls[label] / args.iters:5.2f} calls")
+            for label in sorted(k for k in calls if k not in totals):
+                print(f"  {label:<30} {'':>8}      {calls[label] / args.iters:5.2f} calls")
         print("\nprimitives:")
         for label, dt in prims:
             print(f"  {label:<36} {dt * 1e6:8.2f} us")

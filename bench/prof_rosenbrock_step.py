@@ -1,7 +1,8 @@
 """Where one step of the Torch Rosenbrock autograd example goes on a GPU (bench_interop's
 second table: from_torch of the points, wp.zeros, the launch, to_torch, from_torch of the
 incoming gradient set as z.grad, the adjoint launch, to_torch of the gradient): cProfile of
-the client, top functions by cumulative and own time. Usage: WEFT_DAEMON=... python3
+the client, top functions by cumulative and own time, then each of the step's lines timed
+alone with perf_counter (no profiler), median over the steps. Usage: WEFT_DAEMON=... python3
 bench/prof_rosenbrock_step.py [--iters 500]"""
 from __future__ import annotations
 
@@ -66,6 +67,46 @@ def main() -> None:
         stats.sort_stats("tottime").print_stats(15)
         print(out.getvalue())
         print(f"per step without the profiler: {plain * 1e6:.1f} us")
+
+        names = ["grad=None + from_torch(xy)", "wp.zeros", "launch", "to_torch(z)",
+                 "ones_like + from_torch", "adjoint launch", "to_torch(grad)"]
+        samples = {k: [] for k in names}
+
+        def timed_steps(iters):
+            clock = time.perf_counter
+            for _ in range(iters):
+                t = [clock()]
+                xy.grad = None
+                wxy = wp.from_torch(xy, dtype=wp.vec2, requires_grad=True)
+                t.append(clock())
+                z = wp.zeros(n, requires_grad=True, device="cuda:0")
+                t.append(clock())
+                wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], device="cuda:0")
+                t.append(clock())
+                tz = wp.to_torch(z)
+                t.append(clock())
+                z.grad = wp.from_torch(torch.ones_like(tz))
+                t.append(clock())
+                wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z],
+                          adj_inputs=[wxy.grad], adj_outputs=[z.grad], adjoint=True,
+                          device="cuda:0")
+                t.append(clock())
+                wp.to_torch(wxy.grad)
+                t.append(clock())
+                for k, a, b in zip(names, t, t[1:]):
+                    samples[k].append(b - a)
+            wp.synchronize()
+            torch.cuda.synchronize()
+
+        timed_steps(args.iters)
+        total = 0.0
+        print(f"{'line of the step':<30} {'median us':>10} {'mean us':>10}")
+        for k in names:
+            v = sorted(samples[k])
+            med = v[len(v) // 2]
+            total += med
+            print(f"{k:<30} {med * 1e6:>10.1f} {sum(v) / len(v) * 1e6:>10.1f}")
+        print(f"{'sum of medians':<30} {total * 1e6:>10.1f}")
 
 
 if __name__ == "__main__":

@@ -27,11 +27,21 @@ Status ArrayCreate(Engine& engine, Session& s, const v1::CreateArrayRequest& req
   auto r = engine.CreateArray(s, p);
   if (!r.ok()) return r.status();
   ToProto(*r, resp->mutable_info());
+  if (r->grad_handle != 0) {
+    auto g = engine.DescribeArray(s, r->grad_handle);
+    if (g.ok()) ToProto(*g, resp->mutable_grad_info());
+  }
   return Status::Ok();
 }
 
 Status ArrayFree(Engine& engine, Session& s, const v1::FreeArrayRequest& req) {
-  return engine.FreeArray(s, req.handle());
+  if (req.handles().empty()) return engine.FreeArray(s, req.handle());
+  Status first = req.handle() != 0 ? engine.FreeArray(s, req.handle()) : Status::Ok();
+  for (uint64_t h : req.handles()) {
+    Status st = engine.FreeArray(s, h);
+    if (first.ok() && !st.ok()) first = st;
+  }
+  return first;
 }
 
 Status ArrayImportCuda(Engine& engine, Session& s, const v1::ImportCudaRequest& req, v1::ImportCudaResponse* resp) {

@@ -184,7 +184,7 @@ class LaneTrace {
 // never holds a closed session alive. `times` (WEFT_LANE_TRACE) gets the phases' end times.
 template <typename Req, typename Resp, typename Fn>
 FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
-                       Fn&& serve, FrameTimes* times = nullptr, bool quiet = false) {
+                       Fn&& serve, FrameTimes* times = nullptr, bool quiet = false, bool unanswered = false) {
   // The request and response live on an arena: a Submit of many launches parses into a few
   // blocks (the first on this stack) instead of one heap allocation per message and string.
   alignas(16) char first_block[16384];
@@ -203,7 +203,10 @@ FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len,
   s.reset();
   if (times) times->served = frame_trace::NowNs();
   FrameResult r;
-  if (!st.ok()) {
+  if (unanswered) {
+    if (!st.ok()) spdlog::debug("fast lane: unanswered {} failed: {}", name, st.ToString());
+    r = FrameResult::kContinue;
+  } else if (!st.ok()) {
     r = SendReply(fd, st.code(), st.message(), /*closing=*/false, quiet ? FastLane::kQuietReplyFlag : 0)
             ? FrameResult::kContinue
             : FrameResult::kEnd;
@@ -451,6 +454,11 @@ void FastLane::Serve(Conn* c) {
       case kArrayFree:
         r = ServeFrame<v1::FreeArrayRequest, v1::FreeArrayResponse>(fd, "ArrayService.Free", body, body_len, s,
             [&](Session& ss, const auto& req, auto*) { return ArrayFree(engine, ss, req); });
+        break;
+      case kArrayFreeUnanswered:
+        r = ServeFrame<v1::FreeArrayRequest, v1::FreeArrayResponse>(fd, "ArrayService.Free", body, body_len, s,
+            [&](Session& ss, const auto& req, auto*) { return ArrayFree(engine, ss, req); }, nullptr,
+            /*quiet=*/false, /*unanswered=*/true);
         break;
       case kArrayDescribe:
         r = ServeFrame<v1::DescribeArrayRequest, v1::DescribeArrayResponse>(fd, "ArrayService.Describe", body, body_len, s,

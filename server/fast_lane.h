@@ -6,14 +6,15 @@
 // bind a connection to a session (handed out by SessionService.Open to local peers), the
 // per-connection threads and the frame format. Every frame is parsed and served by the same
 // handler functions as the gRPC methods (ExecSubmit, ExecSynchronize, ArrayCreate, ArrayFree,
-// ArrayDescribe, ArrayImportCuda, GeometryCall in services.h).
+// ArrayDescribe, ArrayImportCuda, GeometryCall in services.h). A quiet Submit is answered only
+// when it fails, an unanswered Free never.
 //
 // Frames (one datagram each; docs/protocol.md "Fast lane"):
 //   request: u32 method (little endian; 1 hello, 2 Submit, 3 Synchronize, 4 ArrayService.Create,
-//            5 Free, 6 Describe, 7 ImportCuda, 8 GeometryService.Call), then the request
-//            message serialized (FastLaneHello, SubmitRequest, SynchronizeRequest,
-//            CreateArrayRequest, FreeArrayRequest, DescribeArrayRequest, ImportCudaRequest,
-//            GeometryRequest); at most
+//            5 Free, 6 Describe, 7 ImportCuda, 8 GeometryService.Call, 9 quiet Submit,
+//            10 unanswered Free), then the request message serialized (FastLaneHello,
+//            SubmitRequest, SynchronizeRequest, CreateArrayRequest, FreeArrayRequest,
+//            DescribeArrayRequest, ImportCudaRequest, GeometryRequest); at most
 //            kMaxRequestBytes in all.
 //   reply:   u32 status code (gRPC numbering), u32 flags (bit 0: more frames of this reply
 //            follow; bit 1: the daemon ends the connection after this reply), then a piece of the payload: the response message serialized on OK, the
@@ -56,8 +57,12 @@ class FastLane {
   // "queued"); its error reply carries kQuietReplyFlag. It may neither synchronize nor run.
   static constexpr uint32_t kSubmitQuiet = 9;
   static constexpr uint32_t kQuietReplyFlag = 4;
+  // A Free (FreeArrayRequest: `handle` and `handles`) never answered, not even when it fails: a
+  // client's released arrays, sent without waiting (a failure means the handle is gone already,
+  // which is what the client asked for; it is logged).
+  static constexpr uint32_t kArrayFreeUnanswered = 10;
   // The hello's reply payload: what this daemon's lane serves beyond the methods above.
-  static constexpr const char* kHelloCapabilities = "quiet-submit";
+  static constexpr const char* kHelloCapabilities = "quiet-submit unanswered-free";
   static constexpr size_t kMaxRequestBytes = 160u << 10;   // fits a default socket send buffer
   static constexpr size_t kMaxHelloBytes = 1024;           // before the hello is accepted
   static constexpr size_t kReplyChunkBytes = 64u << 10;

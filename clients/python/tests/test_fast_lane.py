@@ -15,7 +15,7 @@ import pytest
 
 import weft as wp
 from weft import _fast_lane, _runtime
-from weft.v1 import exec_pb2, session_pb2
+from weft.v1 import array_pb2, exec_pb2, session_pb2
 
 HELLO, SUBMIT, SYNCHRONIZE = 1, 2, 3
 MAX_REQUEST_BYTES = 160 << 10   # server/fast_lane.h kMaxRequestBytes
@@ -465,30 +465,78 @@ def test_fast_lane_off_by_environment(run_client):
 
 
 ARRAY_CREATE, ARRAY_FREE, ARRAY_DESCRIBE, ARRAY_IMPORT_CUDA = 4, 5, 6, 7
+ARRAY_FREE_UNANSWERED = 10
 
 
 def test_fast_lane_carries_array_create_describe_free(wp, monkeypatch):
     """wp.zeros / wp.array / .grad / freed arrays go over the lane (no gRPC round trip), with
-    the same arrays as through gRPC."""
+    the same arrays as through gRPC: Create answers with the gradient's description (no
+    Describe for .grad), released arrays go in one unanswered Free frame, and are gone."""
     rt = _runtime_with_lane(wp)
-    methods = []
+    assert rt.fast_lane.unanswered_free, "the daemon's hello offers unanswered frees"
+    methods, freed = [], []
     real_call, real_many = rt.fast_lane.call, rt.fast_lane.call_many
+    real_free = rt.fast_lane.send_unanswered_free
     monkeypatch.setattr(rt.fast_lane, "call", lambda m, r, t, *s: (methods.append(m), real_call(m, r, t, *s))[1])
     monkeypatch.setattr(rt.fast_lane, "call_many", lambda m, rs: (methods.extend([m] * len(rs)), real_many(m, rs))[1])
+    monkeypatch.setattr(rt.fast_lane, "send_unanswered_free",
+                        lambda body: (freed.append(body), real_free(body))[1])
     rng = np.random.default_rng(11)
     x0 = rng.uniform(-1e3, 1e3, 1001).astype(np.float32)
     z = wp.zeros(1001, dtype=float, device="cpu", requires_grad=True)
     x = wp.array(x0, dtype=float, device="cpu")
     g = z.grad
-    assert methods.count(ARRAY_CREATE) == 2 and ARRAY_DESCRIBE in methods
+    assert methods.count(ARRAY_CREATE) == 2 and ARRAY_DESCRIBE not in methods, methods
+    described = rt.array_stub.Describe(array_pb2.DescribeArrayRequest(handle=z._info.grad_handle),
+                                       metadata=rt.metadata, timeout=30).info
+    assert g._info == described, "Create's gradient description is what Describe returns"
     wp.launch(lane_saxpy, dim=1001, inputs=[x, z, 2.0], device="cpu")
     np.testing.assert_array_equal(z.numpy(), 2.0 * x0)   # exact: one float32 product each
     assert not g.numpy().any()
+    handles = {x._handle, z._handle}
     del x, z, g
     import gc
     gc.collect()
     wp.synchronize()
-    assert ARRAY_FREE in methods, "the freed arrays went over the lane"
+    sent = set()
+    for body in freed:
+        sent.update(array_pb2.FreeArrayRequest.FromString(body).handles)
+    assert handles <= sent, "the freed arrays went over the lane, unanswered"
+    for h in handles:   # gRPC after the lane's frees (fenced): the daemon no longer holds them
+        with pytest.raises(wp.WeftError) as err:
+            rt.call(rt.array_stub.Describe, array_pb2.DescribeArrayRequest(handle=h))
+        assert err.value.code == "NOT_FOUND"
+
+
+def test_unanswered_free_reaches_only_the_own_session(wp):
+    """An unanswered Free naming another session's handle (and unknown ones) frees nothing of
+    theirs, gets no reply, frees the lane's own session's handle in order, and the lane serves
+    on."""
+    rt = _runtime_with_lane(wp)
+    from weft.v1 import types_pb2
+    rng = np.random.default_rng(23)
+    x0 = rng.uniform(-1e6, 1e6, 64).astype(np.float32)
+    other = wp.array(x0, dtype=float, device="cpu")   # this process's session: not the lane's
+    a, s = _bound_lane(rt)   # another session of this process, on a lane of its own
+    try:
+        meta = (("weft-session", a.session_id),) + tuple(m for m in rt._base_metadata if m[0] != "weft-session")
+        own = rt.array_stub.Create(array_pb2.CreateArrayRequest(
+            dtype=types_pb2.DType(scalar=types_pb2.FLOAT32), shape=[8], device="cpu"),
+            metadata=meta, timeout=30).info.handle
+        _send(s, ARRAY_FREE_UNANSWERED, array_pb2.FreeArrayRequest(
+            handle=other._handle, handles=[other._handle, (1 << 63) + 99, 0, own]).SerializeToString())
+        # the first reply on the connection answers this Describe: nothing answered the free,
+        # which was served before it (the handle is gone)
+        _send(s, ARRAY_DESCRIBE, array_pb2.DescribeArrayRequest(handle=own).SerializeToString())
+        code, flags, payload = _reply(s)
+        assert code != 0 and b"unknown array handle" in payload, payload
+        _send(s, SYNCHRONIZE, exec_pb2.SynchronizeRequest().SerializeToString())
+        assert _reply(s)[0] == 0, "the lane serves on"
+        np.testing.assert_array_equal(other.numpy(), x0)   # still there, its bytes untouched
+        assert rt.call(rt.array_stub.Describe, array_pb2.DescribeArrayRequest(
+            handle=other._handle)).info.handle == other._handle
+    finally:
+        s.close()
 
 
 def test_fast_lane_array_errors_are_the_grpc_errors(wp):

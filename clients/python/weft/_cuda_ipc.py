@@ -350,7 +350,7 @@ def pointer_device(address: int):
         return int(ordinal.value)
 
 
-_exported = collections.OrderedDict()   # (ordinal, base, buffer id) -> handle bytes
+_exported = collections.OrderedDict()   # (ordinal, buffer id) -> (base, size, handle bytes)
 EXPORTED_KEPT = 256
 
 
@@ -358,33 +358,41 @@ def export_allocation(ordinal: int, address: int):
     """(base, size, buffer id, 64 handle bytes) of the CUDA allocation (cudaMalloc block) of
     this process that holds device address `address`: what weftd needs to import it
     (ArrayService.ImportCuda). The buffer id is unique for the life of this process, so a block
-    freed and allocated again is a new identity even if the driver reuses its handle bytes.
+    freed and allocated again is a new identity even if the driver reuses its handle bytes;
+    an allocation exported before is known by its buffer id alone (one driver call).
     Raises CudaError where the memory cannot be exported (not cudaMalloc memory: VMM or
     stream-ordered pools, managed or host memory)."""
     with _lock:
         if _load() is None:
             raise CudaError(f"no CUDA driver ({_reason})")
+        buffer_id = ctypes.c_uint64()
+        pointer = ctypes.c_uint64(address)
+        if _lib.cuPointerGetAttribute(ctypes.byref(buffer_id), CU_POINTER_ATTRIBUTE_BUFFER_ID,
+                                      pointer) == 0:
+            known = _exported.get((ordinal, buffer_id.value))
+            if known is not None and known[0] <= address < known[0] + known[1]:
+                _exported.move_to_end((ordinal, buffer_id.value))
+                return known[0], known[1], int(buffer_id.value), known[2]
         base = ctypes.c_uint64()
         size = ctypes.c_size_t()
-        buffer_id = ctypes.c_uint64()
         with _Scope(ordinal):
-            _check(_lib.cuMemGetAddressRange_v2(ctypes.byref(base), ctypes.byref(size),
-                                                ctypes.c_uint64(address)), "cuMemGetAddressRange")
+            _check(_lib.cuMemGetAddressRange_v2(ctypes.byref(base), ctypes.byref(size), pointer),
+                   "cuMemGetAddressRange")
             _check(_lib.cuPointerGetAttribute(ctypes.byref(buffer_id),
-                                              CU_POINTER_ATTRIBUTE_BUFFER_ID,
-                                              ctypes.c_uint64(address)),
+                                              CU_POINTER_ATTRIBUTE_BUFFER_ID, pointer),
                    "cuPointerGetAttribute(BUFFER_ID)")
-            key = (ordinal, base.value, buffer_id.value)
-            handle = _exported.get(key)
-            if handle is None:
+            key = (ordinal, buffer_id.value)
+            known = _exported.get(key)
+            if known is None or known[0] != base.value or known[1] != size.value:
                 h = _IpcHandle()
                 _check(_lib.cuIpcGetMemHandle(ctypes.byref(h), base), "cuIpcGetMemHandle")
-                handle = _exported[key] = ctypes.string_at(ctypes.addressof(h), 64)
+                known = _exported[key] = (int(base.value), int(size.value),
+                                          ctypes.string_at(ctypes.addressof(h), 64))
                 if len(_exported) > EXPORTED_KEPT:
                     _exported.popitem(last=False)
             else:
                 _exported.move_to_end(key)
-        return int(base.value), int(size.value), int(buffer_id.value), handle
+        return known[0], known[1], int(buffer_id.value), known[2]
 
 
 class IpcEvent:

@@ -11,6 +11,7 @@ accepts them.
 from __future__ import annotations
 
 import ctypes
+import struct
 
 import numpy as np
 
@@ -52,7 +53,7 @@ _PyCapsule_GetPointer.restype = ctypes.c_void_p
 _PyCapsule_GetPointer.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
 
 _NAME = b"dltensor"     # a capsule keeps the name pointer: this bytes object lives on
-_live: dict = {}        # managed tensor address -> (struct, shape/strides buffers, keep-alive)
+_live: dict = {}        # managed tensor address -> (its buffer, keep-alive)
 
 
 @_DELETER
@@ -76,21 +77,29 @@ def dl_dtype(np_dtype: np.dtype) -> DLDataType:
     return DLDataType(code, np_dtype.itemsize * 8, 1)
 
 
-def to_capsule(a):
-    """A "dltensor" capsule over array `a`: a GPU array in this process's IPC mapping
-    (BufferError when the mapping is not available: no CUDA driver here, or IPC refused), a CPU
-    array in this process's mapping of its slab."""
-    from ._cuda_ipc import reason  # noqa: PLC0415
+_HEAD = struct.Struct("<QiiiBBHQQQQQ")          # a DLManagedTensor: DLTensor, manager_ctx, deleter
+assert _HEAD.size == ctypes.sizeof(DLManagedTensor)
+_DELETER_ADDRESS = ctypes.cast(_deleter, ctypes.c_void_p).value
+_layouts: dict = {}     # (dtype, shape, strides, device) -> (buffer type, packer, fixed fields)
+_LAYOUTS_KEPT = 256
+
+
+def _layout(a):
+    """What a capsule of an array of `a`'s dtype, shape, strides and device holds besides its
+    addresses, computed once per layout: (ctypes buffer type, its packer, device type and id,
+    ndim, DLPack dtype fields, shape and strides in elements)."""
+    key = (a.dtype, a.shape, a.strides, a.device)
+    hit = _layouts.get(key)
+    if hit is not None:
+        return hit
     from .array import _elem_layout  # noqa: PLC0415
 
-    ptr = a.ptr
-    if ptr is None:
-        raise BufferError(f"DLPack export of {a.device} memory needs CUDA IPC in this client "
-                          f"({reason() or 'not a local session'}); use a.numpy() for a copy")
     np_dtype, inner = _elem_layout(a.dtype)
     if np_dtype.fields is not None:
         raise BufferError(f"DLPack cannot describe arrays of struct elements ({a.dtype})")
     itemsize = np_dtype.itemsize
+    if any(s % itemsize for s in a.strides):
+        raise BufferError("strides that are not a multiple of the element size")
     shape = tuple(a.shape) + tuple(inner)
     inner_strides = []
     step = 1
@@ -98,25 +107,39 @@ def to_capsule(a):
         inner_strides.append(step)
         step *= n
     strides = tuple(s // itemsize for s in a.strides) + tuple(reversed(inner_strides))
-    if any(s % itemsize for s in a.strides):
-        raise BufferError("strides that are not a multiple of the element size")
     ndim = len(shape)
-    shape_buf = (ctypes.c_int64 * ndim)(*shape)
-    strides_buf = (ctypes.c_int64 * ndim)(*strides)
-    managed = DLManagedTensor()
-    managed.dl_tensor.data = ctypes.c_void_p(int(ptr))
     cuda = a.device is not None and a.device.is_cuda
-    managed.dl_tensor.device = DLDevice(KDL_CUDA, int(a.device.ordinal)) if cuda else DLDevice(KDL_CPU, 0)
-    managed.dl_tensor.ndim = ndim
+    device = (KDL_CUDA, int(a.device.ordinal)) if cuda else (KDL_CPU, 0)
     bf16 = getattr(a.dtype, "_wp_scalar_type_", a.dtype).__name__ == "bfloat16"
-    managed.dl_tensor.dtype = DLDataType(_KDL_BFLOAT, 16, 1) if bf16 else dl_dtype(np_dtype)
-    managed.dl_tensor.shape = shape_buf
-    managed.dl_tensor.strides = strides_buf
-    managed.dl_tensor.byte_offset = 0
-    managed.manager_ctx = None
-    managed.deleter = _deleter
-    address = ctypes.addressof(managed)
-    _live[address] = (managed, shape_buf, strides_buf, a._alloc)
+    dt = DLDataType(_KDL_BFLOAT, 16, 1) if bf16 else dl_dtype(np_dtype)
+    buffer_type = ctypes.c_uint64 * (_HEAD.size // 8 + 2 * ndim)   # 8-byte aligned
+    packer = struct.Struct(f"<{2 * ndim}q")
+    hit = (buffer_type, packer, device, ndim, (dt.code, dt.bits, dt.lanes), shape + strides)
+    if len(_layouts) >= _LAYOUTS_KEPT:
+        _layouts.clear()
+    _layouts[key] = hit
+    return hit
+
+
+def to_capsule(a):
+    """A "dltensor" capsule over array `a`: a GPU array in this process's IPC mapping
+    (BufferError when the mapping is not available: no CUDA driver here, or IPC refused), a CPU
+    array in this process's mapping of its slab. The managed tensor, its shape and its strides
+    are one buffer written in one go (its layout computed once per array layout)."""
+    ptr = a.ptr
+    if ptr is None:
+        from ._cuda_ipc import reason  # noqa: PLC0415
+
+        raise BufferError(f"DLPack export of {a.device} memory needs CUDA IPC in this client "
+                          f"({reason() or 'not a local session'}); use a.numpy() for a copy")
+    buffer_type, packer, device, ndim, dt, dims = _layout(a)
+    buf = buffer_type()
+    address = ctypes.addressof(buf)
+    shape_at = address + _HEAD.size
+    _HEAD.pack_into(buf, 0, int(ptr), device[0], device[1], ndim, dt[0], dt[1], dt[2],
+                    shape_at, shape_at + 8 * ndim, 0, 0, _DELETER_ADDRESS)
+    packer.pack_into(buf, _HEAD.size, *dims)
+    _live[address] = (buf, a._alloc)
     return _PyCapsule_New(address, _NAME, _capsule_destructor)
 
 

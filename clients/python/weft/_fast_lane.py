@@ -30,6 +30,11 @@ GEOMETRY_CALL = 8
 # hello's reply lists "quiet-submit" (WEFT_QUIET_SUBMIT=0: never).
 SUBMIT_QUIET = 9
 QUIET_REPLY_FLAG = 4
+# A Free the daemon never answers (FreeArrayRequest.handles): the arrays this process released,
+# sent without waiting (a handle already gone is what was asked for). Used when the hello's
+# reply lists "unanswered-free".
+ARRAY_FREE_UNANSWERED = 10
+FREE_HANDLES_PER_FRAME = 4096    # 11 bytes each at most: far inside MAX_REQUEST_BYTES
 # Frames sent before their replies are read by call_many: the replies wait in this process's
 # receive buffer meanwhile, and a window this small never fills it (the daemon would block).
 PIPELINE_WINDOW = 32
@@ -52,7 +57,7 @@ SPIN_GPU_S = float(os.environ.get("WEFT_FAST_LANE_GPU_SPIN_US",
                                   "20000" if (os.cpu_count() or 1) >= 4 else "0")) * 1e-6
 
 _CODE_NAMES = {code.value[0]: code.name for code in grpc.StatusCode}
-_METHOD_HEADERS = {method: struct.pack("<I", method) for method in range(1, 10)}
+_METHOD_HEADERS = {method: struct.pack("<I", method) for method in range(1, 11)}
 
 
 def enabled() -> bool:
@@ -70,6 +75,7 @@ class FastLane:
         self.broken = False
         self.quiet = False            # the daemon answers SUBMIT_QUIET only when it fails
         self.quiet_error = None       # the first failure of a quiet Submit not yet taken
+        self.unanswered_free = False  # the daemon serves ARRAY_FREE_UNANSWERED
         self._buf = bytearray(_RECV_BYTES)      # every reply frame is received into this
         self._view = memoryview(self._buf)
 
@@ -85,6 +91,7 @@ class FastLane:
             offered = lane._call(HELLO, hello_pb(session_id=session_id, secret=secret).SerializeToString())
             lane.quiet = b"quiet-submit" in offered.split() and \
                 os.environ.get("WEFT_QUIET_SUBMIT", "1") != "0"
+            lane.unanswered_free = b"unanswered-free" in offered.split()
             return lane
         except BaseException:
             sock.close()
@@ -138,6 +145,10 @@ class FastLane:
         reply unless it fails; a failure is kept as `quiet_error` when the next reply is read
         (or by poll_quiet)."""
         self._send(SUBMIT_QUIET, body)
+
+    def send_unanswered_free(self, body: bytes) -> None:
+        """Sends a serialized FreeArrayRequest as ARRAY_FREE_UNANSWERED: never answered."""
+        self._send(ARRAY_FREE_UNANSWERED, body)
 
     def poll_quiet(self) -> None:
         """Reads the failures of quiet Submits that are in, without blocking. Only while no

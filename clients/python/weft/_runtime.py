@@ -875,9 +875,9 @@ class Runtime:
                 if batch:   # message modules generated before SubmitRequest.synchronize
                     self.call(self.exec_stub.Submit, exec_pb2.SubmitRequest.FromString(b"".join(batch)))
                 response = self._exec("Synchronize", exec_pb2.SynchronizeRequest(), gpu)
-            self._drain_frees()
             self._unsynchronized = False
             self._quiet_unfenced = False       # the lane answered after every quiet Submit
+            self._drain_frees()
             self._take_quiet()
             deferred, self._deferred_error = self._deferred_error, None
             self._end_if_over(response)
@@ -963,7 +963,23 @@ class Runtime:
         # closed, daemon restarted) are ignored; there is nothing left to free.
         self._free_calls = [call for call in self._free_calls if not call.done()]
         lane = self._lane_free() if self._pending_frees and self.lane_arrays else None
-        if lane is not None:
+        if lane is not None and lane.unanswered_free:
+            # Popped one by one (a finalizer may append to the deque while this runs), sent in
+            # frames nothing answers: the lane serves them in order after what came before, and
+            # a later gRPC call is fenced behind them (_fence_quiet).
+            handles = []
+            while self._pending_frees:
+                handles.append(self._pending_frees.popleft())
+            try:
+                for start in range(0, len(handles), _fast_lane.FREE_HANDLES_PER_FRAME):
+                    lane.send_unanswered_free(array_pb2.FreeArrayRequest(
+                        handles=handles[start:start + _fast_lane.FREE_HANDLES_PER_FRAME]
+                    ).SerializeToString())
+                self._quiet_unfenced = True
+                return
+            except _fast_lane.FastLaneError:
+                self._pending_frees.extend(handles)   # gRPC below (a free of a freed handle fails harmlessly)
+        elif lane is not None:
             # Popped one by one: a finalizer may append to the deque while this runs.
             requests = []
             while self._pending_frees:

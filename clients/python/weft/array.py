@@ -444,11 +444,13 @@ def _create(dtype, shape, device, requires_grad, init, value=b"", pinned=False):
                                     init=init, value=value)
     if pinned and device.is_cpu:
         request.pinned = True        # a slab of its own, page-locked for weftd's GPUs
-    info = rt.array_call("Create", request).info
+    response = rt.array_call("Create", request)
     if not device.is_cpu:
         rt._unsynchronized = True   # its zeroing/fill is queued on the session's GPU stream
         rt.work_queued += 1
-    return rt, info
+    grad_info = response.grad_info if response.info.grad_handle and \
+        response.grad_info.handle == response.info.grad_handle else None
+    return rt, response.info, grad_info
 
 
 # ------------------------------------------------------------------------------------------
@@ -571,15 +573,18 @@ class array:
 
     def _init_new(self, dtype, shape, requires_grad, init=None, value=b""):
         ap = _runtime.array_pb2
-        rt, info = _create(dtype, shape, self.device, requires_grad,
-                           ap.CreateArrayRequest.EMPTY if init is None else init, value,
-                           pinned=self.pinned)
-        self._adopt(rt, info, dtype, pooled=True)
+        rt, info, grad_info = _create(dtype, shape, self.device, requires_grad,
+                                      ap.CreateArrayRequest.EMPTY if init is None else init,
+                                      value, pinned=self.pinned)
+        self._adopt(rt, info, dtype, pooled=True, grad_info=grad_info)
 
-    def _adopt(self, rt, info, dtype, owned=True, pooled=False):
+    def _adopt(self, rt, info, dtype, owned=True, pooled=False, grad_info=None):
         """`pooled`: a new allocation of the daemon's for this process (counted as GPU pool use
-        on a CUDA device, weft/mempool.py)."""
+        on a CUDA device, weft/mempool.py). `grad_info`: its gradient's description, which
+        Create answered with (a.grad then needs no Describe)."""
         self._alloc = _Allocation(rt, info, owned)
+        if grad_info is not None:
+            _interop_memory._grad_infos[self._alloc] = grad_info
         if pooled and owned and self.device.is_cuda and info.byte_size:
             self._alloc.pool_bytes = int(info.byte_size)
             _mempool.note_allocated(info.device, self._alloc.pool_bytes)
@@ -591,7 +596,7 @@ class array:
         self.ndim = len(self.shape)
         self.strides = (tuple(int(s) for s in info.strides) if len(info.strides) == self.ndim
                         else _contiguous_strides(self.shape, _elem_size(dtype)))
-        self.size = int(np.prod(self.shape, dtype=np.int64))
+        self.size = math.prod(self.shape)
         self._requires_grad = bool(info.grad_handle)
 
     def _init_from_data(self, data, dtype, shape, requires_grad):
@@ -651,13 +656,14 @@ class array:
         local_direct = rt.local and (self.device.is_cpu or _cuda_ipc.available())
         if nbytes <= INLINE_DATA_MAX_BYTES and not (local_direct and
                                                     nbytes >= LOCAL_WRITE_MIN_BYTES):
-            rt, info = _create(dtype, arr_shape, self.device, requires_grad,
-                               ap.CreateArrayRequest.DATA, arr.tobytes(), pinned=self.pinned)
-            self._adopt(rt, info, dtype, pooled=True)
+            rt, info, grad_info = _create(dtype, arr_shape, self.device, requires_grad,
+                                          ap.CreateArrayRequest.DATA, arr.tobytes(),
+                                          pinned=self.pinned)
+            self._adopt(rt, info, dtype, pooled=True, grad_info=grad_info)
         else:
-            rt, info = _create(dtype, arr_shape, self.device, requires_grad,
-                               ap.CreateArrayRequest.EMPTY, pinned=self.pinned)
-            self._adopt(rt, info, dtype, pooled=True)
+            rt, info, grad_info = _create(dtype, arr_shape, self.device, requires_grad,
+                                          ap.CreateArrayRequest.EMPTY, pinned=self.pinned)
+            self._adopt(rt, info, dtype, pooled=True, grad_info=grad_info)
             _write_bytes(rt, info, 0, arr.reshape(-1).view(np.uint8), self._alloc)
 
     @classmethod
@@ -828,8 +834,10 @@ class array:
         if not grad_handle:
             return None
         rt = self._alloc.runtime
-        ginfo = rt.array_call("Describe",
-                              _runtime.array_pb2.DescribeArrayRequest(handle=grad_handle)).info
+        ginfo = _interop_memory._grad_infos.get(self._alloc)
+        if ginfo is None or ginfo.handle != grad_handle:
+            ginfo = rt.array_call("Describe",
+                                  _runtime.array_pb2.DescribeArrayRequest(handle=grad_handle)).info
         galloc = _Allocation(rt, ginfo, owned=False, parent=self._alloc)
         g = array.__new__(array)
         g._alloc = galloc
@@ -856,7 +864,7 @@ class array:
         if value is not None:
             if not isinstance(value, array):
                 raise TypeError("grad must be a weft array or None")
-            if type_str(value.dtype) != type_str(self.dtype):
+            if value.dtype is not self.dtype and type_str(value.dtype) != type_str(self.dtype):
                 raise ValueError(f"The given gradient array is incompatible: expected dtype "
                                  f"{type_str(self.dtype)}, got {type_str(value.dtype)}")
             if value.shape != self.shape:

@@ -253,8 +253,8 @@ def copy_in(obj, dtype, device: str, what: str, requires_grad=False, cast_ok=Fal
     return out, src
 
 
-# Imports whose arrays died, by request (device, dtype, shape, IPC handle, buffer id, offset,
-# gradient): their daemon handles are kept instead of freed, so a framework that hands out the
+# Imports whose arrays died, by what they import (device, dtype, shape, and the buffer id and
+# offset of the data and of the gradient): their daemon handles are kept instead of freed, so a framework that hands out the
 # same block again (Torch's caching allocator: a new gradient or `ones_like` each training
 # step) gets it back without a round trip. The buffer id is unique for the life of the
 # process, so a block freed and allocated again never matches; at most PARKED_IMPORTS per
@@ -304,7 +304,7 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
     low, span = external._span(shape, strides, elem)
     if low < 0 or span == 0 or span % elem:
         return None
-    refs = []
+    parts = []
     for part in (src, grad_src):
         if part is None:
             continue
@@ -315,19 +315,20 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
         offset = part.ptr - base
         if offset < 0 or offset + span > size:
             return None
-        refs.append(_runtime.array_pb2.CudaMemoryRef(ipc_handle=handle,
-                                                     allocation_id=buffer_id,
-                                                     byte_offset=offset))
+        parts.append((handle, buffer_id, offset))
     contiguous = tuple(strides) == _contiguous_strides(tuple(shape), elem)
     flat_shape = tuple(shape) if contiguous else (span // elem,)
-    request = _runtime.array_pb2.ImportCudaRequest(
-        device=f"cuda:{ordinal}", dtype=_dtype_proto(wdtype), shape=list(flat_shape),
-        data=refs[0])
-    if len(refs) > 1:
-        request.grad.CopyFrom(refs[1])
-    key = request.SerializeToString(deterministic=True)
+    # what the import is: the blocks by identity (buffer ids are never reused in a process)
+    key = (ordinal, wdtype, flat_shape, tuple((b, o) for _, b, o in parts))
     info = _parked(rt).pop(key, None)       # the same block imported before, handle kept
     if info is None:
+        refs = [_runtime.array_pb2.CudaMemoryRef(ipc_handle=h, allocation_id=b, byte_offset=o)
+                for h, b, o in parts]
+        request = _runtime.array_pb2.ImportCudaRequest(
+            device=f"cuda:{ordinal}", dtype=_dtype_proto(wdtype), shape=list(flat_shape),
+            data=refs[0])
+        if len(refs) > 1:
+            request.grad.CopyFrom(refs[1])
         rt.drain_frees()
         try:
             info = rt.array_call("ImportCuda", request).info

@@ -254,6 +254,11 @@ def cuda_interface(obj) -> dict:
 def find_cuda_in_place(obj, dtype, device: str, what: str):
     """A weft array over a foreign GPU array whose memory is a weft GPU allocation (exported
     to the framework by to_torch / DLPack), else None."""
+    if is_torch_tensor(obj):
+        # most tensors are the framework's own memory: one range look-up before any layout work
+        space = f"cuda:{device.split(':')[1] if ':' in device else '0'}"
+        if memory.find(int(obj.data_ptr()), 1, space=space) is None:
+            return None
     iface = cuda_interface(obj)
     np_dtype = np.dtype(iface["typestr"])
     shape = tuple(int(s) for s in iface["shape"])

@@ -170,7 +170,7 @@ def grad_view(a):
     if info is None or not info.grad_handle:
         return None
     ginfo = _grad_infos.get(a._alloc)
-    if ginfo is None:
+    if ginfo is None or ginfo.handle != info.grad_handle:
         g = a.grad
         if g is not None:
             _grad_infos[a._alloc] = g._info

@@ -373,6 +373,19 @@ def _from_torch(t, dtype, requires_grad, grad):
     return a
 
 
+def _cuda_tensor_over(torch, a):
+    """torch.utils.dlpack.from_dlpack(a) for a GPU array with an IPC mapping, with the
+    exchange done here: the capsule made for Torch's current stream of the array's device
+    (what Torch would ask `a.__dlpack__` for: 1 for the legacy default stream), then consumed."""
+    raw = getattr(torch._C, "_cuda_getCurrentRawStream", None)
+    if raw is None or not torch.cuda.is_initialized():
+        return torch.utils.dlpack.from_dlpack(a)
+    from . import dlpack  # noqa: PLC0415
+
+    stream = int(raw(a.device.ordinal))
+    return torch.utils.dlpack.from_dlpack(dlpack.export(a, stream=1 if stream == 0 else stream))
+
+
 def to_torch(a, requires_grad=None):
     """A Torch tensor over weft array `a` (Warp's wp.to_torch): zero-copy for CPU arrays of
     local sessions (pending weft commands are finished first); remote sessions get a copy.
@@ -388,7 +401,7 @@ def to_torch(a, requires_grad=None):
             # no CUDA IPC mapping in this client (docs/cuda-client.md): a copy
             t = torch.from_numpy(np.array(a.numpy(), copy=True)).to(device_to_torch(a.device))
         else:
-            t = torch.utils.dlpack.from_dlpack(a)
+            t = _cuda_tensor_over(torch, a)
     else:
         t = _tensor_over(a, dtype_to_torch(a.dtype), tuple(a.numpy().shape)) \
             if a._info is not None else None
