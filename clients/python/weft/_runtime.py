@@ -611,13 +611,24 @@ class Runtime:
 
     # -- unary calls
     def call(self, stub_method, request, timeout=RPC_TIMEOUT_S):
-        """A unary call with the session metadata; grpc errors become WeftError."""
+        """A unary call with the session metadata (after order_grpc); grpc errors become
+        WeftError."""
+        self.order_grpc()
         try:
             return stub_method(request, metadata=self.metadata, timeout=timeout)
         except grpc.RpcError as err:
             error = error_from_rpc(err)
             self._raise_if_host_gone(error)
             raise error from None
+
+    def order_grpc(self) -> None:
+        """Before a gRPC call: after frames the lane does not answer (quiet Submits, unanswered
+        Frees), waits until weftd served them (_fence_quiet), since gRPC and the lane are not
+        ordered with each other."""
+        if self._quiet_unfenced:
+            with self._lock:
+                self._collect_inflight()
+                self._fence_quiet()
 
     # -- command batch
     def submit(self, cmd, start: bool = False) -> None:

@@ -404,6 +404,7 @@ def _read_bytes(rt, info, byte_offset: int, count: int, alloc=None) -> np.ndarra
     received = 0
     import grpc
 
+    rt.order_grpc()
     try:
         for chunk in rt.array_stub.Read(request, metadata=rt.metadata):
             pos = chunk.byte_offset - byte_offset
@@ -423,6 +424,7 @@ def _read_bytes(rt, info, byte_offset: int, count: int, alloc=None) -> np.ndarra
 def _stream_call(rt, method, iterator):
     import grpc
 
+    rt.order_grpc()
     try:
         return method(iterator, metadata=rt.metadata)
     except grpc.RpcError as err:
