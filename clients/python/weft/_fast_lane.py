@@ -272,6 +272,7 @@ class PendingReply:
         self._response = None
         self._payload = None        # the reply's bytes, once received
         self._error = None          # the daemon's error, once received
+        self.ahead = None           # an array created ahead (weft._create_ahead) awaits it
 
     def done(self) -> bool:
         """Whether the reply is in: received now if it is (one non-blocking recv, no select),

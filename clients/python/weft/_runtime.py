@@ -25,7 +25,7 @@ from pathlib import Path
 
 import grpc
 
-from . import _fast_lane
+from . import _create_ahead, _fast_lane
 from .errors import WeftError, error_from_rpc
 
 MAX_MESSAGE_BYTES = 64 << 20
@@ -415,6 +415,7 @@ class Runtime:
         self._devices = None
         self._unsynchronized = False   # commands were queued since the last Synchronize
         self.gpu_work = False          # GPU launches were queued since the last synchronize
+        self.create_ahead = _create_ahead.CreateAhead(self)   # small arrays created ahead
         # Graph capture (weft/graph.py): thread id -> the capture recording that thread's
         # commands; handles that captured graphs name, and those freed while a graph held them.
         self.captures: dict = {}
@@ -838,6 +839,9 @@ class Runtime:
     def _collect_one(self, call) -> None:
         try:
             if type(call) is _fast_lane.PendingReply:
+                if call.ahead is not None:     # a creation ahead: never the session's error
+                    call.ahead.collected(call)
+                    return
                 call.check()           # only its error matters: not parsed
             else:
                 call.result()

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from . import _cuda_ipc, _runtime, types
+from . import _create_ahead, _cuda_ipc, _runtime, types
 from . import array_annotations as _array_annotations
 from . import config as _config
 from . import mempool as _mempool
@@ -446,7 +446,33 @@ def _create(dtype, shape, device, requires_grad, init, value=b"", pinned=False):
                                     init=init, value=value)
     if pinned and device.is_cpu:
         request.pinned = True        # a slab of its own, page-locked for weftd's GPUs
-    response = rt.array_call("Create", request)
+    ahead_key = None
+    if not rt.captures and not value and not request.pinned and \
+            init in (ap.CreateArrayRequest.EMPTY, ap.CreateArrayRequest.ZEROS) and \
+            0 < _elem_size(dtype) * math.prod(shape) <= _create_ahead.MAX_BYTES:
+        # a small array made again and again (wp.zeros in a loop): one is created ahead
+        ahead_key = request.SerializeToString()
+        with rt._lock:
+            hit = rt.create_ahead.take(ahead_key)
+            if hit is not None:
+                rt.create_ahead.created(ahead_key)
+        if hit is not None:
+            if not device.is_cpu:
+                rt._unsynchronized = True
+                rt.work_queued += 1
+            return rt, hit[0], hit[1]
+    try:
+        response = rt.array_call("Create", request)
+    except WeftError as err:
+        with rt._lock:
+            gave_back = err.code == "RESOURCE_EXHAUSTED" and rt.create_ahead.give_back_all()
+        if not gave_back:
+            raise
+        rt.flush()                       # the arrays held ahead are freed first
+        response = rt.array_call("Create", request)
+    if ahead_key is not None:
+        with rt._lock:
+            rt.create_ahead.created(ahead_key)
     if not device.is_cpu:
         rt._unsynchronized = True   # its zeroing/fill is queued on the session's GPU stream
         rt.work_queued += 1
