@@ -79,6 +79,21 @@ def run(wp, mod, torch, mode, n, iters, repeat, seed, device="cpu"):
     return seconds, error
 
 
+def rosenbrock_step(wp, mod, torch, xy, n, device):
+    """One step of the documentation's Rosenbrock torch.autograd.Function on points `xy` (a
+    Torch tensor that requires grad): the forward launch, then the adjoint one for an incoming
+    gradient of ones; returns the points' gradient as a Torch tensor."""
+    xy.grad = None   # the optimizer's zero_grad()
+    wxy = wp.from_torch(xy, dtype=wp.vec2, requires_grad=True)
+    z = wp.zeros(n, requires_grad=True, device=device)
+    wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], device=device)
+    tz = wp.to_torch(z)
+    z.grad = wp.from_torch(torch.ones_like(tz))
+    wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], adj_inputs=[wxy.grad],
+              adj_outputs=[z.grad], adjoint=True, device=device)
+    return wp.to_torch(wxy.grad)
+
+
 def run_rosenbrock(wp, mod, torch, n, iters, repeat, seed, device="cpu"):
     rng = np.random.default_rng(seed)
     tdev = "cpu" if device == "cpu" else device
@@ -88,15 +103,7 @@ def run_rosenbrock(wp, mod, torch, n, iters, repeat, seed, device="cpu"):
 
     def body():
         for _ in range(iters):
-            xy.grad = None   # the optimizer's zero_grad()
-            wxy = wp.from_torch(xy, dtype=wp.vec2, requires_grad=True)
-            z = wp.zeros(n, requires_grad=True, device=device)
-            wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], device=device)
-            tz = wp.to_torch(z)
-            z.grad = wp.from_torch(torch.ones_like(tz))
-            wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], adj_inputs=[wxy.grad],
-                      adj_outputs=[z.grad], adjoint=True, device=device)
-            last[0] = wp.to_torch(wxy.grad)
+            last[0] = rosenbrock_step(wp, mod, torch, xy, n, device)
         wp.synchronize()
         if device != "cpu":
             torch.cuda.synchronize()

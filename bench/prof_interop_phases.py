@@ -25,7 +25,7 @@ sys.path.insert(0, _CLIENT)
 sys.path.insert(0, str(HERE))
 
 import bench_common as bc  # noqa: E402
-from bench_interop import SOURCE  # noqa: E402
+from bench_interop import SOURCE, rosenbrock_step  # noqa: E402
 
 _totals: dict = defaultdict(float)
 _calls: dict = defaultdict(int)
@@ -81,21 +81,10 @@ def main() -> None:
         rn = 1500
         xy = torch.rand((rn, 2), device="cuda", requires_grad=True)
 
-        def rosenbrock_step():
-            xy.grad = None
-            wxy = wp.from_torch(xy, dtype=wp.vec2, requires_grad=True)
-            z = wp.zeros(rn, requires_grad=True, device="cuda:0")
-            wp.launch(mod.eval_rosenbrock, dim=rn, inputs=[wxy], outputs=[z], device="cuda:0")
-            tz = wp.to_torch(z)
-            z.grad = wp.from_torch(torch.ones_like(tz))
-            wp.launch(mod.eval_rosenbrock, dim=rn, inputs=[wxy], outputs=[z],
-                      adj_inputs=[wxy.grad], adj_outputs=[z.grad], adjoint=True, device="cuda:0")
-            wp.to_torch(wxy.grad)
-
         def loop(mode, iters):
             for _ in range(iters):
                 if mode == "rosenbrock":
-                    rosenbrock_step()
+                    rosenbrock_step(wp, mod, torch, xy, rn, "cuda:0")
                     continue
                 if mode == "direct":
                     a = ts

@@ -21,7 +21,7 @@ sys.path.insert(0, str(HERE.parent / "clients" / "python"))
 sys.path.insert(0, str(HERE))
 
 import bench_common as bc  # noqa: E402
-from bench_interop import SOURCE  # noqa: E402
+from bench_interop import SOURCE, rosenbrock_step  # noqa: E402
 
 
 def main() -> None:
@@ -40,16 +40,7 @@ def main() -> None:
 
         def loop(iters):
             for _ in range(iters):
-                xy.grad = None
-                wxy = wp.from_torch(xy, dtype=wp.vec2, requires_grad=True)
-                z = wp.zeros(n, requires_grad=True, device="cuda:0")
-                wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], device="cuda:0")
-                tz = wp.to_torch(z)
-                z.grad = wp.from_torch(torch.ones_like(tz))
-                wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z],
-                          adj_inputs=[wxy.grad], adj_outputs=[z.grad], adjoint=True,
-                          device="cuda:0")
-                wp.to_torch(wxy.grad)
+                rosenbrock_step(wp, mod, torch, xy, n, "cuda:0")
             wp.synchronize()
             torch.cuda.synchronize()
 

@@ -254,11 +254,11 @@ def copy_in(obj, dtype, device: str, what: str, requires_grad=False, cast_ok=Fal
 
 
 # Imports whose arrays died, by what they import (device, dtype, shape, and the buffer id and
-# offset of the data and of the gradient): their daemon handles are kept instead of freed, so a framework that hands out the
-# same block again (Torch's caching allocator: a new gradient or `ones_like` each training
-# step) gets it back without a round trip. The buffer id is unique for the life of the
-# process, so a block freed and allocated again never matches; at most PARKED_IMPORTS per
-# session, the oldest freed first.
+# offset of the data and of the gradient): their daemon handles are kept instead of freed, so
+# a framework that hands out the same block again (Torch's caching allocator: a new gradient
+# or `ones_like` each training step) gets it back without a round trip. The buffer id is
+# unique for the life of the process, so a block freed and allocated again never matches; at
+# most PARKED_IMPORTS per session, the oldest freed first.
 PARKED_IMPORTS = 16
 
 
