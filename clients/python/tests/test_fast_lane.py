@@ -8,6 +8,7 @@ keeps serving (the module's last test launches through the lane again)."""
 import os
 import socket
 import struct
+import sys
 import time
 
 import numpy as np
@@ -1025,3 +1026,32 @@ def test_quiet_submit_failure_is_raised_at_the_next_synchronize(wp, monkeypatch)
     x = wp.array(values, dtype=float, device="cpu")
     wp.launch(lane_saxpy, dim=8, inputs=[x, data, 2.0], device="cpu")
     np.testing.assert_allclose(data.numpy(), 2.0 * values.astype(np.float64), rtol=1e-6)
+
+
+def test_a_grpc_read_comes_after_the_quiet_frames_before_it(wp, monkeypatch):
+    """A fill sent as a quiet Submit, then at once a gRPC read of the same array (the path of a
+    remote or non-mapped array): the read sees the fill, every time (Runtime.order_grpc fences
+    the lane first; gRPC and the lane are not ordered with each other)."""
+    rt = _runtime_with_lane(wp)
+    if not rt.fast_lane.quiet:
+        pytest.skip("the daemon's lane does not offer quiet Submits")
+    monkeypatch.setattr(rt, "pipelined", True)
+    array_mod = sys.modules["weft.array"]
+    rng = np.random.default_rng()
+    n = int(rng.integers(50_000, 70_000))
+    a = wp.zeros(n, dtype=float, device="cpu")
+    wp.synchronize()
+    for _ in range(20):
+        value = np.float32(rng.uniform(-1e6, 1e6))
+        with rt._lock:
+            rt._batch.append(_runtime.framed_command(exec_pb2.Command(fill=exec_pb2.FillCommand(
+                dst=a._ref(), value=value.tobytes()))))
+            rt._batch_since = time.perf_counter()
+            rt._unsynchronized = True
+            rt.send_now()                       # a quiet Submit: nothing answers it
+        assert rt._quiet_unfenced
+        remote = type(a._info)()
+        remote.CopyFrom(a._info)
+        remote.shm_name = ""                    # read as a remote client reads: through gRPC
+        got = array_mod._read_bytes(rt, remote, 0, 4 * n).view(np.float32)
+        np.testing.assert_array_equal(got, value)
