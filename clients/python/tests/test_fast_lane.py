@@ -1018,7 +1018,15 @@ def test_quiet_submit_failure_is_raised_at_the_next_synchronize(wp, monkeypatch)
             rt._batch.append(_runtime.framed_command(bad))
             rt._unsynchronized = True
             rt._send_batch()
-    # polled while sending, before any synchronize: a failure was taken already
+    # taken by polling (as the sends poll every LANE_IN_FLIGHT), before any synchronize; the
+    # replies may still be on their way when the last send polled, so poll until they are in
+    deadline = time.monotonic() + 10
+    while rt._deferred_error is None and rt.fast_lane.quiet_error is None and \
+            time.monotonic() < deadline:
+        with rt._lock:
+            rt.fast_lane.poll_quiet()
+            rt._take_quiet()
+        time.sleep(0.001)
     assert rt._deferred_error is not None or rt.fast_lane.quiet_error is not None
     with pytest.raises(wp.WeftError):
         wp.synchronize()
