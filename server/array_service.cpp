@@ -36,6 +36,9 @@ Status ArrayCreate(Engine& engine, Session& s, const v1::CreateArrayRequest& req
 
 Status ArrayFree(Engine& engine, Session& s, const v1::FreeArrayRequest& req) {
   if (req.handles().empty()) return engine.FreeArray(s, req.handle());
+  if (req.handles_size() > kMaxFreeHandles)
+    return InvalidArgument("array free: " + std::to_string(req.handles_size()) + " handles in one request (at most " +
+                           std::to_string(kMaxFreeHandles) + ")");
   Status first = req.handle() != 0 ? engine.FreeArray(s, req.handle()) : Status::Ok();
   for (uint64_t h : req.handles()) {
     Status st = engine.FreeArray(s, h);

@@ -72,6 +72,8 @@ void ExecSynchronize(Engine& engine, Session& s, v1::SynchronizeResponse* resp);
 // The bodies of ArrayService.Create, Free and Describe for a session already resolved and
 // authorized (the gRPC methods and the fast lane).
 Status ArrayCreate(Engine& engine, Session& s, const v1::CreateArrayRequest& req, v1::CreateArrayResponse* resp);
+// At most kMaxFreeHandles handles in FreeArrayRequest.handles (a request's work is bounded).
+inline constexpr int kMaxFreeHandles = 65536;
 Status ArrayFree(Engine& engine, Session& s, const v1::FreeArrayRequest& req);
 Status ArrayDescribe(Engine& engine, Session& s, const v1::DescribeArrayRequest& req, v1::DescribeArrayResponse* resp);
 Status ArrayImportCuda(Engine& engine, Session& s, const v1::ImportCudaRequest& req, v1::ImportCudaResponse* resp);

@@ -540,6 +540,23 @@ def test_unanswered_free_reaches_only_the_own_session(wp):
         s.close()
 
 
+def test_a_free_of_too_many_handles_is_refused_whole(wp):
+    """FreeArrayRequest.handles is bounded (65536): more is refused with INVALID_ARGUMENT through
+    gRPC, and nothing named in it is freed (the unanswered lane frame cannot carry that many)."""
+    rt = _runtime_with_lane(wp)
+    rng = np.random.default_rng()
+    x0 = rng.uniform(-1e3, 1e3, 32).astype(np.float32)
+    a = wp.array(x0, dtype=float, device="cpu")
+    wp.synchronize()
+    handles = [a._handle] + [int(h) for h in rng.integers(1, 1 << 62, 65536)]
+    with pytest.raises(wp.WeftError) as err:
+        rt.call(rt.array_stub.Free, array_pb2.FreeArrayRequest(handles=handles))
+    assert err.value.code == "INVALID_ARGUMENT" and "65537 handles" in str(err.value), err.value
+    np.testing.assert_array_equal(a.numpy(), x0)
+    assert rt.call(rt.array_stub.Describe, array_pb2.DescribeArrayRequest(
+        handle=a._handle)).info.handle == a._handle
+
+
 def test_fast_lane_array_errors_are_the_grpc_errors(wp):
     """A bad shape, an unknown handle, another session's handle, a CUDA import on the CPU or
     with a short IPC handle: through a bound lane the same
