@@ -68,6 +68,9 @@ bool SendReply(int fd, StatusCode code, const std::string& payload, bool closing
 bool SendError(int fd, const Status& st, bool closing = true) { return SendReply(fd, st.code(), st.message(), closing); }
 
 enum class FrameResult { kContinue, kEnd, kUnknownMethod };
+// When a served frame gets a reply: always (the plain methods), only on failure, flagged
+// kQuietReplyFlag (quiet Submit), or never (unanswered Free; a failure is logged).
+enum class Answer { kAlways, kOnFailure, kNever };
 
 // A client sends its next frame soon after a synchronizing reply (a launch + synchronize
 // loop) or after the reply to a GPU-only batch (it goes on queueing launches): polling for
@@ -178,13 +181,14 @@ class LaneTrace {
 };
 
 // One request frame of a bound connection: parses the body as Req, serves it with
-// `serve(session, request, &response)` (the gRPC method's handler function), and replies. A
+// `serve(session, request, &response)` (the gRPC method's handler function), and replies as
+// `answer` says. A
 // body that does not parse ends the connection; the handler's error is the reply and the lane
 // stays open. The session reference is released before the reply is sent, so a slow peer
 // never holds a closed session alive. `times` (WEFT_LANE_TRACE) gets the phases' end times.
 template <typename Req, typename Resp, typename Fn>
 FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
-                       Fn&& serve, FrameTimes* times = nullptr, bool quiet = false, bool unanswered = false) {
+                       Fn&& serve, FrameTimes* times = nullptr, Answer answer = Answer::kAlways) {
   // The request and response live on an arena: a Submit of many launches parses into a few
   // blocks (the first on this stack) instead of one heap allocation per message and string.
   alignas(16) char first_block[16384];
@@ -203,14 +207,14 @@ FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len,
   s.reset();
   if (times) times->served = frame_trace::NowNs();
   FrameResult r;
-  if (unanswered) {
+  if (answer == Answer::kNever) {
     if (!st.ok()) spdlog::debug("fast lane: unanswered {} failed: {}", name, st.ToString());
     r = FrameResult::kContinue;
   } else if (!st.ok()) {
-    r = SendReply(fd, st.code(), st.message(), /*closing=*/false, quiet ? FastLane::kQuietReplyFlag : 0)
-            ? FrameResult::kContinue
-            : FrameResult::kEnd;
-  } else if (quiet) {
+    const uint32_t flags = answer == Answer::kOnFailure ? FastLane::kQuietReplyFlag : 0;
+    r = SendReply(fd, st.code(), st.message(), /*closing=*/false, flags) ? FrameResult::kContinue
+                                                                          : FrameResult::kEnd;
+  } else if (answer == Answer::kOnFailure) {
     r = FrameResult::kContinue;   // answered only when it fails
   } else {
     std::string out;
@@ -438,7 +442,7 @@ void FastLane::Serve(Conn* c) {
                 kind = req.synchronize() ? (gpu_only ? "submit-gpu+sync" : "submit+sync")
                                          : (gpu_only ? "submit-gpu" : "submit");
               return ExecSubmit(engine, ss, req, resp, gpu_only);
-            }, trace ? &times : nullptr, method == kSubmitQuiet);
+            }, trace ? &times : nullptr, method == kSubmitQuiet ? Answer::kOnFailure : Answer::kAlways);
         break;
       case kSynchronize:
         spin_next = true;
@@ -458,7 +462,7 @@ void FastLane::Serve(Conn* c) {
       case kArrayFreeUnanswered:
         r = ServeFrame<v1::FreeArrayRequest, v1::FreeArrayResponse>(fd, "ArrayService.Free", body, body_len, s,
             [&](Session& ss, const auto& req, auto*) { return ArrayFree(engine, ss, req); }, nullptr,
-            /*quiet=*/false, /*unanswered=*/true);
+            Answer::kNever);
         break;
       case kArrayDescribe:
         r = ServeFrame<v1::DescribeArrayRequest, v1::DescribeArrayResponse>(fd, "ArrayService.Describe", body, body_len, s,

@@ -17,8 +17,10 @@
 //            DescribeArrayRequest, ImportCudaRequest, GeometryRequest); at most
 //            kMaxRequestBytes in all.
 //   reply:   u32 status code (gRPC numbering), u32 flags (bit 0: more frames of this reply
-//            follow; bit 1: the daemon ends the connection after this reply), then a piece of the payload: the response message serialized on OK, the
-//            error message (UTF-8) otherwise. Pieces are at most kReplyChunkBytes.
+//            follow; bit 1: the daemon ends the connection after this reply; bit 2: the
+//            failure of a quiet Submit), then a piece of the payload: the response message
+//            serialized on OK, the error message (UTF-8) otherwise. Pieces are at most
+//            kReplyChunkBytes.
 // The first frame must be a hello naming the session and its secret, from a peer whose uid
 // (SO_PEERCRED) is the session's principal; anything else ends the connection after an error
 // reply. A secret binds one connection; a wrong frame later (unknown method, garbage,

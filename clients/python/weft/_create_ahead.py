@@ -9,7 +9,7 @@ the request asked for when it is taken: weftd zeroed it (init ZEROS) when it cre
 order with the session's commands, and nothing else names it until it is handed out. Only
 requests of at most MAX_BYTES (the gradient as much again), EMPTY or ZEROS, not pinned, with
 no graph capture in progress; a creation refused for lack of memory first gives the arrays
-held ahead back (Runtime.create_array). A creation ahead that fails is dropped quietly: the
+held ahead back (weft.array._create). A creation ahead that fails is dropped quietly: the
 next creation of that kind asks the daemon and gets the error itself.
 """
 from __future__ import annotations
@@ -21,28 +21,22 @@ from . import _fast_lane
 SLOTS = 8                 # arrays held ahead (each with its gradient, if any)
 SEEN = 32                 # requests remembered
 MAX_BYTES = 1 << 20       # the largest array created ahead
+MAX_IN_FLIGHT = 4         # replies outstanding on the lane beyond which nothing is created ahead
 
 
 class _Ahead:
-    __slots__ = ("pending", "info", "grad_info", "failed")
+    __slots__ = ("pending", "response")
 
     def __init__(self, pending):
         self.pending = pending        # the lane's PendingReply until collected
-        self.info = None
-        self.grad_info = None
-        self.failed = False
+        self.response = None          # its CreateArrayResponse (None: the creation failed)
 
     def collected(self, reply) -> None:
         """The runtime's collection of the reply (in lane order): never the session's error."""
         try:
-            response = reply.result()
+            self.response = reply.result()
         except Exception:  # noqa: BLE001 - a creation ahead that failed is only dropped
-            self.failed = True
-        else:
-            self.info = response.info
-            if response.info.grad_handle and \
-                    response.grad_info.handle == response.info.grad_handle:
-                self.grad_info = response.grad_info
+            self.response = None
         self.pending = None
 
 
@@ -55,16 +49,14 @@ class CreateAhead:
         self.seen: collections.OrderedDict = collections.OrderedDict()    # request -> None
 
     def take(self, key: bytes):
-        """(info, grad_info) of the array created ahead for request `key`, else None. Waits for
-        its reply if it is not in yet (it was sent first)."""
+        """The CreateArrayResponse of the array created ahead for request `key`, else None.
+        Waits for its reply if it is not in yet (it was sent first)."""
         ahead = self.slots.pop(key, None)
         if ahead is None:
             return None
         if ahead.pending is not None:
             self.rt._collect_inflight()         # in lane order, up to and past this reply
-        if ahead.failed or ahead.info is None:
-            return None
-        return ahead.info, ahead.grad_info
+        return ahead.response
 
     def created(self, key: bytes) -> None:
         """Request `key` was just created (by the daemon or from a slot): created ahead once
@@ -79,7 +71,8 @@ class CreateAhead:
             return
         rt = self.rt
         lane = rt.fast_lane
-        if lane is None or lane.broken or not rt.lane_arrays or len(rt._inflight) >= 4 or \
+        if lane is None or lane.broken or not rt.lane_arrays or \
+                len(rt._inflight) >= MAX_IN_FLIGHT or \
                 any(type(call) is not _fast_lane.PendingReply for call in rt._inflight):
             return
         try:
@@ -104,8 +97,8 @@ class CreateAhead:
     def _give_back(self, ahead: _Ahead) -> None:
         if ahead.pending is not None:
             self.rt._collect_inflight()
-        if ahead.info is not None and not ahead.failed:
-            self.rt.free_later(ahead.info.handle)   # its gradient goes with it
+        if ahead.response is not None:
+            self.rt.free_later(ahead.response.info.handle)   # its gradient goes with it
 
 
 def _array_pb2():

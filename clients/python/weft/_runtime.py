@@ -396,10 +396,10 @@ class Runtime:
         # Asynchronous Submits in flight, oldest first: one gRPC future, or up to
         # LANE_IN_FLIGHT fast-lane replies (the lane keeps frames in order), see _pump/send_now.
         self._inflight: collections.deque = collections.deque()
-        # Quiet Submits (the daemon answers only failures; _fast_lane.SUBMIT_QUIET) sent since
-        # the lane last answered a request: a gRPC call that must come after them waits for
-        # the lane's answer to an empty Submit first (_fence_quiet). `_quiet_sends` counts
-        # them between polls for their failures.
+        # Frames the lane does not answer (quiet Submits: only failures; unanswered Frees:
+        # never) sent since it last answered a request: a gRPC call waits for the lane's
+        # answer to an empty Submit first (order_grpc, _fence_quiet). `_quiet_sends` counts
+        # the quiet Submits between polls for their failures.
         self._quiet_unfenced = False
         self._quiet_sends = 0
         self.pipelined = _PIPELINED
@@ -527,10 +527,9 @@ class Runtime:
             except WeftError as err:
                 self._raise_if_host_gone(err)
                 raise
-        self._fence_quiet()                # gRPC and the lane are not ordered with each other
         if body is not None:
             request = exec_pb2.SubmitRequest.FromString(body)
-        return self.call(getattr(self.exec_stub, method), request)
+        return self.call(getattr(self.exec_stub, method), request)   # fenced by order_grpc
 
     def _raise_if_host_gone(self, err: WeftError) -> None:
         """In a session host (an unchecked session's own process), a lost connection means the

@@ -446,30 +446,24 @@ def _create(dtype, shape, device, requires_grad, init, value=b"", pinned=False):
                                     init=init, value=value)
     if pinned and device.is_cpu:
         request.pinned = True        # a slab of its own, page-locked for weftd's GPUs
-    ahead_key = None
+    ahead_key = response = None
     if not rt.captures and not value and not request.pinned and \
             init in (ap.CreateArrayRequest.EMPTY, ap.CreateArrayRequest.ZEROS) and \
             0 < _elem_size(dtype) * math.prod(shape) <= _create_ahead.MAX_BYTES:
         # a small array made again and again (wp.zeros in a loop): one is created ahead
         ahead_key = request.SerializeToString()
         with rt._lock:
-            hit = rt.create_ahead.take(ahead_key)
-            if hit is not None:
-                rt.create_ahead.created(ahead_key)
-        if hit is not None:
-            if not device.is_cpu:
-                rt._unsynchronized = True
-                rt.work_queued += 1
-            return rt, hit[0], hit[1]
-    try:
-        response = rt.array_call("Create", request)
-    except WeftError as err:
-        with rt._lock:
-            gave_back = err.code == "RESOURCE_EXHAUSTED" and rt.create_ahead.give_back_all()
-        if not gave_back:
-            raise
-        rt.flush()                       # the arrays held ahead are freed first
-        response = rt.array_call("Create", request)
+            response = rt.create_ahead.take(ahead_key)
+    if response is None:
+        try:
+            response = rt.array_call("Create", request)
+        except WeftError as err:
+            with rt._lock:
+                gave_back = err.code == "RESOURCE_EXHAUSTED" and rt.create_ahead.give_back_all()
+            if not gave_back:
+                raise
+            rt.flush()                   # the arrays held ahead are freed first
+            response = rt.array_call("Create", request)
     if ahead_key is not None:
         with rt._lock:
             rt.create_ahead.created(ahead_key)
@@ -866,6 +860,7 @@ class array:
         if ginfo is None or ginfo.handle != grad_handle:
             ginfo = rt.array_call("Describe",
                                   _runtime.array_pb2.DescribeArrayRequest(handle=grad_handle)).info
+            _interop_memory._grad_infos[self._alloc] = ginfo
         galloc = _Allocation(rt, ginfo, owned=False, parent=self._alloc)
         g = array.__new__(array)
         g._alloc = galloc

@@ -254,11 +254,9 @@ def cuda_interface(obj) -> dict:
 def find_cuda_in_place(obj, dtype, device: str, what: str):
     """A weft array over a foreign GPU array whose memory is a weft GPU allocation (exported
     to the framework by to_torch / DLPack), else None."""
-    if is_torch_tensor(obj):
-        # most tensors are the framework's own memory: one range look-up before any layout work
-        space = f"cuda:{device.split(':')[1] if ':' in device else '0'}"
-        if memory.find(int(obj.data_ptr()), 1, space=space) is None:
-            return None
+    space = f"cuda:{device.split(':')[1] if ':' in device else '0'}"
+    if is_torch_tensor(obj) and memory.find(int(obj.data_ptr()), 1, space=space) is None:
+        return None     # the framework's own memory (most tensors): no layout work
     iface = cuda_interface(obj)
     np_dtype = np.dtype(iface["typestr"])
     shape = tuple(int(s) for s in iface["shape"])
@@ -277,8 +275,7 @@ def find_cuda_in_place(obj, dtype, device: str, what: str):
     low, nbytes = _span(wshape, wstrides, _elem_size(wdtype))
     if low < 0:
         return None
-    ordinal = device.split(":")[1] if ":" in device else "0"
-    hit = memory.find(int(iface["data"][0]), nbytes, space=f"cuda:{ordinal}")
+    hit = memory.find(int(iface["data"][0]), nbytes, space=space)
     if hit is None:
         return None
     alloc, offset = hit

@@ -171,10 +171,7 @@ def grad_view(a):
         return None
     ginfo = _grad_infos.get(a._alloc)
     if ginfo is None or ginfo.handle != info.grad_handle:
-        g = a.grad
-        if g is not None:
-            _grad_infos[a._alloc] = g._info
-        return g
+        return a.grad                   # described once, kept in _grad_infos
     from ..array import _Allocation  # noqa: PLC0415
 
     galloc = _Allocation(a._alloc.runtime, ginfo, owned=False, parent=a._alloc)
