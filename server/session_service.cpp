@@ -176,6 +176,7 @@ grpc::Status SessionServiceImpl::Stats(grpc::ServerContext* ctx, const v1::Stats
   resp->set_gpu_slab_bytes(e.gpu_slab_bytes);
   resp->set_gpu_resets(e.gpu_resets);
   resp->set_last_gpu_reset_ms(e.last_gpu_reset_ms);
+  resp->set_gpu_coarsened_launches(e.gpu_coarsened_launches);
   resp->set_commands_run_total(e.commands_run_total);
   resp->set_command_run_seconds(e.command_run_seconds);
   if (hosts_) {

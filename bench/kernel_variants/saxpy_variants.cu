@@ -237,6 +237,103 @@ GC_ENTRY(gen_tidfast) { GC_LOOP(gen_body_tidfast) }
 GC_ENTRY(gen_tidfast_no_loop) { GC_NO_LOOP(gen_body_tidfast) }
 GC_ENTRY(gen_tidfast_once_then_loop) { GC_ONCE_THEN_LOOP(gen_body_tidfast) }
 
+// Ceilings (2026-11-29): what this GPU gives saxpy when the program may leave Warp's model of
+// one thread per element. Plain pointers, no checks; n a multiple of 4.
+extern "C" __global__ void ceiling_scalar(long long n, const float* __restrict__ x, float* __restrict__ y, float a) {
+  const long long i = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n) y[i] = a * x[i] + y[i];
+}
+// Loads that bypass nothing but mark the data as streamed (evict-first).
+extern "C" __global__ void ceiling_streaming(long long n, const float* __restrict__ x, float* __restrict__ y, float a) {
+  const long long i = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n) __stcs(y + i, a * __ldcs(x + i) + __ldcs(y + i));
+}
+// Four elements per thread, each a quarter of the array apart (coalesced), all loads first.
+extern "C" __global__ void ceiling_ilp4(long long n, const float* __restrict__ x, float* __restrict__ y, float a) {
+  const long long q = n / 4;
+  const long long i = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= q) return;
+  float xv[4], yv[4];
+#pragma unroll
+  for (int k = 0; k < 4; ++k) { xv[k] = x[i + k * q]; yv[k] = y[i + k * q]; }
+#pragma unroll
+  for (int k = 0; k < 4; ++k) y[i + k * q] = a * xv[k] + yv[k];
+}
+// 16-byte loads and stores: four consecutive elements per thread.
+extern "C" __global__ void ceiling_float4(long long n, const float4* __restrict__ x, float4* __restrict__ y, float a) {
+  const long long i = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= n / 4) return;
+  const float4 xv = x[i];
+  float4 yv = y[i];
+  yv.x = a * xv.x + yv.x;
+  yv.y = a * xv.y + yv.y;
+  yv.z = a * xv.z + yv.z;
+  yv.w = a * xv.w + yv.w;
+  y[i] = yv;
+}
+
+// Coarsened entries (2026-11-29): each thread runs the unchecked generated body for K logical
+// threads a K-th of the launch apart (i, i+Q, ... : coalesced per copy), first prefetching what
+// the later copies' tid-indexed arrays hold at their index, so that their loads are in flight
+// together: an entry-level change that leaves the body's statements as they are.
+template <int K, bool kL1>
+static inline __device__ void coarse_prefetch(const wp::launch_context_t& __ctx, const saxpy_args& __args) {
+  const wp::int64 n = __ctx.bounds.size;
+  const wp::int64 q = (n + K - 1) / K;
+  const wp::int64 i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= q) return;
+#pragma unroll
+  for (int k = 1; k < K; ++k) {
+    const wp::int64 j = i + k * q;
+    if (j < n) {
+      const char* px = (const char*)__args.p0.data + j * __args.p0.strides[0];
+      const char* py = (const char*)__args.p1.data + j * __args.p1.strides[0];
+      if (kL1) {
+        asm volatile("prefetch.global.L1 [%0];" ::"l"(px));
+        asm volatile("prefetch.global.L1 [%0];" ::"l"(py));
+      } else {
+        asm volatile("prefetch.global.L2 [%0];" ::"l"(px));
+        asm volatile("prefetch.global.L2 [%0];" ::"l"(py));
+      }
+    }
+  }
+#pragma unroll
+  for (int k = 0; k < K; ++k) {
+    const wp::int64 j = i + k * q;
+    if (j < n) saxpy_body_unchecked(__args, j);
+  }
+}
+GC_ENTRY(coarse_l2_k2) { coarse_prefetch<2, false>(__ctx, __args); }
+GC_ENTRY(coarse_l2_k4) { coarse_prefetch<4, false>(__ctx, __args); }
+GC_ENTRY(coarse_l1_k4) { coarse_prefetch<4, true>(__ctx, __args); }
+GC_ENTRY(coarse_l2_k8) { coarse_prefetch<8, false>(__ctx, __args); }
+// Lockstep: the unchecked body's statements each run for the K copies before the next statement
+// (what a coarsening code generator would emit): all loads of the K copies come first.
+template <int K>
+static inline __device__ void coarse_lockstep(const wp::launch_context_t& __ctx, const saxpy_args& __args) {
+  const wp::int64 n = __ctx.bounds.size;
+  const wp::int64 q = (n + K - 1) / K;
+  const wp::int64 i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= q) return;
+  if (i + (K - 1) * q >= n) {   // the tail: one copy after the other
+    for (int k = 0; k < K; ++k)
+      if (i + k * q < n) saxpy_body_unchecked(__args, i + k * q);
+    return;
+  }
+  wp::int32 t[K];
+  wp::float32 xv[K], yv[K];
+#pragma unroll
+  for (int k = 0; k < K; ++k) t[k] = wp::int32(i + k * q);
+#pragma unroll
+  for (int k = 0; k < K; ++k) xv[k] = wp::load(__args.p0, t[k]);
+#pragma unroll
+  for (int k = 0; k < K; ++k) yv[k] = wp::load(__args.p1, t[k]);
+#pragma unroll
+  for (int k = 0; k < K; ++k) wp::store(__args.p1, t[k], wp::add(wp::mul(__args.p2, xv[k]), yv[k]));
+}
+GC_ENTRY(lockstep_k2) { coarse_lockstep<2>(__ctx, __args); }
+GC_ENTRY(lockstep_k4) { coarse_lockstep<4>(__ctx, __args); }
+
 #define CHECK(call)                                                                    \
   do {                                                                                 \
     cudaError_t e_ = (call);                                                           \
@@ -336,6 +433,16 @@ int main(int argc, char** argv) {
         {"loop, error report out of line, parameters __grid_constant__", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { cold_report_grid_constant<<<g, 256>>>(c, a); }},
         {"no loop, error report out of line", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { cold_report_no_loop<<<g, 256>>>(c, a); }},
         {"loop, no checks", [](unsigned g, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long) { unchecked<<<g, 256>>>(c, a); }},
+        {"coarsened x2, later copies prefetched to L2, no checks", [](unsigned, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long n) { coarse_l2_k2<<<unsigned(((n + 2 - 1) / 2 + 255) / 256), 256>>>(c, a); }},
+        {"coarsened x4, later copies prefetched to L2, no checks", [](unsigned, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long n) { coarse_l2_k4<<<unsigned(((n + 4 - 1) / 4 + 255) / 256), 256>>>(c, a); }},
+        {"coarsened x4, later copies prefetched to L1, no checks", [](unsigned, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long n) { coarse_l1_k4<<<unsigned(((n + 4 - 1) / 4 + 255) / 256), 256>>>(c, a); }},
+        {"coarsened x8, later copies prefetched to L2, no checks", [](unsigned, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long n) { coarse_l2_k8<<<unsigned(((n + 8 - 1) / 8 + 255) / 256), 256>>>(c, a); }},
+        {"coarsened x2, statements in lockstep, no checks", [](unsigned, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long n) { lockstep_k2<<<unsigned(((n + 2 - 1) / 2 + 255) / 256), 256>>>(c, a); }},
+        {"coarsened x4, statements in lockstep, no checks", [](unsigned, const wp::launch_context_t& c, const saxpy_args& a, const warp_array_t&, const warp_array_t&, long long n) { lockstep_k4<<<unsigned(((n + 4 - 1) / 4 + 255) / 256), 256>>>(c, a); }},
+        {"ceiling: plain pointers, one element per thread", [](unsigned, const wp::launch_context_t&, const saxpy_args& a, const warp_array_t& wx, const warp_array_t& wy, long long n) { ceiling_scalar<<<unsigned((n + 255) / 256), 256>>>(n, wx.data, wy.data, a.p2); }},
+        {"ceiling: one element per thread, streaming loads/stores", [](unsigned, const wp::launch_context_t&, const saxpy_args& a, const warp_array_t& wx, const warp_array_t& wy, long long n) { ceiling_streaming<<<unsigned((n + 255) / 256), 256>>>(n, wx.data, wy.data, a.p2); }},
+        {"ceiling: four elements per thread a quarter apart, loads first", [](unsigned, const wp::launch_context_t&, const saxpy_args& a, const warp_array_t& wx, const warp_array_t& wy, long long n) { ceiling_ilp4<<<unsigned((n / 4 + 255) / 256), 256>>>(n, wx.data, wy.data, a.p2); }},
+        {"ceiling: float4 loads and stores", [](unsigned, const wp::launch_context_t&, const saxpy_args& a, const warp_array_t& wx, const warp_array_t& wy, long long n) { ceiling_float4<<<unsigned((n / 4 + 255) / 256), 256>>>(n, reinterpret_cast<const float4*>(wx.data), reinterpret_cast<float4*>(wy.data), a.p2); }},
         {"lean, no checks, int32 shape and strides", [](unsigned g, const wp::launch_context_t&, const saxpy_args& a, const warp_array_t& wx, const warp_array_t& wy, long long n) { warp_style<<<g, 256>>>(n, wx, wy, a.p2); }},
     };
     for (const Variant& v : variants) {

@@ -85,15 +85,16 @@ int TidIndexedAccess(const Function& f, const std::set<int>& tid_vars, int array
   return -1;
 }
 
-// Every forward access of f that TidIndexedAccess accepts: its parameters, in order.
+// Every forward access of f that TidIndexedAccess accepts: its parameters, in order; `loaded`
+// (when given): those of them read by a plain load (what a coarsened entry prefetches).
 void CollectTidIndexedParams(const Function& f, const std::set<int>& tid_vars, const std::vector<Stmt>& stmts,
-                             std::set<uint32_t>* out) {
+                             std::set<uint32_t>* out, std::set<uint32_t>* loaded = nullptr) {
   for (const Stmt& s : stmts) {
     if (s.kind != Stmt::Kind::kOp) {
-      CollectTidIndexedParams(f, tid_vars, s.then_body, out);
-      CollectTidIndexedParams(f, tid_vars, s.else_body, out);
-      CollectTidIndexedParams(f, tid_vars, s.cond_body, out);
-      CollectTidIndexedParams(f, tid_vars, s.body, out);
+      CollectTidIndexedParams(f, tid_vars, s.then_body, out, loaded);
+      CollectTidIndexedParams(f, tid_vars, s.else_body, out, loaded);
+      CollectTidIndexedParams(f, tid_vars, s.cond_body, out, loaded);
+      CollectTidIndexedParams(f, tid_vars, s.body, out, loaded);
       continue;
     }
     const Op& op = s.op;
@@ -109,7 +110,9 @@ void CollectTidIndexedParams(const Function& f, const std::set<int>& tid_vars, c
       continue;
     }
     const int p = TidIndexedAccess(f, tid_vars, op.args[0], idx);
-    if (p >= 0) out->insert(static_cast<uint32_t>(p));
+    if (p < 0) continue;
+    out->insert(static_cast<uint32_t>(p));
+    if (loaded && op.kind == OpKind::kLoad) loaded->insert(static_cast<uint32_t>(p));
   }
 }
 
@@ -1239,11 +1242,12 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
       // (bench/kernel_variants, saxpy 1e8 on an H200): 385 us lean against 448 us in the loop,
       // whose prologue carries the hoisted invariants of the bounds checks' error paths.
       kl.grid_stride = options.grid_stride;
+      std::set<uint32_t> tid_loaded;
       if (options.bounds_checks) {
         std::set<int> tid_vars;
         CollectTidVars(f.body, &tid_vars);
         std::set<uint32_t> trusted;
-        if (!tid_vars.empty()) CollectTidIndexedParams(f, tid_vars, f.body, &trusted);
+        if (!tid_vars.empty()) CollectTidIndexedParams(f, tid_vars, f.body, &trusted, &tid_loaded);
         kl.tid_indexed_params.assign(trusted.begin(), trusted.end());
       }
       auto entry = [&](const std::string& symbol, const std::string& params, const std::string& call) {
@@ -1264,6 +1268,33 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
       if (options.enable_backward)
         entry(kl.backward_symbol, ctx_param + ", " + args_param("__args") + ", " + args_param("__adj_args"),
               bwd + "(&__ctx, __args, __adj_args, __i)");
+      // The coarsened entry (KernelLayout::coarse_symbol). One element per thread leaves a
+      // memory-bound kernel short of the copy rate: too few loads in flight per SM (saxpy 1e8 on
+      // an H200: 82% of a device copy unchecked, 101% coarsened by 4 with the prefetches;
+      // bench/kernel_variants). Running logical threads one after another in one GPU thread is
+      // one of the schedules the launch already allows: they share nothing a thread owns.
+      if (options.trust_tid_indices && !options.grid_stride && !tid_loaded.empty() && !ModuleUsesTiles(m)) {
+        kl.coarse_symbol = kl.forward_symbol + "_x" + std::to_string(kCoarseFactor);
+        const std::string factor = std::to_string(kCoarseFactor);
+        o += "extern \"C\" __global__ void " + kl.coarse_symbol + "(" + ctx_param + ", " + args_param("__args") + ") {\n"
+             "  const wp::int64 __n = __ctx.bounds.size;\n"
+             "  const wp::int64 __q = (__n + " + factor + " - 1) / " + factor + ";\n"
+             "  const wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;\n"
+             "  if (__i >= __q) return;\n"
+             "#pragma unroll\n"
+             "  for (int __k = 1; __k < " + factor + "; ++__k) {\n"
+             "    const wp::int64 __j = __i + __k * __q;\n"
+             "    if (__j >= __n) break;\n";
+        for (uint32_t p : tid_loaded) o += "    wp::cg_prefetch_l2(__args.p" + std::to_string(p) + ", __j);\n";
+        o += "  }\n"
+             "#pragma unroll 1\n"
+             "  for (int __k = 0; __k < " + factor + "; ++__k) {\n"
+             "    const wp::int64 __j = __i + __k * __q;\n"
+             "    if (__j >= __n) break;\n"
+             "    " + fwd + "(&__ctx, __args, __j);\n"
+             "  }\n"
+             "}\n\n";
+      }
     }
     o.replace(entry_start, std::string::npos, MapToDefLine(f, o.substr(entry_start)));
     gm.kernels.push_back(std::move(kl));

@@ -51,7 +51,18 @@ struct KernelLayout {
   // (TidIndexedAccess). A launch whose arrays there all hold at least as many elements as it
   // has threads may use the variant built with CodegenOptions::trust_tid_indices.
   std::vector<uint32_t> tid_indexed_params;
+  // CUDA, the trusted-index variant only (CodegenOptions::trust_tid_indices, no grid-stride loop,
+  // no tiles in the module, some 1-D array parameter loaded at wp.tid()): an entry where each GPU
+  // thread runs the forward body for kCoarseFactor logical threads of a 1-D launch, a
+  // kCoarseFactor-th of the launch apart (i, i + q, i + 2q, ...; q = ceil(threads / factor)),
+  // after prefetching into L2 what the later ones load at their index. Empty when none. The
+  // launch picks it for large 1-D forward launches (CudaDevice::LaunchTraced; docs/cuda.md
+  // "Coarsened launches"); its grid covers q threads.
+  std::string coarse_symbol;
 };
+
+// Logical threads per GPU thread in a coarsened entry (KernelLayout::coarse_symbol).
+constexpr int kCoarseFactor = 4;
 
 struct GeneratedModule {
   std::string source;                       // the translation unit

@@ -235,6 +235,12 @@ Status CudaDevice::Init() {
     stream_mem_ops_ = driver_->DeviceGetAttribute(&mem_ops, jit::kCuAttributeCanUse64BitStreamMemOps, device_) == 0 &&
                       mem_ops != 0;
   }
+  {
+    int sms = 0, threads_per_sm = 0;
+    if (driver_->DeviceGetAttribute(&sms, jit::kCuAttributeMultiprocessorCount, device_) == 0 &&
+        driver_->DeviceGetAttribute(&threads_per_sm, jit::kCuAttributeMaxThreadsPerMultiprocessor, device_) == 0)
+      coarsen_min_threads_ = CoarsenMinThreads(sms, threads_per_sm);
+  }
   WEFT_RETURN_IF_ERROR(driver_->Check(driver_->DevicePrimaryCtxRetain(&ctx_, device_), "cuDevicePrimaryCtxRetain"));
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   // A first allocation proves the context works (a GPU that lists but cannot compute fails here).
@@ -262,7 +268,19 @@ Status CudaDevice::MakeCurrent() const {
 
 CudaDeviceStats CudaDevice::stats() const {
   std::lock_guard<std::mutex> lock(mu_);
-  return {resets_, last_reset_ms_};
+  return {resets_, last_reset_ms_, coarsened_launches_.load(std::memory_order_relaxed)};
+}
+
+uint64_t CoarsenMinThreads(int sms, int threads_per_sm) {
+  if (const char* off = std::getenv("WEFT_COARSEN"); off && std::string(off) == "0") return 0;
+  if (const char* v = std::getenv("WEFT_COARSEN_MIN_THREADS"); v && *v) {
+    char* end = nullptr;
+    const unsigned long long n = std::strtoull(v, &end, 10);
+    if (end && *end == '\0' && n > 0) return n;
+  }
+  if (sms <= 0 || threads_per_sm <= 0) return 0;
+  return 2ull * static_cast<uint64_t>(kCoarseFactor) * static_cast<uint64_t>(sms) *
+         static_cast<uint64_t>(threads_per_sm);
 }
 
 // ---- memory ----
@@ -1261,14 +1279,20 @@ Status CudaDevice::LaunchTraced(Session& s, const KernelLaunch& l, std::string*,
   }
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   const bool adjoint = l.adj_args != nullptr;
-  const std::string& symbol = adjoint ? l.kernel->layout.backward_symbol : l.kernel->layout.forward_symbol;
-  if (symbol.empty()) return Internal("kernel '" + l.kernel->layout.name + "' has no CUDA entry point");
-  WEFT_ASSIGN_OR_RETURN(jit::CuFunction fn, Function(*l.module, symbol));
   if (l.block_dim > 1024) return InvalidArgument("block_dim " + std::to_string(l.block_dim) + " is more than 1024");
-
   wp::launch_context_t ctx{};
   WEFT_ASSIGN_OR_RETURN(ctx.bounds, LaunchBoundsOf(l.dim));
   if (ctx.bounds.size == 0) return Status::Ok();
+  // A large 1-D forward launch of a module variant proven in range runs the coarsened entry:
+  // kCoarseFactor logical threads per GPU thread (KernelLayout::coarse_symbol).
+  const bool coarse = !adjoint && !l.kernel->layout.coarse_symbol.empty() && l.module->trusts_tid_indices &&
+                      ctx.bounds.ndim == 1 && l.max_blocks <= 0 && coarsen_min_threads_ > 0 &&
+                      static_cast<uint64_t>(ctx.bounds.size) >= coarsen_min_threads_;
+  const std::string& symbol = coarse    ? l.kernel->layout.coarse_symbol
+                              : adjoint ? l.kernel->layout.backward_symbol
+                                        : l.kernel->layout.forward_symbol;
+  if (symbol.empty()) return Internal("kernel '" + l.kernel->layout.name + "' has no CUDA entry point");
+  WEFT_ASSIGN_OR_RETURN(jit::CuFunction fn, Function(*l.module, symbol));
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
   if (!st->capture) WEFT_RETURN_IF_ERROR(MakeRoom(s, *st, 1));
   jit::CuDevicePtr error_slot = st->errors + st->pending.size() * sizeof(wp::launch_error_t);
@@ -1302,7 +1326,9 @@ Status CudaDevice::LaunchTraced(Session& s, const KernelLaunch& l, std::string*,
                              " threads needs more blocks than one grid holds without a grid-stride loop; use "
                              "@wp.kernel(grid_stride=True)");
   }
-  const unsigned grid = GridFor(static_cast<uint64_t>(ctx.bounds.size), block, l.max_blocks);
+  const uint64_t threads = coarse ? (static_cast<uint64_t>(ctx.bounds.size) + kCoarseFactor - 1) / kCoarseFactor
+                                  : static_cast<uint64_t>(ctx.bounds.size);
+  const unsigned grid = GridFor(threads, block, l.max_blocks);
   void* args = const_cast<char*>(l.args->block.data());
   void* adj = adjoint ? const_cast<char*>(l.adj_args->block.data()) : nullptr;
   void* params_fwd[] = {&ctx, args};
@@ -1325,6 +1351,7 @@ Status CudaDevice::LaunchTraced(Session& s, const KernelLaunch& l, std::string*,
     return driver_->Check(launched, ("cuLaunchKernel " + symbol).c_str());
   }
   (st->capture ? st->capture->launches : st->pending).push_back(Pending{l.module, l.kernel, adjoint, l.origin});
+  if (coarse) coarsened_launches_.fetch_add(1, std::memory_order_relaxed);
   return Status::Ok();
 }
 

@@ -68,7 +68,14 @@ inline unsigned GridFor(uint64_t n, unsigned block, uint64_t max_blocks) {
 struct CudaDeviceStats {
   uint64_t resets = 0;
   double last_reset_ms = 0;
+  uint64_t coarsened_launches = 0;   // launches that ran a kernel's coarsened entry
 };
+
+// The fewest threads of a 1-D launch that take a kernel's coarsened entry (KernelLayout::
+// coarse_symbol) on a GPU of `sms` multiprocessors of `threads_per_sm` resident threads each:
+// enough that the coarsened grid still fills the GPU twice over, so a compute-bound kernel keeps
+// its parallelism. WEFT_COARSEN_MIN_THREADS=N overrides it; WEFT_COARSEN=0 turns the entry off.
+uint64_t CoarsenMinThreads(int sms, int threads_per_sm);
 
 class CudaDevice final : public Device {
  public:
@@ -332,6 +339,8 @@ class CudaDevice final : public Device {
   jit::CuContext ctx_ = nullptr;
   int sm_ = 0;
   bool stream_mem_ops_ = false;   // CU_DEVICE_ATTRIBUTE_CAN_USE_64_BIT_STREAM_MEM_OPS
+  uint64_t coarsen_min_threads_ = 0;   // CoarsenMinThreads of this GPU (0: never coarsen)
+  std::atomic<uint64_t> coarsened_launches_{0};
   std::vector<CudaDevice*> peers_;
 
   // Held shared by every operation, exclusively by Reset.

@@ -120,6 +120,7 @@ struct CudaDriver {
 
 // Device attribute numbers used above (cuda.h's CUdevice_attribute values).
 constexpr int kCuAttributeMultiprocessorCount = 16;
+constexpr int kCuAttributeMaxThreadsPerMultiprocessor = 39;
 constexpr int kCuAttributeMaxSharedMemoryPerBlockOptin = 97;
 constexpr int kCuAttributeComputeCapabilityMajor = 75;
 constexpr int kCuAttributeComputeCapabilityMinor = 76;

@@ -306,6 +306,19 @@ WP_FUNC int64 cg_tid_first(const launch_context_t* ctx, int64 flat) {
   const int64 inner = (b.shape[1] > 0 ? b.shape[1] : 1) * (b.shape[2] > 0 ? b.shape[2] : 1) * (b.shape[3] > 0 ? b.shape[3] : 1);
   return flat / inner;
 }
+// The coarsened CUDA entry (KernelLayout::coarse_symbol): asks the GPU to bring element i of a
+// 1-D array (one the body loads at wp.tid()) into L2 ahead of the body that loads it, so the
+// loads of a thread's later logical threads are in flight together. A hint: it never faults and
+// changes no value; nothing on the CPU.
+template <typename T>
+WP_FUNC void cg_prefetch_l2(const array_t<T>& a, int64 i) {
+#if defined(__CUDA_ARCH__)
+  asm volatile("prefetch.global.L2 [%0];" ::"l"(reinterpret_cast<const char*>(a.data) + i * a.strides[0]));
+#else
+  (void)a;
+  (void)i;
+#endif
+}
 WP_FUNC void cg_unravel(const launch_bounds_t& b, int64 flat, int64* tid) {
   tid[1] = tid[2] = tid[3] = 0;
   for (int d = b.ndim - 1; d > 0; --d) {

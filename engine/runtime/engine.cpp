@@ -791,6 +791,7 @@ EngineStats Engine::Stats() const {
     st.gpu_slab_bytes += g->SlabBytes();
     CudaDeviceStats gs = g->stats();
     st.gpu_resets += gs.resets;
+    st.gpu_coarsened_launches += gs.coarsened_launches;
     if (gs.resets) st.last_gpu_reset_ms = gs.last_reset_ms;
   }
   if (store_) {

@@ -114,6 +114,7 @@ struct EngineStats {
   uint64_t gpu_slab_bytes = 0;
   uint64_t gpu_resets = 0;           // device resets after kernel faults
   double last_gpu_reset_ms = 0;
+  uint64_t gpu_coarsened_launches = 0;   // launches that ran a coarsened entry, every GPU
   uint64_t commands_run_total = 0;   // commands the executors ran, all sessions
   double command_run_seconds = 0;    // their time in the executor (GPU: queueing, not running)
 };

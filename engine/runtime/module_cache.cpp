@@ -293,6 +293,7 @@ std::string SerializeArtifact(const ModuleArtifact& artifact) {
     for (const auto& p : k.params) WriteParam(w, p);
     w.U64(k.tid_indexed_params.size());
     for (uint32_t p : k.tid_indexed_params) w.U32(p);
+    w.Str(k.coarse_symbol);
   }
   w.U64(artifact.function_names.size());
   for (const auto& n : artifact.function_names) w.Str(n);
@@ -328,6 +329,7 @@ Expected<ModuleArtifact> DeserializeArtifact(std::string_view payload) {
     k.tid_indexed_params.resize(ntrusted);
     for (auto& p : k.tid_indexed_params)
       if (!r.U32(&p) || p >= k.params.size()) return bad();
+    if (!r.Str(&k.coarse_symbol)) return bad();
   }
   uint64_t nnames = 0;
   if (!r.Count(&nnames)) return bad();

@@ -62,7 +62,7 @@ Expected<ModuleArtifact> DeserializeArtifact(std::string_view payload);
 // mtime, set by Store and by every successful Load), never the key just stored.
 class DiskModuleCache {
  public:
-  static constexpr uint32_t kFormatVersion = 6;
+  static constexpr uint32_t kFormatVersion = 7;
 
   explicit DiskModuleCache(std::string dir, uint64_t capacity_bytes = 0)
       : dir_(std::move(dir)), capacity_bytes_(capacity_bytes) {}

@@ -599,5 +599,65 @@ TEST(CodegenKernels, TrustedTidIndicesSkipOnlyProvenChecks) {
   EXPECT_TRUE(gm->kernels[0].tid_indexed_params.empty());
 }
 
+// The coarsened entry (KernelLayout::coarse_symbol) exists only in the trusted-index variant of a
+// lean (not grid-stride) CUDA module, prefetches exactly the 1-D parameters the body loads at
+// wp.tid() (x, y for saxpy; never a parameter only stored to, which a prefetch would read for
+// nothing), runs the forward body for kCoarseFactor logical threads, and compiles for every
+// architecture CI builds for.
+TEST(CodegenKernels, CoarsenedEntryOnlyWhereProvenAndPrefetchesOnlyLoads) {
+  ModuleSource m;
+  m.name = "coarse_mod";
+  m.symbols.push_back(Wp());
+  m.functions.push_back(Fn("saxpy",
+                           "def saxpy(x: wp.array(dtype=float), y: wp.array(dtype=float), out: wp.array(dtype=float),\n"
+                           "          a: float):\n"
+                           "    i = wp.tid()\n"
+                           "    out[i] = a * x[i] + y[i]\n",
+                           {"array(float32,1)", "array(float32,1)", "array(float32,1)", "float32"},
+                           {"x", "y", "out", "a"}));
+  m.functions.push_back(Fn("fill",
+                           "def fill(out: wp.array(dtype=float)):\n"
+                           "    i = wp.tid()\n"
+                           "    out[i] = float(i)\n",
+                           {"array(float32,1)"}, {"out"}));
+  for (bool trust : {false, true}) {
+    for (bool grid_stride : {false, true}) {
+      CodegenOptions o;
+      o.target = Target::kCuda;
+      o.enable_backward = true;
+      o.grid_stride = grid_stride;
+      o.trust_tid_indices = trust;
+      std::vector<Diagnostic> diags;
+      auto gm = GenerateModule(m, o, &diags);
+      ASSERT_TRUE(gm.ok()) << gm.status().message();
+      ASSERT_EQ(gm->kernels.size(), 2u);
+      const KernelLayout& saxpy = gm->kernels[0];
+      const KernelLayout& fill = gm->kernels[1];
+      EXPECT_TRUE(fill.coarse_symbol.empty()) << "nothing loaded at wp.tid(): nothing to prefetch";
+      if (!trust || grid_stride) {
+        EXPECT_TRUE(saxpy.coarse_symbol.empty()) << "trust=" << trust << " grid_stride=" << grid_stride;
+        EXPECT_EQ(gm->source.find("cg_prefetch_l2"), std::string::npos);
+        continue;
+      }
+      EXPECT_EQ(saxpy.coarse_symbol, saxpy.forward_symbol + "_x" + std::to_string(kCoarseFactor));
+      const size_t at = gm->source.find("void " + saxpy.coarse_symbol + "(");
+      ASSERT_NE(at, std::string::npos) << gm->source;
+      const std::string entry = gm->source.substr(at, gm->source.find("\n}\n", at) - at);
+      EXPECT_NE(entry.find("wp::cg_prefetch_l2(__args.p0, __j)"), std::string::npos) << entry;
+      EXPECT_NE(entry.find("wp::cg_prefetch_l2(__args.p1, __j)"), std::string::npos) << entry;
+      EXPECT_EQ(entry.find("__args.p2, __j"), std::string::npos) << "out is only stored to: " << entry;
+      EXPECT_NE(entry.find("_forward_body(&__ctx, __args, __j)"), std::string::npos) << entry;
+      EXPECT_EQ(CompileCudaForEveryArch(gm->source, "coarse_mod"), "");
+    }
+  }
+  // The CPU target has no GPU entries at all.
+  std::vector<Diagnostic> diags;
+  CodegenOptions cpu;
+  cpu.trust_tid_indices = true;
+  auto gm = GenerateModule(m, cpu, &diags);
+  ASSERT_TRUE(gm.ok());
+  EXPECT_TRUE(gm->kernels[0].coarse_symbol.empty());
+}
+
 }  // namespace
 }  // namespace weft

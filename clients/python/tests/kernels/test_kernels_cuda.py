@@ -341,3 +341,120 @@ print("NEW cpu:", np.array_equal(a.numpy(), np.arange(4)), "cuda:0 computes:", w
 ''', env={"WEFT_ADDRESS": daemon.address}).stdout
     assert "NEW cpu: True" in check, check
     assert "cuda:0 computes: True" in check, check
+
+
+@wp.kernel
+def visit_once(x: wp.array(dtype=float), seen: wp.array(dtype=int), tids: wp.array(dtype=int),
+               count: wp.array(dtype=int)):
+    i = wp.tid()
+    if x[i] > -1.0e30:
+        wp.atomic_add(seen, i, 1)
+    tids[i] = i
+    wp.atomic_add(count, 0, 1)
+
+
+@wp.kernel
+def horner(x: wp.array(dtype=float), out: wp.array(dtype=float), k: int):
+    i = wp.tid()
+    v = x[i]
+    acc = float(0.0)
+    for j in range(k):
+        acc = acc * v + float(j + 1)
+    if v < 0.0:
+        acc = -acc
+    out[i] = acc
+
+
+@wp.kernel
+def gather_add(x: wp.array(dtype=float), idx: wp.array(dtype=int), out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = x[i] + x[idx[i]]
+
+
+@wp.kernel
+def saxpy_2d(a: float, x: wp.array2d(dtype=float), y: wp.array2d(dtype=float)):
+    i, j = wp.tid()
+    y[i, j] = a * x[i, j] + y[i, j]
+
+
+def _coarsened(weftd) -> int:
+    return weftd.stats().gpu_coarsened_launches
+
+
+def test_coarsened_launches_run_every_logical_thread_once(wp, gpu, weftd, rng):
+    """A large 1-D launch proven in range runs the kernel's coarsened entry (several logical
+    threads per GPU thread, the later ones' loads prefetched; docs/cuda.md "Coarsened
+    launches"), counted in Stats.gpu_coarsened_launches. Every logical thread runs exactly once
+    with its own wp.tid(), the tail of a size that is no multiple of the factor included; saxpy
+    on magnitudes from 1e-30 to 1e30 and a loop with a branch match float64; an access that
+    fails its check in a coarsened launch is reported as ever (kernel, index, shape, line)."""
+    n = (1 << 23) + 3
+    before = _coarsened(weftd)
+    x0 = (rng.standard_normal(n) * 10.0 ** rng.uniform(-30, 30, n)).astype(np.float32)
+    x = wp.array(x0, dtype=float, device=gpu)
+    seen = wp.zeros(n, dtype=int, device=gpu)
+    tids = wp.full(n, -1, dtype=int, device=gpu)
+    count = wp.zeros(1, dtype=int, device=gpu)
+    wp.launch(visit_once, dim=n, inputs=[x, seen, tids, count], device=gpu)
+    assert count.numpy()[0] == n
+    np.testing.assert_array_equal(seen.numpy(), 1)
+    np.testing.assert_array_equal(tids.numpy(), np.arange(n))
+
+    y0 = (rng.standard_normal(n) * 10.0 ** rng.uniform(-30, 30, n)).astype(np.float32)
+    y = wp.array(y0, dtype=float, device=gpu)
+    wp.launch(saxpy_lean, dim=n, inputs=[0.75, x, y], device=gpu)
+    ref = 0.75 * x0.astype(np.float64) + y0.astype(np.float64)
+    got = y.numpy().astype(np.float64)
+    # float32 rounding of a*x and of the sum: within 2 ulp of the larger operand
+    scale = np.maximum(np.abs(0.75 * x0.astype(np.float64)), np.abs(y0.astype(np.float64)))
+    assert np.all(np.abs(got - ref) <= 2.5e-7 * scale + 1e-37)
+
+    u0 = rng.uniform(-1.5, 1.5, n).astype(np.float32)
+    u = wp.array(u0, dtype=float, device=gpu)
+    out = wp.zeros(n, dtype=float, device=gpu)
+    wp.launch(horner, dim=n, inputs=[u, out, 6], device=gpu)
+    v = u0.astype(np.float64)
+    acc = np.zeros(n)
+    for j in range(6):
+        acc = acc * v + (j + 1)
+    acc = np.where(v < 0.0, -acc, acc)
+    np.testing.assert_allclose(out.numpy(), acc, rtol=2e-5, atol=2e-5)
+    after = _coarsened(weftd)
+    assert after - before >= 3, (before, after)
+
+    # a gather whose index is out of range in the last quarter of the launch
+    idx0 = rng.integers(0, n, n).astype(np.int32)
+    idx0[n - 2] = n + 10
+    idx = wp.array(idx0, dtype=int, device=gpu)
+    wp.launch(gather_add, dim=n, inputs=[x, idx, out], device=gpu)
+    lines, start = inspect.getsourcelines(gather_add.func)
+    line = start + next(k for k, t in enumerate(lines) if "x[idx[i]]" in t)
+    with pytest.raises(wp.WeftError) as info:
+        wp.synchronize()
+    text = str(info.value)
+    assert "kernel 'gather_add'" in text and f"index [{n + 10}]" in text and f"of shape ({n},)" in text, text
+    assert f"test_kernels_cuda.py:{line}" in text, text
+    assert _coarsened(weftd) > after
+    # the session goes on
+    wp.launch(visit_once, dim=n, inputs=[x, seen, tids, count], device=gpu)
+    assert count.numpy()[0] == 2 * n
+
+
+def test_small_and_2d_launches_are_not_coarsened(wp, gpu, weftd, rng):
+    """Below the threshold (the coarsened grid would not fill the GPU twice) and for launches of
+    more than one dimension, the plain entry runs: the counter does not move, results match."""
+    x0 = rng.standard_normal(1 << 16).astype(np.float32)
+    y0 = rng.standard_normal(1 << 16).astype(np.float32)
+    before = _coarsened(weftd)
+    x = wp.array(x0, dtype=float, device=gpu)
+    y = wp.array(y0, dtype=float, device=gpu)
+    wp.launch(saxpy_lean, dim=x0.size, inputs=[2.0, x, y], device=gpu)
+    np.testing.assert_allclose(y.numpy(), 2.0 * x0.astype(np.float64) + y0, rtol=1e-6, atol=1e-6)
+    m = 3000
+    a0 = rng.standard_normal((m, m)).astype(np.float32)
+    b0 = rng.standard_normal((m, m)).astype(np.float32)
+    a = wp.array(a0, dtype=float, device=gpu)
+    b = wp.array(b0, dtype=float, device=gpu)
+    wp.launch(saxpy_2d, dim=(m, m), inputs=[2.0, a, b], device=gpu)
+    np.testing.assert_allclose(b.numpy(), 2.0 * a0.astype(np.float64) + b0, rtol=1e-6, atol=1e-6)
+    assert _coarsened(weftd) == before
