@@ -1275,6 +1275,7 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
       // one of the schedules the launch already allows: they share nothing a thread owns.
       if (options.trust_tid_indices && !options.grid_stride && !tid_loaded.empty() && !ModuleUsesTiles(m)) {
         kl.coarse_symbol = kl.forward_symbol + "_x" + std::to_string(kCoarseFactor);
+        for (uint32_t p : tid_loaded) kl.coarse_loaded_bytes += kl.params.at(p).array_elem_size;
         const std::string factor = std::to_string(kCoarseFactor);
         o += "extern \"C\" __global__ void " + kl.coarse_symbol + "(" + ctx_param + ", " + args_param("__args") + ") {\n"
              "  const wp::int64 __n = __ctx.bounds.size;\n"

@@ -59,6 +59,9 @@ struct KernelLayout {
   // launch picks it for large 1-D forward launches (CudaDevice::LaunchTraced; docs/cuda.md
   // "Coarsened launches"); its grid covers q threads.
   std::string coarse_symbol;
+  // Bytes the coarsened entry prefetches per logical thread (the elements of those parameters):
+  // a kernel that already has this many bytes of loads in flight per thread gains nothing.
+  uint32_t coarse_loaded_bytes = 0;
 };
 
 // Logical threads per GPU thread in a coarsened entry (KernelLayout::coarse_symbol).

@@ -271,6 +271,15 @@ CudaDeviceStats CudaDevice::stats() const {
   return {resets_, last_reset_ms_, coarsened_launches_.load(std::memory_order_relaxed)};
 }
 
+uint32_t CoarsenMaxLoadedBytes() {
+  if (const char* v = std::getenv("WEFT_COARSEN_MAX_LOADED_BYTES"); v && *v) {
+    char* end = nullptr;
+    const unsigned long n = std::strtoul(v, &end, 10);
+    if (end && *end == '\0' && n <= 1u << 20) return static_cast<uint32_t>(n);
+  }
+  return 12;
+}
+
 uint64_t CoarsenMinThreads(int sms, int threads_per_sm) {
   if (const char* off = std::getenv("WEFT_COARSEN"); off && std::string(off) == "0") return 0;
   if (const char* v = std::getenv("WEFT_COARSEN_MIN_THREADS"); v && *v) {
@@ -1286,6 +1295,7 @@ Status CudaDevice::LaunchTraced(Session& s, const KernelLaunch& l, std::string*,
   // A large 1-D forward launch of a module variant proven in range runs the coarsened entry:
   // kCoarseFactor logical threads per GPU thread (KernelLayout::coarse_symbol).
   const bool coarse = !adjoint && !l.kernel->layout.coarse_symbol.empty() && l.module->trusts_tid_indices &&
+                      l.kernel->layout.coarse_loaded_bytes <= coarsen_max_loaded_bytes_ &&
                       ctx.bounds.ndim == 1 && l.max_blocks <= 0 && coarsen_min_threads_ > 0 &&
                       static_cast<uint64_t>(ctx.bounds.size) >= coarsen_min_threads_;
   const std::string& symbol = coarse    ? l.kernel->layout.coarse_symbol

@@ -76,6 +76,12 @@ struct CudaDeviceStats {
 // enough that the coarsened grid still fills the GPU twice over, so a compute-bound kernel keeps
 // its parallelism. WEFT_COARSEN_MIN_THREADS=N overrides it; WEFT_COARSEN=0 turns the entry off.
 uint64_t CoarsenMinThreads(int sms, int threads_per_sm);
+// The most bytes a kernel may load per thread at wp.tid() (KernelLayout::coarse_loaded_bytes)
+// and still take its coarsened entry: 12 (WEFT_COARSEN_MAX_LOADED_BYTES=N overrides it).
+// Measured on an H200 (bench/prof_coarsen.py, docs/cuda.md "Coarsened launches"): kernels
+// loading 4, 8 and 12 bytes per thread ran 1.37, 1.22 and 1.10x faster at 1e8 threads, those
+// loading 16 (a float64 axpy, a vec4) and 24 (a vec3 integration) 0.93-0.98x.
+uint32_t CoarsenMaxLoadedBytes();
 
 class CudaDevice final : public Device {
  public:
@@ -340,6 +346,7 @@ class CudaDevice final : public Device {
   int sm_ = 0;
   bool stream_mem_ops_ = false;   // CU_DEVICE_ATTRIBUTE_CAN_USE_64_BIT_STREAM_MEM_OPS
   uint64_t coarsen_min_threads_ = 0;   // CoarsenMinThreads of this GPU (0: never coarsen)
+  uint32_t coarsen_max_loaded_bytes_ = CoarsenMaxLoadedBytes();
   std::atomic<uint64_t> coarsened_launches_{0};
   std::vector<CudaDevice*> peers_;
 

@@ -294,6 +294,7 @@ std::string SerializeArtifact(const ModuleArtifact& artifact) {
     w.U64(k.tid_indexed_params.size());
     for (uint32_t p : k.tid_indexed_params) w.U32(p);
     w.Str(k.coarse_symbol);
+    w.U32(k.coarse_loaded_bytes);
   }
   w.U64(artifact.function_names.size());
   for (const auto& n : artifact.function_names) w.Str(n);
@@ -329,7 +330,7 @@ Expected<ModuleArtifact> DeserializeArtifact(std::string_view payload) {
     k.tid_indexed_params.resize(ntrusted);
     for (auto& p : k.tid_indexed_params)
       if (!r.U32(&p) || p >= k.params.size()) return bad();
-    if (!r.Str(&k.coarse_symbol)) return bad();
+    if (!r.Str(&k.coarse_symbol) || !r.U32(&k.coarse_loaded_bytes)) return bad();
   }
   uint64_t nnames = 0;
   if (!r.Count(&nnames)) return bad();

@@ -64,6 +64,7 @@ ModuleArtifact SampleArtifact(std::mt19937& rng) {
   a.kernels[0].adjoint_refused = "k.py:3:5: error: no adjoint here";
   a.kernels[1].tid_indexed_params = {1};
   a.kernels[1].coarse_symbol = "weft_other_cuda_forward_x4";
+  a.kernels[1].coarse_loaded_bytes = 8;
   a.function_names = {"sample.py:saxpy", "sample.py:other"};
   a.generated_source = "// generated\n#include \"weft.h\"\n";
   return a;
@@ -99,6 +100,7 @@ void ExpectSameArtifact(const ModuleArtifact& a, const ModuleArtifact& b) {
     EXPECT_EQ(a.kernels[i].args_align, b.kernels[i].args_align);
     EXPECT_EQ(a.kernels[i].tid_indexed_params, b.kernels[i].tid_indexed_params);
     EXPECT_EQ(a.kernels[i].coarse_symbol, b.kernels[i].coarse_symbol);
+    EXPECT_EQ(a.kernels[i].coarse_loaded_bytes, b.kernels[i].coarse_loaded_bytes);
     ExpectSameParams(a.kernels[i].params, b.kernels[i].params);
   }
 }

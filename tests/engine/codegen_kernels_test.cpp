@@ -640,6 +640,7 @@ TEST(CodegenKernels, CoarsenedEntryOnlyWhereProvenAndPrefetchesOnlyLoads) {
         continue;
       }
       EXPECT_EQ(saxpy.coarse_symbol, saxpy.forward_symbol + "_x" + std::to_string(kCoarseFactor));
+      EXPECT_EQ(saxpy.coarse_loaded_bytes, 8u);   // x and y, float32
       const size_t at = gm->source.find("void " + saxpy.coarse_symbol + "(");
       ASSERT_NE(at, std::string::npos) << gm->source;
       const std::string entry = gm->source.substr(at, gm->source.find("\n}\n", at) - at);

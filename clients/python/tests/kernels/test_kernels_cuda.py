@@ -347,7 +347,7 @@ print("NEW cpu:", np.array_equal(a.numpy(), np.arange(4)), "cuda:0 computes:", w
 def visit_once(x: wp.array(dtype=float), seen: wp.array(dtype=int), tids: wp.array(dtype=int),
                count: wp.array(dtype=int)):
     i = wp.tid()
-    if x[i] > -1.0e30:
+    if wp.abs(x[i]) >= 0.0:
         wp.atomic_add(seen, i, 1)
     tids[i] = i
     wp.atomic_add(count, 0, 1)
