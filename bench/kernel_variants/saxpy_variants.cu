@@ -5,7 +5,10 @@
 // parameters; no checks; a lean kernel with int32 shape and strides), beside a device copy of
 // the same bytes; and (2026-11-28) the body weft generates with `wp.tid()` as emitted under the
 // entry forms (the loop, none, a loop calling the body, once then a loop: docs/cuda.md, "The
-// H200, 2026-11-28 later"). Built by bench/kernel_variants/build.sh with the flags weft's NVRTC uses
+// H200, 2026-11-28 later"); and (2026-11-29) ceilings outside Warp's model of one element per
+// thread (float4, four elements per thread with the loads first) and coarsened entries (the
+// unchecked body for 2, 4 or 8 logical threads per GPU thread, the later ones prefetched into L1
+// or L2, or run statement by statement in lockstep: docs/cuda.md "Coarsened launches"). Built by bench/kernel_variants/build.sh with the flags weft's NVRTC uses
 // (-std=c++17 --fmad=false) and run on the GPU machine (scripts/gpu-run's WEFT_GPU_BENCH).
 // Prints one row per variant and size: time per launch (median of 7 rounds), GB/s (12 bytes
 // per element), share of the copy rate, and the max error against a float64 reference.
