@@ -84,7 +84,7 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   for (auto&& [k, v] : t) {
     static const char* known[] = {"listen", "cache-dir", "log-level", "token-file", "cpu-threads", "verify-cuda",
                                   "verify-cuda-archs",
-                                  "allow-unchecked", "native-dir", "max-module-bytes", "max-functions",
+                                  "allow-unchecked", "isolate-sessions", "native-dir", "max-module-bytes", "max-functions",
                                   "max-block-depth", "max-expression-depth", "attach-timeout", "launch-time-limit",
                                   "compile-time-limit",
                                   "max-launch-threads", "max-sessions-per-principal", "max-queued-commands",
@@ -133,6 +133,9 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   if (!given("--allow-unchecked"))
     if (auto* n = Key(t, "allow-unchecked"))
       if (auto v = n->value<bool>()) c->allow_unchecked = *v;
+  if (!given("--isolate-sessions"))
+    if (auto* n = Key(t, "isolate-sessions"))
+      if (auto v = n->value<bool>()) c->isolate_sessions = *v;
   // Byte sizes: an integer or a string with a unit ("16G").
   auto bytes = [&](const char* key, const char* flag, uint64_t* out) -> Status {
     if (given(flag)) return Status::Ok();
@@ -195,6 +198,8 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   app.add_option("--verify-cuda-archs", c.verify_cuda_archs_text,
                  "The CUDA architectures --verify-cuda compiles for, comma separated, e.g. 75,90 (default 90)");
   app.add_flag("--allow-unchecked", c.allow_unchecked, "Let sessions turn array bounds checks off");
+  app.add_flag("--isolate-sessions", c.isolate_sessions,
+               "Run every local session in a process of its own (a session host), checked ones too");
   app.add_option("--max-module-bytes", c.max_module_bytes, "Largest module source a client may compile, in bytes (default 2 MiB)");
   app.add_option("--max-functions", c.max_functions, "Most kernels and funcs in one module (default 2000)");
   app.add_option("--max-block-depth", c.max_block_depth, "Deepest nesting of blocks in kernel code, 1..100 (default 100)");
@@ -222,7 +227,8 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   app.add_option("--cache-max-bytes", c.cache_max_bytes,
                  "Size bound of the disk module cache; least recently used modules are removed (default 2 GiB)");
   app.add_option("--max-session-hosts", c.max_session_hosts,
-                 "Most unchecked sessions (each in a process of its own) per principal at once (default 4)");
+                 "Most session hosts (unchecked sessions, or every local session with --isolate-sessions) "
+                 "per principal at once (default 4)");
   app.add_option("--host-principal", c.host_principal, "Set by the daemon when it starts a session host")
       ->group("");
   app.add_option("--host-ready-fd", c.host_ready_fd, "Set by the daemon when it starts a session host")->group("");

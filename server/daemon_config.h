@@ -23,6 +23,9 @@ struct DaemonConfig {
   std::string verify_cuda_archs_text;
   std::vector<int> verify_cuda_archs;
   bool allow_unchecked = false;
+  // Every session of a local client runs in a session host (a process of its own), checked
+  // ones too: a fault or crash of any session, whatever its cause, ends only its process.
+  bool isolate_sessions = false;
   bool show_version = false;
   // Compile limits (engine/codegen/check_source.h CompileLimits; the defaults are its defaults).
   uint64_t max_module_bytes = 2u << 20;

@@ -209,7 +209,7 @@ int main(int argc, char** argv) {
   CallAuth auth(**engine, token, unix_listener->get());
   if (cfg->session_host()) auth.RestrictTo(cfg->host_principal);
   std::unique_ptr<SessionHosts> hosts;
-  if (cfg->allow_unchecked && !cfg->session_host() && !unix_paths.empty()) {
+  if ((cfg->allow_unchecked || cfg->isolate_sessions) && !cfg->session_host() && !unix_paths.empty()) {
     hosts = std::make_unique<SessionHosts>(ThisExecutable(), SessionHostArguments(*cfg), unix_paths.front(),
                                            cfg->max_session_hosts, /*start_timeout_s=*/60);
   }
@@ -227,7 +227,8 @@ int main(int argc, char** argv) {
     }
   }
   SessionReaper reaper(**engine, cfg->attach_timeout_s);   // before the services: Attach queues reaps to it
-  SessionServiceImpl session_service(auth, reaper, fast_lane.get(), hosts.get(), cfg->session_host());
+  SessionServiceImpl session_service(auth, reaper, fast_lane.get(), hosts.get(), cfg->session_host(),
+                                     cfg->isolate_sessions && !cfg->session_host());
   ArrayServiceImpl array_service(auth);
   ExecServiceImpl exec_service(auth);
   ModuleServiceImpl module_service(auth);

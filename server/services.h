@@ -26,9 +26,11 @@ class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_A
  public:
   // `hosts`: where unchecked sessions go (null: none are opened; the session is checked).
   // `single_session`: this weftd is a session host; a second Open is refused.
+  // `isolate`: every local session goes to a host (--isolate-sessions), checked ones too.
   SessionServiceImpl(const CallAuth& auth, SessionReaper& reaper, FastLane* fast_lane = nullptr,
-                     SessionHosts* hosts = nullptr, bool single_session = false)
-      : auth_(auth), reaper_(reaper), fast_lane_(fast_lane), hosts_(hosts), single_session_(single_session) {}
+                     SessionHosts* hosts = nullptr, bool single_session = false, bool isolate = false)
+      : auth_(auth), reaper_(reaper), fast_lane_(fast_lane), hosts_(hosts), single_session_(single_session),
+        isolate_(isolate) {}
   grpc::Status Open(grpc::ServerContext* ctx, const v1::OpenSessionRequest* req, v1::OpenSessionResponse* resp) override;
   grpc::ServerBidiReactor<v1::AttachRequest, v1::AttachEvent>* Attach(grpc::CallbackServerContext* ctx) override;
   grpc::Status Close(grpc::ServerContext* ctx, const v1::CloseSessionRequest* req, v1::CloseSessionResponse* resp) override;
@@ -38,6 +40,7 @@ class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_A
   SessionReaper& reaper_;
   FastLane* fast_lane_;   // null: no fast lane (the Open response then names none)
   SessionHosts* hosts_;
+  const bool isolate_;
   const bool single_session_;
   std::atomic<bool> session_opened_{false};
 };

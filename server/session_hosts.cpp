@@ -75,7 +75,8 @@ Expected<std::string> SessionHosts::Start(const std::string& principal) {
     for (const auto& [pid, host] : hosts_) mine += host.principal == principal ? 1 : 0;
     if (mine >= max_per_principal_)
       return ResourceExhausted("principal " + principal + " already has " + std::to_string(mine) +
-                               " unchecked sessions, each in a process of its own (--max-session-hosts " +
+                               " sessions in processes of their own (session hosts: unchecked sessions, or every "
+                               "local session under --isolate-sessions; --max-session-hosts " +
                                std::to_string(max_per_principal_) + ")");
     ++started_;
     socket = socket_dir_ + "/host-" + std::to_string(getpid()) + "-" + std::to_string(started_) + ".sock";
@@ -134,7 +135,7 @@ Expected<std::string> SessionHosts::Start(const std::string& principal) {
       why = "it did not listen within " + std::to_string(static_cast<int>(start_timeout_s_)) + " s";
     }
     unlink(socket.c_str());
-    return Unavailable("the session host for an unchecked session did not start: " + why +
+    return Unavailable("the session host for this session did not start: " + why +
                        " (the daemon's log has its output)");
   }
   hosts_[pid] = Host{principal, socket};

@@ -31,11 +31,13 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
   o.client_pid = peer ? peer->pid : req->client_pid();
   o.local = peer.has_value();
   o.principal = auth_.Principal(*ctx);
-  if (req->unchecked() && hosts_ && o.local) {
-    // An unchecked session runs in a process of its own: start it and send the client there.
+  if ((req->unchecked() || isolate_) && hosts_ && o.local) {
+    // An unchecked session (every local session with --isolate-sessions) runs in a process of
+    // its own: start it and send the client there.
     auto host = hosts_->Start(o.principal);
     if (!host.ok()) {
-      spdlog::warn("refused unchecked session of {}: {}", o.principal, host.status().message());
+      spdlog::warn("refused {} session of {}: {}", req->unchecked() ? "unchecked" : "isolated", o.principal,
+                   host.status().message());
       return ToGrpc(host.status());
     }
     resp->set_session_host(*host);

@@ -373,3 +373,117 @@ class _Exited:
 
 def _zombie(pid: int) -> bool:
     return _stat_fields(pid)[:1] == ["Z"]
+
+
+BYSTANDER = '''
+import sys
+import numpy as np
+import weft as wp
+import weft._runtime as runtime
+
+values = np.random.default_rng().standard_normal(1000).astype(np.float32)
+held = wp.array(values, dtype=float, device="cpu")
+rt = runtime.get_runtime()
+print("READY", rt.hosted, rt.daemon_pid, flush=True)
+sys.stdin.readline()
+print("KEPT", np.array_equal(held.numpy(), values), runtime.get_runtime() is rt, flush=True)
+'''
+
+KILLED = '''
+import os
+import signal
+import numpy as np
+import weft as wp
+import weft._runtime as runtime
+
+
+@wp.kernel
+def add_one(a: wp.array(dtype=float)):
+    i = wp.tid()
+    a[i] = a[i] + 1.0
+
+
+a = wp.array(np.arange(16, dtype=np.float32), dtype=float, device="cpu")
+first = runtime.get_runtime()
+print("HOSTED", first.hosted, first.unchecked, first.daemon_pid, flush=True)
+wp.launch(add_one, dim=16, inputs=[a], device="cpu")
+print("BEFORE", a.numpy().tolist() == list(range(1, 17)))
+os.kill(first.daemon_pid, signal.SIGKILL)     # the session's own process dies (a crash)
+try:
+    wp.launch(add_one, dim=16, inputs=[a], device="cpu")
+    wp.synchronize()
+    print("LOST none")
+except Exception as exc:
+    print("LOST", exc)
+b = wp.array(np.arange(8, dtype=np.float32), dtype=float, device="cpu")
+wp.launch(add_one, dim=8, inputs=[b], device="cpu")
+second = runtime.get_runtime()
+print("AFTER", b.numpy().tolist() == list(range(1, 9)), second.hosted, second.daemon_pid != first.daemon_pid)
+'''
+
+
+def _daemon_stats(daemon):
+    """SessionService.Stats without opening a session (an Open would start a host here)."""
+    from weft.v1 import session_pb2
+    from weft import _runtime
+
+    channel = grpc.insecure_channel(daemon.grpc_target)
+    try:
+        return _runtime.SessionServiceStub(channel).Stats(session_pb2.StatsRequest(),
+                                                          metadata=daemon.metadata(), timeout=10)
+    finally:
+        channel.close()
+
+
+def test_isolated_sessions_each_run_in_a_process_of_their_own(start_weftd, client_env, tmp_path,
+                                                              wait_for):
+    """weftd --isolate-sessions (no --allow-unchecked): every local session, checked ones
+    included, runs in a session host. One session's process dying (SIGKILL here: what a fault
+    or a crash of weft's own code would do) costs that session only: its client gets the clear
+    error, its next call opens a new session in a new host, another client's session (in its own
+    host) keeps its array, and the daemon keeps serving; a TCP client gets an ordinary session."""
+    import subprocess
+    import sys
+
+    daemon = start_weftd(["--isolate-sessions", "--max-session-hosts", "3"], also_tcp=True)
+    script = tmp_path / "bystander.py"
+    script.write_text(BYSTANDER)
+    bystander = subprocess.Popen([sys.executable, str(script)], stdin=subprocess.PIPE,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 env=client_env({"WEFT_ADDRESS": daemon.address}))
+    try:
+        ready = bystander.stdout.readline().split()
+        assert ready[:2] == ["READY", "True"], (ready, bystander.stderr.read() if bystander.poll() else "")
+        bystander_host = int(ready[2])
+        assert bystander_host != daemon.pid and bystander_host in _host_pids(daemon.pid)
+        out = _run_file(tmp_path, client_env, KILLED, daemon.address)
+        print(out)
+        assert "HOSTED True False" in out, out
+        assert "BEFORE True" in out, out
+        assert "LOST " in out and "LOST none" not in out, out
+        assert "session host pid" in out and "--isolate-sessions" in out, out
+        assert "the next weft call opens a new session" in out, out
+        assert "AFTER True True True" in out, out
+        bystander.stdin.write("go\n")
+        bystander.stdin.flush()
+        kept = bystander.stdout.readline().split()
+        assert kept == ["KEPT", "True", "True"], (kept, bystander.stderr.read())
+        assert _alive(daemon.pid) and _alive(bystander_host)
+        stats = _daemon_stats(daemon)
+        assert stats.session_hosts_started_total >= 3 and stats.sessions == 0, stats
+    finally:
+        bystander.kill()
+        bystander.wait()
+    wait_for(lambda: _daemon_stats(daemon).session_hosts == 0, 15)
+    # A remote client cannot reach a host's socket: the daemon serves it itself.
+    from weft.v1 import session_pb2
+    from weft import _runtime
+
+    channel = grpc.insecure_channel(daemon.tcp_target)
+    try:
+        reply = _runtime.SessionServiceStub(channel).Open(
+            session_pb2.OpenSessionRequest(client_name="remote"),
+            metadata=(("authorization", f"Bearer {daemon.token}"),), timeout=30)
+    finally:
+        channel.close()
+    assert reply.session_id and not reply.session_host and reply.daemon_pid == daemon.pid

@@ -363,10 +363,11 @@ class Runtime:
         self.address = address or resolve_address()
         self.token = token if token is not None else (os.environ.get("WEFT_TOKEN") or None)
         self.pid = os.getpid()
-        unchecked = _unchecked_requested()
+        unchecked = self.unchecked = _unchecked_requested()
         opened = self._open(unchecked)
-        # An unchecked session runs in a weftd process of its own (a session host): the daemon
-        # started it and names its socket; the session is opened there.
+        # An unchecked session (every session of a weftd started with --isolate-sessions) runs
+        # in a weftd process of its own (a session host): the daemon started it and names its
+        # socket; the session is opened there.
         self.hosted = bool(getattr(opened, "session_host", ""))
         if self.hosted:
             self.channel.close()
@@ -458,9 +459,9 @@ class Runtime:
         if unchecked and "unchecked" in request.DESCRIPTOR.fields_by_name:
             request.unchecked = True
         try:
-            # an unchecked session may wait for its session host to start (CUDA initialisation)
-            return self.session_stub.Open(request, metadata=self._base_metadata,
-                                          timeout=90 if unchecked else 30)
+            # an Open may wait for a session host to start (an unchecked session, or any under
+            # --isolate-sessions; CUDA initialisation)
+            return self.session_stub.Open(request, metadata=self._base_metadata, timeout=90)
         except grpc.RpcError as err:
             self.channel.close()
             raise error_from_rpc(err) from None
@@ -532,16 +533,20 @@ class Runtime:
         return self.call(getattr(self.exec_stub, method), request)   # fenced by order_grpc
 
     def _raise_if_host_gone(self, err: WeftError) -> None:
-        """In a session host (an unchecked session's own process), a lost connection means the
-        process ended (an unchecked kernel crashed it): the session is over. Raises that."""
+        """In a session host (an unchecked or isolated session's own process), a lost connection
+        means the process ended (an unchecked kernel, or a fault, crashed it): the session is
+        over. Raises that."""
         if not self.hosted or err.code != "UNAVAILABLE" or self.closed:
             return
         pid = self.daemon_pid
         self.abandon()
-        raise WeftError(f"the process of this unchecked session (session host pid {pid}) ended, "
-                        "most likely an unchecked kernel crashed it: the session and its arrays "
-                        "are gone (the daemon and its other sessions were not touched); the next "
-                        "weft call opens a new session", "ABORTED") from None
+        cause = ("most likely an unchecked kernel crashed it" if self.unchecked else
+                 "a fault or crash in this session ended it (weftd runs each session in a "
+                 "process of its own: --isolate-sessions)")
+        raise WeftError(f"the process of this session (session host pid {pid}) ended, {cause}: "
+                        "the session and its arrays are gone (the daemon and its other sessions "
+                        "were not touched); the next weft call opens a new session",
+                        "ABORTED") from None
 
     _LANE_ARRAY_METHODS = {"Create": (_fast_lane.ARRAY_CREATE, array_pb2.CreateArrayResponse),
                            "Free": (_fast_lane.ARRAY_FREE, array_pb2.FreeArrayResponse),
