@@ -2,7 +2,8 @@
 own client process (its own session and fast lane) against one weftd started with
 WEFT_LANE_TRACE, so the daemon's per-frame phases (docs/cuda.md "Tracing the fast lane") come
 back one line per case. Per case the client prints the median time of the `wp.launch` call, of
-the `wp.synchronize` call and of the pair; with --profile, cProfile's top entries of the client.
+the `wp.synchronize` call and of the pair, and of the fast lane's send and receive per frame
+(the rest of the synchronize is the client's Python); with --profile, cProfile's top entries.
 
 Cases: empty and 3-array launches + sync on `cpu` and on `cuda:0` (when present); saxpy 1e7 on
 `cuda:0`, 32 launches then one sync, pipelined and batched at the sync (the launch call alone).
@@ -51,6 +52,21 @@ def client(case: str, calls: int, profile: bool) -> None:
     kind, dev = case.split("@")
     rt = _runtime.get_runtime()
     launch_t, sync_t, pair_t = [], [], []
+    # the fast lane's send (the system call) and receive (the wait for the reply, polling
+    # included), timed inside the synchronize: what is left of it is the client's Python
+    lane_t = {"send": [], "receive": []}
+    lane = rt.fast_lane
+    if lane is not None:
+        for name in ("_send", "_receive"):
+            original = getattr(lane, name)
+
+            def timed(*a, _original=original, _out=lane_t[name[1:]], **k):
+                t = time.perf_counter()
+                try:
+                    return _original(*a, **k)
+                finally:
+                    _out.append(time.perf_counter() - t)
+            setattr(lane, name, timed)
     if kind in ("empty", "three"):
         arrays = [wp.zeros(16, dtype=float, device=dev) for _ in range(3)]
 
@@ -91,6 +107,7 @@ def client(case: str, calls: int, profile: bool) -> None:
     for _ in range(min(50, rounds)):
         body()
     launch_t.clear(), sync_t.clear(), pair_t.clear()
+    lane_t["send"].clear(), lane_t["receive"].clear()
     prof = cProfile.Profile() if profile else None
     if prof:
         prof.enable()
@@ -102,6 +119,9 @@ def client(case: str, calls: int, profile: bool) -> None:
     what = "per launch (32 then a sync)" if kind.startswith("saxpy") else "launch+sync"
     print(f"{case:22s} launch call {med(launch_t):7.1f} us  sync call {med(sync_t):7.1f} us  "
           f"{what} {med(pair_t):7.1f} us", flush=True)
+    if lane_t["send"] and lane_t["receive"]:
+        print(f"{'':22s} of which lane send {med(lane_t['send']):5.1f} us, receive (the wait) "
+              f"{med(lane_t['receive']):5.1f} us, per frame", flush=True)
     if prof:
         s = io.StringIO()
         pstats.Stats(prof, stream=s).sort_stats("tottime").print_stats(18)
