@@ -149,6 +149,110 @@ def test_more_framework_streams_than_slots(wp, tvalues, torch):
         np.testing.assert_array_equal(u.cpu().numpy(), np.full(n, 2.0 * (i + 2), dtype=np.float32))
 
 
+def test_an_ordered_launch_queues_its_stream_operations_in_one_call(wp, tvalues, torch,
+                                                                   monkeypatch):
+    """The framework stream's counter write (before the launch) and its wait (after it) go in
+    one cuStreamBatchMemOp where the driver has it; Torch work before and after is ordered."""
+    from weft import _cuda_ipc
+
+    if getattr(_cuda_ipc._lib, "cuStreamBatchMemOp_v2", None) is None:
+        pytest.skip("this driver has no cuStreamBatchMemOp")
+    n = 1 << 16
+    t = torch.zeros(n, device="cuda")
+    a = wp.from_torch(t)
+    wp.launch(add_one, dim=n, inputs=[a], device=tvalues)
+    torch.cuda.synchronize()
+    calls = {"batch": 0, "write": 0, "wait": 0}
+    real = (_cuda_ipc.write_then_wait, _cuda_ipc.write_value, _cuda_ipc.wait_value)
+
+    def count(name, fn):
+        def wrapped(*args):
+            calls[name] += 1
+            return fn(*args)
+        return wrapped
+    monkeypatch.setattr(_cuda_ipc, "write_then_wait", count("batch", real[0]))
+    monkeypatch.setattr(_cuda_ipc, "write_value", count("write", real[1]))
+    monkeypatch.setattr(_cuda_ipc, "wait_value", count("wait", real[2]))
+    torch.cuda._sleep(20_000_000)
+    for _ in range(10):
+        t.add_(1.0)
+        wp.launch(add_one, dim=n, inputs=[a], device=tvalues)
+    np.testing.assert_array_equal(t.cpu().numpy(), np.full(n, 21.0, dtype=np.float32))
+    assert calls == {"batch": 10, "write": 0, "wait": 0}, calls
+
+
+def test_threads_ordering_on_one_stream(wp, tvalues, torch):
+    """Four threads launch on tensors of the same Torch stream at once: the counter writes, queued
+    after each launch's Submit, only grow on the stream (each covers the work before it), so no
+    launch waits forever and each sees the Torch work queued before it."""
+    import threading
+
+    n = 4096
+    rounds = 40
+    tensors = [torch.zeros(n, device="cuda") for _ in range(4)]
+    arrays = [wp.from_torch(t) for t in tensors]
+    torch.cuda.synchronize()
+    errors = []
+
+    def work(k):
+        try:
+            for _ in range(rounds):
+                tensors[k].mul_(2.0)
+                wp.launch(add_one, dim=n, inputs=[arrays[k]], device=tvalues)
+        except Exception as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join(60)
+    assert not any(th.is_alive() for th in threads) and not errors, errors
+    done = threading.Event()
+    results = []
+
+    def read():
+        results.extend(t.cpu().numpy() for t in tensors)
+        done.set()
+    threading.Thread(target=read, daemon=True).start()
+    assert done.wait(60), "a framework stream waited forever"
+    expected = 0.0
+    for _ in range(rounds):
+        expected = expected * 2.0 + 1.0
+    for r in results:
+        np.testing.assert_array_equal(r, np.full(n, expected, dtype=np.float32))
+
+
+def test_a_launch_that_fails_after_ordering_leaves_nothing_waiting(wp, tvalues, torch, monkeypatch):
+    """A launch that fails after its ordering was queued (here: the Submit raises) still queues
+    the framework stream's write the daemon's wait needs: the next synchronize returns, and the
+    session and the stream go on."""
+    import threading
+
+    from weft import _runtime
+
+    n = 4096
+    t = torch.zeros(n, device="cuda")
+    a = wp.from_torch(t)
+    wp.launch(add_one, dim=n, inputs=[a], device=tvalues)
+    torch.cuda.synchronize()
+    rt = _runtime.get_runtime()
+    real_submit = rt.submit
+
+    def failing(cmd, start=False):
+        if cmd.HasField("launch"):
+            raise RuntimeError("injected failure")
+        return real_submit(cmd, start)
+    monkeypatch.setattr(rt, "submit", failing)
+    with pytest.raises(RuntimeError, match="injected"):
+        wp.launch(add_one, dim=n, inputs=[a], device=tvalues)
+    monkeypatch.setattr(rt, "submit", real_submit)
+    done = threading.Event()
+    threading.Thread(target=lambda: (wp.synchronize(), done.set()), daemon=True).start()
+    assert done.wait(30), "the session's stream waits for a write that was never queued"
+    wp.launch(add_one, dim=n, inputs=[a], device=tvalues)
+    np.testing.assert_array_equal(t.cpu().numpy(), np.full(n, 2.0, dtype=np.float32))
+
+
 DYING = """
 import os, sys, torch, weft as wp
 from weft import _runtime
