@@ -21,7 +21,6 @@ from __future__ import annotations
 import atexit
 import collections
 import ctypes
-import struct
 import os
 import threading
 
@@ -118,7 +117,6 @@ def _load():
     # optional, CUDA 12+ drivers.
     for name, args in {"cuStreamWaitValue64_v2": [vp, ctypes.c_uint64, ctypes.c_uint64, u],
                        "cuStreamWriteValue64_v2": [vp, ctypes.c_uint64, ctypes.c_uint64, u],
-                       "cuStreamBatchMemOp_v2": [vp, u, ctypes.c_char_p, u],
                        "cuDeviceGetAttribute": [p(ctypes.c_int), ctypes.c_int, ctypes.c_int]}.items():
         fn = getattr(lib, name, None)
         if fn is not None:
@@ -590,31 +588,6 @@ def wait_value(ordinal: int, stream: int, address: int, value: int) -> None:
     with _lock:
         _stream_op(_lib.cuStreamWaitValue64_v2, "cuStreamWaitValue64", ordinal, stream,
                    address, value, CU_STREAM_WAIT_VALUE_GEQ)
-
-
-# cuStreamBatchMemOp: CUstreamBatchMemOpParams (cuda.h) is a 48-byte union; its wait and write
-# members are {u32 operation; u64 address; u64 value64; u32 flags; u64 alias}.
-CU_STREAM_MEM_OP_WAIT_VALUE_64 = 4
-CU_STREAM_MEM_OP_WRITE_VALUE_64 = 5
-_MEM_OP = struct.Struct("<I4xQQI4xQ8x")
-
-
-def write_then_wait(ordinal: int, stream: int, write_address: int, write_value_: int,
-                    wait_address: int, wait_value_: int) -> None:
-    """write_value then wait_value on the same stream, in one driver call where the driver has
-    cuStreamBatchMemOp (an ordered launch's two operations on the framework stream)."""
-    fn = getattr(_lib, "cuStreamBatchMemOp_v2", None)
-    if fn is None:
-        write_value(ordinal, stream, write_address, write_value_)
-        wait_value(ordinal, stream, wait_address, wait_value_)
-        return
-    params = _MEM_OP.pack(CU_STREAM_MEM_OP_WRITE_VALUE_64, write_address, write_value_, 0, 0) + \
-        _MEM_OP.pack(CU_STREAM_MEM_OP_WAIT_VALUE_64, wait_address, wait_value_, CU_STREAM_WAIT_VALUE_GEQ, 0)
-    if stream and fn(stream, 2, params, 0) == 0:
-        return                   # a stream of its own names its context: no lock, no push
-    with _lock:
-        _stream_op(lambda s, _a, _v, _f: fn(s, 2, params, 0), "cuStreamBatchMemOp", ordinal, stream,
-                   0, 0, 0)
 
 
 CUDA_ERROR_NOT_READY = 600

@@ -149,42 +149,10 @@ def test_more_framework_streams_than_slots(wp, tvalues, torch):
         np.testing.assert_array_equal(u.cpu().numpy(), np.full(n, 2.0 * (i + 2), dtype=np.float32))
 
 
-def test_an_ordered_launch_queues_its_stream_operations_in_one_call(wp, tvalues, torch,
-                                                                   monkeypatch):
-    """The framework stream's counter write (before the launch) and its wait (after it) go in
-    one cuStreamBatchMemOp where the driver has it; Torch work before and after is ordered."""
-    from weft import _cuda_ipc
-
-    if getattr(_cuda_ipc._lib, "cuStreamBatchMemOp_v2", None) is None:
-        pytest.skip("this driver has no cuStreamBatchMemOp")
-    n = 1 << 16
-    t = torch.zeros(n, device="cuda")
-    a = wp.from_torch(t)
-    wp.launch(add_one, dim=n, inputs=[a], device=tvalues)
-    torch.cuda.synchronize()
-    calls = {"batch": 0, "write": 0, "wait": 0}
-    real = (_cuda_ipc.write_then_wait, _cuda_ipc.write_value, _cuda_ipc.wait_value)
-
-    def count(name, fn):
-        def wrapped(*args):
-            calls[name] += 1
-            return fn(*args)
-        return wrapped
-    monkeypatch.setattr(_cuda_ipc, "write_then_wait", count("batch", real[0]))
-    monkeypatch.setattr(_cuda_ipc, "write_value", count("write", real[1]))
-    monkeypatch.setattr(_cuda_ipc, "wait_value", count("wait", real[2]))
-    torch.cuda._sleep(20_000_000)
-    for _ in range(10):
-        t.add_(1.0)
-        wp.launch(add_one, dim=n, inputs=[a], device=tvalues)
-    np.testing.assert_array_equal(t.cpu().numpy(), np.full(n, 21.0, dtype=np.float32))
-    assert calls == {"batch": 10, "write": 0, "wait": 0}, calls
-
-
 def test_threads_ordering_on_one_stream(wp, tvalues, torch):
-    """Four threads launch on tensors of the same Torch stream at once: the counter writes, queued
-    after each launch's Submit, only grow on the stream (each covers the work before it), so no
-    launch waits forever and each sees the Torch work queued before it."""
+    """Four threads launch on tensors of the same Torch stream at once: the counter writes only
+    grow on the stream (each queued under the runtime's lock with its count), so no launch waits
+    forever and each sees the Torch work queued before it."""
     import threading
 
     n = 4096
@@ -223,9 +191,9 @@ def test_threads_ordering_on_one_stream(wp, tvalues, torch):
 
 
 def test_a_launch_that_fails_after_ordering_leaves_nothing_waiting(wp, tvalues, torch, monkeypatch):
-    """A launch that fails after its ordering was queued (here: the Submit raises) still queues
-    the framework stream's write the daemon's wait needs: the next synchronize returns, and the
-    session and the stream go on."""
+    """A launch that fails after its ordering was queued (here: the Submit raises) leaves the
+    daemon's wait with the framework stream's write it needs: the next synchronize returns, and
+    the session and the stream go on."""
     import threading
 
     from weft import _runtime

@@ -819,63 +819,54 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         if d == 0:
             return None
     shared = _interop_memory.any_shared() and _interop_memory.touches_shared(resolved)
-    gpu_order = None   # (GPU ordinals, their framework streams, pending writes) ordered on the GPU
+    gpu_order = None                   # (GPU ordinals, their framework streams) ordered on the GPU
     if shared and device.startswith("cuda"):
         gpu_order = _order_framework_gpu(rt, resolved, device)  # framework work before: seen first
-    # the framework stream's counter writes of the ordering (queued by after() with its waits
-    # in one driver call): queued whatever happens, before anything waits for the session
-    pending_writes = gpu_order[2] if gpu_order else None
-    try:
-        tape = tape_mod.active_tape()
-        pause = tape is not None and (adjoint or not record_tape)
-        if pause:
-            tape.pause_recording()
-        if plan is not None:
-            command = pb.Command()
-            command.CopyFrom(plan.template)
-            launch_cmd = command.launch
-            launch_cmd.dim.extend(dims)
-            launch_cmd.args.extend(packed)
-            command.origin.CopyFrom(caller_origin())
-        else:
-            command = pb.Command(
-                launch=pb.LaunchCommand(module_id=module_id, kernel=kernel_name, dim=dims,
-                                        args=packed, adjoint=bool(adjoint), adj_args=adj_packed,
-                                        device=device),
-                origin=caller_origin())
-        if lanes > 1:                             # cooperative CPU blocks: the kernel's lanes
-            command.launch.block_dim = lanes      # (also what wp.block_dim() gives a kernel without tiles)
-        elif block_dim and block_dim > 0 and block_dim != 256 and device != "cpu":
-            command.launch.block_dim = int(block_dim)   # GPU launch geometry (Warp's options)
-        if max_blocks:
-            command.launch.max_blocks = int(max_blocks)
-        start = False
-        if device.startswith("cuda"):       # a large GPU kernel starts at once (Runtime.submit)
-            threads = 1
-            for d in dims:
-                threads *= d
-            start = threads >= _runtime.START_GPU_THREADS
-            rt.gpu_work = True              # the next synchronize waits for the GPU
-        rt.submit(command, start)
-        if pause:
-            tape.resume_recording()
-        elif tape is not None:
-            temps = packer.temps if packer is not None else ()
-            tape.record_launch(kernel, dims, list(resolved), device, temps, lanes)
-        if packer is not None and packer.copy_backs:
-            if pending_writes:
-                _cuda_order().flush_pending(rt, pending_writes)
-            rt.synchronize()
-            for pending in packer.copy_backs:
-                pending.apply()
-        elif gpu_order:
-            # memory a framework holds: its stream waits for the launch on the GPU
-            _cuda_order().after(rt, gpu_order[0], sources=gpu_order[1], pending=pending_writes)
-        elif shared:
-            rt.synchronize()       # memory a framework holds: done before the framework reads it
-    finally:
-        if pending_writes:
-            _cuda_order().flush_pending(rt, pending_writes)
+    tape = tape_mod.active_tape()
+    pause = tape is not None and (adjoint or not record_tape)
+    if pause:
+        tape.pause_recording()
+    if plan is not None:
+        command = pb.Command()
+        command.CopyFrom(plan.template)
+        launch_cmd = command.launch
+        launch_cmd.dim.extend(dims)
+        launch_cmd.args.extend(packed)
+        command.origin.CopyFrom(caller_origin())
+    else:
+        command = pb.Command(
+            launch=pb.LaunchCommand(module_id=module_id, kernel=kernel_name, dim=dims,
+                                    args=packed, adjoint=bool(adjoint), adj_args=adj_packed,
+                                    device=device),
+            origin=caller_origin())
+    if lanes > 1:                             # cooperative CPU blocks: the kernel's lanes
+        command.launch.block_dim = lanes      # (also what wp.block_dim() gives a kernel without tiles)
+    elif block_dim and block_dim > 0 and block_dim != 256 and device != "cpu":
+        command.launch.block_dim = int(block_dim)   # GPU launch geometry (Warp's options)
+    if max_blocks:
+        command.launch.max_blocks = int(max_blocks)
+    start = False
+    if device.startswith("cuda"):       # a large GPU kernel starts at once (Runtime.submit)
+        threads = 1
+        for d in dims:
+            threads *= d
+        start = threads >= _runtime.START_GPU_THREADS
+        rt.gpu_work = True              # the next synchronize waits for the GPU
+    rt.submit(command, start)
+    if pause:
+        tape.resume_recording()
+    elif tape is not None:
+        temps = packer.temps if packer is not None else ()
+        tape.record_launch(kernel, dims, list(resolved), device, temps, lanes)
+    if packer is not None and packer.copy_backs:
+        rt.synchronize()
+        for pending in packer.copy_backs:
+            pending.apply()
+    elif gpu_order:
+        # memory a framework holds: its stream waits for the launch on the GPU
+        _cuda_order().after(rt, gpu_order[0], sources=gpu_order[1])
+    elif shared:
+        rt.synchronize()       # memory a framework holds: done before the framework reads it
     if _config.verify_fp:
         verify_finite(kernel, resolved, command.origin)
     return None
@@ -903,9 +894,8 @@ def _order_framework_gpu(rt, values, device: str = "cuda"):
     """Makes a launch in the daemon see this process's GPU work (Torch, CuPy, ... streams) on
     the devices of the shared weft GPU arrays among `values`. With interprocess events
     (weft.interop.cuda_order): the session's stream waits for the framework stream, and
-    (the GPU ordinals, {ordinal: framework stream}, the framework streams' counter writes not
-    queued yet) is returned: the caller orders those streams after the launch and sees the
-    writes queued (cuda_order.after / flush_pending). Without: a host wait for this process's work on those devices;
+    (the GPU ordinals, {ordinal: framework stream}) is returned: the caller orders those
+    streams after the launch. Without: a host wait for this process's work on those devices;
     returns None. `device`: the launch's; on "cuda:N" every GPU array of the launch is on N
     (packing refused any other), so the arrays are not walked for their devices."""
     cuda_order = _cuda_order()
@@ -916,8 +906,7 @@ def _order_framework_gpu(rt, values, device: str = "cuda"):
     else:
         ordinals = cuda_order.gpu_ordinals(values)
     if cuda_order.enabled(rt, ordinals):
-        pending = []        # the framework stream's writes, queued by after() with its waits
-        return ordinals, cuda_order.before(rt, ordinals, pending=pending), pending
+        return ordinals, cuda_order.before(rt, ordinals)
     from weft import _cuda_ipc  # noqa: PLC0415
 
     for ordinal in ordinals:

@@ -226,14 +226,10 @@ def _probe(rt, ordinal) -> bool:
     return True
 
 
-def before(rt, ordinals, stream=None, pending=None) -> dict:
+def before(rt, ordinals, stream=None) -> dict:
     """Queues, for each device: the session stream waits for the framework stream's work so
     far (`stream`: that stream of this process instead; an event recorded on it now).
-    Returns {ordinal: the stream ordered}, which after() may take as `sources`.
-    `pending` (a list): the framework stream's counter writes are not queued here but appended
-    to it, for after(..., pending=) to queue with its waits in one driver call; whoever passes
-    it must see them queued (after() or flush_pending), before anything waits on the session's
-    work, or that wait never ends."""
+    Returns {ordinal: the stream ordered}, which after() may take as `sources`."""
     pb = _pb()
     rt.pump_held += 1                 # WAIT, the launch and RECORD go out in one Submit (run)
     sources = {}
@@ -244,11 +240,8 @@ def before(rt, ordinals, stream=None, pending=None) -> dict:
             with rt._lock:    # counter order is queue order (threads of one runtime)
                 index = values.slot(source)
                 values.values[index] += 1
-                if pending is not None:
-                    pending.append((ordinal, source, values, index))
-                else:
-                    _cuda_ipc.write_value(ordinal, source, values.address + 8 * index,
-                                          values.values[index])
+                _cuda_ipc.write_value(ordinal, source, values.address + 8 * index,
+                                      values.values[index])
                 rt.submit_framed(values.command(pb.CudaValueCommand.WAIT, index, values.values[index]))
             continue
         event = _cuda_ipc.next_event(ordinal)
@@ -257,40 +250,12 @@ def before(rt, ordinals, stream=None, pending=None) -> dict:
     return sources
 
 
-def _queue_write(rt, entry, wait=None) -> None:
-    """Queues a counter write before(..., pending=) left: (ordinal, stream, _ValueOrder, slot),
-    then, given `wait` (address, value), that wait on the same stream in the same driver call.
-    The value written is the slot's counter now, under the runtime's lock: writes queued later
-    than before() (and by other threads in any order) still only grow on the stream, and each
-    covers the stream's work queued before every before() that counted up to it. A slot given
-    to another stream since (LRU; its old stream was synchronized then) is left to its new
-    stream's writes."""
-    ordinal, stream, values, index = entry
-    with rt._lock:
-        owned = values.slots.get(stream) == index
-        address, value = values.address + 8 * index, values.values[index]
-        if wait is None:
-            if owned:
-                _cuda_ipc.write_value(ordinal, stream, address, value)
-        elif owned:
-            _cuda_ipc.write_then_wait(ordinal, stream, address, value, wait[0], wait[1])
-        else:
-            _cuda_ipc.wait_value(ordinal, stream, wait[0], wait[1])
-
-
-def flush_pending(rt, pending) -> None:
-    """Queues the counter writes before(..., pending=) left in `pending` (and empties it)."""
-    while pending:
-        _queue_write(rt, pending.pop())
-
-
-def after(rt, ordinals, streams=None, sources=None, pending=None) -> None:
+def after(rt, ordinals, streams=None, sources=None) -> None:
     """Weft's work queued so far on each device is made to come before later work on the
     framework stream (`streams`: those streams instead, handles of this process; `sources`:
     {ordinal: stream} as before() returned it, the framework streams of a launch read once):
     one Submit that returns once weftd queued it, then GPU-side waits; no host wait for the
-    GPU. `pending`: before()'s writes not queued yet; each goes with the wait on its stream in
-    one driver call (cuStreamBatchMemOp), the rest alone."""
+    GPU."""
     pb = _pb()
     events = []
     waits = []
@@ -305,30 +270,14 @@ def after(rt, ordinals, streams=None, sources=None, pending=None) -> None:
         event = _cuda_ipc.next_event(ordinal)
         rt.submit(_command(pb.CudaEventCommand.RECORD, ordinal, event))
         events.append((ordinal, event))
-    try:
-        if events:
-            rt.run()
-        else:
-            rt.send_now()             # the WRITE must reach weftd without another weft call
-    except BaseException:
-        if pending:
-            flush_pending(rt, pending)   # never leave the session's WAIT without its write
-        raise
+    if events:
+        rt.run()
+    else:
+        rt.send_now()                 # the WRITE must reach weftd without another weft call
     for ordinal, values, target in waits:
         for stream in _targets(ordinal, streams, sources):
-            write = None
-            if pending:
-                for k, entry in enumerate(pending):
-                    if entry[0] == ordinal and entry[1] == stream:
-                        write = pending.pop(k)
-                        break
-            if write is not None:     # framework stream: write (the launch may start), then wait
-                _queue_write(rt, write, (values.address, target))
-            else:
-                _cuda_ipc.wait_value(ordinal, stream, values.address, target)
+            _cuda_ipc.wait_value(ordinal, stream, values.address, target)
             _ordered[(id(rt), ordinal, stream)] = rt.work_queued
-    if pending:
-        flush_pending(rt, pending)
     for ordinal, event in events:
         for stream in _targets(ordinal, streams, sources):
             _cuda_ipc.wait_event(stream, event)
