@@ -325,6 +325,16 @@ def copy_rate(warp) -> tuple:
     return None, "n/a"
 
 
+def weft_coarsened_launches():
+    """Stats.gpu_coarsened_launches of the bench's weftd (None when it has no such field)."""
+    from weft import _runtime  # noqa: PLC0415
+    from weft.v1 import session_pb2  # noqa: PLC0415
+
+    rt = _runtime.get_runtime()
+    stats = rt.call(rt.session_stub.Stats, session_pb2.StatsRequest())
+    return stats.gpu_coarsened_launches if hasattr(stats, "gpu_coarsened_launches") else None
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--sizes", default="1e6,1e7,1e8")
@@ -382,6 +392,10 @@ def main():
                     except Exception:  # noqa: BLE001
                         pass
             print(f"{name}: done", flush=True)
+        coarsened = weft_coarsened_launches()
+        if coarsened is not None:
+            notes.append(f"weft launches that ran a coarsened entry (docs/cuda.md, \"Coarsened "
+                         f"launches\"): {coarsened}")
         try:
             xfer = transfers()
         except Exception as err:  # noqa: BLE001
