@@ -382,11 +382,13 @@ import weft as wp
 import weft._runtime as runtime
 
 values = np.random.default_rng().standard_normal(1000).astype(np.float32)
-held = wp.array(values, dtype=float, device="cpu")
+devices = ["cpu"] + (["cuda:0"] if wp.is_cuda_available() else [])   # on a GPU too, in the host
+held = [wp.array(values, dtype=float, device=d) for d in devices]
 rt = runtime.get_runtime()
 print("READY", rt.hosted, rt.daemon_pid, flush=True)
 sys.stdin.readline()
-print("KEPT", np.array_equal(held.numpy(), values), runtime.get_runtime() is rt, flush=True)
+print("KEPT", all(np.array_equal(h.numpy(), values) for h in held), runtime.get_runtime() is rt,
+      flush=True)
 '''
 
 KILLED = '''
