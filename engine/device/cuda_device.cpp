@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <mutex>
+#include <optional>
 #include <string_view>
 #include <thread>
 
@@ -271,22 +272,32 @@ CudaDeviceStats CudaDevice::stats() const {
   return {resets_, last_reset_ms_, coarsened_launches_.load(std::memory_order_relaxed)};
 }
 
-uint32_t CoarsenMaxLoadedBytes() {
-  if (const char* v = std::getenv("WEFT_COARSEN_MAX_LOADED_BYTES"); v && *v) {
-    char* end = nullptr;
-    const unsigned long n = std::strtoul(v, &end, 10);
-    if (end && *end == '\0' && n <= 1u << 20) return static_cast<uint32_t>(n);
+namespace {
+
+// A decimal number from the environment variable `name`, digits only, at most `max`; nullopt
+// when unset or anything else ("-5", "12abc", "", too large).
+std::optional<uint64_t> EnvCount(const char* name, uint64_t max) {
+  const char* v = std::getenv(name);
+  if (!v || !*v) return std::nullopt;
+  uint64_t n = 0;
+  for (const char* p = v; *p; ++p) {
+    if (*p < '0' || *p > '9') return std::nullopt;
+    const uint64_t digit = static_cast<uint64_t>(*p - '0');
+    if (n > (max - digit) / 10) return std::nullopt;
+    n = n * 10 + digit;
   }
-  return 12;
+  return n;
+}
+
+}  // namespace
+
+uint32_t CoarsenMaxLoadedBytes() {
+  return static_cast<uint32_t>(EnvCount("WEFT_COARSEN_MAX_LOADED_BYTES", 1u << 20).value_or(12));
 }
 
 uint64_t CoarsenMinThreads(int sms, int threads_per_sm) {
   if (const char* off = std::getenv("WEFT_COARSEN"); off && std::string(off) == "0") return 0;
-  if (const char* v = std::getenv("WEFT_COARSEN_MIN_THREADS"); v && *v) {
-    char* end = nullptr;
-    const unsigned long long n = std::strtoull(v, &end, 10);
-    if (end && *end == '\0' && n > 0) return n;
-  }
+  if (auto n = EnvCount("WEFT_COARSEN_MIN_THREADS", UINT64_MAX); n && *n > 0) return *n;
   if (sms <= 0 || threads_per_sm <= 0) return 0;
   return 2ull * static_cast<uint64_t>(kCoarseFactor) * static_cast<uint64_t>(sms) *
          static_cast<uint64_t>(threads_per_sm);
