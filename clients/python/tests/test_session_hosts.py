@@ -439,15 +439,17 @@ def _daemon_stats(daemon):
 
 def test_isolated_sessions_each_run_in_a_process_of_their_own(start_weftd, client_env, tmp_path,
                                                               wait_for):
-    """weftd --isolate-sessions (no --allow-unchecked): every local session, checked ones
-    included, runs in a session host. One session's process dying (SIGKILL here: what a fault
+    """weftd with isolate-sessions (here from its config file; no allow-unchecked): every local
+    session, checked ones included, runs in a session host. One session's process dying (SIGKILL here: what a fault
     or a crash of weft's own code would do) costs that session only: its client gets the clear
     error, its next call opens a new session in a new host, another client's session (in its own
     host) keeps its array, and the daemon keeps serving; a TCP client gets an ordinary session."""
     import subprocess
     import sys
 
-    daemon = start_weftd(["--isolate-sessions", "--max-session-hosts", "3"], also_tcp=True)
+    config = tmp_path / "weftd.toml"          # the config file's key, as an operator writes it
+    config.write_text("isolate-sessions = true\nmax-session-hosts = 3\n")
+    daemon = start_weftd(["--config", str(config)], also_tcp=True)
     script = tmp_path / "bystander.py"
     script.write_text(BYSTANDER)
     bystander = subprocess.Popen([sys.executable, str(script)], stdin=subprocess.PIPE,

@@ -372,9 +372,9 @@ def gather_add(x: wp.array(dtype=float), idx: wp.array(dtype=int), out: wp.array
 
 
 @wp.kernel
-def saxpy_2d(a: float, x: wp.array2d(dtype=float), y: wp.array2d(dtype=float)):
-    i, j = wp.tid()
-    y[i, j] = a * x[i, j] + y[i, j]
+def double_first(x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    i = wp.tid()
+    y[i] = 2.0 * x[i]
 
 
 def _coarsened(weftd) -> int:
@@ -441,8 +441,10 @@ def test_coarsened_launches_run_every_logical_thread_once(wp, gpu, weftd, rng):
 
 
 def test_small_and_2d_launches_are_not_coarsened(wp, gpu, weftd, rng):
-    """Below the threshold (the coarsened grid would not fill the GPU twice) and for launches of
-    more than one dimension, the plain entry runs: the counter does not move, results match."""
+    """Below the threshold (the coarsened grid would not fill the GPU twice) and for a launch of
+    two dimensions of a kernel that has a coarsened entry (1-D arrays of as many elements as the
+    launch has threads, loaded at i = wp.tid(), the launch's first coordinate), the plain entry
+    runs: the counter does not move, results match."""
     x0 = rng.standard_normal(1 << 16).astype(np.float32)
     y0 = rng.standard_normal(1 << 16).astype(np.float32)
     before = _coarsened(weftd)
@@ -450,11 +452,17 @@ def test_small_and_2d_launches_are_not_coarsened(wp, gpu, weftd, rng):
     y = wp.array(y0, dtype=float, device=gpu)
     wp.launch(saxpy_lean, dim=x0.size, inputs=[2.0, x, y], device=gpu)
     np.testing.assert_allclose(y.numpy(), 2.0 * x0.astype(np.float64) + y0, rtol=1e-6, atol=1e-6)
-    m = 3000
-    a0 = rng.standard_normal((m, m)).astype(np.float32)
-    b0 = rng.standard_normal((m, m)).astype(np.float32)
+    rows, cols = 4000, 1000                     # 4e6 threads: past the threshold of any GPU here
+    a0 = rng.standard_normal(rows * cols).astype(np.float32)
+    b0 = rng.standard_normal(rows * cols).astype(np.float32)
     a = wp.array(a0, dtype=float, device=gpu)
     b = wp.array(b0, dtype=float, device=gpu)
-    wp.launch(saxpy_2d, dim=(m, m), inputs=[2.0, a, b], device=gpu)
-    np.testing.assert_allclose(b.numpy(), 2.0 * a0.astype(np.float64) + b0, rtol=1e-6, atol=1e-6)
+    wp.launch(double_first, dim=(rows, cols), inputs=[a, b], device=gpu)
+    want = b0.copy()
+    want[:rows] = 2.0 * a0[:rows]               # i runs over the first coordinate only
+    np.testing.assert_array_equal(b.numpy(), want)
     assert _coarsened(weftd) == before
+    # the same kernel launched 1-D over as many threads does take it (so the above could fail)
+    wp.launch(double_first, dim=rows * cols, inputs=[a, b], device=gpu)
+    np.testing.assert_array_equal(b.numpy(), 2.0 * a0)
+    assert _coarsened(weftd) == before + 1
