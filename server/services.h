@@ -40,8 +40,8 @@ class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_A
   SessionReaper& reaper_;
   FastLane* fast_lane_;   // null: no fast lane (the Open response then names none)
   SessionHosts* hosts_;
-  const bool isolate_;
   const bool single_session_;
+  const bool isolate_;
   std::atomic<bool> session_opened_{false};
 };
 

@@ -240,8 +240,16 @@ class ModuleStoreImpl final : public ModuleStore {
     }
 
     const std::string id = Key(variant);
+    // A CUDA module with bounds checks: its trusted-index variant, which launches proven in
+    // range take, is built beside it (one more thread), so that the first such launch does not
+    // wait for a second NVRTC compile after this one.
+    std::thread beside;
+    if (where.target == Target::kCuda && variant.codegen.bounds_checks && options_.build_trusted_beside &&
+        !cache_->Peek(id))
+      beside = std::thread([this, &variant, &id] { BuildTrustedBeside(variant, id); });
     ModuleCache::Source from = ModuleCache::Source::kBuilt;
     auto module = Get(id, id, variant, &from, &report->diagnostics);
+    if (beside.joinable()) beside.join();
     report->cache_hit = module.ok() && from == ModuleCache::Source::kMemory;
     report->disk_hit = module.ok() && from == ModuleCache::Source::kDisk;
     report->compile_ms = std::chrono::duration<double, std::milli>(
@@ -409,6 +417,27 @@ class ModuleStoreImpl final : public ModuleStore {
     std::lock_guard<std::mutex> lock(registry_mutex_);
     (registry_[module_id].*slots)[backward ? 1 : 0] = module;
     return module;
+  }
+
+  // The forward trusted-index variant of `variant` (module `id`), as WithTrustedTidIndices asks
+  // for it, built or loaded into the cache when some kernel indexes a parameter by the thread
+  // (so it may be used); errors stay here: the first launch that needs it asks again.
+  void BuildTrustedBeside(const Variant& variant, const std::string& id) const {
+    Variant trusted = variant;
+    trusted.codegen.trust_tid_indices = true;
+    trusted.codegen.enable_backward = false;
+    std::vector<Diagnostic> ignored;
+    auto generated = options_.generate(trusted.source, trusted.codegen, &ignored);
+    if (!generated.ok()) return;
+    bool indexed_by_thread = false;
+    for (const KernelLayout& k : generated->kernels) indexed_by_thread |= !k.tid_indexed_params.empty();
+    if (!indexed_by_thread) return;
+    ModuleCache::Callbacks callbacks;   // Get's, building from the code generated above
+    callbacks.build = [&](std::vector<Diagnostic>* diags) { return BuildGenerated(trusted, std::move(*generated), diags); };
+    callbacks.load = [&](const ModuleArtifact& artifact) { return Load(artifact, id, trusted); };
+    auto module = cache_->Get(Key(trusted), callbacks, nullptr, &ignored);
+    if (!module.ok()) spdlog::warn("module {}: its trusted-index variant built beside it failed: {}", id,
+                                   module.status().message());
   }
 
   // How `source` is generated for `target` (the module options that change the code).
@@ -609,9 +638,14 @@ class ModuleStoreImpl final : public ModuleStore {
 #endif
 
   Expected<ModuleArtifact> Build(const Variant& variant, std::vector<Diagnostic>* diags) const {
+    WEFT_ASSIGN_OR_RETURN(GeneratedModule generated, options_.generate(variant.source, variant.codegen, diags));
+    return BuildGenerated(variant, std::move(generated), diags);
+  }
+
+  // Build's compile step, for code generated from `variant`.
+  Expected<ModuleArtifact> BuildGenerated(const Variant& variant, GeneratedModule generated,
+                                          std::vector<Diagnostic>* diags) const {
     const ModuleSource& source = variant.source;
-    WEFT_ASSIGN_OR_RETURN(GeneratedModule generated,
-                          options_.generate(source, variant.codegen, diags));
     ModuleArtifact artifact;
     if (variant.codegen.target == Target::kCuda) {
 #if WEFT_WITH_CUDA

@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -529,6 +531,76 @@ TEST_F(CacheModule, CudaModulesAreCubinsCachedOnDisk) {
   EXPECT_EQ((*m)->id, id);
   EXPECT_EQ(store->Compile(Module("a * x + y"), "cuda:x", nullptr).status().code(),
             StatusCode::kInvalidArgument);
+}
+
+// A CUDA module whose kernels index parameters by the thread gets its trusted-index variant
+// built while it compiles (the real code generator and NVRTC), so that the first launch proven
+// in range finds it in memory; modules that could never use it (no such access, bounds checks
+// off) build nothing more, and the option turns it off.
+TEST_F(CacheModule, CudaTrustedVariantIsBuiltBesideTheModule) {
+  auto store_with = [&](bool beside) {
+    ModuleStoreOptions options;
+    options.cache_dir = (dir_ / (beside ? "beside" : "after")).string();
+    options.build_id = "test-build";
+    options.build_trusted_beside = beside;
+    auto store = ModuleStore::Create(options);
+    EXPECT_TRUE(store.ok()) << store.status().ToString();
+    return store.ok() ? std::move(*store) : nullptr;
+  };
+  const ModuleSource saxpy = testing::SaxpySource("beside", "a * x[i] + y[i]", 3);
+  auto timed_compile = [](ModuleStore& store, const ModuleSource& source) {
+    auto start = std::chrono::steady_clock::now();
+    auto m = store.Compile(source, "cuda:0", nullptr);
+    std::printf("  Compile(%s): %.1f ms\n", source.name.c_str(),
+                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    return m;
+  };
+
+  auto store = store_with(true);
+  ASSERT_NE(store, nullptr);
+  auto m = timed_compile(*store, saxpy);
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_FALSE((*m)->trusts_tid_indices);
+  EXPECT_EQ(store->stats().misses, 2u);   // the module and its trusted-index variant
+  auto trusted = store->WithTrustedTidIndices((*m)->id, false);
+  ASSERT_TRUE(trusted.ok()) << trusted.status().ToString();
+  EXPECT_TRUE((*trusted)->trusts_tid_indices);
+  EXPECT_EQ((*trusted)->id, (*m)->id);
+  ASSERT_NE((*trusted)->Find("saxpy"), nullptr);
+  EXPECT_EQ(store->stats().misses, 2u);   // found in memory: nothing compiled at the launch
+  EXPECT_EQ(store->stats().memory_hits, 1u);
+  // Compiled again (another client): in memory, nothing built beside it.
+  ASSERT_TRUE(store->Compile(saxpy, "cuda:0", nullptr).ok());
+  EXPECT_EQ(store->stats().misses, 2u);
+
+  // No access by the thread's index: the variant could never be taken, so it is not built.
+  ModuleSource fixed = testing::SaxpySource("fixed_index", "a * x[0]", 3);
+  fixed.functions[0].source = "def saxpy(a: float, x: wp.array(dtype=float), y: wp.array(dtype=float)):\n"
+                              "    y[0] = a * x[0]\n";
+  ASSERT_TRUE(store->Compile(fixed, "cuda:0", nullptr).ok());
+  EXPECT_EQ(store->stats().misses, 3u);
+  // Bounds checks off: there is no trusted-index variant of it.
+  ModuleSource unchecked = testing::SaxpySource("unchecked", "a * x[i] + y[i]", 3);
+  unchecked.options["bounds_checks"] = "false";
+  ASSERT_TRUE(store->Compile(unchecked, "cuda:0", nullptr).ok());
+  EXPECT_EQ(store->stats().misses, 4u);
+  // A kernel the code generator rejects: the client's error, nothing built.
+  ModuleSource bad = testing::SaxpySource("bad", "a * x[i] + undefined_name", 3);
+  auto refused = store->Compile(bad, "cuda:0", nullptr);
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(store->stats().misses, 5u);   // its own attempt only
+  // CPU modules have no trusted-index variant.
+  ASSERT_TRUE(store->Compile(testing::SaxpySource("on_cpu", "a * x[i] + y[i]", 3), "cpu", nullptr).ok());
+  EXPECT_EQ(store->stats().misses, 6u);
+
+  // Turned off: the variant is built when the first launch asks for it.
+  auto after = store_with(false);
+  ASSERT_NE(after, nullptr);
+  auto m2 = timed_compile(*after, saxpy);
+  ASSERT_TRUE(m2.ok());
+  EXPECT_EQ(after->stats().misses, 1u);
+  ASSERT_TRUE(after->WithTrustedTidIndices((*m2)->id, false).ok());
+  EXPECT_EQ(after->stats().misses, 2u);
 }
 #endif
 
