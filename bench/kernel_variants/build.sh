@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
-# Builds bench/kernel_variants/saxpy_variants (host + sm_90 device code, CUDA runtime linked
-# statically so the GPU machine needs only its driver) into build/kernel_variants/.
+# Builds bench/kernel_variants/{saxpy,integrate}_variants (host + sm_90 device code, CUDA runtime
+# linked statically so the GPU machine needs only its driver) into build/kernel_variants/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 NVCC=${NVCC:-/usr/local/cuda/bin/nvcc}
 mkdir -p build/kernel_variants
-"$NVCC" -std=c++17 --fmad=false -O3 -arch=sm_90 -cudart static -I engine/native \
-  --resource-usage -o build/kernel_variants/saxpy_variants bench/kernel_variants/saxpy_variants.cu 2>&1 |
-  grep -E "Compiling entry|Used [0-9]+ registers" | paste - - | sed -E "s/.*function '([^']+)'.*Used ([0-9]+) registers.*/\1: \2 registers/"
-echo "built build/kernel_variants/saxpy_variants"
+for name in saxpy_variants integrate_variants; do
+  "$NVCC" -std=c++17 --fmad=false -O3 -arch=sm_90 -cudart static -I engine/native \
+    --resource-usage -o "build/kernel_variants/$name" "bench/kernel_variants/$name.cu" 2>&1 |
+    grep -E "Compiling entry|Used [0-9]+ registers" | paste - - |
+    sed -E "s/.*function '([^']+)'.*Used ([0-9]+) registers.*/\1: \2 registers/"
+  echo "built build/kernel_variants/$name"
+done

@@ -116,6 +116,45 @@ void CollectTidIndexedParams(const Function& f, const std::set<int>& tid_vars, c
   }
 }
 
+// The parameters of f whose p[wp.tid()] load, a statement of the body itself (not under a
+// branch or loop: always executed), comes after a store or an array-access call, with p not
+// accessed at wp.tid() before it. The compiler cannot move such a load above the store (the
+// arrays may overlap), so each thread waits for two memory latencies one after the other; the
+// trusted entry prefetches these first.
+std::set<uint32_t> TidLoadsAfterAStore(const Function& f, const std::set<int>& tid_vars) {
+  std::set<uint32_t> late, touched;
+  bool stored = false;
+  auto writes = [](const Op& op) {
+    return op.kind == OpKind::kStore || (op.kind == OpKind::kCall && (op.builtin->flags & kBuiltinArrayAccess));
+  };
+  for (const Stmt& s : f.body) {
+    if (s.kind != Stmt::Kind::kOp) {   // a branch or loop: its accesses and stores count
+      std::vector<const std::vector<Stmt>*> todo{&s.then_body, &s.else_body, &s.cond_body, &s.body};
+      while (!todo.empty()) {
+        const std::vector<Stmt>* block = todo.back();
+        todo.pop_back();
+        for (const Stmt& t : *block) {
+          if (t.kind != Stmt::Kind::kOp)
+            todo.insert(todo.end(), {&t.then_body, &t.else_body, &t.cond_body, &t.body});
+          else
+            stored = stored || writes(t.op);
+        }
+      }
+      for (const auto* block : {&s.then_body, &s.else_body, &s.cond_body, &s.body})
+        CollectTidIndexedParams(f, tid_vars, *block, &touched);
+      continue;
+    }
+    std::set<uint32_t> accessed;
+    CollectTidIndexedParams(f, tid_vars, std::vector<Stmt>{s}, &accessed);
+    if (s.op.kind == OpKind::kLoad && stored)
+      for (uint32_t p : accessed)
+        if (!touched.count(p)) late.insert(p);
+    touched.insert(accessed.begin(), accessed.end());
+    stored = stored || writes(s.op);
+  }
+  return late;
+}
+
 // `#line N "file"` (emit_text.h) for generated code that belongs to user line N of f's file.
 std::string UserLine(const Function& f, int line) {
   return codegen::LineDirective(static_cast<uint32_t>(line > 0 ? line : 1), f.file) + "\n";
@@ -1243,31 +1282,48 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
       // whose prologue carries the hoisted invariants of the bounds checks' error paths.
       kl.grid_stride = options.grid_stride;
       std::set<uint32_t> tid_loaded;
+      std::vector<uint32_t> prefetched;   // what the forward entry prefetches (trusted variant)
       if (options.bounds_checks) {
         std::set<int> tid_vars;
         CollectTidVars(f.body, &tid_vars);
         std::set<uint32_t> trusted;
         if (!tid_vars.empty()) CollectTidIndexedParams(f, tid_vars, f.body, &trusted, &tid_loaded);
         kl.tid_indexed_params.assign(trusted.begin(), trusted.end());
+        // The trusted lean entry prefetches into L2 what the body loads at wp.tid() only after
+        // a store (vec3 integration 1e8 on an H200: 98.1% -> 99.7% of a device copy;
+        // bench/kernel_variants/integrate_variants.cu). In range: the launch proved p[tid]
+        // for every thread, and a 1-D launch's flat index is wp.tid().
+        if (options.trust_tid_indices && !options.grid_stride && !tid_vars.empty()) {
+          const std::set<uint32_t> late = TidLoadsAfterAStore(f, tid_vars);
+          prefetched.assign(late.begin(), late.end());
+        }
       }
-      auto entry = [&](const std::string& symbol, const std::string& params, const std::string& call) {
+      auto entry = [&](const std::string& symbol, const std::string& params, const std::string& call,
+                       const std::vector<uint32_t>& prefetched) {
         o += "extern \"C\" __global__ void " + symbol + "(" + params + ") {\n";
-        if (options.grid_stride)
+        if (options.grid_stride) {
           o += "  const wp::int64 __stride = (wp::int64)blockDim.x * gridDim.x;\n"
                "  for (wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x; __i < __ctx.bounds.size; "
                "__i += __stride)\n"
                "    " + call + ";\n";
-        else
+        } else {
           o += "  const wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;\n"
-               "  if (__i < __ctx.bounds.size) " + call + ";\n";
+               "  if (__i >= __ctx.bounds.size) return;\n";
+          if (!prefetched.empty()) {
+            o += "  if (__ctx.bounds.ndim == 1) {\n";
+            for (uint32_t p : prefetched) o += "    wp::cg_prefetch_l2(__args.p" + std::to_string(p) + ", __i);\n";
+            o += "  }\n";
+          }
+          o += "  " + call + ";\n";
+        }
         o += "}\n\n";
       };
       const std::string ctx_param = "const WP_GRID_CONSTANT wp::launch_context_t __ctx";
       auto args_param = [&](const char* name) { return "const WP_GRID_CONSTANT " + args_struct + " " + name; };
-      entry(kl.forward_symbol, ctx_param + ", " + args_param("__args"), fwd + "(&__ctx, __args, __i)");
+      entry(kl.forward_symbol, ctx_param + ", " + args_param("__args"), fwd + "(&__ctx, __args, __i)", prefetched);
       if (options.enable_backward)
         entry(kl.backward_symbol, ctx_param + ", " + args_param("__args") + ", " + args_param("__adj_args"),
-              bwd + "(&__ctx, __args, __adj_args, __i)");
+              bwd + "(&__ctx, __args, __adj_args, __i)", {});
       // The coarsened entry (KernelLayout::coarse_symbol). One element per thread leaves a
       // memory-bound kernel short of the copy rate: too few loads in flight per SM (saxpy 1e8 on
       // an H200: 82% of a device copy unchecked, 101% coarsened by 4 with the prefetches;

@@ -660,5 +660,81 @@ TEST(CodegenKernels, CoarsenedEntryOnlyWhereProvenAndPrefetchesOnlyLoads) {
   EXPECT_TRUE(gm->kernels[0].coarse_symbol.empty());
 }
 
+// The trusted lean entry prefetches into L2 what the body loads at wp.tid() only after a store
+// (the compiler cannot hoist such a load: the arrays may overlap), for 1-D launches only; loads
+// under a branch (maybe never executed), loads before any store, the checked and grid-stride
+// variants and the adjoint entries prefetch nothing.
+TEST(CodegenKernels, TrustedEntryPrefetchesLoadsThatFollowAStore) {
+  ModuleSource m;
+  m.name = "late_loads";
+  m.symbols.push_back(Wp());
+  m.functions.push_back(Fn("integrate",
+                           "def integrate(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), g: wp.vec3, dt: float):\n"
+                           "    i = wp.tid()\n"
+                           "    vi = v[i] + g * dt\n"
+                           "    v[i] = vi\n"
+                           "    x[i] = x[i] + vi * dt\n",
+                           {"array(vec(3,float32),1)", "array(vec(3,float32),1)", "vec(3,float32)", "float32"},
+                           {"x", "v", "g", "dt"}));
+  m.functions.push_back(Fn("saxpy",
+                           "def saxpy(x: wp.array(dtype=float), y: wp.array(dtype=float), a: float):\n"
+                           "    i = wp.tid()\n"
+                           "    y[i] = a * x[i] + y[i]\n",
+                           {"array(float32,1)", "array(float32,1)", "float32"}, {"x", "y", "a"}));
+  m.functions.push_back(Fn("branchy",
+                           "def branchy(x: wp.array(dtype=float), y: wp.array(dtype=float), z: wp.array(dtype=float),\n"
+                           "            a: float):\n"
+                           "    i = wp.tid()\n"
+                           "    y[i] = a\n"
+                           "    if a > 0.0:\n"
+                           "        y[i] = x[i]\n"
+                           "    z[i] = z[i] + y[i]\n",
+                           {"array(float32,1)", "array(float32,1)", "array(float32,1)", "float32"},
+                           {"x", "y", "z", "a"}));
+  auto forward_entry = [](const GeneratedModule& gm, const KernelLayout& k) {
+    const size_t at = gm.source.find("void " + k.forward_symbol + "(");
+    return at == std::string::npos ? std::string() : gm.source.substr(at, gm.source.find("\n}\n", at) - at);
+  };
+  for (bool trust : {false, true}) {
+    for (bool grid_stride : {false, true}) {
+      CodegenOptions o;
+      o.target = Target::kCuda;
+      o.enable_backward = true;
+      o.grid_stride = grid_stride;
+      o.trust_tid_indices = trust;
+      std::vector<Diagnostic> diags;
+      auto gm = GenerateModule(m, o, &diags);
+      ASSERT_TRUE(gm.ok()) << gm.status().message();
+      ASSERT_EQ(gm->kernels.size(), 3u);
+      const std::string integrate = forward_entry(*gm, gm->kernels[0]);
+      const std::string saxpy = forward_entry(*gm, gm->kernels[1]);
+      const std::string branchy = forward_entry(*gm, gm->kernels[2]);
+      ASSERT_FALSE(integrate.empty() || saxpy.empty() || branchy.empty()) << gm->source;
+      EXPECT_EQ(saxpy.find("cg_prefetch_l2"), std::string::npos) << "x and y are loaded before the store: " << saxpy;
+      const size_t backward = gm->source.find("void " + gm->kernels[0].backward_symbol + "(");
+      ASSERT_NE(backward, std::string::npos);
+      EXPECT_EQ(gm->source.substr(backward, gm->source.find("\n}\n", backward) - backward).find("cg_prefetch_l2"),
+                std::string::npos);
+      if (!trust || grid_stride) {
+        EXPECT_EQ(integrate.find("cg_prefetch_l2"), std::string::npos) << integrate;
+        EXPECT_EQ(branchy.find("cg_prefetch_l2"), std::string::npos) << branchy;
+        continue;
+      }
+      // x is loaded after v's store; v before any store.
+      const size_t guard = integrate.find("if (__ctx.bounds.ndim == 1) {");
+      const size_t prefetch = integrate.find("wp::cg_prefetch_l2(__args.p0, __i);");
+      const size_t body = integrate.find("_forward_body(&__ctx, __args, __i)");
+      ASSERT_NE(guard, std::string::npos) << integrate;
+      EXPECT_TRUE(guard < prefetch && prefetch < body && body != std::string::npos) << integrate;
+      EXPECT_EQ(integrate.find("__args.p1, __i"), std::string::npos) << integrate;
+      // z is loaded after y's store, unconditionally; x only under the branch.
+      EXPECT_NE(branchy.find("wp::cg_prefetch_l2(__args.p2, __i)"), std::string::npos) << branchy;
+      EXPECT_EQ(branchy.find("__args.p0, __i"), std::string::npos) << branchy;
+      EXPECT_EQ(branchy.find("__args.p1, __i"), std::string::npos) << "y is only stored before: " << branchy;
+      EXPECT_EQ(CompileCudaForEveryArch(gm->source, "late_loads"), "");
+    }
+  }
+}
+
 }  // namespace
 }  // namespace weft

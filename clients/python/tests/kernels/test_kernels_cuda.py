@@ -466,3 +466,59 @@ def test_small_and_2d_launches_are_not_coarsened(wp, gpu, weftd, rng):
     wp.launch(double_first, dim=rows * cols, inputs=[a, b], device=gpu)
     np.testing.assert_array_equal(b.numpy(), 2.0 * a0)
     assert _coarsened(weftd) == before + 1
+
+
+@wp.kernel
+def bump_then_add(v: wp.array(dtype=wp.vec3), x: wp.array(dtype=wp.vec3), g: wp.vec3, dt: float):
+    i = wp.tid()
+    vi = v[i] + g * dt
+    v[i] = vi
+    x[i] = x[i] + vi * dt      # loaded after v's store: the trusted entry prefetches x[i]
+
+
+@pytest.mark.parametrize("alias", [False, True])
+def test_loads_after_a_store_prefetched_keep_program_order(wp, gpu, rng, alias):
+    """The trusted entry of a kernel that loads x[i] after storing v[i] prefetches x[i] first
+    (docs/cuda.md, "Loads after a store"): a hint, so results are those of program order even
+    when x and v are the same array (the load then sees the store), on magnitudes from 1e-30 to
+    1e30, for a 1-D launch not a multiple of the block and for a 2-D one (no prefetch there).
+    Bit-exact against the same float32 operations in NumPy (no FMA contraction without
+    fast_math), and within 2 ulps of the operands against float64."""
+    n = 1_000_003
+    mags = 10.0 ** rng.uniform(-30, 30, (n, 3))
+    v0 = (rng.standard_normal((n, 3)) * mags).astype(np.float32)
+    x0 = (rng.standard_normal((n, 3)) * mags[::-1]).astype(np.float32)
+    g = np.array([1e-3, -9.8, 2.5e4], dtype=np.float32)
+    dt = np.float32(1.0 / 64.0)
+
+    def expected(v_in, x_in):
+        vi = v_in + g * dt                              # float32, as the kernel
+        xi = (vi if alias else x_in) + vi * dt
+        return vi, xi
+
+    def check(got_v, got_x, v_in, x_in):
+        vi, xi = expected(v_in, x_in)
+        if not alias:
+            np.testing.assert_array_equal(got_v, vi)
+        np.testing.assert_array_equal(got_x, xi)
+        v64 = v_in.astype(np.float64) + g.astype(np.float64) * np.float64(dt)
+        base = v64 if alias else x_in.astype(np.float64)
+        x64 = base + v64 * np.float64(dt)
+        eps = np.finfo(np.float32).eps
+        bound = 2 * eps * (np.abs(base) + np.abs(v64 * np.float64(dt)) + np.abs(g * dt)) + 1e-44
+        assert np.all(np.abs(got_x - x64) <= bound)
+
+    v = wp.array(v0, dtype=wp.vec3, device=gpu)
+    x = v if alias else wp.array(x0, dtype=wp.vec3, device=gpu)
+    wp.launch(bump_then_add, dim=n, inputs=[v, x, wp.vec3(*g), float(dt)], device=gpu)
+    check(v.numpy(), x.numpy(), v0, x0)
+    # a 2-D launch, (rows, 1): i = wp.tid() is the first coordinate, rows past it untouched
+    rows = 100_001
+    v2 = wp.array(v0, dtype=wp.vec3, device=gpu)
+    x2 = v2 if alias else wp.array(x0, dtype=wp.vec3, device=gpu)
+    wp.launch(bump_then_add, dim=(rows, 1), inputs=[v2, x2, wp.vec3(*g), float(dt)], device=gpu)
+    got_v, got_x = v2.numpy(), x2.numpy()
+    check(got_v[:rows], got_x[:rows], v0[:rows], x0[:rows])
+    np.testing.assert_array_equal(got_v[rows:], v0[rows:])
+    if not alias:
+        np.testing.assert_array_equal(got_x[rows:], x0[rows:])
