@@ -184,3 +184,86 @@ def test_framed_commands_are_the_submit_request_the_daemon_parses():
                         value=value),
                     origin=types_pb2.SourceLocation())
                 assert got[0].HasField("origin")   # set (empty): not the caller's line
+
+
+@wp_module.struct
+class FrameStruct:
+    scale: float
+    count: int
+
+
+@wp_module.kernel
+def frame_probe(data: wp_module.array(dtype=float), s: float, n: int, v: wp_module.vec3,
+                st: FrameStruct):
+    i = wp_module.tid()
+    wp_module.atomic_add(data, i % 64, s * st.scale + float(n + st.count) + v[1])
+
+
+def test_launch_commands_assembled_from_bytes_are_the_commands_protobuf_builds(wp):
+    """wp.launch assembles a launch's command from bytes cached per kernel, argument and call
+    site (weft/_kernel/launch.py): parsed, it is the command the message path builds (taken
+    when max_blocks is set on the CPU) but for max_blocks, for dimensions whose varints take 1
+    to 6 bytes, negative and changing scalars, vectors, structs and NumPy arrays (the packer's
+    path), and the launches compute what they should; the daemon refuses a launch of 2^80
+    threads (6-byte varints) naming its dimensions and the limit, as before."""
+    from weft.v1 import exec_pb2
+
+    rt = _runtime.get_runtime()
+    wp.synchronize()
+    frames = []
+    queue = rt._queue_frame
+
+    def spy(frame, start):
+        frames.append(frame)
+        return queue(frame, start)
+
+    rng = np.random.default_rng()
+    cases = []
+    # eighths and small integers: the large launches' float32 sums stay exact; a large n only
+    # where few threads add it up
+    for dims in ((64,), (3, 5), (2, 2, 2, 2), (1, 1, 1, 64), (20_000,), (2_100_000,)):
+        large = int(np.prod(dims)) > 1000
+        for n in (0, -1, 7) if large else (0, -1, 7, int(rng.integers(-(1 << 30), 1 << 30))):
+            s = float(rng.integers(-8, 9)) / 8
+            v = wp.vec3(*(rng.integers(-8, 9, 3) / 8.0))
+            st = FrameStruct()
+            st.scale, st.count = float(rng.choice([1.0, 1.5])), int(rng.integers(-5, 5))
+            cases.append((dims, [wp.zeros(64, dtype=float, device="cpu"), s, n, v, st]))
+    cases.append(((64,), [np.ones(64, np.float32), 1.0, 2, (1.0, 2.0, 3.0), FrameStruct()]))
+    rt._queue_frame = spy
+    try:
+        for dims, inputs in cases:
+            wp.launch(frame_probe, dim=dims, inputs=inputs, device="cpu")
+            wp.launch(frame_probe, dim=dims, inputs=inputs, device="cpu", max_blocks=1)
+        wp.synchronize()
+        with pytest.raises(Exception, match=r"dim \(1099511627776, 1099511627776\) has .* threads, "
+                                            r"more than the limit"):
+            wp.launch(frame_probe, dim=(1 << 40, 1 << 40), inputs=cases[0][1], device="cpu")
+            wp.synchronize()
+    finally:
+        rt._queue_frame = queue
+    launches = [c for f in frames for c in exec_pb2.SubmitRequest.FromString(f).commands
+                if c.HasField("launch")]
+    assert len(launches) == 2 * len(cases) + 1
+    assert list(launches[-1].launch.dim) == [1 << 40, 1 << 40]
+    assert launches[-1].launch.module_id == launches[0].launch.module_id
+    for k, (dims, inputs) in enumerate(cases):
+        from_bytes, from_message = launches[2 * k], launches[2 * k + 1]
+        assert from_message.launch.max_blocks == 1 and from_bytes.launch.max_blocks == 0
+        from_message.launch.max_blocks = 0
+        assert from_message.origin.line == from_bytes.origin.line + 1   # the next line
+        from_message.origin.line = from_bytes.origin.line
+        if isinstance(inputs[0], np.ndarray):   # each launch copies it to a new array
+            assert from_bytes.launch.args[0].array.handle != from_message.launch.args[0].array.handle
+            from_message.launch.args[0].array.handle = from_bytes.launch.args[0].array.handle
+        assert from_bytes == from_message
+        assert list(from_bytes.launch.dim) == list(dims)
+        assert from_bytes.origin.file == __file__ and from_bytes.origin.line > 0
+        if not isinstance(inputs[0], np.ndarray):
+            threads = int(np.prod(dims))
+            data, s, n, v, st = inputs
+            inc = np.float32(s) * np.float32(st.scale) + np.float32(n + st.count) + np.float32(v[1])
+            host = np.zeros(64, dtype=np.float64)
+            first = np.arange(dims[0]) % 64          # i = wp.tid(), the first coordinate
+            np.add.at(host, first, 2 * (threads // dims[0]) * np.float64(inc))
+            np.testing.assert_allclose(data.numpy(), host, rtol=1e-5, atol=0)   # <= 128 float32 sums

@@ -649,14 +649,14 @@ class Runtime:
                 return
         self._queue_frame(framed_command(cmd), start)
 
-    def submit_framed(self, frame: bytes) -> None:
+    def submit_framed(self, frame: bytes, start: bool = False) -> None:
         """submit() of a command already framed (as framed_command frames it) with its origin
-        set: the ordering commands of weft.interop.cuda_order, built as bytes. Under a graph
-        capture of this thread it is parsed and goes through submit()."""
+        set: launches and the ordering commands of weft.interop.cuda_order, built as bytes.
+        Under a graph capture of this thread it is parsed and goes through submit()."""
         if self.captures and threading.get_ident() in self.captures:
-            self.submit(exec_pb2.SubmitRequest.FromString(frame).commands[0])
+            self.submit(exec_pb2.SubmitRequest.FromString(frame).commands[0], start)
             return
-        self._queue_frame(frame, False)
+        self._queue_frame(frame, start)
 
     def _queue_frame(self, frame: bytes, start: bool) -> None:
         with self._lock:

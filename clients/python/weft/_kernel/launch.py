@@ -45,10 +45,43 @@ def device_name(device) -> str:
     return str(device)
 
 
+# Serialized protobuf fields (wire format: tag, length, bytes), so that a launch's command is
+# assembled from bytes cached per kernel, argument and call site instead of built as a message
+# and serialized per launch: Command.launch (3), Command.origin (15), LaunchCommand.dim (3,
+# packed) and LaunchCommand.args (4).
+_COMMAND_LAUNCH = 0x1A
+_COMMAND_ORIGIN = 0x7A
+_LAUNCH_DIM = 0x1A
+_LAUNCH_ARGS = 0x22
+
+
+def _varint(n: int) -> bytes:
+    """The base-128 varint of non-negative `n`."""
+    if n < 0x80:
+        return bytes((n,))
+    out = bytearray()
+    while n >= 0x80:
+        out.append((n & 0x7F) | 0x80)
+        n >>= 7
+    out.append(n)
+    return bytes(out)
+
+
+def _field(tag: int, payload: bytes) -> bytes:
+    """A length-delimited field: its tag byte (field number < 16), length and payload."""
+    return bytes((tag,)) + _varint(len(payload)) + payload
+
+
 def caller_origin(depth: int = 1):
-    """SourceLocation of the first frame outside the weft package (the user's launch line),
-    starting `depth` frames above the caller. One cached proto per (code object, instruction
-    offset): no inspect, no stack walk beyond the weft frames. Keys are chosen to cost nothing
+    """SourceLocation of the first frame outside the weft package (see caller_origin_entry)."""
+    return caller_origin_entry(depth + 1)[1]
+
+
+def caller_origin_entry(depth: int = 1):
+    """(code, SourceLocation, its Command.origin field serialized) of the first frame outside
+    the weft package (the user's launch line), starting `depth` frames above the caller. One
+    cached entry per (code object, instruction offset): no inspect, no stack walk beyond the
+    weft frames. Keys are chosen to cost nothing
     to hash: a file name (str: its hash is cached) and the code object's id, the entry holding
     the code object so that the id stays its own; a code object's own hash walks its bytecode
     and constants (tens of microseconds for a large function on Python 3.12) and `f_lineno`
@@ -67,11 +100,12 @@ def caller_origin(depth: int = 1):
             if entry is None or entry[0] is not code:
                 if len(_ORIGINS) > 100_000:
                     _ORIGINS.clear()
-                entry = _ORIGINS[key] = (code, _pb().types_pb2.SourceLocation(
-                    file=filename, line=frame.f_lineno or 0))
-            return entry[1]
+                origin = _pb().types_pb2.SourceLocation(file=filename, line=frame.f_lineno or 0)
+                entry = _ORIGINS[key] = (code, origin, _field(_COMMAND_ORIGIN, origin.SerializeToString()))
+            return entry
         frame = frame.f_back
-    return _pb().types_pb2.SourceLocation()
+    origin = _pb().types_pb2.SourceLocation()
+    return (None, origin, _field(_COMMAND_ORIGIN, b""))
 
 
 class _Protos:
@@ -98,7 +132,7 @@ def _pb() -> _Protos:
     return _PROTOS
 
 
-_ORIGINS: dict = {}            # (id(code), f_lasti) -> (code, SourceLocation proto copied by users)
+_ORIGINS: dict = {}            # (id(code), f_lasti) -> caller_origin_entry's (code, proto, field)
 _INSIDE_PACKAGE: dict = {}     # file name -> whether it belongs to the weft package
 _DTYPE_TEXT: dict = {}         # dtype object -> type string (array argument checks)
 
@@ -452,7 +486,7 @@ class _ParamPlan:
     """How one kernel parameter is packed on the fast path."""
 
     __slots__ = ("name", "type_text", "desc", "annotation", "is_array", "elem_text", "elem_any",
-                 "ndim", "pack_float", "pack_int", "int_range", "last_raw", "last_arg",
+                 "ndim", "pack_float", "pack_int", "int_range", "last_raw", "last_arg", "last_field",
                  "composite_dtype", "composite_cls")
 
     def __init__(self, name, type_text, annotation):
@@ -472,6 +506,7 @@ class _ParamPlan:
         self.int_range = _INT_RANGES.get(desc.scalar)
         self.last_raw = None
         self.last_arg = None
+        self.last_field = None      # last_arg as a serialized LaunchCommand.args field
         # vector/matrix/quat/transform values: a weft value with as many components, stored
         # as this scalar type, passes its components' bytes (its class is remembered once it
         # matched; any other value goes through ArgPacker's conversion)
@@ -487,7 +522,7 @@ class _LaunchPlan:
     module and kernel name (valid while the module registry version is unchanged) and the
     parameter packers."""
 
-    __slots__ = ("version", "compiled", "kernel_name", "params", "n_params", "template")
+    __slots__ = ("version", "compiled", "kernel_name", "params", "n_params", "template", "template_bytes")
 
     def __init__(self, kernel: Kernel, compiled, info, device: str):
         self.version = module_mod.registry_version()
@@ -500,6 +535,7 @@ class _LaunchPlan:
         pb = _pb()        # the forward LaunchCommand less dim, args and origin (copied per launch)
         self.template = pb.Command(launch=pb.LaunchCommand(
             module_id=compiled.module_id, kernel=self.kernel_name, device=device))
+        self.template_bytes = self.template.launch.SerializeToString()   # the same, serialized
 
 
 def _launch_plan(kernel: Kernel, device: str, runtime, lanes: int = 1) -> _LaunchPlan:
@@ -517,7 +553,7 @@ def _launch_plan(kernel: Kernel, device: str, runtime, lanes: int = 1) -> _Launc
 
 
 # Per array object: (handle, byte_offset, shape, strides, dtype, device, dtype text, ndim,
-# device name, ArgValue). Views are immutable; the identity checks of shape/strides/dtype/device
+# device name, ArgValue, the ArgValue as a serialized LaunchCommand.args field). Views are immutable; the identity checks of shape/strides/dtype/device
 # catch any attribute that was replaced anyway.
 _REF_ATTR = "_weft_launch_ref"
 
@@ -533,7 +569,7 @@ def _array_arg(value):
     arg = pb.ArgValue(array=value._ref())
     cached = (value._handle, value._byte_offset, value.shape, value.strides, value.dtype,
               value.device, _dtype_text(value.dtype), int(value.ndim),
-              device_name(value.device), arg)
+              device_name(value.device), arg, _field(_LAUNCH_ARGS, arg.SerializeToString()))
     try:
         value.__dict__[_REF_ATTR] = cached
     except (AttributeError, TypeError):
@@ -592,14 +628,16 @@ def _device_matches(array_device: str, launch_device: str) -> bool:
 
 
 def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
-    """(ArgValues, ArgPacker or None, resolved args): weft arrays and Python scalars on the fast
-    path, anything else (NumPy arrays, structs, vectors, errors) through ArgPacker, parameter by
-    parameter; resolved = the arguments as launched (temporaries substituted)."""
+    """(ArgValues, ArgPacker or None, resolved args, the ArgValues as serialized
+    LaunchCommand.args fields): weft arrays and Python scalars on the fast path (their fields
+    cached), anything else (NumPy arrays, structs, vectors, errors) through ArgPacker,
+    parameter by parameter; resolved = the arguments as launched (temporaries substituted)."""
     if len(args) != plan.n_params:
         raise WeftLaunchError(f"Invalid number of arguments for kernel '{kernel.key}': expected "
                               f"{plan.n_params} ({', '.join(kernel.param_names)}), "
                               f"got {len(args)}")
     packed = []
+    fields = []
     packer = None
     resolved = args
     array_type = _array_type()
@@ -618,11 +656,14 @@ def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
                 if c is not None and (p.elem_any or c[6] == p.elem_text) and c[7] == p.ndim and \
                         _device_matches(c[8], device):
                     packed.append(c[9])
+                    fields.append(c[10])
                     continue
             else:
                 known = _framework_arg(value, p, device)
                 if known is not None:
-                    packed.append(_array_arg(known)[9])
+                    c = _array_arg(known)
+                    packed.append(c[9])
+                    fields.append(c[10])
                     if resolved is args:
                         resolved = list(args)
                     resolved[i] = known
@@ -636,14 +677,18 @@ def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
                 if raw is not None:
                     if raw != p.last_raw:
                         p.last_raw, p.last_arg = raw, arg_value(raw=raw)
+                        p.last_field = _field(_LAUNCH_ARGS, p.last_arg.SerializeToString())
                     packed.append(p.last_arg)
+                    fields.append(p.last_field)
                     continue
         elif p.pack_int is not None:
             if type(value) is int and p.int_range[0] <= value <= p.int_range[1]:
                 raw = p.pack_int(value)
                 if raw != p.last_raw:
                     p.last_raw, p.last_arg = raw, arg_value(raw=raw)
+                    p.last_field = _field(_LAUNCH_ARGS, p.last_arg.SerializeToString())
                 packed.append(p.last_arg)
+                fields.append(p.last_field)
                 continue
         elif p.composite_dtype is not None:
             cls = type(value)
@@ -654,20 +699,23 @@ def _pack_fast(kernel: Kernel, plan: _LaunchPlan, device: str, args: list):
                     raw = data.tobytes()
                     if raw != p.last_raw:
                         p.last_raw, p.last_arg = raw, arg_value(raw=raw)
+                        p.last_field = _field(_LAUNCH_ARGS, p.last_arg.SerializeToString())
                     packed.append(p.last_arg)
+                    fields.append(p.last_field)
                     continue
         if packer is None:
             packer = ArgPacker(kernel, device)
         copy_backs = len(packer.copy_backs)
         arg, launched = packer.pack(p.name, p.type_text, p.annotation, value)
         packed.append(arg)
+        fields.append(_field(_LAUNCH_ARGS, arg.SerializeToString()))
         if p.is_array and len(packer.copy_backs) == copy_backs:
             _remember_framework_arg(value, p, device, launched)
         if launched is not value:
             if resolved is args:
                 resolved = list(args)
             resolved[i] = launched
-    return packed, packer, resolved
+    return packed, packer, resolved, fields
 
 
 def _composite_matches(cls, p) -> bool:
@@ -802,7 +850,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         if len(args) != len(kernel.param_names):     # before compiling, as the slow path does
             pack_arguments(kernel, device, args)
         plan = _launch_plan(kernel, device, rt, lanes)
-        packed, packer, resolved = _pack_fast(kernel, plan, device, args)
+        packed, packer, resolved, fields = _pack_fast(kernel, plan, device, args)
     else:
         plan = None
         if generic:
@@ -826,7 +874,16 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     pause = tape is not None and (adjoint or not record_tape)
     if pause:
         tape.pause_recording()
-    if plan is not None:
+    frame = None
+    if plan is not None and lanes <= 1 and not max_blocks and \
+            not (block_dim and block_dim > 0 and block_dim != 256 and device != "cpu"):
+        # the command as bytes: the plan's fields, the dimensions, the arguments' cached fields
+        # and the call site's (what the protobuf message below would serialize to)
+        _, origin, origin_field = caller_origin_entry()
+        body = plan.template_bytes + _field(_LAUNCH_DIM, b"".join(map(_varint, dims))) + b"".join(fields)
+        inner = _field(_COMMAND_LAUNCH, body) + origin_field
+        frame = b"\x0a" + _varint(len(inner)) + inner      # SubmitRequest.commands (field 1)
+    elif plan is not None:
         command = pb.Command()
         command.CopyFrom(plan.template)
         launch_cmd = command.launch
@@ -839,12 +896,14 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
                                     args=packed, adjoint=bool(adjoint), adj_args=adj_packed,
                                     device=device),
             origin=caller_origin())
-    if lanes > 1:                             # cooperative CPU blocks: the kernel's lanes
-        command.launch.block_dim = lanes      # (also what wp.block_dim() gives a kernel without tiles)
-    elif block_dim and block_dim > 0 and block_dim != 256 and device != "cpu":
-        command.launch.block_dim = int(block_dim)   # GPU launch geometry (Warp's options)
-    if max_blocks:
-        command.launch.max_blocks = int(max_blocks)
+    if frame is None:
+        origin = command.origin
+        if lanes > 1:                             # cooperative CPU blocks: the kernel's lanes
+            command.launch.block_dim = lanes      # (also what wp.block_dim() gives a kernel without tiles)
+        elif block_dim and block_dim > 0 and block_dim != 256 and device != "cpu":
+            command.launch.block_dim = int(block_dim)   # GPU launch geometry (Warp's options)
+        if max_blocks:
+            command.launch.max_blocks = int(max_blocks)
     start = False
     if device.startswith("cuda"):       # a large GPU kernel starts at once (Runtime.submit)
         threads = 1
@@ -852,7 +911,10 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
             threads *= d
         start = threads >= _runtime.START_GPU_THREADS
         rt.gpu_work = True              # the next synchronize waits for the GPU
-    rt.submit(command, start)
+    if frame is not None:
+        rt.submit_framed(frame, start)
+    else:
+        rt.submit(command, start)
     if pause:
         tape.resume_recording()
     elif tape is not None:
@@ -868,7 +930,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     elif shared:
         rt.synchronize()       # memory a framework holds: done before the framework reads it
     if _config.verify_fp:
-        verify_finite(kernel, resolved, command.origin)
+        verify_finite(kernel, resolved, origin)
     return None
 
 
