@@ -255,9 +255,11 @@ class ScopedDevice:
 
 def synchronize() -> None:
     """Waits for every command this process issued; raises the first asynchronous error."""
-    from .graph import refuse_host_wait  # noqa: PLC0415
-    refuse_host_wait("device")
-    _runtime.get_runtime().synchronize()
+    rt = _runtime.get_runtime()
+    if rt.captures:          # a graph being captured: no host wait in its thread (Warp's error)
+        from .graph import refuse_host_wait  # noqa: PLC0415
+        refuse_host_wait("device")
+    rt.synchronize()
 
 
 def synchronize_device(device=None) -> None:
