@@ -553,6 +553,10 @@ def stream_mem_ops(ordinal: int) -> bool:
 CUDA_ERROR_INVALID_CONTEXT = 201
 
 
+_CURRENT = ctypes.c_void_p()          # _stream_op's cuCtxGetCurrent result (under _lock)
+_CURRENT_REF = ctypes.byref(_CURRENT)
+
+
 def _stream_op(fn, what, ordinal, stream, address, value, flags):
     # A stream of its own names its context: queued from whatever context is current (Torch
     # and CuPy keep the device's primary context current), pushed only when the driver asks.
@@ -560,9 +564,9 @@ def _stream_op(fn, what, ordinal, stream, address, value, flags):
     if stream:
         rc = fn(stream, address, value, flags)
     else:
-        current = ctypes.c_void_p()
-        _lib.cuCtxGetCurrent(ctypes.byref(current))
-        rc = fn(None, address, value, flags) if current.value == _context(ordinal).value \
+        _lib.cuCtxGetCurrent(_CURRENT_REF)          # under _lock: one buffer for every call
+        ctx = _contexts.get(ordinal) or _context(ordinal)
+        rc = fn(None, address, value, flags) if _CURRENT.value == ctx.value \
             else CUDA_ERROR_INVALID_CONTEXT
     if rc == CUDA_ERROR_INVALID_CONTEXT:
         with _Scope(ordinal):
