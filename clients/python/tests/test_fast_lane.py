@@ -912,7 +912,7 @@ def test_finalizers_inside_the_runtime_do_not_disturb_it(wp, monkeypatch):
     gc.set_threshold(1, 1, 1)
     gc.callbacks.append(drop_one)
     try:
-        for k in range(40):
+        for k in range(100):
             for _ in range(10):
                 wp.launch(lane_add, dim=64, inputs=[data, float(k + 1)], device="cpu")
                 total += k + 1

@@ -203,17 +203,26 @@ def test_a_launch_that_fails_after_ordering_leaves_nothing_waiting(wp, tvalues, 
     a = wp.from_torch(t)
     wp.launch(add_one, dim=n, inputs=[a], device=tvalues)
     torch.cuda.synchronize()
+    from weft.v1 import exec_pb2
+
     rt = _runtime.get_runtime()
-    real_submit = rt.submit
+    real_submit, real_framed = rt.submit, rt.submit_framed
 
     def failing(cmd, start=False):
         if cmd.HasField("launch"):
             raise RuntimeError("injected failure")
         return real_submit(cmd, start)
+
+    def failing_framed(frame, start=False):     # launches are queued as bytes
+        if exec_pb2.SubmitRequest.FromString(frame).commands[0].HasField("launch"):
+            raise RuntimeError("injected failure")
+        return real_framed(frame, start)
     monkeypatch.setattr(rt, "submit", failing)
+    monkeypatch.setattr(rt, "submit_framed", failing_framed)
     with pytest.raises(RuntimeError, match="injected"):
         wp.launch(add_one, dim=n, inputs=[a], device=tvalues)
     monkeypatch.setattr(rt, "submit", real_submit)
+    monkeypatch.setattr(rt, "submit_framed", real_framed)
     done = threading.Event()
     threading.Thread(target=lambda: (wp.synchronize(), done.set()), daemon=True).start()
     assert done.wait(30), "the session's stream waits for a write that was never queued"
