@@ -256,7 +256,7 @@ class _Allocation:
     """One daemon allocation held by this process; freed when the last view lets go."""
 
     __slots__ = ("runtime", "info", "owned", "parent", "_mapping", "_cuda", "_cuda_slab",
-                 "keep", "recycle", "pool_bytes", "__weakref__")
+                 "keep", "recycle", "pool_bytes", "framework_shared", "__weakref__")
 
     def __init__(self, runtime, info, owned=True, parent=None):
         self.runtime = runtime
@@ -264,6 +264,7 @@ class _Allocation:
         self.owned = owned
         self.parent = parent   # a gradient keeps its array's allocation alive
         self._mapping = None
+        self.framework_shared = False   # a framework holds it (weft.interop.memory.mark_shared)
         self._cuda = None      # device address in this process (0: no IPC mapping)
         self._cuda_slab = None  # slab id whose mapping this allocation holds
         self.keep = None       # imported framework memory: the object that owns it

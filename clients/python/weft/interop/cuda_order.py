@@ -33,6 +33,7 @@ from .._runtime import varint as _varint
 _state = threading.local()       # .foreign: {ordinal: stream handle} of a ScopedStream
 _refused: dict = {}              # id(runtime) -> why weftd cannot use this process's events
 _probed: set = set()             # (id(runtime), ordinal) that passed the probe
+_enabled: set = set()            # (id(runtime), frozenset of ordinals) all probed (enabled())
 _values: dict = {}               # (session id, ordinal) -> _ValueOrder, or None (events)
 SLOTS = 31                       # framework streams ordered by values at once, per device
 # (id(runtime), ordinal, stream) -> runtime.work_queued when that stream was last made to wait
@@ -69,17 +70,29 @@ def framework_stream(ordinal: int) -> int:
         handle = foreign.get(ordinal)
         if handle is not None:
             return handle
+    global _raw_stream
+    if _raw_stream is not None:                  # Torch's CUDA is initialized (it stays so)
+        try:
+            return int(_raw_stream(ordinal))
+        except (RuntimeError, TypeError):
+            pass
     torch = sys.modules.get("torch")
     if torch is not None:
         try:
             if torch.cuda.is_initialized():
                 raw = getattr(torch._C, "_cuda_getCurrentRawStream", None)
                 if raw is not None:              # ~1 us; current_stream() costs tens
+                    _raw_stream = raw
                     return int(raw(ordinal))
                 return int(torch.cuda.current_stream(ordinal).cuda_stream)
         except (RuntimeError, AttributeError, AssertionError):
             pass
     return 0
+
+
+# Torch's current-stream function once Torch's CUDA is initialized (framework_stream): the
+# check of that and the look-up cost more than the call.
+_raw_stream = None
 
 
 _EXEC_PB = None
@@ -190,7 +203,11 @@ def enabled(rt, ordinals) -> bool:
     """Whether this session orders GPU work with the framework streams by events (probed once
     per device: weftd must open this process's event handles)."""
     key = id(rt)
+    if type(ordinals) is frozenset and (key, ordinals) in _enabled:
+        return True                      # these devices probed already for this runtime
     if ordinals and all((key, o) in _probed for o in ordinals):
+        if type(ordinals) is frozenset:
+            _enabled.add((key, ordinals))
         return True                      # probed already (WEFT_CUDA_EVENTS is read once)
     if not ordinals or not rt.local or os.environ.get("WEFT_CUDA_EVENTS", "1") == "0":
         return False

@@ -84,6 +84,10 @@ def find(address: int, nbytes: int, space: str = "cpu"):
 def mark_shared(alloc) -> None:
     if alloc is not None:
         _shared.add(alloc)
+        try:
+            alloc.framework_shared = True      # touches_shared's test, an attribute read
+        except AttributeError:
+            pass
 
 
 def any_shared() -> bool:
@@ -96,11 +100,11 @@ def touches_shared(values) -> bool:
         return False
     for value in values:
         alloc = getattr(value, "_alloc", None)
-        if alloc is not None and alloc in _shared:
+        if alloc is not None and getattr(alloc, "framework_shared", False):
             return True
         grad = getattr(value, "_grad", None)
         galloc = getattr(grad, "_alloc", None)
-        if galloc is not None and galloc in _shared:
+        if galloc is not None and getattr(galloc, "framework_shared", False):
             return True
     return False
 
