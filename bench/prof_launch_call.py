@@ -20,15 +20,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "clients" / "python"))
 
-SOURCE = '''
-@wp.kernel
-def empty_kernel():
-    pass
-
-@wp.kernel
-def three_args(a: wp.array(dtype=float), b: wp.array(dtype=float), c: wp.array(dtype=float)):
-    pass
-'''
+from prof_launch_sync import SOURCE  # noqa: E402  (the same empty and 3-array kernels)
 
 
 def cpu_model() -> str:

@@ -19,6 +19,7 @@
 
 #include "weft.h"
 #include "codegen_support.h"
+#include "variant_common.h"
 
 using vec3 = wp::vec_t<3, wp::float32>;
 
@@ -80,13 +81,6 @@ ENTRY(prefetch_both) { ONCE(body_prefetch_both) }
 ENTRY(loads_first) { ONCE(body_loads_first) }
 
 // Warp 1.19's form: a grid-stride loop, arrays with int32 shape and strides, the same order.
-struct warp_array_t {
-  float* data;
-  float* grad;
-  int shape[4];
-  int strides[4];
-  int ndim;
-};
 extern "C" __global__ void warp_style(wp::int64 n, warp_array_t x, warp_array_t v, vec3 g, float dt) {
   for (wp::int64 i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x; i < n; i += (wp::int64)blockDim.x * gridDim.x) {
     vec3* pv = (vec3*)((char*)v.data + (int)i * v.strides[0]);
@@ -104,36 +98,6 @@ extern "C" __global__ void ceiling_restrict(wp::int64 n, float* __restrict__ x, 
   v1 += gy * dt;
   v[3 * i] = v0, v[3 * i + 1] = v1, v[3 * i + 2] = v2;
   x[3 * i] = x0 + v0 * dt, x[3 * i + 1] = x1 + v1 * dt, x[3 * i + 2] = x2 + v2 * dt;
-}
-
-#define CHECK(call)                                                                    \
-  do {                                                                                 \
-    cudaError_t e_ = (call);                                                           \
-    if (e_ != cudaSuccess) {                                                           \
-      std::fprintf(stderr, "%s:%d: %s\n", __FILE__, __LINE__, cudaGetErrorString(e_)); \
-      std::exit(1);                                                                    \
-    }                                                                                  \
-  } while (0)
-
-template <typename Launch>
-static double time_us(Launch launch, int reps) {
-  cudaEvent_t start, stop;
-  CHECK(cudaEventCreate(&start));
-  CHECK(cudaEventCreate(&stop));
-  std::vector<double> rounds;
-  for (int r = 0; r < 7; ++r) {
-    CHECK(cudaEventRecord(start));
-    for (int k = 0; k < reps; ++k) launch();
-    CHECK(cudaEventRecord(stop));
-    CHECK(cudaEventSynchronize(stop));
-    float ms = 0;
-    CHECK(cudaEventElapsedTime(&ms, start, stop));
-    rounds.push_back(ms * 1000.0 / reps);
-  }
-  std::sort(rounds.begin(), rounds.end());
-  CHECK(cudaEventDestroy(start));
-  CHECK(cudaEventDestroy(stop));
-  return rounds[rounds.size() / 2];
 }
 
 int main(int argc, char** argv) {

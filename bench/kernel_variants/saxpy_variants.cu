@@ -22,6 +22,7 @@
 
 #include "weft.h"
 #include "codegen_support.h"
+#include "variant_common.h"
 
 struct alignas(8) saxpy_args {
   wp::array_t<wp::float32> p0;  // x
@@ -151,13 +152,6 @@ extern "C" __global__ void unchecked(wp::launch_context_t __ctx, saxpy_args __ar
 }
 
 // A lean kernel over arrays with int32 shape and strides (Warp's array_t layout), unchecked.
-struct warp_array_t {
-  float* data;
-  float* grad;
-  int shape[4];
-  int strides[4];
-  int ndim;
-};
 extern "C" __global__ void warp_style(wp::int64 n, warp_array_t x, warp_array_t y, float a) {
   const wp::int64 i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= n) return;
@@ -336,36 +330,6 @@ static inline __device__ void coarse_lockstep(const wp::launch_context_t& __ctx,
 }
 GC_ENTRY(lockstep_k2) { coarse_lockstep<2>(__ctx, __args); }
 GC_ENTRY(lockstep_k4) { coarse_lockstep<4>(__ctx, __args); }
-
-#define CHECK(call)                                                                    \
-  do {                                                                                 \
-    cudaError_t e_ = (call);                                                           \
-    if (e_ != cudaSuccess) {                                                           \
-      std::fprintf(stderr, "%s:%d: %s\n", __FILE__, __LINE__, cudaGetErrorString(e_)); \
-      std::exit(1);                                                                    \
-    }                                                                                  \
-  } while (0)
-
-template <typename Launch>
-static double time_us(Launch launch, int reps) {
-  cudaEvent_t start, stop;
-  CHECK(cudaEventCreate(&start));
-  CHECK(cudaEventCreate(&stop));
-  std::vector<double> rounds;
-  for (int r = 0; r < 7; ++r) {
-    CHECK(cudaEventRecord(start));
-    for (int k = 0; k < reps; ++k) launch();
-    CHECK(cudaEventRecord(stop));
-    CHECK(cudaEventSynchronize(stop));
-    float ms = 0;
-    CHECK(cudaEventElapsedTime(&ms, start, stop));
-    rounds.push_back(ms * 1000.0 / reps);
-  }
-  std::sort(rounds.begin(), rounds.end());
-  CHECK(cudaEventDestroy(start));
-  CHECK(cudaEventDestroy(stop));
-  return rounds[rounds.size() / 2];
-}
 
 int main(int argc, char** argv) {
   std::vector<long long> sizes = {10000000LL, 100000000LL};

@@ -599,6 +599,23 @@ TEST(CodegenKernels, TrustedTidIndicesSkipOnlyProvenChecks) {
   EXPECT_TRUE(gm->kernels[0].tid_indexed_params.empty());
 }
 
+// The CUDA module of `m` with adjoint entries, trusted-index or checked, lean or grid-stride.
+Expected<GeneratedModule> CudaVariant(const ModuleSource& m, bool trust, bool grid_stride) {
+  CodegenOptions o;
+  o.target = Target::kCuda;
+  o.enable_backward = true;
+  o.grid_stride = grid_stride;
+  o.trust_tid_indices = trust;
+  std::vector<Diagnostic> diags;
+  return GenerateModule(m, o, &diags);
+}
+
+// The text of entry point `symbol` in `gm`'s source (empty when it has none).
+std::string EntryText(const GeneratedModule& gm, const std::string& symbol) {
+  const size_t at = gm.source.find("void " + symbol + "(");
+  return at == std::string::npos ? std::string() : gm.source.substr(at, gm.source.find("\n}\n", at) - at);
+}
+
 // The coarsened entry (KernelLayout::coarse_symbol) exists only in the trusted-index variant of a
 // lean (not grid-stride) CUDA module, prefetches exactly the 1-D parameters the body loads at
 // wp.tid() (x, y for saxpy; never a parameter only stored to, which a prefetch would read for
@@ -622,13 +639,7 @@ TEST(CodegenKernels, CoarsenedEntryOnlyWhereProvenAndPrefetchesOnlyLoads) {
                            {"array(float32,1)"}, {"out"}));
   for (bool trust : {false, true}) {
     for (bool grid_stride : {false, true}) {
-      CodegenOptions o;
-      o.target = Target::kCuda;
-      o.enable_backward = true;
-      o.grid_stride = grid_stride;
-      o.trust_tid_indices = trust;
-      std::vector<Diagnostic> diags;
-      auto gm = GenerateModule(m, o, &diags);
+      auto gm = CudaVariant(m, trust, grid_stride);
       ASSERT_TRUE(gm.ok()) << gm.status().message();
       ASSERT_EQ(gm->kernels.size(), 2u);
       const KernelLayout& saxpy = gm->kernels[0];
@@ -641,9 +652,8 @@ TEST(CodegenKernels, CoarsenedEntryOnlyWhereProvenAndPrefetchesOnlyLoads) {
       }
       EXPECT_EQ(saxpy.coarse_symbol, saxpy.forward_symbol + "_x" + std::to_string(kCoarseFactor));
       EXPECT_EQ(saxpy.coarse_loaded_bytes, 8u);   // x and y, float32
-      const size_t at = gm->source.find("void " + saxpy.coarse_symbol + "(");
-      ASSERT_NE(at, std::string::npos) << gm->source;
-      const std::string entry = gm->source.substr(at, gm->source.find("\n}\n", at) - at);
+      const std::string entry = EntryText(*gm, saxpy.coarse_symbol);
+      ASSERT_FALSE(entry.empty()) << gm->source;
       EXPECT_NE(entry.find("wp::cg_prefetch_l2(__args.p0, __j)"), std::string::npos) << entry;
       EXPECT_NE(entry.find("wp::cg_prefetch_l2(__args.p1, __j)"), std::string::npos) << entry;
       EXPECT_EQ(entry.find("__args.p2, __j"), std::string::npos) << "out is only stored to: " << entry;
@@ -691,30 +701,19 @@ TEST(CodegenKernels, TrustedEntryPrefetchesLoadsThatFollowAStore) {
                            "    z[i] = z[i] + y[i]\n",
                            {"array(float32,1)", "array(float32,1)", "array(float32,1)", "float32"},
                            {"x", "y", "z", "a"}));
-  auto forward_entry = [](const GeneratedModule& gm, const KernelLayout& k) {
-    const size_t at = gm.source.find("void " + k.forward_symbol + "(");
-    return at == std::string::npos ? std::string() : gm.source.substr(at, gm.source.find("\n}\n", at) - at);
-  };
   for (bool trust : {false, true}) {
     for (bool grid_stride : {false, true}) {
-      CodegenOptions o;
-      o.target = Target::kCuda;
-      o.enable_backward = true;
-      o.grid_stride = grid_stride;
-      o.trust_tid_indices = trust;
-      std::vector<Diagnostic> diags;
-      auto gm = GenerateModule(m, o, &diags);
+      auto gm = CudaVariant(m, trust, grid_stride);
       ASSERT_TRUE(gm.ok()) << gm.status().message();
       ASSERT_EQ(gm->kernels.size(), 3u);
-      const std::string integrate = forward_entry(*gm, gm->kernels[0]);
-      const std::string saxpy = forward_entry(*gm, gm->kernels[1]);
-      const std::string branchy = forward_entry(*gm, gm->kernels[2]);
+      const std::string integrate = EntryText(*gm, gm->kernels[0].forward_symbol);
+      const std::string saxpy = EntryText(*gm, gm->kernels[1].forward_symbol);
+      const std::string branchy = EntryText(*gm, gm->kernels[2].forward_symbol);
       ASSERT_FALSE(integrate.empty() || saxpy.empty() || branchy.empty()) << gm->source;
       EXPECT_EQ(saxpy.find("cg_prefetch_l2"), std::string::npos) << "x and y are loaded before the store: " << saxpy;
-      const size_t backward = gm->source.find("void " + gm->kernels[0].backward_symbol + "(");
-      ASSERT_NE(backward, std::string::npos);
-      EXPECT_EQ(gm->source.substr(backward, gm->source.find("\n}\n", backward) - backward).find("cg_prefetch_l2"),
-                std::string::npos);
+      const std::string backward = EntryText(*gm, gm->kernels[0].backward_symbol);
+      ASSERT_FALSE(backward.empty());
+      EXPECT_EQ(backward.find("cg_prefetch_l2"), std::string::npos) << backward;
       if (!trust || grid_stride) {
         EXPECT_EQ(integrate.find("cg_prefetch_l2"), std::string::npos) << integrate;
         EXPECT_EQ(branchy.find("cg_prefetch_l2"), std::string::npos) << branchy;

@@ -18,6 +18,7 @@ from . import typestr
 from .errors import WeftLaunchError
 from .functions import Kernel
 from .structs import StructInstance, StructType
+from .._runtime import varint as _varint
 from ..interop import memory as _interop_memory
 
 _PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -53,18 +54,6 @@ _COMMAND_LAUNCH = 0x1A
 _COMMAND_ORIGIN = 0x7A
 _LAUNCH_DIM = 0x1A
 _LAUNCH_ARGS = 0x22
-
-
-def _varint(n: int) -> bytes:
-    """The base-128 varint of non-negative `n`."""
-    if n < 0x80:
-        return bytes((n,))
-    out = bytearray()
-    while n >= 0x80:
-        out.append((n & 0x7F) | 0x80)
-        n >>= 7
-    out.append(n)
-    return bytes(out)
 
 
 def _field(tag: int, payload: bytes) -> bytes:
