@@ -1299,7 +1299,7 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
         }
       }
       auto entry = [&](const std::string& symbol, const std::string& params, const std::string& call,
-                       const std::vector<uint32_t>& prefetched) {
+                       const std::vector<uint32_t>& prefetch) {
         o += "extern \"C\" __global__ void " + symbol + "(" + params + ") {\n";
         if (options.grid_stride) {
           o += "  const wp::int64 __stride = (wp::int64)blockDim.x * gridDim.x;\n"
@@ -1309,9 +1309,9 @@ Expected<GeneratedModule> EmitCpp(const Module& m, const CodegenOptions& options
         } else {
           o += "  const wp::int64 __i = (wp::int64)blockIdx.x * blockDim.x + threadIdx.x;\n"
                "  if (__i >= __ctx.bounds.size) return;\n";
-          if (!prefetched.empty()) {
+          if (!prefetch.empty()) {
             o += "  if (__ctx.bounds.ndim == 1) {\n";
-            for (uint32_t p : prefetched) o += "    wp::cg_prefetch_l2(__args.p" + std::to_string(p) + ", __i);\n";
+            for (uint32_t p : prefetch) o += "    wp::cg_prefetch_l2(__args.p" + std::to_string(p) + ", __i);\n";
             o += "  }\n";
           }
           o += "  " + call + ";\n";

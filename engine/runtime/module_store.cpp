@@ -14,6 +14,7 @@
 #include <mutex>
 #include <regex>
 #include <set>
+#include <system_error>
 #include <thread>
 #include <unordered_map>
 
@@ -245,8 +246,13 @@ class ModuleStoreImpl final : public ModuleStore {
     // wait for a second NVRTC compile after this one.
     std::thread beside;
     if (where.target == Target::kCuda && variant.codegen.bounds_checks && options_.build_trusted_beside &&
-        !cache_->Peek(id))
-      beside = std::thread([this, &variant, &id] { BuildTrustedBeside(variant, id); });
+        !cache_->Peek(id)) {
+      try {
+        beside = std::thread([this, &variant, &id] { BuildTrustedBeside(variant, id); });
+      } catch (const std::system_error& e) {   // no thread to be had: the first launch builds it
+        spdlog::warn("module {}: no thread for its trusted-index variant ({})", id, e.what());
+      }
+    }
     ModuleCache::Source from = ModuleCache::Source::kBuilt;
     auto module = Get(id, id, variant, &from, &report->diagnostics);
     if (beside.joinable()) beside.join();

@@ -70,11 +70,11 @@ def caller_origin_entry(depth: int = 1):
     """(code, SourceLocation, its Command.origin field serialized) of the first frame outside
     the weft package (the user's launch line), starting `depth` frames above the caller. One
     cached entry per (code object, instruction offset): no inspect, no stack walk beyond the
-    weft frames. Keys are chosen to cost nothing
-    to hash: a file name (str: its hash is cached) and the code object's id, the entry holding
-    the code object so that the id stays its own; a code object's own hash walks its bytecode
-    and constants (tens of microseconds for a large function on Python 3.12) and `f_lineno`
-    scans the line table, so neither is computed on a hit."""
+    weft frames. Keys are chosen to cost nothing to hash: a file name (str: its hash is
+    cached) and the code object's id, the entry holding the code object so that the id stays
+    its own; a code object's own hash walks its bytecode and constants (tens of microseconds
+    for a large function on Python 3.12) and `f_lineno` scans the line table, so neither is
+    computed on a hit."""
     frame = sys._getframe(depth + 1)
     while frame is not None:
         code = frame.f_code
@@ -542,8 +542,9 @@ def _launch_plan(kernel: Kernel, device: str, runtime, lanes: int = 1) -> _Launc
 
 
 # Per array object: (handle, byte_offset, shape, strides, dtype, device, dtype text, ndim,
-# device name, ArgValue, the ArgValue as a serialized LaunchCommand.args field). Views are immutable; the identity checks of shape/strides/dtype/device
-# catch any attribute that was replaced anyway.
+# device name, ArgValue, the ArgValue as a serialized LaunchCommand.args field). Views are
+# immutable; the identity checks of shape/strides/dtype/device catch any attribute that was
+# replaced anyway.
 _REF_ATTR = "_weft_launch_ref"
 
 
