@@ -190,12 +190,17 @@ def test_a_host_without_a_session_ends(start_weftd, wait_for):
     assert not _alive(hosts[0]) and not Path(reply.session_host).exists()
 
 
-def test_unchecked_is_refused_where_not_allowed(start_weftd, client_env, tmp_path):
+@pytest.mark.parametrize("isolate", [False, True])
+def test_unchecked_is_refused_where_not_allowed(start_weftd, client_env, tmp_path, isolate):
     """Without --allow-unchecked an unchecked request opens an ordinary session: the bounds
-    check still fires (no process of its own, no crash)."""
-    daemon = start_weftd([])
+    check still fires (no crash). With --isolate-sessions the session runs in a session host,
+    which inherits the daemon's refusal: checked all the same."""
+    daemon = start_weftd(["--isolate-sessions"] if isolate else [])
     reply = _open_unchecked(daemon)
-    assert reply.session_id and not reply.session_host and reply.daemon_pid == daemon.pid
+    if isolate:
+        assert reply.session_host and not reply.session_id
+    else:
+        assert reply.session_id and not reply.session_host and reply.daemon_pid == daemon.pid
     out = _run_file(tmp_path, client_env, '''
 import numpy as np
 import weft as wp
@@ -215,7 +220,7 @@ try:
 except Exception as exc:
     print("CHECK", exc)
 ''', daemon.address)
-    assert "HOSTED False" in out and "out of bounds" in out.lower(), out
+    assert f"HOSTED {isolate}" in out and "out of bounds" in out.lower(), out
 
 
 def test_remote_clients_get_no_host(start_weftd, wait_for):
