@@ -23,6 +23,7 @@
 
 #include "engine/core/frame_trace.h"
 #include "engine/runtime/ipc_token.h"
+#include "server/lane_ring.h"
 #include "server/services.h"
 #include "weft/v1/array.pb.h"
 #include "weft/v1/exec.pb.h"
@@ -41,9 +42,51 @@ uint32_t GetU32(const char* p) {
   return v;
 }
 
+// Where a connection's frames go: the socket, or once the client opened one, the ring
+// (LaneRing), with the socket left for wake frames.
+struct LaneIo {
+  int fd = -1;
+  LaneRing* ring = nullptr;
+};
+
+// Sends a wake frame to a client asleep on its ring's socket: a reply header with
+// FastLane::kWakeReplyFlag and nothing else. A full socket buffer already holds wake frames.
+void SendWake(int fd) {
+  std::string frame;
+  PutU32(&frame, 0);
+  PutU32(&frame, FastLane::kWakeReplyFlag);
+  (void)!send(fd, frame.data(), frame.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+}
+
+// Puts one reply frame into the ring, waiting while the client has not read enough to make
+// room (polling the socket for its hang-up: a client that never reads holds only this lane's
+// thread). False when the peer is gone or its tail broke the ring.
+bool PutRingFrame(const LaneIo& io, const std::string& frame) {
+  int wait_ms = 0;
+  for (;;) {
+    bool asleep = false, corrupt = false;
+    std::string why;
+    if (io.ring->TryPutReply(frame.data(), frame.size(), &asleep, &corrupt, &why)) {
+      if (asleep) SendWake(io.fd);
+      return true;
+    }
+    if (corrupt) {
+      spdlog::warn("fast lane: {}; the connection ends", why);
+      return false;
+    }
+    if (wait_ms == 0) {
+      std::this_thread::yield();
+    } else {
+      pollfd p{io.fd, 0, 0};
+      if (poll(&p, 1, wait_ms) > 0 && (p.revents & (POLLHUP | POLLERR | POLLNVAL))) return false;
+    }
+    wait_ms = std::min(wait_ms * 2 + 1, 100);
+  }
+}
+
 // Sends `payload` as one reply (several frames when it is larger than a chunk). False when
 // the peer is gone. `extra_flags`: FastLane::kQuietReplyFlag on the error of a quiet Submit.
-bool SendReply(int fd, StatusCode code, const std::string& payload, bool closing = false,
+bool SendReply(const LaneIo& io, StatusCode code, const std::string& payload, bool closing = false,
                uint32_t extra_flags = 0) {
   size_t off = 0;
   do {
@@ -54,18 +97,24 @@ bool SendReply(int fd, StatusCode code, const std::string& payload, bool closing
     PutU32(&frame, static_cast<uint32_t>(code));
     PutU32(&frame, (more ? 1u : 0u) | (closing ? 2u : 0u) | extra_flags);
     frame.append(payload, off, n);
-    ssize_t w;
-    do {
-      w = send(fd, frame.data(), frame.size(), MSG_NOSIGNAL);
-    } while (w < 0 && errno == EINTR);
-    if (w != static_cast<ssize_t>(frame.size())) return false;
+    if (io.ring) {
+      if (!PutRingFrame(io, frame)) return false;
+    } else {
+      ssize_t w;
+      do {
+        w = send(io.fd, frame.data(), frame.size(), MSG_NOSIGNAL);
+      } while (w < 0 && errno == EINTR);
+      if (w != static_cast<ssize_t>(frame.size())) return false;
+    }
     off += n;
   } while (off < payload.size());
   return true;
 }
 // An error reply; `closing`: the daemon ends the connection after it (a frame it cannot go on
 // from), else (the request's own error, as gRPC would return it) the lane stays usable.
-bool SendError(int fd, const Status& st, bool closing = true) { return SendReply(fd, st.code(), st.message(), closing); }
+bool SendError(const LaneIo& io, const Status& st, bool closing = true) {
+  return SendReply(io, st.code(), st.message(), closing);
+}
 
 enum class FrameResult { kContinue, kEnd, kUnknownMethod };
 // When a served frame gets a reply: always (the plain methods), only on failure, flagged
@@ -82,25 +131,81 @@ enum class Answer { kAlways, kOnFailure, kNever };
 constexpr auto kSpinFor = std::chrono::microseconds(60);
 std::atomic<int> spinning_lanes{0};
 
-ssize_t SpinReceive(int fd, msghdr* msg) {
+int MaxSpinningLanes() {
   static const int max_spinning = [] {
     // WEFT_LANE_POLLERS overrides how many lanes may poll at once (0: none).
     if (const char* env = std::getenv("WEFT_LANE_POLLERS")) return std::clamp(std::atoi(env), 0, 1024);
     return static_cast<int>(std::thread::hardware_concurrency() / 4);
   }();
-  if (spinning_lanes.fetch_add(1) >= max_spinning) {
+  return max_spinning;
+}
+
+// Calls `poll` until it returns true or kSpinFor passed; false at once when as many lanes as
+// may poll already do.
+template <typename Poll>
+bool SpinFor(Poll&& poll) {
+  if (spinning_lanes.fetch_add(1) >= MaxSpinningLanes()) {
     spinning_lanes.fetch_sub(1);
-    return -1;
+    return false;
   }
   const auto until = std::chrono::steady_clock::now() + kSpinFor;
-  ssize_t n = -1;
+  bool got = false;
   do {
-    n = recvmsg(fd, msg, MSG_DONTWAIT);
-    if (n >= 0 || (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) break;
-    n = -1;
-  } while (std::chrono::steady_clock::now() < until);
+    got = poll();
+  } while (!got && std::chrono::steady_clock::now() < until);
   spinning_lanes.fetch_sub(1);
+  return got;
+}
+
+ssize_t SpinReceive(int fd, msghdr* msg) {
+  ssize_t n = -1;
+  SpinFor([&] {
+    n = recvmsg(fd, msg, MSG_DONTWAIT);
+    if (n >= 0 || (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) return true;
+    n = -1;
+    return false;
+  });
   return n;
+}
+
+// Whether this daemon offers rings (LaneRing): WEFT_LANE_RING=0 never, =1 wherever the kernel
+// has the barrier, otherwise where lanes may poll (on fewer than 4 cores a lane never polls,
+// and a ring would then cost a wake frame and a barrier per frame).
+bool RingsOffered() {
+  static const bool offered = [] {
+    const char* env = std::getenv("WEFT_LANE_RING");
+    if (env && std::string(env) == "0") return false;
+    if (!LaneRing::Supported()) return false;
+    return (env && std::string(env) == "1") || MaxSpinningLanes() > 0;
+  }();
+  return offered;
+}
+
+// Sends the reply to a ring's opening: OK, the region's size (u64), and the memfd attached.
+bool SendRingReply(int fd, const LaneRing& ring) {
+  std::string frame;
+  PutU32(&frame, 0);
+  PutU32(&frame, 0);
+  const uint64_t size = ring.size();
+  for (int i = 0; i < 8; ++i) frame.push_back(static_cast<char>((size >> (8 * i)) & 0xff));
+  iovec iov{frame.data(), frame.size()};
+  alignas(cmsghdr) char control[CMSG_SPACE(sizeof(int))] = {};
+  msghdr msg{};
+  msg.msg_iov = &iov;
+  msg.msg_iovlen = 1;
+  msg.msg_control = control;
+  msg.msg_controllen = sizeof(control);
+  cmsghdr* c = CMSG_FIRSTHDR(&msg);
+  c->cmsg_level = SOL_SOCKET;
+  c->cmsg_type = SCM_RIGHTS;
+  c->cmsg_len = CMSG_LEN(sizeof(int));
+  const int ring_fd = ring.fd();
+  std::memcpy(CMSG_DATA(c), &ring_fd, sizeof(int));
+  ssize_t w;
+  do {
+    w = sendmsg(fd, &msg, MSG_NOSIGNAL);
+  } while (w < 0 && errno == EINTR);
+  return w == static_cast<ssize_t>(frame.size());
 }
 
 // Whether a batch only queues work on GPU streams: kernel launches on "cuda..." devices and
@@ -187,7 +292,7 @@ class LaneTrace {
 // stays open. The session reference is released before the reply is sent, so a slow peer
 // never holds a closed session alive. `times` (WEFT_LANE_TRACE) gets the phases' end times.
 template <typename Req, typename Resp, typename Fn>
-FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
+FrameResult ServeFrame(const LaneIo& io, const char* name, const char* body, int body_len, std::shared_ptr<Session>& s,
                        Fn&& serve, FrameTimes* times = nullptr, Answer answer = Answer::kAlways) {
   // The request and response live on an arena: a Submit of many launches parses into a few
   // blocks (the first on this stack) instead of one heap allocation per message and string.
@@ -198,7 +303,7 @@ FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len,
   google::protobuf::Arena arena(options);
   Req& req = *google::protobuf::Arena::CreateMessage<Req>(&arena);
   if (!req.ParseFromArray(body, body_len)) {
-    SendError(fd, InvalidArgument(std::string("fast lane: a ") + name + " frame that does not parse"));
+    SendError(io, InvalidArgument(std::string("fast lane: a ") + name + " frame that does not parse"));
     return FrameResult::kEnd;
   }
   Resp& resp = *google::protobuf::Arena::CreateMessage<Resp>(&arena);
@@ -212,14 +317,14 @@ FrameResult ServeFrame(int fd, const char* name, const char* body, int body_len,
     r = FrameResult::kContinue;
   } else if (!st.ok()) {
     const uint32_t flags = answer == Answer::kOnFailure ? FastLane::kQuietReplyFlag : 0;
-    r = SendReply(fd, st.code(), st.message(), /*closing=*/false, flags) ? FrameResult::kContinue
+    r = SendReply(io, st.code(), st.message(), /*closing=*/false, flags) ? FrameResult::kContinue
                                                                           : FrameResult::kEnd;
   } else if (answer == Answer::kOnFailure) {
     r = FrameResult::kContinue;   // answered only when it fails
   } else {
     std::string out;
     resp.SerializeToString(&out);
-    r = SendReply(fd, StatusCode::kOk, out) ? FrameResult::kContinue : FrameResult::kEnd;
+    r = SendReply(io, StatusCode::kOk, out) ? FrameResult::kContinue : FrameResult::kEnd;
   }
   if (times) times->replied = frame_trace::NowNs();
   return r;
@@ -332,6 +437,8 @@ void FastLane::AcceptLoop() {
 
 void FastLane::Serve(Conn* c) {
   const int fd = c->fd;
+  LaneIo io{fd, nullptr};
+  std::unique_ptr<LaneRing> ring;   // once the client opened one
   ucred cred{};
   socklen_t len = sizeof(cred);
   if (getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &cred, &len) != 0) return;
@@ -355,7 +462,38 @@ void FastLane::Serve(Conn* c) {
   int64_t last_replied = 0;
   FrameTimes times;
   const char* kind = nullptr;
-  for (;;) {
+  // The next request frame into `buf`: its length, or -1 when the connection ends (peer gone,
+  // shut down, no hello in time, or a frame the lane cannot go on from, answered).
+  auto receive = [&]() -> ssize_t {
+    if (ring) {
+      for (;;) {
+        size_t len = 0;
+        std::string why;
+        const LaneRing::Take take = ring->TakeRequest(buf.data(), buf.size(), &len, &why);
+        if (take == LaneRing::Take::kFrame) {
+          spin_next = false;
+          return static_cast<ssize_t>(len);
+        }
+        if (take == LaneRing::Take::kCorrupt) {
+          SendError(io, InvalidArgument(why));
+          return -1;
+        }
+        if (spin_next && SpinFor([&] { return ring->RequestPublished(); })) continue;
+        spin_next = false;
+        if (!ring->SleepUnlessPublished()) continue;
+        char wake[16];
+        ssize_t n;
+        do {
+          n = recv(fd, wake, sizeof(wake), 0);
+        } while (n < 0 && errno == EINTR);
+        ring->Wake();
+        if (n <= 0) return -1;
+        if (n != 4 || GetU32(wake) != kRingWake) {
+          SendError(io, InvalidArgument("fast lane: only wake frames may come on the socket of a ring"));
+          return -1;
+        }
+      }
+    }
     iovec iov{buf.data(), buf.size()};
     msghdr msg{};
     msg.msg_iov = &iov;
@@ -367,20 +505,26 @@ void FastLane::Serve(Conn* c) {
         n = recvmsg(fd, &msg, 0);
       } while (n < 0 && errno == EINTR);
     }
-    if (n <= 0) return;   // peer gone, shut down, or no hello in time
+    if (n <= 0) return -1;   // peer gone, shut down, or no hello in time
+    const size_t limit = session_id.empty() ? kMaxHelloBytes : kMaxRequestBytes;
+    if ((msg.msg_flags & MSG_TRUNC) || static_cast<size_t>(n) > limit) {
+      SendError(io, InvalidArgument("fast lane: frame larger than " + std::to_string(limit) + " bytes"));
+      return -1;
+    }
+    return n;
+  };
+  const std::string capabilities = std::string(kHelloCapabilities) + (RingsOffered() ? " ring" : "");
+  for (;;) {
+    const ssize_t n = receive();
+    if (n < 0) return;
     if (trace) {
       times = FrameTimes{};
       times.received = frame_trace::NowNs();
       frame_trace::Reset();
       kind = nullptr;
     }
-    const size_t limit = session_id.empty() ? kMaxHelloBytes : kMaxRequestBytes;
-    if ((msg.msg_flags & MSG_TRUNC) || static_cast<size_t>(n) > limit) {
-      SendError(fd, InvalidArgument("fast lane: frame larger than " + std::to_string(limit) + " bytes"));
-      return;
-    }
     if (n < 4) {
-      SendError(fd, InvalidArgument("fast lane: frame shorter than its header"));
+      SendError(io, InvalidArgument("fast lane: frame shorter than its header"));
       return;
     }
     const uint32_t method = GetU32(buf.data());
@@ -390,7 +534,7 @@ void FastLane::Serve(Conn* c) {
     if (session_id.empty()) {   // the hello
       v1::FastLaneHello hello;
       if (method != kHello || !hello.ParseFromArray(body, body_len)) {
-        SendError(fd, InvalidArgument("fast lane: the first frame must be a hello"));
+        SendError(io, InvalidArgument("fast lane: the first frame must be a hello"));
         return;
       }
       Status st = Status::Ok();
@@ -407,20 +551,41 @@ void FastLane::Serve(Conn* c) {
         st = FailedPrecondition("fast lane: the session is closed");
       if (!st.ok()) {
         spdlog::warn("fast lane: hello refused from {}: {}", principal, st.message());
-        SendError(fd, st);
+        SendError(io, st);
         return;
       }
       session_id = hello.session_id();
       buf.resize(kMaxRequestBytes + 1);
       timeval none{0, 0};
       setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &none, sizeof(none));
-      if (!SendReply(fd, StatusCode::kOk, kHelloCapabilities)) return;
+      if (!SendReply(io, StatusCode::kOk, capabilities)) return;
       continue;
     }
 
+    if (method == kRingOpen) {
+      if (ring) {
+        SendError(io, InvalidArgument("fast lane: the ring is open already"));
+        return;
+      }
+      if (!RingsOffered()) {
+        if (!SendReply(io, StatusCode::kFailedPrecondition, "fast lane: this daemon offers no ring")) return;
+        continue;
+      }
+      auto created = LaneRing::Create(kMaxRequestBytes);
+      if (!created.ok()) {
+        spdlog::warn("fast lane: {}", created.status().message());
+        if (!SendReply(io, created.status().code(), created.status().message())) return;
+        continue;
+      }
+      if (!SendRingReply(fd, **created)) return;
+      ring = std::move(*created);
+      ring->CloseFd();
+      io.ring = ring.get();
+      continue;
+    }
     std::shared_ptr<Session> s = engine_.FindSession(session_id);
     if (!s || s->options().principal != principal) {
-      SendError(fd, FailedPrecondition("no session: the fast lane's session is closed"));
+      SendError(io, FailedPrecondition("no session: the fast lane's session is closed"));
       return;
     }
     Engine& engine = engine_;
@@ -428,7 +593,7 @@ void FastLane::Serve(Conn* c) {
     switch (method) {
       case kSubmit:
       case kSubmitQuiet:
-        r = ServeFrame<v1::SubmitRequest, v1::SubmitResponse>(fd, "Submit", body, body_len, s,
+        r = ServeFrame<v1::SubmitRequest, v1::SubmitResponse>(io, "Submit", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) {
               if (method == kSubmitQuiet && (req.synchronize() || req.run()))
                 return InvalidArgument("fast lane: a quiet Submit cannot synchronize or run (nothing would answer it)");
@@ -447,40 +612,40 @@ void FastLane::Serve(Conn* c) {
       case kSynchronize:
         spin_next = true;
         kind = "synchronize";
-        r = ServeFrame<v1::SynchronizeRequest, v1::SynchronizeResponse>(fd, "Synchronize", body, body_len, s,
+        r = ServeFrame<v1::SynchronizeRequest, v1::SynchronizeResponse>(io, "Synchronize", body, body_len, s,
             [&](Session& ss, const auto&, auto* resp) { ExecSynchronize(engine, ss, resp); return Status::Ok(); },
             trace ? &times : nullptr);
         break;
       case kArrayCreate:
-        r = ServeFrame<v1::CreateArrayRequest, v1::CreateArrayResponse>(fd, "ArrayService.Create", body, body_len, s,
+        r = ServeFrame<v1::CreateArrayRequest, v1::CreateArrayResponse>(io, "ArrayService.Create", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) { return ArrayCreate(engine, ss, req, resp); });
         break;
       case kArrayFree:
-        r = ServeFrame<v1::FreeArrayRequest, v1::FreeArrayResponse>(fd, "ArrayService.Free", body, body_len, s,
+        r = ServeFrame<v1::FreeArrayRequest, v1::FreeArrayResponse>(io, "ArrayService.Free", body, body_len, s,
             [&](Session& ss, const auto& req, auto*) { return ArrayFree(engine, ss, req); });
         break;
       case kArrayFreeUnanswered:
-        r = ServeFrame<v1::FreeArrayRequest, v1::FreeArrayResponse>(fd, "ArrayService.Free", body, body_len, s,
+        r = ServeFrame<v1::FreeArrayRequest, v1::FreeArrayResponse>(io, "ArrayService.Free", body, body_len, s,
             [&](Session& ss, const auto& req, auto*) { return ArrayFree(engine, ss, req); }, nullptr,
             Answer::kNever);
         break;
       case kArrayDescribe:
-        r = ServeFrame<v1::DescribeArrayRequest, v1::DescribeArrayResponse>(fd, "ArrayService.Describe", body, body_len, s,
+        r = ServeFrame<v1::DescribeArrayRequest, v1::DescribeArrayResponse>(io, "ArrayService.Describe", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) { return ArrayDescribe(engine, ss, req, resp); });
         break;
       case kArrayImportCuda:
-        r = ServeFrame<v1::ImportCudaRequest, v1::ImportCudaResponse>(fd, "ArrayService.ImportCuda", body, body_len, s,
+        r = ServeFrame<v1::ImportCudaRequest, v1::ImportCudaResponse>(io, "ArrayService.ImportCuda", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) { return ArrayImportCuda(engine, ss, req, resp); });
         break;
       case kGeometryCall:
-        r = ServeFrame<v1::GeometryRequest, v1::GeometryResponse>(fd, "GeometryService.Call", body, body_len, s,
+        r = ServeFrame<v1::GeometryRequest, v1::GeometryResponse>(io, "GeometryService.Call", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) { return GeometryCall(engine, ss, req, resp); });
         break;
       default:
         break;
     }
     if (r == FrameResult::kUnknownMethod) {
-      SendError(fd, InvalidArgument("fast lane: unknown method " + std::to_string(method)));
+      SendError(io, InvalidArgument("fast lane: unknown method " + std::to_string(method)));
       return;
     }
     if (r == FrameResult::kEnd) return;

@@ -12,19 +12,22 @@
 // Frames (one datagram each; docs/protocol.md "Fast lane"):
 //   request: u32 method (little endian; 1 hello, 2 Submit, 3 Synchronize, 4 ArrayService.Create,
 //            5 Free, 6 Describe, 7 ImportCuda, 8 GeometryService.Call, 9 quiet Submit,
-//            10 unanswered Free), then the request message serialized (FastLaneHello,
+//            10 unanswered Free, 11 ring open, 12 ring wake), then the request message serialized (FastLaneHello,
 //            SubmitRequest, SynchronizeRequest, CreateArrayRequest, FreeArrayRequest,
 //            DescribeArrayRequest, ImportCudaRequest, GeometryRequest); at most
 //            kMaxRequestBytes in all.
 //   reply:   u32 status code (gRPC numbering), u32 flags (bit 0: more frames of this reply
 //            follow; bit 1: the daemon ends the connection after this reply; bit 2: the
-//            failure of a quiet Submit), then a piece of the payload: the response message
+//            failure of a quiet Submit; bit 3: a wake frame of a ring, nothing else), then a
+//            piece of the payload: the response message
 //            serialized on OK, the error message (UTF-8) otherwise. Pieces are at most
 //            kReplyChunkBytes.
 // The first frame must be a hello naming the session and its secret, from a peer whose uid
 // (SO_PEERCRED) is the session's principal; anything else ends the connection after an error
 // reply. A secret binds one connection; a wrong frame later (unknown method, garbage,
 // oversized) gets an error reply and ends that connection; the daemon keeps serving.
+// A client may move the connection onto a shared-memory ring (server/lane_ring.h) after the
+// hello; the socket then only wakes a reader that sleeps and tells either side the other is gone.
 // WEFT_LANE_TRACE=<file>: each connection times its frames' phases and appends their medians
 // per kind of frame to the file when it ends (docs/protocol.md "Fast lane").
 #pragma once
@@ -63,7 +66,15 @@ class FastLane {
   // client's released arrays, sent without waiting (a failure means the handle is gone already,
   // which is what the client asked for; it is logged).
   static constexpr uint32_t kArrayFreeUnanswered = 10;
-  // The hello's reply payload: what this daemon's lane serves beyond the methods above.
+  // Opens the connection's ring (LaneRing; empty body), once, when the hello offered "ring":
+  // the reply is OK, the region's size (u64) and its memfd (SCM_RIGHTS). From then on requests
+  // come as ring records and replies go as ring records; the socket carries only wake frames:
+  // kRingWake (u32, nothing else) from the client, a reply header with kWakeReplyFlag from weftd.
+  static constexpr uint32_t kRingOpen = 11;
+  static constexpr uint32_t kRingWake = 12;
+  static constexpr uint32_t kWakeReplyFlag = 8;
+  // The hello's reply payload: what this daemon's lane serves beyond the methods above (and
+  // " ring" where rings are offered).
   static constexpr const char* kHelloCapabilities = "quiet-submit unanswered-free";
   static constexpr size_t kMaxRequestBytes = 160u << 10;   // fits a default socket send buffer
   static constexpr size_t kMaxHelloBytes = 1024;           // before the hello is accepted

@@ -10,10 +10,19 @@ code (gRPC numbering), u32 flags (bit 0: more frames follow; bit 1: the daemon e
 connection after it), then a piece of the payload (the serialized response, or the error
 message). Calls on one FastLane must not overlap (the Runtime's lock orders them).
 WEFT_FAST_LANE=0 turns it off.
+
+Where the daemon offers it (hello capability "ring"), the connection then moves onto a
+shared-memory ring (_Ring; the daemon's side is server/lane_ring.h): the same frames as records
+in a memory region both processes map, each side polling for the other's records a short
+while and otherwise sleeping on the socket until a wake frame comes. WEFT_LANE_RING=0 keeps the
+socket.
 """
 from __future__ import annotations
 
+import ctypes
 import os
+import platform
+import select
 import socket
 import struct
 import time
@@ -56,8 +65,11 @@ SPIN_S = float(os.environ.get("WEFT_FAST_LANE_SPIN_US",
 SPIN_GPU_S = float(os.environ.get("WEFT_FAST_LANE_GPU_SPIN_US",
                                   "20000" if (os.cpu_count() or 1) >= 4 else "0")) * 1e-6
 
+RING_OPEN, RING_WAKE = 11, 12
+WAKE_REPLY_FLAG = 8
+
 _CODE_NAMES = {code.value[0]: code.name for code in grpc.StatusCode}
-_METHOD_HEADERS = {method: struct.pack("<I", method) for method in range(1, 11)}
+_METHOD_HEADERS = {method: struct.pack("<I", method) for method in range(1, 13)}
 
 
 def enabled() -> bool:
@@ -67,6 +79,166 @@ def enabled() -> bool:
 class FastLaneError(WeftError):
     """The connection failed (not a daemon error about the request): the caller may fall back
     to gRPC for calls not yet sent."""
+
+_MEMBARRIER_CMD_GLOBAL_EXPEDITED = 1 << 1
+_MEMBARRIER_CMD_REGISTER_GLOBAL_EXPEDITED = 1 << 2
+_SYS_MEMBARRIER = 324          # x86-64
+_membarrier = None             # libc's syscall(SYS_membarrier, ...), once registered
+
+
+def _ring_barrier_ready() -> bool:
+    """Registers this process for the daemon's membarrier(GLOBAL_EXPEDITED), which orders a
+    record this process published against the daemon's sleep flag (server/lane_ring.h). Only on
+    x86-64 Linux, whose stores become visible in program order (a record before its head)."""
+    global _membarrier
+    if _membarrier is not None:
+        return True
+    if platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64"):
+        return False
+    try:
+        syscall = ctypes.CDLL(None, use_errno=True).syscall
+        syscall.restype = ctypes.c_long
+        if syscall(_SYS_MEMBARRIER, _MEMBARRIER_CMD_REGISTER_GLOBAL_EXPEDITED, 0) != 0:
+            return False
+    except (OSError, AttributeError):
+        return False
+    _membarrier = syscall
+    return True
+
+
+class _Ring:
+    """This process's side of a lane's ring (layout: server/lane_ring.h): request records are
+    written here and published by the request head, reply records taken and released by the
+    reply tail; the flags say who sleeps on the socket."""
+
+    MAGIC, VERSION = 0x47524657, 1
+    REQUEST_HEAD, REQUEST_TAIL, DAEMON_ASLEEP = 64, 128, 192
+    REPLY_HEAD, REPLY_TAIL, CLIENT_ASLEEP = 256, 320, 384
+    WRAP = 0xFFFFFFFF
+    # A writer that finds the request area full waits this long between looks once a short
+    # spin found no room (the daemon takes records as fast as it serves them).
+    FULL_WAIT_S = 50e-6
+
+    def __init__(self, fd: int, size: int, sock: socket.socket):
+        import mmap
+        self._mm = mmap.mmap(fd, size)
+        self._mv = memoryview(self._mm)
+        # The control words read and written whole (one 8- or 4-byte access each: the daemon
+        # must never see half of a head; struct's little-endian codes go byte by byte).
+        self._u64 = self._mv.cast("Q")
+        self._u32 = self._mv.cast("I")
+        self._sock = sock
+        magic, version, self._req_cap, self._rep_cap, self._req_base, self._rep_base = \
+            struct.unpack_from("<6I", self._mm, 0)
+        if magic != self.MAGIC or version != self.VERSION or \
+                self._rep_base + self._rep_cap > size or self._req_base + self._req_cap > size:
+            self.close()
+            raise FastLaneError("fast lane: the daemon's ring has an unknown layout", "UNAVAILABLE")
+        self._req_head = self._u64[self.REQUEST_HEAD // 8]
+        self._req_tail = 0           # the daemon's tail, as last read
+        self._rep_tail = self._u64[self.REPLY_TAIL // 8]
+        self.wakes_sent = 0          # wake frames this process had to send (the daemon slept)
+
+    def close(self) -> None:
+        try:
+            self._u64.release()
+            self._u32.release()
+            self._mv.release()
+            self._mm.close()
+        except (BufferError, ValueError):
+            pass
+
+    def put(self, header: bytes, body: bytes) -> None:
+        """Writes one request frame (header + body) as a record and publishes it; wakes the
+        daemon when it sleeps."""
+        mm, cap, u32 = self._mm, self._req_cap, self._u32
+        n = len(header) + len(body)
+        rec = (4 + n + 7) & ~7
+        head = self._req_head
+        pos = head % cap
+        contiguous = cap - pos
+        need = rec if rec <= contiguous else contiguous + rec
+        if cap - (head - self._req_tail) < need:
+            self._wait_for_room(head, need)
+        base = self._req_base
+        if rec > contiguous:
+            u32[(base + pos) >> 2] = self.WRAP
+            head += contiguous
+            pos = 0
+        at = base + pos + 4
+        u32[(at - 4) >> 2] = n
+        mm[at:at + len(header)] = header
+        mm[at + len(header):at + n] = body
+        head += rec
+        self._u64[self.REQUEST_HEAD >> 3] = head
+        self._req_head = head
+        if u32[self.DAEMON_ASLEEP >> 2]:
+            self.wakes_sent += 1
+            self._sock.send(_METHOD_HEADERS[RING_WAKE])
+
+    def daemon_asleep(self) -> bool:
+        return bool(self._u32[self.DAEMON_ASLEEP >> 2])
+
+    def _wait_for_room(self, head: int, need: int) -> None:
+        cap, u64 = self._req_cap, self._u64
+        spins = 0
+        poller = None
+        while True:
+            self._req_tail = u64[self.REQUEST_TAIL >> 3]
+            if cap - (head - self._req_tail) >= need:
+                return
+            spins += 1
+            if spins < 64:
+                continue
+            if poller is None:
+                poller = select.poll()
+                poller.register(self._sock, 0)
+            if any(ev & (select.POLLHUP | select.POLLERR | select.POLLNVAL)
+                   for _, ev in poller.poll(self.FULL_WAIT_S * 1e3)):
+                raise FastLaneError("weftd closed the fast lane", "UNAVAILABLE")
+
+    def take(self, view) -> int:
+        """The next reply record copied into `view`: its length, or -1 when none is in."""
+        tail = self._rep_tail
+        if self._u64[self.REPLY_HEAD >> 3] == tail:
+            return -1
+        cap, base, u32 = self._rep_cap, self._rep_base, self._u32
+        pos = tail % cap
+        n = u32[(base + pos) >> 2]
+        if n == self.WRAP:
+            tail += cap - pos
+            pos = 0
+            n = u32[base >> 2]
+        if n > len(view):
+            raise FastLaneError("fast lane: a ring record larger than a reply frame", "UNAVAILABLE")
+        at = base + pos + 4
+        view[:n] = self._mv[at:at + n]
+        tail += (4 + n + 7) & ~7
+        self._u64[self.REPLY_TAIL >> 3] = tail
+        self._rep_tail = tail
+        return n
+
+    def wait(self, view) -> int:
+        """The next reply record, sleeping on the socket until the daemon wakes this process:
+        its length, or 0 when the daemon closed the lane."""
+        u32 = self._u32
+        while True:
+            n = self.take(view)
+            if n >= 0:
+                return n
+            u32[self.CLIENT_ASLEEP >> 2] = 1
+            try:
+                _membarrier(_SYS_MEMBARRIER, _MEMBARRIER_CMD_GLOBAL_EXPEDITED, 0)   # flag, then look
+                n = self.take(view)
+                if n >= 0:
+                    return n
+                frame = self._sock.recv(64)
+            finally:
+                u32[self.CLIENT_ASLEEP >> 2] = 0
+            if not frame:
+                return 0
+            if len(frame) != 8 or not struct.unpack_from("<I", frame, 4)[0] & WAKE_REPLY_FLAG:
+                raise FastLaneError("fast lane: a reply on the socket of a ring", "UNAVAILABLE")
 
 
 class FastLane:
@@ -78,6 +250,7 @@ class FastLane:
         self.unanswered_free = False  # the daemon serves ARRAY_FREE_UNANSWERED
         self._buf = bytearray(_RECV_BYTES)      # every reply frame is received into this
         self._view = memoryview(self._buf)
+        self.ring = None              # the shared-memory ring, once open (_Ring)
 
     @classmethod
     def connect(cls, path: str, session_id: str, secret: bytes, hello_pb) -> "FastLane":
@@ -92,10 +265,36 @@ class FastLane:
             lane.quiet = b"quiet-submit" in offered.split() and \
                 os.environ.get("WEFT_QUIET_SUBMIT", "1") != "0"
             lane.unanswered_free = b"unanswered-free" in offered.split()
+            if b"ring" in offered.split() and os.environ.get("WEFT_LANE_RING", "1") != "0" and \
+                    _ring_barrier_ready():
+                lane._open_ring()
             return lane
         except BaseException:
             sock.close()
             raise
+
+    def _open_ring(self) -> None:
+        """Asks for the ring (RING_OPEN); its reply carries the region's memfd. A refusal
+        leaves the lane on the socket."""
+        self._send(RING_OPEN, b"")
+        try:
+            data, fds, _, _ = socket.recv_fds(self._sock, 64, 1)
+        except OSError as err:
+            self.close()
+            raise FastLaneError(f"weftd is not reachable: fast lane: {err}", "UNAVAILABLE") from None
+        try:
+            if len(data) < 8:
+                self.close()
+                raise FastLaneError("weftd closed the fast lane", "UNAVAILABLE")
+            code, flags = struct.unpack_from("<II", data)
+            if code != 0 or not fds or len(data) != 16:
+                if flags & 2:
+                    self.close()
+                return                 # refused: the socket carries the frames
+            self.ring = _Ring(fds[0], struct.unpack_from("<Q", data, 8)[0], self._sock)
+        finally:
+            for fd in fds:
+                os.close(fd)
 
     def close(self) -> None:
         self.broken = True
@@ -103,6 +302,14 @@ class FastLane:
             self._sock.close()
         except OSError:
             pass
+        if self.ring is not None:
+            self.ring.close()
+
+    def daemon_polls(self) -> bool:
+        """Whether a frame sent now costs no system call: the lane has a ring and weftd is
+        polling it (not asleep on the socket)."""
+        ring = self.ring
+        return ring is not None and not self.broken and not ring.daemon_asleep()
 
     def fits(self, request) -> bool:
         return not self.broken and request.ByteSize() + 4 <= MAX_REQUEST_BYTES
@@ -156,9 +363,9 @@ class FastLane:
         Submit)."""
         while not self.broken:
             try:
-                n = self._sock.recv_into(self._buf, _RECV_BYTES, socket.MSG_DONTWAIT)
-            except (BlockingIOError, InterruptedError):
-                return
+                n = self._try_frame()
+                if n < 0:
+                    return
             except OSError as err:
                 self.close()
                 raise FastLaneError(f"weftd is not reachable: fast lane: {err}", "UNAVAILABLE") from None
@@ -191,15 +398,45 @@ class FastLane:
     def _send(self, method: int, body: bytes) -> None:
         try:
             header = _METHOD_HEADERS.get(method)
+            if self.ring is not None:
+                self.ring.put(header if header is not None else struct.pack("<I", method), body)
+                return
             frame = (header if header is not None else struct.pack("<I", method)) + body
             if self._sock.send(frame) != len(frame):
                 raise FastLaneError("fast lane: short send", "UNAVAILABLE")
         except OSError as err:
             self.close()
             raise FastLaneError(f"weftd is not reachable: fast lane: {err}", "UNAVAILABLE") from None
+        except FastLaneError:
+            self.close()
+            raise
+
+    def _try_frame(self) -> int:
+        """One reply frame into the buffer if one is in: its length, else -1 (no waiting)."""
+        if self.ring is not None:
+            return self.ring.take(self._view)
+        try:
+            return self._sock.recv_into(self._buf, _RECV_BYTES, socket.MSG_DONTWAIT)
+        except (BlockingIOError, InterruptedError):
+            return -1
+
+    def _wait_frame(self) -> int:
+        """The next reply frame into the buffer, waiting for it: its length (0 when weftd closed
+        the lane)."""
+        if self.ring is not None:
+            return self.ring.wait(self._view)
+        return self._sock.recv_into(self._buf, _RECV_BYTES)
 
     def _poll(self, seconds: float) -> int:
         """Polls for a reply frame for up to `seconds`: its length, or -1 when none came."""
+        ring = self.ring
+        if ring is not None:
+            view = self._view
+            deadline = time.perf_counter() + seconds
+            while True:
+                n = ring.take(view)
+                if n >= 0 or time.perf_counter() >= deadline:
+                    return n
         sock, buf = self._sock, self._buf
         deadline = time.perf_counter() + seconds
         while True:
@@ -232,7 +469,7 @@ class FastLane:
                 if n < 0 and spin_s > 0 and not parts:
                     n = self._poll(spin_s)
                 if n < 0:
-                    n = self._sock.recv_into(self._buf, _RECV_BYTES)
+                    n = self._wait_frame()
                 if n < 8:
                     raise FastLaneError("weftd closed the fast lane", "UNAVAILABLE")
                 code, flags = struct.unpack_from("<II", self._buf)
@@ -281,9 +518,9 @@ class PendingReply:
             return True
         lane = self._lane
         try:
-            n = lane._sock.recv_into(lane._buf, _RECV_BYTES, socket.MSG_DONTWAIT)
-        except (BlockingIOError, InterruptedError):
-            return False
+            n = lane._try_frame()
+            if n < 0:
+                return False
         except OSError:
             return True             # result() reports the broken connection
         try:

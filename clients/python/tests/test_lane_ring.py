@@ -1,0 +1,383 @@
+"""The fast lane's shared-memory ring (docs/protocol.md "Ring"; server/lane_ring.h): a local
+client's frames as records in a sealed memfd both processes map, each side polling for the
+other's records and otherwise sleeping on the socket until a wake frame.
+
+Checks that a client uses it and computes exactly through it (launches, synchronizes, array
+calls, errors with their lines, quiet Submit failures, a reply larger than the reply area,
+requests that wrap the request area), that no wake-up is lost when frames come around the
+moment the daemon stops polling, and attacks on it: the region cannot be shrunk or grown, a head
+outside the ring, a misaligned head, a record too long for the lane or past the published bytes,
+a wrap record past them, garbage records, random bytes over the whole request area, a frame
+other than a wake on the socket, a reply tail outside the ring, a second ring, a client that
+never reads its replies and then dies. After each the daemon keeps serving and keeps no thread
+of the attacker's connection."""
+import mmap
+import os
+import random
+import socket
+import struct
+import time
+
+import pytest
+
+from weft import _fast_lane, _runtime
+from weft.v1 import exec_pb2, session_pb2
+
+HELLO, SUBMIT, SYNCHRONIZE, RING_OPEN, RING_WAKE = 1, 2, 3, 11, 12
+REQUEST_HEAD, REQUEST_TAIL, DAEMON_ASLEEP = 64, 128, 192
+REPLY_HEAD, REPLY_TAIL, CLIENT_ASLEEP = 256, 320, 384
+WRAP = 0xFFFFFFFF
+MAX_REQUEST_BYTES = 160 << 10   # server/fast_lane.h kMaxRequestBytes
+
+pytestmark = pytest.mark.skipif(not _fast_lane._ring_barrier_ready(),
+                                reason="rings need x86-64 Linux with membarrier GLOBAL_EXPEDITED")
+
+
+@pytest.fixture
+def ring_weftd(start_weftd, monkeypatch):
+    """A daemon of the test's own that offers rings on any machine (WEFT_LANE_RING=1) and lets
+    one lane poll (WEFT_LANE_POLLERS=1, so polling and sleeping both happen on 2 cores)."""
+    monkeypatch.setenv("WEFT_LANE_RING", "1")
+    monkeypatch.setenv("WEFT_LANE_POLLERS", "1")
+    return start_weftd()
+
+
+CLIENT = r'''
+import sys
+import numpy as np
+import weft as wp
+from weft import _runtime
+rt = _runtime.get_runtime()
+lane = rt.fast_lane
+assert lane is not None and lane.ring is not None, "the client moved onto the ring"
+
+@wp.kernel
+def step(x: wp.array(dtype=wp.float64), k: wp.float64):
+    i = wp.tid()
+    x[i] = x[i] * k + wp.float64(1.0)
+
+@wp.kernel
+def oob(x: wp.array(dtype=wp.float64), n: int):
+    i = wp.tid()
+    x[i + n] = 1.0
+
+@wp.kernel
+def talk(n: int):
+    i = wp.tid()
+    print(i)
+
+rng = np.random.default_rng()
+x0 = rng.uniform(-1e6, 1e6, 1001)
+x = wp.array(x0, dtype=wp.float64)
+ref = x0.copy()
+for j in range(400):                 # launch + synchronize: a round trip each
+    k = float(rng.uniform(0.5, 1.5))
+    wp.launch(step, dim=1001, inputs=[x, k])
+    wp.synchronize()
+    ref = ref * k + 1.0
+assert np.array_equal(x.numpy(), ref), np.max(np.abs(x.numpy() - ref))
+# Long batches: Submits of up to 128 KiB wrap the request area many times.
+for j in range(6):
+    ks = rng.uniform(0.9, 1.1, 700)
+    for k in ks:
+        wp.launch(step, dim=1001, inputs=[x, float(k)])
+        ref = ref * k + 1.0
+    wp.synchronize()
+assert np.allclose(x.numpy(), ref, rtol=1e-12, atol=0), np.max(np.abs(x.numpy() - ref) / np.abs(ref))
+# Arrays made and freed through the lane.
+for j in range(50):
+    a = wp.array(rng.uniform(-1, 1, 33), dtype=wp.float64)
+    assert a.numpy().shape == (33,)
+    del a
+# A bounds error carries its line; the lane goes on.
+wp.launch(oob, dim=4, inputs=[x, 1000])
+try:
+    wp.synchronize()
+    raise SystemExit("no bounds error")
+except wp.WeftError as err:
+    print("error:", err)
+# A reply larger than the reply area (256 KiB): kernel output of ~400 KB.
+wp.launch(talk, dim=60000, inputs=[0])
+wp.synchronize()
+sys.stdout.flush()
+print("wakes", lane.ring.wakes_sent)
+print("ok", lane.ring is not None and not lane.broken)
+'''
+
+
+def test_a_client_computes_through_the_ring(ring_weftd, run_client, tmp_path):
+    script = tmp_path / "ring_client.py"        # kernels need a source file
+    script.write_text(CLIENT)
+    out = run_client(f"import runpy; runpy.run_path({str(script)!r})",
+                     env={"WEFT_ADDRESS": ring_weftd.address, "WEFT_FAST_LANE_SPIN_US": "200"},
+                     timeout=300)
+    assert "ok True" in out.stdout[-200:], out.stdout[-2000:] + out.stderr
+    assert "ring_client.py:18" in out.stdout, "the bounds error names its kernel line"
+    printed = [line for line in out.stdout.splitlines() if line.strip().isdigit()]
+    assert sorted(int(v) for v in printed) == list(range(60000)), "every printed line arrived"
+
+
+RACE_CLIENT = r'''
+import random, time
+import numpy as np
+import weft as wp
+from weft import _runtime
+lane = _runtime.get_runtime().fast_lane
+assert lane.ring is not None
+
+@wp.kernel
+def bump(x: wp.array(dtype=wp.int64)):
+    i = wp.tid()
+    x[i] = x[i] + wp.int64(1)
+
+x = wp.zeros(17, dtype=wp.int64)
+rng = random.Random()
+deadline = time.perf_counter() + 1.0
+for j in range(3000):
+    # Pauses around the daemon's 60 us poll: frames come while it polls, as it stops, and
+    # after it sleeps. A lost wake-up would hang this loop (the test's timeout).
+    t = time.perf_counter() + rng.choice((0.0, 20e-6, 55e-6, 60e-6, 65e-6, 80e-6, 300e-6))
+    while time.perf_counter() < t:
+        pass
+    wp.launch(bump, dim=17, inputs=[x])
+    if j % 3 == 0:
+        wp.synchronize()
+wp.synchronize()
+assert (x.numpy() == 3000).all(), x.numpy()
+print("wakes", lane.ring.wakes_sent)
+print("ok")
+'''
+
+
+@pytest.mark.parametrize("client_spin_us", ["0", "200"])
+def test_no_wake_up_is_lost(ring_weftd, run_client, tmp_path, client_spin_us):
+    script = tmp_path / "ring_race.py"
+    script.write_text(RACE_CLIENT)
+    out = run_client(f"import runpy; runpy.run_path({str(script)!r})",
+                     env={"WEFT_ADDRESS": ring_weftd.address,
+                          "WEFT_FAST_LANE_SPIN_US": client_spin_us}, timeout=240)
+    assert out.stdout.rstrip().endswith("ok"), out.stdout + out.stderr
+    wakes = int(out.stdout.split("wakes")[1].split()[0])
+    assert wakes > 0, "some frames found the daemon asleep (both paths ran)"
+
+
+class RawRing:
+    """A ring opened by hand over a raw lane connection: what a hostile client can do."""
+
+    def __init__(self, daemon, name="ring attack"):
+        import grpc
+
+        self.channel = grpc.insecure_channel(daemon.address)
+        self.stub = _runtime.SessionServiceStub(self.channel)
+        self.opened = self.stub.Open(session_pb2.OpenSessionRequest(client_name=name), timeout=10)
+        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        self.sock.settimeout(20)
+        self.sock.connect(self.opened.fast_lane_path)
+        self.sock.send(struct.pack("<I", HELLO) + session_pb2.FastLaneHello(
+            session_id=self.opened.session_id, secret=self.opened.fast_lane_secret).SerializeToString())
+        reply = self.sock.recv(1 << 16)
+        assert struct.unpack_from("<I", reply)[0] == 0
+        assert b"ring" in reply[8:].split(), reply
+        self.sock.send(struct.pack("<I", RING_OPEN))
+        data, fds, _, _ = socket.recv_fds(self.sock, 64, 1)
+        assert struct.unpack_from("<II", data) == (0, 0) and len(fds) == 1, data
+        self.fd = fds[0]
+        self.size = struct.unpack_from("<Q", data, 8)[0]
+        self.mm = mmap.mmap(self.fd, self.size)
+        _, _, self.req_cap, self.rep_cap, self.req_base, self.rep_base = struct.unpack_from("<6I", self.mm, 0)
+        self.head = 0
+        self.rep_tail = 0
+
+    def u64(self, off, value=None):
+        if value is None:
+            return struct.unpack_from("<Q", self.mm, off)[0]
+        self.mm[off:off + 8] = struct.pack("<Q", value)    # one slice store
+
+    def publish(self, head, wake_always=True):
+        self.u64(REQUEST_HEAD, head)
+        if wake_always or struct.unpack_from("<I", self.mm, DAEMON_ASLEEP)[0]:
+            self.sock.send(struct.pack("<I", RING_WAKE))
+
+    def record(self, frame: bytes, wake_always=True):
+        """Appends one well-formed record (no wrap handling: tests stay in the first lap)."""
+        pos = self.head
+        self.mm[self.req_base + pos:self.req_base + pos + 4] = struct.pack("<I", len(frame))
+        self.mm[self.req_base + pos + 4:self.req_base + pos + 4 + len(frame)] = frame
+        self.head += (4 + len(frame) + 7) & ~7
+        self.publish(self.head, wake_always)
+
+    def reply(self, timeout=20.0):
+        """The next reply record (code, flags, payload), or None when the daemon closed."""
+        deadline = time.monotonic() + timeout
+        while self.u64(REPLY_HEAD) == self.rep_tail:
+            if time.monotonic() > deadline:
+                raise AssertionError("no reply record")
+            self.sock.settimeout(0.01)
+            try:
+                if self.sock.recv(64) == b"":
+                    if self.u64(REPLY_HEAD) == self.rep_tail:
+                        return None
+            except socket.timeout:
+                pass
+        pos = self.rep_tail % self.rep_cap
+        n = struct.unpack_from("<I", self.mm, self.rep_base + pos)[0]
+        frame = bytes(self.mm[self.rep_base + pos + 4:self.rep_base + pos + 4 + n])
+        self.rep_tail += (4 + n + 7) & ~7
+        self.u64(REPLY_TAIL, self.rep_tail)
+        code, flags = struct.unpack_from("<II", frame)
+        return code, flags, frame[8:]
+
+    def closed_by_daemon(self, timeout=20.0) -> bool:
+        self.sock.settimeout(timeout)
+        try:
+            while True:
+                if self.sock.recv(64) == b"":
+                    return True
+        except (socket.timeout, OSError):
+            return False
+
+    def close(self):
+        try:
+            self.mm.close()
+        except BufferError:
+            pass
+        os.close(self.fd)
+        self.sock.close()
+        try:
+            self.stub.Close(session_pb2.CloseSessionRequest(session_id=self.opened.session_id),
+                            metadata=(("weft-session", self.opened.session_id),), timeout=10)
+        except Exception:
+            pass
+        self.channel.close()
+
+
+def _lane_serves(daemon):
+    """A fresh raw ring answers a Synchronize: the daemon still serves."""
+    ring = RawRing(daemon, "after attack")
+    try:
+        ring.record(struct.pack("<I", SYNCHRONIZE) + exec_pb2.SynchronizeRequest().SerializeToString())
+        code, flags, _ = ring.reply()
+        assert code == 0 and not flags & 2
+    finally:
+        ring.close()
+
+
+def test_the_region_cannot_be_resized(ring_weftd):
+    ring = RawRing(ring_weftd)
+    try:
+        for size in (0, ring.size - 4096, ring.size * 2):
+            with pytest.raises(PermissionError):
+                os.ftruncate(ring.fd, size)
+        assert os.fstat(ring.fd).st_size == ring.size
+        _lane_serves(ring_weftd)
+    finally:
+        ring.close()
+
+
+def _corrupt(ring, case):
+    """Writes one kind of corruption into the request area and publishes it."""
+    sync = struct.pack("<I", SYNCHRONIZE) + exec_pb2.SynchronizeRequest().SerializeToString()
+    if case == "head outside the ring":
+        ring.publish(ring.req_cap + 8)
+    elif case == "head behind the tail":
+        ring.publish(2**64 - 8)
+    elif case == "misaligned head":
+        ring.publish(5)
+    elif case == "record longer than the lane's limit":
+        ring.mm[ring.req_base:ring.req_base + 4] = struct.pack("<I", MAX_REQUEST_BYTES + 1)
+        ring.publish(MAX_REQUEST_BYTES + 16)
+    elif case == "record past the published bytes":
+        ring.mm[ring.req_base:ring.req_base + 4] = struct.pack("<I", 1000)
+        ring.publish(16)
+    elif case == "record of 4 GiB":
+        ring.mm[ring.req_base:ring.req_base + 4] = struct.pack("<I", 0xFFFFFFF0)
+        ring.publish(64)
+    elif case == "wrap past the published bytes":
+        ring.mm[ring.req_base:ring.req_base + 4] = struct.pack("<I", WRAP)
+        ring.publish(64)
+    elif case == "garbage record":
+        ring.record(struct.pack("<I", SUBMIT) + b"\x0a\xff\xff\xff\xff\x0f" + b"\x00" * 20)
+    elif case == "unknown method":
+        ring.record(struct.pack("<I", 77) + b"abc")
+    elif case == "record shorter than a header":
+        ring.record(b"\x02")
+    elif case == "a frame on the socket":
+        ring.sock.send(sync)
+    elif case == "a second ring":
+        ring.record(struct.pack("<I", RING_OPEN))
+    elif case == "reply tail outside the ring":
+        ring.u64(REPLY_TAIL, ring.rep_cap * 3)
+        ring.record(sync)
+    else:
+        raise AssertionError(case)
+
+
+CASES = ["head outside the ring", "head behind the tail", "misaligned head",
+         "record longer than the lane's limit", "record past the published bytes",
+         "record of 4 GiB", "wrap past the published bytes", "garbage record", "unknown method",
+         "record shorter than a header", "a frame on the socket", "a second ring",
+         "reply tail outside the ring"]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_a_corrupt_ring_ends_only_its_connection(ring_weftd, case):
+    ring = RawRing(ring_weftd)
+    try:
+        # A healthy round trip first: the daemon is then polling or asleep, either way.
+        ring.record(struct.pack("<I", SYNCHRONIZE) + exec_pb2.SynchronizeRequest().SerializeToString())
+        assert ring.reply()[0] == 0
+        _corrupt(ring, case)
+        if case != "reply tail outside the ring":
+            code, flags, payload = ring.reply()
+            assert _fast_lane._CODE_NAMES[code] == "INVALID_ARGUMENT", payload
+            assert flags & 2, "the reply says the connection ends"
+        assert ring.closed_by_daemon(), "the daemon ended the connection"
+    finally:
+        ring.close()
+    _lane_serves(ring_weftd)
+
+
+def test_random_bytes_over_the_ring(ring_weftd, wait_for):
+    """Random request areas and heads, 40 connections: each ends with an error or is served,
+    the daemon never reads outside the region, and it keeps serving."""
+    rng = random.Random()
+    _lane_serves(ring_weftd)            # threads the daemon starts once are running now
+    threads_before = ring_weftd.threads()
+    for round_ in range(40):
+        ring = RawRing(ring_weftd, f"random {round_}")
+        try:
+            area = bytearray(rng.randbytes(ring.req_cap))
+            if round_ % 2:      # plausible lengths at the start: records that parse as frames
+                struct.pack_into("<II", area, 0, rng.randrange(0, 4096), rng.randrange(1, 13))
+            ring.mm[ring.req_base:ring.req_base + ring.req_cap] = bytes(area)
+            ring.publish(rng.choice((rng.randrange(0, 2**64), rng.randrange(0, ring.req_cap) & ~7,
+                                     8 * rng.randrange(1, 64))))
+            ring.closed_by_daemon(timeout=0.5)
+        finally:
+            ring.close()
+    _lane_serves(ring_weftd)
+    assert wait_for(lambda: ring_weftd.threads() <= threads_before, 20), \
+        (ring_weftd.threads(), threads_before)
+
+
+def test_a_client_that_never_reads_its_replies_then_dies(ring_weftd, wait_for):
+    """Synchronizes until the reply area is full and the daemon waits for room; the client
+    then closes everything: the lane's thread ends and the daemon keeps serving."""
+    _lane_serves(ring_weftd)            # threads the daemon starts once are running now
+    threads_before = ring_weftd.threads()
+    ring = RawRing(ring_weftd, "never reads")
+    sync = struct.pack("<I", SYNCHRONIZE) + exec_pb2.SynchronizeRequest().SerializeToString()
+    rec = (4 + len(sync) + 7) & ~7
+    # Each reply record takes at least 16 bytes, a request record 8: the request area holds
+    # more requests than the reply area has room for answers (the daemon then waits for room).
+    while ring.u64(REPLY_HEAD) <= ring.rep_cap - 64 and ring.head + rec <= ring.req_cap:
+        if ring.head - ring.u64(REQUEST_TAIL) + rec > ring.req_cap:
+            time.sleep(0.001)
+            continue
+        ring.record(sync, wake_always=False)
+    assert wait_for(lambda: ring.u64(REPLY_HEAD) > ring.rep_cap - 64, 20), "the reply area filled up"
+    assert ring_weftd.threads() > threads_before
+    ring.close()
+    assert wait_for(lambda: ring_weftd.threads() <= threads_before, 20), \
+        (ring_weftd.threads(), threads_before)
+    _lane_serves(ring_weftd)
