@@ -2,9 +2,8 @@
 client processes with each transport alternate for --rounds rounds against one weftd, each
 timing a launch + synchronize loop (an empty kernel, and saxpy on 3 arrays whose result is
 checked against float64) on every device given. Transports: `socket` (WEFT_LANE_RING=0 in the
-client), `ring` without the eager first launch (WEFT_LANE_EAGER=0), `ring+eager` (the default
-where weftd offers rings). Prints per transport and case the median over rounds of the median
-per iteration, and the ratio to the socket.
+client) and `ring` (the default where weftd offers rings). Prints per transport and case the
+median over rounds of the median per iteration, and the ratio.
 
 Usage: python3 bench/prof_lane_ring.py [--devices cpu,cuda:0] [--calls 2000] [--rounds 4]
 (WEFT_DAEMON: the weftd; WEFT_LANE_POLLERS / WEFT_LANE_RING=1 make a machine of fewer than 4
@@ -68,9 +67,7 @@ print("ring", lane is not None and lane.ring is not None,
       "wakes", lane.ring.wakes_sent if lane is not None and lane.ring is not None else 0)
 '''
 
-TRANSPORTS = {"socket": {"WEFT_LANE_RING": "0"},
-              "ring": {"WEFT_LANE_RING": "1", "WEFT_LANE_EAGER": "0"},
-              "ring+eager": {"WEFT_LANE_RING": "1", "WEFT_LANE_EAGER": "1"}}
+TRANSPORTS = {"socket": {"WEFT_LANE_RING": "0"}, "ring": {"WEFT_LANE_RING": "1"}}
 
 
 def main() -> None:
@@ -114,14 +111,14 @@ def main() -> None:
     finally:
         daemon.stop()
     print(f"\nlaunch + synchronize, median over {args.rounds} rounds of the median of {args.calls} (us)")
-    print(f"| device | case | {' | '.join(TRANSPORTS)} | ratio socket / ring+eager | error vs float64 |")
+    print(f"| device | case | {' | '.join(TRANSPORTS)} | ratio socket / ring | error vs float64 |")
     print("| --- | --- | " + " | ".join("---" for _ in TRANSPORTS) + " | --- | --- |")
     for device in devices:
         for case in ("empty", "saxpy"):
             med = {name: statistics.median(results[(device, case, name)]) for name in TRANSPORTS}
             err = max(max(results[(device, "error", name)]) for name in TRANSPORTS)
             print(f"| {device} | {case} | " + " | ".join(f"{med[n]:.1f}" for n in TRANSPORTS) +
-                  f" | {med['socket'] / med['ring+eager']:.2f} | {err:.1e} |")
+                  f" | {med['socket'] / med['ring']:.2f} | {err:.1e} |")
     for device in devices:
         print(device, "client used the ring:", {n: results[(device, 'ring', n)] for n in TRANSPORTS})
 

@@ -464,6 +464,7 @@ void FastLane::Serve(Conn* c) {
   const char* kind = nullptr;
   // The next request frame into `buf`: its length, or -1 when the connection ends (peer gone,
   // shut down, no hello in time, or a frame the lane cannot go on from, answered).
+  int idle_wake_pause_ms = 0;   // ring: the pause after a wake that found no record
   auto receive = [&]() -> ssize_t {
     if (ring) {
       for (;;) {
@@ -472,6 +473,7 @@ void FastLane::Serve(Conn* c) {
         const LaneRing::Take take = ring->TakeRequest(buf.data(), buf.size(), &len, &why);
         if (take == LaneRing::Take::kFrame) {
           spin_next = false;
+          idle_wake_pause_ms = 0;
           return static_cast<ssize_t>(len);
         }
         if (take == LaneRing::Take::kCorrupt) {
@@ -480,9 +482,18 @@ void FastLane::Serve(Conn* c) {
         }
         if (spin_next && SpinFor([&] { return ring->RequestPublished(); })) continue;
         spin_next = false;
-        if (!ring->SleepUnlessPublished()) continue;
+        // Wake frames left from before (the client saw the flag just as weftd found its
+        // record) go first: only a wake sent after the flag below was set may end the sleep.
         char wake[16];
         ssize_t n;
+        while ((n = recv(fd, wake, sizeof(wake), MSG_DONTWAIT)) > 0) {
+          if (n != 4 || GetU32(wake) != kRingWake) {
+            SendError(io, InvalidArgument("fast lane: only wake frames may come on the socket of a ring"));
+            return -1;
+          }
+        }
+        if (n == 0) return -1;
+        if (!ring->SleepUnlessPublished()) continue;
         do {
           n = recv(fd, wake, sizeof(wake), 0);
         } while (n < 0 && errno == EINTR);
@@ -491,6 +502,15 @@ void FastLane::Serve(Conn* c) {
         if (n != 4 || GetU32(wake) != kRingWake) {
           SendError(io, InvalidArgument("fast lane: only wake frames may come on the socket of a ring"));
           return -1;
+        }
+        // A wake with no record behind it: a client follows a record with a wake, so this one
+        // wakes weftd for nothing. Each sleep costs a barrier on every CPU running a ring's
+        // client, so such wakes are answered with growing pauses (1 ms doubling to 128 ms,
+        // back to none with the next record): a client cannot make weftd disturb the others.
+        if (!ring->RequestPublished()) {
+          idle_wake_pause_ms = std::min(idle_wake_pause_ms == 0 ? 1 : 2 * idle_wake_pause_ms, 128);
+          pollfd p{fd, 0, 0};
+          if (poll(&p, 1, idle_wake_pause_ms) > 0 && (p.revents & (POLLHUP | POLLERR | POLLNVAL))) return -1;
         }
       }
     }

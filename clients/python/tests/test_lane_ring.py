@@ -17,6 +17,7 @@ import random
 import socket
 import struct
 import time
+from pathlib import Path
 
 import pytest
 
@@ -253,8 +254,10 @@ class RawRing:
 
 
 def _own_threads(daemon) -> int:
-    """weftd's own threads (named "weftd"; gRPC's pools grow and shrink by themselves)."""
-    return sum(1 for name in daemon.thread_names() if name == "weftd")
+    """weftd's own threads (named as its main thread, "weftd" unless a wrapper renamed the
+    binary; gRPC's pools are named otherwise and grow and shrink by themselves)."""
+    main = Path(f"/proc/{daemon.pid}/comm").read_text().strip()
+    return sum(1 for name in daemon.thread_names() if name == main)
 
 
 def _lane_serves(daemon):
@@ -386,4 +389,38 @@ def test_a_client_that_never_reads_its_replies_then_dies(ring_weftd, wait_for):
     ring.close()
     assert wait_for(lambda: _own_threads(ring_weftd) <= threads_before, 20), \
         (ring_weftd.thread_names(), threads_before)
+    _lane_serves(ring_weftd)
+
+
+def test_wakes_without_records_cannot_keep_the_daemon_busy(ring_weftd):
+    """A client that floods its socket with wake frames, no record behind any: every sleep
+    costs weftd a barrier on the CPUs of all ring clients, so such wakes are answered with
+    growing pauses. One second of it costs weftd little CPU time, and a record afterwards is
+    still answered (within the longest pause)."""
+    ring = RawRing(ring_weftd, "wake flood")
+    try:
+        ring.record(struct.pack("<I", SYNCHRONIZE) + exec_pb2.SynchronizeRequest().SerializeToString())
+        assert ring.reply()[0] == 0
+        wake = struct.pack("<I", RING_WAKE)
+        ring.sock.setblocking(False)
+        cpu = ring_weftd.cpu_seconds()
+        sent = 0
+        end = time.monotonic() + 1.0
+        while time.monotonic() < end:
+            try:
+                ring.sock.send(wake)
+                sent += 1
+            except BlockingIOError:
+                time.sleep(20e-6)
+        used = ring_weftd.cpu_seconds() - cpu
+        print("wakes sent", sent, "weftd cpu s", used)
+        assert sent > 100
+        assert used < 0.25, used
+        ring.sock.setblocking(True)
+        t = time.monotonic()
+        ring.record(struct.pack("<I", SYNCHRONIZE) + exec_pb2.SynchronizeRequest().SerializeToString())
+        assert ring.reply()[0] == 0
+        assert time.monotonic() - t < 1.0
+    finally:
+        ring.close()
     _lane_serves(ring_weftd)

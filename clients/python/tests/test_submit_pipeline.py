@@ -213,9 +213,9 @@ def test_launch_commands_assembled_from_bytes_are_the_commands_protobuf_builds(w
     frames = []
     queue = rt._queue_frame
 
-    def spy(frame, start, eager=False):
+    def spy(frame, start):
         frames.append(frame)
-        return queue(frame, start, eager)
+        return queue(frame, start)
 
     rng = np.random.default_rng()
     cases = []

@@ -176,9 +176,6 @@ class _Ring:
             self.wakes_sent += 1
             self._sock.send(_METHOD_HEADERS[RING_WAKE])
 
-    def daemon_asleep(self) -> bool:
-        return bool(self._u32[self.DAEMON_ASLEEP >> 2])
-
     def _wait_for_room(self, head: int, need: int) -> None:
         cap, u64 = self._req_cap, self._u64
         spins = 0
@@ -304,12 +301,6 @@ class FastLane:
             pass
         if self.ring is not None:
             self.ring.close()
-
-    def daemon_polls(self) -> bool:
-        """Whether a frame sent now costs no system call: the lane has a ring and weftd is
-        polling it (not asleep on the socket)."""
-        ring = self.ring
-        return ring is not None and not self.broken and not ring.daemon_asleep()
 
     def fits(self, request) -> bool:
         return not self.broken and request.ByteSize() + 4 <= MAX_REQUEST_BYTES

@@ -66,11 +66,6 @@ _SUBMIT_RUN = b"\x18\x01"             # SubmitRequest.run = true (field 3, varin
 # with a synchronize only delays the device (saxpy 1e8: ~60 us per round of five launches).
 # WEFT_START_GPU_THREADS=0 turns it off.
 START_GPU_THREADS = int(os.environ.get("WEFT_START_GPU_THREADS", str(1 << 20))) or (1 << 62)
-# The first GPU launch after a sync point goes out at once when the fast lane's ring finds weftd
-# polling (Runtime._queue_frame): weftd launches it while the client prepares what follows.
-# Through a socket the send costs what the overlap saves (docs/interop.md, run 15), through the
-# ring a record in memory. WEFT_LANE_EAGER=0 turns it off.
-LANE_EAGER = os.environ.get("WEFT_LANE_EAGER", "1") != "0"
 DAEMON_START_TIMEOUT_S = 30.0
 RPC_TIMEOUT_S = None  # unary calls wait as long as the daemon needs (compiles can be slow)
 ATTACH_CONFIRM_S = 30.0   # how long a new session waits for the daemon to claim its Attach stream
@@ -654,26 +649,17 @@ class Runtime:
                 return
         self._queue_frame(framed_command(cmd), start)
 
-    def submit_framed(self, frame: bytes, start: bool = False, eager: bool = False) -> None:
+    def submit_framed(self, frame: bytes, start: bool = False) -> None:
         """submit() of a command already framed (as framed_command frames it) with its origin
         set: launches and the ordering commands of weft.interop.cuda_order, built as bytes.
-        Under a graph capture of this thread it is parsed and goes through submit().
-        `eager` (a GPU launch): the first command after a sync point goes out at once where
-        that costs no system call (see _queue_frame)."""
+        Under a graph capture of this thread it is parsed and goes through submit()."""
         if self.captures and threading.get_ident() in self.captures:
             self.submit(exec_pb2.SubmitRequest.FromString(frame).commands[0], start)
             return
-        self._queue_frame(frame, start, eager)
+        self._queue_frame(frame, start)
 
-    def _queue_frame(self, frame: bytes, start: bool, eager: bool = False) -> None:
-        """Appends a framed command to the batch and pumps. `eager`: when this is the first
-        command since the last sync point and the lane's ring finds weftd polling
-        (LANE_EAGER), it is sent at once: weftd launches it while this process goes on to its
-        next launch or its synchronize, and the record costs no system call."""
+    def _queue_frame(self, frame: bytes, start: bool) -> None:
         with self._lock:
-            if eager and not self._unsynchronized and LANE_EAGER:
-                lane = self.fast_lane
-                start = start or (lane is not None and lane.daemon_polls())
             self._unsynchronized = True
             self.work_queued += 1
             if not self._batch:

@@ -213,10 +213,10 @@ def test_a_launch_that_fails_after_ordering_leaves_nothing_waiting(wp, tvalues, 
             raise RuntimeError("injected failure")
         return real_submit(cmd, start)
 
-    def failing_framed(frame, start=False, eager=False):     # launches are queued as bytes
+    def failing_framed(frame, start=False):     # launches are queued as bytes
         if exec_pb2.SubmitRequest.FromString(frame).commands[0].HasField("launch"):
             raise RuntimeError("injected failure")
-        return real_framed(frame, start, eager)
+        return real_framed(frame, start)
     monkeypatch.setattr(rt, "submit", failing)
     monkeypatch.setattr(rt, "submit_framed", failing_framed)
     with pytest.raises(RuntimeError, match="injected"):

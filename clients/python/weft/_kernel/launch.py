@@ -894,16 +894,15 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
             command.launch.block_dim = int(block_dim)   # GPU launch geometry (Warp's options)
         if max_blocks:
             command.launch.max_blocks = int(max_blocks)
-    start = eager = False
+    start = False
     if device.startswith("cuda"):       # a large GPU kernel starts at once (Runtime.submit)
         threads = 1
         for d in dims:
             threads *= d
         start = threads >= _runtime.START_GPU_THREADS
-        eager = True                    # the first after a sync point, where weftd polls
         rt.gpu_work = True              # the next synchronize waits for the GPU
     if frame is not None:
-        rt.submit_framed(frame, start, eager)
+        rt.submit_framed(frame, start)
     else:
         rt.submit(command, start)
     if pause:
