@@ -163,6 +163,78 @@ def test_no_wake_up_is_lost(ring_weftd, run_client, tmp_path, client_spin_us):
     assert wakes > 0, "some frames found the daemon asleep (both paths ran)"
 
 
+EAGER_CLIENT = r'''
+import numpy as np
+import weft as wp
+from weft import _runtime
+if not any(d.is_cuda and d.is_compute_supported for d in wp.get_cuda_devices()):
+    print("no gpu")
+    raise SystemExit(0)
+rt = _runtime.get_runtime()
+assert rt.fast_lane.ring is not None
+
+@wp.kernel
+def step(x: wp.array(dtype=wp.float64), k: wp.float64):
+    i = wp.tid()
+    x[i] = x[i] * k + wp.float64(1.0)
+
+@wp.kernel
+def oob(x: wp.array(dtype=wp.float64), n: int):
+    i = wp.tid()
+    x[i + n] = 1.0
+
+@wp.kernel
+def say(v: int):
+    print(v)
+
+rng = np.random.default_rng()
+x0 = rng.uniform(-1e6, 1e6, 777)
+x = wp.array(x0, dtype=wp.float64, device="cuda:0")
+c = wp.array(x0, dtype=wp.float64, device="cpu")
+ref = x0.copy()
+for j in range(400):
+    for _ in range(1 + j % 3):          # one to three launches per sync point, a CPU one between
+        k = float(rng.uniform(0.5, 1.5))
+        wp.launch(step, dim=777, inputs=[x, k], device="cuda:0")
+        wp.launch(step, dim=777, inputs=[c, k], device="cpu")
+        ref = ref * k + 1.0
+    wp.synchronize()
+assert np.array_equal(x.numpy(), ref) and np.array_equal(c.numpy(), ref)
+wp.launch(oob, dim=4, inputs=[x, 777], device="cuda:0")     # sent at once, fails in weftd
+try:
+    wp.synchronize()
+    raise SystemExit("no bounds error")
+except wp.WeftError as err:
+    print("error:", err)
+wp.launch(say, dim=1, inputs=[4242], device="cuda:0")
+wp.synchronize()
+wp.launch(step, dim=777, inputs=[x, 1.0], device="cuda:0")
+wp.synchronize()
+assert np.array_equal(x.numpy(), ref + 1.0)
+print("eager", rt.eager_sends)
+print("ok")
+'''
+
+
+def test_launches_sent_at_once_keep_results_and_errors(ring_weftd, run_client, tmp_path):
+    """On a GPU the first launch after each sync point goes out at once as a quiet Submit record
+    (WEFT_LANE_EAGER, on by default). Launches on cuda:0 and cpu interleaved stay exact against float64,
+    a bounds error of a launch sent at once is raised by the next synchronize with its line,
+    kernel output arrives, and most sync points did send their first launch at once."""
+    script = tmp_path / "ring_eager.py"
+    script.write_text(EAGER_CLIENT)
+    out = run_client(f"import runpy; runpy.run_path({str(script)!r})",
+                     env={"WEFT_ADDRESS": ring_weftd.address, "WEFT_LANE_EAGER": "1",
+                          "WEFT_FAST_LANE_SPIN_US": "200", "WEFT_FAST_LANE_GPU_SPIN_US": "20000"},
+                     timeout=240)
+    if out.stdout.strip() == "no gpu":
+        pytest.skip("weftd has no CUDA device it can run kernels on")
+    assert out.stdout.rstrip().endswith("ok"), out.stdout + out.stderr
+    assert "ring_eager.py:19" in out.stdout, out.stdout       # the kernel line of the bad store
+    assert "4242" in out.stdout
+    assert int(out.stdout.split("eager")[1].split()[0]) > 100, out.stdout
+
+
 class RawRing:
     """A ring opened by hand over a raw lane connection: what a hostile client can do."""
 

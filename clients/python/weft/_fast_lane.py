@@ -176,6 +176,10 @@ class _Ring:
             self.wakes_sent += 1
             self._sock.send(_METHOD_HEADERS[RING_WAKE])
 
+    def daemon_polls(self) -> bool:
+        """Whether weftd polls the ring now (its sleep flag is clear)."""
+        return not self._u32[self.DAEMON_ASLEEP >> 2]
+
     def _wait_for_room(self, head: int, need: int) -> None:
         cap, u64 = self._req_cap, self._u64
         spins = 0

@@ -66,6 +66,10 @@ _SUBMIT_RUN = b"\x18\x01"             # SubmitRequest.run = true (field 3, varin
 # with a synchronize only delays the device (saxpy 1e8: ~60 us per round of five launches).
 # WEFT_START_GPU_THREADS=0 turns it off.
 START_GPU_THREADS = int(os.environ.get("WEFT_START_GPU_THREADS", str(1 << 20))) or (1 << 62)
+# The first GPU launch after a sync point goes out at once, as a quiet Submit record of the
+# lane's ring, when weftd polls the ring (Runtime.submit_eager): weftd launches it while this
+# process prepares its synchronize (docs/protocol.md "Ring"). WEFT_LANE_EAGER=0 turns it off.
+LANE_EAGER = os.environ.get("WEFT_LANE_EAGER", "1") != "0"
 DAEMON_START_TIMEOUT_S = 30.0
 RPC_TIMEOUT_S = None  # unary calls wait as long as the daemon needs (compiles can be slow)
 ATTACH_CONFIRM_S = 30.0   # how long a new session waits for the daemon to claim its Attach stream
@@ -403,6 +407,7 @@ class Runtime:
         # the quiet Submits between polls for their failures.
         self._quiet_unfenced = False
         self._quiet_sends = 0
+        self.eager_sends = 0               # launches sent at once by submit_eager
         self.pipelined = _PIPELINED
         # Commands (and GPU array creations) queued so far: weft.interop.cuda_order knows
         # from it whether a framework stream already waits for everything queued.
@@ -657,6 +662,29 @@ class Runtime:
             self.submit(exec_pb2.SubmitRequest.FromString(frame).commands[0], start)
             return
         self._queue_frame(frame, start)
+
+    def submit_eager(self, frame: bytes) -> bool:
+        """Sends a GPU launch's framed command at once as a quiet Submit when it is the first
+        command since the last sync point and the lane's ring finds weftd polling (a record in
+        memory, no system call); False when it is not sent (the caller queues it)."""
+        lane = self.fast_lane
+        if lane is None or self._unsynchronized or lane.ring is None or not lane.quiet or \
+                lane.broken or self._batch or self._inflight or self._finalizer_commands or \
+                self.pump_held or self._deferred_error is not None or self.captures:
+            return False
+        with self._lock:
+            if self._unsynchronized or self._batch or self._inflight or not lane.ring.daemon_polls():
+                return False
+            self._unsynchronized = True
+            self.work_queued += 1
+            self.eager_sends += 1
+            try:
+                lane.send_quiet(frame)
+                self._quiet_sends += 1
+                self._quiet_unfenced = True
+            except WeftError as err:
+                self._deferred_error = err
+            return True
 
     def _queue_frame(self, frame: bytes, start: bool) -> None:
         with self._lock:

@@ -902,7 +902,8 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         start = threads >= _runtime.START_GPU_THREADS
         rt.gpu_work = True              # the next synchronize waits for the GPU
     if frame is not None:
-        rt.submit_framed(frame, start)
+        if not (_runtime.LANE_EAGER and device.startswith("cuda") and rt.submit_eager(frame)):
+            rt.submit_framed(frame, start)
     else:
         rt.submit(command, start)
     if pause:
