@@ -43,14 +43,13 @@ def ring_weftd(start_weftd, monkeypatch):
     return start_weftd()
 
 
-CLIENT = r'''
+# The kernels both computing clients launch: a step whose result is exact in float64, and a
+# store out of bounds (its line is the one the bounds error must name: BAD_STORE).
+KERNELS = r'''
 import sys
 import numpy as np
 import weft as wp
 from weft import _runtime
-rt = _runtime.get_runtime()
-lane = rt.fast_lane
-assert lane is not None and lane.ring is not None, "the client moved onto the ring"
 
 @wp.kernel
 def step(x: wp.array(dtype=wp.float64), k: wp.float64):
@@ -61,6 +60,21 @@ def step(x: wp.array(dtype=wp.float64), k: wp.float64):
 def oob(x: wp.array(dtype=wp.float64), n: int):
     i = wp.tid()
     x[i + n] = 1.0
+'''
+BAD_STORE = "    x[i + n] = 1.0"
+
+
+def _script(tmp_path, name, text):
+    """Writes a client script (kernels need a source file); (its path, the line of BAD_STORE)."""
+    path = tmp_path / name
+    path.write_text(text)
+    return path, text.splitlines().index(BAD_STORE) + 1
+
+
+CLIENT = KERNELS + r'''
+rt = _runtime.get_runtime()
+lane = rt.fast_lane
+assert lane is not None and lane.ring is not None, "the client moved onto the ring"
 
 @wp.kernel
 def talk(n: int):
@@ -108,13 +122,12 @@ print("ok", lane.ring is not None and not lane.broken)
 
 
 def test_a_client_computes_through_the_ring(ring_weftd, run_client, tmp_path):
-    script = tmp_path / "ring_client.py"        # kernels need a source file
-    script.write_text(CLIENT)
+    script, bad_line = _script(tmp_path, "ring_client.py", CLIENT)
     out = run_client(f"import runpy; runpy.run_path({str(script)!r})",
                      env={"WEFT_ADDRESS": ring_weftd.address, "WEFT_FAST_LANE_SPIN_US": "200"},
                      timeout=300)
     assert "ok True" in out.stdout[-200:], out.stdout[-2000:] + out.stderr
-    assert "ring_client.py:18" in out.stdout, "the bounds error names its kernel line"
+    assert f"ring_client.py:{bad_line}" in out.stdout, "the bounds error names its kernel line"
     printed = [line for line in out.stdout.splitlines() if line.strip().isdigit()]
     assert sorted(int(v) for v in printed) == list(range(60000)), "every printed line arrived"
 
@@ -163,25 +176,12 @@ def test_no_wake_up_is_lost(ring_weftd, run_client, tmp_path, client_spin_us):
     assert wakes > 0, "some frames found the daemon asleep (both paths ran)"
 
 
-EAGER_CLIENT = r'''
-import numpy as np
-import weft as wp
-from weft import _runtime
+EAGER_CLIENT = KERNELS + r'''
 if not any(d.is_cuda and d.is_compute_supported for d in wp.get_cuda_devices()):
     print("no gpu")
     raise SystemExit(0)
 rt = _runtime.get_runtime()
 assert rt.fast_lane.ring is not None
-
-@wp.kernel
-def step(x: wp.array(dtype=wp.float64), k: wp.float64):
-    i = wp.tid()
-    x[i] = x[i] * k + wp.float64(1.0)
-
-@wp.kernel
-def oob(x: wp.array(dtype=wp.float64), n: int):
-    i = wp.tid()
-    x[i + n] = 1.0
 
 @wp.kernel
 def say(v: int):
@@ -221,8 +221,7 @@ def test_launches_sent_at_once_keep_results_and_errors(ring_weftd, run_client, t
     (WEFT_LANE_EAGER, on by default). Launches on cuda:0 and cpu interleaved stay exact against float64,
     a bounds error of a launch sent at once is raised by the next synchronize with its line,
     kernel output arrives, and most sync points did send their first launch at once."""
-    script = tmp_path / "ring_eager.py"
-    script.write_text(EAGER_CLIENT)
+    script, bad_line = _script(tmp_path, "ring_eager.py", EAGER_CLIENT)
     out = run_client(f"import runpy; runpy.run_path({str(script)!r})",
                      env={"WEFT_ADDRESS": ring_weftd.address, "WEFT_LANE_EAGER": "1",
                           "WEFT_FAST_LANE_SPIN_US": "200", "WEFT_FAST_LANE_GPU_SPIN_US": "20000"},
@@ -230,7 +229,7 @@ def test_launches_sent_at_once_keep_results_and_errors(ring_weftd, run_client, t
     if out.stdout.strip() == "no gpu":
         pytest.skip("weftd has no CUDA device it can run kernels on")
     assert out.stdout.rstrip().endswith("ok"), out.stdout + out.stderr
-    assert "ring_eager.py:19" in out.stdout, out.stdout       # the kernel line of the bad store
+    assert f"ring_eager.py:{bad_line}" in out.stdout, out.stdout       # the bad store's line
     assert "4242" in out.stdout
     eager = [line for line in out.stdout.splitlines() if line.startswith("eager ")]
     assert eager and int(eager[0].split()[1]) > 100, out.stdout
@@ -497,3 +496,41 @@ def test_wakes_without_records_cannot_keep_the_daemon_busy(ring_weftd):
     finally:
         ring.close()
     _lane_serves(ring_weftd)
+
+
+def test_a_daemon_without_rings_refuses_one_and_keeps_the_socket(start_weftd, monkeypatch):
+    """WEFT_LANE_RING=0: the hello offers no ring; a ring asked for anyway is refused
+    (FAILED_PRECONDITION) and the lane goes on over the socket; a ring's wake frame on a lane
+    without a ring is an unknown method that ends the connection."""
+    monkeypatch.setenv("WEFT_LANE_RING", "0")
+    daemon = start_weftd()
+    import grpc
+
+    channel = grpc.insecure_channel(daemon.address)
+    try:
+        stub = _runtime.SessionServiceStub(channel)
+        opened = stub.Open(session_pb2.OpenSessionRequest(client_name="no ring"), timeout=10)
+        s = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        s.settimeout(20)
+        s.connect(opened.fast_lane_path)
+        s.send(struct.pack("<I", HELLO) + session_pb2.FastLaneHello(
+            session_id=opened.session_id, secret=opened.fast_lane_secret).SerializeToString())
+        reply = s.recv(1 << 16)
+        assert struct.unpack_from("<I", reply)[0] == 0 and b"ring" not in reply[8:].split(), reply
+        s.send(struct.pack("<I", RING_OPEN))
+        data, fds, _, _ = socket.recv_fds(s, 1 << 16, 1)
+        assert not fds
+        code, flags = struct.unpack_from("<II", data)
+        assert _fast_lane._CODE_NAMES[code] == "FAILED_PRECONDITION" and not flags & 2, data
+        s.send(struct.pack("<I", SYNCHRONIZE) + exec_pb2.SynchronizeRequest().SerializeToString())
+        reply = s.recv(1 << 16)
+        assert struct.unpack_from("<II", reply) == (0, 0), reply     # still served, on the socket
+        s.send(struct.pack("<I", RING_WAKE))
+        code, flags = struct.unpack_from("<II", s.recv(1 << 16))
+        assert _fast_lane._CODE_NAMES[code] == "INVALID_ARGUMENT" and flags & 2
+        assert s.recv(64) == b"", "the daemon ended the connection"
+        s.close()
+        stub.Close(session_pb2.CloseSessionRequest(session_id=opened.session_id),
+                   metadata=(("weft-session", opened.session_id),), timeout=10)
+    finally:
+        channel.close()

@@ -424,22 +424,12 @@ class FastLane:
 
     def _poll(self, seconds: float) -> int:
         """Polls for a reply frame for up to `seconds`: its length, or -1 when none came."""
-        ring = self.ring
-        if ring is not None:
-            view = self._view
-            deadline = time.perf_counter() + seconds
-            while True:
-                n = ring.take(view)
-                if n >= 0 or time.perf_counter() >= deadline:
-                    return n
-        sock, buf = self._sock, self._buf
+        try_frame = self._try_frame
         deadline = time.perf_counter() + seconds
         while True:
-            try:
-                return sock.recv_into(buf, _RECV_BYTES, socket.MSG_DONTWAIT)
-            except (BlockingIOError, InterruptedError):
-                if time.perf_counter() >= deadline:
-                    return -1
+            n = try_frame()
+            if n >= 0 or time.perf_counter() >= deadline:
+                return n
 
     def _receive(self, spin_s: float = 0.0, first_frame: int = -1) -> bytes:
         """The next reply's payload (a daemon error raised as WeftError). `first_frame`: the
