@@ -9,7 +9,7 @@ namespace weft::server {
 
 namespace {
 
-// A session's sync result (first error, origin, kernel output) as a SynchronizeResponse. In a
+// A session's sync result (first error, origin, kernel output, timed GPU operations) as a SynchronizeResponse. In a
 // session host, an error with a GPU lost to a fault ends the session (the driver keeps that
 // error for the life of the process): the response says so, and the client opens a new one.
 void FillSync(Engine& engine, Session::SyncResult& r, v1::SynchronizeResponse* resp) {
@@ -27,6 +27,17 @@ void FillSync(Engine& engine, Session::SyncResult& r, v1::SynchronizeResponse* r
     ToProto(r.origin, resp->mutable_error_origin());
   }
   resp->set_output(std::move(r.output));
+  if (r.timing_ended) {
+    resp->set_timing_ended(true);
+    resp->set_timing_dropped(r.timing_dropped);
+    for (TimedActivity& t : r.timing) {
+      v1::TimedActivity* out = resp->add_timing();
+      out->set_device(std::move(t.device));
+      out->set_name(std::move(t.name));
+      out->set_filter(t.filter);
+      out->set_elapsed_ms(t.elapsed_ms);
+    }
+  }
 }
 
 }  // namespace

@@ -249,6 +249,14 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
       c.kind = CudaEventCommand{op, e.device(), e.ipc_handle()};
       break;
     }
+    case v1::Command::kTiming: {
+      const auto& t = p.timing();
+      if (t.op() != v1::TimingCommand::BEGIN && t.op() != v1::TimingCommand::END)
+        return InvalidArgument("command " + std::to_string(index) + ": unknown timing op " + std::to_string(t.op()));
+      c.kind = TimingCommand{t.op() == v1::TimingCommand::END ? TimingCommand::Op::kEnd : TimingCommand::Op::kBegin,
+                             t.filter()};
+      break;
+    }
     case v1::Command::kCudaValue: {
       const auto& v = p.cuda_value();
       if (v.op() != v1::CudaValueCommand::WAIT && v.op() != v1::CudaValueCommand::WRITE)

@@ -556,6 +556,8 @@ Expected<CudaDevice::Stream*> CudaDevice::StreamOf(const std::string& session_id
     return s;
   }
   std::lock_guard<std::mutex> lock(mu_);
+  auto timing = timing_filters_.find(session_id);
+  if (timing != timing_filters_.end()) st->timing_filter.store(timing->second);
   auto [it, fresh] = streams_.emplace(session_id, std::move(st));
   if (!fresh) DestroyStream(*st);   // another thread made it meanwhile (not expected: one executor per session)
   return it->second.get();
@@ -566,6 +568,16 @@ void CudaDevice::DestroyStream(Stream& st) {
   if (st.stream) driver_->StreamSynchronize(st.stream);
   ReleaseGeometry(st, true);
   if (st.stream) driver_->StreamDestroy(st.stream);
+  {
+    std::lock_guard<std::mutex> lock(st.timing_mu);
+    for (const Stream::Timed& t : st.timed) {
+      driver_->EventDestroy(t.start);
+      driver_->EventDestroy(t.end);
+    }
+    for (jit::CuEvent e : st.spare_events) driver_->EventDestroy(e);
+    st.timed.clear();
+    st.spare_events.clear();
+  }
   if (st.errors_base) driver_->MemFree(st.errors_base);
   if (st.print_data) driver_->MemFree(st.print_data);
   if (st.cancel_stream) driver_->StreamDestroy(st.cancel_stream);
@@ -593,6 +605,7 @@ void CudaDevice::CloseSession(Session& s) {
   {
     std::lock_guard<std::mutex> lock(mu_);
     reset_sessions_.erase(s.id());
+    timing_filters_.erase(s.id());
     auto it = streams_.find(s.id());
     if (it == streams_.end()) return;
     st = std::move(it->second);
@@ -1040,7 +1053,10 @@ Status CudaDevice::Upload(Session& s, const MemoryBlock& dst, uint64_t offset, c
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
   if (n == 0) return Status::Ok();
   const jit::CuDevicePtr d = reinterpret_cast<uintptr_t>(dst.data) + offset;
-  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyHtoDAsync(d, src, n, st->stream), "cuMemcpyHtoDAsync"));
+  {
+    TimedSpan timed(*this, *st, kTimingMemcpy, "memcpy HtoD");
+    WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyHtoDAsync(d, src, n, st->stream), "cuMemcpyHtoDAsync"));
+  }
   return driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
 }
 
@@ -1051,7 +1067,10 @@ Status CudaDevice::Download(Session& s, const MemoryBlock& src, uint64_t offset,
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
   if (n == 0) return Status::Ok();
   const jit::CuDevicePtr p = reinterpret_cast<uintptr_t>(src.data) + offset;
-  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyDtoHAsync(dst, p, n, st->stream), "cuMemcpyDtoHAsync"));
+  {
+    TimedSpan timed(*this, *st, kTimingMemcpy, "memcpy DtoH");
+    WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyDtoHAsync(dst, p, n, st->stream), "cuMemcpyDtoHAsync"));
+  }
   return driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
 }
 
@@ -1062,9 +1081,12 @@ Status CudaDevice::CopyBlock(Session& s, const MemoryBlock& dst, const MemoryBlo
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
   if (n == 0) return Status::Ok();
-  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyDtoDAsync(reinterpret_cast<uintptr_t>(dst.data),
-                                                               reinterpret_cast<uintptr_t>(src.data), n, st->stream),
-                                      "cuMemcpyDtoDAsync"));
+  {
+    TimedSpan timed(*this, *st, kTimingMemcpy, "memcpy DtoD");
+    WEFT_RETURN_IF_ERROR(driver_->Check(driver_->MemcpyDtoDAsync(reinterpret_cast<uintptr_t>(dst.data),
+                                                                 reinterpret_cast<uintptr_t>(src.data), n, st->stream),
+                                        "cuMemcpyDtoDAsync"));
+  }
   return driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
 }
 
@@ -1088,6 +1110,7 @@ Status CudaDevice::Fill(Session& s, const ArrayView& dst, const std::string& val
       for (uint64_t i = w; i < esize && repeats; ++i) repeats = value[i] == value[i % w];
       if (!repeats) continue;
       const uint64_t count = n * esize / w;
+      TimedSpan timed(*this, *st, kTimingMemset, "memset");
       if (w == 1) return driver_->Check(driver_->MemsetD8Async(d, static_cast<unsigned char>(value[0]), count, st->stream), "cuMemsetD8Async");
       if (w == 2) {
         uint16_t v;
@@ -1109,6 +1132,7 @@ Status CudaDevice::Fill(Session& s, const ArrayView& dst, const std::string& val
   int64_t count = static_cast<int64_t>(n);
   int32_t es = static_cast<int32_t>(esize), word = WordOf(esize, {&dst});
   void* params[] = {const_cast<jit::CuDevicePtr*>(&d), &dv, &v, &count, &es, &word};
+  TimedSpan timed(*this, *st, kTimingKernelBuiltin, "builtin kernel fill_strided");
   return driver_->Check(driver_->LaunchKernel(fn, GridFor(n, 256, 65536), 1, 1, 256, 1, 1, 0, st->stream, params, nullptr),
                         "cuLaunchKernel (fill)");
 }
@@ -1118,6 +1142,7 @@ Status CudaDevice::RefitBvh(Session& s, const geometry::BvhRefitJob& job) {
   if (lost_.load()) return Unavailable(name_ + " was lost");
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  TimedSpan timed(*this, *st, kTimingKernelBuiltin, "builtin kernel bvh_refit");
   if (job.parents) return BvhBoundsUp(*st, job);   // a tree built on the device
   WEFT_ASSIGN_OR_RETURN(jit::CuFunction fn, Builtin("weft_bvh_refit_level"));
   jit::CuDevicePtr nodes = job.nodes, levels = job.levels, prim_ids = job.prim_ids, lowers = job.lowers,
@@ -1137,13 +1162,16 @@ Status CudaDevice::StridedCopyOnDevice(Stream& st, const ArrayView& dst, const A
   const uint64_t n = dst.element_count();
   const uint64_t esize = dst.dtype().ElementSize();
   jit::CuDevicePtr d = reinterpret_cast<uintptr_t>(dst.data()), s = reinterpret_cast<uintptr_t>(src.data());
-  if (dst.contiguous() && src.contiguous())
+  if (dst.contiguous() && src.contiguous()) {
+    TimedSpan timed(*this, st, kTimingMemcpy, "memcpy DtoD");
     return driver_->Check(driver_->MemcpyDtoDAsync(d, s, n * esize, st.stream), "cuMemcpyDtoDAsync");
+  }
   WEFT_ASSIGN_OR_RETURN(jit::CuFunction fn, Builtin("weft_copy_strided"));
   ViewArg dv = ViewArgOf(dst), sv = ViewArgOf(src);
   int64_t count = static_cast<int64_t>(n);
   int32_t es = static_cast<int32_t>(esize), word = WordOf(esize, {&dst, &src});
   void* params[] = {&d, &dv, &s, &sv, &count, &es, &word};
+  TimedSpan timed(*this, st, kTimingKernelBuiltin, "builtin kernel copy_strided");
   return driver_->Check(driver_->LaunchKernel(fn, GridFor(n, 256, 65536), 1, 1, 256, 1, 1, 0, st.stream, params, nullptr),
                         "cuLaunchKernel (copy)");
 }
@@ -1194,11 +1222,17 @@ Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) 
     Status r = Status::Ok();
     const jit::CuDevicePtr dp = reinterpret_cast<uintptr_t>(dev_contig.data());
     if (src_cpu) {
-      r = driver_->Check(driver_->MemcpyHtoDAsync(dp, host_src, bytes, st->stream), "cuMemcpyHtoDAsync");
+      {
+        TimedSpan timed(*this, *st, kTimingMemcpy, "memcpy HtoD");
+        r = driver_->Check(driver_->MemcpyHtoDAsync(dp, host_src, bytes, st->stream), "cuMemcpyHtoDAsync");
+      }
       if (r.ok() && scratch) r = StridedCopyOnDevice(*st, dev, dev_contig);
     } else {
       if (scratch) r = StridedCopyOnDevice(*st, dev_contig, dev);
-      if (r.ok()) r = driver_->Check(driver_->MemcpyDtoHAsync(host_dst, dp, bytes, st->stream), "cuMemcpyDtoHAsync");
+      if (r.ok()) {
+        TimedSpan timed(*this, *st, kTimingMemcpy, "memcpy DtoH");
+        r = driver_->Check(driver_->MemcpyDtoHAsync(host_dst, dp, bytes, st->stream), "cuMemcpyDtoHAsync");
+      }
     }
     if (r.ok()) r = driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
     if (scratch) driver_->MemFree(scratch);
@@ -1250,11 +1284,13 @@ Status CudaDevice::Copy(Session& s, const ArrayView& dst, const ArrayView& src) 
                                dst_gpu->name());
   }
   if (r.ok()) r = MakeCurrent();
-  if (r.ok())
+  if (r.ok()) {
+    TimedSpan timed(*this, *st, kTimingMemcpy, "memcpy PtoP");
     r = driver_->Check(driver_->MemcpyPeerAsync(reinterpret_cast<uintptr_t>(dst_contig.data()), dst_gpu->context(),
                                                 reinterpret_cast<uintptr_t>(src_contig.data()), src_gpu->context(),
                                                 bytes, st->stream),
                        "cuMemcpyPeerAsync");
+  }
   if (r.ok()) r = driver_->Check(driver_->StreamSynchronize(st->stream), "cuStreamSynchronize");
   if (r.ok() && dst_scratch) {
     r = dst_gpu->MakeCurrent();
@@ -1355,8 +1391,12 @@ Status CudaDevice::LaunchTraced(Session& s, const KernelLaunch& l, std::string*,
   void* params_fwd[] = {&ctx, args};
   void* params_adj[] = {&ctx, args, adj};
   const int64_t driver_start = trace ? frame_trace::NowNs() : 0;
-  const jit::CuResult launched =
-      driver_->LaunchKernel(fn, grid, 1, 1, block, 1, 1, 0, st->stream, adjoint ? params_adj : params_fwd, nullptr);
+  jit::CuResult launched = 0;
+  {
+    TimedSpan timed(*this, *st, kTimingKernel, adjoint ? "backward kernel " : "forward kernel ", l.kernel->layout.name);
+    launched =
+        driver_->LaunchKernel(fn, grid, 1, 1, block, 1, 1, 0, st->stream, adjoint ? params_adj : params_fwd, nullptr);
+  }
   if (trace) frame_trace::Current().driver_launch_ns += frame_trace::NowNs() - driver_start;
   if (launched != 0) {
     // A kernel whose threads need more local memory than the GPU gives one (large tiles or

@@ -25,6 +25,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "engine/device/activity_timing.h"
 #include "engine/device/cuda_driver.h"
 #include "engine/device/device.h"
 #include "engine/device/imported_memory.h"
@@ -176,6 +177,17 @@ class CudaDevice final : public Device {
   // Queues one replay of `g` (captured for this session on this device) on the session's stream.
   Status LaunchGraph(Session& s, Graph& g);
 
+  // CUDA activity timing (cuda_device_timing.cpp, docs/cuda.md "Activity timing"): from now on
+  // the session's operations on this GPU whose kind is in `filter` (kTiming* bits; 0 stops) are
+  // timed by a pair of events on its stream; a non-zero filter first discards what was recorded
+  // and not collected. Operations queued while the stream captures a graph are not timed (the
+  // graph's launch is).
+  Status SetTiming(Session& s, uint32_t filter);
+  // Once the session's stream here is idle (after a synchronize): the timed operations in the
+  // order the stream ran them appended to `out` (`keep`; else discarded), `dropped` += those not
+  // timed past kMaxTimedActivities; the records are cleared and their events kept for reuse.
+  void TakeTiming(Session& s, std::vector<TimedActivity>* out, uint64_t* dropped, bool keep);
+
   CudaDeviceStats stats() const;
   // True once a fault left the device unusable for the rest of this process (the driver kept
   // the sticky error through the context reset); every operation then fails with the reason.
@@ -252,10 +264,46 @@ class CudaDevice final : public Device {
       std::string refused;             // why the capture cannot become a graph
     };
     std::unique_ptr<Capture> capture;
+    // Activity timing (cuda_device_timing.cpp): the session's filter on this GPU (kTiming* bits),
+    // the operations timed since the last collection (two events each, at most
+    // kMaxTimedActivities), events kept for reuse, and the operations past the limit.
+    std::atomic<uint32_t> timing_filter{0};
+    struct Timed {
+      std::string name;
+      uint32_t filter = 0;
+      jit::CuEvent start = nullptr;
+      jit::CuEvent end = nullptr;
+    };
+    std::mutex timing_mu;   // timed, spare_events, timing_dropped
+    std::vector<Timed> timed;
+    std::vector<jit::CuEvent> spare_events;
+    uint64_t timing_dropped = 0;
     // Set by a host function queued on the stream when a synchronize stops spinning
     // (WaitStream); the host functions in flight hold it too, so it outlives the stream.
     std::shared_ptr<StreamSignal> signal;
   };
+  // One operation timed on a stream (RAII, cuda_device_timing.cpp): its start event recorded
+  // at construction when the stream times `filter` and is not capturing, its end event and its
+  // record at destruction. The name ("memcpy HtoD", "forward kernel " + the kernel's name) is
+  // built only when it is timed.
+  class TimedSpan {
+   public:
+    TimedSpan(CudaDevice& device, Stream& st, uint32_t filter, const char* name, const std::string& suffix = {});
+    ~TimedSpan();
+    TimedSpan(const TimedSpan&) = delete;
+    TimedSpan& operator=(const TimedSpan&) = delete;
+
+   private:
+    CudaDevice& device_;
+    Stream& st_;
+    Stream::Timed record_;
+  };
+  // A timing event of `st` (a spare one, else a new one); nullptr when the driver refuses.
+  jit::CuEvent TimingEventLocked(Stream& st);
+  // The stream's timed records' events back to its spares (at most kSpareTimingEvents kept).
+  void RecycleTimingLocked(Stream& st);
+  static constexpr size_t kSpareTimingEvents = 1024;
+  std::unordered_map<std::string, uint32_t> timing_filters_;   // by session id (mu_): for streams made later
   struct CuModuleEntry {
     jit::CuModule module = nullptr;
     std::unordered_map<std::string, jit::CuFunction> functions;

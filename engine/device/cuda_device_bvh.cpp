@@ -249,6 +249,7 @@ Status CudaDevice::CheckMeshIndices(Session& s, const geometry::MeshIndicesJob& 
   if (job.count < 1) return Internal("mesh indices job out of range");
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  TimedSpan timed(*this, *st, kTimingKernelBuiltin, "builtin kernel mesh_check_indices");
   WEFT_ASSIGN_OR_RETURN(jit::CuFunction check_fn, Builtin("weft_mesh_indices_check"));
   WEFT_ASSIGN_OR_RETURN(jit::CuFunction value_fn, Builtin("weft_mesh_indices_value"));
   jit::CuDevicePtr src = job.src, dst = job.dst, result = job.result;
@@ -318,6 +319,7 @@ Status CudaDevice::BuildBvh(Session& s, const geometry::BvhBuildJob& job) {
   if (job.n < 1 || job.n > INT32_MAX) return Internal("BVH build job out of range");
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  TimedSpan timed(*this, *st, kTimingKernelBuiltin, "builtin kernel bvh_build");
   WEFT_ASSIGN_OR_RETURN(jit::CuFunction bounds_fn, Builtin("weft_bvh_centroid_bounds"));
   WEFT_ASSIGN_OR_RETURN(jit::CuFunction morton_fn, Builtin("weft_bvh_morton"));
   WEFT_ASSIGN_OR_RETURN(jit::CuFunction hierarchy_fn, Builtin("weft_bvh_hierarchy"));

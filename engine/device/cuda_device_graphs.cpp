@@ -98,7 +98,10 @@ Status CudaDevice::LaunchGraph(Session& s, Graph& g) {
   if (st->capture) return FailedPrecondition("a graph cannot be launched while one is being captured");
   const size_t n = g.launches.size();
   WEFT_RETURN_IF_ERROR(MakeRoom(s, *st, n));
-  WEFT_RETURN_IF_ERROR(driver_->Check(driver_->GraphLaunch(g.exec, st->stream), "cuGraphLaunch"));
+  {
+    TimedSpan timed(*this, *st, kTimingGraph, "graph launch");
+    WEFT_RETURN_IF_ERROR(driver_->Check(driver_->GraphLaunch(g.exec, st->stream), "cuGraphLaunch"));
+  }
   if (n == 0) return Status::Ok();
   const size_t bytes = n * sizeof(wp::launch_error_t);
   const jit::CuDevicePtr dst = st->errors + st->pending.size() * sizeof(wp::launch_error_t);

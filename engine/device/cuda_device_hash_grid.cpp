@@ -81,6 +81,7 @@ Status CudaDevice::BuildHashGrid(Session& s, const geometry::HashGridBuildJob& j
     return Internal("hash grid build job out of range");
   WEFT_RETURN_IF_ERROR(MakeCurrent());
   WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  TimedSpan timed(*this, *st, kTimingKernelBuiltin, "builtin kernel hash_grid_build");
   WEFT_ASSIGN_OR_RETURN(jit::CuFunction keys_fn, Builtin("weft_hash_grid_keys"));
   WEFT_ASSIGN_OR_RETURN(jit::CuFunction bounds_fn, Builtin("weft_hash_grid_bounds"));
   auto launch = [&](jit::CuFunction fn, unsigned grid, unsigned block, void** params, const char* what) {

@@ -59,6 +59,7 @@ Expected<const CudaDriver*> Load() {
   Resolve(library, "cuEventRecord", &driver.EventRecord, &missing);
   Resolve(library, "cuStreamWaitEvent", &driver.StreamWaitEvent, &missing);
   Resolve(library, "cuEventDestroy_v2", &driver.EventDestroy, &missing);
+  Resolve(library, "cuEventCreate", &driver.EventCreate, &missing);
   Resolve(library, "cuMemGetAddressRange_v2", &driver.MemGetAddressRange, &missing);
   Resolve(library, "cuPointerGetAttribute", &driver.PointerGetAttribute, &missing);
   Resolve(library, "cuCtxSetCurrent", &driver.CtxSetCurrent, &missing);
@@ -73,6 +74,11 @@ Expected<const CudaDriver*> Load() {
   Resolve(library, "cuMemcpyDtoH_v2", &driver.MemcpyDtoH, &missing);
   Resolve(library, "cuGetErrorName", &driver.GetErrorName, &missing);
   Resolve(library, "cuGetErrorString", &driver.GetErrorString, &missing);
+  if (!missing.empty()) return Unavailable("the CUDA driver lacks " + missing);
+  // cuEventElapsedTime_v2 (CUDA 12.8+) and the older entry take the same arguments.
+  std::string no_v2;
+  Resolve(library, "cuEventElapsedTime_v2", &driver.EventElapsedTime, &no_v2);
+  if (!driver.EventElapsedTime) Resolve(library, "cuEventElapsedTime", &driver.EventElapsedTime, &missing);
   if (!missing.empty()) return Unavailable("the CUDA driver lacks " + missing);
   // Optional (stream memory operations, CUDA 12+): without them the client orders by events.
   std::string optional_missing;

@@ -91,6 +91,9 @@ struct CudaDriver {
   CuResult (*EventRecord)(CuEvent event, CuStream stream) = nullptr;
   CuResult (*StreamWaitEvent)(CuStream stream, CuEvent event, unsigned flags) = nullptr;
   CuResult (*EventDestroy)(CuEvent event) = nullptr;
+  // Activity timing (cuda_device_timing.cpp): events of the daemon's own, with timing.
+  CuResult (*EventCreate)(CuEvent* event, unsigned flags) = nullptr;
+  CuResult (*EventElapsedTime)(float* ms, CuEvent start, CuEvent end) = nullptr;
   // Stream memory operations (ordering without a round trip, cuda_device_values.cpp); null when
   // the driver lacks them.
   CuResult (*StreamWaitValue64)(CuStream stream, CuDevicePtr address, uint64_t value, unsigned flags) = nullptr;

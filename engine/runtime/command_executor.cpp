@@ -212,6 +212,7 @@ bool RunsAfterFailure(const Command& c) {
   if (auto* t = std::get_if<TapeCommand>(&c.kind))
     return t->op == TapeCommand::Op::kEnd || t->op == TapeCommand::Op::kFree;
   if (auto* g = std::get_if<GraphCommand>(&c.kind)) return g->op == GraphCommand::Op::kDestroy;
+  if (auto* tc = std::get_if<TimingCommand>(&c.kind)) return tc->op == TimingCommand::Op::kEnd;
   if (auto* geo = std::get_if<GeometryCommand>(&c.kind)) return geo->request.op == geometry::GeometryRequest::Op::kFree;
   return false;
 }
@@ -225,6 +226,7 @@ Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapsh
   if (auto* e = std::get_if<CudaEventCommand>(&c.kind)) return CudaEvent(s, *e);
   if (auto* v = std::get_if<CudaValueCommand>(&c.kind)) return CudaValue(s, *v, h);
   if (auto* g = std::get_if<GraphCommand>(&c.kind)) return Graph(s, *g, h);
+  if (auto* tc = std::get_if<TimingCommand>(&c.kind)) return Timing(s, *tc);
   if (auto* geo = std::get_if<GeometryCommand>(&c.kind)) {
     if (!geometry_) return Unimplemented("geometry commands are not served here");
     return geometry_(s, geo->request);
@@ -387,6 +389,19 @@ Status CommandExecutor::CudaEvent(Session& s, const CudaEventCommand& c) {
   return gpu->IpcEvent(s, c.handle, use);
 }
 
+Status CommandExecutor::Timing(Session& s, const TimingCommand& c) {
+  if (c.op != TimingCommand::Op::kBegin && c.op != TimingCommand::Op::kEnd)
+    return InvalidArgument("timing: unknown op " + std::to_string(static_cast<int>(c.op)));
+  if (s.in_graph) return InvalidArgument("timing: not allowed inside a graph");
+  const uint32_t filter = c.op == TimingCommand::Op::kBegin ? c.filter : 0;
+  Status result = Status::Ok();
+  for (auto& gpu : devices_.gpus()) {   // Warp times every GPU's activity
+    Status st = gpu->SetTiming(s, filter);
+    if (result.ok() && !st.ok()) result = st;
+  }
+  if (c.op == TimingCommand::Op::kEnd) s.timing_collect.store(true);
+  return result;
+}
 
 Status CommandExecutor::SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h) {
   WEFT_ASSIGN_OR_RETURN(auto a, Lookup(h, c.array.handle, "set_grad array"));

@@ -1,7 +1,7 @@
 // Runs one queued command of a session on its executor thread: copy and fill over checked
 // views, kernel launches (forward and explicit adjoint, recorded on the active tape), and
 // tape operations (begin/end, backward replay in reverse, zero, reset) and gradient
-// replacement (set_grad), and geometry builds and refits (through the Engine). Every operation goes to the Device the arrays or the launch name
+// replacement (set_grad), CUDA activity timing, and geometry builds and refits (through the Engine). Every operation goes to the Device the arrays or the launch name
 // (engine/device): the CPU runs it here, a GPU queues it on the session's stream. Cancellation
 // and the per-launch time limit are the devices' (see cpu_device.h, cuda_device.h).
 #pragma once
@@ -68,6 +68,9 @@ class CommandExecutor {
   Status SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h);
   Status CudaEvent(Session& s, const CudaEventCommand& c);
   Status CudaValue(Session& s, const CudaValueCommand& c, const HandleSnapshot& h);
+  // TimingCommand: the filter of every GPU's stream of the session (0 at END); END asks the
+  // next synchronize to collect the timed operations.
+  Status Timing(Session& s, const TimingCommand& c);
 
   DeviceSet& devices_;
   ModuleStore* store_;

@@ -53,13 +53,22 @@ Status CheckCommandBatch(const std::vector<Command>& commands, const CommandLimi
     } else if (auto* t = std::get_if<TapeCommand>(&c.kind)) {
       Status st = CheckTapeOp(t->op);
       if (!st.ok()) return Status(st.code(), "command " + std::to_string(i) + ": " + st.message());
+    } else if (auto* tc = std::get_if<TimingCommand>(&c.kind)) {
+      if (tc->op != TimingCommand::Op::kBegin && tc->op != TimingCommand::Op::kEnd)
+        return InvalidArgument("command " + std::to_string(i) + ": unknown timing op " +
+                               std::to_string(static_cast<int>(tc->op)));
     } else if (auto* g = std::get_if<GraphCommand>(&c.kind)) {
       if (g->commands.size() > limits.max_graph_commands)
         return ResourceExhausted("command " + std::to_string(i) + ": a graph of " + std::to_string(g->commands.size()) +
                                  " commands, more than the limit of " + std::to_string(limits.max_graph_commands));
-      for (const Command& inner : g->commands)
+      for (const Command& inner : g->commands) {
         if (std::holds_alternative<GraphCommand>(inner.kind))
           return InvalidArgument("command " + std::to_string(i) + ": a graph cannot hold graph commands");
+        if (std::holds_alternative<TimingCommand>(inner.kind))
+          return InvalidArgument("command " + std::to_string(i) +
+                                 ": a graph cannot hold timing commands (wp.timing_begin / timing_end outside the "
+                                 "capture time its launches: a graph launch is one timed activity)");
+      }
       // The graph's own commands obey the per-command limits; they count once, as one command.
       Status st = CheckCommandBatch(g->commands, limits, 0);
       if (!st.ok()) return Status(st.code(), "command " + std::to_string(i) + " (graph): " + st.message());

@@ -1,5 +1,6 @@
 // Commands a session submits in a batch (engine twins of weft.v1.Command and its kinds):
-// copy, fill, kernel launch, autodiff tape operations, gradient replacement, geometry builds. Plain data; the server converts them.
+// copy, fill, kernel launch, autodiff tape operations, gradient replacement, geometry builds,
+// CUDA activity timing. Plain data; the server converts them.
 #pragma once
 
 #include <cstdint>
@@ -91,6 +92,15 @@ struct CudaValueCommand {
   uint64_t value = 0;
 };
 
+// CUDA activity timing (wp.timing_begin / timing_end): kBegin times the session's later GPU
+// operations whose kind is in `filter` (kTiming* bits); kEnd stops and asks the next synchronize
+// to collect them (cuda_device.h, SetTiming / TakeTiming).
+struct TimingCommand {
+  enum class Op { kBegin = 0, kEnd = 1 };
+  Op op = Op::kBegin;
+  uint32_t filter = 0;
+};
+
 struct Command;
 
 // A graph of the session's commands (a captured wp.Graph, docs/graphs.md), by an id the client
@@ -118,7 +128,7 @@ struct GeometryCommand {
 
 struct Command {
   std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand, SetGradCommand, CudaEventCommand,
-               CudaValueCommand, GraphCommand, GeometryCommand>
+               CudaValueCommand, GraphCommand, GeometryCommand, TimingCommand>
       kind;
   SourceLocation origin;   // where the client issued it
 };

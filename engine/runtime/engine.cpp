@@ -704,6 +704,15 @@ void Engine::SynchronizeDevices(Session& s) {
       s.Fail(r.error, r.origin);
     }
   }
+  // After a TimingCommand END: the timed operations, or none when a command failed (Warp
+  // discards them when timing_end's synchronize raises).
+  if (s.timing_collect.exchange(false)) {
+    const bool keep = !s.failed();
+    std::vector<TimedActivity> timed;
+    uint64_t dropped = 0;
+    for (auto& g : devices_->gpus()) g->TakeTiming(s, &timed, &dropped, keep);
+    s.SetTimingResult(std::move(timed), dropped);
+  }
 }
 
 // ---- modules ----

@@ -96,6 +96,13 @@ void Session::AppendOutput(const std::string& text) {
   if (output_.size() < (16u << 20)) output_ += text;
 }
 
+void Session::SetTimingResult(std::vector<TimedActivity> timing, uint64_t dropped) {
+  std::lock_guard<std::mutex> lock(mu_);
+  timing_ended_ = true;
+  timing_ = std::move(timing);
+  timing_dropped_ = dropped;
+}
+
 Session::SyncResult Session::TakeResult() {
   std::lock_guard<std::mutex> lock(mu_);
   SyncResult r;
@@ -105,6 +112,12 @@ Session::SyncResult Session::TakeResult() {
                                         " later command(s) were skipped)");
   r.origin = error_origin_;
   r.output.swap(output_);
+  r.timing_ended = timing_ended_;
+  r.timing.swap(timing_);
+  r.timing_dropped = timing_dropped_;
+  timing_ended_ = false;
+  timing_.clear();
+  timing_dropped_ = 0;
   error_ = Status::Ok();
   error_origin_ = {};
   skipped_ = 0;

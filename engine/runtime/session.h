@@ -15,9 +15,11 @@
 #include <mutex>
 #include <string>
 #include <unordered_map>
+#include <vector>
 
 #include "engine/core/module_source.h"
 #include "engine/core/status.h"
+#include "engine/device/activity_timing.h"
 #include "engine/geometry/geometry_registry.h"
 #include "engine/runtime/allocation.h"
 #include "engine/runtime/commands.h"
@@ -90,8 +92,14 @@ class Session {
     Status error;
     SourceLocation origin;
     std::string output;
+    // After a TimingCommand END: the timed GPU operations (none when a command failed).
+    bool timing_ended = false;
+    std::vector<TimedActivity> timing;
+    uint64_t timing_dropped = 0;
   };
   SyncResult TakeResult();
+  // The timed operations a synchronize collected after a TimingCommand END (TakeResult returns them).
+  void SetTimingResult(std::vector<TimedActivity> timing, uint64_t dropped);
 
   SerialQueue& queue() { return queue_; }
 
@@ -106,6 +114,9 @@ class Session {
   std::map<uint64_t, CommandGraph> graphs;
   bool in_graph = false;
   bool unchecked_allowed = false;
+  // Set by a TimingCommand END (executor thread), taken by the next synchronize, which then
+  // collects the session's timed GPU operations (Engine::SynchronizeDevices).
+  std::atomic<bool> timing_collect{false};
 
  private:
   std::string id_;
@@ -122,6 +133,9 @@ class Session {
   SourceLocation error_origin_;
   uint64_t skipped_ = 0;
   std::string output_;
+  bool timing_ended_ = false;
+  std::vector<TimedActivity> timing_;
+  uint64_t timing_dropped_ = 0;
   SerialQueue queue_;
   geometry::GeometryRegistry geometry_;
 };

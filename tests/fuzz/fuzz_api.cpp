@@ -313,6 +313,12 @@ struct Run {
   void Command(v1::Command* c) {
     switch (fdp.ConsumeIntegralInRange<int>(0, 6)) {
       case 6: {   // cross-process ordering: forged event handles, odd sizes, ops and devices
+        if (fdp.ConsumeIntegralInRange<int>(0, 3) == 0) {   // activity timing: any op, any filter
+          auto* t = c->mutable_timing();
+          t->set_op(static_cast<v1::TimingCommand::Op>(fdp.ConsumeIntegralInRange<int>(0, 2)));
+          t->set_filter(fdp.ConsumeIntegral<uint32_t>());
+          break;
+        }
         auto* e = c->mutable_cuda_event();
         e->set_op(static_cast<v1::CudaEventCommand::Op>(fdp.ConsumeIntegralInRange<int>(0, 3)));
         e->set_device(fdp.ConsumeBool() ? "cuda:0" : (fdp.ConsumeBool() ? "cpu" : Bytes(8)));

@@ -40,6 +40,9 @@ from .types import *  # noqa: F401,F403
 from .types import (Any, dtype_from_numpy, dtype_to_numpy, matrix, quaternion,  # noqa: F401
                     transformation, type_size_in_bytes, type_str, vector)
 from .utils import ScopedTimer, transform_expand  # noqa: F401
+from .timing import (TIMING_ALL, TIMING_GRAPH, TIMING_KERNEL, TIMING_KERNEL_BUILTIN,  # noqa: F401
+                     TIMING_MEMCPY, TIMING_MEMSET, TimingResult, timing_begin, timing_end,
+                     timing_print)
 from .geometry import (Bvh, BvhQuery, BvhQueryTiled, HashGrid, HashGridQuery, Mesh, MeshQuery,  # noqa: F401
                        MeshQueryAABB, MeshQueryAABBTiled,
                        MeshQueryPoint, MeshQueryRay, bvh_query_t, hash_grid_query_t,

@@ -425,6 +425,8 @@ class Runtime:
         # Graph capture (weft/graph.py): thread id -> the capture recording that thread's
         # commands; handles that captured graphs name, and those freed while a graph held them.
         self.captures: dict = {}
+        # (activities, dropped) of the synchronize after a TimingCommand END (weft.timing).
+        self.timing_collected = None
         self._graph_handles: collections.Counter = collections.Counter()
         self._graph_freed: set = set()
         self.closed = False
@@ -928,7 +930,13 @@ class Runtime:
             self._take_quiet()
             deferred, self._deferred_error = self._deferred_error, None
             self._end_if_over(response)
+            self._note_timing(response)
         _report_sync(response, deferred)
+
+    def _note_timing(self, response) -> None:
+        """Keeps the timed GPU operations a synchronize brought back (weft.timing.timing_end)."""
+        if response.timing_ended:
+            self.timing_collected = (list(response.timing), response.timing_dropped)
 
     def run(self) -> None:
         """Sends the batched commands and returns once weftd has run them (GPU work queued on
@@ -953,6 +961,7 @@ class Runtime:
             self._unsynchronized = False
             response = response.sync
             self._end_if_over(response)
+            self._note_timing(response)
         _report_sync(response, deferred)
 
     def synchronize_if_needed(self) -> None:

@@ -30,7 +30,9 @@ def transform_expand(t):
 
 class ScopedTimer:
     """`with wp.ScopedTimer("name"):` prints the block's wall time in ms (Warp's helper).
-    synchronize=True waits for the daemon's commands before reading the clock."""
+    synchronize=True waits for the daemon's commands before reading the clock. cuda_filter
+    (TIMING_* flags) times the block's GPU operations (weft.timing): `timing_results` holds
+    them after the block, and print=True prints them through report_func (timing_print)."""
 
     indent = -1
     enabled = True
@@ -43,6 +45,7 @@ class ScopedTimer:
         self.print = print
         self.dict = dict
         self.synchronize = synchronize
+        self.cuda_filter = cuda_filter
         self.report_func = report_func
         self.elapsed = 0.0
         self.timing_results = []
@@ -58,6 +61,10 @@ class ScopedTimer:
     def __enter__(self):
         if self.active:
             self._sync()
+            if self.cuda_filter:
+                from .timing import timing_begin  # noqa: PLC0415
+
+                timing_begin(self.cuda_filter, synchronize=not self.synchronize)
             ScopedTimer.indent += 1
             self.start = time.perf_counter_ns()
         return self
@@ -65,15 +72,35 @@ class ScopedTimer:
     def __exit__(self, exc_type, exc_value, traceback):
         if not self.active:
             return
-        self._sync()
+        sync_error = None   # raised after the scope is closed, never in place of the block's own
+        try:
+            self._sync()
+        except Exception as error:  # noqa: BLE001
+            sync_error = error
         self.elapsed = (time.perf_counter_ns() - self.start) / 1e6
+        self.timing_results = []
+        if self.cuda_filter:
+            from .timing import timing_end  # noqa: PLC0415
+
+            try:
+                self.timing_results = timing_end(synchronize=not self.synchronize)
+            except Exception as error:  # noqa: BLE001
+                sync_error = sync_error or error
         if self.dict is not None:
             self.dict[self.name].append(self.elapsed)
-        if self.report_func is not None:
-            self.report_func([], "  " * ScopedTimer.indent)
+        indent = "  " * ScopedTimer.indent
+        if self.print and self.timing_results:
+            if self.report_func is not None:
+                self.report_func(self.timing_results, indent)
+            else:
+                from .timing import timing_print  # noqa: PLC0415
+
+                timing_print(self.timing_results, indent)
         if self.print:
-            print(f"{'  ' * ScopedTimer.indent}{self.name} took {self.elapsed:.2f} ms")
+            print(f"{indent}{self.name} took {self.elapsed:.2f} ms")
         ScopedTimer.indent -= 1
+        if sync_error is not None and exc_type is None:
+            raise sync_error
 
 
 # ------------------------------------------------------------------------------------------
