@@ -7,6 +7,9 @@ Rows (each for weft and Warp, the same kernel source, cuda:0):
   stream; Warp records its own per-activity events);
 - saxpy at 1e7 elements: the kernel time the timing results report (median of R launches) and
   the host's time per launch for R launches between two synchronizes (the GPU-bound rate);
+- saxpy at 1e7 between timed events (wp.Event(enable_timing=True)): R iterations of record,
+  launch, record, then the R elapsed times read: the host's time per iteration (weft records
+  without waiting) and the median event time against the activity timing's kernel time;
 - error: saxpy's result against a float64 reference (max relative error), and whether each
   library returned exactly one result per timed launch.
 The table is printed last. Usage: python3 bench/bench_activity_timing.py [--launches 2000]
@@ -76,6 +79,24 @@ def saxpy_rows(lib, mod, n: int, repeat: int, x0: np.ndarray, y0: np.ndarray):
     return kernel_ms / 1e3 if kernel_ms is not None else None, host, err, len(results) == repeat
 
 
+def event_rows(lib, mod, n: int, repeat: int, x0: np.ndarray, y0: np.ndarray):
+    """Host seconds per iteration of record / launch / record, and the median event time (s)."""
+    x = lib.array(x0, dtype=float, device="cuda:0")
+    y = lib.array(y0, dtype=float, device="cuda:0")
+    lib.launch(mod.saxpy, dim=n, inputs=[x, y, 2.0], device="cuda:0")
+    lib.synchronize()
+    pairs = [(lib.Event("cuda:0", enable_timing=True), lib.Event("cuda:0", enable_timing=True))
+             for _ in range(repeat)]
+    t = time.perf_counter()
+    for start, end in pairs:
+        lib.record_event(start)
+        lib.launch(mod.saxpy, dim=n, inputs=[x, y, 2.0], device="cuda:0")
+        lib.record_event(end)
+    host = (time.perf_counter() - t) / repeat
+    elapsed = [lib.get_event_elapsed_time(start, end) for start, end in pairs]
+    return host, statistics.median(elapsed) / 1e3
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--launches", type=int, default=2000)
@@ -111,6 +132,7 @@ def main() -> None:
             r["on"] = statistics.median(t for t, _ in on)
             r["count_ok"] = all(c == args.launches for _, c in on)
             r["kernel"], r["host"], r["err"], r["saxpy_count_ok"] = saxpy_rows(lib, mod, n, 20, x0, y0)
+            r["event_host"], r["event_time"] = event_rows(lib, mod, n, 20, x0, y0)
             print(f"{name}: done", flush=True)
     finally:
         daemon.stop()
@@ -123,7 +145,9 @@ def main() -> None:
     rows = [row(f"empty launch batched x{args.launches}, timing off", "off"),
             row(f"empty launch batched x{args.launches}, TIMING_ALL on", "on"),
             row(f"saxpy {n:.0e}: kernel time from timing_end (median of 20)", "kernel"),
-            row(f"saxpy {n:.0e}: host time per launch, 20 between syncs", "host")]
+            row(f"saxpy {n:.0e}: host time per launch, 20 between syncs", "host"),
+            row(f"saxpy {n:.0e} between timed events: host time per iteration (x20)", "event_host"),
+            row(f"saxpy {n:.0e} between timed events: event time (median of 20)", "event_time")]
     for name in results:
         r = results[name]
         notes.append(f"{name}: timing cost per launch {(r['on'] - r['off']) * 1e6:.2f} us; one result per "

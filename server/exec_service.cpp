@@ -1,4 +1,4 @@
-// ExecService: ordered command batches and synchronization.
+// ExecService: ordered command batches, synchronization, and the time between timing events.
 #include <spdlog/spdlog.h>
 
 #include "server/grpc_status.h"
@@ -88,6 +88,16 @@ grpc::Status ExecServiceImpl::Synchronize(grpc::ServerContext* ctx, const v1::Sy
   auto s = auth_.SessionOf(*ctx);
   if (!s.ok()) return ToGrpc(s.status());
   ExecSynchronize(auth_.engine(), **s, resp);
+  return grpc::Status::OK;
+}
+
+grpc::Status ExecServiceImpl::EventElapsed(grpc::ServerContext* ctx, const v1::EventElapsedRequest* req,
+                                           v1::EventElapsedResponse* resp) {
+  auto s = auth_.SessionOf(*ctx);
+  if (!s.ok()) return ToGrpc(s.status());
+  auto ms = auth_.engine().EventElapsed(**s, req->device(), req->start_id(), req->end_id());
+  if (!ms.ok()) return ToGrpc(ms.status());
+  resp->set_elapsed_ms(*ms);
   return grpc::Status::OK;
 }
 

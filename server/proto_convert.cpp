@@ -257,6 +257,15 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
                              t.filter()};
       break;
     }
+    case v1::Command::kTimedEvent: {
+      const auto& t = p.timed_event();
+      if (t.op() != v1::TimedEventCommand::RECORD && t.op() != v1::TimedEventCommand::DESTROY)
+        return InvalidArgument("command " + std::to_string(index) + ": unknown timed_event op " + std::to_string(t.op()));
+      c.kind = TimedEventCommand{t.op() == v1::TimedEventCommand::DESTROY ? TimedEventCommand::Op::kDestroy
+                                                                          : TimedEventCommand::Op::kRecord,
+                                 t.event_id(), t.device()};
+      break;
+    }
     case v1::Command::kCudaValue: {
       const auto& v = p.cuda_value();
       if (v.op() != v1::CudaValueCommand::WAIT && v.op() != v1::CudaValueCommand::WRITE)

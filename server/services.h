@@ -89,6 +89,8 @@ class ExecServiceImpl final : public v1::ExecService::Service {
   grpc::Status Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitResponse* resp) override;
   grpc::Status Synchronize(grpc::ServerContext* ctx, const v1::SynchronizeRequest* req,
                            v1::SynchronizeResponse* resp) override;
+  grpc::Status EventElapsed(grpc::ServerContext* ctx, const v1::EventElapsedRequest* req,
+                            v1::EventElapsedResponse* resp) override;
  private:
   const CallAuth& auth_;
 };

@@ -599,6 +599,7 @@ void CudaDevice::DestroyStream(Stream& st) {
 void CudaDevice::CloseSession(Session& s) {
   ForgetImports(s.id());   // its arrays are gone already: this closes its imported mappings
   ForgetEvents(s.id());
+  ForgetTimedEvents(s.id());
   std::shared_lock<std::shared_mutex> reset(reset_mu_);
   (void)MakeCurrent();
   std::unique_ptr<Stream> st;

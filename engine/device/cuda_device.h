@@ -188,6 +188,17 @@ class CudaDevice final : public Device {
   // timed past kMaxTimedActivities; the records are cleared and their events kept for reuse.
   void TakeTiming(Session& s, std::vector<TimedActivity>* out, uint64_t* dropped, bool keep);
 
+  // Timing events of a session (wp.Event(enable_timing=True), cuda_device_timing.cpp): event
+  // `id` (the session's own; made at its first record, at most kTimedEventsPerSession) recorded
+  // on the session's stream; forgotten; the milliseconds between two records once both
+  // completed (the caller waited for the stream). Errors: more events than the limit, an id
+  // never recorded or destroyed, a device reset since a record, a record not yet complete.
+  Status RecordTimedEvent(Session& s, uint64_t id);
+  void DestroyTimedEvent(Session& s, uint64_t id);
+  Expected<double> TimedEventElapsed(Session& s, uint64_t start_id, uint64_t end_id);
+  size_t TimedEventCount() const;   // every session's (tests)
+  static constexpr size_t kTimedEventsPerSession = 4096;
+
   CudaDeviceStats stats() const;
   // True once a fault left the device unusable for the rest of this process (the driver kept
   // the sticky error through the context reset); every operation then fails with the reason.
@@ -303,6 +314,14 @@ class CudaDevice final : public Device {
   // The stream's timed records' events back to its spares (at most kSpareTimingEvents kept).
   void RecycleTimingLocked(Stream& st);
   static constexpr size_t kSpareTimingEvents = 1024;
+  struct TimedEvent {
+    jit::CuEvent event = nullptr;
+    uint64_t generation = 0;   // the context it lives in
+  };
+  mutable std::mutex timed_events_mu_;
+  std::unordered_map<std::string, std::unordered_map<uint64_t, TimedEvent>> timed_events_;   // by session id
+  // Destroys the session's timing events (session close).
+  void ForgetTimedEvents(const std::string& session_id);
   std::unordered_map<std::string, uint32_t> timing_filters_;   // by session id (mu_): for streams made later
   struct CuModuleEntry {
     jit::CuModule module = nullptr;

@@ -104,4 +104,91 @@ CudaDevice::TimedSpan::~TimedSpan() {
   st_.spare_events.push_back(record_.end);
 }
 
+// ---- timing events of a session ----
+
+Status CudaDevice::RecordTimedEvent(Session& s, uint64_t id) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  WEFT_RETURN_IF_ERROR(CheckUsable());
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  WEFT_ASSIGN_OR_RETURN(Stream * st, StreamOf(s.id()));
+  const uint64_t gen = generation_.load();
+  std::lock_guard<std::mutex> lock(timed_events_mu_);
+  auto& events = timed_events_[s.id()];
+  auto it = events.find(id);
+  if (it == events.end() || it->second.generation != gen) {   // new, or its context was reset
+    if (it == events.end() && events.size() >= kTimedEventsPerSession)
+      return ResourceExhausted("the session holds " + std::to_string(events.size()) + " timing events on " + name_ +
+                               ", the limit (a wp.Event is released when it is collected)");
+    jit::CuEvent e = nullptr;
+    WEFT_RETURN_IF_ERROR(driver_->Check(driver_->EventCreate(&e, 0), "cuEventCreate"));
+    it = events.insert_or_assign(id, TimedEvent{e, gen}).first;
+  }
+  return driver_->Check(driver_->EventRecord(it->second.event, st->stream), "cuEventRecord");
+}
+
+void CudaDevice::DestroyTimedEvent(Session& s, uint64_t id) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  std::lock_guard<std::mutex> lock(timed_events_mu_);
+  auto session = timed_events_.find(s.id());
+  if (session == timed_events_.end()) return;
+  auto it = session->second.find(id);
+  if (it == session->second.end()) return;
+  if (it->second.generation == generation_.load() && MakeCurrent().ok()) driver_->EventDestroy(it->second.event);
+  session->second.erase(it);
+}
+
+Expected<double> CudaDevice::TimedEventElapsed(Session& s, uint64_t start_id, uint64_t end_id) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  WEFT_RETURN_IF_ERROR(CheckUsable());
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  std::lock_guard<std::mutex> lock(timed_events_mu_);
+  auto session = timed_events_.find(s.id());
+  const uint64_t gen = generation_.load();
+  jit::CuEvent events[2] = {nullptr, nullptr};
+  const uint64_t ids[2] = {start_id, end_id};
+  for (int i = 0; i < 2; ++i) {
+    const TimedEvent* e = nullptr;
+    if (session != timed_events_.end()) {
+      auto it = session->second.find(ids[i]);
+      if (it != session->second.end()) e = &it->second;
+    }
+    if (e == nullptr)
+      return NotFound("timing event " + std::to_string(ids[i]) + " was never recorded on " + name_ +
+                      " in this session (or was released)");
+    if (e->generation != gen)
+      return FailedPrecondition(name_ + " was reset since timing event " + std::to_string(ids[i]) +
+                                " was recorded: record it again");
+    events[i] = e->event;
+  }
+  float ms = 0;
+  const jit::CuResult r = driver_->EventElapsedTime(&ms, events[0], events[1]);
+  if (r == jit::kCuErrorNotReady)
+    return FailedPrecondition("timing event " + std::to_string(end_id) + " is recorded after work that has not "
+                              "finished (recorded again by another thread?)");
+  WEFT_RETURN_IF_ERROR(driver_->Check(r, "cuEventElapsedTime"));
+  return static_cast<double>(ms);
+}
+
+size_t CudaDevice::TimedEventCount() const {
+  std::lock_guard<std::mutex> lock(timed_events_mu_);
+  size_t n = 0;
+  for (const auto& [id, events] : timed_events_) n += events.size();
+  return n;
+}
+
+void CudaDevice::ForgetTimedEvents(const std::string& session_id) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  std::lock_guard<std::mutex> lock(timed_events_mu_);
+  auto session = timed_events_.find(session_id);
+  if (session == timed_events_.end()) return;
+  const uint64_t gen = generation_.load();
+  bool current = false;
+  for (const auto& [id, e] : session->second) {
+    if (e.generation != gen) continue;
+    if (!current) current = MakeCurrent().ok();
+    if (current) driver_->EventDestroy(e.event);
+  }
+  timed_events_.erase(session);
+}
+
 }  // namespace weft

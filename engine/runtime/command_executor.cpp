@@ -213,6 +213,7 @@ bool RunsAfterFailure(const Command& c) {
     return t->op == TapeCommand::Op::kEnd || t->op == TapeCommand::Op::kFree;
   if (auto* g = std::get_if<GraphCommand>(&c.kind)) return g->op == GraphCommand::Op::kDestroy;
   if (auto* tc = std::get_if<TimingCommand>(&c.kind)) return tc->op == TimingCommand::Op::kEnd;
+  if (auto* te = std::get_if<TimedEventCommand>(&c.kind)) return te->op == TimedEventCommand::Op::kDestroy;
   if (auto* geo = std::get_if<GeometryCommand>(&c.kind)) return geo->request.op == geometry::GeometryRequest::Op::kFree;
   return false;
 }
@@ -227,6 +228,7 @@ Status CommandExecutor::Execute(Session& s, const Command& c, const HandleSnapsh
   if (auto* v = std::get_if<CudaValueCommand>(&c.kind)) return CudaValue(s, *v, h);
   if (auto* g = std::get_if<GraphCommand>(&c.kind)) return Graph(s, *g, h);
   if (auto* tc = std::get_if<TimingCommand>(&c.kind)) return Timing(s, *tc);
+  if (auto* te = std::get_if<TimedEventCommand>(&c.kind)) return TimedEvent(s, *te);
   if (auto* geo = std::get_if<GeometryCommand>(&c.kind)) {
     if (!geometry_) return Unimplemented("geometry commands are not served here");
     return geometry_(s, geo->request);
@@ -401,6 +403,21 @@ Status CommandExecutor::Timing(Session& s, const TimingCommand& c) {
   }
   if (c.op == TimingCommand::Op::kEnd) s.timing_collect.store(true);
   return result;
+}
+
+Status CommandExecutor::TimedEvent(Session& s, const TimedEventCommand& c) {
+  if (c.op != TimedEventCommand::Op::kRecord && c.op != TimedEventCommand::Op::kDestroy)
+    return InvalidArgument("timed_event: unknown op " + std::to_string(static_cast<int>(c.op)));
+  if (s.in_graph) return InvalidArgument("timed_event: not allowed inside a graph");
+  WEFT_ASSIGN_OR_RETURN(Device * device, devices_.Resolve(s.id(), c.device));
+  auto* gpu = dynamic_cast<CudaDevice*>(device);
+  if (gpu == nullptr)
+    return InvalidArgument("timed_event: '" + c.device + "' is not a GPU (events time GPU work)");
+  if (c.op == TimedEventCommand::Op::kDestroy) {
+    gpu->DestroyTimedEvent(s, c.event_id);
+    return Status::Ok();
+  }
+  return gpu->RecordTimedEvent(s, c.event_id);
 }
 
 Status CommandExecutor::SetGrad(Session& s, const SetGradCommand& c, const HandleSnapshot& h) {

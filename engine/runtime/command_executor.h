@@ -71,6 +71,8 @@ class CommandExecutor {
   // TimingCommand: the filter of every GPU's stream of the session (0 at END); END asks the
   // next synchronize to collect the timed operations.
   Status Timing(Session& s, const TimingCommand& c);
+  // TimedEventCommand: records or forgets a timing event of the session on a GPU.
+  Status TimedEvent(Session& s, const TimedEventCommand& c);
 
   DeviceSet& devices_;
   ModuleStore* store_;

@@ -57,6 +57,10 @@ Status CheckCommandBatch(const std::vector<Command>& commands, const CommandLimi
       if (tc->op != TimingCommand::Op::kBegin && tc->op != TimingCommand::Op::kEnd)
         return InvalidArgument("command " + std::to_string(i) + ": unknown timing op " +
                                std::to_string(static_cast<int>(tc->op)));
+    } else if (auto* te = std::get_if<TimedEventCommand>(&c.kind)) {
+      if (te->op != TimedEventCommand::Op::kRecord && te->op != TimedEventCommand::Op::kDestroy)
+        return InvalidArgument("command " + std::to_string(i) + ": unknown timed_event op " +
+                               std::to_string(static_cast<int>(te->op)));
     } else if (auto* g = std::get_if<GraphCommand>(&c.kind)) {
       if (g->commands.size() > limits.max_graph_commands)
         return ResourceExhausted("command " + std::to_string(i) + ": a graph of " + std::to_string(g->commands.size()) +
@@ -64,10 +68,10 @@ Status CheckCommandBatch(const std::vector<Command>& commands, const CommandLimi
       for (const Command& inner : g->commands) {
         if (std::holds_alternative<GraphCommand>(inner.kind))
           return InvalidArgument("command " + std::to_string(i) + ": a graph cannot hold graph commands");
-        if (std::holds_alternative<TimingCommand>(inner.kind))
+        if (std::holds_alternative<TimingCommand>(inner.kind) || std::holds_alternative<TimedEventCommand>(inner.kind))
           return InvalidArgument("command " + std::to_string(i) +
-                                 ": a graph cannot hold timing commands (wp.timing_begin / timing_end outside the "
-                                 "capture time its launches: a graph launch is one timed activity)");
+                                 ": a graph cannot hold timing commands or timing events (wp.timing_begin / timing_end "
+                                 "and wp.record_event outside the capture time its launches)");
       }
       // The graph's own commands obey the per-command limits; they count once, as one command.
       Status st = CheckCommandBatch(g->commands, limits, 0);

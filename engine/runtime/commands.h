@@ -101,6 +101,16 @@ struct TimingCommand {
   uint32_t filter = 0;
 };
 
+// A timing event of the session (wp.Event(enable_timing=True)): kRecord records the daemon's
+// CUDA event `event_id` (private to the session, made at its first record) on the session's
+// stream of `device`; kDestroy forgets it. Engine::EventElapsed reads the time between two.
+struct TimedEventCommand {
+  enum class Op { kRecord = 0, kDestroy = 1 };
+  Op op = Op::kRecord;
+  uint64_t event_id = 0;
+  std::string device;   // "cuda:N" or "cuda"
+};
+
 struct Command;
 
 // A graph of the session's commands (a captured wp.Graph, docs/graphs.md), by an id the client
@@ -128,7 +138,8 @@ struct GeometryCommand {
 
 struct Command {
   std::variant<CopyCommand, FillCommand, LaunchCommand, TapeCommand, SetGradCommand, CudaEventCommand,
-               CudaValueCommand, GraphCommand, GeometryCommand, TimingCommand>
+               CudaValueCommand, GraphCommand, GeometryCommand, TimingCommand,
+               TimedEventCommand>
       kind;
   SourceLocation origin;   // where the client issued it
 };

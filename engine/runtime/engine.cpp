@@ -695,6 +695,15 @@ Session::SyncResult Engine::Synchronize(Session& s) {
   return s.TakeResult();
 }
 
+Expected<double> Engine::EventElapsed(Session& s, const std::string& device, uint64_t start_id, uint64_t end_id) {
+  WEFT_ASSIGN_OR_RETURN(Device * d, devices_->Resolve(s.id(), device));
+  auto* gpu = dynamic_cast<CudaDevice*>(d);
+  if (gpu == nullptr) return InvalidArgument("'" + device + "' is not a GPU (timing events time GPU work)");
+  s.queue().WaitIdle();
+  SynchronizeDevices(s);
+  return gpu->TimedEventElapsed(s, start_id, end_id);
+}
+
 void Engine::SynchronizeDevices(Session& s) {
   for (auto& g : devices_->gpus()) {
     DeviceSyncResult r = g->Synchronize(s);

@@ -179,6 +179,10 @@ class Engine {
   // otherwise, and when the queue is busy, it is queued behind the others.
   Expected<uint64_t> Submit(Session& s, std::vector<Command> commands, bool run_here_when_idle = false);
   Session::SyncResult Synchronize(Session& s);
+  // The GPU time (ms) between two records of the session's timing events on `device`
+  // (TimedEventCommand), once the commands queued before this call ran and the session's work
+  // on the GPUs finished (a command's error stays for the next Synchronize).
+  Expected<double> EventElapsed(Session& s, const std::string& device, uint64_t start_id, uint64_t end_id);
   // Submit + Synchronize in one step (the fused sync point): when the session's executor is
   // idle the batch runs on the calling thread, saving two thread hand-offs.
   Expected<Session::SyncResult> SubmitAndSynchronize(Session& s, std::vector<Command> commands);

@@ -3,7 +3,10 @@
 // CPU-only session's work ends with no activities; an error discards the records and still ends
 // timing. On a GPU: fills and copies are timed with Warp's names and filters, a filter selects,
 // a second BEGIN discards, and a flood of operations keeps at most kMaxTimedActivities records
-// (the rest counted as dropped). The GPU cases skip without one.
+// (the rest counted as dropped). Timing events (TimedEventCommand, Engine::EventElapsed): refused
+// on the CPU, in a graph and with an unknown op; on a GPU the time between two records, unknown
+// and released ids, the per-session limit, and nothing left after the session closes. The GPU
+// cases skip without one.
 #include <gtest/gtest.h>
 
 #include "runtime_test_support.h"
@@ -96,6 +99,41 @@ TEST(TimingTest, AnErrorBeforeEndDiscardsTheRecordsAndEndsTiming) {
   EXPECT_TRUE(r->timing.empty());
 }
 
+Command TimedEvent(TimedEventCommand::Op op, uint64_t id, const std::string& device = "cuda:0") {
+  Command c;
+  c.kind = TimedEventCommand{op, id, device};
+  return c;
+}
+
+TEST(TimingTest, TimingEventsAreForGpusAndNotForGraphs) {
+  auto e = MakeEngine();
+  auto s = e->OpenSession(Local());
+  std::vector<Command> bad_op;
+  bad_op.push_back(TimedEvent(static_cast<TimedEventCommand::Op>(4), 1));
+  auto q = e->Submit(*s, std::move(bad_op));
+  ASSERT_FALSE(q.ok());
+  EXPECT_NE(q.status().message().find("unknown timed_event op 4"), std::string::npos) << q.status().ToString();
+  Command graph;
+  GraphCommand g;
+  g.graph_id = 2;
+  g.device = "cpu";
+  g.commands.push_back(TimedEvent(TimedEventCommand::Op::kRecord, 1));
+  graph.kind = std::move(g);
+  std::vector<Command> in_graph;
+  in_graph.push_back(std::move(graph));
+  q = e->Submit(*s, std::move(in_graph));
+  ASSERT_FALSE(q.ok());
+  EXPECT_NE(q.status().message().find("timing events"), std::string::npos) << q.status().ToString();
+  std::vector<Command> on_cpu;
+  on_cpu.push_back(TimedEvent(TimedEventCommand::Op::kRecord, 1, "cpu"));
+  auto r = e->SubmitAndSynchronize(*s, std::move(on_cpu));
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_NE(r->error.message().find("'cpu' is not a GPU"), std::string::npos) << r->error.ToString();
+  auto ms = e->EventElapsed(*s, "cpu", 1, 2);
+  ASSERT_FALSE(ms.ok());
+  EXPECT_EQ(ms.status().code(), StatusCode::kInvalidArgument);
+}
+
 class TimingGpuTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -182,6 +220,41 @@ TEST_F(TimingGpuTest, TheFloodsCollectionHasTheLimitAndTheDroppedCount) {
   ASSERT_TRUE(r.timing_ended);
   EXPECT_EQ(r.timing.size(), 1u);
   EXPECT_EQ(r.timing_dropped, 0u);
+}
+
+TEST_F(TimingGpuTest, TimingEventsMeasureTheWorkBetweenThemAndAreBounded) {
+  std::vector<Command> batch;
+  batch.push_back(TimedEvent(TimedEventCommand::Op::kRecord, 10));
+  for (int i = 0; i < 50; ++i) batch.push_back(CopyAll(b_, a_));
+  batch.push_back(TimedEvent(TimedEventCommand::Op::kRecord, 11));
+  batch.push_back(TimedEvent(TimedEventCommand::Op::kRecord, 12));   // nothing between 11 and 12
+  ASSERT_TRUE(engine_->Submit(*s_, std::move(batch)).ok());
+  auto work = engine_->EventElapsed(*s_, "cuda:0", 10, 11);
+  auto none = engine_->EventElapsed(*s_, "cuda:0", 11, 12);
+  ASSERT_TRUE(work.ok() && none.ok()) << work.status().ToString() << none.status().ToString();
+  EXPECT_GT(*work, 0.0);
+  EXPECT_LT(*none, *work);   // 50 copies of 256 KiB against none
+  auto unknown = engine_->EventElapsed(*s_, "cuda:0", 10, 99);
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_EQ(unknown.status().code(), StatusCode::kNotFound);
+  std::vector<Command> release;
+  release.push_back(TimedEvent(TimedEventCommand::Op::kDestroy, 10));
+  ASSERT_TRUE(engine_->Submit(*s_, std::move(release)).ok());
+  auto released = engine_->EventElapsed(*s_, "cuda:0", 10, 11);
+  EXPECT_EQ(released.status().code(), StatusCode::kNotFound) << released.status().ToString();
+
+  // The limit: a session holds at most kTimedEventsPerSession events.
+  auto* gpu = engine_->devices().gpus()[0].get();
+  std::vector<Command> many;
+  for (uint64_t id = 1000; id < 1000 + CudaDevice::kTimedEventsPerSession; ++id)
+    many.push_back(TimedEvent(TimedEventCommand::Op::kRecord, id));
+  auto r = engine_->SubmitAndSynchronize(*s_, std::move(many));
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_FALSE(r->error.ok());   // 2 held before: the last ones are refused
+  EXPECT_NE(r->error.message().find("timing events"), std::string::npos) << r->error.ToString();
+  EXPECT_EQ(gpu->TimedEventCount(), CudaDevice::kTimedEventsPerSession);
+  ASSERT_TRUE(engine_->CloseSession(s_->id()).ok());
+  EXPECT_EQ(gpu->TimedEventCount(), 0u);
 }
 
 }  // namespace

@@ -319,6 +319,13 @@ struct Run {
           t->set_filter(fdp.ConsumeIntegral<uint32_t>());
           break;
         }
+        if (fdp.ConsumeIntegralInRange<int>(0, 3) == 0) {   // timing events: any op, id, device
+          auto* t = c->mutable_timed_event();
+          t->set_op(static_cast<v1::TimedEventCommand::Op>(fdp.ConsumeIntegralInRange<int>(0, 2)));
+          t->set_event_id(fdp.ConsumeIntegral<uint64_t>());
+          t->set_device(fdp.ConsumeBool() ? "cuda:0" : (fdp.ConsumeBool() ? "cpu" : Bytes(8)));
+          break;
+        }
         auto* e = c->mutable_cuda_event();
         e->set_op(static_cast<v1::CudaEventCommand::Op>(fdp.ConsumeIntegralInRange<int>(0, 3)));
         e->set_device(fdp.ConsumeBool() ? "cuda:0" : (fdp.ConsumeBool() ? "cpu" : Bytes(8)));

@@ -40,6 +40,9 @@ from .types import *  # noqa: F401,F403
 from .types import (Any, dtype_from_numpy, dtype_to_numpy, matrix, quaternion,  # noqa: F401
                     transformation, type_size_in_bytes, type_str, vector)
 from .utils import ScopedTimer, transform_expand  # noqa: F401
+from .utils import ScopedLogger, ScopedLogLevel  # noqa: F401
+from .logger import Logger, get_logger, set_logger  # noqa: F401
+from ._kernel.module import clear_kernel_cache, force_load  # noqa: F401
 from .timing import (TIMING_ALL, TIMING_GRAPH, TIMING_KERNEL, TIMING_KERNEL_BUILTIN,  # noqa: F401
                      TIMING_MEMCPY, TIMING_MEMSET, TimingResult, timing_begin, timing_end,
                      timing_print)

@@ -8,16 +8,16 @@ stream: `wait_event`/`wait_stream` are already satisfied (one ordered queue), an
 `stream.synchronize()` waits for all of the session's work. `cuda_stream` is None: no handle of
 the daemon's stream exists in this process.
 
-Events mark a point in the session's command order. `record_event` of an event created with
-`enable_timing=True` waits for the work queued before it and takes the host clock then, so
-`get_event_elapsed_time(start, end)` is the time from the completion of the work before
-`start` to the completion of the work before `end`, in milliseconds (it includes one daemon
-round trip, tens of microseconds locally). An event without timing records without waiting;
-`synchronize_event` then waits for the session's work.
+Events mark a point in the session's command order. An event created with
+`enable_timing=True` is a CUDA event of the daemon's (TimedEventCommand): `record_event` queues
+its record on the session's stream without waiting, and `get_event_elapsed_time(start, end)`
+asks weftd for the GPU time between the two records (cuEventElapsedTime), as Warp measures it.
+An event without timing records without waiting; `synchronize_event` then waits for the
+session's work.
 """
 from __future__ import annotations
 
-import time
+import itertools
 
 from . import _runtime
 from .device import get_device
@@ -70,8 +70,10 @@ class Event:
             _ipc = _new_interprocess_event(self.device)
         self._ipc = _ipc              # _cuda_ipc.IpcEvent of this process, or None
         self.is_ipc = _ipc is not None
-        self._time = None           # host clock when the work before it was done
         self._recorded = False
+        # A timing event is weftd's, by this id, once recorded in the session of `_timing_rt`.
+        self._timing_id = next(_timing_ids) if self.enable_timing else 0
+        self._timing_rt = None
 
     def _record(self) -> None:
         rt = _runtime.get_runtime()
@@ -82,8 +84,8 @@ class Event:
             rt.submit(_ipc_event_command("RECORD", self.device, self._ipc))
             rt.run()
         elif self.enable_timing:
-            rt.synchronize()
-            self._time = time.perf_counter()
+            rt.submit(_timed_event_command("RECORD", self.device, self._timing_id))
+            self._timing_rt = rt
         else:
             rt.flush()
         self._recorded = True
@@ -105,7 +107,7 @@ class Event:
         if self._ipc is not None:
             from . import _cuda_ipc  # noqa: PLC0415
             return _cuda_ipc.event_is_done(self._ipc)
-        if not self._recorded or self._time is not None:
+        if not self._recorded:
             return True
         return _session_work_done(self)
 
@@ -123,7 +125,7 @@ class Event:
             _runtime.get_runtime().synchronize_if_needed()
             _cuda_ipc.synchronize_event(self._ipc)
             return
-        if self._recorded and self._time is None:
+        if self._recorded:
             _runtime.get_runtime().synchronize_if_needed()
 
     def ipc_handle(self) -> bytes:
@@ -143,6 +145,12 @@ class Event:
         return None if self._ipc is None else self._ipc.event.value
 
     def __del__(self):
+        rt = getattr(self, "_timing_rt", None)
+        if rt is not None:              # weftd forgets the event with the next batch
+            try:
+                rt.submit_from_finalizer(_timed_event_command("DESTROY", self.device, self._timing_id))
+            except Exception:  # noqa: BLE001 (interpreter shutdown)
+                pass
         ipc = getattr(self, "_ipc", None)
         if ipc is not None:
             try:
@@ -154,6 +162,16 @@ class Event:
     def __repr__(self):
         kind = " interprocess" if self._ipc is not None else ""
         return f"<weft{kind} Event on {self.device} timing={self.enable_timing}>"
+
+
+_timing_ids = itertools.count(1)
+
+
+def _timed_event_command(op: str, device, event_id: int):
+    from .v1 import exec_pb2  # noqa: PLC0415
+
+    return exec_pb2.Command(timed_event=exec_pb2.TimedEventCommand(
+        op=getattr(exec_pb2.TimedEventCommand, op), event_id=event_id, device=device.alias))
 
 
 def _ipc_requirements(device):
@@ -443,11 +461,29 @@ def synchronize_event(event) -> None:
 
 
 def get_event_elapsed_time(start_event, end_event, synchronize=True) -> float:
-    """Milliseconds between two timed events (see the module docstring for what is timed)."""
+    """Milliseconds of GPU time between the records of two timed events (weftd's CUDA events,
+    cuEventElapsedTime). synchronize=True waits for the session's work first and raises its
+    error; either way weftd waits for the end event's record to complete."""
+    from .v1 import exec_pb2  # noqa: PLC0415
+
     for e in (start_event, end_event):
         if not e.enable_timing:
             raise RuntimeError("get_event_elapsed_time needs events created with "
                                "enable_timing=True")
-        if e._time is None:
+        if e._timing_rt is None:
             raise RuntimeError("get_event_elapsed_time: the event was not recorded")
-    return (end_event._time - start_event._time) * 1000.0
+    if start_event.device != end_event.device:
+        raise RuntimeError(f"get_event_elapsed_time: the events were recorded on two devices "
+                           f"({start_event.device} and {end_event.device})")
+    rt = _runtime.get_runtime()
+    if start_event._timing_rt is not rt or end_event._timing_rt is not rt:
+        raise RuntimeError("get_event_elapsed_time: an event was recorded in an earlier session "
+                           "(the daemon's session ended since): record it again")
+    if synchronize:
+        rt.synchronize()
+    else:
+        rt.flush()
+    response = rt.call(rt.exec_stub.EventElapsed, exec_pb2.EventElapsedRequest(
+        device=start_event.device.alias, start_id=start_event._timing_id,
+        end_id=end_event._timing_id))
+    return response.elapsed_ms

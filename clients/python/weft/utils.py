@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-__all__ = ["ScopedTimer", "array_cast", "array_inner", "array_scan", "array_sum",
+__all__ = ["ScopedLogLevel", "ScopedLogger", "ScopedTimer", "array_cast", "array_inner", "array_scan", "array_sum",
            "radix_sort_pairs", "runlength_encode", "segmented_sort_pairs", "transform_expand"]
 
 
@@ -26,6 +26,51 @@ def transform_expand(t):
     if len(values) != 7:
         raise ValueError(f"transform_expand expects 7 values (position, quaternion), got {len(values)}")
     return transformf(p=values[0:3], q=values[3:7])
+
+
+class ScopedLogger:
+    """`with wp.ScopedLogger(logger):` makes `logger` (None: the default one) the active logger
+    (weft.logger) inside the block and restores the previous one after it."""
+
+    def __init__(self, logger):
+        from . import logger as _logger  # noqa: PLC0415
+
+        if logger is not None:
+            _logger._validate(logger)
+        self.logger = logger
+
+    def __enter__(self):
+        from . import logger as _logger  # noqa: PLC0415
+
+        self.saved = _logger.get_logger()
+        _logger.set_logger(self.logger if self.logger is not None else _logger.LoggerBasic())
+        return self
+
+    def __exit__(self, exc_type, exc_value, traceback):
+        from . import logger as _logger  # noqa: PLC0415
+
+        # Assigned back without validation: a TypeError here would hide the block's exception.
+        _logger._active_logger = self.saved
+
+
+class ScopedLogLevel:
+    """`with wp.ScopedLogLevel(level):` sets wp.config.log_level inside the block and restores it
+    after."""
+
+    def __init__(self, log_level: int):
+        self.log_level = log_level
+
+    def __enter__(self):
+        from . import config  # noqa: PLC0415
+
+        self.saved = config.log_level
+        config.log_level = self.log_level
+        return self
+
+    def __exit__(self, exc_type, exc_value, traceback):
+        from . import config  # noqa: PLC0415
+
+        config.log_level = self.saved
 
 
 class ScopedTimer:
@@ -96,8 +141,10 @@ class ScopedTimer:
                 from .timing import timing_print  # noqa: PLC0415
 
                 timing_print(self.timing_results, indent)
-        if self.print:
-            print(f"{indent}{self.name} took {self.elapsed:.2f} ms")
+        if self.print:   # through the active logger, whatever wp.config.log_level (as Warp)
+            from .logger import get_logger  # noqa: PLC0415
+
+            get_logger().info(f"{indent}{self.name} took {self.elapsed:.2f} ms")
         ScopedTimer.indent -= 1
         if sync_error is not None and exc_type is None:
             raise sync_error

@@ -3,8 +3,11 @@ weft.timing; docs/cuda.md "Activity timing"), on cpu and cuda:0: the API as Warp
 TimingResult, the printed tables); on the CPU nothing is timed (as in Warp); on a GPU kernels
 (forward and backward), copies, fills and graph launches are timed with Warp's names, a filter
 selects, the times are consistent with the host's clock, an error ends timing and discards its
-records, the per-GPU limit drops (and reports) the operations past it. Hostile input: an unknown
-op, a filter that is not a 32-bit integer, timing inside a graph capture."""
+records, the per-GPU limit drops (and reports) the operations past it. Timing events
+(wp.Event(enable_timing=True)) are weftd's CUDA events: recording does not wait, the time between
+two records matches the activity timing of the kernel between them, dropped events are released.
+Hostile input: an unknown op, a filter that is not a 32-bit integer, timing inside a graph
+capture, ids the session never recorded."""
 from __future__ import annotations
 
 import time
@@ -212,3 +215,64 @@ def test_past_the_limit_operations_run_untimed_and_are_counted(wp, device):
     assert len(results) == limit
     assert any(f"{extra} GPU operation(s) ran untimed" in str(w.message) for w in caught), caught
     np.testing.assert_array_equal(dst.numpy(), np.ones(4, np.float32))
+
+
+def test_timed_events_are_gpu_events_and_recording_does_not_wait(wp, kernels, device, rng):
+    """wp.Event(enable_timing=True) is weftd's CUDA event: recording it queues a record (no wait
+    for the work before it), and the time between two records is the GPU's, matching the
+    activity timing of the kernel between them."""
+    if device == "cpu":
+        with pytest.raises(RuntimeError, match="CUDA objects"):
+            wp.Event(device, enable_timing=True)
+        return
+    n = 1 << 14
+    a = wp.array(rng.standard_normal(n).astype(np.float32))
+    start, end = wp.Event(enable_timing=True), wp.Event(enable_timing=True)
+    wp.launch(kernels.spin, dim=n, inputs=[a, 10])      # loaded before timing
+    wp.synchronize()
+    wp.timing_begin(wp.TIMING_KERNEL)
+    wp.record_event(start)
+    wp.launch(kernels.spin, dim=n, inputs=[a, 400000])
+    t = time.perf_counter()
+    wp.record_event(end)
+    record_s = time.perf_counter() - t
+    results = wp.timing_end()
+    elapsed = wp.get_event_elapsed_time(start, end)
+    assert len(results) == 1, results
+    kernel = results[0].elapsed
+    assert kernel > 1.0, results                          # long enough to tell a wait from none
+    assert record_s * 1e3 < kernel / 2, (record_s, kernel)
+    assert 0.9 * kernel <= elapsed <= kernel + 1.0, (elapsed, kernel)
+    assert wp.get_event_elapsed_time(end, end) == 0.0
+    assert start.query() and end.query()
+
+
+def test_timed_events_errors_and_release(wp, kernels, device, rng):
+    if device == "cpu":
+        pytest.skip("events are CUDA objects")
+    recorded, never = wp.Event(enable_timing=True), wp.Event(enable_timing=True)
+    plain = wp.Event()
+    wp.record_event(recorded)
+    wp.record_event(plain)
+    with pytest.raises(RuntimeError, match="not recorded"):
+        wp.get_event_elapsed_time(recorded, never)
+    with pytest.raises(RuntimeError, match="enable_timing"):
+        wp.get_event_elapsed_time(recorded, plain)
+    # Events dropped are released in weftd (a session holds at most 4096): 5000 made, recorded
+    # and dropped one after another leave the session working.
+    a = wp.array(rng.standard_normal(64).astype(np.float32))
+    for _ in range(5000):
+        e = wp.Event(enable_timing=True)
+        wp.record_event(e)
+    del e
+    b = wp.zeros_like(a)
+    wp.launch(kernels.scale, dim=64, inputs=[a, b, 2.0])
+    np.testing.assert_allclose(b.numpy(), a.numpy().astype(np.float64) * 2.0, rtol=1e-6)
+    # A forged request: ids this session never recorded are NOT_FOUND, not another session's.
+    from weft import _runtime
+    from weft.v1 import exec_pb2
+
+    rt = _runtime.get_runtime()
+    with pytest.raises(Exception, match="never recorded"):
+        rt.call(rt.exec_stub.EventElapsed, exec_pb2.EventElapsedRequest(
+            device=device, start_id=recorded._timing_id, end_id=(1 << 63) + 5))

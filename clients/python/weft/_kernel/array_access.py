@@ -205,8 +205,11 @@ def _access_of(definition, visiting: set) -> dict:
 
 
 def warn(message: str) -> None:
-    """Warp's log_warning: one line on the current stderr."""
-    print(f"Warp UserWarning: {message}", file=sys.stderr)
+    """Warp's log_warning: through the active logger (one line on the current stderr by
+    default)."""
+    from weft.logger import log_warning  # noqa: PLC0415
+
+    log_warning(message, UserWarning)
 
 
 def check_launch(kernel, args) -> None:

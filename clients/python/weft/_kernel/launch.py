@@ -807,8 +807,10 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     if not isinstance(kernel, Kernel):
         raise WeftLaunchError(f"wp.launch expects a @wp.kernel, got {type(kernel).__name__}")
     if _config.print_launches:
-        print(f"kernel: {kernel.key} dim: {dim} inputs: {list(inputs or [])} outputs: "
-              f"{list(outputs or [])} device: {_launch_device(device, [*inputs, *outputs])}")
+        from weft.logger import get_logger  # noqa: PLC0415
+
+        get_logger().info(f"kernel: {kernel.key} dim: {dim} inputs: {list(inputs or [])} outputs: "
+                          f"{list(outputs or [])} device: {_launch_device(device, [*inputs, *outputs])}")
     if type(dim) is int and dim >= 0:
         dims = [dim]
     else:

@@ -111,6 +111,42 @@ def get_module(name: str) -> Module:
         return module
 
 
+def force_load(device=None, modules=None) -> None:
+    """wp.force_load: compiles (and weftd loads) the kernels of `modules` (Module objects or
+    names; None: every module with kernels) for `device` (a device, a name, a list of them;
+    None: every device) now, so the first launches do not wait for a compile. A kernel whose
+    own code does not compile is left out and raises its error when launched."""
+    from weft.device import get_device, get_devices  # noqa: PLC0415
+
+    if device is None:
+        devices = get_devices()
+    elif isinstance(device, (list, tuple)):
+        devices = [get_device(d) for d in device]
+    else:
+        devices = [get_device(device)]
+    with _lock:
+        if modules is None:
+            chosen = [m for m in _modules.values() if m.kernels]
+        else:
+            chosen = [get_module(m) if isinstance(m, str) else m for m in modules]
+    for d in devices:
+        for m in chosen:
+            if not callable(getattr(m, "load", None)):
+                raise TypeError(f"force_load: modules must be wp.Module objects or names, got {type(m).__name__}")
+            m.load(d)
+
+
+def clear_kernel_cache() -> None:
+    """wp.clear_kernel_cache: forgets this process's compiled state of every module, so the next
+    launch or load asks weftd again. The compiled kernels themselves are weftd's cache, shared
+    by all its clients (docs/backends.md): a client neither deletes nor bypasses what others
+    use, so weftd answers from that cache (an operator clears it: docs/operations.md)."""
+    with _lock:
+        for m in _modules.values():
+            m.unload()
+        _compiled.clear()
+
+
 def bump_version() -> None:
     global _registry_version
     with _lock:
@@ -453,8 +489,10 @@ def compile_kernel(kernel: Kernel, device: str, backward: bool = False, lanes: i
             raise
         _compiled[(runtime_id, digest, device)] = compiled
         if _config.verbose and not compiled.cache_hit:
-            print(f"Module {kernel.module_name} {digest[:7]} load on device '{device}' took "
-                  f"{compiled.compile_ms:.2f} ms  (compiled)")
+            from weft.logger import log_info  # noqa: PLC0415
+
+            log_info(f"Module {kernel.module_name} {digest[:7]} load on device '{device}' took "
+                     f"{compiled.compile_ms:.2f} ms  (compiled)")
     info = _find_kernel_info(compiled, kernel)
     if info is None:
         raise WeftCompileError(f"the daemon compiled module {kernel.module_name} but reported "
