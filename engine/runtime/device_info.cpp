@@ -7,6 +7,10 @@
 #include <mutex>
 
 #include "engine/device/cuda_driver.h"
+#include "engine/runtime/module_store.h"
+#if WEFT_WITH_CUDA
+#include "engine/jit/cuda/nvrtc_compiler.h"
+#endif
 
 namespace weft {
 
@@ -79,6 +83,21 @@ std::vector<DeviceInfo> QueryCudaDevices() {
     out.push_back(std::move(info));
   }
   return out;
+}
+
+CudaToolchainInfo QueryCudaToolchain() {
+  CudaToolchainInfo info;
+  auto loaded = jit::CudaDriver::Get();
+  if (loaded.ok() && (*loaded)->DriverGetVersion) {
+    int version = 0;
+    if ((*loaded)->DriverGetVersion(&version) == 0) info.driver_version = version;
+  }
+#if WEFT_WITH_CUDA
+  if (auto version = jit::NvrtcVersion(); version.ok()) info.nvrtc_version = *version;
+  for (int arch : kCudaArchs)
+    if (jit::NvrtcSupportsArch(arch)) info.archs.push_back(arch);
+#endif
+  return info;
 }
 
 }  // namespace weft

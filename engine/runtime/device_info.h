@@ -25,6 +25,16 @@ struct DeviceInfo {
 DeviceInfo QueryCpuDevice(int pool_threads);
 // Every CUDA device the driver reports; empty when there is no driver or no GPU.
 std::vector<DeviceInfo> QueryCudaDevices();
+// The CUDA toolchain this daemon runs with: the driver's version (cuDriverGetVersion, e.g. 13000;
+// 0 without a driver), NVRTC's "major.minor" (empty without NVRTC) and the architectures
+// (kCudaArchs entries, e.g. 90) it compiles for (wp.get_cuda_driver_version,
+// wp.get_cuda_toolkit_version, wp.get_cuda_supported_archs).
+struct CudaToolchainInfo {
+  int32_t driver_version = 0;
+  std::string nvrtc_version;
+  std::vector<int32_t> archs;
+};
+CudaToolchainInfo QueryCudaToolchain();
 // Physical memory + swap, bytes (the absurd-size bound for allocations).
 uint64_t PhysicalMemoryAndSwap();
 

@@ -17,10 +17,10 @@ from .fabricarray import (fabricarray, fabricarrayarray, indexedfabricarray,  # 
                           indexedfabricarrayarray)
 from .tile import tile, tile_stack  # noqa: F401
 from .device import (Device, ScopedDevice, get_cuda_device, get_cuda_device_count,  # noqa: F401
-                     get_cuda_devices, get_cuda_driver_version, get_cuda_toolkit_version,
-                     get_device, get_devices, get_preferred_device, init, is_cpu_available,
+                     get_cuda_devices, get_cuda_driver_version, get_cuda_supported_archs,
+                     get_cuda_toolkit_version, get_device, get_devices, get_preferred_device, init, is_cpu_available,
                      is_cuda_available, is_device_available, set_device, synchronize,
-                     synchronize_device)
+                     synchronize_device, print_diagnostics)
 from .errors import WeftError  # noqa: F401
 from .mempool import (ScopedMempool, ScopedMempoolAccess, ScopedPeerAccess,  # noqa: F401
                       get_mempool_release_threshold, get_mempool_used_mem_current,

@@ -419,6 +419,7 @@ class Runtime:
         self._batch_since = 0.0   # when the oldest command of the batch was queued
         self._slabs = weakref.WeakValueDictionary()   # name -> _SlabMapping in use
         self._devices = None
+        self._device_listing = None
         self._unsynchronized = False   # commands were queued since the last Synchronize
         self.gpu_work = False          # GPU launches were queued since the last synchronize
         self.create_ahead = _create_ahead.CreateAhead(self)   # small arrays created ahead
@@ -1051,10 +1052,15 @@ class Runtime:
                 array_pb2.FreeArrayRequest(handle=handle), metadata=self.metadata, timeout=30))
 
     # -- devices
+    def device_listing(self):
+        """The daemon's ListDevicesResponse (devices and CUDA toolchain), asked once."""
+        if self._device_listing is None:
+            self._device_listing = self.call(self.device_stub.List, device_pb2.ListDevicesRequest())
+        return self._device_listing
+
     def devices(self):
         if self._devices is None:
-            self._devices = list(self.call(self.device_stub.List,
-                                           device_pb2.ListDevicesRequest()).devices)
+            self._devices = list(self.device_listing().devices)
         return self._devices
 
     # -- shared memory (local sessions)

@@ -13,6 +13,7 @@ __all__ = [
     "get_preferred_device", "get_cuda_devices", "get_cuda_device", "get_cuda_device_count",
     "is_cuda_available", "is_cpu_available", "is_device_available", "synchronize",
     "synchronize_device", "get_cuda_driver_version", "get_cuda_toolkit_version",
+    "get_cuda_supported_archs", "print_diagnostics",
 ]
 
 
@@ -179,12 +180,81 @@ def is_device_available(device) -> bool:
     return getattr(device, "alias", device) in _devices_by_alias
 
 
-def get_cuda_driver_version() -> int:
-    return 0
+def get_cuda_driver_version() -> tuple | None:
+    """(major, minor) of the CUDA driver weftd runs with (e.g. (13, 0)); None without one."""
+    version = int(_runtime.get_runtime().device_listing().cuda_driver_version)
+    return (version // 1000, (version % 1000) // 10) if version > 0 else None
 
 
-def get_cuda_toolkit_version() -> tuple:
-    return (0, 0)
+def get_cuda_toolkit_version() -> tuple | None:
+    """(major, minor) of the CUDA toolkit weftd compiles kernels with (its NVRTC: weft builds
+    CUDA code in the daemon, not in this process); None without one."""
+    text = _runtime.get_runtime().device_listing().nvrtc_version
+    try:
+        major, minor = (int(x) for x in text.split(".")[:2])
+    except ValueError:
+        return None
+    return (major, minor)
+
+
+def get_cuda_supported_archs() -> list:
+    """The architectures weftd's NVRTC compiles for (75 for sm_75, ...), sorted; [] without it."""
+    return sorted(int(a) for a in _runtime.get_runtime().device_listing().cuda_archs)
+
+
+def print_diagnostics() -> dict:
+    """Prints the client's and weftd's versions, the CUDA toolchain weftd runs with and the
+    devices it owns; returns the same as a dict (Warp's wp.print_diagnostics; keys that describe
+    Warp's native library are weftd's here)."""
+    import importlib.metadata  # noqa: PLC0415
+    import platform  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+
+    import numpy as np  # noqa: PLC0415
+
+    from . import __version__, config  # noqa: PLC0415
+
+    rt = _runtime.get_runtime()
+    listing = rt.device_listing()
+    toolkit, driver = get_cuda_toolkit_version(), get_cuda_driver_version()
+    info = {"warp_python": config.version, "weft": __version__, "numpy": np.__version__}
+    for package in ("torch", "jax", "jaxlib", "cupy"):
+        try:
+            info[package] = importlib.metadata.version(package)
+        except importlib.metadata.PackageNotFoundError:
+            pass
+    info.update({"python": sys.version, "platform": platform.platform(), "daemon": rt.address,
+                 "session_host": bool(rt.hosted),
+                 "cuda_enabled": any(d.is_cuda and d.is_compute_supported for d in get_devices()),
+                 "cuda_toolkit": f"{toolkit[0]}.{toolkit[1]}" if toolkit else None,
+                 "cuda_driver": f"{driver[0]}.{driver[1]}" if driver else None,
+                 "nvrtc": listing.nvrtc_version or None,
+                 "cuda_archs": get_cuda_supported_archs()})
+    devices = []
+    for d in get_devices():
+        entry = {"alias": d.alias, "name": d.name, "memory_gb": round(d.total_memory / (1 << 30), 1)}
+        if d.is_cuda:
+            entry.update({"arch": f"sm_{d.arch}", "sm_count": d.sm_count,
+                          "compute_supported": d.is_compute_supported})
+        devices.append(entry)
+    info["devices"] = devices
+    lines = ["Software"]
+    for label, key in (("Warp API:", "warp_python"), ("weft client:", "weft"), ("NumPy:", "numpy"),
+                       ("PyTorch:", "torch"), ("JAX:", "jax"), ("CuPy:", "cupy"),
+                       ("Python:", "python"), ("Platform:", "platform")):
+        if key in info:
+            lines.append(f"  {label:<18}{str(info[key]).splitlines()[0]}")
+    lines += ["", "weftd", f"  {'Address:':<18}{info['daemon']}",
+              f"  {'Session host:':<18}{'yes' if info['session_host'] else 'no'}",
+              f"  {'CUDA driver:':<18}{info['cuda_driver'] or 'none'}",
+              f"  {'NVRTC:':<18}{info['nvrtc'] or 'none'}",
+              f"  {'CUDA archs:':<18}{', '.join(f'sm_{a}' for a in info['cuda_archs']) or 'none'}",
+              "", "Devices"]
+    for entry in devices:
+        extra = f"  {entry['arch']}, {entry['sm_count']} SMs" if "arch" in entry else ""
+        lines.append(f"  {entry['alias']:<10}{entry['name']}  {entry['memory_gb']} GiB{extra}")
+    print("\n".join(lines))
+    return info
 
 
 def _current_cuda_device() -> Device | None:
