@@ -24,6 +24,7 @@ from . import _create_ahead, _cuda_ipc, _runtime, types
 from . import array_annotations as _array_annotations
 from . import config as _config
 from . import mempool as _mempool
+from . import memory_tracker as _memory_tracker
 from .device import Device, get_device
 from .errors import WeftError
 from .interop import memory as _interop_memory
@@ -611,6 +612,9 @@ class array:
         if pooled and owned and self.device.is_cuda and info.byte_size:
             self._alloc.pool_bytes = int(info.byte_size)
             _mempool.note_allocated(info.device, self._alloc.pool_bytes)
+        if pooled and owned and (_memory_tracker._scoped or _config.track_memory):
+            _memory_tracker.note_allocated(self._alloc, info, getattr(dtype, "__name__", str(dtype)),
+                                           info.shape, pinned=bool(getattr(self, "pinned", False)))
         self._info = info
         self._handle = info.handle
         self._byte_offset = 0
