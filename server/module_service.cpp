@@ -1,5 +1,6 @@
 // ModuleService: compile a module through the engine: for a device (loaded, with a module id),
-// or compile-only for a CUDA architecture (cuda_arch: the CUBIN report, no GPU needed).
+// or compile-only for a CUDA architecture (cuda_arch: the CUBIN report, no GPU needed); and
+// the properties of a compiled kernel as loaded on a GPU.
 #include <spdlog/spdlog.h>
 
 #include "engine/codegen/emit_text.h"
@@ -85,6 +86,21 @@ grpc::Status ModuleServiceImpl::Compile(grpc::ServerContext* ctx, const v1::Comp
   }
   resp->set_cache_hit(report.cache_hit || report.disk_hit);
   resp->set_compile_ms(report.compile_ms);
+  return grpc::Status::OK;
+}
+
+grpc::Status ModuleServiceImpl::KernelProperties(grpc::ServerContext* ctx, const v1::KernelPropertiesRequest* req,
+                                                 v1::KernelPropertiesResponse* resp) {
+  auto s = auth_.SessionOf(*ctx);
+  if (!s.ok()) return ToGrpc(s.status());
+  auto p = auth_.engine().KernelPropertiesOf(**s, req->module_id(), req->kernel(), req->device());
+  if (!p.ok()) return ToGrpc(p.status());
+  resp->set_register_count(p->register_count);
+  resp->set_local_memory_size(p->local_memory_size);
+  resp->set_shared_memory_size(p->shared_memory_size);
+  resp->set_max_threads_per_block(p->max_threads_per_block);
+  resp->set_suggested_block_size(p->suggested_block_size);
+  resp->set_min_grid_size(p->min_grid_size);
   return grpc::Status::OK;
 }
 

@@ -99,6 +99,8 @@ class ModuleServiceImpl final : public v1::ModuleService::Service {
  public:
   explicit ModuleServiceImpl(const CallAuth& auth) : auth_(auth) {}
   grpc::Status Compile(grpc::ServerContext* ctx, const v1::CompileRequest* req, v1::CompileResponse* resp) override;
+  grpc::Status KernelProperties(grpc::ServerContext* ctx, const v1::KernelPropertiesRequest* req,
+                                v1::KernelPropertiesResponse* resp) override;
  private:
   const CallAuth& auth_;
 };

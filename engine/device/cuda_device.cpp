@@ -1045,6 +1045,27 @@ Expected<jit::CuFunction> CudaDevice::Builtin(const char* name) {
   return fn;
 }
 
+Expected<CudaDevice::KernelProperties> CudaDevice::PropertiesOf(const LoadedModule& module,
+                                                                const LoadedKernel& kernel) {
+  std::shared_lock<std::shared_mutex> reset(reset_mu_);
+  WEFT_RETURN_IF_ERROR(CheckUsable());
+  WEFT_RETURN_IF_ERROR(MakeCurrent());
+  if (kernel.layout.forward_symbol.empty())
+    return Internal("kernel '" + kernel.layout.name + "' has no CUDA entry point");
+  WEFT_ASSIGN_OR_RETURN(jit::CuFunction fn, Function(module, kernel.layout.forward_symbol));
+  // CUfunction_attribute: 0 max threads per block, 1 static shared bytes, 3 local bytes, 4 registers
+  KernelProperties p;
+  const std::pair<int, int*> attributes[] = {{0, &p.max_threads_per_block}, {1, &p.shared_memory_size},
+                                             {3, &p.local_memory_size}, {4, &p.register_count}};
+  for (const auto& [attribute, out] : attributes)
+    WEFT_RETURN_IF_ERROR(driver_->Check(driver_->FuncGetAttribute(out, attribute, fn), "cuFuncGetAttribute"));
+  if (driver_->OccupancyMaxPotentialBlockSize)
+    WEFT_RETURN_IF_ERROR(driver_->Check(
+        driver_->OccupancyMaxPotentialBlockSize(&p.min_grid_size, &p.suggested_block_size, fn, nullptr, 0, 0),
+        "cuOccupancyMaxPotentialBlockSize"));
+  return p;
+}
+
 // ---- work ----
 
 Status CudaDevice::Upload(Session& s, const MemoryBlock& dst, uint64_t offset, const void* src, uint64_t n) {

@@ -199,6 +199,20 @@ class CudaDevice final : public Device {
   size_t TimedEventCount() const;   // every session's (tests)
   static constexpr size_t kTimedEventsPerSession = 4096;
 
+  // The properties of a kernel's forward entry as loaded on this GPU (wp.get_cuda_kernel_properties,
+  // wp.get_suggested_block_size): registers and local memory per thread, static shared memory,
+  // the most threads a block may have, and the occupancy API's block size with the fewest blocks
+  // that fill the GPU at it (0, 0 where the driver lacks that API).
+  struct KernelProperties {
+    int register_count = 0;
+    int local_memory_size = 0;
+    int shared_memory_size = 0;
+    int max_threads_per_block = 0;
+    int suggested_block_size = 0;
+    int min_grid_size = 0;
+  };
+  Expected<KernelProperties> PropertiesOf(const LoadedModule& module, const LoadedKernel& kernel);
+
   CudaDeviceStats stats() const;
   // True once a fault left the device unusable for the rest of this process (the driver kept
   // the sticky error through the context reset); every operation then fails with the reason.

@@ -85,6 +85,7 @@ Expected<const CudaDriver*> Load() {
   Resolve(library, "cuStreamWaitValue64_v2", &driver.StreamWaitValue64, &optional_missing);
   Resolve(library, "cuStreamWriteValue64_v2", &driver.StreamWriteValue64, &optional_missing);
   Resolve(library, "cuLaunchHostFunc", &driver.LaunchHostFunc, &optional_missing);
+  Resolve(library, "cuOccupancyMaxPotentialBlockSize", &driver.OccupancyMaxPotentialBlockSize, &optional_missing);
   // Optional (graphs): without them a graph is replayed command by command.
   Resolve(library, "cuStreamBeginCapture_v2", &driver.StreamBeginCapture, &optional_missing);
   Resolve(library, "cuStreamEndCapture", &driver.StreamEndCapture, &optional_missing);

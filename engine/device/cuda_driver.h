@@ -94,6 +94,10 @@ struct CudaDriver {
   // Activity timing (cuda_device_timing.cpp): events of the daemon's own, with timing.
   CuResult (*EventCreate)(CuEvent* event, unsigned flags) = nullptr;
   CuResult (*EventElapsedTime)(float* ms, CuEvent start, CuEvent end) = nullptr;
+  // Occupancy (wp.get_suggested_block_size); null when the driver lacks it.
+  CuResult (*OccupancyMaxPotentialBlockSize)(int* min_grid_size, int* block_size, CuFunction f,
+                                             size_t (*shared_for_block)(int), size_t shared_bytes,
+                                             int block_size_limit) = nullptr;
   // Stream memory operations (ordering without a round trip, cuda_device_values.cpp); null when
   // the driver lacks them.
   CuResult (*StreamWaitValue64)(CuStream stream, CuDevicePtr address, uint64_t value, unsigned flags) = nullptr;

@@ -704,6 +704,22 @@ Expected<double> Engine::EventElapsed(Session& s, const std::string& device, uin
   return gpu->TimedEventElapsed(s, start_id, end_id);
 }
 
+Expected<CudaDevice::KernelProperties> Engine::KernelPropertiesOf(Session& s, const std::string& module_id,
+                                                                  const std::string& kernel,
+                                                                  const std::string& device) {
+  WEFT_ASSIGN_OR_RETURN(Device * d, devices_->Resolve(s.id(), device));
+  auto* gpu = dynamic_cast<CudaDevice*>(d);
+  if (gpu == nullptr) return InvalidArgument("'" + device + "' is not a GPU (kernel properties are a CUDA kernel's)");
+  if (!store_) return FailedPrecondition("this daemon has no module store");
+  std::shared_ptr<const LoadedModule> module = store_->Find(module_id);
+  if (!module) return NotFound("unknown module '" + module_id + "' (compile it first with ModuleService.Compile)");
+  if (module->target != Target::kCuda)
+    return InvalidArgument("module '" + module_id + "' was compiled for the CPU, not for " + gpu->name());
+  const LoadedKernel* k = module->Find(kernel);
+  if (!k) return NotFound("module '" + module_id + "' has no kernel '" + kernel + "'");
+  return gpu->PropertiesOf(*module, *k);
+}
+
 void Engine::SynchronizeDevices(Session& s) {
   for (auto& g : devices_->gpus()) {
     DeviceSyncResult r = g->Synchronize(s);

@@ -183,6 +183,11 @@ class Engine {
   // (TimedEventCommand), once the commands queued before this call ran and the session's work
   // on the GPUs finished (a command's error stays for the next Synchronize).
   Expected<double> EventElapsed(Session& s, const std::string& device, uint64_t start_id, uint64_t end_id);
+  // The properties of kernel `kernel` of module `module_id` (compiled for `device`, a GPU) as
+  // loaded there (CudaDevice::PropertiesOf). NotFound for an unknown module or kernel,
+  // InvalidArgument for the CPU or a module compiled for another target.
+  Expected<CudaDevice::KernelProperties> KernelPropertiesOf(Session& s, const std::string& module_id,
+                                                            const std::string& kernel, const std::string& device);
   // Submit + Synchronize in one step (the fused sync point): when the session's executor is
   // idle the batch runs on the calling thread, saving two thread hand-offs.
   Expected<Session::SyncResult> SubmitAndSynchronize(Session& s, std::vector<Command> commands);

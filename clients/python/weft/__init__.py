@@ -44,6 +44,7 @@ from .utils import ScopedLogger, ScopedLogLevel  # noqa: F401
 from .logger import Logger, get_logger, set_logger  # noqa: F401
 from .memory_tracker import ScopedMemoryTracker, print_memory_report  # noqa: F401
 from ._kernel.module import clear_kernel_cache, force_load  # noqa: F401
+from ._kernel.kernel_properties import get_cuda_kernel_properties, get_suggested_block_size  # noqa: F401
 from .timing import (TIMING_ALL, TIMING_GRAPH, TIMING_KERNEL, TIMING_KERNEL_BUILTIN,  # noqa: F401
                      TIMING_MEMCPY, TIMING_MEMSET, TimingResult, timing_begin, timing_end,
                      timing_print)
