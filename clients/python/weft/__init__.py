@@ -29,7 +29,7 @@ from .mempool import (ScopedMempool, ScopedMempoolAccess, ScopedPeerAccess,  # n
                       is_peer_access_enabled, is_peer_access_supported,
                       set_mempool_access_enabled, set_mempool_enabled,
                       set_mempool_release_threshold, set_peer_access_enabled)
-from .graph import (Graph, ScopedCapture, capture_begin, capture_debug_dot_print,  # noqa: F401
+from .graph import (CaptureMode, Graph, ScopedCapture, capture_begin, capture_debug_dot_print,  # noqa: F401
                     capture_end, capture_if, capture_launch, capture_pause, capture_resume,
                     capture_while, is_conditional_graph_supported)
 from .streams import (Event, ScopedStream, Stream, event_from_ipc_handle,  # noqa: F401

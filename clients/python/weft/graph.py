@@ -29,15 +29,36 @@ is read when the graph runs.
 """
 from __future__ import annotations
 
+import enum
 import itertools
 import threading
 
 from . import _runtime
 from .device import get_device
 
-__all__ = ["Graph", "ScopedCapture", "capture_begin", "capture_end", "capture_launch",
+__all__ = ["CaptureMode", "Graph", "ScopedCapture", "capture_begin", "capture_end", "capture_launch",
            "capture_pause", "capture_resume", "capture_if", "capture_while",
            "capture_debug_dot_print", "is_conditional_graph_supported", "is_capturing"]
+
+
+class CaptureMode(enum.IntEnum):
+    """Warp's CUDA stream capture modes (capture_begin(capture_mode=...)). A weft client's
+    capture records commands in this process and weftd captures them on the session's stream in
+    RELAXED mode (other sessions' threads keep running), so every mode records the same; the
+    value is checked."""
+
+    GLOBAL = 0
+    THREAD_LOCAL = 1
+    RELAXED = 2
+
+
+def _check_capture_mode(capture_mode) -> None:
+    if capture_mode is None or isinstance(capture_mode, CaptureMode):
+        return
+    if isinstance(capture_mode, bool) or not isinstance(capture_mode, int) or \
+            capture_mode not in CaptureMode._value2member_map_:
+        raise ValueError(f"capture_mode must be a wp.CaptureMode (GLOBAL, THREAD_LOCAL, RELAXED), "
+                         f"got {capture_mode!r}")
 
 
 def _array_handles(message, out: set) -> None:
@@ -243,6 +264,7 @@ def refuse_host_wait(what: str, device=None) -> None:
 def capture_begin(device=None, stream=None, force_module_load=None, external=False,
                   apic=False, capture_mode=None):
     """Starts recording this thread's commands for `device` (or `stream`'s device)."""
+    _check_capture_mode(capture_mode)
     if external:
         raise RuntimeError("external graph capture is not available to weft clients: the "
                            "daemon runs the work, not a CUDA stream of this process")
@@ -449,11 +471,13 @@ class ScopedCapture:
         self.stream = stream
         self.force_module_load = force_module_load
         self.external = external
+        self.capture_mode = capture_mode
         self.active = False
         self.graph = None
 
     def __enter__(self):
-        capture_begin(device=self.device, stream=self.stream, external=self.external)
+        capture_begin(device=self.device, stream=self.stream, external=self.external,
+                      capture_mode=self.capture_mode)
         self.active = True
         return self
 

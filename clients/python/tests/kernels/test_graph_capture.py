@@ -88,6 +88,17 @@ def test_capture_begin_end_and_misuse(device):
     with pytest.raises(TypeError, match="wp.Graph"):
         wp.capture_launch("graph")
     assert wp.is_conditional_graph_supported() is True      # host-side conditions
+    # Warp's capture modes: each records the same (weftd captures in RELAXED); others refused.
+    assert [m.value for m in wp.CaptureMode] == [0, 1, 2]
+    for mode in (wp.CaptureMode.GLOBAL, wp.CaptureMode.THREAD_LOCAL, wp.CaptureMode.RELAXED, 2):
+        with wp.ScopedCapture(capture_mode=mode) as capture:
+            x.fill_(float(int(mode)) + 5.0)
+        wp.capture_launch(capture.graph)
+        np.testing.assert_array_equal(x.numpy(), float(int(mode)) + 5.0)
+    for bad in (3, -1, "RELAXED", True):
+        with pytest.raises(ValueError, match="capture_mode must be"):
+            wp.capture_begin(capture_mode=bad)
+    assert not wp.get_device().is_capturing
 
 
 def test_host_waits_inside_a_capture_are_refused_and_the_capture_goes_on(device):
