@@ -24,15 +24,6 @@ Command GraphCmd(GraphCommand::Op op, uint64_t id, const std::string& device = "
   return c;
 }
 
-Command CopyCmd(uint64_t dst, uint64_t src) {
-  Command c;
-  CopyCommand cp;
-  cp.dst.handle = dst;
-  cp.src.handle = src;
-  c.kind = cp;
-  return c;
-}
-
 Status RunGraph(Engine& e, Session& s, std::vector<Command> cmds) {
   auto r = e.SubmitAndSynchronize(s, std::move(cmds));
   if (!r.ok()) return r.status();

@@ -121,6 +121,16 @@ inline Command FillOnes(uint64_t handle) {
   return c;
 }
 
+// A copy of the whole array `src` into the whole array `dst`.
+inline Command CopyCmd(uint64_t dst, uint64_t src) {
+  Command c;
+  CopyCommand cp;
+  cp.dst.handle = dst;
+  cp.src.handle = src;
+  c.kind = cp;
+  return c;
+}
+
 inline ArgValue ArrayArg(uint64_t handle) {
   ArgValue a;
   a.kind = ArgValue::Kind::kArray;

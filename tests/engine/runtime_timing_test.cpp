@@ -20,15 +20,6 @@ Command Timing(TimingCommand::Op op, uint32_t filter = 0xffffffffu) {
   return c;
 }
 
-Command CopyAll(uint64_t dst, uint64_t src) {
-  Command c;
-  CopyCommand cp;
-  cp.dst.handle = dst;
-  cp.src.handle = src;
-  c.kind = cp;
-  return c;
-}
-
 TEST(TimingTest, UnknownOpAndTimingInAGraphAreRefusedAndTheSessionServes) {
   auto e = MakeEngine();
   auto s = e->OpenSession(Local());
@@ -163,7 +154,7 @@ TEST_F(TimingGpuTest, FillsAndCopiesAreTimedWithWarpsNamesAndFilters) {
   std::vector<Command> batch;
   batch.push_back(Timing(TimingCommand::Op::kBegin));
   batch.push_back(FillOnes(a_));       // 1.0f: not a repeating byte pattern, but a 4-byte one: memset
-  batch.push_back(CopyAll(b_, a_));    // contiguous on one GPU: memcpy DtoD
+  batch.push_back(CopyCmd(b_, a_));    // contiguous on one GPU: memcpy DtoD
   batch.push_back(Timing(TimingCommand::Op::kEnd));
   auto r = Run(std::move(batch));
   ASSERT_TRUE(r.timing_ended);
@@ -185,9 +176,9 @@ TEST_F(TimingGpuTest, FillsAndCopiesAreTimedWithWarpsNamesAndFilters) {
   selective.push_back(FillOnes(a_));
   selective.push_back(Timing(TimingCommand::Op::kBegin, kTimingMemcpy));
   selective.push_back(FillOnes(a_));
-  selective.push_back(CopyAll(b_, a_));
+  selective.push_back(CopyCmd(b_, a_));
   selective.push_back(Timing(TimingCommand::Op::kEnd));
-  selective.push_back(CopyAll(a_, b_));   // after END: not timed
+  selective.push_back(CopyCmd(a_, b_));   // after END: not timed
   r = Run(std::move(selective));
   ASSERT_EQ(r.timing.size(), 1u);
   EXPECT_EQ(r.timing[0].name, "memcpy DtoD");
@@ -225,7 +216,7 @@ TEST_F(TimingGpuTest, TheFloodsCollectionHasTheLimitAndTheDroppedCount) {
 TEST_F(TimingGpuTest, TimingEventsMeasureTheWorkBetweenThemAndAreBounded) {
   std::vector<Command> batch;
   batch.push_back(TimedEvent(TimedEventCommand::Op::kRecord, 10));
-  for (int i = 0; i < 50; ++i) batch.push_back(CopyAll(b_, a_));
+  for (int i = 0; i < 50; ++i) batch.push_back(CopyCmd(b_, a_));
   batch.push_back(TimedEvent(TimedEventCommand::Op::kRecord, 11));
   batch.push_back(TimedEvent(TimedEventCommand::Op::kRecord, 12));   // nothing between 11 and 12
   ASSERT_TRUE(engine_->Submit(*s_, std::move(batch)).ok());
