@@ -270,9 +270,15 @@ class RawRing:
         self.mm[off:off + 8] = struct.pack("<Q", value)    # one slice store
 
     def publish(self, head, wake_always=True):
+        """Publishes `head` and wakes the daemon. A daemon that was polling may have read a bad
+        head and ended the connection before the wake frame: that frame then finds the socket
+        closed (closed_by_daemon tells the test)."""
         self.u64(REQUEST_HEAD, head)
         if wake_always or struct.unpack_from("<I", self.mm, DAEMON_ASLEEP)[0]:
-            self.sock.send(struct.pack("<I", RING_WAKE))
+            try:
+                self.sock.send(struct.pack("<I", RING_WAKE))
+            except (BrokenPipeError, ConnectionResetError):
+                pass
 
     def record(self, frame: bytes, wake_always=True):
         """Appends one well-formed record (no wrap handling: tests stay in the first lap)."""
