@@ -4,8 +4,9 @@
 // timing. On a GPU: fills and copies are timed with Warp's names and filters, a filter selects,
 // a second BEGIN discards, and a flood of operations keeps at most kMaxTimedActivities records
 // (the rest counted as dropped). Timing events (TimedEventCommand, Engine::EventElapsed): refused
-// on the CPU, in a graph and with an unknown op; on a GPU the time between two records, unknown
-// and released ids, the per-session limit, and nothing left after the session closes. The GPU
+// on the CPU, in a graph and with an unknown op; on a GPU the time between two records, unknown,
+// released and another session's ids, the per-session limit, and nothing left after the session
+// closes. The GPU
 // cases skip without one.
 #include <gtest/gtest.h>
 
@@ -228,6 +229,12 @@ TEST_F(TimingGpuTest, TimingEventsMeasureTheWorkBetweenThemAndAreBounded) {
   auto unknown = engine_->EventElapsed(*s_, "cuda:0", 10, 99);
   ASSERT_FALSE(unknown.ok());
   EXPECT_EQ(unknown.status().code(), StatusCode::kNotFound);
+  // Another session names the same ids: they are not its events.
+  auto other = engine_->OpenSession(Local("other"));
+  auto foreign = engine_->EventElapsed(*other, "cuda:0", 10, 11);
+  EXPECT_EQ(foreign.status().code(), StatusCode::kNotFound) << foreign.status().ToString();
+  ASSERT_TRUE(engine_->CloseSession(other->id()).ok());
+  EXPECT_TRUE(engine_->EventElapsed(*s_, "cuda:0", 10, 11).ok());   // the owner's stay
   std::vector<Command> release;
   release.push_back(TimedEvent(TimedEventCommand::Op::kDestroy, 10));
   ASSERT_TRUE(engine_->Submit(*s_, std::move(release)).ok());
