@@ -394,7 +394,6 @@ Status CommandExecutor::CudaEvent(Session& s, const CudaEventCommand& c) {
 Status CommandExecutor::Timing(Session& s, const TimingCommand& c) {
   if (c.op != TimingCommand::Op::kBegin && c.op != TimingCommand::Op::kEnd)
     return InvalidArgument("timing: unknown op " + std::to_string(static_cast<int>(c.op)));
-  if (s.in_graph) return InvalidArgument("timing: not allowed inside a graph");
   const uint32_t filter = c.op == TimingCommand::Op::kBegin ? c.filter : 0;
   Status result = Status::Ok();
   for (auto& gpu : devices_.gpus()) {   // Warp times every GPU's activity
@@ -408,7 +407,6 @@ Status CommandExecutor::Timing(Session& s, const TimingCommand& c) {
 Status CommandExecutor::TimedEvent(Session& s, const TimedEventCommand& c) {
   if (c.op != TimedEventCommand::Op::kRecord && c.op != TimedEventCommand::Op::kDestroy)
     return InvalidArgument("timed_event: unknown op " + std::to_string(static_cast<int>(c.op)));
-  if (s.in_graph) return InvalidArgument("timed_event: not allowed inside a graph");
   WEFT_ASSIGN_OR_RETURN(Device * device, devices_.Resolve(s.id(), c.device));
   auto* gpu = dynamic_cast<CudaDevice*>(device);
   if (gpu == nullptr)

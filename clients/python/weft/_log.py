@@ -11,6 +11,3 @@ def log_warning(message: str, category=UserWarning, stacklevel: int = 1) -> None
     """Warns at the caller of the function that calls this (stacklevel 1)."""
     # +2: this function and the function calling it (weft.logger adds its own frames)
     _logger.log_warning(message, category=category, stacklevel=stacklevel + 2)
-
-
-_warnings_seen = _logger._warnings_seen   # the messages given once (tests clear it)

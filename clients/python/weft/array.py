@@ -612,7 +612,7 @@ class array:
         if pooled and owned and self.device.is_cuda and info.byte_size:
             self._alloc.pool_bytes = int(info.byte_size)
             _mempool.note_allocated(info.device, self._alloc.pool_bytes)
-        if pooled and owned and (_memory_tracker._scoped or _config.track_memory):
+        if pooled and owned and _memory_tracker.active():
             _memory_tracker.note_allocated(self._alloc, info, getattr(dtype, "__name__", str(dtype)),
                                            info.shape, pinned=bool(getattr(self, "pinned", False)))
         self._info = info

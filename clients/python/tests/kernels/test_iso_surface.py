@@ -289,7 +289,7 @@ def test_bad_fields_and_arguments(device):
 
 def test_deprecated_names(device, rng, capsys):
     """Warp's deprecated names work and say so on stderr as Warp does (once per message)."""
-    from weft import _log
+    from weft import logger as _log
 
     field_np = hard_field(rng, (5, 5, 5), closed=True)
     _log._warnings_seen.clear()
