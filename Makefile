@@ -26,7 +26,8 @@ deps:
 	./scripts/install-deps
 
 build: deps
-	@[ -f $(BUILD)/CMakeCache.txt ] || cmake -S . -B $(BUILD) $(GEN) $(LAUNCHER) -DCMAKE_BUILD_TYPE=RelWithDebInfo
+	@[ -f $(BUILD)/CMakeCache.txt ] || cmake -S . -B $(BUILD) $(GEN) $(LAUNCHER) -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+	  -DPython3_EXECUTABLE=$(CURDIR)/$(PY)
 	cmake --build $(BUILD) -j $(JOBS)
 	$(MAKE) --no-print-directory proto-py
 

@@ -61,6 +61,16 @@ def _field(tag: int, payload: bytes) -> bytes:
     return bytes((tag,)) + _varint(len(payload)) + payload
 
 
+def launch_frame_bytes(template_bytes: bytes, dims, fields, origin_field: bytes) -> bytes:
+    """A launch as a SubmitRequest.commands element (field 1): the Command whose launch holds
+    the plan's fields (`template_bytes`), the dimensions (packed) and the arguments' serialized
+    LaunchCommand.args fields, then the origin field. weft._launch_frame builds the same bytes
+    in C."""
+    body = template_bytes + _field(_LAUNCH_DIM, b"".join(map(_varint, dims))) + b"".join(fields)
+    inner = _field(_COMMAND_LAUNCH, body) + origin_field
+    return b"\x0a" + _varint(len(inner)) + inner
+
+
 def caller_origin(depth: int = 1):
     """SourceLocation of the first frame outside the weft package (see caller_origin_entry)."""
     return caller_origin_entry(depth + 1)[1]
@@ -511,7 +521,8 @@ class _LaunchPlan:
     module and kernel name (valid while the module registry version is unchanged) and the
     parameter packers."""
 
-    __slots__ = ("version", "compiled", "kernel_name", "params", "n_params", "template", "template_bytes")
+    __slots__ = ("version", "compiled", "kernel_name", "params", "n_params", "template", "template_bytes",
+                 "native")
 
     def __init__(self, kernel: Kernel, compiled, info, device: str):
         self.version = module_mod.registry_version()
@@ -525,6 +536,53 @@ class _LaunchPlan:
         self.template = pb.Command(launch=pb.LaunchCommand(
             module_id=compiled.module_id, kernel=self.kernel_name, device=device))
         self.template_bytes = self.template.launch.SerializeToString()   # the same, serialized
+        self.native = _native_spec(self)     # for weft._launch_frame, or None
+
+
+def _native_param(p: _ParamPlan):
+    """Parameter p as weft._launch_frame.spec takes it, or None where only the Python path
+    packs it (vectors, structs, float16, ...)."""
+    if p.is_array:
+        return (1, None if p.elem_any else p.elem_text, p.ndim)
+    scalar = p.desc.scalar if p.desc.kind == "scalar" else None
+    if p.pack_float is not None and scalar in ("float32", "float64"):
+        return (2,) if scalar == "float32" else (3,)
+    if p.pack_int is not None:
+        return (4, struct.calcsize(_STRUCT_FORMATS[scalar]), p.int_range[0], p.int_range[1])
+    return None
+
+
+def _native_spec(plan: _LaunchPlan):
+    """The plan as weft._launch_frame builds its launches from (a capsule), or None when the C
+    module is absent or a parameter needs the Python path."""
+    native = _native_module()
+    if native is None:
+        return None
+    params = [_native_param(p) for p in plan.params]
+    if any(p is None for p in params):
+        return None
+    return native.spec(plan.template_bytes, params)
+
+
+_NATIVE = False          # weft._launch_frame once looked up (None: absent or turned off)
+
+
+def _native_module():
+    """weft._launch_frame (clients/python/native/launch_frame.c), configured; None when it was
+    not built or WEFT_NATIVE_LAUNCH=0 turns it off: launches are then built in Python (the
+    same bytes)."""
+    global _NATIVE
+    if _NATIVE is False:
+        native = None
+        if os.environ.get("WEFT_NATIVE_LAUNCH", "1") != "0":
+            try:
+                from .. import _launch_frame as native  # noqa: PLC0415
+            except ImportError:
+                native = None
+        if native is not None:
+            native.configure(_array_type(), _ctype_type(), _REF_ATTR)
+        _NATIVE = native
+    return _NATIVE
 
 
 def _launch_plan(kernel: Kernel, device: str, runtime, lanes: int = 1) -> _LaunchPlan:
@@ -835,6 +893,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
             tape_mod.active_tape() is not None and not kernel.__dict__.get("_weft_internal"):
         from . import array_access  # noqa: PLC0415
         array_access.check_launch(kernel, args)
+    frame = None                       # the command as bytes (SubmitRequest.commands element)
     generic = kernel.__dict__.get("_weft_is_generic")
     if generic is None:
         generic = kernel.__dict__["_weft_is_generic"] = bool(kernel.is_generic)
@@ -842,7 +901,16 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         if len(args) != len(kernel.param_names):     # before compiling, as the slow path does
             pack_arguments(kernel, device, args)
         plan = _launch_plan(kernel, device, rt, lanes)
-        packed, packer, resolved, fields = _pack_fast(kernel, plan, device, args)
+        if plan.native is not None and lanes <= 1 and not max_blocks and \
+                not (block_dim and block_dim > 0 and block_dim != 256 and device != "cpu"):
+            # the whole command in C (weft._launch_frame), or None: an argument the Python
+            # path converts or rejects
+            _, origin, origin_field = caller_origin_entry()
+            frame = _NATIVE.frame(plan.native, dims, args, device, origin_field)
+        if frame is None:
+            packed, packer, resolved, fields = _pack_fast(kernel, plan, device, args)
+        else:
+            packer, resolved = None, args
     else:
         plan = None
         if generic:
@@ -866,15 +934,14 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     pause = tape is not None and (adjoint or not record_tape)
     if pause:
         tape.pause_recording()
-    frame = None
-    if plan is not None and lanes <= 1 and not max_blocks and \
+    if frame is not None:
+        pass                                      # built in C above
+    elif plan is not None and lanes <= 1 and not max_blocks and \
             not (block_dim and block_dim > 0 and block_dim != 256 and device != "cpu"):
         # the command as bytes: the plan's fields, the dimensions, the arguments' cached fields
         # and the call site's (what the protobuf message below would serialize to)
         _, origin, origin_field = caller_origin_entry()
-        body = plan.template_bytes + _field(_LAUNCH_DIM, b"".join(map(_varint, dims))) + b"".join(fields)
-        inner = _field(_COMMAND_LAUNCH, body) + origin_field
-        frame = b"\x0a" + _varint(len(inner)) + inner      # SubmitRequest.commands (field 1)
+        frame = launch_frame_bytes(plan.template_bytes, dims, fields, origin_field)
     elif plan is not None:
         command = pb.Command()
         command.CopyFrom(plan.template)
