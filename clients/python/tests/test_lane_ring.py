@@ -542,3 +542,73 @@ def test_a_daemon_without_rings_refuses_one_and_keeps_the_socket(start_weftd, mo
                    metadata=(("weft-session", opened.session_id),), timeout=10)
     finally:
         channel.close()
+
+
+def _fake_ring(size: int, req_cap: int, rep_cap: int, native: bool):
+    """A _Ring over a memfd of our own with the daemon's header (no daemon): records written by
+    the C writer (native) or by the Python one."""
+    fd = os.memfd_create("weft-test-ring")
+    try:
+        os.ftruncate(fd, size)
+        with mmap.mmap(fd, size) as mm:
+            struct.pack_into("<6I", mm, 0, _fast_lane._Ring.MAGIC, _fast_lane._Ring.VERSION,
+                             req_cap, rep_cap, 1024, 1024 + req_cap)
+        a, b = socket.socketpair()
+        ring = _fast_lane._Ring(fd, size, a)
+    finally:
+        os.close(fd)
+    if not native:
+        ring._native_put, ring._anchor = None, None
+    return ring, (a, b)
+
+
+def test_the_c_writer_writes_the_python_writers_records():
+    """weft._lane_ring.put against _Ring.put's Python: random records (1 byte to most of the
+    area, wrapping the area's end many times, the consumer's tail advanced at random as the
+    daemon's would be) leave both mappings byte for byte the same, heads included; a record
+    the area has no room for returns -1 from the C writer and nothing is written; hostile
+    arguments (an address of 0, a base or capacity past the mapping, a head behind the tail or
+    a record larger than the area, wrong types) raise, never write."""
+    native_put = _fast_lane._native_ring_put()
+    if native_put is None:
+        pytest.skip("weft._lane_ring is not built (Python development headers missing) or "
+                    "WEFT_NATIVE_LANE=0")
+    size, req_cap = 1024 + 4096 + 4096, 4096
+    c_ring, c_socks = _fake_ring(size, req_cap, 4096, True)
+    py_ring, py_socks = _fake_ring(size, req_cap, 4096, False)
+    assert c_ring._native_put is not None and py_ring._native_put is None
+    rng = random.Random()
+    try:
+        for _ in range(3000):
+            n = rng.choice([1, 3, 4, 5, 8, 60, 61, 200, rng.randrange(1, 2000)])
+            header = struct.pack("<I", rng.randrange(1, 13))
+            body = rng.randbytes(max(0, n - 4))
+            for ring in (c_ring, py_ring):
+                # the consumer: everything before the head is taken (the daemon's tail)
+                if rng.random() < 0.5 or req_cap - (ring._req_head - ring._req_tail) < 2200:
+                    ring._u64[REQUEST_TAIL >> 3] = ring._req_head
+                    ring._req_tail = ring._req_head
+            c_ring.put(header, body)
+            py_ring.put(header, body)
+            assert c_ring._req_head == py_ring._req_head
+        assert c_ring._mm[:] == py_ring._mm[:]
+        assert c_ring._req_head > 5 * req_cap       # wrapped many times
+
+        head, tail = c_ring._req_head, c_ring._req_head - req_cap + 16   # 16 bytes free
+        before = c_ring._mm[:]
+        assert native_put(c_ring._address, size, req_cap, 1024, head, tail, b"\x02\x00\x00\x00",
+                          b"x" * 40) == -1
+        assert c_ring._mm[:] == before
+        good = [c_ring._address, size, req_cap, 1024, head, head, b"\x02\x00\x00\x00", b"x"]
+        for index, value in ((0, 0), (1, 100), (3, size), (2, size), (2, 12), (4, head - 8),
+                             (5, head + 8), (7, b"x" * (req_cap + 1)), (6, "str"), (0, "addr")):
+            bad = list(good)
+            bad[index] = value
+            with pytest.raises((TypeError, ValueError, OverflowError)):
+                native_put(*bad)
+        assert c_ring._mm[:] == before
+    finally:
+        for ring, socks in ((c_ring, c_socks), (py_ring, py_socks)):
+            ring.close()
+            for sock in socks:
+                sock.close()

@@ -106,6 +106,24 @@ def _ring_barrier_ready() -> bool:
     return True
 
 
+_NATIVE_PUT = False            # weft._lane_ring.put once looked up (None: absent or turned off)
+
+
+def _native_ring_put():
+    """weft._lane_ring.put (clients/python/native/lane_ring.c), or None when it was not built or
+    WEFT_NATIVE_LANE=0 turns it off (records are then written in Python)."""
+    global _NATIVE_PUT
+    if _NATIVE_PUT is False:
+        put = None
+        if os.environ.get("WEFT_NATIVE_LANE", "1") != "0":
+            try:
+                from ._lane_ring import put  # noqa: PLC0415
+            except ImportError:
+                put = None
+        _NATIVE_PUT = put
+    return _NATIVE_PUT
+
+
 class _Ring:
     """This process's side of a lane's ring (layout: server/lane_ring.h): request records are
     written here and published by the request head, reply records taken and released by the
@@ -138,8 +156,18 @@ class _Ring:
         self._req_tail = 0           # the daemon's tail, as last read
         self._rep_tail = self._u64[self.REPLY_TAIL // 8]
         self.wakes_sent = 0          # wake frames this process had to send (the daemon slept)
+        # weft._lane_ring.put writes records in C at the mapping's address (held by _anchor,
+        # released before the mapping closes); None: put() writes them in Python
+        self._size = size
+        self._anchor = None
+        self._native_put = _native_ring_put()
+        if self._native_put is not None:
+            self._anchor = ctypes.c_char.from_buffer(self._mm)
+            self._address = ctypes.addressof(self._anchor)
 
     def close(self) -> None:
+        self._native_put = None
+        self._anchor = None           # the export the C writer's address came from
         try:
             self._u64.release()
             self._u32.release()
@@ -150,7 +178,18 @@ class _Ring:
 
     def put(self, header: bytes, body: bytes) -> None:
         """Writes one request frame (header + body) as a record and publishes it; wakes the
-        daemon when it sleeps."""
+        daemon when it sleeps. In C (weft._lane_ring) where it was built, unless the request
+        area lacks room by the tail last read (then here: the tail is read again, waiting)."""
+        native = self._native_put
+        if native is not None:
+            head = native(self._address, self._size, self._req_cap, self._req_base, self._req_head,
+                          self._req_tail, header, body)
+            if head >= 0:
+                self._req_head = head
+                if self._u32[self.DAEMON_ASLEEP >> 2]:
+                    self.wakes_sent += 1
+                    self._sock.send(_METHOD_HEADERS[RING_WAKE])
+                return
         mm, cap, u32 = self._mm, self._req_cap, self._u32
         n = len(header) + len(body)
         rec = (4 + n + 7) & ~7
