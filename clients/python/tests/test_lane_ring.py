@@ -583,9 +583,12 @@ def test_the_c_writer_writes_the_python_writers_records():
             n = rng.choice([1, 3, 4, 5, 8, 60, 61, 200, rng.randrange(1, 2000)])
             header = struct.pack("<I", rng.randrange(1, 13))
             body = rng.randbytes(max(0, n - 4))
+            rec = (4 + len(header) + len(body) + 7) & ~7
+            contiguous = req_cap - c_ring._req_head % req_cap
+            need = rec if rec <= contiguous else contiguous + rec
+            take = rng.random() < 0.5 or req_cap - (c_ring._req_head - c_ring._req_tail) < need
             for ring in (c_ring, py_ring):
-                # the consumer: everything before the head is taken (the daemon's tail)
-                if rng.random() < 0.5 or req_cap - (ring._req_head - ring._req_tail) < 2200:
+                if take:     # the consumer: everything before the head is taken (the daemon's tail)
                     ring._u64[REQUEST_TAIL >> 3] = ring._req_head
                     ring._req_tail = ring._req_head
             c_ring.put(header, body)

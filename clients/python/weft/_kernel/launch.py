@@ -888,7 +888,6 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
                       max_blocks, block_dim)
     tape_mod, _runtime = _modules()
     rt = _runtime.get_runtime()
-    pb = _pb()
     if _config.verify_autograd_array_access and not adjoint and record_tape and \
             tape_mod.active_tape() is not None and not kernel.__dict__.get("_weft_internal"):
         from . import array_access  # noqa: PLC0415
@@ -943,6 +942,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         _, origin, origin_field = caller_origin_entry()
         frame = launch_frame_bytes(plan.template_bytes, dims, fields, origin_field)
     elif plan is not None:
+        pb = _pb()
         command = pb.Command()
         command.CopyFrom(plan.template)
         launch_cmd = command.launch
@@ -950,6 +950,7 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         launch_cmd.args.extend(packed)
         command.origin.CopyFrom(caller_origin())
     else:
+        pb = _pb()
         command = pb.Command(
             launch=pb.LaunchCommand(module_id=module_id, kernel=kernel_name, dim=dims,
                                     args=packed, adjoint=bool(adjoint), adj_args=adj_packed,
