@@ -5,11 +5,12 @@
  * weft/_kernel/launch.py would build in Python for the same launch, byte for byte. It takes
  * only the arguments the Python fast path (_pack_fast) takes without conversion: weft arrays
  * whose cached ArgValue field is still valid (the identity checks of _array_arg) and whose
- * dtype, ndim and device match the parameter, Python floats and ints for float32/float64
- * parameters, Python ints in range for integer parameters. Anything else (a NumPy array, a
- * struct, a vector, a Torch tensor, a bool, a NaN float32, an out-of-range int, a stale
- * cache) returns None, and the caller goes the Python way, which converts it or raises the
- * error. Nothing here decides what is valid beyond what the Python path already decided: the
+ * dtype, ndim and device match the parameter (an array's ctypes descriptor stands for its
+ * array, which replaces it in the argument list as _pack_fast's resolution does), Python floats
+ * and ints for float32/float64 parameters, Python ints in range for integer parameters.
+ * Anything else (a NumPy array, a struct, a vector, a Torch tensor, a bool, a NaN float32, an
+ * out-of-range int, a stale cache) returns None, and the caller goes the Python way, which
+ * converts it or raises the error. Nothing here decides what is valid beyond what the Python path already decided: the
  * daemon validates every argument again (docs/security.md).
  *
  * Built against the stable ABI (Py_LIMITED_API, Python 3.10+) so one .abi3.so serves every
@@ -58,7 +59,7 @@ static const char* kCapsuleName = "weft._launch_frame.spec";
 static PyObject* g_array_type;
 static PyObject* g_ctype_type;
 static PyObject *s_dict, *s_mirror, *s_handle, *s_byte_offset, *s_shape, *s_strides, *s_dtype, *s_device,
-    *s_ref_attr;
+    *s_weft_value, *s_ref_attr;
 
 static void spec_free(PyObject* capsule) {
   LaunchSpec* spec = (LaunchSpec*)PyCapsule_GetPointer(capsule, kCapsuleName);
@@ -222,7 +223,6 @@ static int attr_equals(PyObject* value, PyObject* name, PyObject* expected) {
  * (a new reference), or NULL when the Python path must decide (no error set). Mirrors
  * _pack_fast's array branch with _array_arg's cache hit. */
 static PyObject* array_field(PyObject* value, const ParamSpec* p, PyObject* device) {
-  if ((PyObject*)Py_TYPE(value) == g_ctype_type) return NULL; /* array_t: resolved in Python */
   int is_array = PyObject_IsInstance(value, g_array_type);
   if (is_array <= 0) {
     if (is_array < 0) PyErr_Clear();
@@ -389,6 +389,24 @@ static PyObject* frame(PyObject* self, PyObject* const* argv, Py_ssize_t argc) {
     }
     Py_INCREF(value); /* attribute reads below may run Python code */
     const ParamSpec* p = &spec->params[i];
+    if (p->kind == kArray && (PyObject*)Py_TYPE(value) == g_ctype_type) {
+      /* an array's ctypes descriptor (from_torch(return_ctype=True)): the array it describes
+       * takes its place in `args`, as _pack_fast resolves it; anything else: the Python path */
+      PyObject* owner = PyObject_GetAttr(value, s_weft_value);
+      int is_array = owner ? PyObject_IsInstance(owner, g_array_type) : 0;
+      if (is_array < 0 || !owner) PyErr_Clear();
+      if (is_array > 0 && i < PyList_Size(args) && PyList_GetItem(args, i) == value) {
+        Py_INCREF(owner);
+        PyList_SetItem(args, i, owner); /* steals the reference; `value` is still held */
+        Py_DECREF(value);
+        value = owner;                  /* our reference, from GetAttr */
+      } else {
+        Py_XDECREF(owner);
+        Py_DECREF(value);
+        fallback = 1;
+        break;
+      }
+    }
     if (p->kind == kArray) {
       held[i] = array_field(value, p, device);
       if (held[i]) {
@@ -465,7 +483,9 @@ PyMODINIT_FUNC PyInit__launch_frame(void) {
   s_strides = PyUnicode_InternFromString("strides");
   s_dtype = PyUnicode_InternFromString("dtype");
   s_device = PyUnicode_InternFromString("device");
-  if (!s_dict || !s_mirror || !s_handle || !s_byte_offset || !s_shape || !s_strides || !s_dtype || !s_device)
+  s_weft_value = PyUnicode_InternFromString("_weft_value");
+  if (!s_dict || !s_mirror || !s_handle || !s_byte_offset || !s_shape || !s_strides || !s_dtype || !s_device ||
+      !s_weft_value)
     return NULL;
   return PyModule_Create(&kModule);
 }

@@ -116,7 +116,7 @@ def test_c_path_declines_what_the_python_path_converts_or_rejects(wp, native):
     """None (the Python path decides) for a bool or NumPy integer where an int is asked, a value
     outside the parameter's range, a float32 NaN or overflow, a NumPy scalar, an array of
     another dtype, ndim or device, a NumPy array, None, an array whose cached field is stale,
-    an array's ctypes descriptor, the wrong argument count, and dimensions that are negative,
+    a ctypes descriptor of no weft array or of one that does not match, the wrong argument count, and dimensions that are negative,
     not ints, empty or too many; the launches those arguments make through wp.launch raise the
     Python path's errors or convert as before."""
     rng = np.random.default_rng()
@@ -145,7 +145,17 @@ def test_c_path_declines_what_the_python_path_converts_or_rejects(wp, native):
     assert declines(0, wp.zeros((8, 8), dtype=float, device="cpu"))
     assert declines(1, wp.zeros(16, dtype=wp.int32, device="cpu"))
     assert declines(0, np.zeros(64, np.float32)) and declines(0, None)
-    assert declines(0, a.__ctype__())
+    # an array's ctypes descriptor stands for its array, which replaces it in the list
+    args = list(good)
+    args[0] = a.__ctype__()
+    assert native.frame(plan.native, [64], args, "cpu", origin_field) == \
+        native.frame(plan.native, [64], good, "cpu", origin_field)
+    assert args[0] is a
+    wide = wp.zeros(64, dtype=wp.float64, device="cpu")
+    assert declines(0, wide.__ctype__())                       # its array's dtype is not float32
+    bare = type(a.__ctype__())()                               # describes no weft array
+    args[0] = bare
+    assert native.frame(plan.native, [64], args, "cpu", origin_field) is None and args[0] is bare
     assert native.frame(plan.native, [64], good, "cuda:0", origin_field) is None   # a's device
     stale = wp.array(rng.normal(size=64).astype(np.float32), device="cpu")
     launch_mod._array_arg(stale)                                 # cached
