@@ -114,13 +114,10 @@ def _native_ring_put():
     WEFT_NATIVE_LANE=0 turns it off (records are then written in Python)."""
     global _NATIVE_PUT
     if _NATIVE_PUT is False:
-        put = None
-        if os.environ.get("WEFT_NATIVE_LANE", "1") != "0":
-            try:
-                from ._lane_ring import put  # noqa: PLC0415
-            except ImportError:
-                put = None
-        _NATIVE_PUT = put
+        from . import _native  # noqa: PLC0415
+
+        module = _native.optional("_lane_ring", "WEFT_NATIVE_LANE")
+        _NATIVE_PUT = module.put if module is not None else None
     return _NATIVE_PUT
 
 

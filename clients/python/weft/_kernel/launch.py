@@ -573,12 +573,9 @@ def _native_module():
     same bytes)."""
     global _NATIVE
     if _NATIVE is False:
-        native = None
-        if os.environ.get("WEFT_NATIVE_LAUNCH", "1") != "0":
-            try:
-                from .. import _launch_frame as native  # noqa: PLC0415
-            except ImportError:
-                native = None
+        from .. import _native  # noqa: PLC0415
+
+        native = _native.optional("_launch_frame", "WEFT_NATIVE_LAUNCH")
         if native is not None:
             native.configure(_array_type(), _ctype_type(), _REF_ATTR)
         _NATIVE = native
