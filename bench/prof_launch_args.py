@@ -10,18 +10,15 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "clients" / "python"))
-import weft as wp
-from weft import _runtime
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "clients" / "python"))
+import bench_common as bc  # noqa: E402
+import weft as wp  # noqa: E402
+from prof_launch_sync import SOURCE  # noqa: E402  (the empty and 3-array kernels)
+from weft import _runtime  # noqa: E402
 
-@wp.kernel
-def empty_kernel():
-    pass
-
-@wp.kernel
-def three_args(a: wp.array(dtype=float), b: wp.array(dtype=float), c: wp.array(dtype=float)):
-    pass
-
+mod = bc.load_kernels(SOURCE + '''
 @wp.kernel
 def one_arg(a: wp.array(dtype=float)):
     pass
@@ -29,6 +26,8 @@ def one_arg(a: wp.array(dtype=float)):
 @wp.kernel
 def three_scalars(a: float, b: float, c: float):
     pass
+''', "weft", "prof_args")
+empty_kernel, three_args, one_arg, three_scalars = mod.empty_kernel, mod.three_args, mod.one_arg, mod.three_scalars
 
 dev = "cuda:0"
 a = wp.zeros(1, dtype=float, device=dev); b = wp.zeros(1, dtype=float, device=dev); c = wp.zeros(1, dtype=float, device=dev)

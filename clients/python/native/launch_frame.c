@@ -61,15 +61,19 @@ static PyObject* g_ctype_type;
 static PyObject *s_dict, *s_mirror, *s_handle, *s_byte_offset, *s_shape, *s_strides, *s_dtype, *s_device,
     *s_weft_value, *s_ref_attr;
 
-static void spec_free(PyObject* capsule) {
+static void free_spec(LaunchSpec* spec) {
+  Py_XDECREF(spec->template_bytes);
+  for (Py_ssize_t i = 0; i < spec->n; ++i) Py_XDECREF(spec->params[i].elem_text);
+  PyMem_Free(spec);
+}
+
+static void spec_capsule_free(PyObject* capsule) {
   LaunchSpec* spec = (LaunchSpec*)PyCapsule_GetPointer(capsule, kCapsuleName);
   if (!spec) {
     PyErr_Clear();
     return;
   }
-  Py_XDECREF(spec->template_bytes);
-  for (Py_ssize_t i = 0; i < spec->n; ++i) Py_XDECREF(spec->params[i].elem_text);
-  PyMem_Free(spec);
+  free_spec(spec);
 }
 
 /* spec(template_bytes, params) -> capsule. params: a sequence of tuples, one per kernel
@@ -140,15 +144,13 @@ static PyObject* make_spec(PyObject* self, PyObject* args) {
       goto fail;
     }
   }
-  PyObject* capsule = PyCapsule_New(spec, kCapsuleName, spec_free);
+  PyObject* capsule = PyCapsule_New(spec, kCapsuleName, spec_capsule_free);
   if (!capsule) goto fail;
   return capsule;
 fail_range:
   if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "spec: integer range out of 64 bits");
 fail:
-  Py_XDECREF(spec->template_bytes);
-  for (Py_ssize_t i = 0; i < spec->n; ++i) Py_XDECREF(spec->params[i].elem_text);
-  PyMem_Free(spec);
+  free_spec(spec);
   return NULL;
 }
 
@@ -196,25 +198,15 @@ static int equal(PyObject* a, PyObject* b) {
   return r;
 }
 
-/* 1: `value.<name>` is `expected` (identity); 0 otherwise (errors cleared). */
-static int attr_is(PyObject* value, PyObject* name, PyObject* expected) {
+/* 1: `value.<name>` is `expected` (identity) or, unless `identity`, equals it (==); 0
+ * otherwise (errors cleared: the Python path will see them). */
+static int attr_matches(PyObject* value, PyObject* name, PyObject* expected, int identity) {
   PyObject* got = PyObject_GetAttr(value, name);
   if (!got) {
     PyErr_Clear();
     return 0;
   }
-  int same = got == expected;
-  Py_DECREF(got);
-  return same;
-}
-
-static int attr_equals(PyObject* value, PyObject* name, PyObject* expected) {
-  PyObject* got = PyObject_GetAttr(value, name);
-  if (!got) {
-    PyErr_Clear();
-    return 0;
-  }
-  int same = equal(got, expected);
+  int same = identity ? got == expected : equal(got, expected);
   Py_DECREF(got);
   return same;
 }
@@ -250,10 +242,12 @@ static PyObject* array_field(PyObject* value, const ParamSpec* p, PyObject* devi
   }
   PyObject* field = NULL;
   if (PyTuple_Check(cached) && PyTuple_Size(cached) >= 11 &&
-      attr_equals(value, s_handle, PyTuple_GetItem(cached, 0)) &&
-      attr_equals(value, s_byte_offset, PyTuple_GetItem(cached, 1)) &&
-      attr_is(value, s_shape, PyTuple_GetItem(cached, 2)) && attr_is(value, s_strides, PyTuple_GetItem(cached, 3)) &&
-      attr_is(value, s_dtype, PyTuple_GetItem(cached, 4)) && attr_is(value, s_device, PyTuple_GetItem(cached, 5))) {
+      attr_matches(value, s_handle, PyTuple_GetItem(cached, 0), 0) &&
+      attr_matches(value, s_byte_offset, PyTuple_GetItem(cached, 1), 0) &&
+      attr_matches(value, s_shape, PyTuple_GetItem(cached, 2), 1) &&
+      attr_matches(value, s_strides, PyTuple_GetItem(cached, 3), 1) &&
+      attr_matches(value, s_dtype, PyTuple_GetItem(cached, 4), 1) &&
+      attr_matches(value, s_device, PyTuple_GetItem(cached, 5), 1)) {
     PyObject* elem = PyTuple_GetItem(cached, 6);
     PyObject* ndim = PyTuple_GetItem(cached, 7);
     PyObject* dev = PyTuple_GetItem(cached, 8);

@@ -897,18 +897,22 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
         if len(args) != len(kernel.param_names):     # before compiling, as the slow path does
             pack_arguments(kernel, device, args)
         plan = _launch_plan(kernel, device, rt, lanes)
-        if plan.native is not None and lanes <= 1 and not max_blocks and \
-                not (block_dim and block_dim > 0 and block_dim != 256 and device != "cpu"):
-            # the whole command in C (weft._launch_frame), or None: an argument the Python
-            # path converts or rejects
+        # the command as bytes (no message) unless launch options go in it
+        as_bytes = lanes <= 1 and not max_blocks and \
+            not (block_dim and block_dim > 0 and block_dim != 256 and device != "cpu")
+        if as_bytes:
             _, origin, origin_field = caller_origin_entry()
-            frame = _NATIVE.frame(plan.native, dims, args, device, origin_field)
+            if plan.native is not None:
+                # the whole command in C (weft._launch_frame), or None: an argument the
+                # Python path converts or rejects
+                frame = _NATIVE.frame(plan.native, dims, args, device, origin_field)
         if frame is None:
             packed, packer, resolved, fields = _pack_fast(kernel, plan, device, args)
         else:
             packer, resolved = None, args
     else:
         plan = None
+        as_bytes = False
         if generic:
             kernel = kernel.specialize(infer_param_types(kernel, args))
         packed, packer = pack_arguments(kernel, device, args)
@@ -930,14 +934,10 @@ def launch(kernel, dim, inputs=(), outputs=(), adj_inputs=(), adj_outputs=(), de
     pause = tape is not None and (adjoint or not record_tape)
     if pause:
         tape.pause_recording()
-    if frame is not None:
-        pass                                      # built in C above
-    elif plan is not None and lanes <= 1 and not max_blocks and \
-            not (block_dim and block_dim > 0 and block_dim != 256 and device != "cpu"):
-        # the command as bytes: the plan's fields, the dimensions, the arguments' cached fields
-        # and the call site's (what the protobuf message below would serialize to)
-        _, origin, origin_field = caller_origin_entry()
-        frame = launch_frame_bytes(plan.template_bytes, dims, fields, origin_field)
+    if as_bytes:
+        if frame is None:     # not built in C above: the plan's fields, the dimensions, the
+            # arguments' cached fields and the call site's (what the message would serialize to)
+            frame = launch_frame_bytes(plan.template_bytes, dims, fields, origin_field)
     elif plan is not None:
         pb = _pb()
         command = pb.Command()
