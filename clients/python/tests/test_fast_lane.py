@@ -1084,3 +1084,55 @@ def test_a_grpc_read_comes_after_the_quiet_frames_before_it(wp, monkeypatch):
         remote.shm_name = ""                    # read as a remote client reads: through gRPC
         got = array_mod._read_bytes(rt, remote, 0, 4 * n).view(np.float32)
         np.testing.assert_array_equal(got, value)
+
+
+def test_a_grpc_free_comes_after_the_quiet_frames_that_use_the_array(wp, monkeypatch):
+    """Frees through gRPC (array calls off the lane, WEFT_FAST_LANE_ARRAYS=0) right after a
+    quiet Submit that uses the freed array: the Submit's command still finds the array, every
+    time (a free that overtook the lane's unread frame made the command fail with "unknown
+    array handle": the Torch Rosenbrock loop on the H200). Each gRPC free is sent only once
+    the lane was fenced, and the fills all landed."""
+    rt = _runtime_with_lane(wp)
+    if not rt.fast_lane.quiet:
+        pytest.skip("the daemon's lane does not offer quiet Submits")
+    monkeypatch.setattr(rt, "pipelined", True)
+    monkeypatch.setattr(rt, "lane_arrays", False)
+    sent_unfenced = []
+    free_future = rt.array_stub.Free.future
+
+    class _Stub:                                # the array stub with Free.future observed
+        def __getattr__(self, name):
+            return getattr(stub, name)
+
+    class _Free:
+        def future(self, request, **kwargs):
+            sent_unfenced.append(rt._quiet_unfenced)
+            return free_future(request, **kwargs)
+
+        def __call__(self, request, **kwargs):
+            return stub.Free(request, **kwargs)
+
+    stub = rt.array_stub
+    observed = _Stub()
+    observed.Free = _Free()
+    monkeypatch.setattr(rt, "array_stub", observed)
+    rng = np.random.default_rng()
+    keep = wp.zeros(1000, dtype=float, device="cpu")
+    for _ in range(30):
+        n = int(rng.integers(100_000, 400_000))
+        a = wp.zeros(n, dtype=float, device="cpu")
+        wp.synchronize()
+        value = np.float32(rng.uniform(-1e6, 1e6))
+        with rt._lock:
+            for target in (a, keep):
+                rt._batch.append(_runtime.framed_command(exec_pb2.Command(fill=exec_pb2.FillCommand(
+                    dst=target._ref(), value=value.tobytes()))))
+            rt._batch_since = time.perf_counter()
+            rt._unsynchronized = True
+            rt.send_now()                       # a quiet Submit: nothing answers it
+        assert rt._quiet_unfenced
+        del a                                   # its free goes out through gRPC now
+        rt.drain_frees()
+        wp.synchronize()                        # raised "unknown array handle" when it overtook
+        np.testing.assert_array_equal(keep.numpy(), value)
+    assert sent_unfenced and not any(sent_unfenced), "a gRPC free went out before the lane was fenced"

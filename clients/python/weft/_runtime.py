@@ -1046,6 +1046,12 @@ class Runtime:
                 return
             except _fast_lane.FastLaneError:
                 self._pending_frees.extend(r.handle for r in requests)   # gRPC below
+        if self._pending_frees and self._quiet_unfenced:
+            # gRPC is not ordered with the lane: a free sent now could reach weftd before a
+            # quiet Submit still unread in the lane that uses the array (its command would then
+            # find the handle gone). The fence returns once weftd served everything sent so far.
+            self._collect_inflight()
+            self._fence_quiet()
         while self._pending_frees:
             handle = self._pending_frees.popleft()
             self._free_calls.append(self.array_stub.Free.future(
@@ -1083,6 +1089,7 @@ class Runtime:
         try:
             with self._lock:
                 self.flush()
+                self._fence_quiet()     # frees flush() sent unanswered come before the end
                 response = self.exec_stub.Synchronize(exec_pb2.SynchronizeRequest(),
                                                       metadata=self.metadata, timeout=30)
             if response.output:
