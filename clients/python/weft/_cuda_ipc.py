@@ -574,10 +574,46 @@ def _stream_op(fn, what, ordinal, stream, address, value, flags):
     _check(rc, what)
 
 
+# weft._stream_ops (clients/python/native/stream_ops.c): per device, (op, the driver's
+# cuStreamWriteValue64_v2, cuStreamWaitValue64_v2 and cuCtxGetCurrent addresses, the device's
+# primary context) for the stream memory operations in C; False when not looked up yet, None
+# when not built or WEFT_NATIVE_STREAM_OPS=0.
+_native_ops: dict = {}
+
+
+def _native_op(ordinal: int):
+    entry = _native_ops.get(ordinal, False)
+    if entry is False:
+        from . import _native  # noqa: PLC0415
+
+        module = _native.optional("_stream_ops", "WEFT_NATIVE_STREAM_OPS")
+        entry = None
+        if module is not None and _load() is not None:
+            with _lock:
+                fns = [getattr(_lib, name, None) for name in
+                       ("cuStreamWriteValue64_v2", "cuStreamWaitValue64_v2", "cuCtxGetCurrent")]
+                address = [ctypes.cast(fn, ctypes.c_void_p).value if fn is not None else None
+                           for fn in fns]
+                ctx = _context(ordinal).value
+            if all(address) and ctx:
+                entry = (module.op, address[0], address[1], address[2], ctx)
+        _native_ops[ordinal] = entry
+    return entry
+
+
 def write_value(ordinal: int, stream: int, address: int, value: int) -> None:
     """Queues on this process's stream `stream`: write the 64-bit `value` at device `address`
     after the work queued before it."""
-    if stream and _lib.cuStreamWriteValue64_v2(stream, address, value, 0) == 0:
+    native = _native_ops.get(ordinal, False)
+    if native is False:
+        native = _native_op(ordinal)
+    if native is not None:
+        rc = native[0](native[1], native[3], native[4], stream, address, value, 0)
+        if rc == 0:
+            return
+        if rc != CUDA_ERROR_INVALID_CONTEXT:
+            _check(rc, "cuStreamWriteValue64")
+    elif stream and _lib.cuStreamWriteValue64_v2(stream, address, value, 0) == 0:
         return                   # a stream of its own names its context: no lock, no push
     with _lock:
         _stream_op(_lib.cuStreamWriteValue64_v2, "cuStreamWriteValue64", ordinal, stream,
@@ -587,7 +623,17 @@ def write_value(ordinal: int, stream: int, address: int, value: int) -> None:
 def wait_value(ordinal: int, stream: int, address: int, value: int) -> None:
     """Queues on this process's stream `stream`: wait (on the GPU) until the 64-bit word at
     device `address` holds at least `value`."""
-    if stream and _lib.cuStreamWaitValue64_v2(stream, address, value, CU_STREAM_WAIT_VALUE_GEQ) == 0:
+    native = _native_ops.get(ordinal, False)
+    if native is False:
+        native = _native_op(ordinal)
+    if native is not None:
+        rc = native[0](native[2], native[3], native[4], stream, address, value,
+                       CU_STREAM_WAIT_VALUE_GEQ)
+        if rc == 0:
+            return
+        if rc != CUDA_ERROR_INVALID_CONTEXT:
+            _check(rc, "cuStreamWaitValue64")
+    elif stream and _lib.cuStreamWaitValue64_v2(stream, address, value, CU_STREAM_WAIT_VALUE_GEQ) == 0:
         return                   # a stream of its own names its context: no lock, no push
     with _lock:
         _stream_op(_lib.cuStreamWaitValue64_v2, "cuStreamWaitValue64", ordinal, stream,

@@ -146,9 +146,24 @@ class _ValueOrder:
         if inner is None:
             inner = self._templates[(op, index)] = _pb().CudaValueCommand(
                 op=op, order=self.ref, index=index).SerializeToString()
+        native = _NATIVE_COMMAND if _NATIVE_COMMAND is not False else _native_command()
+        if native is not None:
+            return native(inner, value)                       # the same bytes, in C
         inner += b"\x20" + _varint(value)                     # CudaValueCommand.value = 4
         cmd = b"\x3a" + _varint(len(inner)) + inner + b"\x7a\x00"   # cuda_value = 7, origin = 15
         return b"\x0a" + _varint(len(cmd)) + cmd              # SubmitRequest.commands = 1
+
+
+_NATIVE_COMMAND = False     # weft._stream_ops.value_command; None: not built or turned off
+
+
+def _native_command():
+    global _NATIVE_COMMAND
+    from .. import _native  # noqa: PLC0415
+
+    module = _native.optional("_stream_ops", "WEFT_NATIVE_STREAM_OPS")
+    _NATIVE_COMMAND = module.value_command if module is not None else None
+    return _NATIVE_COMMAND
 
 
 def _value_order(rt, ordinal):
