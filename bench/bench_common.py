@@ -60,6 +60,20 @@ def median_time(fn, repeat: int = 5, min_time: float = 0.0) -> float:
     return statistics.median(times)
 
 
+def interleaved_medians(bodies: dict, repeat: int = 5) -> dict:
+    """{name: median wall time of bodies[name]() (seconds)}, the bodies timed in turn, one run
+    of each per round (weft, Warp, weft, Warp, ...): a machine whose speed drifts during the
+    run (the lent GPU hosts move by up to 2x within a minute) moves both alike, so their ratio
+    holds where two separate medians would not."""
+    times = {name: [] for name in bodies}
+    for _ in range(repeat):
+        for name, fn in bodies.items():
+            t = time.perf_counter()
+            fn()
+            times[name].append(time.perf_counter() - t)
+    return {name: statistics.median(v) for name, v in times.items()}
+
+
 def fmt_time(seconds) -> str:
     if seconds is None:
         return "n/a"

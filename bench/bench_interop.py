@@ -2,8 +2,8 @@
 five Torch tensors and launches one kernel on them, in three modes: wp.from_torch (default),
 wp.from_torch(..., return_ctype=True), and the tensors passed to wp.launch directly. weft and
 warp-lang run the same kernel on the same device in the same process (--device cpu, the
-default, or cuda:N with CUDA tensors). Time is per iteration (median
-of repeats). Error: after the timed iterations the accumulated output is compared with a
+default, or cuda:N with CUDA tensors). Time is per iteration (median of repeats, weft's and
+warp-lang's runs taken in turn, so that a machine whose speed drifts moves both alike). Error: after the timed iterations the accumulated output is compared with a
 float64 NumPy reference (max relative error). Ratio = warp time / weft time.
 
 A second table times one step of the documentation's Rosenbrock torch.autograd.Function
@@ -50,7 +50,10 @@ def eval_rosenbrock(xs: wp.array(dtype=wp.vec2), z: wp.array(dtype=float)):
 MODES = ["from_torch", "from_torch(return_ctype=True)", "direct tensors"]
 
 
-def run(wp, mod, torch, mode, n, iters, repeat, seed, device="cpu"):
+def prepare(wp, mod, torch, mode, n, iters, seed, device="cpu"):
+    """(body, error): body() runs `iters` iterations of `mode` and waits for them; error() is
+    the max relative error of the accumulated output against float64 after every body()
+    run so far (body() runs once here: compile, first conversions)."""
     rng = np.random.default_rng(seed)
     inputs = [rng.standard_normal(n).astype(np.float32) for _ in range(4)]
     tdev = "cpu" if device == "cpu" else device
@@ -71,12 +74,20 @@ def run(wp, mod, torch, mode, n, iters, repeat, seed, device="cpu"):
             torch.cuda.synchronize()
         done[0] += iters
 
+    def error():
+        reference = done[0] * sum(x.astype(np.float64) for x in inputs)
+        got = ts[4].cpu().numpy().astype(np.float64)
+        return float(np.max(np.abs(got - reference) / np.maximum(np.abs(reference), 1.0)))
+
     body()                                   # warm-up: compile, first conversions
+    return body, error
+
+
+def run(wp, mod, torch, mode, n, iters, repeat, seed, device="cpu"):
+    """(seconds per iteration, error) of `mode` alone."""
+    body, error = prepare(wp, mod, torch, mode, n, iters, seed, device)
     seconds = bc.median_time(body, repeat=repeat) / iters
-    reference = done[0] * sum(x.astype(np.float64) for x in inputs)
-    got = ts[4].cpu().numpy().astype(np.float64)
-    error = float(np.max(np.abs(got - reference) / np.maximum(np.abs(reference), 1.0)))
-    return seconds, error
+    return seconds, error()
 
 
 def rosenbrock_step(wp, mod, torch, xy, n, device):
@@ -94,7 +105,9 @@ def rosenbrock_step(wp, mod, torch, xy, n, device):
     return wp.to_torch(wxy.grad)
 
 
-def run_rosenbrock(wp, mod, torch, n, iters, repeat, seed, device="cpu"):
+def prepare_rosenbrock(wp, mod, torch, n, iters, seed, device="cpu"):
+    """(body, error) of the Rosenbrock step as prepare() gives them: body() runs `iters`
+    steps; error() compares the last step's gradient with the float64 analytic one."""
     rng = np.random.default_rng(seed)
     tdev = "cpu" if device == "cpu" else device
     xy = torch.tensor(rng.uniform(-1.5, 1.5, size=(n, 2)), dtype=torch.float32, device=tdev,
@@ -108,14 +121,15 @@ def run_rosenbrock(wp, mod, torch, n, iters, repeat, seed, device="cpu"):
         if device != "cpu":
             torch.cuda.synchronize()
 
+    def error():
+        p = xy.detach().cpu().numpy().astype(np.float64)
+        x, y = p[:, 0], p[:, 1]
+        ref = np.stack([-2.0 * (1.0 - x) - 400.0 * x * (y - x * x), 200.0 * (y - x * x)], axis=1)
+        got = last[0].cpu().numpy().astype(np.float64)
+        return float(np.max(np.abs(got - ref) / np.maximum(np.abs(ref), 1.0)))
+
     body()
-    seconds = bc.median_time(body, repeat=repeat) / iters
-    p = xy.detach().cpu().numpy().astype(np.float64)
-    x, y = p[:, 0], p[:, 1]
-    ref = np.stack([-2.0 * (1.0 - x) - 400.0 * x * (y - x * x), 200.0 * (y - x * x)], axis=1)
-    got = last[0].cpu().numpy().astype(np.float64)
-    error = float(np.max(np.abs(got - ref) / np.maximum(np.abs(ref), 1.0)))
-    return seconds, error
+    return body, error
 
 
 def main():
@@ -136,11 +150,16 @@ def main():
         warp_mod = bc.load_kernels(SOURCE, "warp", "interop") if warp is not None else None
         rows = []
         for i, mode in enumerate(MODES):
-            ws, we = run(weft, weft_mod, torch, mode, args.n, args.iters, args.repeat, 100 + i,
-                         args.device)
+            # weft and warp-lang timed in turn, one run of each per round (interleaved_medians)
+            bodies, errors = {}, {}
+            for name, lib, mod in (("weft", weft, weft_mod), ("warp", warp, warp_mod)):
+                if lib is not None:
+                    bodies[name], errors[name] = prepare(lib, mod, torch, mode, args.n, args.iters,
+                                                         100 + i, args.device)
+            medians = bc.interleaved_medians(bodies, args.repeat)
+            ws, we = medians["weft"] / args.iters, errors["weft"]()
             if warp is not None:
-                ps, pe = run(warp, warp_mod, torch, mode, args.n, args.iters, args.repeat,
-                             100 + i, args.device)
+                ps, pe = medians["warp"] / args.iters, errors["warp"]()
             else:
                 ps = pe = None
             rows.append([mode, bc.fmt_time(ws), f"{we:.1e}", bc.fmt_time(ps),
@@ -163,15 +182,31 @@ def main():
         bc.print_table(f"Torch interop, {args.device}: 5 conversions + 1 launch per iteration "
                        f"(n={args.n}, {args.iters} iterations x {args.repeat})",
                        ["mode", "weft", "weft err", "warp-lang", "warp err", "ratio"], rows)
-        ws, we = run_rosenbrock(weft, weft_mod, torch, 1500, args.iters, args.repeat, 7, args.device)
+        # weft, warp-lang, and weft with ArrayService calls through gRPC
+        # (WEFT_FAST_LANE_ARRAYS=0: what the fast lane's array calls save), timed in turn
+        bodies, errors = {}, {}
+        bodies["weft"], errors["weft"] = prepare_rosenbrock(weft, weft_mod, torch, 1500, args.iters,
+                                                            7, args.device)
+        if warp is not None:
+            bodies["warp"], errors["warp"] = prepare_rosenbrock(warp, warp_mod, torch, 1500,
+                                                                args.iters, 7, args.device)
+        grpc_body, errors["grpc"] = prepare_rosenbrock(weft, weft_mod, torch, 1500, args.iters, 7,
+                                                       args.device)
+
+        def over_grpc():
+            lane_arrays, _rt.lane_arrays = _rt.lane_arrays, False
+            try:
+                grpc_body()
+            finally:
+                _rt.lane_arrays = lane_arrays
+
+        bodies["grpc"] = over_grpc
+        medians = bc.interleaved_medians(bodies, args.repeat)
+        ws, we = medians["weft"] / args.iters, errors["weft"]()
+        gs, ge = medians["grpc"] / args.iters, errors["grpc"]()
         ps = pe = None
         if warp is not None:
-            ps, pe = run_rosenbrock(warp, warp_mod, torch, 1500, args.iters, args.repeat, 7, args.device)
-        # The same step with ArrayService calls through gRPC (WEFT_FAST_LANE_ARRAYS=0): what the
-        # fast lane's array calls save.
-        lane_arrays, _rt.lane_arrays = _rt.lane_arrays, False
-        gs, ge = run_rosenbrock(weft, weft_mod, torch, 1500, args.iters, args.repeat, 7, args.device)
-        _rt.lane_arrays = lane_arrays
+            ps, pe = medians["warp"] / args.iters, errors["warp"]()
         if args.device != "cpu":
             from weft import _cuda_ipc
 

@@ -340,3 +340,45 @@ def test_launch_takes_descriptors_like_their_arrays(wp, torch, rng):
     with pytest.raises(Exception) as by_descriptor:
         wp.launch(affine, dim=64, inputs=[wrong.__ctype__()], outputs=[w])
     assert str(by_descriptor.value) == str(by_array.value) and "dtype" in str(by_array.value)
+
+
+def test_cpu_descriptors_converted_again_follow_the_tensor(wp, torch, rng):
+    """from_torch(return_ctype=True) of a CPU tensor converted before copies the remembered
+    descriptor (as for CUDA tensors): a new object with the bytes a fresh conversion makes,
+    taken by launches like its array; once the tensor changes (re-pointed, resized, another
+    dtype asked for, a gradient set or asked for), the descriptor says so."""
+    values = (rng.standard_normal(4096) * 10.0 ** rng.uniform(-15, 15, 4096)).astype(np.float32)
+    t = torch.tensor(values)
+    descs = [wp.from_torch(t, return_ctype=True) for _ in range(4)]
+    assert len({id(d) for d in descs}) == 4
+    assert {bytes(d) for d in descs} == {bytes(descs[0])}
+    assert descs[-1].data == t.data_ptr() and descs[-1].shape[0] == 4096
+    assert "_weft_last_ctype" in t.__dict__, "the descriptor was not remembered on the tensor"
+    fresh = wp.from_torch(t).__ctype__()
+    assert bytes(fresh) == bytes(descs[-1])
+    total = wp.zeros(1, dtype=float, device="cpu")
+    for d in descs:
+        wp.launch(square_sum, dim=4096, inputs=[d, total], device="cpu")
+    expected = 4.0 * np.sum(values.astype(np.float64) ** 2)
+    # float32 atomic sums of 4 x 4096 terms in any order: within n * eps of the float64 sum
+    assert abs(float(total.numpy()[0]) - expected) <= 4 * 4096 * 6e-8 * expected
+    remembered = descs[0]._weft_value
+    g = wp.zeros(4096, dtype=float, device="cpu")
+    remembered.grad = g                          # the descriptor must now carry it
+    d = wp.from_torch(t, return_ctype=True)
+    assert d.grad == g.ptr and d.data == t.data_ptr()
+    remembered.grad = None
+    assert wp.from_torch(t, return_ctype=True).grad == 0
+    t.resize_(1000)
+    d = wp.from_torch(t, return_ctype=True)
+    assert d.shape[0] == 1000 and d.data == t.data_ptr()
+    t.set_(torch.tensor(values[:7]))
+    d = wp.from_torch(t, return_ctype=True)
+    assert d.shape[0] == 7 and d.data == t.data_ptr() and d.data != descs[0].data
+    u = torch.tensor(values.reshape(2048, 2))
+    wp.from_torch(u, return_ctype=True), wp.from_torch(u, return_ctype=True)
+    d = wp.from_torch(u, dtype=wp.vec2, return_ctype=True)
+    assert d.ndim == 1 and d.shape[0] == 2048
+    t.requires_grad_(True)
+    d = wp.from_torch(t, return_ctype=True)
+    assert d.grad != 0 and d.grad == t.grad.data_ptr()

@@ -206,6 +206,24 @@ def _tensor_over(a, torch_dtype, shape):
 _LAST_IMPORT = "_weft_last_import"
 
 
+# On a CPU tensor whose storage is weft slab memory: ((pointer, shape, strides, dtype, dtype
+# asked for), the array over it), the next conversion's look-up while the tensor points there.
+_CPU_ARRAY = "_weft_cpu_array"
+
+
+def _last_cpu_array(t, dtype, requires_grad):
+    """The array remembered on CPU tensor `t` for this conversion (no gradient asked for, the
+    tensor unchanged, its session open), else None."""
+    d = getattr(t, "__dict__", None)
+    last = d.get(_CPU_ARRAY) if d is not None else None
+    if last is None or (requires_grad if requires_grad is not None else t.requires_grad):
+        return None
+    key, known = last
+    if key != (t.data_ptr(), t.shape, t.stride(), t.dtype, dtype) or known._alloc.runtime.closed:
+        return None
+    return known
+
+
 def _last_import(t, dtype, requires_grad):
     d = getattr(t, "__dict__", None)
     last = d.get(_LAST_IMPORT) if d is not None else None
@@ -240,9 +258,12 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False,
         return a
     desc = a.__ctype__()
     if grad is None and not retain_grad and _plain(a) and a.__dict__.get("_view_of") is not None:
-        last = getattr(t, "__dict__", {}).get(_LAST_IMPORT)
-        if last is not None and last[1] is a.__dict__["_view_of"]:
-            t.__dict__[_LAST_CTYPE] = (last, desc)
+        d = getattr(t, "__dict__", {})
+        for name in (_LAST_IMPORT, _CPU_ARRAY):
+            last = d.get(name)
+            if last is not None and last[1] is a.__dict__["_view_of"]:
+                d[_LAST_CTYPE] = (last, desc)
+                break
     return desc
 
 
@@ -261,9 +282,14 @@ def _plain(a) -> bool:
 def _last_descriptor(t, dtype, requires_grad):
     d = getattr(t, "__dict__", None)
     entry = d.get(_LAST_CTYPE) if d is not None else None
-    if entry is None or d.get(_LAST_IMPORT) is not entry[0]:
+    if entry is None:
         return None
-    known = _last_import(t, dtype, requires_grad)
+    if d.get(_LAST_IMPORT) is entry[0]:
+        known = _last_import(t, dtype, requires_grad)
+    elif d.get(_CPU_ARRAY) is entry[0]:
+        known = _last_cpu_array(t, dtype, requires_grad)
+    else:
+        return None                     # the tensor's remembered conversion changed since
     if known is None:                   # the tensor changed, or another session
         return None
     if not _plain(known):
@@ -318,17 +344,16 @@ def _from_torch(t, dtype, requires_grad, grad):
     if not requires_grad and grad is None:
         # The same conversion again (a loop): the array over the tensor's slab memory,
         # remembered on the tensor while it points there.
-        from .cuda_import import _fresh  # noqa: PLC0415
+        known = _last_cpu_array(t, dtype, False)
+        if known is not None:
+            from .cuda_import import _fresh  # noqa: PLC0415
 
-        key = (t.data_ptr(), t.shape, t.stride(), t.dtype, dtype)
-        known = t.__dict__.get("_weft_cpu_array")
-        if known is not None and known[0] == key and not known[1]._alloc.runtime.closed:
-            return _fresh(known[1])
+            return _fresh(known)
     a = _adopt_tensor(t, dtype, what, requires_grad)
     if not requires_grad and grad is None:
         if a.ptr is not None and a.ptr == t.data_ptr():
             try:
-                t.__dict__["_weft_cpu_array"] = ((t.data_ptr(), t.shape, t.stride(), t.dtype, dtype), a)
+                t.__dict__[_CPU_ARRAY] = ((t.data_ptr(), t.shape, t.stride(), t.dtype, dtype), a)
             except TypeError:
                 pass
         return a
