@@ -1057,6 +1057,19 @@ def test_quiet_submit_failure_is_raised_at_the_next_synchronize(wp, monkeypatch)
     np.testing.assert_allclose(data.numpy(), 2.0 * values.astype(np.float64), rtol=1e-6)
 
 
+def _send_quiet_fills(rt, targets, value):
+    """Fills of `targets` with float32 `value` sent at once as one quiet Submit (nothing
+    answers it, nothing fences it yet)."""
+    with rt._lock:
+        for target in targets:
+            rt._batch.append(_runtime.framed_command(exec_pb2.Command(fill=exec_pb2.FillCommand(
+                dst=target._ref(), value=value.tobytes()))))
+        rt._batch_since = time.perf_counter()
+        rt._unsynchronized = True
+        rt.send_now()
+    assert rt._quiet_unfenced
+
+
 def test_a_grpc_read_comes_after_the_quiet_frames_before_it(wp, monkeypatch):
     """A fill sent as a quiet Submit, then at once a gRPC read of the same array (the path of a
     remote or non-mapped array): the read sees the fill, every time (Runtime.order_grpc fences
@@ -1072,13 +1085,7 @@ def test_a_grpc_read_comes_after_the_quiet_frames_before_it(wp, monkeypatch):
     wp.synchronize()
     for _ in range(20):
         value = np.float32(rng.uniform(-1e6, 1e6))
-        with rt._lock:
-            rt._batch.append(_runtime.framed_command(exec_pb2.Command(fill=exec_pb2.FillCommand(
-                dst=a._ref(), value=value.tobytes()))))
-            rt._batch_since = time.perf_counter()
-            rt._unsynchronized = True
-            rt.send_now()                       # a quiet Submit: nothing answers it
-        assert rt._quiet_unfenced
+        _send_quiet_fills(rt, [a], value)
         remote = type(a._info)()
         remote.CopyFrom(a._info)
         remote.shm_name = ""                    # read as a remote client reads: through gRPC
@@ -1123,14 +1130,7 @@ def test_a_grpc_free_comes_after_the_quiet_frames_that_use_the_array(wp, monkeyp
         a = wp.zeros(n, dtype=float, device="cpu")
         wp.synchronize()
         value = np.float32(rng.uniform(-1e6, 1e6))
-        with rt._lock:
-            for target in (a, keep):
-                rt._batch.append(_runtime.framed_command(exec_pb2.Command(fill=exec_pb2.FillCommand(
-                    dst=target._ref(), value=value.tobytes()))))
-            rt._batch_since = time.perf_counter()
-            rt._unsynchronized = True
-            rt.send_now()                       # a quiet Submit: nothing answers it
-        assert rt._quiet_unfenced
+        _send_quiet_fills(rt, [a, keep], value)
         del a                                   # its free goes out through gRPC now
         rt.drain_frees()
         wp.synchronize()                        # raised "unknown array handle" when it overtook

@@ -129,3 +129,35 @@ def run_example(weftd, client_env):
         return proc.stdout
 
     return run
+
+
+@pytest.fixture
+def descriptors_follow_the_tensor(wp, torch):
+    """check(t, values, device): after a loop of from_torch(t, return_ctype=True), the
+    descriptor remembered on tensor `t` (made from `values` on `device`) follows every change
+    of the tensor: a gradient set on the remembered array and removed, a resize, a re-pointed
+    storage, another dtype asked for, a gradient asked for."""
+    def check(t, values, device):
+        first = wp.from_torch(t, return_ctype=True)
+        remembered = first._weft_value               # the conversion the later ones follow
+        g = wp.zeros(len(values), dtype=float, device=device)
+        remembered.grad = g                          # the descriptor must now carry it
+        d = wp.from_torch(t, return_ctype=True)
+        assert d.grad == g.ptr and d.data == t.data_ptr()
+        remembered.grad = None
+        assert wp.from_torch(t, return_ctype=True).grad == 0
+        t.resize_(1000)
+        d = wp.from_torch(t, return_ctype=True)
+        assert d.shape[0] == 1000 and d.data == t.data_ptr()
+        t.set_(torch.tensor(values[:7], device=device))
+        d = wp.from_torch(t, return_ctype=True)
+        assert d.shape[0] == 7 and d.data == t.data_ptr() and d.data != first.data
+        u = torch.tensor(values.reshape(len(values) // 2, 2), device=device)
+        wp.from_torch(u, return_ctype=True), wp.from_torch(u, return_ctype=True)
+        d = wp.from_torch(u, dtype=wp.vec2, return_ctype=True)
+        assert d.ndim == 1 and d.shape[0] == len(values) // 2
+        t.requires_grad_(True)
+        d = wp.from_torch(t, return_ctype=True)
+        assert d.grad != 0 and d.grad == t.grad.data_ptr()
+
+    return check

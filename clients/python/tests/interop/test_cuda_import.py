@@ -96,7 +96,8 @@ def test_converting_again_follows_what_the_tensor_is_now(wp, tcuda, torch, rng):
     assert f.grad.ptr == t.grad.data_ptr()
 
 
-def test_descriptors_converted_again_follow_the_tensor(wp, tcuda, torch, rng):
+def test_descriptors_converted_again_follow_the_tensor(wp, tcuda, torch, rng,
+                                                      descriptors_follow_the_tensor):
     """from_torch(return_ctype=True) of a tensor converted before copies the remembered
     descriptor (interop/torch.py _last_descriptor): a new object with the same bytes, taken by
     launches like its array; once the tensor changes (re-pointed, resized, another dtype asked
@@ -112,26 +113,7 @@ def test_descriptors_converted_again_follow_the_tensor(wp, tcuda, torch, rng):
         wp.launch(scale_sum, dim=4096, inputs=[d, 2.0, total], device=tcuda)
     wp.synchronize()
     np.testing.assert_allclose(t.cpu().numpy(), values.astype(np.float64) * 8.0, rtol=1e-6)
-    remembered = descs[0]._weft_value          # the import the later conversions follow
-    g = wp.zeros(4096, dtype=float, device=tcuda)
-    remembered.grad = g                         # the descriptor must now carry it
-    d = wp.from_torch(t, return_ctype=True)
-    assert d.grad == g.ptr and d.data == t.data_ptr()
-    remembered.grad = None
-    assert wp.from_torch(t, return_ctype=True).grad == 0
-    t.resize_(1000)
-    d = wp.from_torch(t, return_ctype=True)
-    assert d.shape[0] == 1000 and d.data == t.data_ptr()
-    t.set_(torch.tensor(values[:7], device="cuda"))
-    d = wp.from_torch(t, return_ctype=True)
-    assert d.shape[0] == 7 and d.data == t.data_ptr() and d.data != descs[0].data
-    u = torch.tensor(values.reshape(2048, 2), device="cuda")
-    wp.from_torch(u, return_ctype=True), wp.from_torch(u, return_ctype=True)
-    d = wp.from_torch(u, dtype=wp.vec2, return_ctype=True)
-    assert d.ndim == 1 and d.shape[0] == 2048
-    t.requires_grad_(True)
-    d = wp.from_torch(t, return_ctype=True)
-    assert d.grad != 0 and d.grad == t.grad.data_ptr()
+    descriptors_follow_the_tensor(t, values, "cuda")
 
 
 def test_strided_tensor_view_is_imported(wp, tcuda, torch, rng):

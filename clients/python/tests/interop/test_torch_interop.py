@@ -342,7 +342,8 @@ def test_launch_takes_descriptors_like_their_arrays(wp, torch, rng):
     assert str(by_descriptor.value) == str(by_array.value) and "dtype" in str(by_array.value)
 
 
-def test_cpu_descriptors_converted_again_follow_the_tensor(wp, torch, rng):
+def test_cpu_descriptors_converted_again_follow_the_tensor(wp, torch, rng,
+                                                          descriptors_follow_the_tensor):
     """from_torch(return_ctype=True) of a CPU tensor converted before copies the remembered
     descriptor (as for CUDA tensors): a new object with the bytes a fresh conversion makes,
     taken by launches like its array; once the tensor changes (re-pointed, resized, another
@@ -362,23 +363,4 @@ def test_cpu_descriptors_converted_again_follow_the_tensor(wp, torch, rng):
     expected = 4.0 * np.sum(values.astype(np.float64) ** 2)
     # float32 atomic sums of 4 x 4096 terms in any order: within n * eps of the float64 sum
     assert abs(float(total.numpy()[0]) - expected) <= 4 * 4096 * 6e-8 * expected
-    remembered = descs[0]._weft_value
-    g = wp.zeros(4096, dtype=float, device="cpu")
-    remembered.grad = g                          # the descriptor must now carry it
-    d = wp.from_torch(t, return_ctype=True)
-    assert d.grad == g.ptr and d.data == t.data_ptr()
-    remembered.grad = None
-    assert wp.from_torch(t, return_ctype=True).grad == 0
-    t.resize_(1000)
-    d = wp.from_torch(t, return_ctype=True)
-    assert d.shape[0] == 1000 and d.data == t.data_ptr()
-    t.set_(torch.tensor(values[:7]))
-    d = wp.from_torch(t, return_ctype=True)
-    assert d.shape[0] == 7 and d.data == t.data_ptr() and d.data != descs[0].data
-    u = torch.tensor(values.reshape(2048, 2))
-    wp.from_torch(u, return_ctype=True), wp.from_torch(u, return_ctype=True)
-    d = wp.from_torch(u, dtype=wp.vec2, return_ctype=True)
-    assert d.ndim == 1 and d.shape[0] == 2048
-    t.requires_grad_(True)
-    d = wp.from_torch(t, return_ctype=True)
-    assert d.grad != 0 and d.grad == t.grad.data_ptr()
+    descriptors_follow_the_tensor(t, values, "cpu")
