@@ -280,19 +280,29 @@ def _plain(a) -> bool:
 
 
 def _last_descriptor(t, dtype, requires_grad):
+    """A copy of the descriptor remembered on `t` while the conversion it was made from still
+    holds: the checks of _last_import / _last_cpu_array and _plain, inline (a loop of
+    from_torch(..., return_ctype=True) does this once per tensor per launch)."""
     d = getattr(t, "__dict__", None)
     entry = d.get(_LAST_CTYPE) if d is not None else None
     if entry is None:
         return None
-    if d.get(_LAST_IMPORT) is entry[0]:
-        known = _last_import(t, dtype, requires_grad)
-    elif d.get(_CPU_ARRAY) is entry[0]:
-        known = _last_cpu_array(t, dtype, requires_grad)
+    last = entry[0]
+    if d.get(_LAST_IMPORT) is last:
+        cuda = True
+    elif d.get(_CPU_ARRAY) is last:
+        cuda = False
     else:
         return None                     # the tensor's remembered conversion changed since
-    if known is None:                   # the tensor changed, or another session
+    if requires_grad if requires_grad is not None else t.requires_grad:
         return None
-    if not _plain(known):
+    key, known = last
+    if key != (t.data_ptr(), t.shape, t.stride(), t.dtype, dtype):
+        return None                     # the tensor changed
+    rt = known._alloc.runtime
+    if rt.closed or (cuda and rt is not _get_runtime()):
+        return None                     # another session
+    if known._grad is not None or known._info.grad_handle or known._retain_grad:
         return None                     # the descriptor would carry a gradient or a flag now
     desc = entry[1]
     out = type(desc).from_buffer_copy(desc)
