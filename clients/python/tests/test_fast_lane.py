@@ -1105,24 +1105,17 @@ def test_a_grpc_free_comes_after_the_quiet_frames_that_use_the_array(wp, monkeyp
     monkeypatch.setattr(rt, "pipelined", True)
     monkeypatch.setattr(rt, "lane_arrays", False)
     sent_unfenced = []
-    free_future = rt.array_stub.Free.future
+    free = rt.array_stub.Free
 
-    class _Stub:                                # the array stub with Free.future observed
-        def __getattr__(self, name):
-            return getattr(stub, name)
-
-    class _Free:
+    class _ObservedFree:                        # Free, with whether the lane was fenced noted
         def future(self, request, **kwargs):
             sent_unfenced.append(rt._quiet_unfenced)
-            return free_future(request, **kwargs)
+            return free.future(request, **kwargs)
 
         def __call__(self, request, **kwargs):
-            return stub.Free(request, **kwargs)
+            return free(request, **kwargs)
 
-    stub = rt.array_stub
-    observed = _Stub()
-    observed.Free = _Free()
-    monkeypatch.setattr(rt, "array_stub", observed)
+    monkeypatch.setattr(rt.array_stub, "Free", _ObservedFree())
     rng = np.random.default_rng()
     keep = wp.zeros(1000, dtype=float, device="cpu")
     for _ in range(30):

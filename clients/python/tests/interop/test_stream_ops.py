@@ -120,9 +120,7 @@ def test_writes_and_waits_land_through_the_c_path(wp, driver):
     wp.synchronize()
     address = int(target.ptr)
     rng = random.Random()
-    own = cuda_ipc.proxy_stream(0) if hasattr(cuda_ipc, "proxy_stream") else None
-    streams = [0] + ([own] if own else [])
-    for stream in streams:
+    for stream in (0, cuda_ipc.proxy_stream(0)):     # the default stream, a stream of its own
         for slot in range(4):
             value = rng.randrange(1, 1 << 64)
             cuda_ipc.write_value(0, stream, address + 8 * slot, value)

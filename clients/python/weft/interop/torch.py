@@ -211,31 +211,29 @@ _LAST_IMPORT = "_weft_last_import"
 _CPU_ARRAY = "_weft_cpu_array"
 
 
-def _last_cpu_array(t, dtype, requires_grad):
-    """The array remembered on CPU tensor `t` for this conversion (no gradient asked for, the
-    tensor unchanged, its session open), else None."""
-    d = getattr(t, "__dict__", None)
-    last = d.get(_CPU_ARRAY) if d is not None else None
-    if last is None or (requires_grad if requires_grad is not None else t.requires_grad):
-        return None
-    key, known = last
-    if key != (t.data_ptr(), t.shape, t.stride(), t.dtype, dtype) or known._alloc.runtime.closed:
-        return None
-    return known
-
-
-def _last_import(t, dtype, requires_grad):
-    d = getattr(t, "__dict__", None)
-    last = d.get(_LAST_IMPORT) if d is not None else None
+def _remembered(t, last, dtype, requires_grad, cuda):
+    """The array of `last` (a (key, array) entry remembered on `t` under _LAST_IMPORT or
+    _CPU_ARRAY) while it still holds for this conversion: no gradient asked for, the tensor
+    unchanged, its session open (and, for a CUDA import, the current one); else None."""
     if last is None or (requires_grad if requires_grad is not None else t.requires_grad):
         return None
     key, known = last
     if key != (t.data_ptr(), t.shape, t.stride(), t.dtype, dtype):
         return None
     rt = known._alloc.runtime
-    if rt.closed or rt is not _get_runtime():
+    if rt.closed or (cuda and rt is not _get_runtime()):
         return None
     return known
+
+
+def _last_cpu_array(t, dtype, requires_grad):
+    d = getattr(t, "__dict__", None)
+    return _remembered(t, d.get(_CPU_ARRAY) if d is not None else None, dtype, requires_grad, False)
+
+
+def _last_import(t, dtype, requires_grad):
+    d = getattr(t, "__dict__", None)
+    return _remembered(t, d.get(_LAST_IMPORT) if d is not None else None, dtype, requires_grad, True)
 
 
 def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False, retain_grad=False):
@@ -281,8 +279,7 @@ def _plain(a) -> bool:
 
 def _last_descriptor(t, dtype, requires_grad):
     """A copy of the descriptor remembered on `t` while the conversion it was made from still
-    holds: the checks of _last_import / _last_cpu_array and _plain, inline (a loop of
-    from_torch(..., return_ctype=True) does this once per tensor per launch)."""
+    holds (_remembered) and its array has neither a gradient nor a flag (_plain)."""
     d = getattr(t, "__dict__", None)
     entry = d.get(_LAST_CTYPE) if d is not None else None
     if entry is None:
@@ -294,16 +291,10 @@ def _last_descriptor(t, dtype, requires_grad):
         cuda = False
     else:
         return None                     # the tensor's remembered conversion changed since
-    if requires_grad if requires_grad is not None else t.requires_grad:
-        return None
-    key, known = last
-    if key != (t.data_ptr(), t.shape, t.stride(), t.dtype, dtype):
-        return None                     # the tensor changed
-    rt = known._alloc.runtime
-    if rt.closed or (cuda and rt is not _get_runtime()):
-        return None                     # another session
-    if known._grad is not None or known._info.grad_handle or known._retain_grad:
-        return None                     # the descriptor would carry a gradient or a flag now
+    known = _remembered(t, last, dtype, requires_grad, cuda)
+    if known is None or not _plain(known):
+        return None                     # the tensor changed, another session, or the
+        # descriptor would carry a gradient or a flag now
     desc = entry[1]
     out = type(desc).from_buffer_copy(desc)
     out._weft_value = desc._weft_value
