@@ -11,6 +11,7 @@ a wrap record past them, garbage records, random bytes over the whole request ar
 other than a wake on the socket, a reply tail outside the ring, a second ring, a client that
 never reads its replies and then dies. After each the daemon keeps serving and keeps no thread
 of the attacker's connection."""
+import ctypes
 import mmap
 import os
 import random
@@ -558,7 +559,7 @@ def _fake_ring(size: int, req_cap: int, rep_cap: int, native: bool):
     finally:
         os.close(fd)
     if not native:
-        ring._native_put, ring._anchor = None, None
+        ring._native_put, ring._native_take, ring._anchor = None, None, None
     return ring, (a, b)
 
 
@@ -569,7 +570,8 @@ def test_the_c_writer_writes_the_python_writers_records():
     the area has no room for returns -1 from the C writer and nothing is written; hostile
     arguments (an address of 0, a base or capacity past the mapping, a head behind the tail or
     a record larger than the area, wrong types) raise, never write."""
-    native_put = _fast_lane._native_ring_put()
+    native = _fast_lane._native_ring()
+    native_put = native.put if native is not None else None
     if native_put is None:
         pytest.skip("weft._lane_ring is not built (Python development headers missing) or "
                     "WEFT_NATIVE_LANE=0")
@@ -611,6 +613,88 @@ def test_the_c_writer_writes_the_python_writers_records():
                 native_put(*bad)
         assert c_ring._mm[:] == before
     finally:
+        for ring, socks in ((c_ring, c_socks), (py_ring, py_socks)):
+            ring.close()
+            for sock in socks:
+                sock.close()
+
+
+def _put_reply(ring, frame: bytes) -> None:
+    """Writes `frame` as the daemon writes a reply record (server/lane_ring.cpp): a wrap marker
+    first when it does not fit before the area's end, then length + frame, the head published."""
+    cap, base = ring._rep_cap, ring._rep_base
+    head = ring._u64[REPLY_HEAD >> 3]
+    rec = (4 + len(frame) + 7) & ~7
+    pos = head % cap
+    if rec > cap - pos:
+        ring._u32[(base + pos) >> 2] = _fast_lane._Ring.WRAP
+        head += cap - pos
+        pos = 0
+    ring._u32[(base + pos) >> 2] = len(frame)
+    ring._mm[base + pos + 4:base + pos + 4 + len(frame)] = frame
+    ring._u64[REPLY_HEAD >> 3] = head + rec
+
+
+def test_the_c_reader_reads_what_the_python_reader_reads():
+    """weft._lane_ring.take against _Ring.take's Python: random reply records (8 bytes to most
+    of the area, wrapping the area's end many times) come out of both readers as the same
+    frames with the same tails, in the ring's shared tail word too; with nothing in, -1 (after
+    polling for the time asked, at most 200 us per call); a record longer than the buffer or a
+    head behind the tail or past the area raises FastLaneError and leaves the tail alone;
+    hostile arguments (an address of 0, an area past the mapping, wrong types) raise."""
+    native = _fast_lane._native_ring()
+    if native is None:
+        pytest.skip("weft._lane_ring is not built (Python development headers missing) or "
+                    "WEFT_NATIVE_LANE=0")
+    size, rep_cap = 1024 + 4096 + 4096, 4096
+    c_ring, c_socks = _fake_ring(size, 4096, rep_cap, True)
+    py_ring, py_socks = _fake_ring(size, 4096, rep_cap, False)
+    out = bytearray(rep_cap)
+    anchor = ctypes.c_char.from_buffer(out)
+    address = ctypes.addressof(anchor)
+    view = memoryview(bytearray(rep_cap))
+    rng = random.Random()
+    try:
+        assert c_ring.take_into(address, len(out)) == -1
+        t0 = time.perf_counter()
+        assert c_ring.take_into(address, len(out), 0.05) == -1      # capped at 200 us per call
+        assert time.perf_counter() - t0 < 0.02
+        assert py_ring.take_into(address, len(out)) is None          # no C reader: the caller's Python
+        for _ in range(3000):
+            frame = struct.pack("<II", rng.randrange(0, 17), rng.randrange(0, 16)) + \
+                rng.randbytes(rng.choice([0, 1, 3, 8, 100, rng.randrange(0, 2000)]))
+            for ring in (c_ring, py_ring):
+                _put_reply(ring, frame)
+            n = c_ring.take_into(address, len(out))
+            assert n == len(frame) and bytes(out[:n]) == frame
+            assert py_ring.take(view) == len(frame) and bytes(view[:len(frame)]) == frame
+            assert c_ring._rep_tail == py_ring._rep_tail == c_ring._u64[REPLY_TAIL >> 3]
+        assert c_ring._rep_tail > 5 * rep_cap                          # wrapped many times
+        assert c_ring.take_into(address, len(out)) == -1
+
+        tail = c_ring._rep_tail
+        _put_reply(c_ring, struct.pack("<II", 0, 0) + b"y" * 100)
+        with pytest.raises(_fast_lane.FastLaneError, match="larger than a reply frame"):
+            c_ring.take_into(address, 50)
+        assert c_ring._rep_tail == tail and c_ring._u64[REPLY_TAIL >> 3] == tail
+        for bad_head in (tail - 8, tail + rep_cap + 8):
+            saved = c_ring._u64[REPLY_HEAD >> 3]
+            c_ring._u64[REPLY_HEAD >> 3] = bad_head
+            with pytest.raises(_fast_lane.FastLaneError, match="reply head"):
+                c_ring.take_into(address, len(out))
+            c_ring._u64[REPLY_HEAD >> 3] = saved
+        assert c_ring._rep_tail == tail
+        good = [c_ring._address, size, rep_cap, c_ring._rep_base, tail, address, len(out), 0]
+        for index, value in ((0, 0), (5, 0), (1, 100), (3, size), (2, size), (2, 12),
+                             (3, c_ring._rep_base + 4), (0, "addr"), (7, 1.5), (4, -1)):
+            bad = list(good)
+            bad[index] = value
+            with pytest.raises((TypeError, ValueError, OverflowError)):
+                native.take(*bad)
+        assert c_ring._u64[REPLY_TAIL >> 3] == tail
+        assert c_ring.take_into(address, len(out)) == 108              # the record is still there
+    finally:
+        del anchor
         for ring, socks in ((c_ring, c_socks), (py_ring, py_socks)):
             ring.close()
             for sock in socks:

@@ -106,19 +106,18 @@ def _ring_barrier_ready() -> bool:
     return True
 
 
-_NATIVE_PUT = False            # weft._lane_ring.put once looked up (None: absent or turned off)
+_NATIVE_RING = False           # weft._lane_ring once looked up (None: absent or turned off)
 
 
-def _native_ring_put():
-    """weft._lane_ring.put (clients/python/native/lane_ring.c), or None when it was not built or
-    WEFT_NATIVE_LANE=0 turns it off (records are then written in Python)."""
-    global _NATIVE_PUT
-    if _NATIVE_PUT is False:
+def _native_ring():
+    """weft._lane_ring (clients/python/native/lane_ring.c: put, take), or None when it was not
+    built or WEFT_NATIVE_LANE=0 turns it off (records are then written and read in Python)."""
+    global _NATIVE_RING
+    if _NATIVE_RING is False:
         from . import _native  # noqa: PLC0415
 
-        module = _native.optional("_lane_ring", "WEFT_NATIVE_LANE")
-        _NATIVE_PUT = module.put if module is not None else None
-    return _NATIVE_PUT
+        _NATIVE_RING = _native.optional("_lane_ring", "WEFT_NATIVE_LANE")
+    return _NATIVE_RING
 
 
 class _Ring:
@@ -153,17 +152,19 @@ class _Ring:
         self._req_tail = 0           # the daemon's tail, as last read
         self._rep_tail = self._u64[self.REPLY_TAIL // 8]
         self.wakes_sent = 0          # wake frames this process had to send (the daemon slept)
-        # weft._lane_ring.put writes records in C at the mapping's address (held by _anchor,
-        # released before the mapping closes); None: put() writes them in Python
+        # weft._lane_ring writes request records and reads reply records in C at the mapping's
+        # address (held by _anchor, released before the mapping closes); None: in Python
         self._size = size
         self._anchor = None
-        self._native_put = _native_ring_put()
-        if self._native_put is not None:
+        self._native_put = self._native_take = None
+        native = _native_ring()
+        if native is not None:
             self._anchor = ctypes.c_char.from_buffer(self._mm)
             self._address = ctypes.addressof(self._anchor)
+            self._native_put, self._native_take = native.put, native.take
 
     def close(self) -> None:
-        self._native_put = None
+        self._native_put = self._native_take = None
         self._anchor = None           # the export the C writer's address came from
         try:
             self._u64.release()
@@ -234,6 +235,23 @@ class _Ring:
                    for _, ev in poller.poll(self.FULL_WAIT_S * 1e3)):
                 raise FastLaneError("weftd closed the fast lane", "UNAVAILABLE")
 
+    def take_into(self, out_address: int, out_len: int, spin_s: float = 0.0) -> int:
+        """The next reply record's frame copied to `out_address` (a buffer of `out_len` bytes the
+        caller keeps alive), polling up to `spin_s` for one: its length, or -1 when none came.
+        In C (weft._lane_ring.take) where it was built; else None is returned: use take()."""
+        native = self._native_take
+        if native is None:
+            return None
+        try:
+            got = native(self._address, self._size, self._rep_cap, self._rep_base, self._rep_tail,
+                         out_address, out_len, int(spin_s * 1e9))
+        except ValueError as err:
+            raise FastLaneError(f"fast lane: {err}", "UNAVAILABLE") from None
+        if got == -1:
+            return -1
+        n, self._rep_tail = got
+        return n
+
     def take(self, view) -> int:
         """The next reply record copied into `view`: its length, or -1 when none is in."""
         tail = self._rep_tail
@@ -287,6 +305,10 @@ class FastLane:
         self.unanswered_free = False  # the daemon serves ARRAY_FREE_UNANSWERED
         self._buf = bytearray(_RECV_BYTES)      # every reply frame is received into this
         self._view = memoryview(self._buf)
+        # where weft._lane_ring.take copies a ring's reply frames (the export keeps the
+        # bytearray from being resized while the address is in use)
+        self._buf_anchor = ctypes.c_char.from_buffer(self._buf)
+        self._buf_address = ctypes.addressof(self._buf_anchor)
         self.ring = None              # the shared-memory ring, once open (_Ring)
 
     @classmethod
@@ -444,8 +466,10 @@ class FastLane:
 
     def _try_frame(self) -> int:
         """One reply frame into the buffer if one is in: its length, else -1 (no waiting)."""
-        if self.ring is not None:
-            return self.ring.take(self._view)
+        ring = self.ring
+        if ring is not None:
+            n = ring.take_into(self._buf_address, _RECV_BYTES)
+            return ring.take(self._view) if n is None else n
         try:
             return self._sock.recv_into(self._buf, _RECV_BYTES, socket.MSG_DONTWAIT)
         except (BlockingIOError, InterruptedError):
@@ -459,7 +483,21 @@ class FastLane:
         return self._sock.recv_into(self._buf, _RECV_BYTES)
 
     def _poll(self, seconds: float) -> int:
-        """Polls for a reply frame for up to `seconds`: its length, or -1 when none came."""
+        """Polls for a reply frame for up to `seconds`: its length, or -1 when none came. On a
+        ring read in C the polling is in C too (at most 200 us per call, then Python looks at
+        the clock again)."""
+        ring = self.ring
+        if ring is not None and ring._native_take is not None:
+            take, address = ring.take_into, self._buf_address
+            perf = time.perf_counter
+            deadline = perf() + seconds
+            while True:
+                n = take(address, _RECV_BYTES, seconds)
+                if n >= 0:
+                    return n
+                seconds = deadline - perf()
+                if seconds <= 0:
+                    return -1
         try_frame = self._try_frame
         deadline = time.perf_counter() + seconds
         while True:

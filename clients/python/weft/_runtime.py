@@ -61,6 +61,7 @@ def varint(n: int) -> bytes:
 
 _SUBMIT_SYNCHRONIZE = b"\x10\x01"     # SubmitRequest.synchronize = true (field 2, varint)
 _SUBMIT_RUN = b"\x18\x01"             # SubmitRequest.run = true (field 3, varint)
+_SYNCHRONIZE_BYTES = b""              # SynchronizeRequest() serialized (no fields)
 # A GPU launch of at least this many threads goes out at once when no Submit is in flight
 # (Runtime.submit's `start`): its kernel runs longer than a frame costs, so holding it to fuse
 # with a synchronize only delays the device (saxpy 1e8: ~60 us per round of five launches).
@@ -522,7 +523,7 @@ class Runtime:
     def _exec(self, method: str, request, gpu_wait: bool = False):
         """ExecService.Submit / Synchronize: through the fast lane when it is open and the
         request fits a frame, else through gRPC. Same responses and errors either way.
-        `request`: the message, or for Submit its serialized body (framed_command frames and
+        `request`: the message, or its serialized body (for Submit framed_command frames and
         flags). `gpu_wait`: the reply waits for GPU work (the lane polls for it longer)."""
         lane = self.fast_lane
         body = request if isinstance(request, bytes) else None
@@ -537,7 +538,7 @@ class Runtime:
                 self._raise_if_host_gone(err)
                 raise
         if body is not None:
-            request = exec_pb2.SubmitRequest.FromString(body)
+            request = (exec_pb2.SubmitRequest if method == "Submit" else exec_pb2.SynchronizeRequest).FromString(body)
         return self.call(getattr(self.exec_stub, method), request)   # fenced by order_grpc
 
     def _raise_if_host_gone(self, err: WeftError) -> None:
@@ -924,7 +925,7 @@ class Runtime:
             else:
                 if batch:   # message modules generated before SubmitRequest.synchronize
                     self.call(self.exec_stub.Submit, exec_pb2.SubmitRequest.FromString(b"".join(batch)))
-                response = self._exec("Synchronize", exec_pb2.SynchronizeRequest(), gpu)
+                response = self._exec("Synchronize", _SYNCHRONIZE_BYTES, gpu)
             self._unsynchronized = False
             self._quiet_unfenced = False       # the lane answered after every quiet Submit
             self._drain_frees()
@@ -1018,7 +1019,8 @@ class Runtime:
         # Through the fast lane, pipelined (a few microseconds each); else asynchronous gRPC
         # calls: the caller does not wait for the round trips. Errors (already gone: session
         # closed, daemon restarted) are ignored; there is nothing left to free.
-        self._free_calls = [call for call in self._free_calls if not call.done()]
+        if self._free_calls:
+            self._free_calls = [call for call in self._free_calls if not call.done()]
         lane = self._lane_free() if self._pending_frees and self.lane_arrays else None
         if lane is not None and lane.unanswered_free:
             # Popped one by one (a finalizer may append to the deque while this runs), sent in
