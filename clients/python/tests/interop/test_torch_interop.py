@@ -342,7 +342,22 @@ def test_launch_takes_descriptors_like_their_arrays(wp, torch, rng):
     assert str(by_descriptor.value) == str(by_array.value) and "dtype" in str(by_array.value)
 
 
-def test_cpu_descriptors_converted_again_follow_the_tensor(wp, torch, rng,
+@pytest.fixture(params=["c", "python"])
+def descriptor_lookup(request, monkeypatch):
+    """The remembered-descriptor look-up of from_torch(return_ctype=True) in C
+    (weft._torch_descriptor, skipped where it was not built) and in Python."""
+    from weft.interop import torch as weft_torch
+
+    if request.param == "c":
+        if weft_torch._native_descriptor() is None:
+            pytest.skip("weft._torch_descriptor is not built (Python development headers "
+                        "missing) or WEFT_NATIVE_DESCRIPTOR=0")
+    else:
+        monkeypatch.setattr(weft_torch, "_NATIVE_DESCRIPTOR", None)
+    return request.param
+
+
+def test_cpu_descriptors_converted_again_follow_the_tensor(wp, torch, rng, descriptor_lookup,
                                                           descriptors_follow_the_tensor):
     """from_torch(return_ctype=True) of a CPU tensor converted before copies the remembered
     descriptor (as for CUDA tensors): a new object with the bytes a fresh conversion makes,
@@ -364,3 +379,84 @@ def test_cpu_descriptors_converted_again_follow_the_tensor(wp, torch, rng,
     # float32 atomic sums of 4 x 4096 terms in any order: within n * eps of the float64 sum
     assert abs(float(total.numpy()[0]) - expected) <= 4 * 4096 * 6e-8 * expected
     descriptors_follow_the_tensor(t, values, "cpu")
+
+
+def test_the_c_descriptor_lookup_answers_as_the_python_one(wp, torch, rng):
+    """weft._torch_descriptor.remembered against _last_descriptor, tensor by tensor: both give a
+    new descriptor with the same bytes and array while the conversion holds, both None once
+    the tensor changed (re-pointed, resized, requires_grad set, another dtype asked for, its
+    array given a gradient); entries it did not write (junk under the names the
+    client uses), a tensor whose methods raise and a non-tensor give None without raising."""
+    from weft._runtime import get_runtime
+    from weft.interop import torch as weft_torch
+
+    native = weft_torch._native_descriptor()
+    if native is None:
+        pytest.skip("weft._torch_descriptor is not built or WEFT_NATIVE_DESCRIPTOR=0")
+
+    def python(t, dtype=None, requires_grad=None):
+        d = t.__dict__
+        entry = d.get(weft_torch._LAST_CTYPE)
+        return weft_torch._last_descriptor(t, d, entry, dtype, requires_grad) if entry else None
+
+    def agree(t, dtype=None, requires_grad=None):
+        c = native(t, dtype, requires_grad, get_runtime)
+        p = python(t, dtype, requires_grad)
+        assert (c is None) == (p is None)
+        if c is not None:
+            assert c is not p and bytes(c) == bytes(p) and c._weft_value is p._weft_value
+        return c
+
+    def converted(values):
+        t = torch.tensor(values)
+        wp.from_torch(t, return_ctype=True), wp.from_torch(t, return_ctype=True)
+        return t
+
+    values = (rng.standard_normal(64) * 10.0 ** rng.uniform(-30, 30, 64)).astype(np.float32)
+    t = converted(values)
+    d = agree(t)
+    assert d is not None and d.data == t.data_ptr() and d.shape[0] == 64
+    assert agree(t, requires_grad=True) is None
+    assert agree(t, dtype=wp.float32) is None               # another dtype asked for: a new key
+    t.resize_(32)
+    assert agree(t) is None
+    t = converted(values)
+    t.set_(torch.tensor(values[:5]))
+    assert agree(t) is None
+    t = converted(values)
+    t.requires_grad_(True)
+    assert agree(t) is None
+    assert agree(t, requires_grad=False) is not None       # asked for without: it holds
+    t = converted(values)
+    array = t.__dict__[weft_torch._LAST_CTYPE][0][1]
+    array.grad = wp.zeros(64, dtype=float, device="cpu")
+    assert agree(t) is None
+    array.grad = None
+    assert agree(t) is not None
+
+    t = converted(values)
+    entry = t.__dict__[weft_torch._LAST_CTYPE]
+    for junk in ("junk", (1, 2), (entry[0], entry[1], 5), (None, entry[1], entry[2]),
+                 ((1, 2, 3), entry[1], entry[2])):
+        t.__dict__[weft_torch._LAST_CTYPE] = junk
+        assert native(t, None, None, get_runtime) is None
+    t.__dict__[weft_torch._LAST_CTYPE] = entry
+    t.__dict__[entry[2]] = ("not", "the entry")
+    assert native(t, None, None, get_runtime) is None
+
+    class Raising:
+        def __init__(self, entry):
+            self._weft_last_ctype = entry
+            self._weft_cpu_array = entry[0]
+            self.requires_grad = False
+
+        def data_ptr(self):
+            raise RuntimeError("a tensor that raises")
+
+    good = converted(values).__dict__[weft_torch._LAST_CTYPE]
+    assert native(Raising(good), None, None, get_runtime) is None
+    assert native(42, None, None, get_runtime) is None
+    with pytest.raises(TypeError):
+        native(t, None, None, "not callable")
+    with pytest.raises(TypeError):
+        native(t, None, None)

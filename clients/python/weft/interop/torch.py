@@ -246,7 +246,13 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False,
     descriptor (`a.__ctype__()`, Warp's array_t: data and grad addresses in this process, shape,
     byte strides), which keeps the array alive and which launches take as the array."""
     if return_ctype and grad is None and not retain_grad:
-        desc = _last_descriptor(t, dtype, requires_grad)
+        native = _NATIVE_DESCRIPTOR if _NATIVE_DESCRIPTOR is not False else _native_descriptor()
+        if native is not None:
+            desc = native(t, dtype, requires_grad, _get_runtime)
+        else:
+            d = getattr(t, "__dict__", None)
+            entry = d.get(_LAST_CTYPE) if d is not None else None
+            desc = _last_descriptor(t, d, entry, dtype, requires_grad) if entry is not None else None
         if desc is not None:
             return desc
     a = _from_torch(t, dtype, requires_grad, grad)
@@ -260,15 +266,31 @@ def from_torch(t, dtype=None, requires_grad=None, grad=None, return_ctype=False,
         for name in (_LAST_IMPORT, _CPU_ARRAY):
             last = d.get(name)
             if last is not None and last[1] is a.__dict__["_view_of"]:
-                d[_LAST_CTYPE] = (last, desc)
+                d[_LAST_CTYPE] = (last, desc, name)
                 break
     return desc
 
 
-# On a tensor whose last import is remembered (_LAST_IMPORT): (that entry, the descriptor made
-# from it). A loop converting the same tensors with return_ctype=True gets a copy of the
-# descriptor (its bytes and the array it refers to) without making one field by field.
+# On a tensor whose last conversion is remembered (_LAST_IMPORT or _CPU_ARRAY): (that entry, the
+# descriptor made from it, the entry's name). A loop converting the same tensors with
+# return_ctype=True gets a copy of the descriptor (its bytes and the array it refers to) without
+# making one field by field.
 _LAST_CTYPE = "_weft_last_ctype"
+
+
+_NATIVE_DESCRIPTOR = False     # weft._torch_descriptor.remembered once looked up (None: absent)
+
+
+def _native_descriptor():
+    """weft._torch_descriptor.remembered (clients/python/native/torch_descriptor.c: the look-up
+    of _last_descriptor in C), or None when it was not built or WEFT_NATIVE_DESCRIPTOR=0 turns it
+    off (the look-up is then done in Python)."""
+    global _NATIVE_DESCRIPTOR
+    from .. import _native  # noqa: PLC0415
+
+    module = _native.optional("_torch_descriptor", "WEFT_NATIVE_DESCRIPTOR")
+    _NATIVE_DESCRIPTOR = module.remembered if module is not None else None
+    return _NATIVE_DESCRIPTOR
 
 
 def _plain(a) -> bool:
@@ -277,25 +299,17 @@ def _plain(a) -> bool:
     return a._grad is None and not a._info.grad_handle and not a._retain_grad
 
 
-def _last_descriptor(t, dtype, requires_grad):
-    """A copy of the descriptor remembered on `t` while the conversion it was made from still
-    holds (_remembered) and its array has neither a gradient nor a flag (_plain)."""
-    d = getattr(t, "__dict__", None)
-    entry = d.get(_LAST_CTYPE) if d is not None else None
-    if entry is None:
-        return None
-    last = entry[0]
-    if d.get(_LAST_IMPORT) is last:
-        cuda = True
-    elif d.get(_CPU_ARRAY) is last:
-        cuda = False
-    else:
+def _last_descriptor(t, d, entry, dtype, requires_grad):
+    """A copy of the descriptor of `entry` (remembered in `t`'s __dict__ `d` under _LAST_CTYPE) while the
+    conversion it was made from is still the tensor's and still holds (_remembered), and its
+    array has neither a gradient nor a flag (_plain); else None."""
+    last, desc, name = entry
+    if d.get(name) is not last:
         return None                     # the tensor's remembered conversion changed since
-    known = _remembered(t, last, dtype, requires_grad, cuda)
+    known = _remembered(t, last, dtype, requires_grad, name == _LAST_IMPORT)
     if known is None or not _plain(known):
         return None                     # the tensor changed, another session, or the
         # descriptor would carry a gradient or a flag now
-    desc = entry[1]
     out = type(desc).from_buffer_copy(desc)
     out._weft_value = desc._weft_value
     return out
