@@ -12,8 +12,9 @@
  * nanoseconds (at most kMaxSpinNs per call: the caller loops for longer waits, so that the GIL is
  * held no longer than a short C call holds it); -1 when none came, else it copies the record's
  * frame to `out` (a buffer of `out_len` bytes the caller keeps alive), releases the record (the
- * new tail stored with release order) and returns (the frame's length, the new tail). A record longer than `out_len` or reaching past the area raises ValueError and leaves
- * the tail where it was.
+ * new tail stored with release order) and returns (the frame's length, the new tail). A record
+ * longer than `out_len` or reaching past the area, or a head behind the tail or more than the
+ * area ahead, raises ValueError and leaves the tail where it was.
  *
  * Every offset is checked against the mapping's `size` before a byte is read or written. The
  * daemon validates every record it reads (docs/protocol.md "Ring"). */
@@ -175,7 +176,8 @@ static PyMethodDef kMethods[] = {
 
 static struct PyModuleDef kModule = {
     PyModuleDef_HEAD_INIT, "weft._lane_ring",
-    "A fast lane ring's request write and reply read, in C (clients/python/native/lane_ring.c).", -1, kMethods, NULL, NULL, NULL, NULL,
+    "A fast lane ring's request write and reply read, in C (clients/python/native/lane_ring.c).",
+    -1, kMethods, NULL, NULL, NULL, NULL,
 };
 
 PyMODINIT_FUNC PyInit__lane_ring(void) { return PyModule_Create(&kModule); }

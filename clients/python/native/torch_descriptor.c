@@ -57,10 +57,13 @@ static int key_holds(PyObject* t, PyObject* key, PyObject* dtype) {
  * error (the caller clears it and answers None). */
 static PyObject* lookup(PyObject* t, PyObject* dtype, PyObject* requires_grad, PyObject* get_runtime) {
   PyObject* result = NULL;
-  PyObject *d = NULL, *known = NULL, *alloc = NULL, *rt = NULL, *info = NULL, *current = NULL;
+  PyObject *d = NULL, *entry = NULL, *alloc = NULL, *rt = NULL, *info = NULL, *current = NULL;
   d = PyObject_GetAttr(t, s_dict);
   if (d == NULL || !PyDict_Check(d)) goto miss;
-  PyObject* entry = PyDict_GetItemWithError(d, s_last_ctype); /* borrowed */
+  /* Held for the whole look-up: the tensor's own code (requires_grad, data_ptr, ...) may
+   * replace the entry in its __dict__, and the tuple keeps what is read from it alive. */
+  entry = PyDict_GetItemWithError(d, s_last_ctype);
+  Py_XINCREF(entry);
   if (entry == NULL || !PyTuple_Check(entry) || PyTuple_Size(entry) != 3) goto miss;
   PyObject* last = PyTuple_GetItem(entry, 0);
   PyObject* desc = PyTuple_GetItem(entry, 1);
@@ -71,8 +74,7 @@ static PyObject* lookup(PyObject* t, PyObject* dtype, PyObject* requires_grad, P
   if (wants_grad != 0) goto miss;
   if (!PyTuple_Check(last) || PyTuple_Size(last) != 2) goto miss;
   PyObject* key = PyTuple_GetItem(last, 0);
-  known = PyTuple_GetItem(last, 1);
-  Py_INCREF(known);
+  PyObject* known = PyTuple_GetItem(last, 1);
   if (key_holds(t, key, dtype) != 1) goto miss;
   alloc = PyObject_GetAttr(known, s_alloc);
   if (alloc == NULL) goto miss;
@@ -106,7 +108,7 @@ miss:
   if (!PyErr_Occurred()) result = Py_NewRef(Py_None);
 done:
   Py_XDECREF(d);
-  Py_XDECREF(known);
+  Py_XDECREF(entry);
   Py_XDECREF(alloc);
   Py_XDECREF(rt);
   Py_XDECREF(info);

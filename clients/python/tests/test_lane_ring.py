@@ -657,9 +657,9 @@ def test_the_c_reader_reads_what_the_python_reader_reads():
     try:
         assert c_ring.take_into(address, len(out)) == -1
         t0 = time.perf_counter()
-        assert c_ring.take_into(address, len(out), 0.05) == -1      # capped at 200 us per call
-        assert time.perf_counter() - t0 < 0.02
-        assert py_ring.take_into(address, len(out)) is None          # no C reader: the caller's Python
+        assert c_ring.take_into(address, len(out), 5.0) == -1       # capped at 200 us per call
+        assert time.perf_counter() - t0 < 1.0
+        assert py_ring._native_take is None and py_ring.take(view) == -1
         for _ in range(3000):
             frame = struct.pack("<II", rng.randrange(0, 17), rng.randrange(0, 16)) + \
                 rng.randbytes(rng.choice([0, 1, 3, 8, 100, rng.randrange(0, 2000)]))

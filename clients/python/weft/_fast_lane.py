@@ -238,12 +238,9 @@ class _Ring:
     def take_into(self, out_address: int, out_len: int, spin_s: float = 0.0) -> int:
         """The next reply record's frame copied to `out_address` (a buffer of `out_len` bytes the
         caller keeps alive), polling up to `spin_s` for one: its length, or -1 when none came.
-        In C (weft._lane_ring.take) where it was built; else None is returned: use take()."""
-        native = self._native_take
-        if native is None:
-            return None
+        In C (weft._lane_ring.take): only where it was built (`_native_take`; else take())."""
         try:
-            got = native(self._address, self._size, self._rep_cap, self._rep_base, self._rep_tail,
+            got = self._native_take(self._address, self._size, self._rep_cap, self._rep_base, self._rep_tail,
                          out_address, out_len, int(spin_s * 1e9))
         except ValueError as err:
             raise FastLaneError(f"fast lane: {err}", "UNAVAILABLE") from None
@@ -468,8 +465,9 @@ class FastLane:
         """One reply frame into the buffer if one is in: its length, else -1 (no waiting)."""
         ring = self.ring
         if ring is not None:
-            n = ring.take_into(self._buf_address, _RECV_BYTES)
-            return ring.take(self._view) if n is None else n
+            if ring._native_take is not None:
+                return ring.take_into(self._buf_address, _RECV_BYTES)
+            return ring.take(self._view)
         try:
             return self._sock.recv_into(self._buf, _RECV_BYTES, socket.MSG_DONTWAIT)
         except (BlockingIOError, InterruptedError):

@@ -538,7 +538,8 @@ class Runtime:
                 self._raise_if_host_gone(err)
                 raise
         if body is not None:
-            request = (exec_pb2.SubmitRequest if method == "Submit" else exec_pb2.SynchronizeRequest).FromString(body)
+            message = exec_pb2.SubmitRequest if method == "Submit" else exec_pb2.SynchronizeRequest
+            request = message.FromString(body)
         return self.call(getattr(self.exec_stub, method), request)   # fenced by order_grpc
 
     def _raise_if_host_gone(self, err: WeftError) -> None:

@@ -455,6 +455,35 @@ def test_the_c_descriptor_lookup_answers_as_the_python_one(wp, torch, rng):
 
     good = converted(values).__dict__[weft_torch._LAST_CTYPE]
     assert native(Raising(good), None, None, get_runtime) is None
+
+    class Replacing:
+        """Forwards a tensor's facts, but its requires_grad drops the remembered entries from
+        its __dict__ (and frees them) while the look-up is under way."""
+        def __init__(self, t):
+            self._t = t
+            self.__dict__.update(t.__dict__)
+            self.shape, self.dtype = t.shape, t.dtype
+
+        @property
+        def requires_grad(self):
+            for name in list(self.__dict__):
+                if name.startswith("_weft_"):
+                    del self.__dict__[name]
+            t.__dict__.clear()
+            import gc
+            gc.collect()
+            return False
+
+        def data_ptr(self):
+            return self._t.data_ptr()
+
+        def stride(self):
+            return self._t.stride()
+
+    t = converted(values)
+    expected = bytes(wp.from_torch(t, return_ctype=True))
+    d = native(Replacing(t), None, None, get_runtime)
+    assert d is not None and bytes(d) == expected           # what was read stayed alive
     assert native(42, None, None, get_runtime) is None
     with pytest.raises(TypeError):
         native(t, None, None, "not callable")

@@ -300,9 +300,9 @@ def _plain(a) -> bool:
 
 
 def _last_descriptor(t, d, entry, dtype, requires_grad):
-    """A copy of the descriptor of `entry` (remembered in `t`'s __dict__ `d` under _LAST_CTYPE) while the
-    conversion it was made from is still the tensor's and still holds (_remembered), and its
-    array has neither a gradient nor a flag (_plain); else None."""
+    """A copy of the descriptor of `entry` (remembered in `t`'s __dict__ `d` under _LAST_CTYPE)
+    while the conversion it was made from is still the tensor's and still holds (_remembered),
+    and its array has neither a gradient nor a flag (_plain); else None."""
     last, desc, name = entry
     if d.get(name) is not last:
         return None                     # the tensor's remembered conversion changed since
