@@ -3,7 +3,7 @@ second table: from_torch of the points, wp.zeros, the launch, to_torch, from_tor
 incoming gradient set as z.grad, the adjoint launch, to_torch of the gradient): cProfile of
 the client, top functions by cumulative and own time, then each of the step's lines timed
 alone with perf_counter (no profiler), median over the steps. Usage: WEFT_DAEMON=... python3
-bench/prof_rosenbrock_step.py [--iters 500]"""
+bench/prof_rosenbrock_step.py [--iters 500] [--lines]"""
 from __future__ import annotations
 
 import argparse
@@ -28,6 +28,9 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--iters", type=int, default=500)
     ap.add_argument("--top", type=int, default=30)
+    ap.add_argument("--lines", action="store_true",
+                    help="also the self time of each line of the client and the step "
+                         "(bench/line_profile.py), top --top lines")
     args = ap.parse_args()
     import torch
 
@@ -98,6 +101,15 @@ def main() -> None:
             total += med
             print(f"{k:<30} {med * 1e6:>10.1f} {sum(v) / len(v) * 1e6:>10.1f}")
         print(f"{'sum of medians':<30} {total * 1e6:>10.1f}")
+
+        if args.lines:
+            from line_profile import LineProfile  # noqa: PLC0415
+
+            client = HERE.parent / "clients" / "python" / "weft"
+            with LineProfile([client, HERE / "bench_interop.py"]) as lp:
+                loop(args.iters)
+            print()
+            print(lp.report(args.iters, args.top, strip=str(HERE.parent) + "/"))
 
 
 if __name__ == "__main__":

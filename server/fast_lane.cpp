@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -122,13 +123,19 @@ enum class FrameResult { kContinue, kEnd, kUnknownMethod };
 enum class Answer { kAlways, kOnFailure, kNever };
 
 // A client sends its next frame soon after a synchronizing reply (a launch + synchronize
-// loop) or after the reply to a GPU-only batch (it goes on queueing launches): polling for
-// it a short while avoids a thread wake-up per round trip, which costs more than the daemon's
-// work on such a frame. Not after other replies (the CPU device's kernels need the cores); on
-// machines of 4 cores or more, at most a quarter of the cores' worth of lanes at once; after
-// kSpinFor without a frame the lane thread blocks in recvmsg as before. WEFT_LANE_POLLERS=N
-// overrides the number of lanes that may poll at once.
+// loop), after the reply to a GPU-only batch (it goes on queueing launches), and, once its
+// session works on a GPU, after an array frame (a training step makes arrays, imports
+// framework tensors and frees them between its launches): polling for it a while avoids a
+// thread wake-up per frame (and the client's wake frame), which cost more than the daemon's
+// work on such a frame. Not after other frames of a session that never touched a GPU (the CPU
+// device's kernels need the cores); on machines of 4 cores or more, at most a quarter of the
+// cores' worth of lanes at once. How long: from kSpinFor up to kSpinLongest, following the
+// client's gaps between frames (SpinWindow: a client whose Python takes 150 us between frames
+// is polled for about 300 us; one that paused gets kSpinFor); after that without a frame the
+// lane thread blocks as before. WEFT_LANE_POLLERS=N overrides the number of lanes that may
+// poll at once.
 constexpr auto kSpinFor = std::chrono::microseconds(60);
+constexpr auto kSpinLongest = std::chrono::microseconds(400);
 std::atomic<int> spinning_lanes{0};
 
 int MaxSpinningLanes() {
@@ -140,15 +147,58 @@ int MaxSpinningLanes() {
   return max_spinning;
 }
 
-// Calls `poll` until it returns true or kSpinFor passed; false at once when as many lanes as
+// Whether lanes follow their clients' gaps and poll after the array frames of GPU sessions
+// (WEFT_LANE_ADAPTIVE_SPIN=0: a fixed kSpinFor after synchronizing and GPU-only frames only,
+// the behaviour before, kept for measuring one against the other).
+bool AdaptiveSpin() {
+  static const bool adaptive = [] {
+    const char* env = std::getenv("WEFT_LANE_ADAPTIVE_SPIN");
+    return !(env && std::string_view(env) == "0");
+  }();
+  return adaptive;
+}
+
+// How long a lane polls for its client's next frame, from the client's gaps between the end of
+// a frame and its next one. A frame that came while the lane polled (or before) gives the gap
+// exactly: the window grows to twice it at once, or shrinks towards that by an eighth. A frame
+// that woke a sleeping lane gives the gap plus the thread's wake-up (tens to hundreds of
+// microseconds on virtual machines), so the gap is not known: when that sum is at most kHotGap
+// the window doubles, otherwise (the client paused) it falls back to kSpinFor. Always between
+// kSpinFor and kSpinLongest.
+class SpinWindow {
+ public:
+  using Clock = std::chrono::steady_clock;
+  static constexpr auto kHotGap = std::chrono::milliseconds(1);
+  void FrameArrived(Clock::time_point now, bool woke_the_lane) {
+    if (done_ == Clock::time_point{} || !AdaptiveSpin()) return;
+    const auto gap = now - done_;
+    if (!woke_the_lane) {
+      // up at once; down by an eighth per frame (frames often come in pairs: a long gap, then
+      // one of microseconds, and the window must still cover the long one)
+      const Clock::duration target = std::clamp<Clock::duration>(2 * gap, kSpinFor, kSpinLongest);
+      window_ = target >= window_ ? target : window_ - (window_ - target) / 8;
+    } else if (gap <= kHotGap)
+      window_ = std::min<Clock::duration>(2 * window_, kSpinLongest);
+    else
+      window_ = kSpinFor;
+  }
+  void FrameDone(Clock::time_point now) { done_ = now; }
+  Clock::duration window() const { return window_; }
+
+ private:
+  Clock::time_point done_{};
+  Clock::duration window_ = kSpinFor;
+};
+
+// Calls `poll` until it returns true or `window` passed; false at once when as many lanes as
 // may poll already do.
 template <typename Poll>
-bool SpinFor(Poll&& poll) {
+bool SpinFor(std::chrono::steady_clock::duration window, Poll&& poll) {
   if (spinning_lanes.fetch_add(1) >= MaxSpinningLanes()) {
     spinning_lanes.fetch_sub(1);
     return false;
   }
-  const auto until = std::chrono::steady_clock::now() + kSpinFor;
+  const auto until = std::chrono::steady_clock::now() + window;
   bool got = false;
   do {
     got = poll();
@@ -157,9 +207,9 @@ bool SpinFor(Poll&& poll) {
   return got;
 }
 
-ssize_t SpinReceive(int fd, msghdr* msg) {
+ssize_t SpinReceive(int fd, msghdr* msg, std::chrono::steady_clock::duration window) {
   ssize_t n = -1;
-  SpinFor([&] {
+  SpinFor(window, [&] {
     n = recvmsg(fd, msg, MSG_DONTWAIT);
     if (n >= 0 || (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) return true;
     n = -1;
@@ -449,7 +499,12 @@ void FastLane::Serve(Conn* c) {
   // Small until the hello is accepted: connections that never bind cost little memory.
   std::vector<char> buf(kMaxHelloBytes + 1);
   std::string session_id;
-  bool spin_next = false;   // the last reply answered a synchronizing or GPU-only request
+  bool spin_next = false;   // the client is expected to send again soon (SpinWindow)
+  // the session queued GPU work or made GPU arrays through this lane (WEFT_LANE_ADAPTIVE_SPIN=0:
+  // never set, so array frames are not followed by polling)
+  bool works_on_gpu = false;
+  const bool adaptive_spin = AdaptiveSpin();
+  SpinWindow spin_window;
   const bool trace = frame_trace::Enabled();
   std::unique_ptr<LaneTrace> lane_trace = trace ? std::make_unique<LaneTrace>() : nullptr;
   struct WriteTrace {
@@ -465,7 +520,9 @@ void FastLane::Serve(Conn* c) {
   // The next request frame into `buf`: its length, or -1 when the connection ends (peer gone,
   // shut down, no hello in time, or a frame the lane cannot go on from, answered).
   int idle_wake_pause_ms = 0;   // ring: the pause after a wake that found no record
+  bool slept = false;           // the last frame came after the lane thread blocked for it
   auto receive = [&]() -> ssize_t {
+    slept = false;
     if (ring) {
       for (;;) {
         size_t len = 0;
@@ -480,7 +537,7 @@ void FastLane::Serve(Conn* c) {
           SendError(io, InvalidArgument(why));
           return -1;
         }
-        if (spin_next && SpinFor([&] { return ring->RequestPublished(); })) continue;
+        if (spin_next && SpinFor(spin_window.window(), [&] { return ring->RequestPublished(); })) continue;
         spin_next = false;
         // Wake frames left from before (the client saw the flag just as weftd found its
         // record) go first: only a wake sent after the flag below was set may end the sleep.
@@ -494,6 +551,7 @@ void FastLane::Serve(Conn* c) {
         }
         if (n == 0) return -1;
         if (!ring->SleepUnlessPublished()) continue;
+        slept = true;
         do {
           n = recv(fd, wake, sizeof(wake), 0);
         } while (n < 0 && errno == EINTR);
@@ -518,9 +576,10 @@ void FastLane::Serve(Conn* c) {
     msghdr msg{};
     msg.msg_iov = &iov;
     msg.msg_iovlen = 1;
-    ssize_t n = spin_next ? SpinReceive(fd, &msg) : -1;
+    ssize_t n = spin_next ? SpinReceive(fd, &msg, spin_window.window()) : -1;
     spin_next = false;
     if (n < 0) {
+      slept = true;
       do {
         n = recvmsg(fd, &msg, 0);
       } while (n < 0 && errno == EINTR);
@@ -537,6 +596,7 @@ void FastLane::Serve(Conn* c) {
   for (;;) {
     const ssize_t n = receive();
     if (n < 0) return;
+    spin_window.FrameArrived(std::chrono::steady_clock::now(), slept);
     if (trace) {
       times = FrameTimes{};
       times.received = frame_trace::NowNs();
@@ -623,6 +683,7 @@ void FastLane::Serve(Conn* c) {
               // cores) goes to the executor thread, and the lane then waits in recvmsg.
               const bool gpu_only = OnlyQueuesGpuWork(req);
               spin_next = req.synchronize() || req.run() || gpu_only;
+              works_on_gpu = works_on_gpu || (adaptive_spin && gpu_only);
               if (trace)
                 kind = req.synchronize() ? (gpu_only ? "submit-gpu+sync" : "submit+sync")
                                          : (gpu_only ? "submit-gpu" : "submit");
@@ -638,24 +699,33 @@ void FastLane::Serve(Conn* c) {
         break;
       case kArrayCreate:
         r = ServeFrame<v1::CreateArrayRequest, v1::CreateArrayResponse>(io, "ArrayService.Create", body, body_len, s,
-            [&](Session& ss, const auto& req, auto* resp) { return ArrayCreate(engine, ss, req, resp); });
+            [&](Session& ss, const auto& req, auto* resp) {
+              works_on_gpu = works_on_gpu || (adaptive_spin && req.device().starts_with("cuda"));
+              return ArrayCreate(engine, ss, req, resp);
+            });
+        spin_next = works_on_gpu;
         break;
       case kArrayFree:
         r = ServeFrame<v1::FreeArrayRequest, v1::FreeArrayResponse>(io, "ArrayService.Free", body, body_len, s,
             [&](Session& ss, const auto& req, auto*) { return ArrayFree(engine, ss, req); });
+        spin_next = works_on_gpu;
         break;
       case kArrayFreeUnanswered:
         r = ServeFrame<v1::FreeArrayRequest, v1::FreeArrayResponse>(io, "ArrayService.Free", body, body_len, s,
             [&](Session& ss, const auto& req, auto*) { return ArrayFree(engine, ss, req); }, nullptr,
             Answer::kNever);
+        spin_next = works_on_gpu;
         break;
       case kArrayDescribe:
         r = ServeFrame<v1::DescribeArrayRequest, v1::DescribeArrayResponse>(io, "ArrayService.Describe", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) { return ArrayDescribe(engine, ss, req, resp); });
+        spin_next = works_on_gpu;
         break;
       case kArrayImportCuda:
         r = ServeFrame<v1::ImportCudaRequest, v1::ImportCudaResponse>(io, "ArrayService.ImportCuda", body, body_len, s,
             [&](Session& ss, const auto& req, auto* resp) { return ArrayImportCuda(engine, ss, req, resp); });
+        works_on_gpu = works_on_gpu || adaptive_spin;
+        spin_next = works_on_gpu;
         break;
       case kGeometryCall:
         r = ServeFrame<v1::GeometryRequest, v1::GeometryResponse>(io, "GeometryService.Call", body, body_len, s,
@@ -669,6 +739,7 @@ void FastLane::Serve(Conn* c) {
       return;
     }
     if (r == FrameResult::kEnd) return;
+    spin_window.FrameDone(std::chrono::steady_clock::now());
     if (trace && kind && times.replied) {
       lane_trace->Add(kind, last_replied ? times.received - last_replied : 0, times, frame_trace::Current());
       last_replied = times.replied;

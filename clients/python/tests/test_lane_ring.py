@@ -238,6 +238,61 @@ def test_launches_sent_at_once_keep_results_and_errors(ring_weftd, run_client, t
     assert eager and int(eager[0].split()[1]) > 0, out.stdout
 
 
+ARRAY_LOOP_CLIENT = r'''
+import time
+import weft as wp
+from weft import _runtime
+if not any(d.is_cuda and d.is_compute_supported for d in wp.get_cuda_devices()):
+    print("no gpu")
+    raise SystemExit(0)
+lane = _runtime.get_runtime().fast_lane
+assert lane.ring is not None
+keep = wp.zeros(64, device="cuda:0")        # the session works on the GPU from here
+
+def loop(pause_s, steps=300):
+    """Array frames with `pause_s` of client work between steps: each step makes a GPU array
+    (a Create frame) and drops the previous one (a Free frame). The wake frames it had to send."""
+    before = lane.ring.wakes_sent
+    a = None
+    for j in range(steps):
+        t = time.perf_counter() + pause_s
+        while time.perf_counter() < t:
+            pass
+        a = wp.zeros(64 + j % 7, device="cuda:0")
+        assert a.shape[0] == 64 + j % 7
+    del a
+    wp.synchronize()
+    return lane.ring.wakes_sent - before
+
+loop(120e-6, 20)
+print("busy", loop(120e-6))
+print("idle", loop(3e-3, 100))
+print("ok")
+'''
+
+
+def test_a_gpu_session_between_array_calls_finds_the_daemon_polling(ring_weftd, run_client, tmp_path):
+    """A session on a GPU whose client works ~120 us between array calls (a training step:
+    arrays made and freed between launches) finds the daemon polling for its frames (the
+    window follows the client's gaps, up to 400 us: server/fast_lane.cpp SpinWindow), so it
+    sends few wake frames; a client that pauses 3 ms between them finds it asleep (the daemon
+    does not poll for idle clients)."""
+    script = tmp_path / "ring_arrays.py"
+    script.write_text(ARRAY_LOOP_CLIENT)
+    out = run_client(f"import runpy; runpy.run_path({str(script)!r})",
+                     env={"WEFT_ADDRESS": ring_weftd.address, "WEFT_FAST_LANE_SPIN_US": "200"},
+                     timeout=240)
+    if out.stdout.strip() == "no gpu":
+        pytest.skip("weftd has no CUDA device it can run kernels on")
+    assert out.stdout.rstrip().endswith("ok"), out.stdout + out.stderr
+    counts = dict(line.split() for line in out.stdout.splitlines() if line.startswith(("busy", "idle")))
+    busy, idle = int(counts["busy"]), int(counts["idle"])
+    # 300 busy steps send ~600 frames: woken for at most a quarter of the steps (each step
+    # woke it before the window followed the client); 100 idle steps: most wake it
+    assert busy <= 75, (busy, idle)
+    assert idle >= 50, (busy, idle)
+
+
 class RawRing:
     """A ring opened by hand over a raw lane connection: what a hostile client can do."""
 
