@@ -25,6 +25,7 @@
 #include "engine/core/frame_trace.h"
 #include "engine/runtime/ipc_token.h"
 #include "server/lane_ring.h"
+#include "server/spin_window.h"
 #include "server/services.h"
 #include "weft/v1/array.pb.h"
 #include "weft/v1/exec.pb.h"
@@ -129,13 +130,11 @@ enum class Answer { kAlways, kOnFailure, kNever };
 // thread wake-up per frame (and the client's wake frame), which cost more than the daemon's
 // work on such a frame. Not after other frames of a session that never touched a GPU (the CPU
 // device's kernels need the cores); on machines of 4 cores or more, at most a quarter of the
-// cores' worth of lanes at once. How long: from kSpinFor up to kSpinLongest, following the
-// client's gaps between frames (SpinWindow: a client whose Python takes 150 us between frames
-// is polled for about 300 us; one that paused gets kSpinFor); after that without a frame the
-// lane thread blocks as before. WEFT_LANE_POLLERS=N overrides the number of lanes that may
+// cores' worth of lanes at once. How long: from 60 up to 400 us, following the client's gaps
+// between frames (server/spin_window.h: a client whose Python takes 150 us between frames is
+// polled for about 300 us; one that paused gets 60 us); after that without a frame the lane
+// thread blocks as before. WEFT_LANE_POLLERS=N overrides the number of lanes that may
 // poll at once.
-constexpr auto kSpinFor = std::chrono::microseconds(60);
-constexpr auto kSpinLongest = std::chrono::microseconds(400);
 std::atomic<int> spinning_lanes{0};
 
 int MaxSpinningLanes() {
@@ -148,7 +147,7 @@ int MaxSpinningLanes() {
 }
 
 // Whether lanes follow their clients' gaps and poll after the array frames of GPU sessions
-// (WEFT_LANE_ADAPTIVE_SPIN=0: a fixed kSpinFor after synchronizing and GPU-only frames only,
+// (WEFT_LANE_ADAPTIVE_SPIN=0: a fixed 60 us after synchronizing and GPU-only frames only,
 // the behaviour before, kept for measuring one against the other).
 bool AdaptiveSpin() {
   static const bool adaptive = [] {
@@ -157,38 +156,6 @@ bool AdaptiveSpin() {
   }();
   return adaptive;
 }
-
-// How long a lane polls for its client's next frame, from the client's gaps between the end of
-// a frame and its next one. A frame that came while the lane polled (or before) gives the gap
-// exactly: the window grows to twice it at once, or shrinks towards that by an eighth. A frame
-// that woke a sleeping lane gives the gap plus the thread's wake-up (tens to hundreds of
-// microseconds on virtual machines), so the gap is not known: when that sum is at most kHotGap
-// the window doubles, otherwise (the client paused) it falls back to kSpinFor. Always between
-// kSpinFor and kSpinLongest.
-class SpinWindow {
- public:
-  using Clock = std::chrono::steady_clock;
-  static constexpr auto kHotGap = std::chrono::milliseconds(1);
-  void FrameArrived(Clock::time_point now, bool woke_the_lane) {
-    if (done_ == Clock::time_point{} || !AdaptiveSpin()) return;
-    const auto gap = now - done_;
-    if (!woke_the_lane) {
-      // up at once; down by an eighth per frame (frames often come in pairs: a long gap, then
-      // one of microseconds, and the window must still cover the long one)
-      const Clock::duration target = std::clamp<Clock::duration>(2 * gap, kSpinFor, kSpinLongest);
-      window_ = target >= window_ ? target : window_ - (window_ - target) / 8;
-    } else if (gap <= kHotGap)
-      window_ = std::min<Clock::duration>(2 * window_, kSpinLongest);
-    else
-      window_ = kSpinFor;
-  }
-  void FrameDone(Clock::time_point now) { done_ = now; }
-  Clock::duration window() const { return window_; }
-
- private:
-  Clock::time_point done_{};
-  Clock::duration window_ = kSpinFor;
-};
 
 // Calls `poll` until it returns true or `window` passed; false at once when as many lanes as
 // may poll already do.
@@ -504,7 +471,7 @@ void FastLane::Serve(Conn* c) {
   // never set, so array frames are not followed by polling)
   bool works_on_gpu = false;
   const bool adaptive_spin = AdaptiveSpin();
-  SpinWindow spin_window;
+  SpinWindow spin_window(adaptive_spin);
   const bool trace = frame_trace::Enabled();
   std::unique_ptr<LaneTrace> lane_trace = trace ? std::make_unique<LaneTrace>() : nullptr;
   struct WriteTrace {

@@ -274,7 +274,7 @@ print("ok")
 def test_a_gpu_session_between_array_calls_finds_the_daemon_polling(ring_weftd, run_client, tmp_path):
     """A session on a GPU whose client works ~120 us between array calls (a training step:
     arrays made and freed between launches) finds the daemon polling for its frames (the
-    window follows the client's gaps, up to 400 us: server/fast_lane.cpp SpinWindow), so it
+    window follows the client's gaps, up to 400 us: server/spin_window.h), so it
     sends few wake frames; a client that pauses 3 ms between them finds it asleep (the daemon
     does not poll for idle clients)."""
     script = tmp_path / "ring_arrays.py"
