@@ -154,6 +154,7 @@ ArgValue ArgFromProto(const v1::ArgValue& p) {
       break;
     case v1::ArgValue::kStructValue:
       a.kind = ArgValue::Kind::kStruct;
+      a.fields.reserve(static_cast<size_t>(p.struct_value().fields_size()));
       for (const auto& f : p.struct_value().fields()) a.fields.push_back(ArgFromProto(f));
       break;
     default:
@@ -211,8 +212,10 @@ Expected<Command> FromProto(const v1::Command& p, size_t index) {
       lc.module_id = l.module_id();
       lc.kernel = l.kernel();
       lc.dim.assign(l.dim().begin(), l.dim().end());
+      lc.args.reserve(static_cast<size_t>(l.args_size()));
       for (const auto& a : l.args()) lc.args.push_back(ArgFromProto(a));
       lc.adjoint = l.adjoint();
+      lc.adj_args.reserve(static_cast<size_t>(l.adj_args_size()));
       for (const auto& a : l.adj_args()) lc.adj_args.push_back(ArgFromProto(a));
       lc.device = l.device();
       lc.block_dim = l.block_dim();

@@ -61,11 +61,12 @@ struct ArgPath {
   }
 };
 
+// `a` (the launch command's) outlives the result: it points at `a.array` rather than copying it.
 Expected<ResolvedArg> ResolveArg(const ArgValue& a, const HandleSnapshot& h, const ArgPath& path) {
   ResolvedArg r;
   r.kind = a.kind;
   r.raw = a.raw;
-  r.ref = a.array;
+  r.command_ref = &a.array;
   if (a.kind == ArgValue::Kind::kArray && a.array.handle != 0) {
     ArrayName what([](const void* p) { return static_cast<const ArgPath*>(p)->Text(); }, &path);
     WEFT_ASSIGN_OR_RETURN(r.alloc, Lookup(h, a.array.handle, what));

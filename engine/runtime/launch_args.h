@@ -20,8 +20,13 @@ struct ResolvedArg {
   ArgValue::Kind kind = ArgValue::Kind::kRaw;
   std::string raw;
   ArrayRef ref;
+  // The launch command's own view, which outlives this argument (a launch resolves and packs
+  // its arguments within the call): no copy of its shape and strides. Null: `ref` is the view.
+  const ArrayRef* command_ref = nullptr;
   std::shared_ptr<Allocation> alloc;   // null for None (handle 0)
   std::vector<ResolvedArg> fields;
+
+  const ArrayRef& view() const { return command_ref ? *command_ref : ref; }
 };
 
 // One array slot in a packed block.
