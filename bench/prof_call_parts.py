@@ -1,7 +1,8 @@
-"""Inclusive time of the client functions inside single interop calls on a GPU (each wrapped in
-a perf_counter timer, which adds about half a microsecond per call): wp.zeros, from_torch of
-a new tensor (the step's ones_like), to_torch of an array with and without a gradient. For
-each call, the median time of the whole call and of each function it ran, per call.
+"""Inclusive time of the client functions inside interop calls on a GPU (each wrapped in a
+perf_counter timer, which adds about half a microsecond per call and roughly doubles the
+totals): each line of the Torch Rosenbrock step (bench_interop.rosenbrock_step) with the
+functions it ran, then wp.zeros, from_torch of a new tensor (the step's ones_like) and
+to_torch of an array with and without a gradient alone. Medians per call.
 Usage: WEFT_DAEMON=... python3 bench/prof_call_parts.py [--n 1500] [--reps 1500]"""
 from __future__ import annotations
 
@@ -28,14 +29,17 @@ WRAPPED = {
     "weft.interop.cuda_order": ["ready", "before", "after"],
     "weft.interop.memory": ["note_range", "mark_shared", "grad_view"],
     "weft._dlpack": ["to_capsule", "_layout"],
-    "weft._cuda_ipc": ["export_allocation", "available"],
+    "weft._cuda_ipc": ["export_allocation", "available", "write_value", "wait_value"],
+    "weft._kernel.launch": ["launch", "_order_framework_gpu", "pack_arguments", "_array_arg",
+                            "_pack_fast"],
     "weft.array": ["_new_array", "zeros"],
     "weft._runtime": [],
 }
 METHODS = {
     ("weft.array", "array"): ["_from_info", "_adopt", "_init_new", "_set_daemon_grad", "_make_view"],
     ("weft._runtime", "Runtime"): ["array_call", "synchronize_if_needed", "drain_frees",
-                                   "submit", "free_later"],
+                                   "submit", "submit_framed", "send_now", "free_later",
+                                   "_collect_done", "flush"],
     ("weft._fast_lane", "FastLane"): ["_send", "_receive", "call"],
 }
 
@@ -96,6 +100,57 @@ def main() -> None:
             "to_torch(a with grad)": lambda: wp.to_torch(z),
         }
         clock = time.perf_counter
+
+        # the Rosenbrock step's lines (bench_interop.rosenbrock_step), each timed with its parts
+        lines = ["from_torch(xy, requires_grad)", "wp.zeros(requires_grad)", "launch",
+                 "to_torch(z)", "z.grad = from_torch(ones_like)", "adjoint launch",
+                 "to_torch(wxy.grad)", "end of step (frees)"]
+        per_line = {k: collections.defaultdict(list) for k in lines}
+        line_totals = {k: [] for k in lines}
+
+        def mark(k, t0):
+            t1 = clock()
+            line_totals[k].append(t1 - t0)
+            for name, v in current.items():
+                per_line[k][name].append(v)
+            current.clear()
+            return clock()
+
+        def step():
+            current.clear()
+            t0 = clock()
+            xy.grad = None
+            wxy = wp.from_torch(xy, dtype=wp.vec2, requires_grad=True)
+            t0 = mark(lines[0], t0)
+            z = wp.zeros(n, requires_grad=True, device="cuda:0")
+            t0 = mark(lines[1], t0)
+            wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], device="cuda:0")
+            t0 = mark(lines[2], t0)
+            tz = wp.to_torch(z)
+            t0 = mark(lines[3], t0)
+            z.grad = wp.from_torch(torch.ones_like(tz))
+            t0 = mark(lines[4], t0)
+            wp.launch(mod.eval_rosenbrock, dim=n, inputs=[wxy], outputs=[z], adj_inputs=[wxy.grad],
+                      adj_outputs=[z.grad], adjoint=True, device="cuda:0")
+            t0 = mark(lines[5], t0)
+            g = wp.to_torch(wxy.grad)
+            t0 = mark(lines[6], t0)
+            del wxy, z, tz, g
+            mark(lines[7], t0)
+
+        for _ in range(args.reps):
+            step()
+        wp.synchronize()
+        print(f"Rosenbrock step, line by line: median {sum(statistics.median(v) for v in line_totals.values()) * 1e6:.1f} us summed")
+        for k in lines:
+            print(f"\n{k}: median {statistics.median(line_totals[k]) * 1e6:.1f} us")
+            counts = per_line[k]
+            rows = [(name, statistics.median(v + [0.0] * (args.reps - len(v))), len(v) / args.reps)
+                    for name, v in counts.items() if not name.endswith(" #")]
+            for name, v, share in sorted(rows, key=lambda r: -r[1])[:12]:
+                calls = counts.get(name + " #", [0])
+                print(f"  {v * 1e6:8.1f} us  x{statistics.median(calls):<4g} in {share:4.0%} of steps  {name}")
+
         for case, fn in cases.items():
             per = collections.defaultdict(list)
             totals = []
