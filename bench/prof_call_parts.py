@@ -23,7 +23,7 @@ from bench_interop import SOURCE, rosenbrock_step  # noqa: E402
 
 WRAPPED = {
     "weft.interop.torch": ["_from_torch", "_cuda_tensor_over", "to_torch"],
-    "weft.interop.cuda_import": ["import_torch", "import_memory", "_fresh", "_Source"],
+    "weft.interop.cuda_import": ["import_torch", "import_memory", "_fresh"],
     "weft.interop.external": ["resolve_parts", "find_cuda_in_place", "_span"],
     "weft.interop.dlpack": ["export", "_export_cuda"],
     "weft.interop.cuda_order": ["ready", "before", "after"],
@@ -33,7 +33,6 @@ WRAPPED = {
     "weft._kernel.launch": ["launch", "_order_framework_gpu", "pack_arguments", "_array_arg",
                             "_pack_fast"],
     "weft.array": ["_new_array", "zeros"],
-    "weft._runtime": [],
 }
 METHODS = {
     ("weft.array", "array"): ["_from_info", "_adopt", "_init_new", "_set_daemon_grad", "_make_view"],
@@ -74,7 +73,7 @@ def main() -> None:
             m = importlib.import_module(mod_name)
             for n in names:
                 fn = getattr(m, n, None)
-                if fn is not None and callable(fn) and not isinstance(fn, type):
+                if callable(fn):
                     setattr(m, n, wrap(f"{mod_name.split('.')[-1]}.{n}", fn))
         for (mod_name, cls), names in METHODS.items():
             c = getattr(importlib.import_module(mod_name), cls)

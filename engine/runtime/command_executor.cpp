@@ -66,7 +66,7 @@ Expected<ResolvedArg> ResolveArg(const ArgValue& a, const HandleSnapshot& h, con
   ResolvedArg r;
   r.kind = a.kind;
   r.raw = a.raw;
-  r.command_ref = &a.array;
+  r.ref = &a.array;
   if (a.kind == ArgValue::Kind::kArray && a.array.handle != 0) {
     ArrayName what([](const void* p) { return static_cast<const ArgPath*>(p)->Text(); }, &path);
     WEFT_ASSIGN_OR_RETURN(r.alloc, Lookup(h, a.array.handle, what));

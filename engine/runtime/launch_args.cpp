@@ -89,12 +89,12 @@ struct Packer {
             req.shape = &primal_shape;
           }
         }
-        WEFT_ASSIGN_OR_RETURN(ArrayView v, ValidateArray(a.alloc, a.view(), req));
+        WEFT_ASSIGN_OR_RETURN(ArrayView v, ValidateArray(a.alloc, *a.ref, req));
         abi.data = v.data();
         // A view as another dtype has no gradient (Warp's array.view gives an array without one).
-        const bool viewed = a.view().view_dtype.has_value();
+        const bool viewed = a.ref->view_dtype.has_value();
         abi.grad = (!adjoint && al.grad && !viewed) ? al.grad->data() + v.byte_offset : nullptr;
-        if (!adjoint && a.view().retain_grad) abi.flags = wp::ARRAY_FLAG_RETAIN_GRAD;
+        if (!adjoint && a.ref->retain_grad) abi.flags = wp::ARRAY_FLAG_RETAIN_GRAD;
         // The primal array's own gradient (its .grad when packed) is consumed by stores'
         // adjoints, as Warp's adj_array_store does when adj_buf.data == buf.grad.
         if (primal_grad != nullptr && primal_grad == abi.data) abi.flags = wp::ARRAY_FLAG_CONSUME_ADJOINT;

@@ -15,18 +15,18 @@
 
 namespace weft {
 
+// What a ResolvedArg names until it is resolved: no view (a value, a struct, or None).
+inline const ArrayRef kNoArrayRef{};
+
 // An argument whose array views are resolved to allocations held by the session.
 struct ResolvedArg {
   ArgValue::Kind kind = ArgValue::Kind::kRaw;
   std::string raw;
-  ArrayRef ref;
-  // The launch command's own view, which outlives this argument (a launch resolves and packs
-  // its arguments within the call): no copy of its shape and strides. Null: `ref` is the view.
-  const ArrayRef* command_ref = nullptr;
+  // The view as the launch command names it, not a copy of its shape and strides: the command
+  // outlives its arguments' resolution and packing (both happen within the launch call).
+  const ArrayRef* ref = &kNoArrayRef;
   std::shared_ptr<Allocation> alloc;   // null for None (handle 0)
   std::vector<ResolvedArg> fields;
-
-  const ArrayRef& view() const { return command_ref ? *command_ref : ref; }
 };
 
 // One array slot in a packed block.

@@ -153,28 +153,31 @@ TEST(ArrayValidation, AdjointArgumentsMatchThePrimal) {
   k.params = {ArrayParam("x", "float32", 1, 0)};
   k.params[0].array_elem_size = 4;
   k.args_size = sizeof(wp::array_abi_t);
+  ArrayRef x_ref, adj_ref;   // what the launch command would name
+  x_ref.handle = x->handle;
   ResolvedArg fx;
   fx.kind = ArgValue::Kind::kArray;
-  fx.ref.handle = x->handle;
+  fx.ref = &x_ref;
   fx.alloc = x;
   auto primal = PackArgs(k, {fx});
   ASSERT_TRUE(primal.ok()) << primal.status().ToString();
 
   ResolvedArg adj = fx;
-  adj.ref.handle = small->handle;
+  adj.ref = &adj_ref;
+  adj_ref.handle = small->handle;
   adj.alloc = small;   // shape (2,) against the primal's (8,)
   auto r = PackAdjointArgs(k, *primal, {adj});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find("primal"), std::string::npos) << r.status().ToString();
 
-  adj.ref.handle = ints->handle;
+  adj_ref.handle = ints->handle;
   adj.alloc = ints;    // right shape, wrong element type
   r = PackAdjointArgs(k, *primal, {adj});
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find("int32"), std::string::npos) << r.status().ToString();
 
   auto good = Floats(*e, *s, 8);
-  adj.ref.handle = good->handle;
+  adj_ref.handle = good->handle;
   adj.alloc = good;
   EXPECT_TRUE(PackAdjointArgs(k, *primal, {adj}).ok());
 }

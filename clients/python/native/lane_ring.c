@@ -123,7 +123,7 @@ static PyObject* take(PyObject* self, PyObject* const* argv, Py_ssize_t argc) {
   uint64_t spin_ns = PyLong_AsUnsignedLongLong(argv[7]);
   if (PyErr_Occurred()) return NULL;
   if (address == 0 || out == 0 || cap < 16 || cap % 8 != 0 || base % 8 != 0 || base > size ||
-      cap > size - base || size < kReplyTail + 8) {
+      cap > size - base || size < kReplyTail + 8 || tail % 8 != 0) {
     PyErr_SetString(PyExc_ValueError, "take: the ring's layout is out of range");
     return NULL;
   }

@@ -746,6 +746,8 @@ def test_the_c_reader_reads_what_the_python_reader_reads():
             bad[index] = value
             with pytest.raises((TypeError, ValueError, OverflowError)):
                 native.take(*bad)
+        with pytest.raises(ValueError, match="layout"):                # a tail off the 8-byte grid
+            native.take(*good[:4], tail + 3, *good[5:])
         assert c_ring._u64[REPLY_TAIL >> 3] == tail
         assert c_ring.take_into(address, len(out)) == 108              # the record is still there
     finally:
