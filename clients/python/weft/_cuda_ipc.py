@@ -395,6 +395,20 @@ def export_allocation(ordinal: int, address: int):
         return known[0], known[1], int(buffer_id.value), known[2]
 
 
+def buffer_id(address: int):
+    """The buffer id of the CUDA allocation of this process that holds device address
+    `address` (unique for the life of the process: a segment freed and allocated again has a
+    new one), or None where the driver does not know the address (one driver call)."""
+    with _lock:
+        if _load() is None:
+            return None
+        value = ctypes.c_uint64()
+        if _lib.cuPointerGetAttribute(ctypes.byref(value), CU_POINTER_ATTRIBUTE_BUFFER_ID,
+                                      ctypes.c_uint64(address)) != 0:
+            return None
+        return int(value.value)
+
+
 class IpcEvent:
     """An interprocess event of this process (cudaEventInterprocess | DisableTiming) on one
     device and its IPC handle bytes (taken once: weftd opens each handle once per session)."""

@@ -538,7 +538,10 @@ class array:
 
         self.device = get_device(device)
         self.pinned = bool(pinned) and self.device.is_cpu     # Warp: CPU arrays only
-        if data is None:
+        if data is not None and not isinstance(data, array) and \
+                hasattr(data, "__cuda_array_interface__"):
+            self._init_from_cuda_interface(data, dtype, shape, requires_grad)
+        elif data is None:
             if dtype is Any:
                 dtype = float32
             self._init_new(dtype, _normalize_shape(shape), requires_grad)
@@ -546,6 +549,23 @@ class array:
             self._init_from_data(data, dtype, shape, requires_grad)
         if grad is not None:
             self.grad = grad
+
+    def _init_from_cuda_interface(self, data, dtype, shape, requires_grad):
+        """wp.array of a foreign GPU array (CuPy, Numba, Torch, ...): that memory, as Warp wraps
+        it (weft.interop.cuda_import.array_from_interface); a CPU target is an error, as in
+        Warp."""
+        if not self.device.is_cuda:
+            raise RuntimeError(f"Trying to construct a Warp array from data argument's "
+                               f"__cuda_array_interface__ but {self.device} is not CUDA-capable")
+        from .interop import cuda_import  # noqa: PLC0415
+
+        out = cuda_import.array_from_interface(data, None if dtype is Any else dtype,
+                                               self.device.alias, "wp.array")
+        if shape is not None and tuple(_normalize_shape(shape)) != tuple(out.shape):
+            out = out.reshape(_normalize_shape(shape))
+        if requires_grad:
+            out.requires_grad = True
+        self.__dict__.update(out.__dict__)    # its allocation holds the framework's memory
 
     def _init_from_ptr(self, ptr, dtype, shape, strides, device):
         """wp.array(ptr=a.ptr + k, ...): a view of the weft allocation the address lies in (an

@@ -4,8 +4,11 @@ cannot use CUDA IPC): wp.from_torch, tensors passed to wp.launch, from_dlpack of
 are the framework's memory (same device pointer, no copy, the tensor not re-pointed), writes
 seen both ways with Torch's stream work ordered before the launch, the gradient the same memory
 on both sides, a tensor converted again costs no new import, a block handed out again reuses
-the dead import's parked handle without a round trip, blocks the caching allocator frees
-and hands out again (also after empty_cache) are never read through an old mapping; hostile
+the dead import's parked handle without a round trip, a training loop's new gradient in a
+freed block finds the import remembered on its tensor (which does not hold the gradient's
+memory; each array does), blocks the caching allocator frees and hands out again (also after
+empty_cache) are never read through an old mapping, an import refused for a stale mapping frees
+the imports that hold no memory and is asked again; hostile
 requests (a forged handle, a range past the allocation, a handle another session imported,
 weft's own memory) get clear errors, as does a tensor of another GPU than the launch's; an
 imported array cannot be exported."""
@@ -212,6 +215,154 @@ def test_a_block_handed_out_again_reuses_the_parked_import(wp, tcuda, torch, mon
     assert 0 < len(cuda_import._parked(rt)) <= cuda_import.PARKED_IMPORTS
 
 
+def _adjoint_step(wp, tcuda, x):
+    """One step of the zero_grad() pattern on tensor `x`: its gradient dropped, `x` converted
+    with a new zero gradient, the adjoint of square_sum (incoming gradient 1) written into it.
+    Returns the array (it holds the gradient's memory)."""
+    x.grad = None
+    a = wp.from_torch(x, requires_grad=True)
+    loss = wp.zeros(1, dtype=float, device=tcuda, requires_grad=True)
+    loss.grad.fill_(1.0)
+    wp.launch(square_sum, dim=a.size, inputs=[a, loss], adj_inputs=[a.grad, loss.grad],
+              adjoint=True, device=tcuda)
+    wp.synchronize()
+    return a
+
+
+def test_a_new_gradient_in_a_freed_block_finds_the_remembered_import(wp, tcuda, torch, rng,
+                                                                      monkeypatch):
+    """The training loop's pattern (zero_grad() drops the gradient, from_torch(x,
+    requires_grad=True) puts new zeros there): the import remembered on the tensor does not hold
+    the gradient's memory, so Torch hands a freed block out again and the conversion finds the
+    import without a new one; every step's gradient is the tensor's (2x, float64 reference)."""
+    from weft.interop import cuda_import
+
+    values = rng.uniform(-3.0, 3.0, 1 << 14).astype(np.float32)
+    x = torch.tensor(values, device="cuda", requires_grad=True)
+    imports = []
+    real = cuda_import.import_memory
+    monkeypatch.setattr(cuda_import, "import_memory",
+                        lambda *a, **k: imports.append(a[0].ptr) or real(*a, **k))
+    seen, found_again, prev = set(), 0, None
+    for _ in range(8):
+        before = len(imports)
+        a = _adjoint_step(wp, tcuda, x)          # the previous array lives until here
+        gptr = x.grad.data_ptr()
+        assert a.grad.ptr == gptr
+        np.testing.assert_allclose(x.grad.cpu().numpy(), 2.0 * values.astype(np.float64),
+                                   rtol=1e-6)
+        if gptr in seen:
+            assert len(imports) == before, "a gradient block seen before was imported again"
+            found_again += 1
+        seen.add(gptr)
+        prev = a
+    del prev
+    if found_again == 0:
+        pytest.skip("Torch placed every gradient in a new block")
+    assert found_again >= 4
+
+
+def test_an_array_holds_its_gradient_memory_the_remembered_import_does_not(wp, tcuda, torch, rng):
+    """While an array from from_torch(x, requires_grad=True), or a tensor exported from its
+    gradient, lives, Torch cannot hand the gradient's block to another tensor (the array's
+    gradient holds it, not the import remembered on `x`); once both are gone it can."""
+    import gc
+
+    n = 1 << 14
+    x = torch.tensor(rng.standard_normal(n).astype(np.float32), device="cuda",
+                     requires_grad=True)
+    a = wp.from_torch(x, requires_grad=True)
+    gptr = a.grad.ptr
+    exported = wp.to_torch(a.grad)
+    x.grad = None
+    del a
+    gc.collect()
+    others = [torch.empty(n, device="cuda") for _ in range(6)]
+    assert gptr not in [o.data_ptr() for o in others], "a block an exported gradient holds was handed out"
+    del others
+    a = wp.from_torch(x, requires_grad=True)     # another gradient block (the old one is held)
+    assert a.grad.ptr != gptr
+    del exported
+    gc.collect()
+    others = [torch.empty(n, device="cuda") for _ in range(6)]
+    assert a.grad.ptr not in [o.data_ptr() for o in others]
+    if gptr not in [o.data_ptr() for o in others]:
+        pytest.skip("Torch did not hand the freed gradient block out again")
+
+
+def test_a_gradient_in_a_reallocated_segment_is_imported_afresh(wp, tcuda, torch, rng,
+                                                                 monkeypatch):
+    """A gradient segment freed with empty_cache() and allocated again (same address, a new
+    buffer id): the remembered import is not used (it maps the old segment); the adjoint
+    lands in the new gradient. 16 MB tensors: Torch gives each a segment of its own (smaller
+    ones share 20 MB segments, which x would keep alive)."""
+    import gc
+
+    from weft import _cuda_ipc
+    from weft.interop import cuda_import
+
+    values = rng.uniform(-2.0, 2.0, 1 << 22).astype(np.float32)
+    x = torch.tensor(values, device="cuda", requires_grad=True)
+    a = _adjoint_step(wp, tcuda, x)
+    old, old_id = a.grad.ptr, _cuda_ipc.buffer_id(a.grad.ptr)
+    x.grad = None
+    del a
+    gc.collect()
+    torch.cuda.empty_cache()
+    imports = []
+    real = cuda_import.import_memory
+    monkeypatch.setattr(cuda_import, "import_memory",
+                        lambda *a, **k: imports.append(1) or real(*a, **k))
+    a = _adjoint_step(wp, tcuda, x)
+    np.testing.assert_allclose(x.grad.cpu().numpy(), 2.0 * values.astype(np.float64), rtol=1e-6)
+    if x.grad.data_ptr() != old:
+        pytest.skip("the new gradient segment came at another address")
+    if _cuda_ipc.buffer_id(old) == old_id:
+        pytest.skip("Torch kept the gradient's segment (empty_cache did not free it)")
+    assert imports, "the remembered import of the freed segment was used"
+
+
+def test_an_import_refused_for_a_stale_mapping_frees_unheld_imports(wp, tcuda, torch, rng,
+                                                                    monkeypatch):
+    """weftd refuses an import whose handle bytes it still maps for a freed segment (parked,
+    or remembered on a tensor without its memory): the client frees those imports and asks
+    again, and the conversion works."""
+    import gc
+
+    from weft import _runtime
+    from weft.errors import WeftError
+    from weft.interop import cuda_import
+
+    rt = _runtime.get_runtime()
+    x = torch.tensor(rng.standard_normal(4096).astype(np.float32), device="cuda",
+                     requires_grad=True)
+    _adjoint_step(wp, tcuda, x)                  # remembered on x without its gradient
+    dropped = torch.ones(5000, device="cuda")
+    wp.from_torch(dropped)
+    del dropped
+    gc.collect()                                 # parked
+    assert cuda_import._parked(rt) and any(a._alloc.runtime is rt for a in cuda_import._UNHELD)
+    calls = []
+    real = rt.array_call
+
+    def refuse_once(method, request):
+        calls.append(method)
+        if method == "ImportCuda" and calls.count("ImportCuda") == 1:
+            raise WeftError("FAILED_PRECONDITION: CUDA import: " + cuda_import._STALE_HANDLE +
+                            " (allocation id 1 -> 2) while arrays of this session still use "
+                            "the old one; free those arrays first")
+        return real(method, request)
+
+    monkeypatch.setattr(rt, "array_call", refuse_once)
+    t = torch.full((3000,), 2.0, device="cuda")
+    b = wp.from_torch(t)
+    assert calls.count("ImportCuda") == 2 and b.ptr == t.data_ptr()
+    assert not cuda_import._parked(rt)
+    assert not any(a._alloc.runtime is rt for a in cuda_import._UNHELD)
+    assert "_weft_imports" not in x.__dict__ or not x.__dict__["_weft_imports"]
+    np.testing.assert_array_equal(b.numpy(), np.full(3000, 2.0, dtype=np.float32))
+
+
 def _raw_import(wp, handle: bytes, allocation_id: int, offset: int, n: int, device="cuda:0"):
     from weft import _runtime
     from weft.array import _dtype_proto
@@ -284,6 +435,25 @@ def test_memory_of_another_gpu_is_a_clear_error(wp, tcuda, torch):
                   device="cuda:0")
     a = wp.from_torch(t)                # imported on its own GPU
     assert str(a.device) == "cuda:1" and a.ptr == t.data_ptr()
+
+
+def test_wp_array_of_a_cuda_tensor_or_cupy_array_is_imported(wp, tcuda, torch, rng):
+    """wp.array(t) of a CUDA tensor (or a CuPy array) is that memory, imported by CUDA IPC
+    (Warp wraps __cuda_array_interface__ objects); the tensor is not re-pointed."""
+    values = rng.standard_normal(2048).astype(np.float32)
+    t = torch.tensor(values, device="cuda")
+    before = t.data_ptr()
+    a = wp.array(t, device=tcuda)
+    assert _imported(a) and a.ptr == t.data_ptr() == before
+    total = wp.zeros(1, dtype=float, device=tcuda)
+    wp.launch(scale_sum, dim=2048, inputs=[a, 3.0, total], device=tcuda)
+    wp.synchronize()
+    np.testing.assert_allclose(t.cpu().numpy(), values.astype(np.float64) * 3.0, rtol=1e-6)
+    cp = pytest.importorskip("cupy", reason="CuPy is not installed")
+    c = cp.asarray(values)
+    b = wp.array(c, device=tcuda)
+    assert _imported(b) and b.ptr == c.data.ptr
+    np.testing.assert_array_equal(b.numpy(), values)
 
 
 def test_cupy_arrays_are_imported(wp, tcuda, rng):

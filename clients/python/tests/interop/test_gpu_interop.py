@@ -1,7 +1,9 @@
 """GPU interop (skipped without a CUDA device the daemon can run kernels on): a Torch tensor
 made from a weft GPU array has the array's __cuda_array_interface__ data pointer and sees
 kernel writes after the documented synchronization; DLPack export of GPU arrays; CPU data on a
-GPU launch and GPU tensors on a CPU launch are clear errors."""
+GPU launch and GPU tensors on a CPU launch are clear errors; Numba both ways through
+__cuda_array_interface__ (numba.cuda.as_cuda_array of a weft array, Numba device arrays in
+launches, written in place)."""
 import numpy as np
 import pytest
 
@@ -149,3 +151,79 @@ def test_bfloat16_gpu_tensors_both_ways(wp, cuda, torch, rng):
     back = wp.to_torch(a)
     assert back.dtype == torch.bfloat16 and back.data_ptr() == t.data_ptr()
     np.testing.assert_array_equal(t.double().cpu().numpy(), -ref)
+
+
+@pytest.fixture
+def ncuda(cuda):
+    """numba.cuda with a CUDA device (Numba's GPU support, the numba-cuda package), or skipped
+    with the reason."""
+    numba_cuda = pytest.importorskip("numba.cuda", reason="Numba (numba-cuda) is not installed")
+    if not numba_cuda.is_available():
+        pytest.skip("Numba sees no CUDA device")
+    return numba_cuda
+
+
+def test_numba_sees_a_weft_array_at_the_same_pointer(wp, cuda, ncuda, rng):
+    """weft -> Numba through __cuda_array_interface__: numba.cuda.as_cuda_array of a weft GPU
+    array is the daemon's memory (same device pointer, no copy); Numba's writes are seen by
+    weft and weft's kernel writes by Numba after wp.synchronize()."""
+    values = rng.standard_normal(1000).astype(np.float32)
+    a = wp.array(values, device=cuda)
+    if a.ptr is None:
+        pytest.skip("CUDA IPC is not available in this client")
+    d = ncuda.as_cuda_array(a)
+    assert d.__cuda_array_interface__["data"][0] == a.ptr and d.shape == (1000,)
+    np.testing.assert_array_equal(d.copy_to_host(), values)
+    fresh = rng.standard_normal(1000).astype(np.float32)
+    d.copy_to_device(fresh)                  # Numba writes the daemon's memory
+    ncuda.synchronize()
+    np.testing.assert_array_equal(a.numpy(), fresh)
+    wp.launch(add_one, dim=1000, inputs=[a], device=cuda)
+    wp.synchronize()
+    np.testing.assert_allclose(d.copy_to_host(), fresh.astype(np.float64) + 1.0, rtol=1e-6)
+    v = ncuda.as_cuda_array(a[::4])          # a strided view: the same memory, its strides
+    assert v.__cuda_array_interface__["data"][0] == a.ptr and v.strides == (16,)
+    np.testing.assert_allclose(v.copy_to_host(), fresh[::4].astype(np.float64) + 1.0, rtol=1e-6)
+
+
+def test_numba_device_arrays_in_weft_launches(wp, cuda, ncuda, rng):
+    """Numba -> weft through __cuda_array_interface__: a Numba device array passed to wp.launch
+    is written in place (Numba's copy of it sees the kernel's writes), a strided one too, and
+    one of another dtype than the parameter's is a clear error."""
+    values = rng.standard_normal(3001).astype(np.float32)
+    d = ncuda.to_device(values)
+    total = wp.zeros(1, dtype=float, device=cuda)
+    wp.launch(scale_sum, dim=d.size, inputs=[d, 0.5, total], device=cuda)
+    wp.synchronize()
+    np.testing.assert_allclose(d.copy_to_host(), values.astype(np.float64) * 0.5, rtol=1e-6)
+    np.testing.assert_allclose(total.numpy()[0], (values.astype(np.float64) * 0.5).sum(),
+                               rtol=1e-4, atol=1e-3)
+    s = d[::3]
+    total.zero_()
+    wp.launch(scale_sum, dim=s.size, inputs=[s, 4.0, total], device=cuda)
+    wp.synchronize()
+    ref = values.astype(np.float64) * 0.5
+    ref[::3] *= 4.0
+    np.testing.assert_allclose(d.copy_to_host(), ref, rtol=1e-6)
+    wrong = ncuda.to_device(np.arange(8, dtype=np.int64))
+    with pytest.raises(Exception, match="int64|dtype|float"):
+        wp.launch(scale_sum, dim=8, inputs=[wrong, 1.0, total], device=cuda)
+
+
+def test_wp_array_of_a_cuda_array_interface_object_is_that_memory(wp, cuda, ncuda, rng):
+    """wp.array(obj) of an object with __cuda_array_interface__ (here a Numba device array)
+    wraps that memory, as Warp does: same pointer, a vector dtype over its trailing dimension,
+    a new shape, kernel writes seen by the owner; on a CPU target it is Warp's error."""
+    values = rng.standard_normal((500, 3)).astype(np.float32)
+    d = ncuda.to_device(values)
+    pointer = d.__cuda_array_interface__["data"][0]
+    v = wp.array(d, dtype=wp.vec3, device=cuda)
+    assert v.shape == (500,) and v.dtype == wp.vec3 and v.ptr == pointer
+    np.testing.assert_array_equal(v.numpy(), values)
+    flat = wp.array(d, dtype=float, shape=(1500,), device=cuda, requires_grad=True)
+    assert flat.shape == (1500,) and flat.ptr == pointer and flat.grad is not None
+    wp.launch(add_one, dim=1500, inputs=[flat], device=cuda)
+    wp.synchronize()
+    np.testing.assert_allclose(d.copy_to_host(), values.astype(np.float64) + 1.0, rtol=1e-6)
+    with pytest.raises(RuntimeError, match="not CUDA-capable"):
+        wp.array(d, device="cpu")

@@ -10,7 +10,10 @@ keeps a reference to the framework object for as long as it (or any view of it) 
 framework cannot free or hand out that block meanwhile; a block freed and allocated again has a
 new buffer id, so weftd never reads it through an old mapping (docs/interop.md). The imported
 array of a Torch tensor is remembered on the tensor (keyed by its pointer, layout, dtype and
-gradient pointer), so converting the same tensor again costs no round trip.
+gradient pointer), so converting the same tensor again costs no round trip. The remembered
+import does not hold the gradient's memory (each array handed out does): a training loop's new
+gradient, which Torch places in a block an earlier one freed, finds it again, checked by buffer
+id against a segment freed and allocated again.
 
 Where import is impossible (remote session, IPC off, VMM or pool memory the driver cannot
 export, negative strides) the data is copied into a weft GPU array (device to device through
@@ -21,6 +24,7 @@ from __future__ import annotations
 
 import collections
 import ctypes
+import weakref
 
 import numpy as np
 
@@ -289,6 +293,21 @@ class _Recycle:
             self.rt.free_later(evicted.handle)
 
 
+def _free_unheld(rt) -> None:
+    """Frees every daemon import of this session that does not hold its framework memory: the
+    parked ones and the tensors' remembered imports of gradients (_UNHELD)."""
+    pool = _parked(rt)
+    for info in pool.values():
+        rt.free_later(info.handle)
+    pool.clear()
+    for a in list(_UNHELD):
+        if a._alloc.runtime is rt:
+            cache = a.__dict__.get("_weft_cache")
+            if cache is not None:
+                _forget(cache, a)
+    rt.drain_frees()
+
+
 def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
                   grad_src: "_Source | None" = None):
     """A weft array over `src`'s memory, opened by weftd through CUDA IPC (None where that
@@ -331,7 +350,15 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
             request.grad.CopyFrom(refs[1])
         rt.drain_frees()
         try:
-            info = rt.array_call("ImportCuda", request).info
+            try:
+                info = rt.array_call("ImportCuda", request).info
+            except WeftError as err:
+                if _STALE_HANDLE not in str(err):
+                    raise
+                # weftd still maps the segment this handle named before (an import kept
+                # without its memory, parked or remembered on a tensor): those go, then again
+                _free_unheld(rt)
+                info = rt.array_call("ImportCuda", request).info
         except WeftError as err:
             if "could not be opened" not in str(err):
                 raise
@@ -355,6 +382,7 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
         g._alloc.parent = out._alloc
         g._alloc.keep = grad_src.keep
         g._alloc._cuda = grad_src.ptr
+        out.__dict__["_weft_grad_block"] = parts[1][1]   # the gradient segment's buffer id
         memory.mark_shared(g._alloc)
         if not contiguous:
             g = g._make_view(0, shape, strides)
@@ -363,10 +391,12 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
     return out
 
 
-def _fresh(a):
+def _fresh(a, grad=None):
     """A new array object over imported array `a` (each conversion returns its own object,
     as in Warp; they share the allocation, the gradient, the framework reference and the
-    launch's cached wire reference), a view of `a`."""
+    launch's cached wire reference), a view of `a`. With `grad` (the Torch gradient tensor
+    this conversion maps), the view's gradient is a view of `a`'s that holds that tensor's
+    memory: `a`, remembered on the tensor, does not (import_torch)."""
     if "_weft_launch_ref" not in a.__dict__:
         from .._kernel.launch import _array_arg  # noqa: PLC0415
 
@@ -374,12 +404,63 @@ def _fresh(a):
     v = type(a).__new__(type(a))
     state = dict(a.__dict__)
     state.pop("_is_read", None)
+    state.pop("_weft_cache", None)
     state["_view_of"] = a
+    base_grad = state.get("_grad")
+    if grad is not None and base_grad is not None:
+        state["_grad"] = _grad_holding(base_grad, grad.untyped_storage())
+    v.__dict__.update(state)
+    return v
+
+
+def _grad_holding(base, keep):
+    """A view of imported gradient array `base` over an allocation object of its own that
+    holds `keep` (the framework memory it maps) as long as the view, any view of it or any
+    export of it (DLPack capsules hold the allocation object) lives."""
+    from ..array import _Allocation  # noqa: PLC0415
+
+    if "_weft_launch_ref" not in base.__dict__:
+        from .._kernel.launch import _array_arg  # noqa: PLC0415
+
+        _array_arg(base)
+    alloc = base._alloc
+    own = _Allocation(alloc.runtime, alloc.info, owned=False, parent=alloc)
+    own.keep = keep
+    own._cuda = alloc._cuda
+    memory.mark_shared(own)
+    v = type(base).__new__(type(base))
+    state = dict(base.__dict__)
+    state.pop("_is_read", None)
+    state["_view_of"] = base
+    state["_alloc"] = own
     v.__dict__.update(state)
     return v
 
 
 _TORCH_IMPORTS_KEPT = 8      # imported arrays remembered per tensor (dtypes/gradients differ)
+
+# Imports remembered on tensors (import_torch) that do not hold their gradient's memory: their
+# daemon arrays may map a segment Torch has since freed. An import the daemon refuses because
+# it still maps the handle's old segment (_STALE_HANDLE) frees them and the parked ones.
+_UNHELD = weakref.WeakSet()
+_STALE_HANDLE = "the allocation behind this IPC handle changed"
+
+
+def _grad_block_current(a, g) -> bool:
+    """Whether gradient tensor `g` lies in the allocation (segment) whose block remembered
+    import `a` mapped as its gradient: the buffer id at `g`'s address is the one recorded at
+    import (a segment freed and allocated again at the same address has a new one)."""
+    block = a.__dict__.get("_weft_grad_block")
+    return block is not None and _cuda_ipc.buffer_id(g.data_ptr()) == block
+
+
+def _forget(cache, a) -> None:
+    """Removes remembered import `a` from tensor cache `cache`; its daemon array is freed
+    (not parked: it may map a segment that is gone)."""
+    for k in [k for k, v in cache.items() if v is a]:
+        del cache[k]
+    a._alloc.recycle = None
+    _UNHELD.discard(a)
 
 
 def _fast_key(t, dtype, g):
@@ -426,7 +507,11 @@ def import_torch(t, dtype, what, requires_grad=False, grad=None):
     if cache is not None and fast is not None:
         hit = cache.get(fast)
         if hit is not None and hit._alloc.runtime is rt:
-            return _fresh(hit)
+            if g is None:
+                return _fresh(hit)
+            if _grad_block_current(hit, g):
+                return _fresh(hit, g)
+            _forget(cache, hit)
     np_dtype = np.dtype(scalar._np_dtype_)
     strides = tuple(s * np_dtype.itemsize for s in t.stride())
     try:
@@ -441,9 +526,11 @@ def import_torch(t, dtype, what, requires_grad=False, grad=None):
     if cache is not None:
         hit = cache.get(key)
         if hit is not None and hit._alloc.runtime is rt:
-            if fast is not None:
-                cache[fast] = hit
-            return _fresh(hit)
+            if g is None or _grad_block_current(hit, g):
+                if fast is not None:
+                    cache[fast] = hit
+                return _fresh(hit, g)
+            _forget(cache, hit)
     ordinal = t.device.index if t.device.index is not None else 0
     try:
         if external.find_cuda_in_place(t, dtype, f"cuda:{ordinal}", what) is not None:
@@ -463,7 +550,15 @@ def import_torch(t, dtype, what, requires_grad=False, grad=None):
     cache[key] = a
     if fast is not None:
         cache[fast] = a
-    return _fresh(a)
+    if g is None:
+        return _fresh(a)
+    # The remembered import does not hold the gradient's memory (each conversion's array
+    # does, _fresh): after `zero_grad()` Torch may hand the freed block out again as the next
+    # gradient, which then finds this import (its segment checked by buffer id).
+    a._grad._alloc.keep = None
+    a.__dict__["_weft_cache"] = cache
+    _UNHELD.add(a)
+    return _fresh(a, g)
 
 
 def import_object(obj, dtype, device: str, what: str):
@@ -483,6 +578,24 @@ def import_object(obj, dtype, device: str, what: str):
     if not external._scalar_compatible(src.np_dtype, wdtype._wp_scalar_type_):
         return None
     return import_memory(src, wdtype, shape, strides, ordinal, what)
+
+
+def array_from_interface(obj, dtype, device: str, what: str):
+    """wp.array(obj) of a foreign GPU array (an object with __cuda_array_interface__: CuPy,
+    Numba, Torch, ...), as Warp wraps it: the same memory (weft memory found in place, other
+    memory imported by CUDA IPC; a Torch tensor through adopt_torch), or, where neither can be,
+    a copy on `device` ("cuda:N")."""
+    if external.is_torch_tensor(obj):
+        out, _ = adopt_torch(obj, dtype, device, what)
+        return out
+    found = external.find_cuda_in_place(obj, dtype, device, what)
+    if found is not None:
+        return found
+    out = import_object(obj, dtype, device, what)
+    if out is not None:
+        return out
+    out, _ = copy_in(obj, dtype, device, what)
+    return out
 
 
 class CopyBack:
