@@ -412,6 +412,39 @@ sys.stdin.readline()
 """
 
 
+class _Interface:
+    """An object exposing a given (hand-made) __cuda_array_interface__."""
+
+    def __init__(self, interface):
+        self.__cuda_array_interface__ = interface
+
+
+def test_forged_cuda_array_interfaces_in_wp_array_get_clear_errors(wp, tcuda, torch):
+    """wp.array of objects whose __cuda_array_interface__ lies: a view far past its
+    allocation is neither imported nor read (the copy it falls back to is refused by the
+    daemon's limits), a masked array and a type weft has no scalar for are clear errors; the
+    honest interface of the same memory works."""
+    t = torch.arange(16, dtype=torch.float32, device="cuda")
+    honest = _Interface({"shape": (16,), "typestr": "<f4", "data": (t.data_ptr(), False),
+                         "version": 3, "strides": None})
+    a = wp.array(honest, device=tcuda)
+    assert a.ptr == t.data_ptr()
+    np.testing.assert_array_equal(a.numpy(), np.arange(16, dtype=np.float32))
+    past = _Interface({"shape": (1 << 40,), "typestr": "<f4", "data": (t.data_ptr(), False),
+                       "version": 3, "strides": None})
+    with pytest.raises(Exception, match="limit|memory|too large|exceeds"):
+        wp.array(past, device=tcuda)
+    masked = _Interface({"shape": (16,), "typestr": "<f4", "data": (t.data_ptr(), False),
+                         "version": 3, "strides": None, "mask": honest})
+    with pytest.raises(Exception, match="masked"):
+        wp.array(masked, device=tcuda)
+    complex_ = _Interface({"shape": (8,), "typestr": "<c8", "data": (t.data_ptr(), False),
+                           "version": 3, "strides": None})
+    with pytest.raises(Exception, match="complex|type|dtype"):
+        wp.array(complex_, device=tcuda)
+    np.testing.assert_array_equal(t.cpu().numpy(), np.arange(16, dtype=np.float32))
+
+
 def test_a_handle_another_session_imported_is_refused(wp, tcuda, torch, spawn_client):
     child = spawn_client(CHILD)
     line = child.stdout.readline().split()
