@@ -333,21 +333,24 @@ def synchronize(ordinal: int) -> None:
             _check(_lib.cuCtxSynchronize(), "cuCtxSynchronize")
 
 
-def pointer_device(address: int):
-    """The CUDA device ordinal of a device pointer of this process, or None (host memory, or
-    no driver)."""
+def _pointer_attribute(address: int, attribute: int, ctype):
+    """cuPointerGetAttribute of a pointer of this process as a Python int, or None (no driver,
+    or the driver does not know the address)."""
     with _lock:
         if _load() is None:
             return None
-        kind = ctypes.c_uint()
-        if _lib.cuPointerGetAttribute(ctypes.byref(kind), CU_POINTER_ATTRIBUTE_MEMORY_TYPE,
-                                      ctypes.c_uint64(address)) != 0:
+        value = ctype()
+        if _lib.cuPointerGetAttribute(ctypes.byref(value), attribute, ctypes.c_uint64(address)) != 0:
             return None
-        ordinal = ctypes.c_int()
-        if _lib.cuPointerGetAttribute(ctypes.byref(ordinal), CU_POINTER_ATTRIBUTE_DEVICE_ORDINAL,
-                                      ctypes.c_uint64(address)) != 0:
-            return None
-        return int(ordinal.value)
+        return int(value.value)
+
+
+def pointer_device(address: int):
+    """The CUDA device ordinal of a device pointer of this process, or None (host memory, or
+    no driver)."""
+    if _pointer_attribute(address, CU_POINTER_ATTRIBUTE_MEMORY_TYPE, ctypes.c_uint) is None:
+        return None
+    return _pointer_attribute(address, CU_POINTER_ATTRIBUTE_DEVICE_ORDINAL, ctypes.c_int)
 
 
 _exported = collections.OrderedDict()   # (ordinal, buffer id) -> (base, size, handle bytes)
@@ -399,14 +402,7 @@ def buffer_id(address: int):
     """The buffer id of the CUDA allocation of this process that holds device address
     `address` (unique for the life of the process: a segment freed and allocated again has a
     new one), or None where the driver does not know the address (one driver call)."""
-    with _lock:
-        if _load() is None:
-            return None
-        value = ctypes.c_uint64()
-        if _lib.cuPointerGetAttribute(ctypes.byref(value), CU_POINTER_ATTRIBUTE_BUFFER_ID,
-                                      ctypes.c_uint64(address)) != 0:
-            return None
-        return int(value.value)
+    return _pointer_attribute(address, CU_POINTER_ATTRIBUTE_BUFFER_ID, ctypes.c_uint64)
 
 
 class IpcEvent:

@@ -323,6 +323,15 @@ class _Allocation:
 _ADDRESSED = weakref.WeakSet()     # allocations whose address this process has handed out
 
 
+def _has_cuda_interface(data) -> bool:
+    """Whether `data` is a foreign GPU array: it has a __cuda_array_interface__ (one that exists
+    but refuses this object, as Torch's for a tensor that requires grad, counts too)."""
+    try:
+        return hasattr(data, "__cuda_array_interface__")
+    except Exception:  # noqa: BLE001 - the interface exists; the conversion reports what it lacks
+        return True
+
+
 class _NumpyHolder:
     """Exposes slab memory to NumPy and keeps the allocation (and mapping) alive."""
 
@@ -538,8 +547,7 @@ class array:
 
         self.device = get_device(device)
         self.pinned = bool(pinned) and self.device.is_cpu     # Warp: CPU arrays only
-        if data is not None and not isinstance(data, array) and \
-                hasattr(data, "__cuda_array_interface__"):
+        if data is not None and not isinstance(data, array) and _has_cuda_interface(data):
             self._init_from_cuda_interface(data, dtype, shape, requires_grad)
         elif data is None:
             if dtype is Any:

@@ -482,6 +482,8 @@ def test_wp_array_of_a_cuda_tensor_or_cupy_array_is_imported(wp, tcuda, torch, r
     wp.launch(scale_sum, dim=2048, inputs=[a, 3.0, total], device=tcuda)
     wp.synchronize()
     np.testing.assert_allclose(t.cpu().numpy(), values.astype(np.float64) * 3.0, rtol=1e-6)
+    leaf = torch.tensor(values, device="cuda", requires_grad=True)   # Torch's interface refuses it
+    assert wp.array(leaf, device=tcuda).ptr == leaf.data_ptr()
     cp = pytest.importorskip("cupy", reason="CuPy is not installed")
     c = cp.asarray(values)
     b = wp.array(c, device=tcuda)
