@@ -265,7 +265,7 @@ def test_a_new_gradient_in_a_freed_block_finds_the_remembered_import(wp, tcuda, 
 def test_an_array_holds_its_gradient_memory_the_remembered_import_does_not(wp, tcuda, torch, rng):
     """While an array from from_torch(x, requires_grad=True), or a tensor exported from its
     gradient, lives, Torch cannot hand the gradient's block to another tensor (the array's
-    gradient holds it, not the import remembered on `x`); once both are gone it can."""
+    gradient holds it, not the import remembered on `x`)."""
     import gc
 
     n = 1 << 14
@@ -285,9 +285,7 @@ def test_an_array_holds_its_gradient_memory_the_remembered_import_does_not(wp, t
     del exported
     gc.collect()
     others = [torch.empty(n, device="cuda") for _ in range(6)]
-    assert a.grad.ptr not in [o.data_ptr() for o in others]
-    if gptr not in [o.data_ptr() for o in others]:
-        pytest.skip("Torch did not hand the freed gradient block out again")
+    assert a.grad.ptr not in [o.data_ptr() for o in others]   # the new array holds its own
 
 
 def test_a_gradient_in_a_reallocated_segment_is_imported_afresh(wp, tcuda, torch, rng,
