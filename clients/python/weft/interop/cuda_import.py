@@ -353,7 +353,7 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
             try:
                 info = rt.array_call("ImportCuda", request).info
             except WeftError as err:
-                if _STALE_HANDLE not in str(err):
+                if err.code != "FAILED_PRECONDITION":
                     raise
                 # weftd still maps the segment this handle named before (an import kept
                 # without its memory, parked or remembered on a tensor): those go, then again
@@ -391,26 +391,33 @@ def import_memory(src: _Source, wdtype, shape, strides, ordinal: int, what: str,
     return out
 
 
-def _fresh(a, grad=None):
-    """A new array object over imported array `a` (each conversion returns its own object,
-    as in Warp; they share the allocation, the gradient, the framework reference and the
-    launch's cached wire reference), a view of `a`. With `grad` (the Torch gradient tensor
-    this conversion maps), the view's gradient is a view of `a`'s that holds that tensor's
-    memory: `a`, remembered on the tensor, does not (import_torch)."""
+def _view_object(a, **replaced):
+    """A new array object viewing what `a` views (its state, `replaced` set), a view of `a`;
+    the launch's cached wire reference is computed once on `a` and inherited."""
     if "_weft_launch_ref" not in a.__dict__:
         from .._kernel.launch import _array_arg  # noqa: PLC0415
 
-        _array_arg(a)                     # computed once, inherited by every conversion
+        _array_arg(a)
     v = type(a).__new__(type(a))
     state = dict(a.__dict__)
     state.pop("_is_read", None)
     state.pop("_weft_cache", None)
     state["_view_of"] = a
-    base_grad = state.get("_grad")
-    if grad is not None and base_grad is not None:
-        state["_grad"] = _grad_holding(base_grad, grad.untyped_storage())
+    state.update(replaced)
     v.__dict__.update(state)
     return v
+
+
+def _fresh(a, grad=None):
+    """A new array object over imported array `a` (each conversion returns its own object,
+    as in Warp; they share the allocation, the gradient, the framework reference and the
+    launch's cached wire reference). With `grad` (the Torch gradient tensor this conversion
+    maps), the object's gradient holds that tensor's memory: `a`, remembered on the tensor,
+    does not (import_torch)."""
+    base_grad = a.__dict__.get("_grad")
+    if grad is None or base_grad is None:
+        return _view_object(a)
+    return _view_object(a, _grad=_grad_holding(base_grad, grad.untyped_storage()))
 
 
 def _grad_holding(base, keep):
@@ -419,31 +426,21 @@ def _grad_holding(base, keep):
     export of it (DLPack capsules hold the allocation object) lives."""
     from ..array import _Allocation  # noqa: PLC0415
 
-    if "_weft_launch_ref" not in base.__dict__:
-        from .._kernel.launch import _array_arg  # noqa: PLC0415
-
-        _array_arg(base)
     alloc = base._alloc
     own = _Allocation(alloc.runtime, alloc.info, owned=False, parent=alloc)
     own.keep = keep
     own._cuda = alloc._cuda
     memory.mark_shared(own)
-    v = type(base).__new__(type(base))
-    state = dict(base.__dict__)
-    state.pop("_is_read", None)
-    state["_view_of"] = base
-    state["_alloc"] = own
-    v.__dict__.update(state)
-    return v
+    return _view_object(base, _alloc=own)
 
 
 _TORCH_IMPORTS_KEPT = 8      # imported arrays remembered per tensor (dtypes/gradients differ)
 
 # Imports remembered on tensors (import_torch) that do not hold their gradient's memory: their
-# daemon arrays may map a segment Torch has since freed. An import the daemon refuses because
-# it still maps the handle's old segment (_STALE_HANDLE) frees them and the parked ones.
+# daemon arrays may map a segment Torch has since freed. An import the daemon refuses as a
+# failed precondition (it still maps the handle's old segment for arrays of the session) frees
+# them and the parked ones, then asks again.
 _UNHELD = weakref.WeakSet()
-_STALE_HANDLE = "the allocation behind this IPC handle changed"
 
 
 def _grad_block_current(a, g) -> bool:
