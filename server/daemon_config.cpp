@@ -84,7 +84,7 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   for (auto&& [k, v] : t) {
     static const char* known[] = {"listen", "cache-dir", "log-level", "token-file", "cpu-threads", "verify-cuda",
                                   "verify-cuda-archs",
-                                  "allow-unchecked", "isolate-sessions", "native-dir", "max-module-bytes", "max-functions",
+                                  "allow-unchecked", "isolate-sessions", "device-hosts", "native-dir", "max-module-bytes", "max-functions",
                                   "max-block-depth", "max-expression-depth", "attach-timeout", "launch-time-limit",
                                   "compile-time-limit",
                                   "max-launch-threads", "max-sessions-per-principal", "max-queued-commands",
@@ -136,6 +136,9 @@ Status ApplyToml(const std::string& path, DaemonConfig* c, const CLI::App& app) 
   if (!given("--isolate-sessions"))
     if (auto* n = Key(t, "isolate-sessions"))
       if (auto v = n->value<bool>()) c->isolate_sessions = *v;
+  if (!given("--device-hosts"))
+    if (auto* n = Key(t, "device-hosts"))
+      if (auto v = n->value<bool>()) c->device_hosts = *v;
   // Byte sizes: an integer or a string with a unit ("16G").
   auto bytes = [&](const char* key, const char* flag, uint64_t* out) -> Status {
     if (given(flag)) return Status::Ok();
@@ -200,6 +203,8 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   app.add_flag("--allow-unchecked", c.allow_unchecked, "Let sessions turn array bounds checks off");
   app.add_flag("--isolate-sessions", c.isolate_sessions,
                "Run every local session in a process of its own (a session host), checked ones too");
+  app.add_flag("--device-hosts", c.device_hosts,
+               "Run the checked local sessions of each device in one process per device (a device host)");
   app.add_option("--max-module-bytes", c.max_module_bytes, "Largest module source a client may compile, in bytes (default 2 MiB)");
   app.add_option("--max-functions", c.max_functions, "Most kernels and funcs in one module (default 2000)");
   app.add_option("--max-block-depth", c.max_block_depth, "Deepest nesting of blocks in kernel code, 1..100 (default 100)");
@@ -231,6 +236,7 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
                  "per principal at once (default 4)");
   app.add_option("--host-principal", c.host_principal, "Set by the daemon when it starts a session host")
       ->group("");
+  app.add_option("--host-device", c.host_device, "Set by the daemon when it starts a device host")->group("");
   app.add_option("--host-ready-fd", c.host_ready_fd, "Set by the daemon when it starts a session host")->group("");
   app.add_option("--host-parent", c.host_parent, "Set by the daemon when it starts a session host")->group("");
   try {
@@ -277,6 +283,13 @@ Expected<DaemonConfig> ParseDaemonConfig(int argc, char** argv, int* exit_code) 
   if (c.max_launch_threads == 0) return InvalidArgument("--max-launch-threads must be > 0");
   if (c.max_sessions_per_principal == 0) return InvalidArgument("--max-sessions-per-principal must be > 0");
   if (c.max_queued_commands == 0) return InvalidArgument("--max-queued-commands must be > 0");
+  if (!c.host_device.empty()) {
+    const std::string& d = c.host_device;
+    const bool gpu = d.size() > 5 && d.size() <= 8 && d.rfind("cuda:", 0) == 0 &&
+                     d.find_first_not_of("0123456789", 5) == std::string::npos;
+    if (d != "cpu" && !gpu) return InvalidArgument("--host-device: expected cpu or cuda:N");
+    if (!c.host_principal.empty()) return InvalidArgument("--host-device and --host-principal exclude each other");
+  }
   if (c.listen.empty()) c.listen.push_back("unix:" + DefaultSocketPath());
   for (const auto& l : c.listen)
     if (l.rfind("unix:", 0) != 0 && l.rfind("tcp:", 0) != 0)
@@ -308,6 +321,7 @@ std::vector<std::string> SessionHostArguments(const DaemonConfig& c) {
   add("--compile-time-limit", std::to_string(c.compile_time_limit_s));
   add("--max-launch-threads", std::to_string(c.max_launch_threads));
   add("--max-queued-commands", std::to_string(c.max_queued_commands));
+  add("--max-sessions-per-principal", std::to_string(c.max_sessions_per_principal));
   add("--cache-max-bytes", std::to_string(c.cache_max_bytes));
   return a;
 }

@@ -26,6 +26,10 @@ struct DaemonConfig {
   // Every session of a local client runs in a session host (a process of its own), checked
   // ones too: a fault or crash of any session, whatever its cause, ends only its process.
   bool isolate_sessions = false;
+  // Every checked session of a local client runs in the process of its device (a device host:
+  // one per device, shared by the sessions of every principal on it): a fault or crash ends
+  // that process and costs only the sessions of that device (server/session_hosts.h).
+  bool device_hosts = false;
   bool show_version = false;
   // Compile limits (engine/codegen/check_source.h CompileLimits; the defaults are its defaults).
   uint64_t max_module_bytes = 2u << 20;
@@ -50,9 +54,15 @@ struct DaemonConfig {
   // Set only on a session host's command line (by SessionHosts::Start, never by hand): the one
   // principal it serves, the descriptor it reports readiness on, and the daemon that started it.
   std::string host_principal;
+  // Set only on a device host's command line (instead of host_principal): the device whose
+  // sessions it serves ("cpu" or "cuda:N").
+  std::string host_device;
   int host_ready_fd = -1;
   int64_t host_parent = 0;
-  bool session_host() const { return !host_principal.empty(); }
+  // A process the daemon started: a session host (one session of one principal) or a device
+  // host (every checked local session of one device).
+  bool session_host() const { return !host_principal.empty() || !host_device.empty(); }
+  bool device_host() const { return !host_device.empty(); }
 };
 
 // The flags a session host inherits from this daemon's settings (limits, cache, logging,

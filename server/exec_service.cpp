@@ -10,11 +10,18 @@ namespace weft::server {
 namespace {
 
 // A session's sync result (first error, origin, kernel output, timed GPU operations) as a SynchronizeResponse. In a
-// session host, an error with a GPU lost to a fault ends the session (the driver keeps that
-// error for the life of the process): the response says so, and the client opens a new one.
+// session or device host, an error with a GPU lost to a fault ends the session (the driver keeps
+// that error for the life of the process): the response says so, and the client opens a new one.
 void FillSync(Engine& engine, Session::SyncResult& r, v1::SynchronizeResponse* resp) {
   if (!r.error.ok()) {
-    if (engine.options().session_host && engine.AnyGpuLost()) {
+    if (engine.options().device_host && engine.AnyGpuLost()) {
+      resp->set_session_ended(true);
+      resp->set_error(r.error.message() +
+                      "; this session ran in the process of its device's sessions (a device host: weftd "
+                      "--device-hosts), which ends now with every session of that device: the daemon and the "
+                      "sessions of other devices were not touched; a new session gets a fresh process and GPU "
+                      "context (the Python client opens one on its next call)");
+    } else if (engine.options().session_host && engine.AnyGpuLost()) {
       resp->set_session_ended(true);
       resp->set_error(r.error.message() +
                       "; this unchecked session ran in a process of its own (a session host), which ends with it: "

@@ -114,6 +114,31 @@ void WatchSessionHost(Engine& engine, pid_t parent, double attach_timeout_s, con
   }
 }
 
+// A device host ends when the daemon that started it is gone, and when one of its GPUs was lost
+// to a fault (the driver keeps that error for the life of the process): it removes its socket
+// at once, so that the daemon sends new sessions of that device to a fresh process, gives the
+// replies that report the fault a moment to go out, and stops. Its sessions' next calls find
+// the process gone and their clients open new sessions.
+void WatchDeviceHost(Engine& engine, pid_t parent, const std::string& socket, const std::atomic<bool>& stopping) {
+  while (!stopping.load()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (getppid() != parent) {
+      spdlog::info("device host: the daemon that started it is gone; stopping");
+      kill(getpid(), SIGTERM);
+      return;
+    }
+    if (engine.AnyGpuLost()) {
+      unlink(socket.c_str());
+      unlink((socket + ".fast").c_str());
+      spdlog::warn("device host: a GPU was lost to a kernel fault; this process ends, the daemon starts a new one "
+                   "for the next session of this device");
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+      kill(getpid(), SIGTERM);
+      return;
+    }
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -125,8 +150,9 @@ int main(int argc, char** argv) {
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(cfg->log_level));
-  spdlog::set_pattern(cfg->session_host() ? "[%Y-%m-%d %H:%M:%S.%e] [weftd host %P] [%l] %v"
-                                          : "[%Y-%m-%d %H:%M:%S.%e] [weftd] [%l] %v");
+  spdlog::set_pattern(cfg->device_host()    ? "[%Y-%m-%d %H:%M:%S.%e] [weftd " + cfg->host_device + " %P] [%l] %v"
+                      : cfg->session_host() ? "[%Y-%m-%d %H:%M:%S.%e] [weftd host %P] [%l] %v"
+                                            : "[%Y-%m-%d %H:%M:%S.%e] [weftd] [%l] %v");
   if (cfg->session_host()) {
     CloseInheritedFds(cfg->host_ready_fd);
     // No PR_SET_PDEATHSIG: it fires when the *thread* that started the host ends (a gRPC
@@ -182,8 +208,13 @@ int main(int argc, char** argv) {
   eo.max_sessions_per_principal = cfg->max_sessions_per_principal;
   eo.modules.disk_capacity_bytes = cfg->cache_max_bytes;
   // Unchecked kernels run only in session hosts; the daemon sends unchecked sessions there.
-  eo.allow_unchecked = cfg->allow_unchecked && cfg->session_host();
+  // A device host serves checked sessions only (an unchecked one there could fault a GPU that
+  // other principals' sessions use).
+  eo.allow_unchecked = cfg->allow_unchecked && cfg->session_host() && !cfg->device_host();
   eo.session_host = cfg->session_host();
+  eo.device_host = cfg->device_host();
+  if (cfg->host_device == "cpu") eo.use_gpus = false;
+  if (cfg->device_host() && cfg->host_device != "cpu") eo.only_gpu = std::stoi(cfg->host_device.substr(5));
   eo.memory.daemon = cfg->max_memory;
   eo.memory.per_principal = cfg->max_principal_memory;
   eo.memory.per_session = cfg->max_session_memory;
@@ -207,9 +238,10 @@ int main(int argc, char** argv) {
     return 1;
   }
   CallAuth auth(**engine, token, unix_listener->get());
-  if (cfg->session_host()) auth.RestrictTo(cfg->host_principal);
+  if (cfg->session_host() && !cfg->device_host()) auth.RestrictTo(cfg->host_principal);
   std::unique_ptr<SessionHosts> hosts;
-  if ((cfg->allow_unchecked || cfg->isolate_sessions) && !cfg->session_host() && !unix_paths.empty()) {
+  if ((cfg->allow_unchecked || cfg->isolate_sessions || cfg->device_hosts) && !cfg->session_host() &&
+      !unix_paths.empty()) {
     hosts = std::make_unique<SessionHosts>(ThisExecutable(), SessionHostArguments(*cfg), unix_paths.front(),
                                            cfg->max_session_hosts, /*start_timeout_s=*/60);
   }
@@ -227,8 +259,10 @@ int main(int argc, char** argv) {
     }
   }
   SessionReaper reaper(**engine, cfg->attach_timeout_s);   // before the services: Attach queues reaps to it
-  SessionServiceImpl session_service(auth, reaper, fast_lane.get(), hosts.get(), cfg->session_host(),
-                                     cfg->isolate_sessions && !cfg->session_host());
+  SessionServiceImpl session_service(auth, reaper, fast_lane.get(), hosts.get(),
+                                     cfg->session_host() && !cfg->device_host(),
+                                     cfg->isolate_sessions && !cfg->session_host(),
+                                     cfg->device_hosts && !cfg->session_host());
   ArrayServiceImpl array_service(auth);
   ExecServiceImpl exec_service(auth);
   ModuleServiceImpl module_service(auth);
@@ -263,7 +297,8 @@ int main(int argc, char** argv) {
   for (const auto& l : cfg->listen) spdlog::info("listening on {}", l);
   if (fast_lane) spdlog::info("fast lane on {}", fast_lane->path());
   spdlog::info("weftd {} ready (pid {}, {} CPU threads{})", WEFT_VERSION, getpid(), (*engine)->pool().size(),
-               cfg->session_host()  ? ", session host of " + cfg->host_principal
+               cfg->device_host()     ? ", device host of " + cfg->host_device
+               : cfg->session_host()  ? ", session host of " + cfg->host_principal
                : cfg->allow_unchecked ? ", unchecked sessions allowed (each in a process of its own)"
                                       : "");
   std::atomic<bool> stopping{false};
@@ -274,8 +309,12 @@ int main(int argc, char** argv) {
       (void)!write(cfg->host_ready_fd, &ready, 1);
       close(cfg->host_ready_fd);
     }
-    host_watch = std::thread(WatchSessionHost, std::ref(**engine), static_cast<pid_t>(cfg->host_parent),
-                             cfg->attach_timeout_s, std::cref(stopping));
+    if (cfg->device_host())
+      host_watch = std::thread(WatchDeviceHost, std::ref(**engine), static_cast<pid_t>(cfg->host_parent),
+                               unix_paths.front(), std::cref(stopping));
+    else
+      host_watch = std::thread(WatchSessionHost, std::ref(**engine), static_cast<pid_t>(cfg->host_parent),
+                               cfg->attach_timeout_s, std::cref(stopping));
   }
 
   std::thread waiter([&] {

@@ -27,22 +27,30 @@ class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_A
   // `hosts`: where unchecked sessions go (null: none are opened; the session is checked).
   // `single_session`: this weftd is a session host; a second Open is refused.
   // `isolate`: every local session goes to a host (--isolate-sessions), checked ones too.
+  // `device_hosts`: every checked local session goes to the host of its device (--device-hosts).
   SessionServiceImpl(const CallAuth& auth, SessionReaper& reaper, FastLane* fast_lane = nullptr,
-                     SessionHosts* hosts = nullptr, bool single_session = false, bool isolate = false)
+                     SessionHosts* hosts = nullptr, bool single_session = false, bool isolate = false,
+                     bool device_hosts = false)
       : auth_(auth), reaper_(reaper), fast_lane_(fast_lane), hosts_(hosts), single_session_(single_session),
-        isolate_(isolate) {}
+        isolate_(isolate), device_hosts_(device_hosts) {}
   grpc::Status Open(grpc::ServerContext* ctx, const v1::OpenSessionRequest* req, v1::OpenSessionResponse* resp) override;
   grpc::ServerBidiReactor<v1::AttachRequest, v1::AttachEvent>* Attach(grpc::CallbackServerContext* ctx) override;
   grpc::Status Close(grpc::ServerContext* ctx, const v1::CloseSessionRequest* req, v1::CloseSessionResponse* resp) override;
   grpc::Status Stats(grpc::ServerContext* ctx, const v1::StatsRequest* req, v1::StatsResponse* resp) override;
  private:
+  // The device whose host a session opened with `asked` (OpenSessionRequest.device) goes to:
+  // "" = the first GPU that computes, else "cpu"; "cuda" = the GPUs in turn; InvalidArgument
+  // for anything that is not one of the daemon's devices.
+  Expected<std::string> SessionDevice(const std::string& asked);
   const CallAuth& auth_;
   SessionReaper& reaper_;
   FastLane* fast_lane_;   // null: no fast lane (the Open response then names none)
   SessionHosts* hosts_;
   const bool single_session_;
   const bool isolate_;
+  const bool device_hosts_;
   std::atomic<bool> session_opened_{false};
+  std::atomic<uint64_t> cuda_turn_{0};   // sessions opened on "cuda" go to the GPUs in turn
 };
 
 class ArrayServiceImpl final : public v1::ArrayService::Service {

@@ -1,4 +1,5 @@
-// SessionHosts: starting, reaping and stopping the processes of unchecked sessions.
+// SessionHosts: starting, reaping and stopping the processes of unchecked and isolated sessions
+// (session hosts) and of the sessions of one device (device hosts).
 #include "server/session_hosts.h"
 
 #include <fcntl.h>
@@ -72,17 +73,46 @@ Expected<std::string> SessionHosts::Start(const std::string& principal) {
     std::lock_guard<std::mutex> lock(mu_);
     if (stopping_) return Unavailable("the daemon is shutting down");
     uint32_t mine = 0;
-    for (const auto& [pid, host] : hosts_) mine += host.principal == principal ? 1 : 0;
+    for (const auto& [pid, host] : hosts_) mine += host.device.empty() && host.principal == principal ? 1 : 0;
     if (mine >= max_per_principal_)
       return ResourceExhausted("principal " + principal + " already has " + std::to_string(mine) +
                                " sessions in processes of their own (session hosts: unchecked sessions, or every "
                                "local session under --isolate-sessions; --max-session-hosts " +
                                std::to_string(max_per_principal_) + ")");
-    ++started_;
-    socket = socket_dir_ + "/host-" + std::to_string(getpid()) + "-" + std::to_string(started_) + ".sock";
-    reserved = -static_cast<pid_t>(started_);
-    hosts_[reserved] = Host{principal, socket};
+    reserved = Reserve(Host{principal, "", ""}, &socket);
   }
+  return Spawn(reserved, socket, {"--host-principal", principal}, "for " + principal);
+}
+
+Expected<std::string> SessionHosts::StartForDevice(const std::string& device) {
+  // One start per device at a time: an Open that comes while the device's host starts waits for
+  // it and gets the same host.
+  std::lock_guard<std::mutex> starting(device_start_mu_);
+  std::string socket;
+  pid_t reserved = 0;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stopping_) return Unavailable("the daemon is shutting down");
+    // A device host that lost its GPU removes its socket and ends: a new one is started then.
+    struct stat st {};
+    for (const auto& [pid, host] : hosts_)
+      if (pid > 0 && host.device == device && stat(host.socket.c_str(), &st) == 0) return host.socket;
+    reserved = Reserve(Host{"", device, ""}, &socket);
+  }
+  return Spawn(reserved, socket, {"--host-device", device}, "of device " + device);
+}
+
+pid_t SessionHosts::Reserve(Host host, std::string* socket) {
+  ++started_;
+  *socket = socket_dir_ + "/host-" + std::to_string(getpid()) + "-" + std::to_string(started_) + ".sock";
+  host.socket = *socket;
+  const pid_t reserved = -static_cast<pid_t>(started_);
+  hosts_[reserved] = std::move(host);
+  return reserved;
+}
+
+Expected<std::string> SessionHosts::Spawn(pid_t reserved, const std::string& socket,
+                                          const std::vector<std::string>& role, const std::string& what) {
   auto release_placeholder = [&] {
     std::lock_guard<std::mutex> lock(mu_);
     hosts_.erase(reserved);
@@ -102,8 +132,9 @@ Expected<std::string> SessionHosts::Start(const std::string& principal) {
   }
   std::vector<std::string> args = {binary_};
   args.insert(args.end(), arguments_.begin(), arguments_.end());
-  args.insert(args.end(), {"--listen", "unix:" + socket, "--host-principal", principal, "--host-ready-fd",
-                           std::to_string(kReadyFd), "--host-parent", std::to_string(getpid())});
+  args.insert(args.end(), {"--listen", "unix:" + socket});
+  args.insert(args.end(), role.begin(), role.end());
+  args.insert(args.end(), {"--host-ready-fd", std::to_string(kReadyFd), "--host-parent", std::to_string(getpid())});
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -123,6 +154,7 @@ Expected<std::string> SessionHosts::Start(const std::string& principal) {
   const bool up = WaitReady(ready[0], start_timeout_s_);
   close(ready[0]);
   std::lock_guard<std::mutex> lock(mu_);
+  Host host = std::move(hosts_[reserved]);
   hosts_.erase(reserved);
   if (!up) {
     int status = 0;
@@ -135,10 +167,9 @@ Expected<std::string> SessionHosts::Start(const std::string& principal) {
       why = "it did not listen within " + std::to_string(static_cast<int>(start_timeout_s_)) + " s";
     }
     unlink(socket.c_str());
-    return Unavailable("the session host for this session did not start: " + why +
-                       " (the daemon's log has its output)");
+    return Unavailable("the process " + what + " did not start: " + why + " (the daemon's log has its output)");
   }
-  hosts_[pid] = Host{principal, socket};
+  hosts_[pid] = std::move(host);
   // The daemon's socket may have been opened to a group (docs/operations.md): the host's too.
   struct stat daemon_st {};
   if (stat(daemon_socket_.c_str(), &daemon_st) == 0) {
@@ -149,7 +180,8 @@ Expected<std::string> SessionHosts::Start(const std::string& principal) {
         spdlog::warn("session host socket {}: chmod: {}", path, std::strerror(errno));
     }
   }
-  spdlog::info("session host pid {} for {} listens on {} ({:.0f} ms to start)", pid, principal, socket,
+  spdlog::info("{} host pid {} {} listens on {} ({:.0f} ms to start)", role.front() == "--host-device" ? "device" : "session",
+               pid, what, socket,
                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   return socket;
 }
@@ -159,11 +191,16 @@ void SessionHosts::Forget(pid_t pid, int status) {
   if (it == hosts_.end()) return;
   unlink(it->second.socket.c_str());
   unlink((it->second.socket + ".fast").c_str());
+  const Host& host = it->second;
   if (WIFEXITED(status) && WEXITSTATUS(status) == 0)
-    spdlog::info("session host pid {} ended", pid);
-  else
+    spdlog::info("{} host pid {} ended", host.device.empty() ? "session" : "device", pid);
+  else if (host.device.empty())
     spdlog::warn("session host pid {} of {} ended with {}: its session and arrays are gone, every other "
-                 "session is untouched", pid, it->second.principal, ExitText(status));
+                 "session is untouched", pid, host.principal, ExitText(status));
+  else
+    spdlog::warn("device host pid {} of {} ended with {}: the sessions of that device and their arrays are gone "
+                 "(the next Open for it starts a new process), every other session is untouched",
+                 pid, host.device, ExitText(status));
   hosts_.erase(it);
   // A host that crashed left its shared-memory slabs behind: they go now, not at the next start.
   ShmSlabPool::RemoveStaleSlabs();

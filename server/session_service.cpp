@@ -3,6 +3,7 @@
 // reaps the session, daemon stats.
 #include <unistd.h>
 
+#include <algorithm>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -45,6 +46,21 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
     resp->set_daemon_pid(getpid());
     return grpc::Status::OK;
   }
+  if (device_hosts_ && hosts_ && o.local && !req->unchecked()) {
+    // Under --device-hosts a checked local session runs in the process of its device.
+    auto device = SessionDevice(req->device());
+    if (!device.ok()) return ToGrpc(device.status());
+    auto host = hosts_->StartForDevice(*device);
+    if (!host.ok()) {
+      spdlog::warn("refused session of {} on {}: {}", o.principal, *device, host.status().message());
+      return ToGrpc(host.status());
+    }
+    resp->set_session_host(*host);
+    resp->set_session_device(*device);
+    resp->set_daemon_version(WEFT_VERSION);
+    resp->set_daemon_pid(getpid());
+    return grpc::Status::OK;
+  }
   if (single_session_ && session_opened_.exchange(true))
     return ToGrpc(FailedPrecondition("this weftd is a session host and serves one session, already opened"));
   auto s = auth_.engine().OpenClientSession(o);
@@ -62,6 +78,27 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
     resp->set_fast_lane_secret(fast_lane_->NewSecret((*s)->id(), o.principal));
   }
   return grpc::Status::OK;
+}
+
+Expected<std::string> SessionServiceImpl::SessionDevice(const std::string& asked) {
+  // The name is the client's: checked against the daemon's devices before it is used or shown.
+  std::vector<std::string> gpus;
+  for (const DeviceInfo& d : auth_.engine().ListDevices())
+    if (d.kind == "cuda" && d.compute_supported) gpus.push_back(d.name);
+  if (asked.empty()) return gpus.empty() ? std::string("cpu") : gpus.front();
+  if (asked == "cpu") return asked;
+  if (asked == "cuda") {
+    if (gpus.empty()) return InvalidArgument("session device 'cuda': this daemon has no GPU it can compute on");
+    return gpus[cuda_turn_.fetch_add(1) % gpus.size()];
+  }
+  for (const std::string& g : gpus)
+    if (asked == g) return asked;
+  const bool printable = asked.size() <= 32 && std::all_of(asked.begin(), asked.end(), [](char c) {
+                           return c >= 0x21 && c <= 0x7e && c != '\'' && c != '\\';
+                         });
+  return InvalidArgument("session device " + (printable ? "'" + asked + "'" : std::string("(not a device name)")) +
+                         ": expected \"cpu\", \"cuda\" or one of this daemon's GPUs (" +
+                         std::to_string(gpus.size()) + " usable)");
 }
 
 namespace {

@@ -49,6 +49,9 @@ struct CudaDeviceOptions {
   // This process serves one session and ends with it (a session host): a device lost to a
   // fault is not worth a daemon restart, and the messages say so.
   bool process_ends_with_session = false;
+  // This process serves every session of this device (a device host): a device lost to a fault
+  // ends the process, and the messages say so.
+  bool process_of_device = false;
   // Compiles CUDA C++ for sm_XX to a loadable image (NVRTC through the module store).
   std::function<Expected<std::string>(const std::string& source, const std::string& name, int sm)> compile;
 };
@@ -417,6 +420,8 @@ class CudaDevice final : public Device {
   CudaDeviceOptions options_;
   // What brings a lost device back: "restart weftd", or the end of a session host's session.
   std::string WhatBringsItBack() const {
+    if (options_.process_of_device)
+      return "a new session (the process of this device's sessions ends now, and weftd starts a fresh one)";
     return options_.process_ends_with_session ? "a new session (this one's process ends with it)"
                                               : "a restart of weftd";
   }

@@ -86,8 +86,10 @@ Engine::Engine(const EngineOptions& options, std::unique_ptr<ModuleStore> store)
     for (const DeviceInfo& info : QueryCudaDevices()) {
       CudaDeviceOptions o;
       o.ordinal = std::stoi(info.name.substr(5));
+      if (options.only_gpu >= 0 && o.ordinal != options.only_gpu) continue;
       o.launch_time_limit_s = options.launch_time_limit_s;
       o.process_ends_with_session = options.session_host;
+      o.process_of_device = options.device_host;
       if (st) o.compile = [st](const std::string& source, const std::string& name, int sm) {
         return st->CompileCudaSource(source, name, sm);
       };
@@ -219,6 +221,8 @@ std::vector<DeviceInfo> Engine::ListDevices() const {
   out.push_back(QueryCpuDevice(pool_->size()));
   for (auto& d : QueryCudaDevices()) {
     Device* dev = devices_->Find(d.name);
+    // A device host serves its own device: the others belong to other processes.
+    if (options_.device_host && dev == nullptr) continue;
     d.compute_supported = dev != nullptr && !static_cast<CudaDevice*>(dev)->lost();
     out.push_back(std::move(d));
   }

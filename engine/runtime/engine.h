@@ -47,6 +47,11 @@ struct EngineOptions {
   // This process serves one unchecked session (a session host, server/session_hosts.h): a GPU
   // lost to a kernel fault ends that session instead of waiting for a daemon restart.
   bool session_host = false;
+  // This process serves the sessions of one device (a device host, server/session_hosts.h):
+  // only that GPU gets a CUDA device here (-1: every GPU; a CPU device host sets use_gpus =
+  // false), and a GPU lost to a fault ends the process, which the daemon starts again.
+  int only_gpu = -1;
+  bool device_host = false;
 };
 
 // Everything a client needs to know about an allocation (engine twin of weft.v1.ArrayInfo).

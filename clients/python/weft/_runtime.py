@@ -369,15 +369,32 @@ class Runtime:
         self.token = token if token is not None else (os.environ.get("WEFT_TOKEN") or None)
         self.pid = os.getpid()
         unchecked = self.unchecked = _unchecked_requested()
+        daemon_address = self.address
         opened = self._open(unchecked)
         # An unchecked session (every session of a weftd started with --isolate-sessions) runs
-        # in a weftd process of its own (a session host): the daemon started it and names its
-        # socket; the session is opened there.
+        # in a weftd process of its own (a session host), and under --device-hosts a checked
+        # session runs in the process of its device (a device host): the daemon started it and
+        # names its socket; the session is opened there. A device host that ended just then
+        # (its GPU lost to a fault) is not listening any more: the daemon is asked again and
+        # starts a new one.
         self.hosted = bool(getattr(opened, "session_host", ""))
-        if self.hosted:
+        self.host_device = getattr(opened, "session_device", "") if self.hosted else ""
+        for attempt in range(3):
+            if not self.hosted:
+                break
             self.channel.close()
             self.address = "unix:" + opened.session_host
+            try:
+                opened = self._open(unchecked)
+                break
+            except WeftError as err:
+                if err.code != "UNAVAILABLE" or not self.host_device or attempt == 2:
+                    raise
+            time.sleep(0.2)
+            self.address = daemon_address
             opened = self._open(unchecked)
+            self.hosted = bool(getattr(opened, "session_host", ""))
+            self.host_device = getattr(opened, "session_device", "") if self.hosted else ""
         self.session_id = opened.session_id
         self.daemon_version = opened.daemon_version
         self.daemon_pid = opened.daemon_pid
@@ -432,6 +449,7 @@ class Runtime:
         self._graph_handles: collections.Counter = collections.Counter()
         self._graph_freed: set = set()
         self.closed = False
+        self.gone_reported = False   # the end of this session's host process was raised once
         self.attach_lost = False
         self.attach_message = ""
 
@@ -467,6 +485,11 @@ class Runtime:
             client_name=f"python {sys.version.split()[0]} pid {self.pid}", client_pid=self.pid)
         if unchecked and "unchecked" in request.DESCRIPTOR.fields_by_name:
             request.unchecked = True
+        # The device this session works on, for a daemon that runs each device's sessions in a
+        # process of their own (--device-hosts); empty: the daemon's first GPU, else the CPU.
+        device = os.environ.get("WEFT_SESSION_DEVICE", "")
+        if device and "device" in request.DESCRIPTOR.fields_by_name:
+            request.device = device
         try:
             # an Open may wait for a session host to start (an unchecked session, or any under
             # --isolate-sessions; CUDA initialisation)
@@ -548,15 +571,26 @@ class Runtime:
         over. Raises that."""
         if not self.hosted or err.code != "UNAVAILABLE" or self.closed:
             return
+        raise self.host_gone_error() from None
+
+    def host_gone_error(self) -> WeftError:
+        """Ends this session, whose process (a session or device host) ended, and returns the
+        error that says so."""
         pid = self.daemon_pid
+        self.gone_reported = True
         self.abandon()
-        cause = ("most likely an unchecked kernel crashed it" if self.unchecked else
-                 "a fault or crash in this session ended it (weftd runs each session in a "
-                 "process of its own: --isolate-sessions)")
-        raise WeftError(f"the process of this session (session host pid {pid}) ended, {cause}: "
-                        "the session and its arrays are gone (the daemon and its other sessions "
-                        "were not touched); the next weft call opens a new session",
-                        "ABORTED") from None
+        if self.host_device:
+            cause = (f"a fault or crash ended the process of the sessions of {self.host_device} "
+                     "(weftd runs each device's sessions in a process of their own: "
+                     "--device-hosts), and every session of that device with it")
+        elif self.unchecked:
+            cause = "most likely an unchecked kernel crashed it"
+        else:
+            cause = ("a fault or crash in this session ended it (weftd runs each session in a "
+                     "process of its own: --isolate-sessions)")
+        return WeftError(f"the process of this session (session host pid {pid}) ended, {cause}: "
+                         "the session and its arrays are gone (the daemon and its other sessions "
+                         "were not touched); the next weft call opens a new session", "ABORTED")
 
     _LANE_ARRAY_METHODS = {"Create": (_fast_lane.ARRAY_CREATE, array_pb2.CreateArrayResponse),
                            "Free": (_fast_lane.ARRAY_FREE, array_pb2.FreeArrayResponse),
@@ -1145,6 +1179,10 @@ def get_runtime() -> Runtime:
         return rt   # the common case, as cheap as a launch needs it
     if _usable(rt):
         return rt
+    if rt is not None and rt.hosted and rt.attach_lost and not rt.gone_reported and rt.pid == _pid:
+        # Its process ended between calls: this call gets the error (the arrays it names are
+        # gone), the next one a new session.
+        raise rt.host_gone_error()
     with _runtime_lock:
         rt = _runtime
         if not _usable(rt):

@@ -224,7 +224,7 @@ def print_diagnostics() -> dict:
         except importlib.metadata.PackageNotFoundError:
             pass
     info.update({"python": sys.version, "platform": platform.platform(), "daemon": rt.address,
-                 "session_host": bool(rt.hosted),
+                 "session_host": bool(rt.hosted), "device_host": rt.host_device or None,
                  "cuda_enabled": any(d.is_cuda and d.is_compute_supported for d in get_devices()),
                  "cuda_toolkit": f"{toolkit[0]}.{toolkit[1]}" if toolkit else None,
                  "cuda_driver": f"{driver[0]}.{driver[1]}" if driver else None,
@@ -245,7 +245,9 @@ def print_diagnostics() -> dict:
         if key in info:
             lines.append(f"  {label:<18}{str(info[key]).splitlines()[0]}")
     lines += ["", "weftd", f"  {'Address:':<18}{info['daemon']}",
-              f"  {'Session host:':<18}{'yes' if info['session_host'] else 'no'}",
+              f"  {'Session host:':<18}"
+              + (f"the process of {info['device_host']}'s sessions" if info["device_host"]
+                 else "yes" if info["session_host"] else "no"),
               f"  {'CUDA driver:':<18}{info['cuda_driver'] or 'none'}",
               f"  {'NVRTC:':<18}{info['nvrtc'] or 'none'}",
               f"  {'CUDA archs:':<18}{', '.join(f'sm_{a}' for a in info['cuda_archs']) or 'none'}",
