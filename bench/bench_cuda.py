@@ -15,6 +15,7 @@ Rows (each for weft and Warp, same kernel source):
 - error: the max relative error of saxpy and integration results (first 1e6 elements) against
   a float64 reference computed from the same inputs.
 The table is printed last. Usage: python3 bench/bench_cuda.py [--sizes 1e6,1e7,1e8]
+[--daemon-args=--device-hosts]
 (WEFT_DAEMON: the weftd to start; warp-lang imported from PYTHONPATH, e.g. /tmp/wp).
 """
 from __future__ import annotations
@@ -339,10 +340,13 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--sizes", default="1e6,1e7,1e8")
     parser.add_argument("--launches", type=int, default=2000)
+    parser.add_argument("--daemon-args", default="",
+                        help="more weftd flags, space separated (e.g. --device-hosts: the sessions "
+                             "then run in the process of their device)")
     args = parser.parse_args()
     sizes = [int(float(s)) for s in args.sizes.split(",")]
 
-    daemon = bc.BenchDaemon()
+    daemon = bc.BenchDaemon(extra_args=tuple(args.daemon_args.split()))
     os.environ["WEFT_ADDRESS"] = daemon.address
     results = {}
     notes = []
@@ -355,6 +359,12 @@ def main():
         if not weft.is_cuda_available():
             raise SystemExit("weftd has no CUDA device: nothing to compare")
         probe = weft.zeros(1, device="cuda:0")
+        from weft import _runtime  # noqa: PLC0415
+
+        rt = _runtime.get_runtime()
+        if rt.host_device:
+            notes.append(f"weft sessions run in the device host of {rt.host_device} "
+                         f"(weftd {args.daemon_args.strip()}; pid {rt.daemon_pid})")
         notes.append("weft client CUDA IPC: " + ("on" if probe.ptr is not None else
                                                  f"off ({_cuda_ipc.reason()})"))
         warp = None

@@ -135,6 +135,19 @@ def _open(daemon, device: str = "", target: str | None = None, unchecked: bool =
         channel.close()
 
 
+def _gpus(daemon) -> list[str]:
+    """The daemon's GPUs that compute: the cuda:N a session may be opened on (each Open starts
+    that device's host)."""
+    gpus = []
+    for i in range(16):
+        try:
+            gpus.append(_open(daemon, f"cuda:{i}").session_device)
+        except grpc.RpcError as err:
+            assert err.code() == grpc.StatusCode.INVALID_ARGUMENT, err
+            break
+    return gpus
+
+
 def test_the_sessions_of_a_device_share_its_process(start_weftd, client_env, tmp_path):
     """weftd with device-hosts (from its config file): two client processes on the CPU get their
     sessions in one device host (not the daemon),
@@ -143,16 +156,21 @@ def test_the_sessions_of_a_device_share_its_process(start_weftd, client_env, tmp
     config = tmp_path / "weftd.toml"          # the config file's key, as an operator writes it
     config.write_text("device-hosts = true\n")
     daemon = start_weftd(["--config", str(config)])
+    gpus = _gpus(daemon)
+    # Without a GPU a session that names no device is the CPU's; with one, it is the first GPU's.
     first = _Holder(tmp_path, client_env, daemon.address, "cpu", {"WEFT_SESSION_DEVICE": "cpu"})
-    second = _Holder(tmp_path, client_env, daemon.address, "cpu")
+    second = _Holder(tmp_path, client_env, daemon.address, "cpu",
+                     {"WEFT_SESSION_DEVICE": "cpu" if gpus else None})
     try:
         assert first.hosted and second.hosted
         assert first.host_device == second.host_device == "cpu"
         assert first.pid == second.pid != daemon.pid and _alive(first.pid)
         assert first.error <= 1e-15 and second.error <= 1e-15
         stats = _daemon_stats(daemon)
-        assert stats.session_hosts == 1 and stats.sessions == 0, stats
-        assert _open(daemon, "cpu").session_host == _open(daemon, "").session_host
+        assert stats.session_hosts == 1 + len(gpus) and stats.sessions == 0, stats
+        default = _open(daemon, "")
+        assert default.session_device == (gpus[0] if gpus else "cpu")
+        assert (default.session_host == _open(daemon, "cpu").session_host) == (not gpus)
         for holder in (first, second):
             kept, after = holder.go()
             assert kept.split() == ["KEPT", "True", "True"], kept
@@ -188,8 +206,7 @@ def test_a_device_host_ending_costs_only_its_device(start_weftd, client_env, tmp
         device="cpu", init=array_pb2.CreateArrayRequest.DATA, value=values.tobytes()),
         metadata=remote_md, timeout=10).info.handle
 
-    gpu = _open(daemon, "").session_device
-    devices = ["cpu"] + ([gpu] if gpu.startswith("cuda") else [])
+    devices = ["cpu"] + _gpus(daemon)
     try:
         for victim in devices:
             others = [d for d in devices if d != victim]
@@ -239,6 +256,26 @@ def test_session_device_names_are_checked(start_weftd, asked):
         assert asked not in details, details
     assert _daemon_stats(daemon).session_hosts_started_total == 0
     assert _open(daemon, "cpu").session_host
+
+
+def test_sessions_opened_on_cuda_go_to_the_gpus_in_turn(start_weftd):
+    """"cuda" names no GPU: the daemon gives such sessions its GPUs in turn (one host each), and
+    an empty name the first GPU; without a GPU, "cuda" is refused and an empty name is the CPU."""
+    daemon = start_weftd(["--device-hosts"])
+    gpus = _gpus(daemon)
+    if not gpus:
+        with pytest.raises(grpc.RpcError) as refused:
+            _open(daemon, "cuda")
+        assert refused.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+        assert "no GPU" in refused.value.details()
+        assert _open(daemon, "").session_device == "cpu"
+        return
+    turns = [_open(daemon, "cuda") for _ in range(2 * len(gpus))]
+    assert sorted(t.session_device for t in turns) == sorted(gpus * 2)
+    hosts = {t.session_device: t.session_host for t in turns}
+    assert len(set(hosts.values())) == len(gpus)
+    assert all(t.session_host == hosts[t.session_device] for t in turns)
+    assert _open(daemon, "").session_device == gpus[0]
 
 
 def test_a_device_host_runs_no_unchecked_kernels(start_weftd, client_env, tmp_path):

@@ -588,7 +588,8 @@ class Runtime:
         else:
             cause = ("a fault or crash in this session ended it (weftd runs each session in a "
                      "process of its own: --isolate-sessions)")
-        return WeftError(f"the process of this session (session host pid {pid}) ended, {cause}: "
+        kind = "device host" if self.host_device else "session host"
+        return WeftError(f"the process of this session ({kind} pid {pid}) ended, {cause}: "
                          "the session and its arrays are gone (the daemon and its other sessions "
                          "were not touched); the next weft call opens a new session", "ABORTED")
 
