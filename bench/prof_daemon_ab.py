@@ -4,8 +4,11 @@ machines' drift (up to 2x within a minute) falls on both: two weftd started at o
 and =1), then --rounds rounds, each running one client process against A and one against B
 (in turn, A first in odd rounds). Each client runs --steps steps of a case after a warm-up and
 prints its median step time; the table gives every round and the median over rounds.
+--args-a / --args-b add weftd flags (e.g. --args-b=--device-hosts: B's sessions run in the
+process of their device).
 Cases: rosenbrock (bench_interop's Torch Rosenbrock step), zeros (wp.zeros(n) on cuda:0),
-new_tensor (wp.from_torch of a tensor made anew each step).
+new_tensor (wp.from_torch of a tensor made anew each step), launch_sync / launch3_sync (an
+empty / three-array kernel launched on cuda:0, then wp.synchronize()).
 Usage: python3 bench/prof_daemon_ab.py --env-a WEFT_LANE_ADAPTIVE_SPIN=0 --env-b
 WEFT_LANE_ADAPTIVE_SPIN=1 [--cases rosenbrock,zeros] [--rounds 6] [--steps 400]"""
 from __future__ import annotations
@@ -36,6 +39,18 @@ xy = torch.tensor(np.random.default_rng(3).uniform(-1.5, 1.5, (n, 2)), dtype=tor
 case = {case!r}
 if case == "rosenbrock":
     step = lambda: rosenbrock_step(wp, mod, torch, xy, n, "cuda:0")
+elif case in ("launch_sync", "launch3_sync"):
+    from bench_cuda import SOURCE as CUDA_SOURCE
+    kmod = bc.load_kernels(CUDA_SOURCE, "weft", "daemon_ab_launch")
+    bufs = [wp.zeros(1, dtype=float, device="cuda:0") for _ in range(3)]
+    if case == "launch_sync":
+        def step():
+            wp.launch(kmod.empty_kernel, dim=1, inputs=[], device="cuda:0")
+            wp.synchronize()
+    else:
+        def step():
+            wp.launch(kmod.three_args, dim=1, inputs=bufs, device="cuda:0")
+            wp.synchronize()
 elif case == "zeros":
     step = lambda: wp.zeros(n, device="cuda:0")
 else:
@@ -73,23 +88,26 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--env-a", action="append", default=[], help="NAME=VALUE for daemon A")
     ap.add_argument("--env-b", action="append", default=[], help="NAME=VALUE for daemon B")
+    ap.add_argument("--args-a", default="", help="more weftd flags for daemon A, space separated")
+    ap.add_argument("--args-b", default="", help="more weftd flags for daemon B (e.g. --device-hosts)")
     ap.add_argument("--cases", default="rosenbrock,zeros,new_tensor")
     ap.add_argument("--rounds", type=int, default=6)
     ap.add_argument("--steps", type=int, default=400)
     args = ap.parse_args()
 
-    def start(pairs):
+    def start(pairs, flags):
         saved = dict(os.environ)
         os.environ.update(dict(p.split("=", 1) for p in pairs))
         try:
-            return bc.BenchDaemon()
+            return bc.BenchDaemon(extra_args=tuple(flags.split()))
         finally:
             os.environ.clear()
             os.environ.update(saved)
 
-    daemons = {"A": start(args.env_a), "B": start(args.env_b)}
+    daemons = {"A": start(args.env_a, args.args_a), "B": start(args.env_b, args.args_b)}
     try:
-        print(f"A: {' '.join(args.env_a) or '(default)'}   B: {' '.join(args.env_b) or '(default)'}")
+        print(f"A: {' '.join(args.env_a + args.args_a.split()) or '(default)'}   "
+              f"B: {' '.join(args.env_b + args.args_b.split()) or '(default)'}")
         for case in args.cases.split(","):
             got = {"A": [], "B": []}
             for r in range(args.rounds):

@@ -309,6 +309,8 @@ std::vector<std::string> SessionHostArguments(const DaemonConfig& c) {
   if (!c.native_dir.empty()) add("--native-dir", c.native_dir);
   if (c.cpu_threads > 0) add("--cpu-threads", std::to_string(c.cpu_threads));
   if (c.allow_unchecked) a.push_back("--allow-unchecked");
+  if (c.verify_cuda) a.push_back("--verify-cuda");
+  if (!c.verify_cuda_archs_text.empty()) add("--verify-cuda-archs", c.verify_cuda_archs_text);
   add("--max-module-bytes", std::to_string(c.max_module_bytes));
   add("--max-functions", std::to_string(c.max_functions));
   add("--max-block-depth", std::to_string(c.max_block_depth));

@@ -65,8 +65,8 @@ struct DaemonConfig {
   bool device_host() const { return !host_device.empty(); }
 };
 
-// The flags a session host inherits from this daemon's settings (limits, cache, logging,
-// --allow-unchecked); SessionHosts adds --listen and the --host-* flags.
+// The flags a session or device host inherits from this daemon's settings (limits, cache,
+// logging, --allow-unchecked, --verify-cuda); SessionHosts adds --listen and the --host-* flags.
 std::vector<std::string> SessionHostArguments(const DaemonConfig& c);
 
 // "4096", "512M", "16G", "1T" (binary units, optional "iB"/"B") -> bytes.

@@ -259,10 +259,12 @@ int main(int argc, char** argv) {
     }
   }
   SessionReaper reaper(**engine, cfg->attach_timeout_s);   // before the services: Attach queues reaps to it
-  SessionServiceImpl session_service(auth, reaper, fast_lane.get(), hosts.get(),
-                                     cfg->session_host() && !cfg->device_host(),
-                                     cfg->isolate_sessions && !cfg->session_host(),
-                                     cfg->device_hosts && !cfg->session_host());
+  SessionServiceImpl::Routing routing;
+  routing.single_session = cfg->session_host() && !cfg->device_host();
+  routing.unchecked_hosts = cfg->allow_unchecked && !cfg->session_host();
+  routing.isolate = cfg->isolate_sessions && !cfg->session_host();
+  routing.device_hosts = cfg->device_hosts && !cfg->session_host();
+  SessionServiceImpl session_service(auth, reaper, fast_lane.get(), hosts.get(), routing);
   ArrayServiceImpl array_service(auth);
   ExecServiceImpl exec_service(auth);
   ModuleServiceImpl module_service(auth);

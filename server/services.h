@@ -22,17 +22,21 @@ class SessionHosts;   // server/session_hosts.h
 // Attach is served on gRPC's callback API: an attached session's stream waits without holding
 // a thread (a sync-API stream would hold one of gRPC's server threads for the session's whole
 // life); the other methods are synchronous.
+// Where SessionService.Open sends a session.
+struct SessionRouting {
+  bool single_session = false;   // this weftd is a session host; a second Open is refused
+  bool unchecked_hosts = false;  // an unchecked local session goes to a host (--allow-unchecked)
+  bool isolate = false;          // every local session goes to a host (--isolate-sessions)
+  bool device_hosts = false;     // a checked local session goes to its device's host (--device-hosts)
+};
+
 class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_Attach<v1::SessionService::Service> {
  public:
-  // `hosts`: where unchecked sessions go (null: none are opened; the session is checked).
-  // `single_session`: this weftd is a session host; a second Open is refused.
-  // `isolate`: every local session goes to a host (--isolate-sessions), checked ones too.
-  // `device_hosts`: every checked local session goes to the host of its device (--device-hosts).
+  using Routing = SessionRouting;
+  // `hosts`: the processes sessions run in (null: every session opens here).
   SessionServiceImpl(const CallAuth& auth, SessionReaper& reaper, FastLane* fast_lane = nullptr,
-                     SessionHosts* hosts = nullptr, bool single_session = false, bool isolate = false,
-                     bool device_hosts = false)
-      : auth_(auth), reaper_(reaper), fast_lane_(fast_lane), hosts_(hosts), single_session_(single_session),
-        isolate_(isolate), device_hosts_(device_hosts) {}
+                     SessionHosts* hosts = nullptr, Routing routing = {})
+      : auth_(auth), reaper_(reaper), fast_lane_(fast_lane), hosts_(hosts), routing_(routing) {}
   grpc::Status Open(grpc::ServerContext* ctx, const v1::OpenSessionRequest* req, v1::OpenSessionResponse* resp) override;
   grpc::ServerBidiReactor<v1::AttachRequest, v1::AttachEvent>* Attach(grpc::CallbackServerContext* ctx) override;
   grpc::Status Close(grpc::ServerContext* ctx, const v1::CloseSessionRequest* req, v1::CloseSessionResponse* resp) override;
@@ -42,13 +46,13 @@ class SessionServiceImpl final : public v1::SessionService::WithCallbackMethod_A
   // "" = the first GPU that computes, else "cpu"; "cuda" = the GPUs in turn; InvalidArgument
   // for anything that is not one of the daemon's devices.
   Expected<std::string> SessionDevice(const std::string& asked);
+  // Adds the stats of the device hosts alive now to the daemon's own (--device-hosts).
+  void AddDeviceHostStats(v1::StatsResponse* resp) const;
   const CallAuth& auth_;
   SessionReaper& reaper_;
   FastLane* fast_lane_;   // null: no fast lane (the Open response then names none)
   SessionHosts* hosts_;
-  const bool single_session_;
-  const bool isolate_;
-  const bool device_hosts_;
+  const Routing routing_;
   std::atomic<bool> session_opened_{false};
   std::atomic<uint64_t> cuda_turn_{0};   // sessions opened on "cuda" go to the GPUs in turn
 };

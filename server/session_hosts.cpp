@@ -250,6 +250,14 @@ void SessionHosts::StopAll() {
   }
 }
 
+std::vector<std::string> SessionHosts::DeviceHostSockets() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<std::string> out;
+  for (const auto& [pid, host] : hosts_)
+    if (pid > 0 && !host.device.empty()) out.push_back(host.socket);
+  return out;
+}
+
 uint32_t SessionHosts::alive() const {
   std::lock_guard<std::mutex> lock(mu_);
   uint32_t n = 0;

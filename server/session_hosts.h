@@ -48,6 +48,8 @@ class SessionHosts {
   // after 3 s, and reaps them.
   void StopAll();
 
+  // The sockets of the device hosts alive now (the daemon's Stats add theirs).
+  std::vector<std::string> DeviceHostSockets() const;
   uint32_t alive() const;
   uint64_t started_total() const;
 

@@ -4,10 +4,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <memory>
 #include <mutex>
 #include <string>
 
+#include <grpcpp/create_channel.h>
 #include <spdlog/spdlog.h>
 
 #include "server/fast_lane.h"
@@ -32,12 +34,13 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
   o.client_pid = peer ? peer->pid : req->client_pid();
   o.local = peer.has_value();
   o.principal = auth_.Principal(*ctx);
-  if ((req->unchecked() || isolate_) && hosts_ && o.local) {
+  const bool unchecked = req->unchecked() && routing_.unchecked_hosts;
+  if ((unchecked || routing_.isolate) && hosts_ && o.local) {
     // An unchecked session (every local session with --isolate-sessions) runs in a process of
     // its own: start it and send the client there.
     auto host = hosts_->Start(o.principal);
     if (!host.ok()) {
-      spdlog::warn("refused {} session of {}: {}", req->unchecked() ? "unchecked" : "isolated", o.principal,
+      spdlog::warn("refused {} session of {}: {}", unchecked ? "unchecked" : "isolated", o.principal,
                    host.status().message());
       return ToGrpc(host.status());
     }
@@ -46,7 +49,7 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
     resp->set_daemon_pid(getpid());
     return grpc::Status::OK;
   }
-  if (device_hosts_ && hosts_ && o.local && !req->unchecked()) {
+  if (routing_.device_hosts && hosts_ && o.local && !unchecked) {
     // Under --device-hosts a checked local session runs in the process of its device.
     auto device = SessionDevice(req->device());
     if (!device.ok()) return ToGrpc(device.status());
@@ -61,10 +64,10 @@ grpc::Status SessionServiceImpl::Open(grpc::ServerContext* ctx, const v1::OpenSe
     resp->set_daemon_pid(getpid());
     return grpc::Status::OK;
   }
-  if (single_session_ && session_opened_.exchange(true))
+  if (routing_.single_session && session_opened_.exchange(true))
     return ToGrpc(FailedPrecondition("this weftd is a session host and serves one session, already opened"));
   auto s = auth_.engine().OpenClientSession(o);
-  if (!s.ok() && single_session_) session_opened_ = false;   // the host's one session is still to come
+  if (!s.ok() && routing_.single_session) session_opened_ = false;   // the host's one session is still to come
   if (!s.ok()) {
     spdlog::warn("refused session open from {}: {}", o.principal, s.status().message());
     return ToGrpc(s.status());
@@ -197,6 +200,40 @@ grpc::Status SessionServiceImpl::Close(grpc::ServerContext* ctx, const v1::Close
   return ToGrpc(st);
 }
 
+void SessionServiceImpl::AddDeviceHostStats(v1::StatsResponse* resp) const {
+  // Under --device-hosts the sessions live in the hosts: the daemon's view adds theirs (a host
+  // that does not answer within a second is left out, and its sessions with it).
+  for (const std::string& socket : hosts_->DeviceHostSockets()) {
+    auto channel = grpc::CreateChannel("unix:" + socket, grpc::InsecureChannelCredentials());
+    auto stub = v1::SessionService::NewStub(channel);
+    grpc::ClientContext cctx;
+    cctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(1));
+    v1::StatsResponse h;
+    const grpc::Status got = stub->Stats(&cctx, v1::StatsRequest(), &h);
+    if (!got.ok()) {
+      spdlog::debug("stats of the device host at {}: {}", socket, got.error_message());
+      continue;
+    }
+    resp->set_sessions(resp->sessions() + h.sessions());
+    resp->set_arrays(resp->arrays() + h.arrays());
+    resp->set_array_bytes(resp->array_bytes() + h.array_bytes());
+    resp->set_cpu_slabs(resp->cpu_slabs() + h.cpu_slabs());
+    resp->set_cpu_slab_bytes(resp->cpu_slab_bytes() + h.cpu_slab_bytes());
+    resp->set_module_cache_hits(resp->module_cache_hits() + h.module_cache_hits());
+    resp->set_module_cache_disk_hits(resp->module_cache_disk_hits() + h.module_cache_disk_hits());
+    resp->set_module_cache_misses(resp->module_cache_misses() + h.module_cache_misses());
+    resp->set_sessions_opened_total(resp->sessions_opened_total() + h.sessions_opened_total());
+    resp->set_sessions_reaped_total(resp->sessions_reaped_total() + h.sessions_reaped_total());
+    resp->set_gpu_slabs(resp->gpu_slabs() + h.gpu_slabs());
+    resp->set_gpu_slab_bytes(resp->gpu_slab_bytes() + h.gpu_slab_bytes());
+    resp->set_gpu_resets(resp->gpu_resets() + h.gpu_resets());
+    resp->set_last_gpu_reset_ms(std::max(resp->last_gpu_reset_ms(), h.last_gpu_reset_ms()));
+    resp->set_gpu_coarsened_launches(resp->gpu_coarsened_launches() + h.gpu_coarsened_launches());
+    resp->set_commands_run_total(resp->commands_run_total() + h.commands_run_total());
+    resp->set_command_run_seconds(resp->command_run_seconds() + h.command_run_seconds());
+  }
+}
+
 grpc::Status SessionServiceImpl::Stats(grpc::ServerContext* ctx, const v1::StatsRequest*, v1::StatsResponse* resp) {
   Status st = auth_.Authenticate(*ctx);
   if (!st.ok()) return ToGrpc(st);
@@ -221,6 +258,7 @@ grpc::Status SessionServiceImpl::Stats(grpc::ServerContext* ctx, const v1::Stats
   if (hosts_) {
     resp->set_session_hosts(hosts_->alive());
     resp->set_session_hosts_started_total(hosts_->started_total());
+    AddDeviceHostStats(resp);
   }
   // The calling session's placement, when the call names one.
   if (auto s = auth_.SessionOf(*ctx); s.ok()) resp->set_cuda_placement(auth_.engine().CudaPlacement(**s));

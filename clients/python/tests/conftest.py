@@ -352,7 +352,9 @@ def weftd():
     """A weftd on a Unix socket; WEFT_ADDRESS points at it for this process and children."""
     _require_daemon()
     workdir = Path(tempfile.mkdtemp(prefix="weft-test-"))
-    daemon = Daemon(workdir)
+    # WEFT_TEST_DAEMON_ARGS: more flags for this shared daemon, e.g. --device-hosts (the tests'
+    # sessions then run in the processes of their devices; docs/testing.md).
+    daemon = Daemon(workdir, extra_args=tuple(os.environ.get("WEFT_TEST_DAEMON_ARGS", "").split()))
     old_address = os.environ.get("WEFT_ADDRESS")
     old_token = os.environ.pop("WEFT_TOKEN", None)
     os.environ["WEFT_ADDRESS"] = daemon.address

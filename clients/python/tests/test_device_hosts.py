@@ -151,8 +151,9 @@ def _gpus(daemon) -> list[str]:
 def test_the_sessions_of_a_device_share_its_process(start_weftd, client_env, tmp_path):
     """weftd with device-hosts (from its config file): two client processes on the CPU get their
     sessions in one device host (not the daemon),
-    compute right against float64 on huge and tiny values, and the daemon counts one host and
-    no session of its own; a session asking for "cpu" by name lands in the same host."""
+    compute right against float64 on huge and tiny values, and the daemon's stats count the host
+    and add its sessions and arrays; a session that names no device lands in the same host
+    where there is no GPU, in the first GPU's otherwise."""
     config = tmp_path / "weftd.toml"          # the config file's key, as an operator writes it
     config.write_text("device-hosts = true\n")
     daemon = start_weftd(["--config", str(config)])
@@ -167,7 +168,9 @@ def test_the_sessions_of_a_device_share_its_process(start_weftd, client_env, tmp
         assert first.pid == second.pid != daemon.pid and _alive(first.pid)
         assert first.error <= 1e-15 and second.error <= 1e-15
         stats = _daemon_stats(daemon)
-        assert stats.session_hosts == 1 + len(gpus) and stats.sessions == 0, stats
+        # The daemon's stats add its device hosts': the two sessions and their four arrays.
+        assert stats.session_hosts == 1 + len(gpus) and stats.sessions == 2, stats
+        assert stats.arrays >= 4 and stats.array_bytes >= 4 * 4096 * 8, stats
         default = _open(daemon, "")
         assert default.session_device == (gpus[0] if gpus else "cpu")
         assert (default.session_host == _open(daemon, "cpu").session_host) == (not gpus)
@@ -314,6 +317,16 @@ except Exception as exc:
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith("REFUSED"), proc.stdout
     assert "bounds" in proc.stdout, proc.stdout
+
+
+def test_an_unchecked_request_without_allow_unchecked_goes_to_the_device_host(start_weftd):
+    """Without --allow-unchecked an unchecked request is an ordinary, checked session: under
+    --device-hosts it goes to its device's host like any other, and starts no process of its own."""
+    daemon = start_weftd(["--device-hosts"])
+    checked = _open(daemon, "cpu")
+    asked = _open(daemon, "cpu", unchecked=True)
+    assert asked.session_host == checked.session_host and asked.session_device == "cpu"
+    assert _daemon_stats(daemon).session_hosts_started_total == 1
 
 
 OTHER_USER_PROBE = """
