@@ -61,11 +61,11 @@ Expected<std::shared_ptr<ClientCore>> ClientCore::Open(const ConnectOptions& opt
                                 : options.client_name);
     request.set_client_pid(pid);
     request.set_unchecked(options.unchecked);
+    request.set_device(options.device);
     response.Clear();
     auto context = core->NewContext();
-    // A session host may take a while to start (CUDA initialisation): allow it more.
-    context->set_deadline(std::chrono::system_clock::now() + options.connect_timeout +
-                          (options.unchecked ? std::chrono::milliseconds(60000) : std::chrono::milliseconds(0)));
+    // A session or device host may take a while to start (CUDA initialisation): allow it more.
+    context->set_deadline(std::chrono::system_clock::now() + options.connect_timeout + std::chrono::milliseconds(60000));
     WEFT_CLIENT_RETURN_IF_ERROR(
         FromRpc(core->session_stub_->Open(context.get(), request, &response), "SessionService.Open"));
     if (response.session_host().empty() || hop == 1) break;

@@ -1152,6 +1152,39 @@ TEST(ClientUncheckedTest, UncheckedSessionsRunInASessionHost) {
   EXPECT_EQ(daemon->Stop(), 0) << daemon->Log();
 }
 
+// Under --device-hosts two clients that name the CPU get their sessions in one device host (not
+// the daemon) and compute there; a device name the daemon does not have is refused at Connect.
+TEST(ClientDeviceHostTest, SessionsOfADeviceShareItsProcess) {
+  std::string error;
+  auto daemon = Daemon::Start(false, &error, {"--device-hosts"});
+  ASSERT_NE(daemon, nullptr) << error;
+  weft::ConnectOptions o = daemon->Options();
+  o.device = "cpu";
+  auto first = weft::Client::Connect(o);
+  ASSERT_OK_E(first);
+  auto second = weft::Client::Connect(o);
+  ASSERT_OK_E(second);
+  EXPECT_NE(first->session().daemon_pid, daemon->pid());
+  EXPECT_EQ(first->session().daemon_pid, second->session().daemon_pid);
+  EXPECT_EQ(first->session().address, second->session().address);
+  EXPECT_NE(first->session().address.find("/host-"), std::string::npos) << first->session().address;
+  std::mt19937_64 rng(std::random_device{}());
+  const std::vector<double> values = RandomValues<double>(rng, 1000);
+  auto a = first->FromData<double>(values);
+  ASSERT_OK_E(a);
+  auto back = a->ToVector<double>();
+  ASSERT_OK_E(back);
+  EXPECT_EQ(*back, values);
+  o.device = "cuda:99";
+  auto refused = weft::Client::Connect(o);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("session device 'cuda:99'"), std::string::npos)
+      << refused.status().ToString();
+  ASSERT_OK(first->Close());
+  ASSERT_OK(second->Close());
+  EXPECT_EQ(daemon->Stop(), 0) << daemon->Log();
+}
+
 TEST_F(ClientTest, TapeBackwardGivesTheGradient) {
   weft::ModuleDef m;
   m.name = "client_test_tape";

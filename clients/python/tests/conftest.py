@@ -266,9 +266,19 @@ class RawSession:
         self.exec = _runtime.ExecServiceStub(self.channel)
         self.devices = _runtime.DeviceServiceStub(self.channel)
         self.modules = _runtime.ModuleServiceStub(self.channel)
-        self.opened = self.session.Open(
-            session_pb2.OpenSessionRequest(client_name=name, client_pid=os.getpid()),
-            metadata=daemon.metadata(), timeout=10)
+        request = session_pb2.OpenSessionRequest(client_name=name, client_pid=os.getpid())
+        self.opened = self.session.Open(request, metadata=daemon.metadata(), timeout=60)
+        if self.opened.session_host and not self.opened.session_id:
+            # A daemon that runs sessions in hosts (--device-hosts, --isolate-sessions) names
+            # the host's socket: the session is opened there, as the clients do.
+            self.channel.close()
+            self.channel = grpc.insecure_channel("unix:" + self.opened.session_host, options=options)
+            self.session = _runtime.SessionServiceStub(self.channel)
+            self.arrays = _runtime.ArrayServiceStub(self.channel)
+            self.exec = _runtime.ExecServiceStub(self.channel)
+            self.devices = _runtime.DeviceServiceStub(self.channel)
+            self.modules = _runtime.ModuleServiceStub(self.channel)
+            self.opened = self.session.Open(request, metadata=daemon.metadata(), timeout=60)
         self.session_id = self.opened.session_id
         self.metadata = daemon.metadata(self.session_id)
         self._session_pb2 = session_pb2

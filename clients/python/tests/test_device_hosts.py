@@ -423,3 +423,57 @@ def test_host_flags_are_checked(daemon_path, flags):
                           capture_output=True, text=True, timeout=30)
     assert proc.returncode == 2, (proc.returncode, proc.stderr)
     assert "--host-device" in proc.stderr, proc.stderr
+
+
+EXPORTER = '''
+import sys
+import numpy as np
+import weft as wp
+
+a = wp.array(np.arange(64, dtype=np.float32), dtype=float, device="cpu")
+print(a.ipc_handle().decode(), flush=True)
+sys.stdin.readline()
+'''
+
+IMPORTER = '''
+import sys
+import numpy as np
+import weft as wp
+
+try:
+    b = wp.from_ipc_handle(sys.argv[1].encode(), dtype=wp.float32, shape=(64,))
+    print("OPENED", np.array_equal(b.numpy(), np.arange(64, dtype=np.float32)))
+except Exception as exc:
+    print("REFUSED", exc)
+'''
+
+
+def test_exports_open_in_sessions_of_the_same_device_host(start_weftd, client_env, tmp_path):
+    """An array exported with ipc_handle() opens in another session of the same device host;
+    a session in another device's host does not hold it and gets the clear error for a token
+    that names nothing (needs a GPU, for a second host)."""
+    daemon = start_weftd(["--device-hosts"])
+    gpus = _gpus(daemon)
+    if not gpus:
+        pytest.skip("needs a GPU: every session of a machine without one is in the CPU's host")
+    exporter_file, importer_file = tmp_path / "exporter.py", tmp_path / "importer.py"
+    exporter_file.write_text(EXPORTER)
+    importer_file.write_text(IMPORTER)
+    env = {"WEFT_ADDRESS": daemon.address, "WEFT_SESSION_DEVICE": gpus[0]}
+    exporter = subprocess.Popen([sys.executable, str(exporter_file)], stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, text=True, env=client_env(env))
+    try:
+        token = exporter.stdout.readline().strip()
+        assert token, "the exporter printed no token"
+        results = {}
+        for device in (gpus[0], "cpu"):
+            proc = subprocess.run([sys.executable, str(importer_file), token], capture_output=True,
+                                  text=True, timeout=120,
+                                  env=client_env({**env, "WEFT_SESSION_DEVICE": device}))
+            assert proc.returncode == 0, proc.stderr
+            results[device] = proc.stdout.strip()
+        assert results[gpus[0]] == "OPENED True", results
+        assert results["cpu"].startswith("REFUSED") and "IPC token" in results["cpu"], results
+    finally:
+        exporter.kill()
+        exporter.wait()

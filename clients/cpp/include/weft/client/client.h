@@ -44,6 +44,10 @@ struct ConnectOptions {
   // "bounds_checks": "false"). A weftd started with --allow-unchecked runs it in a process of
   // its own (a session host, whose socket Connect then uses); elsewhere the session is checked.
   bool unchecked = false;
+  // The device the session works on ("cpu", "cuda", "cuda:N"; empty: the daemon's first GPU,
+  // else the CPU). A weftd started with --device-hosts opens the session in that device's
+  // process (a device host, whose socket Connect then uses); other daemons ignore it.
+  std::string device;
 };
 
 struct ArrayOptions {
