@@ -287,10 +287,14 @@ def test_a_gpu_session_between_array_calls_finds_the_daemon_polling(ring_weftd, 
     assert out.stdout.rstrip().endswith("ok"), out.stdout + out.stderr
     counts = dict(line.split() for line in out.stdout.splitlines() if line.startswith(("busy", "idle")))
     busy, idle = int(counts["busy"]), int(counts["idle"])
-    # 300 busy steps send ~600 frames: woken for at most a quarter of the steps (each step
-    # woke it before the window followed the client); 100 idle steps: most wake it
-    assert busy <= 75, (busy, idle)
+    # 300 busy steps send ~600 frames, 100 idle steps ~200. Idle steps wake the lane for most
+    # frames; busy ones far less often per step: at most a quarter of the steps when the
+    # machine is quiet (each step woke it before the window followed the client), and under
+    # load (the whole suite in 8 shards beside it, 2026-11-30) 209 wakes against 193 idle ones:
+    # per step at most 0.4 of the idle rate either way (a window that does not follow the
+    # client woke it for every step: 299 and 300, a rate of 1.0 against ~1.9).
     assert idle >= 50, (busy, idle)
+    assert busy / 300 <= 0.4 * idle / 100, (busy, idle)
 
 
 class RawRing:
