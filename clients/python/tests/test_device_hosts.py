@@ -18,6 +18,7 @@ from pathlib import Path
 import grpc
 import numpy as np
 import pytest
+from test_session_hosts import _daemon_stats
 
 # Holds random arrays on its device in the daemon's host for it, reports, waits for a line on
 # stdin, then checks them and computes once more (reporting the error of a lost session).
@@ -107,19 +108,6 @@ def _alive(pid: int) -> bool:
     except ProcessLookupError:
         return False
     return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[:1] != ["Z"]
-
-
-def _daemon_stats(daemon):
-    """SessionService.Stats without opening a session (an Open would start a host here)."""
-    from weft import _runtime
-    from weft.v1 import session_pb2
-
-    channel = grpc.insecure_channel(daemon.grpc_target)
-    try:
-        return _runtime.SessionServiceStub(channel).Stats(session_pb2.StatsRequest(),
-                                                          metadata=daemon.metadata(), timeout=10)
-    finally:
-        channel.close()
 
 
 def _open(daemon, device: str = "", target: str | None = None, unchecked: bool = False):
@@ -477,3 +465,26 @@ def test_exports_open_in_sessions_of_the_same_device_host(start_weftd, client_en
     finally:
         exporter.kill()
         exporter.wait()
+
+
+def test_a_session_opened_as_its_device_host_dies_gets_a_new_one(start_weftd, wait_for):
+    """A device host killed just before a client opens a session: the daemon may still name the
+    dead host's socket (it reaps on a timer), whose connect then fails; the client asks the
+    daemon again and gets a new host, whose session works."""
+    from weft import _runtime
+
+    daemon = start_weftd(["--device-hosts"])
+    first = _runtime.Runtime(address=daemon.address)
+    old = first.daemon_pid
+    assert first.hosted and first.host_device == "cpu" and old != daemon.pid
+    first.close()
+    for _ in range(3):
+        os.kill(old, signal.SIGKILL)
+        rt = _runtime.Runtime(address=daemon.address)   # at once: the reaper runs every 100 ms
+        try:
+            assert rt.hosted and rt.host_device == "cpu"
+            assert rt.daemon_pid != old and _alive(rt.daemon_pid), (rt.daemon_pid, old)
+            assert rt.devices()[0].name == "cpu"
+        finally:
+            rt.close()
+        old = rt.daemon_pid
