@@ -488,3 +488,12 @@ def test_a_session_opened_as_its_device_host_dies_gets_a_new_one(start_weftd, wa
         finally:
             rt.close()
         old = rt.daemon_pid
+
+
+def test_isolation_wins_over_device_hosts(start_weftd):
+    """With --isolate-sessions and --device-hosts both, every local session gets a process of
+    its own (a session host, no device named), not the device's shared host."""
+    daemon = start_weftd(["--device-hosts", "--isolate-sessions"])
+    first, second = _open(daemon, "cpu"), _open(daemon, "cpu")
+    assert first.session_host and second.session_host and first.session_host != second.session_host
+    assert not first.session_device and not second.session_device
