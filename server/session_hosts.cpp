@@ -148,7 +148,7 @@ Expected<std::string> SessionHosts::Spawn(pid_t reserved, const std::string& soc
   if (spawned != 0) {
     close(ready[0]);
     release_placeholder();
-    return Unavailable("could not start a session host (" + binary_ + "): " + std::strerror(spawned));
+    return Unavailable("could not start the process " + what + " (" + binary_ + "): " + std::strerror(spawned));
   }
   const auto t0 = std::chrono::steady_clock::now();
   const bool up = WaitReady(ready[0], start_timeout_s_);
@@ -169,6 +169,7 @@ Expected<std::string> SessionHosts::Spawn(pid_t reserved, const std::string& soc
     unlink(socket.c_str());
     return Unavailable("the process " + what + " did not start: " + why + " (the daemon's log has its output)");
   }
+  const char* kind = host.device.empty() ? "session" : "device";
   hosts_[pid] = std::move(host);
   // The daemon's socket may have been opened to a group (docs/operations.md): the host's too.
   struct stat daemon_st {};
@@ -180,7 +181,7 @@ Expected<std::string> SessionHosts::Spawn(pid_t reserved, const std::string& soc
         spdlog::warn("session host socket {}: chmod: {}", path, std::strerror(errno));
     }
   }
-  spdlog::info("{} host pid {} {} listens on {} ({:.0f} ms to start)", role.front() == "--host-device" ? "device" : "session",
+  spdlog::info("{} host pid {} {} listens on {} ({:.0f} ms to start)", kind,
                pid, what, socket,
                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   return socket;
